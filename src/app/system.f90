@@ -1,0 +1,74 @@
+!> The few operating-system services the program needs, through the C library.
+module ellroll_system
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_size_t, c_ptr, &
+      c_null_ptr, c_associated
+  implicit none
+  private
+
+  public :: rename_file, remove_file, utc_timestamp, process_id
+
+  interface
+    integer(c_int) function c_rename(old, new) bind(c, name='rename')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: old(*), new(*)
+    end function c_rename
+    integer(c_int) function c_remove(path) bind(c, name='remove')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_remove
+    integer(c_long) function c_time(tloc) bind(c, name='time')
+      import :: c_long, c_ptr
+      type(c_ptr), value :: tloc
+    end function c_time
+    type(c_ptr) function c_gmtime(t) bind(c, name='gmtime')
+      import :: c_ptr, c_long
+      integer(c_long), intent(in) :: t
+    end function c_gmtime
+    integer(c_size_t) function c_strftime(buf, size, format, tm) bind(c, name='strftime')
+      import :: c_size_t, c_char, c_ptr
+      character(kind=c_char), intent(out) :: buf(*)
+      integer(c_size_t), value :: size
+      character(kind=c_char), intent(in) :: format(*)
+      type(c_ptr), value :: tm
+    end function c_strftime
+    integer(c_int) function c_getpid() bind(c, name='getpid')
+      import :: c_int
+    end function c_getpid
+  end interface
+
+contains
+
+  !> Atomically replace `new` by `old` (POSIX rename). True on success.
+  logical function rename_file(old, new)
+    character(len=*), intent(in) :: old, new
+    rename_file = c_rename(old // c_null_char, new // c_null_char) == 0
+  end function rename_file
+
+  subroutine remove_file(path)
+    character(len=*), intent(in) :: path
+    integer(c_int) :: rc
+    rc = c_remove(path // c_null_char)
+  end subroutine remove_file
+
+  !> Current time as ISO 8601 UTC, e.g. 2026-11-23T03:22:15Z.
+  function utc_timestamp() result(stamp)
+    character(len=:), allocatable :: stamp
+    character(kind=c_char) :: buf(32)
+    integer(c_long) :: now
+    integer(c_size_t) :: n
+    type(c_ptr) :: tm
+    integer :: i
+    now = c_time(c_null_ptr)
+    tm = c_gmtime(now)
+    stamp = ''
+    if (.not. c_associated(tm)) return
+    n = c_strftime(buf, size(buf, kind=c_size_t), '%Y-%m-%dT%H:%M:%SZ' // c_null_char, tm)
+    do i = 1, int(n)
+      stamp = stamp // buf(i)
+    end do
+  end function utc_timestamp
+
+  integer function process_id()
+    process_id = int(c_getpid())
+  end function process_id
+end module ellroll_system

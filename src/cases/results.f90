@@ -1,0 +1,65 @@
+!> What integrating one case produced: the sampled trajectories of the fields
+!> the run asked for, and the per-case summary.
+module ellroll_results
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use ellroll_kinds, only: wp, i8
+  use ellroll_records, only: named_value_t, real_value, int_value
+  use ellroll_status, only: status_pending
+  use ellroll_cases, only: field_count, field_ncomp
+  implicit none
+  private
+
+  public :: field_buffer_t, case_result_t, summary_record, new_case_result
+
+  type :: field_buffer_t
+    real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
+  end type field_buffer_t
+
+  type :: case_result_t
+    integer :: status = status_pending
+    real(wp) :: t_final = 0
+    integer(i8) :: n_steps = 0
+    integer(i8) :: n_rhs = 0
+    real(wp) :: wall_time = 0
+    real(wp) :: theta_max = 0
+    real(wp) :: reaction_normal_max = 0
+    real(wp) :: friction_needed_max = 0
+    real(wp) :: energy_drift = 0
+    real(wp) :: constraint_error_max = 0
+    type(field_buffer_t) :: fields(field_count)
+  end type case_result_t
+
+contains
+
+  !> A result with NaN-filled buffers for the wanted fields only.
+  pure function new_case_result(wanted, n_samples) result(res)
+    logical, intent(in) :: wanted(field_count)
+    integer(i8), intent(in) :: n_samples
+    type(case_result_t) :: res
+    integer :: f
+    do f = 1, field_count
+      if (wanted(f)) then
+        allocate (res%fields(f)%values(field_ncomp(f), n_samples))
+        res%fields(f)%values = ieee_value(0.0_wp, ieee_quiet_nan)
+      end if
+    end do
+  end function new_case_result
+
+  !> The per-case summary as stored under /summary/ (status is written apart).
+  pure function summary_record(res) result(rec)
+    type(case_result_t), intent(in) :: res
+    type(named_value_t) :: rec(9)
+    rec = [ &
+      real_value('t_final', 's', 'time at which the case ended', res%t_final), &
+      int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
+      int_value('n_rhs', '1', 'right-hand side evaluations', res%n_rhs), &
+      real_value('wall_time', 's', 'wall-clock time of the integration (not reproducible)', res%wall_time), &
+      real_value('theta_max', 'rad', 'largest nutation angle over all steps', res%theta_max), &
+      real_value('reaction_normal_max', 'N', 'largest normal force over all steps', res%reaction_normal_max), &
+      real_value('friction_needed_max', '1', 'largest |F_t|/N over all steps', res%friction_needed_max), &
+      real_value('energy_drift', '1', 'max |E - E0| / |E0| over all steps', res%energy_drift), &
+      real_value('constraint_error_max', '1', &
+                 'max |(x/a)^2+(y/b)^2+((z-c)/c)^2-1| of the contact point over all steps', &
+                 res%constraint_error_max) ]
+  end function summary_record
+end module ellroll_results

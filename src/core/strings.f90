@@ -1,0 +1,92 @@
+!> Small text helpers shared by the input checks, the messages and the writer.
+module ellroll_strings
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp
+  implicit none
+  private
+
+  public :: lower, itoa, join, format_real
+
+contains
+
+  pure function lower(text) result(out)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: out
+    integer :: k
+    out = text
+    do k = 1, len(text)
+      if (text(k:k) >= 'A' .and. text(k:k) <= 'Z') out(k:k) = achar(iachar(text(k:k)) + 32)
+    end do
+  end function lower
+
+  pure function itoa(i) result(s)
+    integer, intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=16) :: buf
+    write (buf, '(i0)') i
+    s = trim(buf)
+  end function itoa
+  pure function join(words) result(text)
+    character(len=*), intent(in) :: words(:)
+    character(len=:), allocatable :: text
+    integer :: k
+    text = trim(words(1))
+    do k = 2, size(words)
+      text = text // ', ' // trim(words(k))
+    end do
+  end function join
+
+  !> The shortest text that reads back as x: 0.2, 30, 1e-06, 2620.
+  function format_real(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=:), allocatable :: text
+    character(len=40) :: buf
+    real(wp) :: back
+    integer :: digits, exponent10, ios
+    if (.not. ieee_is_finite(x)) then
+      write (buf, '(es12.3)') x
+      text = trim(adjustl(buf))
+      return
+    end if
+    if (x == 0) then
+      text = '0'
+      return
+    end if
+    do digits = 1, 17
+      write (buf, '(es40.' // itoa(digits - 1) // 'e3)') x
+      read (buf, *, iostat=ios) back
+      if (ios == 0 .and. back == x) exit
+    end do
+    exponent10 = floor(log10(abs(x)))
+    if (exponent10 >= -4 .and. exponent10 < 10) then
+      write (buf, '(f40.' // itoa(max(0, digits - 1 - exponent10)) // ')') x
+      text = trim(adjustl(buf))
+      if (text(len(text):len(text)) == '.') text = text(:len(text)-1)
+      if (text(1:1) == '.') text = '0' // text
+      if (text(1:2) == '-.') text = '-0' // text(2:)
+    else
+      text = trim(adjustl(buf))
+      text = strip_mantissa(text(:index(text, 'E')-1)) // 'e' // exponent_text(exponent10)
+    end if
+  contains
+    pure function strip_mantissa(m) result(out)
+      character(len=*), intent(in) :: m
+      character(len=:), allocatable :: out
+      out = m
+      if (index(out, '.') > 0) then
+        do while (out(len(out):len(out)) == '0')
+          out = out(:len(out)-1)
+        end do
+        if (out(len(out):len(out)) == '.') out = out(:len(out)-1)
+      end if
+    end function strip_mantissa
+    pure function exponent_text(e) result(out)
+      integer, intent(in) :: e
+      character(len=:), allocatable :: out
+      out = itoa(abs(e))
+      if (len(out) < 2) out = '0' // out
+      out = merge('-', '+', e < 0) // out
+    end function exponent_text
+  end function format_real
+
+end module ellroll_strings

@@ -1,0 +1,436 @@
+!> Lexical scan of a namelist file before any Fortran namelist READ.
+!>
+!> gfortran reports several different faults (missing group, stray text,
+!> missing newline) as end-of-file, and a READ names neither the line nor the
+!> variable. So we split the file ourselves into groups and `name = value`
+!> assignments with their line numbers; each assignment is then read on its
+!> own (see ellroll_input), which pins every error to one variable.
+module ellroll_namelist_scan
+  use ellroll_errors, only: error_t, set_error, err_input
+  use ellroll_strings, only: lower, itoa
+  implicit none
+  private
+
+  public :: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, scan_namelist_text
+
+  type :: nml_assignment_t
+    character(len=:), allocatable :: name    !< lower case, as written: 'omega' or 'omega(3)'
+    character(len=:), allocatable :: base    !< lower case, without subscript
+    character(len=:), allocatable :: value   !< the value text, blanks collapsed
+    character(len=:), allocatable :: source  !< 'name = value', comments blanked, may span lines
+    integer :: line = 0
+  end type nml_assignment_t
+
+  type :: nml_group_t
+    character(len=:), allocatable :: name    !< lower case, without '&'
+    integer :: line = 0
+    type(nml_assignment_t), allocatable :: items(:)
+  contains
+    procedure :: find => find_item
+  end type nml_group_t
+
+  type :: nml_file_t
+    character(len=:), allocatable :: path
+    character(len=:), allocatable :: text    !< the file as read, for provenance
+    type(nml_group_t), allocatable :: groups(:)
+  contains
+    procedure :: group_index
+  end type nml_file_t
+
+  character, parameter :: lf = achar(10), cr = achar(13), tab = achar(9)
+
+contains
+
+  subroutine scan_namelist_file(path, file, err)
+    character(len=*), intent(in) :: path
+    type(nml_file_t), intent(out) :: file
+    type(error_t), intent(inout) :: err
+    integer :: unit, ios, file_size
+    character(len=256) :: msg
+    logical :: exists
+
+    file%path = path
+    inquire (file=path, exist=exists)
+    if (.not. exists) then
+      call set_error(err, err_input, path // ': input file not found')
+      return
+    end if
+    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', &
+          status='old', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(err, err_input, path // ': cannot open input file: ' // trim(msg))
+      return
+    end if
+    inquire (unit=unit, size=file_size)
+    if (file_size < 0) then
+      close (unit)
+      call set_error(err, err_input, path // ': cannot read input file (not a regular file?)')
+      return
+    end if
+    allocate (character(len=file_size) :: file%text)
+    if (file_size > 0) read (unit, iostat=ios, iomsg=msg) file%text
+    close (unit)
+    if (ios /= 0) then
+      call set_error(err, err_input, path // ': cannot read input file: ' // trim(msg))
+      return
+    end if
+    call scan_namelist_text(file, err)
+  end subroutine scan_namelist_file
+
+  !> Split file%text into groups and assignments.
+  subroutine scan_namelist_text(file, err)
+    type(nml_file_t), intent(inout) :: file
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: clean
+    character :: ch, quote
+    integer :: i, n, line, group_line, name_start, eq_pos, item_count, j
+    integer :: value_start
+    logical :: in_group
+    type(nml_assignment_t), allocatable :: items(:)
+    type(nml_group_t), allocatable :: groups(:)
+    character(len=:), allocatable :: group_name
+
+    n = len(file%text)
+    allocate (groups(0))
+    if (n == 0) then
+      call fail(1, 'the file is empty; expected namelist groups such as &geometry ... /')
+      return
+    end if
+    if (file%text(n:n) /= lf) then
+      call fail(count_lines(n), 'the last line does not end with a newline ' // &
+                '(gfortran cannot read a namelist group there); add a line break at the end')
+      return
+    end if
+
+    clean = file%text
+    line = 1
+    in_group = .false.
+    i = 1
+    quote = ' '
+    do while (i <= n)
+      ch = clean(i:i)
+      if (ch == lf) then
+        if (quote /= ' ') then
+          call fail(line, 'a quoted string is not closed on its line')
+          return
+        end if
+        line = line + 1
+        i = i + 1
+        cycle
+      end if
+      if (iachar(ch) < 32 .and. ch /= tab .and. ch /= cr) then
+        call fail(line, 'unexpected control character (code ' // itoa(iachar(ch)) // ')')
+        return
+      end if
+      if (quote /= ' ') then
+        if (ch == quote) quote = ' '
+        i = i + 1
+        cycle
+      end if
+      if (ch == '!') then
+        do while (i <= n)
+          if (clean(i:i) == lf) exit
+          clean(i:i) = ' '
+          i = i + 1
+        end do
+        cycle
+      end if
+
+      if (.not. in_group) then
+        if (ch == '&' .or. ch == '$') then
+          j = i + 1
+          do while (j <= n)
+            if (.not. is_name_char(clean(j:j))) exit
+            j = j + 1
+          end do
+          group_name = lower(clean(i+1:j-1))
+          if (len(group_name) == 0) then
+            call fail(line, "'" // ch // "' must be followed by a group name, e.g. &geometry")
+            return
+          end if
+          if (group_name == 'end') then
+            call fail(line, "'" // ch // "end' without an open group")
+            return
+          end if
+          do j = 1, size(groups)
+            if (groups(j)%name == group_name) then
+              call fail(line, '&' // group_name // ' appears twice (first at line ' // &
+                        itoa(groups(j)%line) // '); give each group once')
+              return
+            end if
+          end do
+          in_group = .true.
+          group_line = line
+          allocate (items(0))
+          item_count = 0
+          value_start = i + 1 + len(group_name)
+          i = value_start
+          cycle
+        else if (ch /= ' ' .and. ch /= tab .and. ch /= cr) then
+          call fail(line, 'unexpected text outside a namelist group: "' // snippet(i) // &
+                    '" (a group starts with &name and ends with /; comments start with !)')
+          return
+        end if
+        i = i + 1
+        cycle
+      end if
+
+      ! inside a group
+      if (ch == "'" .or. ch == '"') then
+        quote = ch
+      else if (ch == '/' .or. ((ch == '&' .or. ch == '$') .and. lower(clean(i+1:min(n, i+3))) == 'end')) then
+        if (.not. close_value(i - 1)) return
+        call append_group(groups, group_name, group_line, items)
+        in_group = .false.
+        if (ch /= '/') i = i + 3
+      else if (ch == '&' .or. ch == '$') then
+        call fail(line, '&' // group_name // ' (line ' // itoa(group_line) // &
+                  ') is not closed with / before the next group starts')
+        return
+      else if (ch == '=') then
+        eq_pos = i
+        name_start = find_name_start(eq_pos)
+        if (name_start == 0) then
+          call fail(line, "'=' without a variable name before it in &" // group_name)
+          return
+        end if
+        if (item_count == 0) then
+          if (len_trim(collapse(clean(value_start:name_start-1))) > 0) then
+            call fail(line, 'unexpected text "' // collapse(clean(value_start:name_start-1)) // &
+                      '" in &' // group_name // ' before the first variable')
+            return
+          end if
+        else
+          if (.not. close_value(name_start - 1)) return
+        end if
+        item_count = item_count + 1
+        call append_item(items, lower(collapse(clean(name_start:eq_pos-1))), line)
+        items(item_count)%source = clean(name_start:eq_pos)    ! value appended by close_value
+        value_start = eq_pos + 1
+      end if
+      i = i + 1
+    end do
+
+    if (in_group) then
+      call fail(group_line, '&' // group_name // ' is not closed with / before the end of the file')
+      return
+    end if
+    if (size(groups) == 0) then
+      call fail(1, 'no namelist group found; expected groups such as &geometry ... /')
+      return
+    end if
+    file%groups = groups
+
+  contains
+
+    !> The value of the open assignment ends at position last.
+    logical function close_value(last)
+      integer, intent(in) :: last
+      character(len=:), allocatable :: value
+      close_value = .true.
+      value = collapse(clean(value_start:last))
+      if (item_count == 0) then
+        if (len(value) > 0) then
+          call fail(line, 'unexpected text "' // value // '" in &' // group_name // &
+                    '; expected name = value')
+          close_value = .false.
+        end if
+        return
+      end if
+      if (len(value) > 0) then
+        if (value(len(value):len(value)) == ',') value = trim(value(:len(value)-1))
+      end if
+      if (len(value) == 0) then
+        call fail(items(item_count)%line, '&' // group_name // ': ' // items(item_count)%name // &
+                  ' = (nothing): a value is required after =')
+        close_value = .false.
+        return
+      end if
+      items(item_count)%value = value
+      items(item_count)%source = items(item_count)%source // clean(value_start:last)
+    end function close_value
+
+    integer function find_name_start(eq) result(start)
+      integer, intent(in) :: eq
+      integer :: k, depth
+      start = 0
+      k = eq - 1
+      do while (k >= 1)
+        if (clean(k:k) /= ' ' .and. clean(k:k) /= tab .and. clean(k:k) /= cr .and. clean(k:k) /= lf) exit
+        k = k - 1
+      end do
+      if (k < 1) return
+      if (clean(k:k) == ')') then
+        depth = 0
+        do while (k >= 1)
+          if (clean(k:k) == ')') depth = depth + 1
+          if (clean(k:k) == '(') depth = depth - 1
+          if (depth == 0) exit
+          if (clean(k:k) == lf) return
+          k = k - 1
+        end do
+        if (k <= 1) return
+        k = k - 1
+      end if
+      if (k < 1) return
+      if (.not. is_name_char(clean(k:k))) return
+      do while (k >= 1)
+        if (.not. is_name_char(clean(k:k))) exit
+        k = k - 1
+      end do
+      start = k + 1
+      if (.not. is_letter(clean(start:start))) start = 0
+    end function find_name_start
+
+    function snippet(pos) result(s)
+      integer, intent(in) :: pos
+      character(len=:), allocatable :: s
+      integer :: e
+      e = pos
+      do while (e < n .and. e < pos + 30)
+        if (clean(e+1:e+1) == lf) exit
+        e = e + 1
+      end do
+      s = trim(clean(pos:e))
+    end function snippet
+
+    integer function count_lines(upto)
+      integer, intent(in) :: upto
+      integer :: k
+      count_lines = 1
+      do k = 1, upto - 1
+        if (file%text(k:k) == lf) count_lines = count_lines + 1
+      end do
+    end function count_lines
+
+    subroutine fail(at_line, message)
+      integer, intent(in) :: at_line
+      character(len=*), intent(in) :: message
+      call set_error(err, err_input, file%path // ':' // itoa(at_line) // ': ' // message)
+    end subroutine fail
+  end subroutine scan_namelist_text
+
+  !> Appends a group; the items move into it.
+  pure subroutine append_group(groups, name, line, items)
+    type(nml_group_t), allocatable, intent(inout) :: groups(:)
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: line
+    type(nml_assignment_t), allocatable, intent(inout) :: items(:)
+    type(nml_group_t), allocatable :: grown(:)
+    integer :: k
+    allocate (grown(size(groups) + 1))
+    do k = 1, size(groups)
+      call move_group(groups(k), grown(k))
+    end do
+    grown(size(grown))%name = name
+    grown(size(grown))%line = line
+    call move_alloc(items, grown(size(grown))%items)
+    call move_alloc(grown, groups)
+  contains
+    pure subroutine move_group(from, to)
+      type(nml_group_t), intent(inout) :: from
+      type(nml_group_t), intent(inout) :: to
+      call move_alloc(from%name, to%name)
+      to%line = from%line
+      call move_alloc(from%items, to%items)
+    end subroutine move_group
+  end subroutine append_group
+
+  pure subroutine append_item(items, name, line)
+    type(nml_assignment_t), allocatable, intent(inout) :: items(:)
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: line
+    type(nml_assignment_t), allocatable :: grown(:)
+    integer :: k
+    allocate (grown(size(items) + 1))
+    do k = 1, size(items)
+      call move_alloc(items(k)%name, grown(k)%name)
+      call move_alloc(items(k)%base, grown(k)%base)
+      call move_alloc(items(k)%value, grown(k)%value)
+      call move_alloc(items(k)%source, grown(k)%source)
+      grown(k)%line = items(k)%line
+    end do
+    grown(size(grown))%name = name
+    grown(size(grown))%base = base_name(name)
+    grown(size(grown))%value = ''
+    grown(size(grown))%source = ''
+    grown(size(grown))%line = line
+    call move_alloc(grown, items)
+  end subroutine append_item
+
+  pure integer function group_index(self, name)
+    class(nml_file_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer :: k
+    group_index = 0
+    do k = 1, size(self%groups)
+      if (self%groups(k)%name == name) then
+        group_index = k
+        return
+      end if
+    end do
+  end function group_index
+
+  !> Index of the first assignment to `base` in the group, 0 if none.
+  pure integer function find_item(self, base)
+    class(nml_group_t), intent(in) :: self
+    character(len=*), intent(in) :: base
+    integer :: k
+    find_item = 0
+    do k = 1, size(self%items)
+      if (self%items(k)%base == base) then
+        find_item = k
+        return
+      end if
+    end do
+  end function find_item
+
+  pure logical function is_letter(ch)
+    character, intent(in) :: ch
+    is_letter = (ch >= 'a' .and. ch <= 'z') .or. (ch >= 'A' .and. ch <= 'Z')
+  end function is_letter
+
+  pure logical function is_name_char(ch)
+    character, intent(in) :: ch
+    is_name_char = is_letter(ch) .or. (ch >= '0' .and. ch <= '9') .or. ch == '_'
+  end function is_name_char
+
+  pure function base_name(name) result(base)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: base
+    integer :: p
+    p = index(name, '(')
+    if (p > 0) then
+      base = trim(name(:p-1))
+    else
+      base = trim(name)
+    end if
+  end function base_name
+
+  !> Blanks, tabs and line breaks collapsed to single blanks, ends trimmed.
+  pure function collapse(text) result(out)
+    character(len=*), intent(in) :: text
+    character(len=:), allocatable :: out
+    character(len=len(text)) :: buf
+    integer :: k, m
+    logical :: blank_pending
+    m = 0
+    blank_pending = .false.
+    do k = 1, len(text)
+      select case (text(k:k))
+      case (' ', tab, cr, lf)
+        blank_pending = m > 0
+      case default
+        if (blank_pending) then
+          m = m + 1
+          buf(m:m) = ' '
+          blank_pending = .false.
+        end if
+        m = m + 1
+        buf(m:m) = text(k:k)
+      end select
+    end do
+    out = buf(:m)
+  end function collapse
+
+end module ellroll_namelist_scan

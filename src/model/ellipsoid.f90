@@ -1,0 +1,138 @@
+!> The fixed cup: the lower half of the triaxial ellipsoid
+!>     (x/a)^2 + (y/b)^2 + ((z - c)/c)^2 = 1,   z < c,
+!> whose lowest point is the origin. Everything is expressed through the
+!> inward unit normal n (from the contact point towards the ball centre):
+!> the inverse Gauss map p(n) = (0,0,c) - A n / s, A = diag(a^2,b^2,c^2),
+!> s = sqrt(n.A n), lands on the surface for every n, so a state built on n
+!> cannot leave the surface.
+module ellroll_ellipsoid
+  use ellroll_kinds, only: wp
+  implicit none
+  private
+
+  public :: ellipsoid_t, new_ellipsoid
+  public :: contact_from_normal, normal_from_contact, surface_residual
+  public :: radius_operator_t, radius_operator, apply_radius_operator
+  public :: principal_radii, bottom_radii
+
+  type :: ellipsoid_t
+    real(wp) :: a = 1, b = 1, c = 1
+    real(wp) :: axes2(3) = 1          !< (a^2, b^2, c^2): the diagonal of A
+    real(wp) :: det_axes2 = 1         !< a^2 b^2 c^2
+    real(wp) :: excess2(3) = 0        !< A - c^2 I, computed without cancellation
+  end type ellipsoid_t
+
+  !> The radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s.
+  !> K n = 0; on the tangent plane its eigenvalues are the principal radii.
+  type :: radius_operator_t
+    real(wp) :: an(3) = 0       !< A n
+    real(wp) :: s = 1           !< sqrt(n . A n)
+    real(wp) :: inv_s = 1
+    real(wp) :: trace = 0       !< r1 + r2
+    real(wp) :: det = 0         !< r1 r2 (product of principal radii)
+  end type radius_operator_t
+
+contains
+
+  pure function new_ellipsoid(a, b, c) result(cup)
+    real(wp), intent(in) :: a, b, c
+    type(ellipsoid_t) :: cup
+    cup%a = a; cup%b = b; cup%c = c
+    cup%axes2 = [a*a, b*b, c*c]
+    cup%det_axes2 = cup%axes2(1) * cup%axes2(2) * cup%axes2(3)
+    cup%excess2 = [(a - c)*(a + c), (b - c)*(b + c), 0.0_wp]
+  end function new_ellipsoid
+
+  !> Contact point for a unit normal n with n_z > 0 (the lower half).
+  !> The height is written so that it keeps full relative precision near the
+  !> bottom: z = c (a^2 nx^2 + b^2 ny^2) / (s (s + c nz)).
+  pure function contact_from_normal(cup, n) result(p)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: n(3)
+    real(wp) :: p(3)
+    real(wp) :: horizontal, s
+    horizontal = cup%axes2(1)*n(1)**2 + cup%axes2(2)*n(2)**2
+    s = sqrt(horizontal + cup%axes2(3)*n(3)**2)
+    p(1) = -cup%axes2(1) * n(1) / s
+    p(2) = -cup%axes2(2) * n(2) / s
+    if (n(3) > 0) then
+      p(3) = cup%c * horizontal / (s * (s + cup%c * n(3)))
+    else
+      p(3) = cup%c - cup%axes2(3) * n(3) / s
+    end if
+  end function contact_from_normal
+
+  !> Inward unit normal at the point of the lower half above (x, y).
+  !> Requires (x/a)^2 + (y/b)^2 < 1.
+  pure function normal_from_contact(cup, x, y) result(n)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: x, y
+    real(wp) :: n(3)
+    real(wp) :: q(3)
+    ! q = grad of the implicit surface / 2; (z - c)/c^2 = -sqrt(1 - s)/c exactly.
+    q = [x / cup%axes2(1), y / cup%axes2(2), &
+         -sqrt(max(0.0_wp, 1 - (x/cup%a)**2 - (y/cup%b)**2)) / cup%c]
+    n = -q / norm2(q)
+  end function normal_from_contact
+
+  !> |(x/a)^2 + (y/b)^2 + ((z - c)/c)^2 - 1|: how far p is off the surface.
+  pure real(wp) function surface_residual(cup, p)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: p(3)
+    surface_residual = abs((p(1)/cup%a)**2 + (p(2)/cup%b)**2 + ((p(3) - cup%c)/cup%c)**2 - 1)
+  end function surface_residual
+
+  pure function radius_operator(cup, n) result(k)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: n(3)
+    type(radius_operator_t) :: k
+    real(wp) :: s2
+    k%an = cup%axes2 * n
+    s2 = dot_product(n, k%an)
+    k%s = sqrt(s2)
+    k%inv_s = 1 / k%s
+    k%trace = (sum(cup%axes2) - dot_product(k%an, k%an) / s2) * k%inv_s
+    k%det = cup%det_axes2 / (s2 * s2)
+  end function radius_operator
+
+  !> K v for a vector v.
+  pure function apply_radius_operator(cup, k, v) result(kv)
+    type(ellipsoid_t), intent(in) :: cup
+    type(radius_operator_t), intent(in) :: k
+    real(wp), intent(in) :: v(3)
+    real(wp) :: kv(3)
+    kv = (cup%axes2 * v - k%an * (dot_product(k%an, v) * k%inv_s**2)) * k%inv_s
+  end function apply_radius_operator
+
+  !> Principal radii of curvature (smallest first) at the point with normal n.
+  !> Their difference is computed from A - c^2 I, so a nearly spherical cup
+  !> loses no digits to cancellation.
+  pure function principal_radii(cup, n) result(r)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: n(3)
+    real(wp) :: r(2)
+    real(wp) :: excess_n(3), proj(3, 3), dev(3, 3), pb(3), s2, trace_dev, disc, r_max
+    integer :: i
+    s2 = dot_product(n, cup%axes2 * n)
+    excess_n = cup%excess2 * n
+    proj = -spread(n, 2, 3) * spread(n, 1, 3)
+    do i = 1, 3
+      proj(i, i) = proj(i, i) + 1
+    end do
+    pb = matmul(proj, excess_n)
+    ! s K = c^2 P + dev on the tangent plane, dev = P (A - c^2 I) P - (P b)(P b)^T / s^2
+    dev = matmul(proj, spread(cup%excess2, 2, 3) * proj) - spread(pb, 2, 3) * spread(pb, 1, 3) / s2
+    trace_dev = dev(1,1) + dev(2,2) + dev(3,3)
+    disc = max(0.0_wp, 2 * sum(dev * dev) - trace_dev**2)
+    r_max = (2 * cup%axes2(3) + trace_dev + sqrt(disc)) / (2 * sqrt(s2))
+    r(2) = r_max
+    r(1) = (cup%det_axes2 / (s2 * s2)) / r_max
+  end function principal_radii
+
+  !> Principal radii at the bottom in the x-z and y-z planes: a^2/c, b^2/c.
+  pure function bottom_radii(cup) result(r)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp) :: r(2)
+    r = [cup%axes2(1), cup%axes2(2)] / cup%c
+  end function bottom_radii
+end module ellroll_ellipsoid

@@ -1,0 +1,166 @@
+!> A heavy ball rolling without slip inside the fixed ellipsoidal cup.
+!>
+!> State y = (n, omega): the inward unit normal at the contact point and the
+!> ball's angular velocity (fixed frame). Equations (derived in docs/model.md):
+!>   V_C    = R omega x n                               (rolling, no slip)
+!>   n'     = (R I - K)^-1 V_C
+!>          = [(R - tr K) V_C + K V_C] / det(L),  det(L) = R^2 - R tr K + det K
+!>   omega' = J* [ (omega . n) n' + (n x g_vec) / R ],  J* = 1 / (1 + k)
+!> with K the cup's radius-of-curvature operator and J = k m R^2 (k = 2/5 for
+!> a homogeneous ball). n' is homogeneous of degree one in |n|, so the
+!> direction of n does not depend on the drift of |n| and renormalising
+!> after a step changes nothing but round-off.
+module ellroll_rolling_ball
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp
+  use ellroll_ode, only: ode_system_t
+  use ellroll_ellipsoid, only: ellipsoid_t, radius_operator_t, radius_operator, &
+      apply_radius_operator, contact_from_normal, normal_from_contact, surface_residual, &
+      principal_radii
+  use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
+      status_liftoff, status_nonfinite, status_constraint
+  implicit none
+  private
+
+  public :: rolling_ball_t, observation_t, state_size
+  public :: initial_state, observe, limit_status, constraint_tolerance
+
+  integer, parameter :: state_size = 6
+  !> Largest surface residual accepted before a case ends with 'constraint'.
+  real(wp), parameter :: constraint_tolerance = 1.0e-10_wp
+
+  type, extends(ode_system_t) :: rolling_ball_t
+    type(ellipsoid_t) :: cup
+    real(wp) :: radius = 1
+    real(wp) :: mass = 1
+    real(wp) :: g = 9.81_wp
+    real(wp) :: inertia_factor = 0.4_wp   !< J / (m R^2)
+    real(wp) :: mu = -1                   !< friction coefficient; <= 0: no slip check
+    real(wp) :: fit_margin = 1.0e-6_wp    !< end when r_min / R - 1 falls to this
+  contains
+    procedure :: rhs => ball_rhs
+    procedure :: project => normalize_normal
+  end type rolling_ball_t
+
+  !> Everything derived from one state and its time derivative.
+  type :: observation_t
+    real(wp) :: normal(3) = 0
+    real(wp) :: omega(3) = 0
+    real(wp) :: contact(3) = 0
+    real(wp) :: center(3) = 0
+    real(wp) :: nutation = 0             !< angle between n and the vertical, rad
+    real(wp) :: reaction(3) = 0          !< force of the cup on the ball, N
+    real(wp) :: reaction_normal = 0      !< N = F . n
+    real(wp) :: friction_needed = 0      !< |F_t| / N
+    real(wp) :: energy = 0               !< J |w|^2/2 + m |V_C|^2/2 + m g z_C
+    real(wp) :: energy_of_motion = 0     !< energy - m g R (the bottom at rest is 0)
+    real(wp) :: surface_residual = 0
+    real(wp) :: fit_ratio = 0            !< smallest principal radius / R
+  end type observation_t
+
+contains
+
+  pure function cross(u, v) result(w)
+    real(wp), intent(in) :: u(3), v(3)
+    real(wp) :: w(3)
+    w = [u(2)*v(3) - u(3)*v(2), u(3)*v(1) - u(1)*v(3), u(1)*v(2) - u(2)*v(1)]
+  end function cross
+
+  pure subroutine ball_rhs(self, t, y, dydt)
+    class(rolling_ball_t), intent(in) :: self
+    real(wp), intent(in) :: t
+    real(wp), intent(in) :: y(:)
+    real(wp), intent(out) :: dydt(:)
+    real(wp) :: length, n(3), omega(3), v_center(3), n_dot(3), det_l, spin
+    type(radius_operator_t) :: k
+    length = norm2(y(1:3))
+    n = y(1:3) / length
+    omega = y(4:6)
+    k = radius_operator(self%cup, n)
+    v_center = self%radius * cross(omega, n)
+    det_l = self%radius * (self%radius - k%trace) + k%det
+    n_dot = ((self%radius - k%trace) * v_center + apply_radius_operator(self%cup, k, v_center)) / det_l
+    spin = dot_product(omega, n)
+    dydt(1:3) = length * n_dot
+    ! n x (0, 0, -g) = g (-n_y, n_x, 0)
+    dydt(4:6) = (spin * n_dot + (self%g / self%radius) * [-n(2), n(1), 0.0_wp]) &
+                / (1 + self%inertia_factor)
+  end subroutine ball_rhs
+
+  pure subroutine normalize_normal(self, y)
+    class(rolling_ball_t), intent(in) :: self
+    real(wp), intent(inout) :: y(:)
+    y(1:3) = y(1:3) / norm2(y(1:3))
+  end subroutine normalize_normal
+
+  !> State for a start at contact point (x, y) of the lower half.
+  pure function initial_state(ball, x, y, omega) result(state)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: x, y, omega(3)
+    real(wp) :: state(state_size)
+    state(1:3) = normal_from_contact(ball%cup, x, y)
+    state(4:6) = omega
+  end function initial_state
+
+  !> Derived outputs of a state y with time derivative dydt.
+  pure function observe(ball, y, dydt) result(obs)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:), dydt(:)
+    type(observation_t) :: obs
+    real(wp) :: length, n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
+    real(wp) :: v_center(3), lateral2, height_above_rest, radii(2)
+    length = norm2(y(1:3))
+    n = y(1:3) / length
+    n_dot = dydt(1:3) / length
+    omega_dot = dydt(4:6)
+    obs%normal = n
+    obs%omega = y(4:6)
+    obs%contact = contact_from_normal(ball%cup, n)
+    obs%center = obs%contact + ball%radius * n
+    lateral2 = n(1)**2 + n(2)**2
+    obs%nutation = atan2(sqrt(lateral2), n(3))
+    a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
+    obs%reaction = ball%mass * (a_center + [0.0_wp, 0.0_wp, ball%g])
+    obs%reaction_normal = dot_product(obs%reaction, n)
+    tangential = obs%reaction - obs%reaction_normal * n
+    if (obs%reaction_normal > 0) then
+      obs%friction_needed = norm2(tangential) / obs%reaction_normal
+    else
+      obs%friction_needed = huge(1.0_wp)
+    end if
+    v_center = ball%radius * cross(obs%omega, n)
+    ! z_C - R = z_A - R (1 - n_z), with 1 - n_z = (nx^2 + ny^2)/(1 + n_z): no cancellation
+    height_above_rest = obs%contact(3) - ball%radius * lateral2 / (1 + n(3))
+    obs%energy_of_motion = 0.5_wp * ball%inertia_factor * ball%mass * ball%radius**2 &
+        * dot_product(obs%omega, obs%omega) + 0.5_wp * ball%mass * dot_product(v_center, v_center) &
+        + ball%mass * ball%g * height_above_rest
+    obs%energy = obs%energy_of_motion + ball%mass * ball%g * ball%radius
+    obs%surface_residual = surface_residual(ball%cup, obs%contact)
+    radii = principal_radii(ball%cup, n)
+    obs%fit_ratio = radii(1) / ball%radius
+  end function observe
+
+  !> status_completed while the state is inside the model's domain, otherwise
+  !> the limit it crossed (first match in the order of physics.md).
+  pure integer function limit_status(ball, y, obs) result(status)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:)
+    type(observation_t), intent(in) :: obs
+    if (.not. all(ieee_is_finite(y)) .or. .not. ieee_is_finite(obs%energy) &
+        .or. .not. all(ieee_is_finite(obs%reaction))) then
+      status = status_nonfinite
+    else if (obs%normal(3) <= 0) then
+      status = status_rim
+    else if (obs%fit_ratio - 1 <= ball%fit_margin) then
+      status = status_no_fit
+    else if (obs%surface_residual > constraint_tolerance) then
+      status = status_constraint
+    else if (obs%reaction_normal <= 0) then
+      status = status_liftoff
+    else if (ball%mu > 0 .and. obs%friction_needed > ball%mu) then
+      status = status_slip
+    else
+      status = status_completed
+    end if
+  end function limit_status
+end module ellroll_rolling_ball

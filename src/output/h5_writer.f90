@@ -1,0 +1,560 @@
+!> Every HDF5 call of ellroll lives here. A thin file object that lays out
+!> /time, /case, /trajectory and /summary for n_cases cases, takes one case's
+!> inputs and results at a time, and closes the file.
+!>
+!> HDF5 stores arrays in C order, so the Fortran dimensions below are the
+!> reverse of what h5py shows: Fortran (3, nt, ncase) is h5py (ncase, nt, 3).
+module ellroll_h5_writer
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_size_t
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use hdf5
+  use h5lt
+  use h5ds
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
+  use ellroll_status, only: status_count, status_name, status_pending
+  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, &
+      field_ncomp, field_descriptions
+  use ellroll_results, only: case_result_t, summary_record
+  implicit none
+  private
+
+  public :: h5_output_t, provenance_t
+
+  type :: provenance_t
+    character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
+  end type provenance_t
+
+  !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
+  integer, parameter :: max_chunk_bytes = 2**20
+  !> H5T_VARIABLE of the C API: (size_t) -1.
+  integer(size_t), parameter :: variable_length = -1
+
+  type :: h5_output_t
+    integer(hid_t) :: file = -1
+    character(len=:), allocatable :: path
+    integer(i8) :: n_cases = 0
+    integer(i8) :: n_samples = 0
+    logical :: fields(field_count) = .false.
+  contains
+    procedure :: create
+    procedure :: write_case
+    procedure :: close => close_file
+  end type h5_output_t
+
+contains
+
+  !> Create the file (truncating any file of that name) and every dataset,
+  !> filled with NaN / status 'pending' until cases are written.
+  subroutine create(self, path, n_cases, times, fields, template, prov, err)
+    class(h5_output_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    integer(i8), intent(in) :: n_cases
+    real(wp), intent(in) :: times(:)
+    logical, intent(in) :: fields(field_count)
+    type(case_t), intent(in) :: template         !< gives the /case/ layout
+    type(provenance_t), intent(in) :: prov
+    type(error_t), intent(inout) :: err
+    integer :: hdferr, f, k
+    integer(hid_t) :: group, scale, time_scale, xyz_scale
+
+    self%path = path
+    self%n_cases = n_cases
+    self%n_samples = size(times, kind=i8)
+    self%fields = fields
+    call h5open_f(hdferr)
+    if (failed(hdferr, 'initialise HDF5')) return
+    call h5eset_auto_f(0, hdferr)   ! errors are reported through err, not printed by HDF5
+    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr)
+    if (failed(hdferr, 'create the file')) return
+
+    call put_text_attribute(self%file, 'program', prov%program)
+    call put_text_attribute(self%file, 'version', prov%version)
+    call put_text_attribute(self%file, 'created', prov%created)
+    call put_text_attribute(self%file, 'input_file', prov%input_file)
+    call put_text_attribute(self%file, 'input_namelist', prov%input_namelist)
+    call put_text_attribute(self%file, 'command_line', prov%command_line)
+    if (err%failed()) return
+
+    ! shared dimension scales
+    time_scale = new_real_dataset(self%file, 'time', [size(times, kind=i8)], 's', 'output times')
+    if (err%failed()) return
+    call write_real(time_scale, times, [0_i8], [size(times, kind=i8)])
+    call make_scale(time_scale, 'time')
+    xyz_scale = new_text_dataset(self%file, 'xyz', 3_i8, 'vector component')
+    if (err%failed()) return
+    call write_text(xyz_scale, ['x', 'y', 'z'], 0_i8)
+    call make_scale(xyz_scale, 'xyz')
+    if (err%failed()) return
+
+    ! /case: resolved inputs
+    group = new_group('case')
+    if (err%failed()) return
+    scale = case_scale(group)
+    call create_table(group, case_record(template), scale)
+    call close_scale_and_group(scale, group)
+
+    ! /trajectory: the requested fields
+    group = new_group('trajectory')
+    if (err%failed()) return
+    scale = case_scale(group)
+    call create_trajectories(group, scale)
+    call close_scale_and_group(scale, group)
+
+    ! /summary: status and per-case figures
+    group = new_group('summary')
+    if (err%failed()) return
+    scale = case_scale(group)
+    call create_status(group, scale)
+    call create_table(group, summary_record(case_result_t()), scale)
+    call close_scale_and_group(scale, group)
+    call h5dclose_f(time_scale, hdferr)
+    call h5dclose_f(xyz_scale, hdferr)
+
+  contains
+
+    integer(hid_t) function new_group(name) result(id)
+      character(len=*), intent(in) :: name
+      call h5gcreate_f(self%file, name, id, hdferr)
+      if (failed(hdferr, 'create group /' // name)) return
+    end function new_group
+
+    subroutine close_scale_and_group(scale, group)
+      integer(hid_t), intent(in) :: scale, group
+      call h5dclose_f(scale, hdferr)
+      call h5gclose_f(group, hdferr)
+    end subroutine close_scale_and_group
+
+    !> The group's own 'case' scale, holding the global case indices.
+    integer(hid_t) function case_scale(group) result(id)
+      integer(hid_t), intent(in) :: group
+      integer(i8), allocatable, target :: indices(:)
+      integer(i8) :: i
+      id = new_int_dataset(group, 'case', n_cases, '1', 'global case index')
+      if (err%failed()) return
+      indices = [(i, i = 0, n_cases - 1)]
+      call write_int(id, indices, 0_i8)
+      call make_scale(id, 'case')
+    end function case_scale
+
+    subroutine create_table(group, rec, scale)
+      integer(hid_t), intent(in) :: group, scale
+      type(named_value_t), intent(in) :: rec(:)
+      integer(hid_t) :: dset
+      do k = 1, size(rec)
+        if (err%failed()) return
+        select case (rec(k)%kind)
+        case (kind_real)
+          if (rec(k)%ncomp == 1) then
+            dset = new_real_dataset(group, rec(k)%name, [n_cases], rec(k)%units, rec(k)%description)
+            call attach(dset, scale, 0)
+          else
+            dset = new_real_dataset(group, rec(k)%name, [3_i8, n_cases], rec(k)%units, rec(k)%description)
+            call attach(dset, scale, 0)
+            call attach(dset, xyz_scale, 1)
+          end if
+        case (kind_int)
+          dset = new_int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
+          call attach(dset, scale, 0)
+        case (kind_text)
+          dset = new_text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
+          call attach(dset, scale, 0)
+        end select
+        call h5dclose_f(dset, hdferr)
+      end do
+    end subroutine create_table
+
+    subroutine create_status(group, scale)
+      integer(hid_t), intent(in) :: group, scale
+      integer(hid_t) :: dset
+      integer :: s
+      character(len=:), allocatable :: meanings
+      integer(i8), target :: pending
+      pending = status_pending
+      dset = new_int_dataset(group, 'status', n_cases, '1', 'how the case ended', &
+                             fill=pending)
+      if (err%failed()) return
+      meanings = status_name(0)
+      do s = 1, status_count - 1
+        meanings = meanings // ' ' // status_name(s)
+      end do
+      call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
+                                   int(status_count, size_t), hdferr)
+      call put_text_attribute(dset, 'flag_meanings', meanings)
+      call attach(dset, scale, 0)
+      call h5dclose_f(dset, hdferr)
+    end subroutine create_status
+
+    subroutine create_trajectories(group, scale)
+      integer(hid_t), intent(in) :: group, scale
+      integer(hid_t) :: dset
+      integer(i8) :: chunk_samples
+      do f = 1, field_count
+        if (.not. fields(f) .or. err%failed()) cycle
+        chunk_samples = min(self%n_samples, int(max_chunk_bytes / (8 * field_ncomp(f)), i8))
+        if (field_ncomp(f) == 1) then
+          dset = new_real_dataset(group, trim(field_names(f)), [self%n_samples, n_cases], &
+                                  trim(field_units(f)), trim(field_descriptions(f)), &
+                                  chunk=[chunk_samples, 1_i8])
+          call attach(dset, scale, 0)
+          call attach(dset, time_scale, 1)
+        else
+          dset = new_real_dataset(group, trim(field_names(f)), [3_i8, self%n_samples, n_cases], &
+                                  trim(field_units(f)), trim(field_descriptions(f)), &
+                                  chunk=[3_i8, chunk_samples, 1_i8])
+          call attach(dset, scale, 0)
+          call attach(dset, time_scale, 1)
+          call attach(dset, xyz_scale, 2)
+        end if
+        call h5dclose_f(dset, hdferr)
+      end do
+    end subroutine create_trajectories
+
+    !> Attach scale to the dataset's dimension `dim` as h5py counts them.
+    subroutine attach(dset, scale, dim)
+      integer(hid_t), intent(in) :: dset, scale
+      integer, intent(in) :: dim
+      if (err%failed()) return
+      call h5dsattach_scale_f(dset, scale, dim_index(dim), hdferr)
+      if (failed(hdferr, 'attach a dimension scale')) return
+    end subroutine attach
+
+    subroutine make_scale(dset, name)
+      integer(hid_t), intent(in) :: dset
+      character(len=*), intent(in) :: name
+      if (err%failed()) return
+      call h5dsset_scale_f(dset, hdferr, name)
+      if (failed(hdferr, 'make ' // name // ' a dimension scale')) return
+    end subroutine make_scale
+
+    subroutine put_text_attribute(loc, name, value)
+      integer(hid_t), intent(in) :: loc
+      character(len=*), intent(in) :: name, value
+      if (err%failed()) return
+      call write_text_attribute(loc, name, value, hdferr)
+      if (failed(hdferr, 'write attribute ' // name)) return
+    end subroutine put_text_attribute
+
+    integer(hid_t) function new_real_dataset(loc, name, dims, units, description, chunk) result(dset)
+      integer(hid_t), intent(in) :: loc
+      character(len=*), intent(in) :: name, units, description
+      integer(i8), intent(in) :: dims(:)
+      integer(i8), intent(in), optional :: chunk(:)
+      integer(hid_t) :: space, dcpl
+      real(wp), target :: fill
+      fill = ieee_value(fill, ieee_quiet_nan)
+      dset = -1
+      if (err%failed()) return
+      call h5screate_simple_f(size(dims), int(dims, hsize_t), space, hdferr)
+      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+      call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, c_loc(fill), hdferr)
+      if (present(chunk)) then
+        call h5pset_chunk_f(dcpl, size(chunk), int(chunk, hsize_t), hdferr)
+        call h5pset_shuffle_f(dcpl, hdferr)
+        call h5pset_deflate_f(dcpl, 4, hdferr)
+      end if
+      call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
+      call h5pclose_f(dcpl, hdferr)
+      call h5sclose_f(space, hdferr)
+      if (failed(hdferr, 'create dataset ' // name)) return
+      call describe(dset, units, description)
+    end function new_real_dataset
+
+    integer(hid_t) function new_int_dataset(loc, name, n, units, description, fill) result(dset)
+      integer(hid_t), intent(in) :: loc
+      character(len=*), intent(in) :: name, units, description
+      integer(i8), intent(in) :: n
+      integer(i8), intent(in), optional, target :: fill
+      integer(hid_t) :: space, dcpl
+      dset = -1
+      if (err%failed()) return
+      call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+      if (present(fill)) call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), &
+                                                  c_loc(fill), hdferr)
+      call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
+      call h5pclose_f(dcpl, hdferr)
+      call h5sclose_f(space, hdferr)
+      if (failed(hdferr, 'create dataset ' // name)) return
+      call describe(dset, units, description)
+    end function new_int_dataset
+
+    integer(hid_t) function new_text_dataset(loc, name, n, description) result(dset)
+      integer(hid_t), intent(in) :: loc
+      character(len=*), intent(in) :: name, description
+      integer(i8), intent(in) :: n
+      integer(hid_t) :: space, text_type
+      dset = -1
+      if (err%failed()) return
+      call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+      text_type = new_text_type()
+      call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
+      call h5tclose_f(text_type, hdferr)
+      call h5sclose_f(space, hdferr)
+      if (failed(hdferr, 'create dataset ' // name)) return
+      call describe(dset, '1', description)
+    end function new_text_dataset
+
+    subroutine describe(dset, units, description)
+      integer(hid_t), intent(in) :: dset
+      character(len=*), intent(in) :: units, description
+      call put_text_attribute(dset, 'units', units)
+      call put_text_attribute(dset, 'long_name', description)
+    end subroutine describe
+
+    subroutine write_text(dset, values, offset)
+      integer(hid_t), intent(in) :: dset
+      character(len=*), intent(in) :: values(:)
+      integer(i8), intent(in) :: offset
+      call write_text_slab(self, dset, values, offset, err)
+    end subroutine write_text
+
+    subroutine write_int(dset, values, offset)
+      integer(hid_t), intent(in) :: dset
+      integer(i8), intent(in), target :: values(:)
+      integer(i8), intent(in) :: offset
+      call write_int_slab(self, dset, values, [offset], [size(values, kind=i8)], err)
+    end subroutine write_int
+
+    subroutine write_real(dset, values, offset, counts)
+      integer(hid_t), intent(in) :: dset
+      real(wp), intent(in), target :: values(*)
+      integer(i8), intent(in) :: offset(:), counts(:)
+      call write_real_slab(self, dset, values, offset, counts, err)
+    end subroutine write_real
+
+    logical function failed(code, what)
+      integer, intent(in) :: code
+      character(len=*), intent(in) :: what
+      failed = code < 0
+      if (failed) call set_error(err, err_output, path // ': cannot ' // what // ' (HDF5 error)')
+    end function failed
+  end subroutine create
+
+  !> Store one case's inputs, trajectories and summary at its slot icase (0-based).
+  subroutine write_case(self, icase, cs, res, err)
+    class(h5_output_t), intent(inout) :: self
+    integer(i8), intent(in) :: icase
+    type(case_t), intent(in) :: cs
+    type(case_result_t), intent(in) :: res
+    type(error_t), intent(inout) :: err
+    type(named_value_t), allocatable :: rec(:)
+    integer :: f
+    integer(i8), target :: status(1)
+
+    rec = case_record(cs)
+    call write_table('case', rec)
+    do f = 1, field_count
+      if (.not. self%fields(f) .or. err%failed()) cycle
+      if (field_ncomp(f) == 1) then
+        call write_real_at('trajectory/' // trim(field_names(f)), res%fields(f)%values, &
+                           [0_i8, icase], [self%n_samples, 1_i8])
+      else
+        call write_real_at('trajectory/' // trim(field_names(f)), res%fields(f)%values, &
+                           [0_i8, 0_i8, icase], [3_i8, self%n_samples, 1_i8])
+      end if
+    end do
+    status = res%status
+    call write_int_at('summary/status', status, icase)
+    call write_table('summary', summary_record(res))
+
+  contains
+
+    subroutine write_table(group, rec)
+      character(len=*), intent(in) :: group
+      type(named_value_t), intent(in) :: rec(:)
+      integer :: k
+      integer(i8), target :: ints(1)
+      do k = 1, size(rec)
+        select case (rec(k)%kind)
+        case (kind_real)
+          if (rec(k)%ncomp == 1) then
+            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [icase], [1_i8])
+          else
+            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [0_i8, icase], [3_i8, 1_i8])
+          end if
+        case (kind_int)
+          ints = rec(k)%int
+          call write_int_at(group // '/' // trim(rec(k)%name), ints, icase)
+        case (kind_text)
+          call write_text_at(group // '/' // trim(rec(k)%name), rec(k)%text, icase)
+        end select
+      end do
+    end subroutine write_table
+
+    subroutine write_real_at(name, values, offset, counts)
+      character(len=*), intent(in) :: name
+      real(wp), intent(in), target :: values(*)
+      integer(i8), intent(in) :: offset(:), counts(:)
+      integer(hid_t) :: dset
+      if (.not. open_dataset(self, name, dset, err)) return
+      call write_real_slab(self, dset, values, offset, counts, err)
+      call close_dataset(dset)
+    end subroutine write_real_at
+
+    subroutine write_int_at(name, values, offset)
+      character(len=*), intent(in) :: name
+      integer(i8), intent(in), target :: values(:)
+      integer(i8), intent(in) :: offset
+      integer(hid_t) :: dset
+      if (.not. open_dataset(self, name, dset, err)) return
+      call write_int_slab(self, dset, values, [offset], [1_i8], err)
+      call close_dataset(dset)
+    end subroutine write_int_at
+
+    subroutine write_text_at(name, value, offset)
+      character(len=*), intent(in) :: name, value
+      integer(i8), intent(in) :: offset
+      integer(hid_t) :: dset
+      if (.not. open_dataset(self, name, dset, err)) return
+      call write_text_slab(self, dset, [value], offset, err)
+      call close_dataset(dset)
+    end subroutine write_text_at
+  end subroutine write_case
+
+  subroutine close_file(self, err)
+    class(h5_output_t), intent(inout) :: self
+    type(error_t), intent(inout) :: err
+    integer :: hdferr
+    if (self%file < 0) return
+    call h5fflush_f(self%file, H5F_SCOPE_GLOBAL_F, hdferr)
+    if (hdferr < 0 .and. .not. err%failed()) &
+      call set_error(err, err_output, self%path // ': cannot flush the file (disk full?)')
+    call h5fclose_f(self%file, hdferr)
+    if (hdferr < 0 .and. .not. err%failed()) &
+      call set_error(err, err_output, self%path // ': cannot close the file (disk full?)')
+    self%file = -1
+    call h5close_f(hdferr)
+  end subroutine close_file
+
+  ! ------------------------------------------------------------ low level
+
+  logical function open_dataset(self, name, dset, err) result(ok)
+    type(h5_output_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer(hid_t), intent(out) :: dset
+    type(error_t), intent(inout) :: err
+    integer :: hdferr
+    ok = .false.
+    if (err%failed()) return
+    call h5dopen_f(self%file, name, dset, hdferr)
+    if (hdferr < 0) then
+      call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
+      return
+    end if
+    ok = .true.
+  end function open_dataset
+
+  subroutine close_dataset(dset)
+    integer(hid_t), intent(in) :: dset
+    integer :: hdferr
+    call h5dclose_f(dset, hdferr)
+  end subroutine close_dataset
+
+  !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
+  !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.
+  pure integer function dim_index(dim)
+    integer, intent(in) :: dim
+    dim_index = dim + 1
+  end function dim_index
+
+  subroutine select_slab(dset, offset, counts, file_space, mem_space)
+    integer(hid_t), intent(in) :: dset
+    integer(i8), intent(in) :: offset(:), counts(:)
+    integer(hid_t), intent(out) :: file_space, mem_space
+    integer :: hdferr
+    call h5dget_space_f(dset, file_space, hdferr)
+    call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, int(offset, hsize_t), &
+                               int(counts, hsize_t), hdferr)
+    call h5screate_simple_f(size(counts), int(counts, hsize_t), mem_space, hdferr)
+  end subroutine select_slab
+
+  !> UTF-8 variable-length strings: h5py reads them as str, not bytes.
+  integer(hid_t) function new_text_type() result(text_type)
+    integer :: hdferr
+    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
+    call h5tset_size_f(text_type, variable_length, hdferr)
+    call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
+    call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
+  end function new_text_type
+
+  subroutine write_text_attribute(loc, name, value, hdferr)
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, value
+    integer, intent(out) :: hdferr
+    integer(hid_t) :: text_type, space, attr
+    character(len=len(value)+1, kind=c_char), target :: text
+    type(c_ptr), target :: pointers(1)
+    text = value // c_null_char
+    pointers(1) = c_loc(text)
+    text_type = new_text_type()
+    call h5screate_f(H5S_SCALAR_F, space, hdferr)
+    call h5acreate_f(loc, name, text_type, space, attr, hdferr)
+    if (hdferr >= 0) then
+      call h5awrite_f(attr, text_type, c_loc(pointers), hdferr)
+      call h5aclose_f(attr, hdferr)
+    end if
+    call h5sclose_f(space, hdferr)
+    call h5tclose_f(text_type, hdferr)
+  end subroutine write_text_attribute
+
+  subroutine write_text_slab(self, dset, values, offset, err)
+    type(h5_output_t), intent(in) :: self
+    integer(hid_t), intent(in) :: dset
+    character(len=*), intent(in) :: values(:)
+    integer(i8), intent(in) :: offset
+    type(error_t), intent(inout) :: err
+    integer(hid_t) :: text_type, file_space, mem_space
+    character(len=len(values)+1, kind=c_char), target :: texts(size(values))
+    type(c_ptr), target :: pointers(size(values))
+    integer :: hdferr, k
+    if (err%failed()) return
+    do k = 1, size(values)
+      texts(k) = trim(values(k)) // c_null_char
+      pointers(k) = c_loc(texts(k))
+    end do
+    text_type = new_text_type()
+    call select_slab(dset, [offset], [size(values, kind=i8)], file_space, mem_space)
+    call h5dwrite_f(dset, text_type, c_loc(pointers), hdferr, &
+                    mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write text data')
+    call h5sclose_f(file_space, hdferr)
+    call h5sclose_f(mem_space, hdferr)
+    call h5tclose_f(text_type, hdferr)
+  end subroutine write_text_slab
+
+  subroutine write_real_slab(self, dset, values, offset, counts, err)
+    type(h5_output_t), intent(in) :: self
+    integer(hid_t), intent(in) :: dset
+    real(wp), intent(in), target :: values(*)
+    integer(i8), intent(in) :: offset(:), counts(:)
+    type(error_t), intent(inout) :: err
+    integer(hid_t) :: file_space, mem_space
+    integer :: hdferr
+    if (err%failed()) return
+    call select_slab(dset, offset, counts, file_space, mem_space)
+    call h5dwrite_f(dset, H5T_NATIVE_DOUBLE, c_loc(values), hdferr, &
+                    mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write data (disk full?)')
+    call h5sclose_f(file_space, hdferr)
+    call h5sclose_f(mem_space, hdferr)
+  end subroutine write_real_slab
+
+  subroutine write_int_slab(self, dset, values, offset, counts, err)
+    type(h5_output_t), intent(in) :: self
+    integer(hid_t), intent(in) :: dset
+    integer(i8), intent(in), target :: values(*)
+    integer(i8), intent(in) :: offset(:), counts(:)
+    type(error_t), intent(inout) :: err
+    integer(hid_t) :: file_space, mem_space
+    integer :: hdferr
+    if (err%failed()) return
+    call select_slab(dset, offset, counts, file_space, mem_space)
+    call h5dwrite_f(dset, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), hdferr, &
+                    mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write data (disk full?)')
+    call h5sclose_f(file_space, hdferr)
+    call h5sclose_f(mem_space, hdferr)
+  end subroutine write_int_slab
+end module ellroll_h5_writer
