@@ -48,10 +48,11 @@ contains
     energy0 = obs%energy
     call accumulate(res, obs, energy0)
     call record_sample(res, 1_i8, obs)
-
-    n_steps = nint(cs%t_end / cs%dt, i8)
     t = 0
-    res%status = status_completed
+    res%status = limit_status(ball, y, obs)   ! a start outside the model ends at once
+    n_steps = nint(cs%t_end / cs%dt, i8)
+    if (res%status /= status_completed) n_steps = 0
+
     do k = 1, n_steps
       call integrator%step(ball, t, y, f, cs%dt, y_new, res%n_rhs)
       call ball%project(y_new)

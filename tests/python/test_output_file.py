@@ -1,0 +1,161 @@
+"""The HDF5 file as an h5py / xarray user sees it."""
+import datetime
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import PAPER_INPUT, run
+
+FIELDS = {"contact": ("m", 3), "center": ("m", 3), "omega": ("rad/s", 3), "normal": ("1", 3),
+          "nutation": ("rad", 1), "reaction": ("N", 3), "energy": ("J", 1)}
+SUMMARY = ["status", "t_final", "n_steps", "n_rhs", "wall_time", "theta_max", "reaction_normal_max",
+           "friction_needed_max", "energy_drift", "constraint_error_max"]
+
+
+def test_layout_shapes_units_and_scales(paper_file):
+    with h5py.File(paper_file, "r") as f:
+        nt = 3001
+        assert f["time"].shape == (nt,)
+        np.testing.assert_allclose(f["time"][:], np.arange(nt) * 0.01, rtol=0, atol=1e-12)
+        for name, (units, ncomp) in FIELDS.items():
+            ds = f["trajectory"][name]
+            assert ds.shape == ((1, nt, 3) if ncomp == 3 else (1, nt)), name
+            assert ds.attrs["units"] == units
+            scales = [d[0].name for d in ds.dims]
+            assert scales == (["/trajectory/case", "/time", "/xyz"] if ncomp == 3
+                              else ["/trajectory/case", "/time"])
+            assert ds.chunks[0] == 1 and np.prod(ds.chunks) * 8 <= 2**20
+            assert ds.compression == "gzip" and ds.shuffle
+        for name in SUMMARY:
+            assert f["summary"][name].shape == (1,)
+        for name in ["a", "b", "c", "radius", "mass", "g", "x0", "y0", "dt", "t_end", "method"]:
+            assert f["case"][name].shape == (1,)
+        assert f["case/omega0"].shape == (1, 3)
+
+        def every_dataset_has_units(name, obj):
+            if isinstance(obj, h5py.Dataset):
+                assert "units" in obj.attrs, name
+        f.visititems(every_dataset_has_units)
+
+
+def test_inputs_and_provenance(paper_file):
+    with h5py.File(paper_file, "r") as f:
+        case = f["case"]
+        assert (case["a"][0], case["b"][0], case["c"][0], case["radius"][0]) == (1.0, 0.4, 0.2, 0.2)
+        assert case["mass"][0] * case["g"][0] == pytest.approx(2620.0, rel=1e-15)
+        np.testing.assert_array_equal(case["omega0"][0], [-2.0, 2.0, 20.0])
+        assert case["method"].asstr()[0] == "rk4"
+        attrs = f.attrs
+        assert attrs["program"] == "ellroll"
+        assert attrs["version"]
+        created = datetime.datetime.strptime(attrs["created"], "%Y-%m-%dT%H:%M:%SZ")
+        assert abs((datetime.datetime.utcnow() - created).total_seconds()) < 3600
+        assert attrs["input_namelist"] == PAPER_INPUT.read_text()
+        assert " run legeza1990.nml" in attrs["command_line"]
+
+
+def test_paper_case_results(paper_file):
+    with h5py.File(paper_file, "r") as f:
+        status = f["summary/status"]
+        names = status.attrs["flag_meanings"].split()
+        assert names[list(status.attrs["flag_values"]).index(status[0])] == "completed"
+        assert f["summary/t_final"][0] == 30.0
+        assert f["summary/n_steps"][0] == 30000
+        assert f["summary/energy_drift"][0] < 1e-9
+        assert f["summary/constraint_error_max"][0] < 1e-13
+        theta = f["trajectory/nutation"][0]
+        assert f["summary/theta_max"][0] >= np.max(theta)
+        # stored fields are consistent with each other
+        n = f["trajectory/normal"][0]
+        np.testing.assert_allclose(theta, np.arctan2(np.hypot(n[:, 0], n[:, 1]), n[:, 2]), atol=1e-15)
+        center, contact = f["trajectory/center"][0], f["trajectory/contact"][0]
+        np.testing.assert_allclose(center - contact, 0.2 * n, atol=1e-15)
+        energy = f["trajectory/energy"][0]
+        assert np.max(np.abs(energy / energy[0] - 1)) <= f["summary/energy_drift"][0]
+
+
+def test_xarray_reads_every_group(paper_file):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    traj = xr.open_dataset(paper_file, engine="h5netcdf", group="trajectory")
+    assert traj["contact"].dims == ("case", "time", "xyz")
+    assert traj["nutation"].dims == ("case", "time")
+    assert traj["contact"].attrs["units"] == "m"
+    summary = xr.open_dataset(paper_file, engine="h5netcdf", group="summary")
+    assert summary["theta_max"].dims == ("case",)
+    inputs = xr.open_dataset(paper_file, engine="h5netcdf", group="case")
+    assert inputs["omega0"].dims == ("case", "xyz")
+
+
+def write_input(folder, edits=(), name="case.nml"):
+    text = PAPER_INPUT.read_text()
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def test_fields_selects_what_is_stored(ellroll, tmp_path):
+    write_input(tmp_path, [("interval = 0.01 /", "interval = 0.01, fields = 'nutation', 'contact' /")])
+    assert run(ellroll, "run", "case.nml", "-o", "sel.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "sel.h5", "r") as f:
+        assert sorted(k for k in f["trajectory"] if k != "case") == ["contact", "nutation"]
+        assert f["summary/theta_max"][0] > 0.2
+
+
+def test_case_ended_at_rim_is_nan_filled(ellroll, tmp_path):
+    write_input(tmp_path, [("radius = 0.2", "radius = 0.01"),
+                           ("omega = -2.0, 2.0, 20.0", "omega = -400.0, 0.0, 0.0"),
+                           ("t_end = 30.0", "t_end = 1.0")])
+    result = run(ellroll, "run", "case.nml", "-o", "rim.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "rim at t = 0.12026" in result.stdout
+    with h5py.File(tmp_path / "rim.h5", "r") as f:
+        t_final = f["summary/t_final"][0]
+        assert 0.12 < t_final < 0.121
+        contact = f["trajectory/contact"][0]
+        inside = f["time"][:] <= t_final
+        assert np.all(np.isfinite(contact[inside])) and np.all(np.isnan(contact[~inside]))
+        assert np.all(contact[inside, 2] < 0.2)
+
+
+def test_existing_output_needs_overwrite(ellroll, tmp_path):
+    write_input(tmp_path)
+    target = tmp_path / "legeza1990.h5"
+    target.write_bytes(b"a good file from yesterday")
+    result = run(ellroll, "run", "case.nml", cwd=tmp_path)
+    assert result.returncode == 3
+    assert "legeza1990.h5" in result.stderr and "--overwrite" in result.stderr
+    assert target.read_bytes() == b"a good file from yesterday"
+    assert run(ellroll, "run", "case.nml", "--overwrite", cwd=tmp_path).returncode == 0
+    assert h5py.is_hdf5(target)
+
+
+def test_unwritable_output_is_an_output_error(ellroll, tmp_path):
+    write_input(tmp_path)
+    result = run(ellroll, "run", "case.nml", "-o", "no/such/folder/out.h5", cwd=tmp_path)
+    assert result.returncode == 3
+    assert "no/such/folder/out.h5" in result.stderr
+    assert list(tmp_path.iterdir()) == [tmp_path / "case.nml"]
+
+
+def test_check_prints_the_resolved_case_and_writes_nothing(ellroll, tmp_path):
+    write_input(tmp_path)
+    result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    for words in ["mass = 267.07", "omega0 = -2, 2, 20 rad/s", "principal radii of curvature at the start = 0.8, 5 m",
+                  "steps = 30000", "samples = 3001", "case.nml: ok"]:
+        assert words in result.stdout
+    assert list(tmp_path.iterdir()) == [tmp_path / "case.nml"]
+
+
+def test_version_and_help(ellroll):
+    version = run(ellroll, "--version")
+    assert version.returncode == 0 and version.stdout.startswith("ellroll ")
+    help_text = run(ellroll, "--help")
+    assert help_text.returncode == 0 and "ellroll run FILE.nml" in help_text.stdout
+    assert "exit codes" in help_text.stdout
+    assert run(ellroll, "frobnicate", "x.nml").returncode == 2

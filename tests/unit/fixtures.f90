@@ -1,0 +1,47 @@
+!> Cases and plans for the tests, and a helper that runs a case.
+module fixtures
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t
+  use ellroll_cases, only: case_t, output_plan_t
+  use ellroll_results, only: case_result_t
+  use ellroll_simulate, only: simulate_case
+  implicit none
+  private
+  public :: paper_case, plan_for, run_case
+
+contains
+
+  !> Legeza (1990), section 3.
+  function paper_case(dt, t_end) result(cs)
+    real(wp), intent(in) :: dt, t_end
+    type(case_t) :: cs
+    cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp
+    cs%radius = 0.2_wp
+    cs%g = 9.81_wp
+    cs%mass = 2620 / cs%g
+    cs%x0 = 0; cs%y0 = 0
+    cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]
+    cs%dt = dt
+    cs%t_end = t_end
+  end function paper_case
+
+  !> Output every `every` steps, all fields.
+  function plan_for(cs, every) result(plan)
+    type(case_t), intent(in) :: cs
+    integer, intent(in) :: every
+    type(output_plan_t) :: plan
+    plan%steps_per_sample = every
+    plan%interval = every * cs%dt
+    plan%n_samples = nint(cs%t_end / cs%dt, i8) / every + 1
+    plan%fields = .true.
+  end function plan_for
+
+  function run_case(cs, every) result(res)
+    type(case_t), intent(in) :: cs
+    integer, intent(in) :: every
+    type(case_result_t) :: res
+    type(error_t) :: err
+    call simulate_case(cs, plan_for(cs, every), res, err)
+    if (err%failed()) error stop 'run_case: ' // err%message
+  end function run_case
+end module fixtures

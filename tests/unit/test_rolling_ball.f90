@@ -1,0 +1,83 @@
+!> The right-hand side against physics.md's own formulation: contact-point
+!> velocity from the 3x3 system H r_A' = V_C (LAPACK dgesv), n' = (dn/dr_A) r_A',
+!> and the component form of Appell's equations. Plus the reaction at rest.
+program test_rolling_ball
+  use ellroll_kinds, only: wp
+  use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal
+  use ellroll_rolling_ball
+  use testing
+  implicit none
+  type(rolling_ball_t) :: ball
+  real(wp) :: y(6), f(6), reference(6), u(6), worst, n(3)
+  type(observation_t) :: obs
+  integer :: trial, size_seed
+
+  ball%cup = new_ellipsoid(1.0_wp, 0.4_wp, 0.2_wp)
+  ball%radius = 0.05_wp
+  ball%mass = 267.0_wp
+  ball%g = 9.81_wp
+  call random_seed(size=size_seed)
+  call random_seed(put=[(99 + trial, trial = 1, size_seed)])
+  worst = 0
+  do trial = 1, 1000
+    call random_number(u)
+    n = [2 * u(1) - 1, 2 * u(2) - 1, 0.3_wp + u(3)]
+    y(1:3) = n / norm2(n)
+    y(4:6) = 40 * (u(4:6) - 0.5_wp)
+    call ball%rhs(0.0_wp, y, f)
+    reference = rhs_from_physics_md(ball, y)
+    worst = max(worst, maxval(abs(f - reference)) / maxval(abs(reference)))
+  end do
+  call check_below(worst, 1.0e-12_wp, 'closed-form RHS vs 3x3 solve of physics.md (max rel. diff)')
+
+  ! A non-unit normal gives the same motion of the direction (homogeneity).
+  y(1:3) = 3 * y(1:3)
+  call ball%rhs(0.0_wp, y, reference)
+  call ball%rhs(0.0_wp, [y(1:3) / 3, y(4:6)], f)
+  call check_below(maxval(abs(reference(1:3) / 3 - f(1:3))) + maxval(abs(reference(4:6) - f(4:6))), &
+                   1.0e-13_wp, 'RHS is homogeneous of degree one in |n|')
+
+  ! At rest at the bottom the cup carries the weight, with no friction.
+  y = [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp]
+  call ball%rhs(0.0_wp, y, f)
+  obs = observe(ball, y, f)
+  call check_close(obs%reaction_normal, ball%mass * ball%g, 1.0e-15_wp, 'normal force at rest = m g')
+  call check_below(obs%friction_needed, 0.0_wp, 'friction needed at rest')
+  call check_below(obs%energy_of_motion, 0.0_wp, 'energy of motion at rest')
+  call finish('test_rolling_ball')
+
+contains
+
+  function rhs_from_physics_md(ball, y) result(dydt)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(6)
+    real(wp) :: dydt(6)
+    real(wp) :: n(3), omega(3), p(3), q(3), qhat(3), big_q, dn_dr(3, 3), h(3, 3), rhs(3, 1), n_dot(3)
+    real(wp) :: d(3), jstar, omega_n
+    integer :: ipiv(3), info, i
+    n = y(1:3); omega = y(4:6)
+    p = contact_from_normal(ball%cup, n)
+    d = [1 / ball%cup%a**2, 1 / ball%cup%b**2, 1 / ball%cup%c**2]
+    q = [p(1) * d(1), p(2) * d(2), (p(3) - ball%cup%c) * d(3)]
+    big_q = norm2(q)
+    qhat = q / big_q
+    do i = 1, 3
+      dn_dr(:, i) = -(merge(1.0_wp, 0.0_wp, [1, 2, 3] == i) - qhat * qhat(i)) * d(i) / big_q
+    end do
+    h = dn_dr * ball%radius
+    do i = 1, 3
+      h(i, i) = h(i, i) + 1
+    end do
+    ! V_C = R (omega x n)
+    rhs(:, 1) = ball%radius * [omega(2)*n(3) - omega(3)*n(2), omega(3)*n(1) - omega(1)*n(3), &
+                               omega(1)*n(2) - omega(2)*n(1)]
+    call dgesv(3, 1, h, 3, ipiv, rhs, 3, info)
+    n_dot = matmul(dn_dr, rhs(:, 1))
+    jstar = 5.0_wp / 7.0_wp
+    omega_n = dot_product(omega, n)
+    dydt(1:3) = n_dot
+    dydt(4) = jstar * (omega_n * n_dot(1) + ball%g * q(2) / (ball%radius * big_q))
+    dydt(5) = jstar * (omega_n * n_dot(2) - ball%g * q(1) / (ball%radius * big_q))
+    dydt(6) = jstar * omega_n * n_dot(3)
+  end function rhs_from_physics_md
+end program test_rolling_ball
