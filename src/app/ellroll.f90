@@ -4,24 +4,26 @@
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, err_output, exit_code
+  use ellroll_errors, only: error_t, set_error, err_input, exit_code
   use ellroll_strings, only: itoa, format_real
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
-  use ellroll_cases, only: case_t, output_plan_t, case_record, make_ball, field_count, &
-      field_names, field_ncomp
-  use ellroll_results, only: case_result_t, summary_record
-  use ellroll_simulate, only: simulate_case
-  use ellroll_status, only: status_name
-  use ellroll_ellipsoid, only: principal_radii, normal_from_contact, contact_from_normal, bottom_radii
+  use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, &
+      param_names, get_param
+  use ellroll_campaign, only: invalid_stop
+  use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
-  use ellroll_h5_writer, only: h5_output_t, provenance_t
-  use ellroll_system, only: rename_file, remove_file, utc_timestamp
+  use ellroll_hdf5, only: provenance_t
+  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots
+  use ellroll_merge, only: merge_shards
+  use ellroll_report, only: print_summary
+  use ellroll_system, only: utc_timestamp
   use ellroll_version, only: version_string
   implicit none
 
-  character(len=:), allocatable :: command, input_path, output_path
-  logical :: overwrite
+  character(len=:), allocatable :: command, output_path
+  character(len=1024), allocatable :: paths(:)
+  type(run_options_t) :: opts
   type(error_t) :: err
 
   call parse_arguments(err)
@@ -35,6 +37,10 @@ program ellroll
       call check_command(err)
     case ('run')
       call run_command(err)
+    case ('merge')
+      call merge_shards(trim(paths(1)), paths(2:), provenance(''), err)
+    case ('summary')
+      call print_summary(trim(paths(1)), err)
     end select
   end if
   if (err%failed()) then
@@ -46,12 +52,11 @@ contains
 
   subroutine parse_arguments(err)
     type(error_t), intent(inout) :: err
-    integer :: k, n
-    character(len=:), allocatable :: arg
+    integer :: k, n, ios
+    character(len=:), allocatable :: arg, value
     command = ''
-    input_path = ''
     output_path = ''
-    overwrite = .false.
+    allocate (paths(0))
     n = command_argument_count()
     k = 1
     do while (k <= n)
@@ -63,16 +68,35 @@ contains
       case ('-V', '--version', 'version')
         command = 'version'
         return
-      case ('-o', '--output')
+      case ('-o', '--output', '--threads', '--shard')
         if (k == n) then
-          call usage_error(arg // ' needs a file name')
+          call usage_error(arg // ' needs a value')
           return
         end if
         k = k + 1
-        output_path = argument(k)
+        value = argument(k)
+        select case (arg)
+        case ('-o', '--output')
+          output_path = value
+        case ('--threads')
+          read (value, *, iostat=ios) opts%threads
+          if (ios /= 0 .or. opts%threads < 1) then
+            call usage_error('--threads needs a positive number, not ' // value)
+            return
+          end if
+        case ('--shard')
+          if (.not. parse_shard(value)) then
+            call usage_error('--shard needs I/N with 0 <= I < N, not ' // value)
+            return
+          end if
+        end select
       case ('--overwrite')
-        overwrite = .true.
-      case ('run', 'check')
+        opts%overwrite = .true.
+      case ('--resume')
+        opts%resume = .true.
+      case ('-q', '--quiet')
+        opts%quiet = .true.
+      case ('run', 'check', 'merge', 'summary')
         if (len(command) > 0) then
           call usage_error('more than one command given (' // command // ', ' // arg // ')')
           return
@@ -87,20 +111,35 @@ contains
           call usage_error("unknown command '" // arg // "'")
           return
         end if
-        if (len(input_path) > 0) then
-          call usage_error('more than one input file given (' // input_path // ', ' // arg // ')')
-          return
-        end if
-        input_path = arg
+        paths = [character(len=1024) :: paths, arg]
       end select
       k = k + 1
     end do
     if (len(command) == 0) then
       call usage_error('no command given')
-    else if (len(input_path) == 0) then
-      call usage_error(command // ' needs an input file')
+    else if (size(paths) == 0) then
+      call usage_error(command // ' needs ' // merge('an output file and shard files', &
+                                                     'an input file                 ', command == 'merge'))
+    else if (command == 'merge' .and. size(paths) < 2) then
+      call usage_error('merge needs an output file and at least one shard file')
+    else if (command /= 'merge' .and. size(paths) > 1) then
+      call usage_error('more than one input file given (' // trim(paths(1)) // ', ' // trim(paths(2)) // ')')
+    else if (opts%resume .and. opts%overwrite) then
+      call usage_error('--resume and --overwrite exclude each other')
     end if
   end subroutine parse_arguments
+
+  logical function parse_shard(text) result(ok)
+    character(len=*), intent(in) :: text
+    integer :: slash, ios1, ios2
+    slash = index(text, '/')
+    ok = .false.
+    if (slash < 2 .or. slash == len(text)) return
+    read (text(:slash-1), *, iostat=ios1) opts%shard(1)
+    read (text(slash+1:), *, iostat=ios2) opts%shard(2)
+    ok = ios1 == 0 .and. ios2 == 0 .and. opts%shard(2) >= 1 .and. opts%shard(1) >= 0 .and. &
+         opts%shard(1) < opts%shard(2)
+  end function parse_shard
 
   subroutine usage_error(message)
     character(len=*), intent(in) :: message
@@ -121,13 +160,19 @@ contains
       'ellroll ' // version_string // ': a heavy ball rolling without slip in a triaxial ellipsoidal cup', &
       '', &
       'usage:', &
-      '  ellroll run FILE.nml [-o OUT.h5] [--overwrite]   integrate, write HDF5', &
-      '  ellroll check FILE.nml [-o OUT.h5]               validate, print the resolved case', &
+      '  ellroll run FILE.nml [-o OUT.h5] [options]   integrate every case, write HDF5', &
+      '  ellroll check FILE.nml [-o OUT.h5]           validate, print the cases, write nothing', &
+      '  ellroll merge OUT.h5 SHARD.h5...             join the shard files of a campaign', &
+      '  ellroll summary OUT.h5                       print the summary table of a file', &
       '  ellroll --version | --help', &
       '', &
       'options:', &
       '  -o, --output OUT.h5   write here instead of &output file', &
       '  --overwrite           replace an existing output file', &
+      '  --resume              finish an interrupted run (same input, same options)', &
+      '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
+      '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file', &
+      '  -q, --quiet           no progress lines on stderr', &
       '', &
       'exit codes: 0 ok (also when a case ended at a model limit), 1 internal error,', &
       '            2 bad input, 3 output error', &
@@ -137,54 +182,35 @@ contains
   subroutine check_command(err)
     type(error_t), intent(inout) :: err
     type(run_input_t) :: inp
-    call read_input(input_path, output_path, inp, err)
+    logical, allocatable :: invalid(:)
+    character(len=:), allocatable :: messages
+    call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
     call describe(inp)
-    write (output_unit, '(a)') input_path // ': ok'
+    call find_invalid_cases(inp, invalid, messages)
+    if (any(invalid)) then
+      if (inp%campaign%invalid == invalid_stop) then
+        call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
+            ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
+        return
+      end if
+      write (output_unit, '(a)') itoa(count(invalid)) // ' invalid cases will be skipped:' // messages
+    end if
+    write (output_unit, '(a)') trim(paths(1)) // ': ok'
   end subroutine check_command
 
   subroutine run_command(err)
     type(error_t), intent(inout) :: err
     type(run_input_t) :: inp
-    type(case_result_t) :: res
-    type(h5_output_t) :: out
-    character(len=:), allocatable :: partial
-    logical :: exists
-    integer(i8) :: j
-    real(wp), allocatable :: times(:)
-
-    call read_input(input_path, output_path, inp, err)
+    call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    inquire (file=inp%plan%file, exist=exists)
-    if (exists .and. .not. overwrite) then
-      call set_error(err, err_output, inp%plan%file // &
-          ': output file exists; pass --overwrite to replace it')
-      return
-    end if
-
-    call simulate_case(inp%base, inp%plan, res, err)
+    call run_campaign(inp, opts, provenance(inp%text), err)
     if (err%failed()) return
-
-    ! Write beside the target and rename only when complete, so that a
-    ! failed or killed run never leaves a damaged file or touches a good one.
-    partial = inp%plan%file // '.partial'
-    times = [(real(j, wp) * inp%plan%interval, j = 0, inp%plan%n_samples - 1)]
-    call out%create(partial, 1_i8, times, inp%plan%fields, inp%base, provenance(inp), err)
-    if (.not. err%failed()) call out%write_case(0_i8, inp%base, res, err)
-    call out%close(err)
-    if (.not. err%failed()) then
-      if (.not. rename_file(partial, inp%plan%file)) &
-        call set_error(err, err_output, inp%plan%file // ': cannot move the finished file into place')
-    end if
-    if (err%failed()) then
-      call remove_file(partial)
-      return
-    end if
-    call report(inp, res)
+    call print_summary(inp%plan%file, err)
   end subroutine run_command
 
-  function provenance(inp) result(prov)
-    type(run_input_t), intent(in) :: inp
+  function provenance(input_text) result(prov)
+    character(len=*), intent(in) :: input_text
     type(provenance_t) :: prov
     integer :: length
     character(len=:), allocatable :: line
@@ -194,63 +220,102 @@ contains
     prov%program = 'ellroll'
     prov%version = version_string
     prov%created = utc_timestamp()
-    prov%input_file = inp%path
-    prov%input_namelist = inp%text
+    prov%input_file = trim(paths(1))
+    prov%input_namelist = input_text
     prov%command_line = line
   end function provenance
 
-  subroutine report(inp, res)
-    type(run_input_t), intent(in) :: inp
-    type(case_result_t), intent(in) :: res
-    write (output_unit, '(a)') inp%plan%file // ': case 0 ' // status_name(res%status) // &
-        ' at t = ' // format_real(res%t_final) // ' s'
-    call print_values(summary_record(res))
-    if (res%wall_time > 0) write (output_unit, '(a)') '  steps per second: ' // &
-        format_real(real(nint(real(res%n_steps, wp) / res%wall_time), wp))
-  end subroutine report
-
-  !> The resolved case and what a run of it will produce.
+  !> The base case, what the campaign varies, and what a run will produce.
   subroutine describe(inp)
     type(run_input_t), intent(in) :: inp
     type(rolling_ball_t) :: ball
-    real(wp) :: y(state_size), f(state_size), n0(3), radii(2), periods(2), bytes, contact(3)
+    type(case_t) :: cs
     type(observation_t) :: obs
+    real(wp) :: y(state_size), f(state_size), n0(3), radii(2), periods(2), bytes
+    integer(i8) :: n_cases, i, n_local
     integer :: k
-    ball = make_ball(inp%base)
-    write (output_unit, '(a)') 'case 0 (resolved input):'
-    call print_values(case_record(inp%base))
-    n0 = normal_from_contact(ball%cup, inp%base%x0, inp%base%y0)
+    character(len=:), allocatable :: line
+    cs = inp%campaign%base
+    ball = make_ball(cs)
+    write (output_unit, '(a)') 'base case (resolved input):'
+    call print_values(case_record(cs))
+    n0 = normal_from_contact(ball%cup, cs%x0, cs%y0)
     radii = principal_radii(ball%cup, n0)
-    y = initial_state(ball, inp%base%x0, inp%base%y0, inp%base%omega0)
+    y = initial_state(ball, cs%x0, cs%y0, cs%omega0)
     call ball%rhs(0.0_wp, y, f)
-    write (output_unit, '(a)') 'derived:'
-    contact = contact_from_normal(ball%cup, n0)
     obs = observe(ball, y, f)
-    write (output_unit, '(a)') '  z0 = ' // format_real(contact(3)) // ' m'
+    write (output_unit, '(a)') 'derived:'
+    write (output_unit, '(a)') '  z0 = ' // format_real(obs%contact(3)) // ' m'
     write (output_unit, '(a)') '  principal radii of curvature at the start = ' // &
-        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // &
-        format_real(inp%base%radius) // ' m)'
+        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // format_real(cs%radius) // ' m)'
     write (output_unit, '(a)') '  spin omega . n at the start = ' // format_real(dot_product(y(4:6), n0)) // ' rad/s'
     write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
-    if (inp%base%g > 0) then
-      periods = 2 * acos(-1.0_wp) * sqrt((1 + inp%base%inertia_factor) * &
-                (bottom_radii(ball%cup) - inp%base%radius) / inp%base%g)
+    if (cs%g > 0) then
+      periods = 2 * acos(-1.0_wp) * sqrt((1 + cs%inertia_factor) * (bottom_radii(ball%cup) - cs%radius) / cs%g)
       write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
           format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
     end if
+
+    n_cases = inp%campaign%n_cases()
+    n_local = size(shard_slots(n_cases, opts%shard), kind=i8)
+    write (output_unit, '(a)') 'campaign: ' // itoa(int(n_cases)) // ' cases'
+    if (opts%shard(2) > 1) write (output_unit, '(a)') '  this shard (' // itoa(opts%shard(1)) // '/' // &
+        itoa(opts%shard(2)) // '): ' // itoa(int(n_local)) // ' cases'
+    do k = 1, size(inp%campaign%sweeps)
+      write (output_unit, '(a)') '  sweep ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ': ' // &
+          itoa(size(inp%campaign%sweeps(k)%values)) // ' values from ' // &
+          format_real(inp%campaign%sweeps(k)%values(1)) // ' to ' // &
+          format_real(inp%campaign%sweeps(k)%values(size(inp%campaign%sweeps(k)%values)))
+    end do
+    do k = 1, size(inp%campaign%samples)
+      write (output_unit, '(a)') '  sample ' // trim(param_names(inp%campaign%samples(k)%param)) // &
+          ' in [' // format_real(inp%campaign%samples(k)%low) // ', ' // &
+          format_real(inp%campaign%samples(k)%high) // '], ' // &
+          merge('log   ', 'linear', inp%campaign%samples(k)%log_spacing) // ' spacing'
+    end do
+    if (size(inp%campaign%sweeps) + size(inp%campaign%samples) > 0) then
+      do i = 0, min(n_cases, 5_i8) - 1
+        cs = inp%campaign%case_at(i)
+        line = '  case ' // itoa(int(i)) // ':'
+        do k = 1, size(inp%campaign%sweeps)
+          line = line // ' ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ' = ' // &
+                 format_real(get_param(cs, inp%campaign%sweeps(k)%param))
+        end do
+        do k = 1, size(inp%campaign%samples)
+          line = line // ' ' // trim(param_names(inp%campaign%samples(k)%param)) // ' = ' // &
+                 format_real(get_param(cs, inp%campaign%samples(k)%param))
+        end do
+        write (output_unit, '(a)') line
+      end do
+      if (n_cases > 5) write (output_unit, '(a)') '  ...'
+    end if
+
     write (output_unit, '(a)') 'output:'
     write (output_unit, '(a)') '  file = ' // inp%plan%file
-    write (output_unit, '(a)') '  steps = ' // itoa(int(nint(inp%base%t_end / inp%base%dt, i8))) // &
-        ', samples = ' // itoa(int(inp%plan%n_samples)) // ' every ' // format_real(inp%plan%interval) // ' s'
-    write (output_unit, '(a)', advance='no') '  fields ='
+    write (output_unit, '(a)') '  steps per case = ' // itoa(int(nint(inp%campaign%base%t_end / &
+        inp%campaign%base%dt, i8))) // ', samples = ' // itoa(int(inp%plan%n_samples)) // ' every ' // &
+        format_real(inp%plan%interval) // ' s'
+    line = '  fields ='
     do k = 1, field_count
-      if (inp%plan%fields(k)) write (output_unit, '(a)', advance='no') ' ' // trim(field_names(k))
+      if (inp%plan%fields(k)) line = line // ' ' // trim(field_names(k))
     end do
-    write (output_unit, '(a)') ''
-    bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields)
-    write (output_unit, '(a)') '  trajectory data before compression = ' // &
-        format_real(real(nint(bytes / 1024), wp)) // ' KiB per case, 1 case'
+    write (output_unit, '(a)') line
+    bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
+    write (output_unit, '(a)') '  trajectory data before compression = ' // size_text(bytes) // &
+        ' (' // itoa(int(n_local)) // ' cases)'
   end subroutine describe
+
+  function size_text(bytes) result(text)
+    real(wp), intent(in) :: bytes
+    character(len=:), allocatable :: text
+    if (bytes < 2.0_wp**20) then
+      text = format_real(real(nint(bytes / 1024), wp)) // ' KiB'
+    else if (bytes < 2.0_wp**30) then
+      text = format_real(real(nint(10 * bytes / 2.0_wp**20), wp) / 10) // ' MiB'
+    else
+      text = format_real(real(nint(10 * bytes / 2.0_wp**30), wp) / 10) // ' GiB'
+    end if
+  end function size_text
 
   subroutine print_values(rec)
     type(named_value_t), intent(in) :: rec(:)

@@ -1,14 +1,18 @@
-!> One fully resolved case, and the output plan shared by every case of a run.
+!> One fully resolved case, the table of its scalar parameters (the names a
+!> sweep or a sample may vary, with their groups, units and bounds), the
+!> checks every case must pass, and the output plan shared by all cases.
 module ellroll_cases
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
-  use ellroll_ellipsoid, only: new_ellipsoid
+  use ellroll_strings, only: format_real
+  use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
   implicit none
   private
 
-  public :: case_t, output_plan_t, case_record, make_ball
+  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case
+  public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
             field_reaction, field_energy
@@ -17,7 +21,8 @@ module ellroll_cases
     integer(i8) :: index = 0
     real(wp) :: a = 0, b = 0, c = 0
     real(wp) :: radius = 0
-    real(wp) :: mass = 0
+    real(wp) :: weight = 0               !< N; 0 when the mass was given directly
+    real(wp) :: mass = 0                 !< kg; weight / g when the weight was given
     real(wp) :: g = 9.81_wp
     real(wp) :: inertia_factor = 0.4_wp
     real(wp) :: mu = 0                   !< 0: no friction limit
@@ -28,6 +33,25 @@ module ellroll_cases
     real(wp) :: t_end = 0
     real(wp) :: fit_margin = 1.0e-6_wp
   end type case_t
+
+  ! The scalar parameters: what a sweep or a sample can vary.
+  integer, parameter :: param_count = 16
+  character(len=*), parameter :: param_names(param_count) = [character(len=14) :: &
+      'a', 'b', 'c', 'radius', 'weight', 'mass', 'mu', 'inertia_factor', 'g', &
+      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin']
+  character(len=*), parameter :: param_groups(param_count) = [character(len=11) :: &
+      'geometry', 'geometry', 'geometry', 'ball', 'ball', 'ball', 'ball', 'ball', 'environment', &
+      'initial', 'initial', 'initial', 'initial', 'initial', 'integration', 'integration']
+  character(len=*), parameter :: param_units(param_count) = [character(len=5) :: &
+      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '']
+  ! Bounds keep every derived quantity finite (squares, products, s^4).
+  real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
+  real(wp), parameter :: param_low(param_count) = [length_min, length_min, length_min, length_min, &
+      tiny(1.0_wp), tiny(1.0_wp), 0.0_wp, tiny(1.0_wp), 0.0_wp, -length_max, -length_max, &
+      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp]
+  real(wp), parameter :: param_high(param_count) = [length_max, length_max, length_max, length_max, &
+      1.0e12_wp, 1.0e12_wp, 1.0e6_wp, 2.0_wp / 3, 1.0e4_wp, length_max, length_max, &
+      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp]
 
   integer, parameter :: field_count = 7
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
@@ -56,6 +80,143 @@ module ellroll_cases
   end type output_plan_t
 
 contains
+
+  pure integer function param_index(name)
+    character(len=*), intent(in) :: name
+    integer :: k
+    param_index = 0
+    do k = 1, param_count
+      if (param_names(k) == name) param_index = k
+    end do
+  end function param_index
+
+  pure real(wp) function get_param(cs, id) result(value)
+    type(case_t), intent(in) :: cs
+    integer, intent(in) :: id
+    select case (id)
+    case (1); value = cs%a
+    case (2); value = cs%b
+    case (3); value = cs%c
+    case (4); value = cs%radius
+    case (5); value = cs%weight
+    case (6); value = cs%mass
+    case (7); value = cs%mu
+    case (8); value = cs%inertia_factor
+    case (9); value = cs%g
+    case (10); value = cs%x0
+    case (11); value = cs%y0
+    case (12:14); value = cs%omega0(id - 11)
+    case (15); value = cs%dt
+    case default; value = cs%fit_margin
+    end select
+  end function get_param
+
+  pure subroutine set_param(cs, id, value)
+    type(case_t), intent(inout) :: cs
+    integer, intent(in) :: id
+    real(wp), intent(in) :: value
+    select case (id)
+    case (1); cs%a = value
+    case (2); cs%b = value
+    case (3); cs%c = value
+    case (4); cs%radius = value
+    case (5); cs%weight = value
+    case (6); cs%mass = value
+    case (7); cs%mu = value
+    case (8); cs%inertia_factor = value
+    case (9); cs%g = value
+    case (10); cs%x0 = value
+    case (11); cs%y0 = value
+    case (12:14); cs%omega0(id - 11) = value
+    case (15); cs%dt = value
+    case default; cs%fit_margin = value
+    end select
+  end subroutine set_param
+
+  !> Derive what follows from the given values (the mass from a weight).
+  pure subroutine finalize_case(cs)
+    type(case_t), intent(inout) :: cs
+    if (cs%weight > 0 .and. cs%g > 0) cs%mass = cs%weight / cs%g
+  end subroutine finalize_case
+
+  !> The first problem of a case, as the parameter it concerns and why;
+  !> param = 0 when the case is valid. Checks every bound, that the start
+  !> lies inside the cup, that the ball fits there, and that dt divides the
+  !> output interval.
+  subroutine check_case(cs, interval, param, reason)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: interval
+    integer, intent(out) :: param
+    character(len=:), allocatable, intent(out) :: reason
+    real(wp) :: value, level, radii(2)
+    integer :: k
+    reason = ''
+    do k = 1, param_count
+      param = k
+      value = get_param(cs, k)
+      if (.not. ieee_is_finite(value)) then
+        reason = 'must be a finite number'
+        return
+      end if
+      if (k == param_index('weight') .and. value == 0) cycle     ! mass given instead
+      if (k == param_index('mass') .and. cs%weight > 0) cycle
+      if (value < param_low(k) .or. value > param_high(k)) then
+        reason = range_text(k)
+        return
+      end if
+    end do
+    param = param_index('weight')
+    if (cs%weight > 0 .and. cs%g <= 0) then
+      reason = 'a weight cannot give the mass when g = 0; give mass instead'
+      return
+    end if
+    param = param_index('dt')
+    if (cs%dt > cs%t_end) then
+      reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
+      return
+    end if
+    if (.not. is_multiple(interval, cs%dt)) then
+      reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
+      return
+    end if
+    level = (cs%x0 / cs%a)**2 + (cs%y0 / cs%b)**2
+    if (level >= 1) then
+      param = param_index(merge('x', 'y', cs%x0 /= 0))
+      reason = 'the start (x, y) = (' // format_real(cs%x0) // ', ' // format_real(cs%y0) // &
+               ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
+      return
+    end if
+    radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
+                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x0, cs%y0))
+    if (radii(1) / cs%radius - 1 <= cs%fit_margin) then
+      param = param_index('radius')
+      reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
+               format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
+               ' m, and radius must be below ' // format_real(radii(1)) // ' m'
+      return
+    end if
+    param = 0
+  end subroutine check_case
+
+  function range_text(k) result(text)
+    integer, intent(in) :: k
+    character(len=:), allocatable :: text
+    character(len=:), allocatable :: units
+    units = ''
+    if (len_trim(param_units(k)) > 0) units = ' ' // trim(param_units(k))
+    if (param_low(k) == tiny(1.0_wp)) then
+      text = 'must be > 0 and <= ' // format_real(param_high(k)) // units
+    else
+      text = 'must be between ' // format_real(param_low(k)) // ' and ' // format_real(param_high(k)) // units
+    end if
+  end function range_text
+
+  logical pure function is_multiple(whole, part)
+    real(wp), intent(in) :: whole, part
+    real(wp) :: ratio
+    ratio = whole / part
+    is_multiple = abs(ratio - anint(ratio)) <= 1.0e-9_wp * max(1.0_wp, ratio) .and. anint(ratio) >= 1
+  end function is_multiple
 
   pure function make_ball(cs) result(ball)
     type(case_t), intent(in) :: cs

@@ -9,7 +9,7 @@ module ellroll_results
   implicit none
   private
 
-  public :: field_buffer_t, case_result_t, summary_record, new_case_result
+  public :: field_buffer_t, case_result_t, summary_record, set_summary_value, new_case_result
 
   type :: field_buffer_t
     real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
@@ -26,6 +26,8 @@ module ellroll_results
     real(wp) :: friction_needed_max = 0
     real(wp) :: energy_drift = 0
     real(wp) :: constraint_error_max = 0
+    real(wp) :: nutation_period = 0      !< mean interval between maxima of Theta; NaN if < 3 maxima
+    integer(i8) :: nutation_maxima = 0
     type(field_buffer_t) :: fields(field_count)
   end type case_result_t
 
@@ -48,7 +50,7 @@ contains
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
-    type(named_value_t) :: rec(9)
+    type(named_value_t) :: rec(11)
     rec = [ &
       real_value('t_final', 's', 'time at which the case ended', res%t_final), &
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
@@ -60,6 +62,28 @@ contains
       real_value('energy_drift', '1', 'max |E - E0| / |E0| over all steps', res%energy_drift), &
       real_value('constraint_error_max', '1', &
                  'max |(x/a)^2+(y/b)^2+((z-c)/c)^2-1| of the contact point over all steps', &
-                 res%constraint_error_max) ]
+                 res%constraint_error_max), &
+      real_value('nutation_period', 's', 'mean interval between successive maxima of Theta (NaN if < 3)', &
+                 res%nutation_period), &
+      int_value('nutation_maxima', '1', 'number of maxima of Theta', res%nutation_maxima) ]
   end function summary_record
+
+  !> The inverse of summary_record for one entry (reading a stored summary back).
+  pure subroutine set_summary_value(res, value)
+    type(case_result_t), intent(inout) :: res
+    type(named_value_t), intent(in) :: value
+    select case (trim(value%name))
+    case ('t_final'); res%t_final = value%reals(1)
+    case ('n_steps'); res%n_steps = value%int
+    case ('n_rhs'); res%n_rhs = value%int
+    case ('wall_time'); res%wall_time = value%reals(1)
+    case ('theta_max'); res%theta_max = value%reals(1)
+    case ('reaction_normal_max'); res%reaction_normal_max = value%reals(1)
+    case ('friction_needed_max'); res%friction_needed_max = value%reals(1)
+    case ('energy_drift'); res%energy_drift = value%reals(1)
+    case ('constraint_error_max'); res%constraint_error_max = value%reals(1)
+    case ('nutation_period'); res%nutation_period = value%reals(1)
+    case ('nutation_maxima'); res%nutation_maxima = value%int
+    end select
+  end subroutine set_summary_value
 end module ellroll_results

@@ -1,13 +1,29 @@
 !> Small text helpers shared by the input checks, the messages and the writer.
 module ellroll_strings
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use ellroll_kinds, only: wp
+  use ellroll_kinds, only: wp, i8
   implicit none
   private
 
-  public :: lower, itoa, join, format_real
+  public :: lower, itoa, join, format_real, text_hash
 
 contains
+
+  !> A 64-bit hash of a text as 16 hex digits: two 32-bit FNV-1a lanes, in
+  !> exact integer arithmetic, the same on every machine.
+  pure function text_hash(text) result(hex)
+    character(len=*), intent(in) :: text
+    character(len=16) :: hex
+    integer(i8), parameter :: prime = 16777619_i8, mask = 4294967295_i8
+    integer(i8) :: lane(2)
+    integer :: k
+    lane = [2166136261_i8, 3735928559_i8]
+    do k = 1, len(text)
+      lane(1) = iand(ieor(lane(1), int(iachar(text(k:k)), i8)) * prime, mask)
+      lane(2) = iand(ieor(lane(2), int(iachar(text(k:k)), i8) + 97_i8) * prime, mask)
+    end do
+    write (hex, '(2z8.8)') lane
+  end function text_hash
 
   pure function lower(text) result(out)
     character(len=*), intent(in) :: text

@@ -1,47 +1,48 @@
-!> Reading and validating the input namelist file into a resolved case and an
-!> output plan. Every message a user sees about input is written here; each
-!> names the file, line, group, variable and value.
+!> Reading and validating the input namelist file into a campaign (a base
+!> case, sweeps and samples) and an output plan. Every message a user sees
+!> about input is written here; each names the file, line, group, variable
+!> and value.
 module ellroll_input
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file
+  use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
-  use ellroll_cases, only: case_t, output_plan_t, field_count, field_names, field_ncomp
-  use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
+  use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
+      field_ncomp, param_count, param_names, param_groups, param_index, get_param
+  use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
+      invalid_stop, invalid_skip
   use ellroll_integrators, only: method_names
   implicit none
   private
 
-  public :: run_input_t, read_input
+  public :: run_input_t, read_input, read_input_text, describe_invalid
 
   type :: run_input_t
-    type(case_t) :: base
+    type(campaign_t) :: campaign
     type(output_plan_t) :: plan
     character(len=:), allocatable :: path
-    character(len=:), allocatable :: text     !< the input file, verbatim
+    character(len=:), allocatable :: text       !< the input file, verbatim
+    character(len=:), allocatable :: canonical  !< groups and assignments without comments or layout
   end type run_input_t
 
-  character(len=*), parameter :: known_groups(6) = [character(len=12) :: &
-      'geometry', 'ball', 'environment', 'initial', 'integration', 'output']
-
-  ! Bounds that keep every derived quantity finite (squares, products, s^4).
-  real(wp), parameter :: length_min = 1.0e-6_wp, length_max = 1.0e6_wp
+  character(len=*), parameter :: known_groups(9) = [character(len=12) :: &
+      'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'campaign', 'sweep', 'sample']
+  integer, parameter :: max_values = 10000, max_fields = 32
   !> Largest memory one case's output buffers may take.
   real(wp), parameter :: max_case_buffer_bytes = 2.0_wp**31
+  integer(i8), parameter :: max_cases = 100000000_i8
 
   type :: reader_t
     type(nml_file_t) :: file
     type(error_t) :: err
   contains
     procedure :: group => find_group
-    procedure :: check_names
-    procedure :: read_failed
+    procedure :: fail_at
     procedure :: fail_value
     procedure :: fail_missing
     procedure :: given
-    procedure :: require_real
-    procedure :: require_range
+    procedure :: require
   end type reader_t
 
 contains
@@ -52,319 +53,473 @@ contains
     type(run_input_t), intent(out) :: inp
     type(error_t), intent(inout) :: err
     type(reader_t) :: rd
-    integer :: k
-
     call scan_namelist_file(path, rd%file, rd%err)
+    call interpret(rd, path, output_override, inp, err)
+  end subroutine read_input
+
+  !> The same from the text of an input file (as stored in an output file).
+  subroutine read_input_text(label, text, output_override, inp, err)
+    character(len=*), intent(in) :: label, text, output_override
+    type(run_input_t), intent(out) :: inp
+    type(error_t), intent(inout) :: err
+    type(reader_t) :: rd
+    rd%file%path = label
+    rd%file%text = text
+    call scan_namelist_text(rd%file, rd%err)
+    call interpret(rd, label, output_override, inp, err)
+  end subroutine read_input_text
+
+  subroutine interpret(rd, path, output_override, inp, err)
+    type(reader_t), intent(inout) :: rd
+    character(len=*), intent(in) :: path, output_override
+    type(run_input_t), intent(inout) :: inp
+    type(error_t), intent(inout) :: err
+    integer :: k, first
     if (.not. rd%err%failed()) then
       do k = 1, size(rd%file%groups)
-        if (.not. any(known_groups == rd%file%groups(k)%name)) then
-          call set_error(rd%err, err_input, path // ':' // itoa(rd%file%groups(k)%line) // &
-              ': unknown group &' // rd%file%groups(k)%name // ' (known groups: ' // &
-              join(known_groups) // ')')
-          exit
-        end if
+        associate (grp => rd%file%groups(k))
+          if (.not. any(known_groups == grp%name)) then
+            call rd%fail_at(grp%line, 'unknown group &' // grp%name // ' (known groups: ' // &
+                            join(known_groups) // ')')
+          else if (grp%name /= 'sweep' .and. grp%name /= 'sample') then
+            first = rd%file%group_index(grp%name)
+            if (first /= k) call rd%fail_at(grp%line, '&' // grp%name // ' appears twice (first at line ' // &
+                                            itoa(rd%file%groups(first)%line) // '); give each group once')
+          end if
+        end associate
+        if (rd%err%failed()) exit
       end do
     end if
-    if (.not. rd%err%failed()) call read_geometry(rd, inp%base)
-    if (.not. rd%err%failed()) call read_environment(rd, inp%base)
-    if (.not. rd%err%failed()) call read_ball(rd, inp%base)
-    if (.not. rd%err%failed()) call read_initial(rd, inp%base)
-    if (.not. rd%err%failed()) call read_integration(rd, inp%base)
-    if (.not. rd%err%failed()) call read_output(rd, inp%base, output_override, inp%plan)
-    if (.not. rd%err%failed()) call check_start(rd, inp%base)
+    if (.not. rd%err%failed()) call read_groups(rd, output_override, inp)
     if (rd%err%failed()) then
       err = rd%err
       return
     end if
     inp%path = path
     inp%text = rd%file%text
-  end subroutine read_input
+    inp%canonical = canonical_text(rd%file)
+  end subroutine interpret
 
-  ! ---------------------------------------------------------------- groups
-
-  subroutine read_geometry(rd, cs)
+  !> All namelist groups are declared in this one scope, so that one loop
+  !> reads every assignment of every group; each assignment is read alone.
+  subroutine read_groups(rd, output_override, inp)
     type(reader_t), intent(inout) :: rd
-    type(case_t), intent(inout) :: cs
-    real(wp) :: a, b, c
-    namelist /geometry/ a, b, c
-    integer :: gi, k, ios
-    character(len=512) :: msg
-    character(len=:), allocatable :: lines(:)
-    a = nan(); b = nan(); c = nan()
-    gi = rd%group('geometry', required=.true.)
-    if (gi == 0) return
-    if (.not. rd%check_names(gi, [character(len=16) :: 'a', 'b', 'c'])) return
-    do k = 1, size(rd%file%groups(gi)%items)
-      lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=geometry, iostat=ios, iomsg=msg)
-      if (ios /= 0) then
-        call rd%read_failed(gi, k, msg)
-        return
-      end if
-    end do
-    if (.not. rd%require_range(gi, 'a', a, length_min, length_max, 'm')) return
-    if (.not. rd%require_range(gi, 'b', b, length_min, length_max, 'm')) return
-    if (.not. rd%require_range(gi, 'c', c, length_min, length_max, 'm')) return
-    cs%a = a; cs%b = b; cs%c = c
-  end subroutine read_geometry
-
-  subroutine read_environment(rd, cs)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(inout) :: cs
-    real(wp) :: g
-    namelist /environment/ g
-    integer :: gi, k, ios
-    character(len=512) :: msg
-    character(len=:), allocatable :: lines(:)
-    g = 9.81_wp
-    gi = rd%group('environment', required=.false.)
-    if (gi /= 0) then
-      if (.not. rd%check_names(gi, [character(len=16) :: 'g'])) return
-      do k = 1, size(rd%file%groups(gi)%items)
-        lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=environment, iostat=ios, iomsg=msg)
-        if (ios /= 0) then
-          call rd%read_failed(gi, k, msg)
-          return
-        end if
-      end do
-      if (.not. rd%require_range(gi, 'g', g, 0.0_wp, 1.0e4_wp, 'm/s^2')) return
-    end if
-    cs%g = g
-  end subroutine read_environment
-
-  subroutine read_ball(rd, cs)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(inout) :: cs
-    real(wp) :: radius, weight, mass, mu, inertia_factor
-    namelist /ball/ radius, weight, mass, mu, inertia_factor
-    integer :: gi, k, ios
-    character(len=512) :: msg
-    character(len=:), allocatable :: lines(:)
-    radius = nan(); weight = nan(); mass = nan(); mu = nan(); inertia_factor = 0.4_wp
-    gi = rd%group('ball', required=.true.)
-    if (gi == 0) return
-    if (.not. rd%check_names(gi, [character(len=16) :: 'radius', 'weight', 'mass', 'mu', &
-                                  'inertia_factor'])) return
-    do k = 1, size(rd%file%groups(gi)%items)
-      lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=ball, iostat=ios, iomsg=msg)
-      if (ios /= 0) then
-        call rd%read_failed(gi, k, msg)
-        return
-      end if
-    end do
-    if (.not. rd%require_range(gi, 'radius', radius, length_min, length_max, 'm')) return
-    if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
-      call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
-      return
-    else if (.not. (rd%given(gi, 'weight') .or. rd%given(gi, 'mass'))) then
-      call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
-      return
-    end if
-    if (rd%given(gi, 'weight')) then
-      if (.not. rd%require_range(gi, 'weight', weight, tiny(1.0_wp), 1.0e12_wp, 'N')) return
-      if (cs%g <= 0) then
-        call rd%fail_value(gi, 'weight', 'a weight cannot give the mass when g = 0; give mass instead')
-        return
-      end if
-      cs%mass = weight / cs%g
-    else
-      if (.not. rd%require_range(gi, 'mass', mass, tiny(1.0_wp), 1.0e12_wp, 'kg')) return
-      cs%mass = mass
-    end if
-    if (rd%given(gi, 'mu')) then
-      if (.not. rd%require_range(gi, 'mu', mu, tiny(1.0_wp), 1.0e6_wp, '')) return
-      cs%mu = mu
-    else
-      cs%mu = 0
-    end if
-    if (.not. rd%require_range(gi, 'inertia_factor', inertia_factor, tiny(1.0_wp), 2.0_wp/3, '')) return
-    cs%radius = radius
-    cs%inertia_factor = inertia_factor
-  end subroutine read_ball
-
-  subroutine read_initial(rd, cs)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(inout) :: cs
-    real(wp) :: x, y, omega(3)
-    namelist /initial/ x, y, omega
-    integer :: gi, k, ios
-    character(len=512) :: msg
-    character(len=:), allocatable :: lines(:)
-    x = 0; y = 0; omega = nan()
-    gi = rd%group('initial', required=.true.)
-    if (gi == 0) return
-    if (.not. rd%check_names(gi, [character(len=16) :: 'x', 'y', 'omega'])) return
-    do k = 1, size(rd%file%groups(gi)%items)
-      lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=initial, iostat=ios, iomsg=msg)
-      if (ios /= 0) then
-        call rd%read_failed(gi, k, msg)
-        return
-      end if
-    end do
-    if (.not. rd%require_range(gi, 'x', x, -length_max, length_max, 'm')) return
-    if (.not. rd%require_range(gi, 'y', y, -length_max, length_max, 'm')) return
-    if (.not. rd%given(gi, 'omega')) then
-      call rd%fail_missing(gi, 'omega', 'give the initial angular velocity, omega = wx, wy, wz (rad/s)')
-      return
-    end if
-    if (.not. all(ieee_is_finite(omega))) then
-      call rd%fail_value(gi, 'omega', 'three finite numbers are needed (wx, wy, wz in rad/s)')
-      return
-    end if
-    if (any(abs(omega) > 1.0e6_wp)) then
-      call rd%fail_value(gi, 'omega', 'each component must lie within +-1e6 rad/s')
-      return
-    end if
-    cs%x0 = x; cs%y0 = y; cs%omega0 = omega
-  end subroutine read_initial
-
-  subroutine read_integration(rd, cs)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(inout) :: cs
-    character(len=32) :: method
-    real(wp) :: dt, t_end, fit_margin
-    namelist /integration/ method, dt, t_end, fit_margin
-    integer :: gi, k, ios
-    character(len=512) :: msg
-    character(len=:), allocatable :: lines(:)
-    method = 'rk4'; dt = nan(); t_end = nan(); fit_margin = 1.0e-6_wp
-    gi = rd%group('integration', required=.true.)
-    if (gi == 0) return
-    if (.not. rd%check_names(gi, [character(len=16) :: 'method', 'dt', 't_end', 'fit_margin'])) return
-    do k = 1, size(rd%file%groups(gi)%items)
-      lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=integration, iostat=ios, iomsg=msg)
-      if (ios /= 0) then
-        call rd%read_failed(gi, k, msg)
-        return
-      end if
-    end do
-    method = lower(adjustl(method))
-    if (index(' ' // method_names // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
-      call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names // ')')
-      return
-    end if
-    if (.not. rd%require_range(gi, 't_end', t_end, tiny(1.0_wp), 1.0e9_wp, 's')) return
-    if (.not. rd%require_range(gi, 'dt', dt, tiny(1.0_wp), t_end, 's')) return
-    if (t_end / dt > 1.0e15_wp) then
-      call rd%fail_value(gi, 'dt', 'more than 1e15 steps to t_end = ' // format_real(t_end) // ' s')
-      return
-    end if
-    if (.not. is_multiple(t_end, dt)) then
-      call rd%fail_value(gi, 't_end', 'must be a whole number of steps dt = ' // format_real(dt) // ' s')
-      return
-    end if
-    if (.not. rd%require_range(gi, 'fit_margin', fit_margin, 0.0_wp, 0.5_wp, '')) return
-    cs%method = method
-    cs%dt = dt
-    cs%t_end = t_end
-    cs%fit_margin = fit_margin
-  end subroutine read_integration
-
-  subroutine read_output(rd, cs, output_override, plan)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(in) :: cs
     character(len=*), intent(in) :: output_override
-    type(output_plan_t), intent(inout) :: plan
+    type(run_input_t), intent(inout) :: inp
+    ! &geometry, &ball, &environment, &initial, &integration, &output
+    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
+    character(len=32) :: method
+    real(wp) :: dt, t_end, fit_margin, interval
     character(len=1024) :: file
-    real(wp) :: interval
-    integer, parameter :: max_fields = 32
     character(len=32) :: fields(max_fields)
+    ! &campaign, &sweep, &sample
+    character(len=16) :: combine, invalid, spacing
+    integer(i8) :: samples, seed
+    character(len=32) :: name
+    real(wp) :: values(max_values), start, stop, low, high
+    integer :: count
+    namelist /geometry/ a, b, c
+    namelist /ball/ radius, weight, mass, mu, inertia_factor
+    namelist /environment/ g
+    namelist /initial/ x, y, omega
+    namelist /integration/ method, dt, t_end, fit_margin
     namelist /output/ file, interval, fields
-    integer :: gi, k, ios, f
+    namelist /campaign/ combine, samples, seed, invalid
+    namelist /sweep/ name, values, start, stop, count, spacing
+    namelist /sample/ name, low, high, spacing
+    integer :: gi, k, ios
     character(len=512) :: msg
     character(len=:), allocatable :: lines(:)
-    real(wp) :: bytes_per_sample
-    character(len=32) :: name
+    type(sweep_t), allocatable :: sweeps(:)
+    type(sample_t), allocatable :: draws(:)
 
+    a = nan(); b = nan(); c = nan(); radius = nan(); weight = nan(); mass = nan(); mu = 0
+    inertia_factor = 0.4_wp; g = 9.81_wp; x = 0; y = 0; omega = nan()
+    method = 'rk4'; dt = nan(); t_end = nan(); fit_margin = 1.0e-6_wp
     file = ''; interval = nan(); fields = ''
-    gi = rd%group('output', required=.true.)
-    if (gi == 0) return
-    if (.not. rd%check_names(gi, [character(len=16) :: 'file', 'interval', 'fields'])) return
-    do k = 1, size(rd%file%groups(gi)%items)
-      lines = assignment_lines(rd%file%groups(gi), k)
-      read (lines, nml=output, iostat=ios, iomsg=msg)
-      if (ios /= 0) then
-        call rd%read_failed(gi, k, msg)
+    combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
+    allocate (sweeps(0), draws(0))
+
+    do gi = 1, size(rd%file%groups)
+      associate (grp => rd%file%groups(gi))
+        if (.not. names_known(gi)) return
+        name = ''; values = nan(); start = nan(); stop = nan(); count = 0; spacing = 'linear'
+        low = nan(); high = nan()
+        do k = 1, size(grp%items)
+          lines = assignment_lines(grp, k)
+          select case (grp%name)
+          case ('geometry'); read (lines, nml=geometry, iostat=ios, iomsg=msg)
+          case ('ball'); read (lines, nml=ball, iostat=ios, iomsg=msg)
+          case ('environment'); read (lines, nml=environment, iostat=ios, iomsg=msg)
+          case ('initial'); read (lines, nml=initial, iostat=ios, iomsg=msg)
+          case ('integration'); read (lines, nml=integration, iostat=ios, iomsg=msg)
+          case ('output'); read (lines, nml=output, iostat=ios, iomsg=msg)
+          case ('campaign'); read (lines, nml=campaign, iostat=ios, iomsg=msg)
+          case ('sweep'); read (lines, nml=sweep, iostat=ios, iomsg=msg)
+          case ('sample'); read (lines, nml=sample, iostat=ios, iomsg=msg)
+          end select
+          if (ios /= 0) then
+            associate (item => grp%items(k))
+              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
+                  ': not a valid value for this variable (wrong type, or more items than it holds; ' // &
+                  'gfortran says: ' // trim(msg) // ')')
+            end associate
+            return
+          end if
+        end do
+        if (grp%name == 'sweep') call add_sweep(gi)
+        if (grp%name == 'sample') call add_sample(gi)
+        if (rd%err%failed()) return
+      end associate
+    end do
+
+    call build_base(inp%campaign%base)
+    if (rd%err%failed()) return
+    call build_plan(inp%campaign%base, inp%plan)
+    if (rd%err%failed()) return
+    call check_base(inp%campaign%base, inp%plan)
+    if (rd%err%failed()) return
+    call build_campaign(inp%campaign)
+
+  contains
+
+    logical function names_known(gi) result(ok)
+      integer, intent(in) :: gi
+      select case (rd%file%groups(gi)%name)
+      case ('geometry'); ok = check_names(rd, gi, [character(len=16) :: 'a', 'b', 'c'])
+      case ('ball'); ok = check_names(rd, gi, [character(len=16) :: 'radius', 'weight', 'mass', 'mu', &
+                                               'inertia_factor'])
+      case ('environment'); ok = check_names(rd, gi, [character(len=16) :: 'g'])
+      case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
+      case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
+                                                      'fit_margin'])
+      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields'])
+      case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
+                                                   'invalid'])
+      case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
+                                                'count', 'spacing'])
+      case default; ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
+      end select
+    end function names_known
+
+    subroutine build_base(cs)
+      type(case_t), intent(out) :: cs
+      integer :: gi
+      gi = rd%group('geometry', .true.)
+      if (gi == 0) return
+      if (.not. (rd%require(gi, 'a', a) .and. rd%require(gi, 'b', b) .and. rd%require(gi, 'c', c))) return
+      gi = rd%group('ball', .true.)
+      if (gi == 0) return
+      if (.not. rd%require(gi, 'radius', radius)) return
+      if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
+        call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
+        return
+      else if (rd%given(gi, 'weight')) then
+        if (.not. rd%require(gi, 'weight', weight)) return
+        cs%weight = weight
+      else if (rd%given(gi, 'mass')) then
+        if (.not. rd%require(gi, 'mass', mass)) return
+        cs%mass = mass
+      else
+        call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
         return
       end if
-    end do
-    if (len_trim(output_override) > 0) then
-      plan%file = trim(output_override)
-    else if (len_trim(file) > 0) then
-      plan%file = trim(adjustl(file))
-    else
-      call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
-      return
-    end if
-    if (.not. rd%require_range(gi, 'interval', interval, cs%dt, cs%t_end, 's')) return
-    if (.not. is_multiple(interval, cs%dt)) then
-      call rd%fail_value(gi, 'interval', 'must be a whole number of steps dt = ' // &
-                         format_real(cs%dt) // ' s')
-      return
-    end if
-    if (.not. is_multiple(cs%t_end, interval)) then
-      call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
-                         ' s must be a whole number of output intervals')
-      return
-    end if
-    plan%interval = interval
-    plan%steps_per_sample = nint(interval / cs%dt, i8)
-    plan%n_samples = nint(cs%t_end / interval, i8) + 1
+      gi = rd%group('initial', .true.)
+      if (gi == 0) return
+      if (.not. rd%given(gi, 'omega')) then
+        call rd%fail_missing(gi, 'omega', 'give the initial angular velocity, omega = wx, wy, wz (rad/s)')
+        return
+      end if
+      if (any(ieee_is_nan(omega))) then
+        call rd%fail_value(gi, 'omega', 'three finite numbers are needed (wx, wy, wz in rad/s)')
+        return
+      end if
+      gi = rd%group('integration', .true.)
+      if (gi == 0) return
+      if (.not. (rd%require(gi, 't_end', t_end) .and. rd%require(gi, 'dt', dt))) return
+      method = lower(adjustl(method))
+      if (index(' ' // method_names // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
+        call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names // ')')
+        return
+      end if
+      if (t_end <= 0 .or. t_end > 1.0e9_wp) then
+        call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
+        return
+      end if
+      cs%a = a; cs%b = b; cs%c = c
+      cs%radius = radius; cs%mu = mu; cs%inertia_factor = inertia_factor; cs%g = g
+      cs%x0 = x; cs%y0 = y; cs%omega0 = omega
+      cs%method = method; cs%dt = dt; cs%t_end = t_end; cs%fit_margin = fit_margin
+      call finalize_case(cs)
+    end subroutine build_base
 
-    if (rd%given(gi, 'fields')) then
-      plan%fields = .false.
-      do k = 1, max_fields
-        name = lower(adjustl(fields(k)))
-        if (len_trim(name) == 0 .or. name == 'none') cycle
-        if (name == 'all') then
-          plan%fields = .true.
-          cycle
+    subroutine build_plan(cs, plan)
+      type(case_t), intent(in) :: cs
+      type(output_plan_t), intent(inout) :: plan
+      integer :: gi, k, f
+      real(wp) :: bytes_per_sample, ratio
+      character(len=32) :: field
+      gi = rd%group('output', .true.)
+      if (gi == 0) return
+      if (len_trim(output_override) > 0) then
+        plan%file = trim(output_override)
+      else if (len_trim(file) > 0) then
+        plan%file = trim(adjustl(file))
+      else
+        call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
+        return
+      end if
+      if (.not. rd%require(gi, 'interval', interval)) return
+      if (interval <= 0 .or. interval > cs%t_end) then
+        call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
+        return
+      end if
+      ratio = cs%t_end / interval
+      if (abs(ratio - anint(ratio)) > 1.0e-9_wp * ratio) then
+        call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
+                           ' s must be a whole number of output intervals')
+        return
+      end if
+      plan%interval = interval
+      plan%n_samples = nint(ratio, i8) + 1
+
+      if (rd%given(gi, 'fields')) then
+        plan%fields = .false.
+        do k = 1, max_fields
+          field = lower(adjustl(fields(k)))
+          if (len_trim(field) == 0 .or. field == 'none') cycle
+          if (field == 'all') then
+            plan%fields = .true.
+            cycle
+          end if
+          f = findloc(field_names, trim(field), dim=1)
+          if (f == 0) then
+            call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "' (known: " // &
+                               join(field_names) // ', all, none)')
+            return
+          end if
+          plan%fields(f) = .true.
+        end do
+      end if
+      bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
+      if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
+        call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
+            format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
+            ' GiB; raise interval or select fewer fields')
+      end if
+    end subroutine build_plan
+
+    !> The base case must be valid whatever the sweeps do; its messages point
+    !> at the variable's line.
+    subroutine check_base(cs, plan)
+      type(case_t), intent(in) :: cs
+      type(output_plan_t), intent(inout) :: plan
+      integer :: param, gi
+      character(len=:), allocatable :: reason, variable
+      call check_case(cs, plan%interval, param, reason)
+      if (param /= 0) then
+        gi = rd%group(trim(param_groups(param)), .true.)
+        variable = trim(param_names(param))
+        if (variable(1:min(6, len(variable))) == 'omega_') variable = 'omega'
+        if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
+          gi = rd%group('output', .true.)
+          variable = 'interval'
+          reason = 'must be a whole number of steps dt = ' // format_real(cs%dt) // ' s'
         end if
-        f = findloc(field_names, trim(name), dim=1)
-        if (f == 0) then
-          call rd%fail_value(gi, 'fields', "unknown field '" // trim(name) // "' (known: " // &
-                             join(field_names) // ', all, none)')
+        call rd%fail_value(gi, variable, reason)
+        return
+      end if
+      plan%steps_per_sample = nint(plan%interval / cs%dt, i8)
+    end subroutine check_base
+
+    subroutine add_sweep(gi)
+      integer, intent(in) :: gi
+      type(sweep_t) :: sw
+      integer :: n, k
+      logical :: listed, ranged
+      sw%line = rd%file%groups(gi)%line
+      sw%param = swept_param(gi)
+      if (sw%param == 0) return
+      listed = rd%given(gi, 'values')
+      ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
+      if (listed .eqv. ranged) then
+        call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
+        return
+      end if
+      if (listed) then
+        n = count_given(values)
+        if (n == 0 .or. .not. all(ieee_is_finite(values(:n)))) then
+          call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
           return
         end if
-        plan%fields(f) = .true.
-      end do
-    end if
-    bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
-    if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
-      call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
-          format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
-          ' GiB; raise interval or select fewer fields')
-      return
-    end if
-  end subroutine read_output
+        sw%values = values(:n)
+      else
+        if (.not. (rd%require(gi, 'start', start) .and. rd%require(gi, 'stop', stop))) return
+        if (count < 1 .or. count > max_values * 1000) then
+          call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
+          return
+        end if
+        select case (lower(spacing))
+        case ('linear')
+          sw%values = [(start + (stop - start) * real(k, wp) / max(1, count - 1), k = 0, count - 1)]
+        case ('log')
+          if (start <= 0 .or. stop <= 0) then
+            call rd%fail_value(gi, 'start', "spacing = 'log' needs start > 0 and stop > 0")
+            return
+          end if
+          sw%values = [(start * (stop / start)**(real(k, wp) / max(1, count - 1)), k = 0, count - 1)]
+        case default
+          call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
+          return
+        end select
+        if (count > 1) sw%values(count) = stop        ! exactly the end the user wrote
+      end if
+      sweeps = [sweeps, sw]
+    end subroutine add_sweep
 
-  !> The start must lie inside the lower half, and the ball must fit there.
-  subroutine check_start(rd, cs)
-    type(reader_t), intent(inout) :: rd
+    subroutine add_sample(gi)
+      integer, intent(in) :: gi
+      type(sample_t) :: s
+      s%line = rd%file%groups(gi)%line
+      s%param = swept_param(gi)
+      if (s%param == 0) return
+      if (.not. (rd%require(gi, 'low', low) .and. rd%require(gi, 'high', high))) return
+      if (.not. high > low) then
+        call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(low))
+        return
+      end if
+      select case (lower(spacing))
+      case ('linear')
+        s%log_spacing = .false.
+      case ('log')
+        if (low <= 0) then
+          call rd%fail_value(gi, 'low', "spacing = 'log' needs low > 0")
+          return
+        end if
+        s%log_spacing = .true.
+      case default
+        call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
+        return
+      end select
+      s%low = low; s%high = high
+      draws = [draws, s]
+    end subroutine add_sample
+
+    !> The parameter named by a &sweep or &sample group.
+    integer function swept_param(gi) result(param)
+      integer, intent(in) :: gi
+      integer :: k
+      param = 0
+      if (.not. rd%given(gi, 'name')) then
+        call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
+        return
+      end if
+      param = param_index(trim(lower(adjustl(name))))
+      if (param == 0) then
+        call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(param_names) // ')')
+        return
+      end if
+      do k = 1, size(sweeps)
+        if (sweeps(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sweep at line ' // &
+                                                         itoa(sweeps(k)%line))
+      end do
+      do k = 1, size(draws)
+        if (draws(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sample at line ' // &
+                                                        itoa(draws(k)%line))
+      end do
+      if (rd%err%failed()) param = 0
+    end function swept_param
+
+    subroutine build_campaign(camp)
+      type(campaign_t), intent(inout) :: camp
+      integer :: gi, k, bi, param, line
+      gi = rd%group('campaign', .false.)
+      if (gi > 0) then
+        select case (lower(combine))
+        case ('grid'); camp%combine = combine_grid
+        case ('zip'); camp%combine = combine_zip
+        case default
+          call rd%fail_value(gi, 'combine', "must be 'grid' or 'zip'")
+          return
+        end select
+        select case (lower(invalid))
+        case ('stop'); camp%invalid = invalid_stop
+        case ('skip'); camp%invalid = invalid_skip
+        case default
+          call rd%fail_value(gi, 'invalid', "must be 'stop' or 'skip'")
+          return
+        end select
+        if (samples < 0 .or. samples > max_cases) then
+          call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(int(max_cases)))
+          return
+        end if
+      end if
+      if (size(draws) > 0 .and. samples == 0) then
+        call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
+        return
+      end if
+      if (samples > 0 .and. size(draws) == 0) then
+        call rd%fail_value(gi, 'samples', 'no &sample group says what to draw')
+        return
+      end if
+      camp%n_draws = samples
+      camp%seed = seed
+      camp%sweeps = sweeps
+      camp%samples = draws
+      if (camp%combine == combine_zip) then
+        do k = 2, size(sweeps)
+          if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
+            call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
+                itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
+                ' at line ' // itoa(sweeps(1)%line) // ')')
+            return
+          end if
+        end do
+      end if
+      bi = param_index('weight')
+      do k = 1, size(sweeps) + size(draws)
+        if (k <= size(sweeps)) then
+          param = sweeps(k)%param; line = sweeps(k)%line
+        else
+          param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
+        end if
+        if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
+            'weight is varied but &ball gives mass; vary mass instead')
+        if (param == param_index('mass') .and. camp%base%weight > 0) call rd%fail_at(line, &
+            'mass is varied but &ball gives weight; vary weight instead')
+      end do
+      if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
+        call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
+                        itoa(int(max_cases)) // ' cases')
+      end if
+    end subroutine build_campaign
+  end subroutine read_groups
+
+  !> The message for an invalid case of a campaign: its index, the values
+  !> that were varied, and what is wrong.
+  function describe_invalid(inp, cs, param, reason) result(text)
+    type(run_input_t), intent(in) :: inp
     type(case_t), intent(in) :: cs
-    real(wp) :: level, radii(2)
-    integer :: gi
-    gi = rd%group('initial', required=.true.)
-    level = (cs%x0 / cs%a)**2 + (cs%y0 / cs%b)**2
-    if (level >= 1) then
-      call rd%fail_value(gi, merge('x', 'y', rd%given(gi, 'x')), &
-          'the start (x, y) = (' // format_real(cs%x0) // ', ' // format_real(cs%y0) // &
-          ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1')
-      return
+    integer, intent(in) :: param
+    character(len=*), intent(in) :: reason
+    character(len=:), allocatable :: text
+    integer :: k
+    text = inp%path // ': case ' // itoa(int(cs%index)) // ' ('
+    do k = 1, size(inp%campaign%sweeps)
+      text = text // trim(param_names(inp%campaign%sweeps(k)%param)) // ' = ' // &
+             format_real(get_param(cs, inp%campaign%sweeps(k)%param)) // ', '
+    end do
+    do k = 1, size(inp%campaign%samples)
+      text = text // trim(param_names(inp%campaign%samples(k)%param)) // ' = ' // &
+             format_real(get_param(cs, inp%campaign%samples(k)%param)) // ', '
+    end do
+    if (text(len(text)-1:) == ', ') then
+      text = text(:len(text)-2) // '): '
+    else
+      text = text(:len(text)-2) // '): '
     end if
-    radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), normal_from_contact( &
-        new_ellipsoid(cs%a, cs%b, cs%c), cs%x0, cs%y0))
-    if (radii(1) / cs%radius - 1 <= cs%fit_margin) then
-      call rd%fail_value(rd%group('ball', required=.true.), 'radius', &
-          'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
-          format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
-          ' m, and radius must be below ' // format_real(radii(1)) // ' m')
-    end if
-  end subroutine check_start
+    text = text // trim(param_names(param)) // ' = ' // format_real(get_param(cs, param)) // ': ' // reason
+  end function describe_invalid
 
   ! --------------------------------------------------------------- helpers
 
@@ -373,15 +528,14 @@ contains
     character(len=*), intent(in) :: name
     logical, intent(in) :: required
     gi = rd%file%group_index(name)
-    if (gi == 0 .and. required) then
-      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // &
-                     ' is missing (it is required)')
+    if (gi == 0 .and. required .and. .not. rd%err%failed()) then
+      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // ' is missing (it is required)')
     end if
   end function find_group
 
   !> Unknown and repeated variable names in group gi.
   logical function check_names(rd, gi, known) result(ok)
-    class(reader_t), intent(inout) :: rd
+    type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: known(:)
     integer :: k, j
@@ -389,16 +543,14 @@ contains
     associate (grp => rd%file%groups(gi))
       do k = 1, size(grp%items)
         if (.not. any(known == grp%items(k)%base)) then
-          call set_error(rd%err, err_input, where(rd, gi, k) // ': unknown variable ' // &
-              grp%items(k)%name // ' = ' // grp%items(k)%value // ' (known in &' // grp%name // &
-              ': ' // join(known) // ')')
+          call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': unknown variable ' // grp%items(k)%name // &
+              ' = ' // grp%items(k)%value // ' (known in &' // grp%name // ': ' // join(known) // ')')
           return
         end if
         do j = 1, k - 1
           if (grp%items(j)%name == grp%items(k)%name) then
-            call set_error(rd%err, err_input, where(rd, gi, k) // ': ' // grp%items(k)%name // &
-                ' = ' // grp%items(k)%value // ': given twice (also at line ' // &
-                itoa(grp%items(j)%line) // ')')
+            call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': ' // grp%items(k)%name // &
+                ' = ' // grp%items(k)%value // ': given twice (also at line ' // itoa(grp%items(j)%line) // ')')
             return
           end if
         end do
@@ -407,16 +559,12 @@ contains
     ok = .true.
   end function check_names
 
-  subroutine read_failed(rd, gi, k, msg)
+  subroutine fail_at(rd, line, message)
     class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi, k
-    character(len=*), intent(in) :: msg
-    associate (item => rd%file%groups(gi)%items(k))
-      call set_error(rd%err, err_input, where(rd, gi, k) // ': ' // item%name // ' = ' // &
-          item%value // ': not a valid value for this variable (wrong type, or more items than it ' // &
-          'holds; gfortran says: ' // trim(msg) // ')')
-    end associate
-  end subroutine read_failed
+    integer, intent(in) :: line
+    character(len=*), intent(in) :: message
+    if (.not. rd%err%failed()) call set_error(rd%err, err_input, rd%file%path // ':' // itoa(line) // ': ' // message)
+  end subroutine fail_at
 
   subroutine fail_value(rd, gi, name, reason)
     class(reader_t), intent(inout) :: rd
@@ -425,12 +573,13 @@ contains
     integer :: k
     k = rd%file%groups(gi)%find(name)
     if (k == 0) then
-      call set_error(rd%err, err_input, rd%file%path // ':' // itoa(rd%file%groups(gi)%line) // &
-          ': &' // rd%file%groups(gi)%name // ': ' // name // ' (default): ' // reason)
+      call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
+                      ' (default): ' // reason)
     else
-      call set_error(rd%err, err_input, where(rd, gi, k) // ': ' // &
-          rd%file%groups(gi)%items(k)%name // ' = ' // rd%file%groups(gi)%items(k)%value // &
-          ': ' // reason)
+      associate (item => rd%file%groups(gi)%items(k))
+        call rd%fail_at(item%line, '&' // rd%file%groups(gi)%name // ': ' // item%name // ' = ' // &
+                        item%value // ': ' // reason)
+      end associate
     end if
   end subroutine fail_value
 
@@ -438,63 +587,33 @@ contains
     class(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: name, hint
-    call set_error(rd%err, err_input, rd%file%path // ':' // itoa(rd%file%groups(gi)%line) // &
-        ': &' // rd%file%groups(gi)%name // ': ' // name // ' is required but not given: ' // hint)
+    call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
+                    ' is required but not given: ' // hint)
   end subroutine fail_missing
 
   logical function given(rd, gi, name)
     class(reader_t), intent(in) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: name
-    given = rd%file%groups(gi)%find(name) > 0
+    given = .false.
+    if (gi > 0) given = rd%file%groups(gi)%find(name) > 0
   end function given
 
-  !> A required scalar: given and finite.
-  logical function require_real(rd, gi, name, value) result(ok)
+  !> A required scalar: given and finite (the range is checked with the case).
+  logical function require(rd, gi, name, value) result(ok)
     class(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: name
     real(wp), intent(in) :: value
     ok = .false.
-    if (ieee_is_nan(value) .and. .not. rd%given(gi, name)) then
+    if (.not. rd%given(gi, name)) then
       call rd%fail_missing(gi, name, 'add ' // name // ' = <value> to &' // rd%file%groups(gi)%name)
     else if (.not. ieee_is_finite(value)) then
       call rd%fail_value(gi, name, 'must be a finite number')
     else
       ok = .true.
     end if
-  end function require_real
-
-  !> A required scalar within [low, high].
-  logical function require_range(rd, gi, name, value, low, high, units) result(ok)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: name, units
-    real(wp), intent(in) :: value, low, high
-    character(len=:), allocatable :: unit_text
-    ok = rd%require_real(gi, name, value)
-    if (.not. ok) return
-    if (value < low .or. value > high) then
-      unit_text = ''
-      if (len(units) > 0) unit_text = ' ' // units
-      if (low == tiny(1.0_wp)) then
-        call rd%fail_value(gi, name, 'must be > 0 and <= ' // format_real(high) // unit_text)
-      else
-        call rd%fail_value(gi, name, 'must be between ' // format_real(low) // ' and ' // &
-                           format_real(high) // unit_text)
-      end if
-      ok = .false.
-    end if
-  end function require_range
-
-  !> 'file:line: &group' of assignment k of group gi.
-  function where(rd, gi, k) result(text)
-    type(reader_t), intent(in) :: rd
-    integer, intent(in) :: gi, k
-    character(len=:), allocatable :: text
-    text = rd%file%path // ':' // itoa(rd%file%groups(gi)%items(k)%line) // ': &' // &
-           rd%file%groups(gi)%name
-  end function where
+  end function require
 
   !> The records of a one-assignment namelist: '&group', the assignment's lines, '/'.
   function assignment_lines(grp, k) result(lines)
@@ -521,12 +640,31 @@ contains
     lines(n_lines + 2) = '/'
   end function assignment_lines
 
-  logical pure function is_multiple(whole, part)
-    real(wp), intent(in) :: whole, part
-    real(wp) :: ratio
-    ratio = whole / part
-    is_multiple = abs(ratio - anint(ratio)) <= 1.0e-9_wp * max(1.0_wp, ratio) .and. anint(ratio) >= 1
-  end function is_multiple
+  !> Groups and assignments in file order, without comments or layout: what
+  !> decides whether two inputs describe the same campaign.
+  function canonical_text(file) result(text)
+    type(nml_file_t), intent(in) :: file
+    character(len=:), allocatable :: text
+    integer :: gi, k
+    text = ''
+    do gi = 1, size(file%groups)
+      text = text // '&' // file%groups(gi)%name
+      do k = 1, size(file%groups(gi)%items)
+        text = text // ' ' // file%groups(gi)%items(k)%name // '=' // file%groups(gi)%items(k)%value
+      end do
+      text = text // ' /' // achar(10)
+    end do
+  end function canonical_text
+
+  !> Entries of a NaN-initialised list that were given.
+  pure integer function count_given(list)
+    real(wp), intent(in) :: list(:)
+    integer :: k
+    count_given = 0
+    do k = 1, size(list)
+      if (.not. ieee_is_nan(list(k))) count_given = k
+    end do
+  end function count_given
 
   real(wp) function nan()
     nan = ieee_value(0.0_wp, ieee_quiet_nan)

@@ -152,13 +152,6 @@ contains
             call fail(line, "'" // ch // "end' without an open group")
             return
           end if
-          do j = 1, size(groups)
-            if (groups(j)%name == group_name) then
-              call fail(line, '&' // group_name // ' appears twice (first at line ' // &
-                        itoa(groups(j)%line) // '); give each group once')
-              return
-            end if
-          end do
           in_group = .true.
           group_line = line
           allocate (items(0))

@@ -1,6 +1,7 @@
 !> Integrate one case from t = 0 to t_end (or to the model limit it meets),
 !> sampling the requested fields every output interval.
 module ellroll_simulate
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed
@@ -15,7 +16,19 @@ module ellroll_simulate
   implicit none
   private
 
-  public :: simulate_case, event_time_tolerance
+  public :: simulate_case, event_time_tolerance, maxima_t
+
+  !> Local maxima of a sampled signal, each refined by the parabola through
+  !> the three samples around it.
+  type :: maxima_t
+    real(wp) :: t(3) = 0, v(3) = 0       !< the last three samples
+    integer :: n_samples = 0
+    integer(i8) :: count = 0
+    real(wp) :: first = 0, last = 0      !< times of the first and last maximum
+  contains
+    procedure :: add => add_sample
+    procedure :: mean_interval
+  end type maxima_t
 
   !> Model limits are located in time to this (s).
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
@@ -32,6 +45,7 @@ contains
     real(wp) :: y(state_size), f(state_size), y_new(state_size), f_new(state_size)
     real(wp) :: t, energy0
     type(observation_t) :: obs
+    type(maxima_t) :: maxima
     integer(i8) :: k, n_steps, clock_start, clock_end, clock_rate
     integer :: status
 
@@ -46,6 +60,7 @@ contains
     res%n_rhs = 1
     obs = observe(ball, y, f)
     energy0 = obs%energy
+    call maxima%add(0.0_wp, obs%nutation)
     call accumulate(res, obs, energy0)
     call record_sample(res, 1_i8, obs)
     t = 0
@@ -68,10 +83,13 @@ contains
       f = f_new
       t = k * cs%dt
       res%n_steps = k
+      call maxima%add(t, obs%nutation)
       call accumulate(res, obs, energy0)
       if (mod(k, plan%steps_per_sample) == 0) call record_sample(res, k / plan%steps_per_sample + 1, obs)
     end do
     if (res%status == status_completed) res%t_final = t
+    res%nutation_maxima = maxima%count
+    res%nutation_period = maxima%mean_interval()
 
     call system_clock(clock_end)
     res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
@@ -112,6 +130,33 @@ contains
       if (found_valid) call accumulate(res, obs_valid, energy0)
     end subroutine end_at_limit
   end subroutine simulate_case
+
+  pure subroutine add_sample(self, t, v)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: t, v
+    real(wp) :: curvature, t_peak, h
+    self%t = [self%t(2:3), t]
+    self%v = [self%v(2:3), v]
+    self%n_samples = self%n_samples + 1
+    if (self%n_samples < 3) return
+    if (.not. (self%v(2) > self%v(1) .and. self%v(2) >= self%v(3))) return
+    h = self%t(2) - self%t(1)
+    curvature = self%v(1) - 2 * self%v(2) + self%v(3)
+    t_peak = self%t(2)
+    if (curvature < 0) t_peak = self%t(2) + h * (self%v(1) - self%v(3)) / (2 * curvature)
+    if (self%count == 0) self%first = t_peak
+    self%last = t_peak
+    self%count = self%count + 1
+  end subroutine add_sample
+
+  pure real(wp) function mean_interval(self)
+    class(maxima_t), intent(in) :: self
+    if (self%count < 3) then
+      mean_interval = ieee_value(0.0_wp, ieee_quiet_nan)
+    else
+      mean_interval = (self%last - self%first) / real(self%count - 1, wp)
+    end if
+  end function mean_interval
 
   pure subroutine accumulate(res, obs, energy0)
     type(case_result_t), intent(inout) :: res

@@ -16,8 +16,8 @@ CASES = [
     ("ball does not fit", [("radius = 0.2", "radius = 0.9")],
      ["case.nml:5:", "&ball", "radius = 0.9", "does not fit", "0.8 m"]),
     ("start outside the cup", [("x = 0.0", "x = 1.5")], ["case.nml:7:", "&initial", "x = 1.5", "not inside the cup"]),
-    ("interval not a multiple of dt", [("interval = 0.01", "interval = 0.0105")],
-     ["case.nml:9:", "&output", "interval = 0.0105", "whole number of steps"]),
+    ("interval not a multiple of dt", [("interval = 0.01", "interval = 0.0125")],
+     ["case.nml:9:", "&output", "interval = 0.0125", "whole number of steps"]),
     ("t_end not a multiple of interval", [("interval = 0.01", "interval = 0.07")],
      ["&output", "interval = 0.07", "whole number of output intervals"]),
     ("malformed number", [("dt = 1.0e-3", "dt = 1.0e-3.5")], ["case.nml:8:", "&integration", "dt = 1.0e-3.5", "not a valid value"]),
@@ -78,7 +78,11 @@ def test_bad_input_exits_2_and_touches_no_output(ellroll, tmp_path, edits, words
     (["run", "."], "cannot read input file"),
     (["run", "a.nml", "b.nml"], "more than one input file"),
     (["run", "a.nml", "--fast"], "unknown option --fast"),
-    (["run", "a.nml", "-o"], "-o needs a file name"),
+    (["run", "a.nml", "-o"], "-o needs a value"),
+    (["run", "a.nml", "--threads", "0"], "--threads needs a positive number"),
+    (["run", "a.nml", "--shard", "2/2"], "--shard needs I/N"),
+    (["run", "a.nml", "--resume", "--overwrite"], "exclude each other"),
+    (["merge", "out.h5"], "at least one shard file"),
     ([], "no command given"),
 ])
 def test_bad_command_line(ellroll, tmp_path, args, words):

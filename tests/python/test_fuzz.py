@@ -65,7 +65,7 @@ def test_random_edits_never_crash(ellroll_debug, tmp_path):
             assert result.stderr.startswith(f"ellroll: error: {path.name}"), detail
             assert len(result.stderr.strip()) > len(f"ellroll: error: {path.name}") + 10, detail
             continue
-        steps = int(re.search(r"steps = (\d+)", result.stdout).group(1))
+        steps = int(re.search(r"steps per case = (\d+)", result.stdout).group(1))
         if steps <= 20000:
             result = run(ellroll_debug, "run", path.name, "-o", f"fuzz{trial}.h5", cwd=tmp_path, timeout=60)
             assert result.returncode == 0 and not any(s in result.stderr for s in CRASH_SIGNS), detail

@@ -1,35 +1,66 @@
-!> Every HDF5 call of ellroll lives here. A thin file object that lays out
-!> /time, /case, /trajectory and /summary for n_cases cases, takes one case's
-!> inputs and results at a time, and closes the file.
+!> Every HDF5 call of ellroll lives here: a thin writer that lays out /time,
+!> /case, /trajectory and /summary for n cases and takes one case at a time,
+!> and a thin reader that gives back summaries, cases and attributes.
 !>
 !> HDF5 stores arrays in C order, so the Fortran dimensions below are the
 !> reverse of what h5py shows: Fortran (3, nt, ncase) is h5py (ncase, nt, 3).
-module ellroll_h5_writer
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_size_t
+module ellroll_hdf5
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_size_t, c_associated, c_f_pointer, c_int
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use hdf5
   use h5lt
   use h5ds
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_errors, only: error_t, set_error, err_output, err_input
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_status, only: status_count, status_name, status_pending
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, &
       field_ncomp, field_descriptions
-  use ellroll_results, only: case_result_t, summary_record
+  use ellroll_results, only: case_result_t, summary_record, set_summary_value
   implicit none
   private
 
-  public :: h5_output_t, provenance_t
+  public :: h5_output_t, h5_input_t, provenance_t
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
+    character(len=:), allocatable :: campaign_id    !< hash of the canonical input
+    integer(i8) :: n_cases_total = 0                !< cases of the whole campaign
+    character(len=:), allocatable :: shard          !< 'I/N'
   end type provenance_t
 
   !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
   integer, parameter :: max_chunk_bytes = 2**20
+  interface
+    integer(c_size_t) function c_strlen(s) bind(c, name='strlen')
+      import :: c_size_t, c_ptr
+      type(c_ptr), value :: s
+    end function c_strlen
+    integer(c_int) function c_h5free_memory(mem) bind(c, name='H5free_memory')
+      import :: c_int, c_ptr
+      type(c_ptr), value :: mem
+    end function c_h5free_memory
+  end interface
+
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
+
+  type :: h5_input_t
+    integer(hid_t) :: file = -1
+    character(len=:), allocatable :: path
+    integer(i8) :: n_cases = 0
+  contains
+    procedure :: open => open_input
+    procedure :: close => close_input
+    procedure :: has
+    procedure :: dataset_length
+    procedure :: text_attribute
+    procedure :: int_attribute
+    procedure :: real_column
+    procedure :: int_column
+    procedure :: read_case_result
+    procedure :: read_slab
+  end type h5_input_t
 
   type :: h5_output_t
     integer(hid_t) :: file = -1
@@ -47,10 +78,10 @@ contains
 
   !> Create the file (truncating any file of that name) and every dataset,
   !> filled with NaN / status 'pending' until cases are written.
-  subroutine create(self, path, n_cases, times, fields, template, prov, err)
+  subroutine create(self, path, indices, times, fields, template, prov, err)
     class(h5_output_t), intent(inout) :: self
     character(len=*), intent(in) :: path
-    integer(i8), intent(in) :: n_cases
+    integer(i8), intent(in) :: indices(:)      !< global index of each case slot
     real(wp), intent(in) :: times(:)
     logical, intent(in) :: fields(field_count)
     type(case_t), intent(in) :: template         !< gives the /case/ layout
@@ -58,7 +89,9 @@ contains
     type(error_t), intent(inout) :: err
     integer :: hdferr, f, k
     integer(hid_t) :: group, scale, time_scale, xyz_scale
+    integer(i8) :: n_cases
 
+    n_cases = size(indices, kind=i8)
     self%path = path
     self%n_cases = n_cases
     self%n_samples = size(times, kind=i8)
@@ -75,6 +108,10 @@ contains
     call put_text_attribute(self%file, 'input_file', prov%input_file)
     call put_text_attribute(self%file, 'input_namelist', prov%input_namelist)
     call put_text_attribute(self%file, 'command_line', prov%command_line)
+    call put_text_attribute(self%file, 'campaign_id', prov%campaign_id)
+    call put_text_attribute(self%file, 'shard', prov%shard)
+    call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
+    if (failed(hdferr, 'write attribute n_cases_total')) return
     if (err%failed()) return
 
     ! shared dimension scales
@@ -129,11 +166,8 @@ contains
     !> The group's own 'case' scale, holding the global case indices.
     integer(hid_t) function case_scale(group) result(id)
       integer(hid_t), intent(in) :: group
-      integer(i8), allocatable, target :: indices(:)
-      integer(i8) :: i
       id = new_int_dataset(group, 'case', n_cases, '1', 'global case index')
       if (err%failed()) return
-      indices = [(i, i = 0, n_cases - 1)]
       call write_int(id, indices, 0_i8)
       call make_scale(id, 'case')
     end function case_scale
@@ -530,15 +564,7 @@ contains
     real(wp), intent(in), target :: values(*)
     integer(i8), intent(in) :: offset(:), counts(:)
     type(error_t), intent(inout) :: err
-    integer(hid_t) :: file_space, mem_space
-    integer :: hdferr
-    if (err%failed()) return
-    call select_slab(dset, offset, counts, file_space, mem_space)
-    call h5dwrite_f(dset, H5T_NATIVE_DOUBLE, c_loc(values), hdferr, &
-                    mem_space_id=mem_space, file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write data (disk full?)')
-    call h5sclose_f(file_space, hdferr)
-    call h5sclose_f(mem_space, hdferr)
+    call write_slab(self, dset, H5T_NATIVE_DOUBLE, c_loc(values), offset, counts, err)
   end subroutine write_real_slab
 
   subroutine write_int_slab(self, dset, values, offset, counts, err)
@@ -547,14 +573,213 @@ contains
     integer(i8), intent(in), target :: values(*)
     integer(i8), intent(in) :: offset(:), counts(:)
     type(error_t), intent(inout) :: err
+    call write_slab(self, dset, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), offset, counts, err)
+  end subroutine write_int_slab
+
+  subroutine write_slab(self, dset, mem_type, buffer, offset, counts, err)
+    type(h5_output_t), intent(in) :: self
+    integer(hid_t), intent(in) :: dset, mem_type
+    type(c_ptr), intent(in) :: buffer
+    integer(i8), intent(in) :: offset(:), counts(:)
+    type(error_t), intent(inout) :: err
     integer(hid_t) :: file_space, mem_space
     integer :: hdferr
     if (err%failed()) return
     call select_slab(dset, offset, counts, file_space, mem_space)
-    call h5dwrite_f(dset, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), hdferr, &
-                    mem_space_id=mem_space, file_space_id=file_space)
+    call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
     if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write data (disk full?)')
     call h5sclose_f(file_space, hdferr)
     call h5sclose_f(mem_space, hdferr)
-  end subroutine write_int_slab
-end module ellroll_h5_writer
+  end subroutine write_slab
+
+  ! --------------------------------------------------------------- reading
+
+  subroutine open_input(self, path, err)
+    class(h5_input_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    integer :: hdferr
+    logical :: is_hdf5
+    self%path = path
+    call h5open_f(hdferr)
+    call h5eset_auto_f(0, hdferr)
+    call h5fis_hdf5_f(path, is_hdf5, hdferr)
+    if (hdferr < 0 .or. .not. is_hdf5) then
+      call set_error(err, err_input, path // ': not an HDF5 file (or cannot be read)')
+      return
+    end if
+    call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
+    if (hdferr < 0) then
+      call set_error(err, err_input, path // ': cannot open the HDF5 file')
+      return
+    end if
+    if (self%text_attribute('program') /= 'ellroll') then
+      call set_error(err, err_input, path // ': not an ellroll file')
+      return
+    end if
+    self%n_cases = self%dataset_length('summary/status')
+  end subroutine open_input
+
+  subroutine close_input(self)
+    class(h5_input_t), intent(inout) :: self
+    integer :: hdferr
+    if (self%file < 0) return
+    call h5fclose_f(self%file, hdferr)
+    self%file = -1
+    call h5close_f(hdferr)
+  end subroutine close_input
+
+  logical function has(self, name)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer :: hdferr
+    call h5lexists_f(self%file, name, has, hdferr)
+    if (hdferr < 0) has = .false.
+  end function has
+
+  integer(i8) function dataset_length(self, name) result(n)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer(hid_t) :: dset, space
+    integer(hsize_t) :: dims(3), max_dims(3)
+    integer :: hdferr, rank
+    n = 0
+    call h5dopen_f(self%file, name, dset, hdferr)
+    if (hdferr < 0) return
+    call h5dget_space_f(dset, space, hdferr)
+    call h5sget_simple_extent_ndims_f(space, rank, hdferr)
+    call h5sget_simple_extent_dims_f(space, dims(:rank), max_dims(:rank), hdferr)
+    n = dims(rank)                     ! the case (slowest, C order) dimension
+    call h5sclose_f(space, hdferr)
+    call h5dclose_f(dset, hdferr)
+  end function dataset_length
+
+  !> A root attribute written as a variable-length string ('' when absent).
+  function text_attribute(self, name) result(text)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: text
+    integer(hid_t) :: attr, text_type
+    type(c_ptr), target :: pointer(1)
+    type(c_ptr) :: address
+    character(kind=c_char), pointer :: chars(:)
+    integer :: hdferr, n, k
+    logical :: exists
+    text = ''
+    call h5aexists_f(self%file, name, exists, hdferr)
+    if (hdferr < 0 .or. .not. exists) return
+    call h5aopen_f(self%file, name, attr, hdferr)
+    text_type = new_text_type()
+    address = c_loc(pointer)
+    call h5aread_f(attr, text_type, address, hdferr)
+    if (hdferr >= 0 .and. c_associated(pointer(1))) then
+      n = int(c_strlen(pointer(1)))
+      call c_f_pointer(pointer(1), chars, [n])
+      text = repeat(' ', n)
+      do k = 1, n
+        text(k:k) = chars(k)
+      end do
+      hdferr = c_h5free_memory(pointer(1))     ! the string HDF5 allocated
+    end if
+    call h5tclose_f(text_type, hdferr)
+    call h5aclose_f(attr, hdferr)
+  end function text_attribute
+
+  integer function int_attribute(self, name) result(value)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer :: buffer(1), type_class, hdferr
+    integer(hsize_t) :: dims(1)
+    integer(size_t) :: type_size
+    value = -1
+    call h5ltget_attribute_info_f(self%file, '.', name, dims, type_class, type_size, hdferr)
+    if (hdferr < 0) return
+    call h5ltget_attribute_int_f(self%file, '.', name, buffer, hdferr)
+    if (hdferr >= 0) value = buffer(1)
+  end function int_attribute
+
+  !> A whole 1-D real dataset (e.g. one value per case).
+  function real_column(self, name, err) result(values)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    type(error_t), intent(inout) :: err
+    real(wp), allocatable, target :: values(:)
+    allocate (values(self%dataset_length(name)))
+    call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8], [size(values, kind=i8)], err)
+  end function real_column
+
+  function int_column(self, name, err) result(values)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    type(error_t), intent(inout) :: err
+    integer(i8), allocatable, target :: values(:)
+    allocate (values(self%dataset_length(name)))
+    call self%read_slab(name, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), [0_i8], &
+                        [size(values, kind=i8)], err)
+  end function int_column
+
+  !> Everything stored about the case in slot `slot` (0-based): its status,
+  !> summary and the trajectories present in the file.
+  subroutine read_case_result(self, slot, n_samples, res, err)
+    class(h5_input_t), intent(in) :: self
+    integer(i8), intent(in) :: slot, n_samples
+    type(case_result_t), intent(out), target :: res
+    type(error_t), intent(inout) :: err
+    type(named_value_t), allocatable :: rec(:)
+    integer(i8), target :: int_buffer(1)
+    real(wp), target :: real_buffer(1)
+    integer :: k, f
+    call self%read_slab('summary/status', h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(int_buffer), &
+                        [slot], [1_i8], err)
+    res%status = int(int_buffer(1))
+    rec = summary_record(res)
+    do k = 1, size(rec)
+      if (rec(k)%kind == kind_int) then
+        call self%read_slab('summary/' // trim(rec(k)%name), h5kind_to_type(i8, H5_INTEGER_KIND), &
+                            c_loc(int_buffer), [slot], [1_i8], err)
+        rec(k)%int = int_buffer(1)
+      else
+        call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
+                            [slot], [1_i8], err)
+        rec(k)%reals(1) = real_buffer(1)
+      end if
+      call set_summary_value(res, rec(k))
+    end do
+    do f = 1, field_count
+      if (.not. self%has('trajectory/' // trim(field_names(f)))) cycle
+      allocate (res%fields(f)%values(field_ncomp(f), n_samples))
+      if (field_ncomp(f) == 1) then
+        call self%read_slab('trajectory/' // trim(field_names(f)), H5T_NATIVE_DOUBLE, &
+                            c_loc(res%fields(f)%values), [0_i8, slot], [n_samples, 1_i8], err)
+      else
+        call self%read_slab('trajectory/' // trim(field_names(f)), H5T_NATIVE_DOUBLE, &
+                            c_loc(res%fields(f)%values), [0_i8, 0_i8, slot], [3_i8, n_samples, 1_i8], err)
+      end if
+    end do
+  end subroutine read_case_result
+
+  subroutine read_slab(self, name, mem_type, buffer, offset, counts, err)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer(hid_t), intent(in) :: mem_type
+    type(c_ptr), intent(in) :: buffer
+    integer(i8), intent(in) :: offset(:), counts(:)
+    type(error_t), intent(inout) :: err
+    integer(hid_t) :: dset, file_space, mem_space
+    integer :: hdferr
+    type(c_ptr) :: target_buffer
+    if (err%failed()) return
+    call h5dopen_f(self%file, name, dset, hdferr)
+    if (hdferr < 0) then
+      call set_error(err, err_input, self%path // ': no dataset /' // name)
+      return
+    end if
+    call select_slab(dset, offset, counts, file_space, mem_space)
+    target_buffer = buffer
+    call h5dread_f(dset, mem_type, target_buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr < 0) call set_error(err, err_input, self%path // ': cannot read /' // name)
+    call h5sclose_f(file_space, hdferr)
+    call h5sclose_f(mem_space, hdferr)
+    call h5dclose_f(dset, hdferr)
+  end subroutine read_slab
+end module ellroll_hdf5

@@ -5,7 +5,7 @@ module ellroll_system
   implicit none
   private
 
-  public :: rename_file, remove_file, utc_timestamp, process_id
+  public :: rename_file, remove_file, utc_timestamp, process_id, file_exists
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -43,6 +43,11 @@ contains
     character(len=*), intent(in) :: old, new
     rename_file = c_rename(old // c_null_char, new // c_null_char) == 0
   end function rename_file
+
+  logical function file_exists(path)
+    character(len=*), intent(in) :: path
+    inquire (file=path, exist=file_exists)
+  end function file_exists
 
   subroutine remove_file(path)
     character(len=*), intent(in) :: path

@@ -1,0 +1,132 @@
+!> A campaign: the base case expanded by sweeps (grid or zip) and random
+!> samples into n cases, each built from its global index alone, so that
+!> any subset (a shard, the cases left after an interruption) can be made
+!> without the others, identically on every machine and thread count.
+module ellroll_campaign
+  use ellroll_kinds, only: wp, i8
+  use ellroll_cases, only: case_t, set_param, finalize_case
+  implicit none
+  private
+
+  public :: campaign_t, sweep_t, sample_t, uniform_hash
+  public :: combine_grid, combine_zip, invalid_stop, invalid_skip
+
+  integer, parameter :: combine_grid = 1, combine_zip = 2
+  integer, parameter :: invalid_stop = 1, invalid_skip = 2
+  integer(i8), parameter :: mask32 = 4294967295_i8
+
+  type :: sweep_t
+    integer :: param = 0
+    real(wp), allocatable :: values(:)
+    integer :: line = 0                  !< where the &sweep group starts
+  end type sweep_t
+
+  type :: sample_t
+    integer :: param = 0
+    real(wp) :: low = 0, high = 0
+    logical :: log_spacing = .false.
+    integer :: line = 0
+  end type sample_t
+
+  type :: campaign_t
+    type(case_t) :: base
+    type(sweep_t), allocatable :: sweeps(:)
+    type(sample_t), allocatable :: samples(:)
+    integer :: combine = combine_grid
+    integer(i8) :: n_draws = 0           !< random cases per sweep point; 0: no sampling
+    integer(i8) :: seed = 0
+    integer :: invalid = invalid_stop
+  contains
+    procedure :: n_cases
+    procedure :: case_at
+  end type campaign_t
+
+contains
+
+  pure integer(i8) function n_sweep_points(self)
+    class(campaign_t), intent(in) :: self
+    integer :: k
+    n_sweep_points = 1
+    if (size(self%sweeps) == 0) return
+    if (self%combine == combine_zip) then
+      n_sweep_points = size(self%sweeps(1)%values, kind=i8)
+    else
+      do k = 1, size(self%sweeps)
+        n_sweep_points = n_sweep_points * size(self%sweeps(k)%values, kind=i8)
+      end do
+    end if
+  end function n_sweep_points
+
+  pure integer(i8) function n_cases(self)
+    class(campaign_t), intent(in) :: self
+    n_cases = n_sweep_points(self) * max(1_i8, self%n_draws)
+  end function n_cases
+
+  !> Case `index` (0-based). Samples vary fastest, then the last sweep.
+  pure function case_at(self, index) result(cs)
+    class(campaign_t), intent(in) :: self
+    integer(i8), intent(in) :: index
+    type(case_t) :: cs
+    integer(i8) :: point, rest, n
+    integer :: k
+    real(wp) :: u
+    cs = self%base
+    cs%index = index
+    point = index / max(1_i8, self%n_draws)
+    if (self%combine == combine_zip) then
+      do k = 1, size(self%sweeps)
+        call set_param(cs, self%sweeps(k)%param, self%sweeps(k)%values(point + 1))
+      end do
+    else
+      rest = point
+      do k = size(self%sweeps), 1, -1
+        n = size(self%sweeps(k)%values, kind=i8)
+        call set_param(cs, self%sweeps(k)%param, self%sweeps(k)%values(mod(rest, n) + 1))
+        rest = rest / n
+      end do
+    end if
+    do k = 1, size(self%samples)
+      u = uniform_hash(self%seed, index, k)
+      associate (s => self%samples(k))
+        if (s%log_spacing) then
+          call set_param(cs, s%param, s%low * (s%high / s%low)**u)
+        else
+          call set_param(cs, s%param, s%low + (s%high - s%low) * u)
+        end if
+      end associate
+    end do
+    call finalize_case(cs)
+  end function case_at
+
+  !> A uniform number in [0, 1) from (seed, index, stream): a counter-based
+  !> generator built on a 32-bit integer hash, in exact integer arithmetic
+  !> (every product fits in 63 bits), so every machine draws the same numbers.
+  pure real(wp) function uniform_hash(seed, index, stream) result(u)
+    integer(i8), intent(in) :: seed, index
+    integer, intent(in) :: stream
+    integer(i8) :: h, high_bits, low_bits
+    h = mix(mix(mix(mix(iand(seed, mask32)) + ishft(seed, -32)) + iand(index, mask32)) + &
+            ishft(index, -32))
+    h = mix(h + stream)
+    high_bits = ishft(mix(h + 1), -5)      ! 27 bits
+    low_bits = ishft(mix(h + 2), -6)       ! 26 bits
+    u = real(high_bits * 2_i8**26 + low_bits, wp) / 2.0_wp**53
+  end function uniform_hash
+
+  !> The "lowbias32" integer hash of Chris Wellons on the low 32 bits.
+  pure integer(i8) function mix(x) result(h)
+    integer(i8), intent(in) :: x
+    h = iand(x, mask32)
+    h = ieor(h, ishft(h, -16))
+    h = mul32(h, int(z'7feb352d', i8))
+    h = ieor(h, ishft(h, -15))
+    h = mul32(h, int(z'846ca68b', i8))
+    h = ieor(h, ishft(h, -16))
+  end function mix
+
+  !> (x * m) mod 2^32 for x, m < 2^32, without 64-bit overflow.
+  pure integer(i8) function mul32(x, m)
+    integer(i8), intent(in) :: x, m
+    mul32 = iand(x * iand(m, 65535_i8) + ishft(iand(x * ishft(m, -16), 65535_i8), 16), mask32)
+  end function mul32
+end module ellroll_campaign

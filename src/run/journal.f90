@@ -1,0 +1,239 @@
+!> The journal of a run: an append-only binary file beside the output that
+!> records each finished case (status, summary, trajectories) as soon as it
+!> is done, flushed to the operating system. A run killed at any moment
+!> loses nothing that is in the journal; `--resume` reads the valid records
+!> back (a torn last record fails its length or checksum and is dropped).
+module ellroll_journal
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t, set_error, err_input, err_output
+  use ellroll_records, only: named_value_t, kind_int
+  use ellroll_cases, only: field_count, field_ncomp
+  use ellroll_results, only: case_result_t, summary_record, set_summary_value
+  implicit none
+  private
+
+  public :: journal_t, journal_header_t
+
+  character(len=8), parameter :: magic = 'ELLROLL1'
+  integer(i8), parameter :: record_marker = 7310312871522813004_i8
+
+  !> What a journal must agree on with the run that resumes it.
+  type :: journal_header_t
+    character(len=64) :: campaign_id = ''
+    integer(i8) :: n_slots = 0
+    integer(i8) :: n_samples = 0
+    integer :: shard(2) = [0, 1]
+    logical :: fields(field_count) = .false.
+  end type journal_header_t
+
+  type :: journal_t
+    integer :: unit = 0
+    logical :: is_open = .false.          !< newunit= numbers are negative: no sentinel
+    character(len=:), allocatable :: path
+    type(journal_header_t) :: header
+    integer(i8) :: record_words = 0
+    integer(i8) :: next_position = 0     !< byte position (1-based) of the next record
+  contains
+    procedure :: create
+    procedure :: open_existing
+    procedure :: next_record
+    procedure :: append
+    procedure :: close => close_journal
+  end type journal_t
+
+contains
+
+  subroutine create(self, path, header, err)
+    class(journal_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(journal_header_t), intent(in) :: header
+    type(error_t), intent(inout) :: err
+    integer :: ios
+    character(len=256) :: msg
+    self%path = path
+    self%header = header
+    self%record_words = words_per_record(header)
+    open (newunit=self%unit, file=path, access='stream', form='unformatted', status='replace', &
+          action='readwrite', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(err, err_output, path // ': cannot create the journal: ' // trim(msg))
+      return
+    end if
+    self%is_open = .true.
+    write (self%unit, iostat=ios, iomsg=msg) magic, header%campaign_id, header%n_slots, header%n_samples, &
+        header%shard, merge(1, 0, header%fields)
+    if (ios == 0) flush (self%unit, iostat=ios)
+    if (ios /= 0) then
+      call set_error(err, err_output, path // ': cannot write the journal: ' // trim(msg))
+      return
+    end if
+    inquire (unit=self%unit, pos=self%next_position)
+  end subroutine create
+
+  !> Open a journal to resume it; refuse one written for another campaign.
+  subroutine open_existing(self, path, expected, err)
+    class(journal_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(journal_header_t), intent(in) :: expected
+    type(error_t), intent(inout) :: err
+    character(len=8) :: found_magic
+    type(journal_header_t) :: found
+    integer :: ios, flags(field_count)
+    character(len=256) :: msg
+    self%path = path
+    open (newunit=self%unit, file=path, access='stream', form='unformatted', status='old', &
+          action='readwrite', iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(err, err_output, path // ': cannot open the journal: ' // trim(msg))
+      return
+    end if
+    self%is_open = .true.
+    read (self%unit, iostat=ios) found_magic, found%campaign_id, found%n_slots, found%n_samples, &
+        found%shard, flags
+    found%fields = flags == 1
+    if (ios /= 0 .or. found_magic /= magic) then
+      call set_error(err, err_output, path // ': not an ellroll journal, or damaged before its first case')
+      return
+    end if
+    if (found%campaign_id /= expected%campaign_id) then
+      call set_error(err, err_input, path // ': the input differs from the one this run was started with; ' // &
+          'resume with the same input, or start over with --overwrite')
+      return
+    end if
+    if (found%n_slots /= expected%n_slots .or. found%n_samples /= expected%n_samples .or. &
+        any(found%shard /= expected%shard) .or. any(found%fields .neqv. expected%fields)) then
+      call set_error(err, err_input, path // ': this run was started with other options (shard, output ' // &
+          'or case count); resume it with the same command, or start over with --overwrite')
+      return
+    end if
+    self%header = found
+    self%record_words = words_per_record(found)
+    inquire (unit=self%unit, pos=self%next_position)
+  end subroutine open_existing
+
+  !> The next valid record, or found = .false. at the end (a torn or
+  !> damaged record ends the journal: appending starts over it).
+  subroutine next_record(self, slot, res, found)
+    class(journal_t), intent(inout) :: self
+    integer(i8), intent(out) :: slot
+    type(case_result_t), intent(out) :: res
+    logical, intent(out) :: found
+    integer(i8), allocatable :: words(:)
+    integer(i8) :: stored_checksum
+    integer :: ios
+    allocate (words(self%record_words))
+    found = .false.
+    read (self%unit, pos=self%next_position, iostat=ios) words, stored_checksum
+    if (ios /= 0) return
+    if (words(1) /= record_marker .or. stored_checksum /= checksum(words)) return
+    if (words(2) < 0 .or. words(2) >= self%header%n_slots) return
+    call unpack_record(self%header, words, slot, res)
+    inquire (unit=self%unit, pos=self%next_position)
+    found = .true.
+  end subroutine next_record
+
+  subroutine append(self, slot, res, err)
+    class(journal_t), intent(inout) :: self
+    integer(i8), intent(in) :: slot
+    type(case_result_t), intent(in) :: res
+    type(error_t), intent(inout) :: err
+    integer(i8), allocatable :: words(:)
+    integer :: ios
+    character(len=256) :: msg
+    words = pack_record(self%header, slot, res)
+    write (self%unit, pos=self%next_position, iostat=ios, iomsg=msg) words, checksum(words)
+    if (ios == 0) flush (self%unit, iostat=ios)
+    if (ios /= 0) then
+      call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // trim(msg))
+      return
+    end if
+    inquire (unit=self%unit, pos=self%next_position)
+  end subroutine append
+
+  subroutine close_journal(self, delete)
+    class(journal_t), intent(inout) :: self
+    logical, intent(in) :: delete
+    if (.not. self%is_open) return
+    if (delete) then
+      close (self%unit, status='delete')
+    else
+      close (self%unit)
+    end if
+    self%is_open = .false.
+  end subroutine close_journal
+
+  ! ------------------------------------------------------------ layout
+
+  integer(i8) function words_per_record(header)
+    type(journal_header_t), intent(in) :: header
+    type(case_result_t) :: empty
+    words_per_record = 3 + size(summary_record(empty)) + &
+        header%n_samples * sum(field_ncomp, mask=header%fields)
+  end function words_per_record
+
+  function pack_record(header, slot, res) result(words)
+    type(journal_header_t), intent(in) :: header
+    integer(i8), intent(in) :: slot
+    type(case_result_t), intent(in) :: res
+    integer(i8), allocatable :: words(:)
+    type(named_value_t), allocatable :: rec(:)
+    integer :: k, f
+    integer(i8) :: at, n
+    allocate (words(words_per_record(header)))
+    words(1:3) = [record_marker, slot, int(res%status, i8)]
+    rec = summary_record(res)
+    do k = 1, size(rec)
+      if (rec(k)%kind == kind_int) then
+        words(3 + k) = rec(k)%int
+      else
+        words(3 + k) = transfer(rec(k)%reals(1), 0_i8)
+      end if
+    end do
+    at = 3 + size(rec)
+    do f = 1, field_count
+      if (.not. header%fields(f)) cycle
+      n = field_ncomp(f) * header%n_samples
+      words(at + 1:at + n) = transfer(reshape(res%fields(f)%values, [n]), 0_i8, n)
+      at = at + n
+    end do
+  end function pack_record
+
+  subroutine unpack_record(header, words, slot, res)
+    type(journal_header_t), intent(in) :: header
+    integer(i8), intent(in) :: words(:)
+    integer(i8), intent(out) :: slot
+    type(case_result_t), intent(out) :: res
+    type(named_value_t), allocatable :: rec(:)
+    integer :: k, f
+    integer(i8) :: at, n
+    slot = words(2)
+    res%status = int(words(3))
+    rec = summary_record(res)
+    do k = 1, size(rec)
+      if (rec(k)%kind == kind_int) then
+        rec(k)%int = words(3 + k)
+      else
+        rec(k)%reals(1) = transfer(words(3 + k), 0.0_wp)
+      end if
+      call set_summary_value(res, rec(k))
+    end do
+    at = 3 + size(rec)
+    do f = 1, field_count
+      if (.not. header%fields(f)) cycle
+      n = field_ncomp(f) * header%n_samples
+      res%fields(f)%values = reshape(transfer(words(at + 1:at + n), 0.0_wp, n), &
+                                     [int(field_ncomp(f), i8), header%n_samples])
+      at = at + n
+    end do
+  end subroutine unpack_record
+
+  !> A rotate-xor checksum of the record's words: catches a torn write.
+  pure integer(i8) function checksum(words)
+    integer(i8), intent(in) :: words(:)
+    integer(i8) :: k
+    checksum = 1469598103934665603_i8
+    do k = 1, size(words, kind=i8)
+      checksum = ieor(ishftc(checksum, 7), words(k))
+    end do
+  end function checksum
+end module ellroll_journal

@@ -1,0 +1,232 @@
+!> Running a campaign (or one shard of it) into one HDF5 file: OpenMP over
+!> cases with dynamic scheduling, a single writer (HDF5's Fortran API is not
+!> thread-safe), a journal that makes an interruption lose nothing, resume,
+!> and the decisions about existing outputs.
+!>
+!> Files, for output OUT: OUT.partial (the HDF5 file being written, moved to
+!> OUT when complete) and OUT.journal (every finished case, the durable
+!> record; deleted when OUT is in place).
+module ellroll_run_campaign
+  !$ use omp_lib, only: omp_get_max_threads
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t, set_error, err_input, err_output
+  use ellroll_strings, only: itoa, text_hash
+  use ellroll_status, only: status_invalid
+  use ellroll_cases, only: case_t, check_case, param_names
+  use ellroll_campaign, only: campaign_t, invalid_stop
+  use ellroll_results, only: case_result_t
+  use ellroll_input, only: run_input_t, describe_invalid
+  use ellroll_simulate, only: simulate_case
+  use ellroll_hdf5, only: h5_output_t, provenance_t
+  use ellroll_journal, only: journal_t, journal_header_t
+  use ellroll_progress, only: progress_t
+  use ellroll_system, only: rename_file, remove_file, file_exists
+  implicit none
+  private
+
+  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id
+
+  type :: run_options_t
+    integer :: threads = 0               !< 0: OMP_NUM_THREADS or all cores
+    logical :: quiet = .false.
+    logical :: resume = .false.
+    logical :: overwrite = .false.
+    integer :: shard(2) = [0, 1]         !< this shard's index I and the count N
+  end type run_options_t
+
+contains
+
+  !> The id that ties a file, its journal and its shards to one campaign.
+  function campaign_id(inp) result(id)
+    type(run_input_t), intent(in) :: inp
+    character(len=16) :: id
+    id = text_hash(inp%canonical)
+  end function campaign_id
+
+  !> Global indices of shard I of N: I, I + N, I + 2N, ... (round robin, so
+  !> that every shard gets a fair share of a sweep's cheap and dear cases).
+  function shard_slots(n_total, shard) result(indices)
+    integer(i8), intent(in) :: n_total
+    integer, intent(in) :: shard(2)
+    integer(i8), allocatable :: indices(:)
+    integer(i8) :: j
+    indices = [(int(shard(1), i8) + j * shard(2), j = 0, (n_total - shard(1) - 1) / shard(2))]
+  end function shard_slots
+
+  !> Every invalid case of the campaign, with the message for the first few.
+  subroutine find_invalid_cases(inp, invalid, messages)
+    type(run_input_t), intent(in) :: inp
+    logical, allocatable, intent(out) :: invalid(:)
+    character(len=:), allocatable, intent(out) :: messages
+    integer(i8) :: i, n_bad
+    integer :: param
+    character(len=:), allocatable :: reason
+    type(case_t) :: cs
+    allocate (invalid(0:inp%campaign%n_cases() - 1))
+    messages = ''
+    n_bad = 0
+    do i = 0, inp%campaign%n_cases() - 1
+      cs = inp%campaign%case_at(i)
+      call check_case(cs, inp%plan%interval, param, reason)
+      invalid(i) = param /= 0
+      if (param == 0) cycle
+      n_bad = n_bad + 1
+      if (n_bad <= 5) messages = messages // achar(10) // '  ' // describe_invalid(inp, cs, param, reason)
+    end do
+    if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(int(n_bad - 5)) // ' more'
+  end subroutine find_invalid_cases
+
+  subroutine run_campaign(inp, opts, prov_in, err)
+    type(run_input_t), intent(in) :: inp
+    type(run_options_t), intent(in) :: opts
+    type(provenance_t), intent(in) :: prov_in
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: target, partial, journal_path, messages
+    integer(i8), allocatable :: globals(:)
+    logical, allocatable :: invalid(:), done(:)
+    integer(i8), allocatable :: todo(:)
+    integer(i8) :: n_slots, slot, j, n_todo, i
+    real(wp), allocatable :: times(:)
+    type(h5_output_t) :: out
+    type(journal_t) :: journal
+    type(journal_header_t) :: header
+    type(provenance_t) :: prov
+    type(progress_t) :: progress
+    type(case_result_t) :: res
+    type(case_t) :: cs
+    type(error_t) :: case_err, shared_err
+    logical :: found
+    integer :: n_threads
+
+    target = inp%plan%file
+    partial = target // '.partial'
+    journal_path = target // '.journal'
+
+    ! invalid cases: stop before any work, or skip them
+    call find_invalid_cases(inp, invalid, messages)
+    if (any(invalid) .and. inp%campaign%invalid == invalid_stop) then
+      call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
+          ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
+      return
+    end if
+
+    ! existing outputs
+    if (opts%resume) then
+      if (.not. file_exists(journal_path)) then
+        if (file_exists(target)) then
+          call set_error(err, err_output, target // ': this run is already complete; nothing to resume')
+        else
+          call set_error(err, err_output, journal_path // ': no interrupted run to resume')
+        end if
+        return
+      end if
+    else if (.not. opts%overwrite) then
+      if (file_exists(journal_path)) then
+        call set_error(err, err_output, target // ': an interrupted run of this output exists (' // &
+            journal_path // '); pass --resume to finish it, or --overwrite to start over')
+        return
+      end if
+      if (file_exists(target)) then
+        call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+        return
+      end if
+    end if
+
+    globals = shard_slots(inp%campaign%n_cases(), opts%shard)
+    n_slots = size(globals, kind=i8)
+    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, &
+                              n_samples=inp%plan%n_samples, shard=opts%shard, fields=inp%plan%fields)
+    prov = prov_in
+    prov%campaign_id = campaign_id(inp)
+    prov%n_cases_total = inp%campaign%n_cases()
+    prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
+
+    times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
+    call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err)
+    if (err%failed()) then
+      call out%close(err)
+      call remove_file(partial)
+      return
+    end if
+
+    ! cases already done: from the journal of the interrupted run
+    allocate (done(0:n_slots - 1))
+    done = .false.
+    if (opts%resume) then
+      call journal%open_existing(journal_path, header, err)
+      do while (.not. err%failed())
+        call journal%next_record(slot, res, found)
+        if (.not. found) exit
+        if (done(slot)) cycle
+        call out%write_case(slot, inp%campaign%case_at(globals(slot + 1)), res, err)
+        done(slot) = .true.
+      end do
+    else
+      call journal%create(journal_path, header, err)
+    end if
+    ! invalid cases skipped: recorded, never integrated
+    do slot = 0, n_slots - 1
+      if (err%failed()) exit
+      if (done(slot) .or. .not. invalid(globals(slot + 1))) cycle
+      res = case_result_t(status=status_invalid)
+      call out%write_case(slot, inp%campaign%case_at(globals(slot + 1)), res, err)
+      done(slot) = .true.
+    end do
+    if (err%failed()) then
+      call abandon()
+      return
+    end if
+
+    todo = pack([(slot, slot = 0, n_slots - 1)], .not. done)
+    n_todo = size(todo, kind=i8)
+    n_threads = 1
+    !$ n_threads = omp_get_max_threads()
+    if (opts%threads > 0) n_threads = opts%threads
+    call progress%start(n_slots, n_slots - n_todo, opts%quiet)
+
+    !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) &
+    !$omp private(j, cs, res, case_err)
+    do j = 1, n_todo
+      if (shared_err%failed()) cycle
+      case_err = error_t()             ! private copies start undefined
+      cs = inp%campaign%case_at(globals(todo(j) + 1))
+      call simulate_case(cs, inp%plan, res, case_err)
+      !$omp critical (ellroll_writer)
+      if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
+      if (.not. shared_err%failed()) call journal%append(todo(j), res, shared_err)
+      if (.not. shared_err%failed()) call out%write_case(todo(j), cs, res, shared_err)
+      call progress%advance()
+      !$omp end critical (ellroll_writer)
+    end do
+    !$omp end parallel do
+    call progress%finish()
+
+    if (shared_err%failed()) then
+      err = shared_err
+      call abandon()
+      return
+    end if
+    call out%close(err)
+    if (.not. err%failed()) then
+      if (.not. rename_file(partial, target)) &
+        call set_error(err, err_output, target // ': cannot move the finished file into place')
+    end if
+    if (err%failed()) then
+      call journal%close(delete=.false.)
+      return
+    end if
+    call journal%close(delete=.true.)
+
+  contains
+
+    !> Keep what is finished: the journal holds every case done so far, and
+    !> the partial file shows them; --resume takes it from there.
+    subroutine abandon()
+      type(error_t) :: ignored
+      call out%close(ignored)
+      call journal%close(delete=.false.)
+      err%message = err%message // achar(10) // '  ' // partial // ' holds the cases finished so far and ' // &
+                    journal_path // ' keeps them; fix the cause and run again with --resume'
+    end subroutine abandon
+  end subroutine run_campaign
+end module ellroll_run_campaign
