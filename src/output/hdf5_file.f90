@@ -380,7 +380,8 @@ contains
     rec = case_record(cs)
     call write_table('case', rec)
     do f = 1, field_count
-      if (.not. self%fields(f) .or. err%failed()) cycle
+      ! a case that was never integrated has no buffers: its samples stay NaN
+      if (.not. self%fields(f) .or. .not. allocated(res%fields(f)%values) .or. err%failed()) cycle
       if (field_ncomp(f) == 1) then
         call write_real_at('trajectory/' // trim(field_names(f)), res%fields(f)%values, &
                            [0_i8, icase], [self%n_samples, 1_i8])

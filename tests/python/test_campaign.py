@@ -1,0 +1,257 @@
+"""Campaigns: expansion, thread-count invariance, shards and merge, kill -9
+and resume, refusals, invalid cases, progress."""
+import os
+import random
+import re
+import signal
+import struct
+import subprocess
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+
+BASE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
+&ball        radius = 0.2, weight = 2620.0 /
+&initial     x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration dt = 1.0e-3, t_end = {t_end} /
+&output      file = 'out.h5', interval = 0.01 /
+"""
+SPIN_RADIUS = """&sweep name = 'omega_z', values = 5, 10, 20, 40, 80 /
+&sweep name = 'radius', start = 0.05, stop = 0.2, count = 4, spacing = 'linear' /
+"""
+
+
+def write(folder, extra, t_end=1.0, name="camp.nml"):
+    (folder / name).write_text(BASE.format(t_end=t_end) + extra)
+    return name
+
+
+def datasets(path):
+    """Every dataset's content (VL strings decoded), except wall_time."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and name != "summary/wall_time":
+                out[name] = obj.asstr()[()] if h5py.check_string_dtype(obj.dtype) else obj[()]
+        f.visititems(visit)
+    return out
+
+
+def assert_same_datasets(a, b):
+    da, db = datasets(a), datasets(b)
+    assert sorted(da) == sorted(db)
+    for name in da:
+        if da[name].dtype.kind == "O":
+            assert list(da[name]) == list(db[name]), name
+        else:
+            assert da[name].tobytes() == db[name].tobytes(), f"{name} differs"
+
+
+def test_grid_expansion_order_and_spacing(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS + "&sweep name = 'mass', start = 1, stop = 100, count = 3, spacing = 'log' /\n"
+                 .replace("mass", "weight").replace("start = 1, stop = 100", "start = 100, stop = 10000"))
+    result = run(ellroll, "check", name, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "campaign: 60 cases" in result.stdout
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        spin, radius, weight = f["case/omega0"][:, 2], f["case/radius"][:], f["case/weight"][:]
+        assert list(f["case/index"][:]) == list(range(60))
+        # the first sweep varies slowest, the last fastest
+        np.testing.assert_array_equal(spin, np.repeat([5, 10, 20, 40, 80], 12))
+        np.testing.assert_allclose(radius, np.tile(np.repeat([0.05, 0.1, 0.15, 0.2], 3), 5), rtol=1e-15)
+        np.testing.assert_allclose(weight, np.tile([100, 1000, 10000], 20), rtol=1e-14)
+        assert f.attrs["n_cases_total"] == 60 and f.attrs["shard"] == "0/1"
+        assert np.all(f["summary/status"][:] == 1)
+
+
+def test_zip_pairs_sweeps(ellroll, tmp_path):
+    name = write(tmp_path, "&campaign combine = 'zip' /\n&sweep name = 'omega_z', values = 5, 10, 20 /\n"
+                 "&sweep name = 'x', values = 0.0, 0.1, 0.2 /\n")
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        np.testing.assert_array_equal(f["case/omega0"][:, 2], [5, 10, 20])
+        np.testing.assert_array_equal(f["case/x0"][:], [0.0, 0.1, 0.2])
+
+
+def test_samples_are_reproducible_and_in_range(ellroll, tmp_path):
+    sample = ("&campaign samples = 40, seed = {seed} /\n&sample name = 'omega_z', low = 5, high = 100 /\n"
+              "&sample name = 'radius', low = 0.01, high = 0.2, spacing = 'log' /\n")
+    for seed, out in [(7, "a.h5"), (7, "b.h5"), (8, "c.h5")]:
+        name = write(tmp_path, sample.format(seed=seed), t_end=0.1)
+        assert run(ellroll, "run", name, "-q", "-o", out, "--threads", "2" if out == "b.h5" else "1",
+                   cwd=tmp_path).returncode == 0
+    a, b, c = (h5py.File(tmp_path / n, "r") for n in ("a.h5", "b.h5", "c.h5"))
+    spin, radius = a["case/omega0"][:, 2], a["case/radius"][:]
+    assert np.all((spin >= 5) & (spin < 100)) and np.all((radius >= 0.01) & (radius < 0.2))
+    assert len(set(spin)) == 40
+    np.testing.assert_array_equal(spin, b["case/omega0"][:, 2])
+    np.testing.assert_array_equal(radius, b["case/radius"][:])
+    assert not np.any(spin == c["case/omega0"][:, 2])
+
+
+def test_thread_count_does_not_change_any_dataset(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS)
+    for threads, out in [("1", "t1.h5"), ("2", "t2.h5"), ("3", "t3.h5")]:
+        assert run(ellroll, "run", name, "-q", "--threads", threads, "-o", out, cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t2.h5")
+    assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t3.h5")
+
+
+def test_shards_merge_to_the_single_run(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS)
+    assert run(ellroll, "run", name, "-q", "-o", "single.h5", cwd=tmp_path).returncode == 0
+    for i in range(3):
+        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "shard_1.h5", "r") as f:
+        assert list(f["case/index"][:]) == [1, 4, 7, 10, 13, 16, 19]
+        assert list(f["summary/case"][:]) == [1, 4, 7, 10, 13, 16, 19]
+    result = run(ellroll, "merge", "merged.h5", "shard_2.h5", "shard_0.h5", "shard_1.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "single.h5", tmp_path / "merged.h5")
+
+    # refusals: a missing shard, a shard twice, a shard of another campaign
+    result = run(ellroll, "merge", "m2.h5", "shard_0.h5", "shard_2.h5", cwd=tmp_path)
+    assert result.returncode == 2 and "shards missing: 1 of 3" in result.stderr
+    result = run(ellroll, "merge", "m3.h5", "shard_0.h5", "shard_1.h5", "shard_1.h5", "shard_2.h5", cwd=tmp_path)
+    assert result.returncode == 2 and "given twice" in result.stderr
+    other = write(tmp_path, SPIN_RADIUS.replace("80", "90"), name="other.nml")
+    assert run(ellroll, "run", other, "-q", "--shard", "1/3", "-o", "other_1.h5", cwd=tmp_path).returncode == 0
+    result = run(ellroll, "merge", "m4.h5", "shard_0.h5", "other_1.h5", "shard_2.h5", cwd=tmp_path)
+    assert result.returncode == 2 and "another campaign" in result.stderr
+    assert not any((tmp_path / n).exists() for n in ("m2.h5", "m3.h5", "m4.h5"))
+
+
+def journal_wall_times(path, n_samples, n_fields_components):
+    """(slot -> wall_time) of the complete records of a journal."""
+    data = path.read_bytes()
+    header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 7
+    words = 3 + 11 + n_samples * n_fields_components
+    size = 8 * (words + 1)
+    out = {}
+    for start in range(header, len(data) - size + 1, size):
+        record = struct.unpack(f"<{words + 1}q", data[start:start + size])
+        slot, wall = record[1], struct.unpack("<d", struct.pack("<q", record[3 + 3]))[0]  # after t_final, n_steps, n_rhs
+        out[slot] = wall
+    return out
+
+
+def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS.replace("values = 5, 10, 20, 40, 80", "values = 5, 10, 20, 40, 80, 100"),
+                 t_end=5.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    n_samples, components = 501, 17
+    record = 8 * (3 + 11 + n_samples * components + 1)
+    journal = tmp_path / "out.h5.journal"
+    rng = random.Random(4)
+    kept_before = {}
+    kills = 0
+    for attempt in range(5):
+        args = [str(ellroll), "run", name, "-q", "--threads", "2"] + (["--resume"] if attempt else [])
+        size_at_start = journal.stat().st_size if journal.exists() else 0
+        proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        # kill at a random moment after this attempt has finished at least one case
+        deadline = time.monotonic() + 30
+        while proc.poll() is None and time.monotonic() < deadline:
+            if journal.exists() and journal.stat().st_size >= size_at_start + 2 * record:
+                break
+            time.sleep(0.002)
+        time.sleep(rng.uniform(0.0, 0.03))
+        if proc.poll() is not None:      # finished before the kill
+            break
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        kills += 1
+        kept_before.update(journal_wall_times(journal, n_samples, components))
+        assert not (tmp_path / "out.h5").exists()
+    if not (tmp_path / "out.h5").exists():
+        result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    assert kills >= 2 and kept_before
+    assert not journal.exists() and not (tmp_path / "out.h5.partial").exists()
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+        for slot, seconds in kept_before.items():
+            assert wall[slot] == seconds, "a case finished before the kill was computed again"
+
+
+def test_resume_refusals(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS, t_end=3.0)
+    result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
+    assert result.returncode == 3 and "no interrupted run to resume" in result.stderr
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path)
+    time.sleep(0.1)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert (tmp_path / "out.h5.journal").exists()
+    result = run(ellroll, "run", name, cwd=tmp_path)
+    assert result.returncode == 3 and "--resume" in result.stderr
+    write(tmp_path, SPIN_RADIUS.replace("80", "90"), t_end=3.0)
+    result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
+    assert result.returncode == 2 and "input differs" in result.stderr
+    write(tmp_path, SPIN_RADIUS, t_end=3.0)
+    result = run(ellroll, "run", name, "--resume", "--shard", "0/2", cwd=tmp_path)
+    assert result.returncode == 2 and "other options" in result.stderr
+    assert run(ellroll, "run", name, "--resume", "-q", cwd=tmp_path).returncode == 0
+
+
+def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
+    sweep = "&sweep name = 'radius', values = 0.2, 0.9, 0.5, 1.5 /\n"
+    name = write(tmp_path, sweep)
+    for command in ("check", "run"):
+        result = run(ellroll, command, name, cwd=tmp_path)
+        assert result.returncode == 2
+        assert "2 of 4 cases are invalid" in result.stderr
+        assert "case 1 (radius = 0.9): radius = 0.9: the ball does not fit" in result.stderr
+        assert "case 3 (radius = 1.5)" in result.stderr
+    assert not (tmp_path / "out.h5").exists()
+    name = write(tmp_path, "&campaign invalid = 'skip' /\n" + sweep)
+    assert "2 invalid cases will be skipped" in run(ellroll, "check", name, cwd=tmp_path).stdout
+    result = run(ellroll, "run", name, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        status = f["summary/status"]
+        names = status.attrs["flag_meanings"].split()
+        # R = 0.5 fits at the start (radii 0.8, 5 m) but meets no_fit as the ball climbs
+        assert [names[s] for s in status[:]] == ["completed", "invalid", "no_fit", "invalid"]
+        assert np.all(np.isnan(f["trajectory/nutation"][1])) and np.all(np.isfinite(f["trajectory/nutation"][0]))
+
+
+@pytest.mark.parametrize("extra,words", [
+    ("&sweep name = 'speed', values = 1, 2 /\n", "not an input that can vary"),
+    ("&sweep name = 'radius' /\n", "give either values"),
+    ("&sweep name = 'radius', values = 0.1, start = 0.1, stop = 0.2, count = 2 /\n", "give either values"),
+    ("&sweep name = 'omega_z', values = 1, 2 /\n&sweep name = 'omega_z', values = 3 /\n", "already varied"),
+    ("&sweep name = 'radius', start = 0, stop = 1, count = 3, spacing = 'log' /\n", "needs start > 0"),
+    ("&sample name = 'radius', low = 0.1, high = 0.2 /\n", "needs &campaign samples"),
+    ("&campaign samples = 3 /\n", "no &sample group"),
+    ("&campaign samples = 3 /\n&sample name = 'radius', low = 0.2, high = 0.1 /\n", "must be greater than low"),
+    ("&campaign combine = 'zip' /\n&sweep name = 'x', values = 0, 0.1 /\n&sweep name = 'y', values = 0 /\n",
+     "equal length"),
+    ("&campaign combine = 'cross' /\n", "must be 'grid' or 'zip'"),
+    ("&sweep name = 'mass', values = 1, 2 /\n", "vary weight instead"),
+])
+def test_bad_campaign_input(ellroll, tmp_path, extra, words):
+    name = write(tmp_path, extra)
+    result = run(ellroll, "check", name, cwd=tmp_path)
+    assert result.returncode == 2 and words in result.stderr, result.stderr
+    assert re.match(r"ellroll: error: camp\.nml(:\d+)?: ", result.stderr)
+
+
+def test_progress_lines_in_a_log_and_quiet(ellroll, tmp_path):
+    name = write(tmp_path, SPIN_RADIUS)
+    result = run(ellroll, "run", name, cwd=tmp_path)
+    assert result.returncode == 0
+    lines = result.stderr.strip().splitlines()
+    assert lines[-1].startswith("ellroll: 20/20 cases (100%)") and "cases/s" in lines[-1]
+    assert "\r" not in result.stderr
+    assert re.search(r"^  completed +20$", result.stdout, re.M)
+    result = run(ellroll, "run", name, "-q", "--overwrite", cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == ""
+    assert run(ellroll, "summary", "out.h5", cwd=tmp_path).stdout == result.stdout
