@@ -4,7 +4,7 @@
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, exit_code
+  use ellroll_errors, only: error_t, set_error, err_input, err_output, exit_code
   use ellroll_strings, only: itoa, format_real
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
@@ -17,7 +17,8 @@ program ellroll
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
-  use ellroll_system, only: utc_timestamp
+  use ellroll_system, only: utc_timestamp, file_exists, remove_file
+  use ellroll_ranks, only: ranks_start, ranks_all_ok, ranks_stop
   use ellroll_version, only: version_string
   implicit none
 
@@ -25,7 +26,9 @@ program ellroll
   character(len=1024), allocatable :: paths(:)
   type(run_options_t) :: opts
   type(error_t) :: err
+  integer :: rank, n_ranks
 
+  call ranks_start(rank, n_ranks)
   call parse_arguments(err)
   if (.not. err%failed()) then
     select case (command)
@@ -43,6 +46,7 @@ program ellroll
       call print_summary(trim(paths(1)), err)
     end select
   end if
+  call ranks_stop()
   if (err%failed()) then
     write (error_unit, '(a)') 'ellroll: error: ' // err%message
     call exit(exit_code(err))
@@ -204,10 +208,55 @@ contains
     type(run_input_t) :: inp
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    call run_campaign(inp, opts, provenance(inp%text), err)
-    if (err%failed()) return
+    if (n_ranks > 1) then
+      call run_ranks(inp, err)
+    else
+      call run_campaign(inp, opts, provenance(inp%text), err)
+    end if
+    if (err%failed() .or. rank /= 0) return
     call print_summary(inp%plan%file, err)
   end subroutine run_command
+
+  !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has
+  !> succeeded, rank 0 merges the shards into OUT and removes them.
+  subroutine run_ranks(inp, err)
+    type(run_input_t), intent(inout) :: inp
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: target
+    character(len=1024), allocatable :: shard_files(:)
+    integer :: r
+    logical :: shard_done
+    if (opts%shard(2) > 1) then
+      call set_error(err, err_input, '--shard cannot be combined with MPI ranks (each rank is a shard)')
+      return
+    end if
+    target = inp%plan%file
+    shard_files = [character(len=1024) :: (target // '.rank' // itoa(r) // '.h5', r = 0, n_ranks - 1)]
+    if (file_exists(target) .and. .not. opts%overwrite) &
+      call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+    if (.not. ranks_all_ok(.not. err%failed())) return
+    opts%shard = [rank, n_ranks]
+    opts%quiet = opts%quiet .or. rank /= 0
+    inp%plan%file = trim(shard_files(rank + 1))
+    ! a rank whose shard finished before an interruption has nothing to resume
+    shard_done = .false.
+    if (opts%resume) then
+      if (file_exists(inp%plan%file)) shard_done = .not. file_exists(inp%plan%file // '.journal')
+    end if
+    if (.not. shard_done) call run_campaign(inp, opts, provenance(inp%text), err)
+    if (.not. ranks_all_ok(.not. err%failed())) then
+      if (.not. err%failed()) call set_error(err, err_output, 'another rank failed; see its message')
+      return
+    end if
+    inp%plan%file = target
+    if (rank /= 0) return
+    call merge_shards(target, shard_files, provenance(inp%text), err)
+    if (err%failed()) return
+    do r = 1, n_ranks
+      call remove_file(trim(shard_files(r)))
+    end do
+  end subroutine run_ranks
+
 
   function provenance(input_text) result(prov)
     character(len=*), intent(in) :: input_text

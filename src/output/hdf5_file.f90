@@ -68,6 +68,10 @@ module ellroll_hdf5
     integer(i8) :: n_cases = 0
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .false.
+    ! datasets stay open while cases are written: opening and closing some 30
+    ! datasets per case cost more than integrating it
+    character(len=64), allocatable :: open_names(:)
+    integer(hid_t), allocatable :: open_ids(:)
   contains
     procedure :: create
     procedure :: write_case
@@ -88,7 +92,7 @@ contains
     type(provenance_t), intent(in) :: prov
     type(error_t), intent(inout) :: err
     integer :: hdferr, f, k
-    integer(hid_t) :: group, scale, time_scale, xyz_scale
+    integer(hid_t) :: group, scale, time_scale, xyz_scale, fapl
     integer(i8) :: n_cases
 
     n_cases = size(indices, kind=i8)
@@ -99,7 +103,12 @@ contains
     call h5open_f(hdferr)
     if (failed(hdferr, 'initialise HDF5')) return
     call h5eset_auto_f(0, hdferr)   ! errors are reported through err, not printed by HDF5
-    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr)
+    ! the 1.10 format indexes each fixed-size chunked dataset with a compact
+    ! fixed array instead of a B-tree: memory stays flat as cases are added
+    call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
+    call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
+    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, access_prp=fapl)
+    call h5pclose_f(fapl, hdferr)
     if (failed(hdferr, 'create the file')) return
 
     call put_text_attribute(self%file, 'program', prov%program)
@@ -425,7 +434,6 @@ contains
       integer(hid_t) :: dset
       if (.not. open_dataset(self, name, dset, err)) return
       call write_real_slab(self, dset, values, offset, counts, err)
-      call close_dataset(dset)
     end subroutine write_real_at
 
     subroutine write_int_at(name, values, offset)
@@ -435,7 +443,6 @@ contains
       integer(hid_t) :: dset
       if (.not. open_dataset(self, name, dset, err)) return
       call write_int_slab(self, dset, values, [offset], [1_i8], err)
-      call close_dataset(dset)
     end subroutine write_int_at
 
     subroutine write_text_at(name, value, offset)
@@ -444,15 +451,20 @@ contains
       integer(hid_t) :: dset
       if (.not. open_dataset(self, name, dset, err)) return
       call write_text_slab(self, dset, [value], offset, err)
-      call close_dataset(dset)
     end subroutine write_text_at
   end subroutine write_case
 
   subroutine close_file(self, err)
     class(h5_output_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
-    integer :: hdferr
+    integer :: hdferr, k
     if (self%file < 0) return
+    if (allocated(self%open_ids)) then
+      do k = 1, size(self%open_ids)
+        call h5dclose_f(self%open_ids(k), hdferr)
+      end do
+      deallocate (self%open_names, self%open_ids)
+    end if
     call h5fflush_f(self%file, H5F_SCOPE_GLOBAL_F, hdferr)
     if (hdferr < 0 .and. .not. err%failed()) &
       call set_error(err, err_output, self%path // ': cannot flush the file (disk full?)')
@@ -465,27 +477,32 @@ contains
 
   ! ------------------------------------------------------------ low level
 
+  !> The open dataset `name`, opened on first use and kept open until close.
   logical function open_dataset(self, name, dset, err) result(ok)
-    type(h5_output_t), intent(in) :: self
+    type(h5_output_t), intent(inout) :: self
     character(len=*), intent(in) :: name
     integer(hid_t), intent(out) :: dset
     type(error_t), intent(inout) :: err
-    integer :: hdferr
+    integer :: hdferr, k
     ok = .false.
     if (err%failed()) return
+    if (.not. allocated(self%open_names)) allocate (self%open_names(0), self%open_ids(0))
+    do k = 1, size(self%open_names)
+      if (self%open_names(k) == name) then
+        dset = self%open_ids(k)
+        ok = .true.
+        return
+      end if
+    end do
     call h5dopen_f(self%file, name, dset, hdferr)
     if (hdferr < 0) then
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return
     end if
+    self%open_names = [self%open_names, name]
+    self%open_ids = [self%open_ids, dset]
     ok = .true.
   end function open_dataset
-
-  subroutine close_dataset(dset)
-    integer(hid_t), intent(in) :: dset
-    integer :: hdferr
-    call h5dclose_f(dset, hdferr)
-  end subroutine close_dataset
 
   !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
   !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.

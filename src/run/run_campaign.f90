@@ -84,8 +84,7 @@ contains
     character(len=:), allocatable :: target, partial, journal_path, messages
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
-    integer(i8), allocatable :: todo(:)
-    integer(i8) :: n_slots, slot, j, n_todo, i
+    integer(i8) :: n_slots, slot, i
     real(wp), allocatable :: times(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -143,6 +142,7 @@ contains
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
     call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err)
+    deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call out%close(err)
       call remove_file(partial)
@@ -158,7 +158,7 @@ contains
         call journal%next_record(slot, res, found)
         if (.not. found) exit
         if (done(slot)) cycle
-        call out%write_case(slot, inp%campaign%case_at(globals(slot + 1)), res, err)
+        call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
         done(slot) = .true.
       end do
     else
@@ -167,9 +167,9 @@ contains
     ! invalid cases skipped: recorded, never integrated
     do slot = 0, n_slots - 1
       if (err%failed()) exit
-      if (done(slot) .or. .not. invalid(globals(slot + 1))) cycle
+      if (done(slot) .or. .not. invalid(global_index(slot))) cycle
       res = case_result_t(status=status_invalid)
-      call out%write_case(slot, inp%campaign%case_at(globals(slot + 1)), res, err)
+      call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
       done(slot) = .true.
     end do
     if (err%failed()) then
@@ -177,24 +177,22 @@ contains
       return
     end if
 
-    todo = pack([(slot, slot = 0, n_slots - 1)], .not. done)
-    n_todo = size(todo, kind=i8)
     n_threads = 1
     !$ n_threads = omp_get_max_threads()
     if (opts%threads > 0) n_threads = opts%threads
-    call progress%start(n_slots, n_slots - n_todo, opts%quiet)
+    call progress%start(n_slots, count(done, kind=i8), opts%quiet)
 
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) &
-    !$omp private(j, cs, res, case_err)
-    do j = 1, n_todo
-      if (shared_err%failed()) cycle
+    !$omp private(slot, cs, res, case_err)
+    do slot = 0, n_slots - 1
+      if (done(slot) .or. shared_err%failed()) cycle
       case_err = error_t()             ! private copies start undefined
-      cs = inp%campaign%case_at(globals(todo(j) + 1))
+      cs = inp%campaign%case_at(global_index(slot))
       call simulate_case(cs, inp%plan, res, case_err)
       !$omp critical (ellroll_writer)
       if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
-      if (.not. shared_err%failed()) call journal%append(todo(j), res, shared_err)
-      if (.not. shared_err%failed()) call out%write_case(todo(j), cs, res, shared_err)
+      if (.not. shared_err%failed()) call journal%append(slot, res, shared_err)
+      if (.not. shared_err%failed()) call out%write_case(slot, cs, res, shared_err)
       call progress%advance()
       !$omp end critical (ellroll_writer)
     end do
@@ -218,6 +216,11 @@ contains
     call journal%close(delete=.true.)
 
   contains
+
+    pure integer(i8) function global_index(slot)
+      integer(i8), intent(in) :: slot
+      global_index = opts%shard(1) + slot * opts%shard(2)
+    end function global_index
 
     !> Keep what is finished: the journal holds every case done so far, and
     !> the partial file shows them; --resume takes it from there.

@@ -1,0 +1,67 @@
+#!/usr/bin/env python3
+"""Campaign throughput and memory, measured side by side in one run.
+
+A spin x radius sweep of the paper's cup (t_end = 5 s, dt = 1e-3, contact and
+nutation stored every 0.01 s) is run with 1 and 2 threads (and more with
+--threads), giving cases/s and the parallel efficiency; then the same
+campaign with 1,000 and 10,000 cases gives peak RSS, which must not grow with
+the number of cases (trajectories stream to disk).
+
+    python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16]
+"""
+import argparse
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+INPUT = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
+&ball        radius = 0.2, weight = 2620.0 /
+&initial     x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration dt = 1.0e-3, t_end = 5.0 /
+&output      file = 'bench.h5', interval = 0.01, fields = 'contact', 'nutation' /
+&sweep       name = 'omega_z', start = 5, stop = 100, count = {spins} /
+&sweep       name = 'radius', start = 0.02, stop = 0.2, count = 10 /
+"""
+MEASURE = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
+           "subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL); "
+           "print(time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+
+
+def measure(exe, folder, n_cases, threads):
+    """(wall seconds, peak RSS in MiB) of one run in a fresh process."""
+    (folder / "bench.nml").write_text(INPUT.format(spins=n_cases // 10))
+    out = subprocess.run([sys.executable, "-c", MEASURE, str(exe), "run", "bench.nml", "-q", "--overwrite",
+                          "--threads", str(threads)], cwd=folder, check=True, capture_output=True, text=True)
+    seconds, rss_kib = out.stdout.split()
+    return float(seconds), int(rss_kib) / 1024
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--cases", type=int, default=1000)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = pathlib.Path(tmp)
+        print(f"campaign of {args.cases} cases, 5,000 RK4 steps each ({time.strftime('%Y-%m-%d')})")
+        print(f"{'threads':>8} {'wall s':>8} {'cases/s':>9} {'speed-up':>9} {'efficiency':>11}")
+        base = None
+        for threads in args.threads:
+            seconds, _ = measure(args.exe, folder, args.cases, threads)
+            rate = args.cases / seconds
+            base = base or rate
+            print(f"{threads:8d} {seconds:8.2f} {rate:9.1f} {rate / base:9.2f} {rate / base / threads:10.0%}")
+        print(f"{'cases':>8} {'peak RSS MiB':>13}")
+        rss = {}
+        for n in (1000, 10000):
+            _, rss[n] = measure(args.exe, folder, n, max(args.threads))
+            print(f"{n:8d} {rss[n]:13.1f}")
+        print(f"RSS ratio 10,000 / 1,000 cases: {rss[10000] / rss[1000]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
