@@ -499,7 +499,7 @@ contains
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return
     end if
-    self%open_names = [self%open_names, name]
+    self%open_names = [character(len=64) :: self%open_names, name]
     self%open_ids = [self%open_ids, dset]
     ok = .true.
   end function open_dataset

@@ -141,6 +141,24 @@ def journal_wall_times(path, n_samples, n_fields_components):
     return out
 
 
+def kill_after_records(args, cwd, journal, records, record_bytes, delay=0.0):
+    """Start a run, kill it -9 once its journal has grown by `records` cases
+    (plus `delay` seconds); False if it finished first."""
+    size_at_start = journal.stat().st_size if journal.exists() else 0
+    proc = subprocess.Popen(args, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < deadline:
+        if journal.exists() and journal.stat().st_size >= size_at_start + records * record_bytes:
+            break
+        time.sleep(0.002)
+    time.sleep(delay)
+    if proc.poll() is not None:
+        return False
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    return True
+
+
 def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
     name = write(tmp_path, SPIN_RADIUS.replace("values = 5, 10, 20, 40, 80", "values = 5, 10, 20, 40, 80, 100"),
                  t_end=5.0)
@@ -153,19 +171,9 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
     kills = 0
     for attempt in range(5):
         args = [str(ellroll), "run", name, "-q", "--threads", "2"] + (["--resume"] if attempt else [])
-        size_at_start = journal.stat().st_size if journal.exists() else 0
-        proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         # kill at a random moment after this attempt has finished at least one case
-        deadline = time.monotonic() + 30
-        while proc.poll() is None and time.monotonic() < deadline:
-            if journal.exists() and journal.stat().st_size >= size_at_start + 2 * record:
-                break
-            time.sleep(0.002)
-        time.sleep(rng.uniform(0.0, 0.03))
-        if proc.poll() is not None:      # finished before the kill
+        if not kill_after_records(args, tmp_path, journal, 2, record, rng.uniform(0.0, 0.03)):
             break
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
         kills += 1
         kept_before.update(journal_wall_times(journal, n_samples, components))
         assert not (tmp_path / "out.h5").exists()
@@ -185,11 +193,9 @@ def test_resume_refusals(ellroll, tmp_path):
     name = write(tmp_path, SPIN_RADIUS, t_end=3.0)
     result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
     assert result.returncode == 3 and "no interrupted run to resume" in result.stderr
-    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path)
-    time.sleep(0.1)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    assert (tmp_path / "out.h5.journal").exists()
+    journal = tmp_path / "out.h5.journal"
+    record = 8 * (3 + 11 + 301 * 17 + 1)
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 1, record)
     result = run(ellroll, "run", name, cwd=tmp_path)
     assert result.returncode == 3 and "--resume" in result.stderr
     write(tmp_path, SPIN_RADIUS.replace("80", "90"), t_end=3.0)

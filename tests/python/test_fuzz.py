@@ -47,7 +47,8 @@ def mutate(text, rng):
 
 def test_random_edits_never_crash(ellroll_debug, tmp_path):
     rng = random.Random(20261123)
-    base = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5")
+    base = (PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5")
+            + "&sweep name = 'omega_z', values = 5, 20 /\n&campaign invalid = 'skip' /\n")
     outcomes = {0: 0, 2: 0}
     ran = 0
     for trial in range(N_EDITS):
