@@ -14,7 +14,9 @@ program ellroll
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_hdf5, only: provenance_t
-  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots
+  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice
+  use ellroll_integrators, only: integrator_t, new_integrator, method_names
+  use ellroll_linear, only: oscillation_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
   use ellroll_system, only: utc_timestamp, file_exists, remove_file
@@ -44,6 +46,10 @@ program ellroll
       call merge_shards(trim(paths(1)), paths(2:), provenance(''), err)
     case ('summary')
       call print_summary(trim(paths(1)), err)
+    case ('methods')
+      call print_methods()
+    case ('modes')
+      call modes_command(err)
     end select
   end if
   call ranks_stop()
@@ -100,7 +106,7 @@ contains
         opts%resume = .true.
       case ('-q', '--quiet')
         opts%quiet = .true.
-      case ('run', 'check', 'merge', 'summary')
+      case ('run', 'check', 'merge', 'summary', 'methods', 'modes')
         if (len(command) > 0) then
           call usage_error('more than one command given (' // command // ', ' // arg // ')')
           return
@@ -121,6 +127,8 @@ contains
     end do
     if (len(command) == 0) then
       call usage_error('no command given')
+    else if (command == 'methods') then
+      return
     else if (size(paths) == 0) then
       call usage_error(command // ' needs ' // merge('an output file and shard files', &
                                                      'an input file                 ', command == 'merge'))
@@ -168,6 +176,8 @@ contains
       '  ellroll check FILE.nml [-o OUT.h5]           validate, print the cases, write nothing', &
       '  ellroll merge OUT.h5 SHARD.h5...             join the shard files of a campaign', &
       '  ellroll summary OUT.h5                       print the summary table of a file', &
+      '  ellroll modes FILE.nml                       small-oscillation periods of every case', &
+      '  ellroll methods                              the integration methods', &
       '  ellroll --version | --help', &
       '', &
       'options:', &
@@ -183,6 +193,49 @@ contains
       'The namelist reference and the HDF5 layout are in README.md.'
   end subroutine print_help
 
+  subroutine print_methods()
+    class(integrator_t), allocatable :: method
+    type(error_t) :: ignored
+    integer :: k, start
+    character(len=*), parameter :: names = method_names // ' '
+    character(len=16) :: name, kind
+    start = 1
+    do k = 1, len(names)
+      if (names(k:k) /= ' ') cycle
+      if (k > start) then
+        call new_integrator(names(start:k-1), method, ignored)
+        name = method%name()
+        kind = method%kind()
+        write (output_unit, '(a)') name // kind // 'order ' // method%order()
+      end if
+      start = k + 1
+    end do
+  end subroutine print_methods
+
+  !> The linearised small-oscillation periods about the bottom, spinning at
+  !> sigma = omega0 . n0, beside the no-spin formula 2 pi sqrt((1+k)(rho-R)/g).
+  subroutine modes_command(err)
+    type(error_t), intent(inout) :: err
+    type(run_input_t) :: inp
+    type(case_t) :: cs
+    type(rolling_ball_t) :: ball
+    real(wp) :: n0(3), periods(2), no_spin(2)
+    integer(i8) :: i
+    character(len=160) :: line
+    call read_input(trim(paths(1)), output_path, inp, err)
+    if (err%failed()) return
+    write (output_unit, '(a)') '    case   sigma rad/s   period 1 s   period 2 s   no spin: x-z s   y-z s'
+    do i = 0, inp%campaign%n_cases() - 1
+      cs = inp%campaign%case_at(i)
+      ball = make_ball(cs)
+      n0 = normal_from_contact(ball%cup, cs%x0, cs%y0)
+      periods = oscillation_periods(ball, dot_product(cs%omega0, n0))
+      no_spin = 2 * acos(-1.0_wp) * sqrt((1 + cs%inertia_factor) * (bottom_radii(ball%cup) - cs%radius) / cs%g)
+      write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega0, n0), periods, no_spin
+      write (output_unit, '(a)') trim(line)
+    end do
+  end subroutine modes_command
+
   subroutine check_command(err)
     type(error_t), intent(inout) :: err
     type(run_input_t) :: inp
@@ -191,6 +244,8 @@ contains
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
     call describe(inp)
+    messages = step_size_advice(inp)
+    if (len(messages) > 0) write (error_unit, '(a)') 'ellroll: ' // messages
     call find_invalid_cases(inp, invalid, messages)
     if (any(invalid)) then
       if (inp%campaign%invalid == invalid_stop) then
@@ -206,8 +261,11 @@ contains
   subroutine run_command(err)
     type(error_t), intent(inout) :: err
     type(run_input_t) :: inp
+    character(len=:), allocatable :: advice
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
+    advice = step_size_advice(inp)
+    if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') 'ellroll: ' // advice
     if (n_ranks > 1) then
       call run_ranks(inp, err)
     else

@@ -11,7 +11,7 @@ module ellroll_cases
   implicit none
   private
 
-  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case
+  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case, adaptive_method
   public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -32,26 +32,30 @@ module ellroll_cases
     real(wp) :: dt = 0
     real(wp) :: t_end = 0
     real(wp) :: fit_margin = 1.0e-6_wp
+    real(wp) :: rtol = 1.0e-9_wp          !< adaptive method: relative tolerance
+    real(wp) :: atol = 1.0e-12_wp         !< adaptive method: absolute tolerance
+    logical :: error_estimate = .false.   !< also run the reference and store error figures
   end type case_t
 
   ! The scalar parameters: what a sweep or a sample can vary.
-  integer, parameter :: param_count = 16
+  integer, parameter :: param_count = 18
   character(len=*), parameter :: param_names(param_count) = [character(len=14) :: &
       'a', 'b', 'c', 'radius', 'weight', 'mass', 'mu', 'inertia_factor', 'g', &
-      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin']
+      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin', 'rtol', 'atol']
   character(len=*), parameter :: param_groups(param_count) = [character(len=11) :: &
       'geometry', 'geometry', 'geometry', 'ball', 'ball', 'ball', 'ball', 'ball', 'environment', &
-      'initial', 'initial', 'initial', 'initial', 'initial', 'integration', 'integration']
+      'initial', 'initial', 'initial', 'initial', 'initial', 'integration', 'integration', &
+      'integration', 'integration']
   character(len=*), parameter :: param_units(param_count) = [character(len=5) :: &
-      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '']
+      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '', '', '']
   ! Bounds keep every derived quantity finite (squares, products, s^4).
   real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
   real(wp), parameter :: param_low(param_count) = [length_min, length_min, length_min, length_min, &
       tiny(1.0_wp), tiny(1.0_wp), 0.0_wp, tiny(1.0_wp), 0.0_wp, -length_max, -length_max, &
-      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp]
+      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp, 1.0e-14_wp, 0.0_wp]
   real(wp), parameter :: param_high(param_count) = [length_max, length_max, length_max, length_max, &
       1.0e12_wp, 1.0e12_wp, 1.0e6_wp, 2.0_wp / 3, 1.0e4_wp, length_max, length_max, &
-      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp]
+      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp, 0.1_wp, 1.0_wp]
 
   integer, parameter :: field_count = 7
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
@@ -107,7 +111,9 @@ contains
     case (11); value = cs%y0
     case (12:14); value = cs%omega0(id - 11)
     case (15); value = cs%dt
-    case default; value = cs%fit_margin
+    case (16); value = cs%fit_margin
+    case (17); value = cs%rtol
+    case default; value = cs%atol
     end select
   end function get_param
 
@@ -129,7 +135,9 @@ contains
     case (11); cs%y0 = value
     case (12:14); cs%omega0(id - 11) = value
     case (15); cs%dt = value
-    case default; cs%fit_margin = value
+    case (16); cs%fit_margin = value
+    case (17); cs%rtol = value
+    case default; cs%atol = value
     end select
   end subroutine set_param
 
@@ -175,7 +183,7 @@ contains
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
       return
     end if
-    if (.not. is_multiple(interval, cs%dt)) then
+    if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%dt)) then
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
       return
     end if
@@ -210,6 +218,12 @@ contains
       text = 'must be between ' // format_real(param_low(k)) // ' and ' // format_real(param_high(k)) // units
     end if
   end function range_text
+
+  !> Methods whose step is chosen by error control (dt is then the largest step).
+  logical pure function adaptive_method(method)
+    character(len=*), intent(in) :: method
+    adaptive_method = trim(method) == 'dop853'
+  end function adaptive_method
 
   logical pure function is_multiple(whole, part)
     real(wp), intent(in) :: whole, part
@@ -254,6 +268,10 @@ contains
       text_value('method', 'integration method', cs%method), &
       real_value('dt', 's', 'integration step', cs%dt), &
       real_value('t_end', 's', 'end time', cs%t_end), &
-      real_value('fit_margin', '1', 'case ends when r_min / R - 1 falls to this', cs%fit_margin) ]
+      real_value('fit_margin', '1', 'case ends when r_min / R - 1 falls to this', cs%fit_margin), &
+      real_value('rtol', '1', 'relative tolerance (adaptive method)', cs%rtol), &
+      real_value('atol', '1', 'absolute tolerance (adaptive method)', cs%atol), &
+      int_value('error_estimate', '1', '1: error figures from a reference run are in /summary', &
+                merge(1_i8, 0_i8, cs%error_estimate)) ]
   end function case_record
 end module ellroll_cases

@@ -3,13 +3,16 @@
 module ellroll_results
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
-  use ellroll_records, only: named_value_t, real_value, int_value
+  use ellroll_records, only: named_value_t, real_value, int_value, vector_value
   use ellroll_status, only: status_pending
   use ellroll_cases, only: field_count, field_ncomp
   implicit none
   private
 
   public :: field_buffer_t, case_result_t, summary_record, set_summary_value, new_case_result
+
+  !> A NaN for default initialisation (0/0 is not a constant expression).
+  real(wp), parameter :: nan_value = transfer(9221120237041090560_i8, 1.0_wp)
 
   type :: field_buffer_t
     real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
@@ -28,6 +31,11 @@ module ellroll_results
     real(wp) :: constraint_error_max = 0
     real(wp) :: nutation_period = 0      !< mean interval between maxima of Theta; NaN if < 3 maxima
     integer(i8) :: nutation_maxima = 0
+    real(wp) :: error_contact = nan_value    !< with error_estimate: max |contact - reference|, m
+    real(wp) :: error_theta = nan_value      !< max |Theta - reference|, rad
+    real(wp) :: error_energy = nan_value     !< max |E - E_reference| / |E0|
+    integer(i8) :: n_rhs_reference = 0
+    real(wp) :: linear_periods(2) = nan_value  !< small-oscillation periods about the bottom, s
     type(field_buffer_t) :: fields(field_count)
   end type case_result_t
 
@@ -50,7 +58,7 @@ contains
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
-    type(named_value_t) :: rec(11)
+    type(named_value_t) :: rec(16)
     rec = [ &
       real_value('t_final', 's', 'time at which the case ended', res%t_final), &
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
@@ -65,7 +73,16 @@ contains
                  res%constraint_error_max), &
       real_value('nutation_period', 's', 'mean interval between successive maxima of Theta (NaN if < 3)', &
                  res%nutation_period), &
-      int_value('nutation_maxima', '1', 'number of maxima of Theta', res%nutation_maxima) ]
+      int_value('nutation_maxima', '1', 'number of maxima of Theta', res%nutation_maxima), &
+      real_value('error_contact', 'm', 'max distance of the contact point from the reference run (NaN: none)', &
+                 res%error_contact), &
+      real_value('error_theta', 'rad', 'max |Theta - Theta of the reference run| (NaN: none)', res%error_theta), &
+      real_value('error_energy', '1', 'max |E - E of the reference run| / |E0| (NaN: none)', res%error_energy), &
+      int_value('n_rhs_reference', '1', 'right-hand side evaluations of the reference run', &
+                res%n_rhs_reference), &
+      vector_value('linear_periods', 's', &
+                   'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', &
+                   res%linear_periods) ]
   end function summary_record
 
   !> The inverse of summary_record for one entry (reading a stored summary back).
@@ -84,6 +101,11 @@ contains
     case ('constraint_error_max'); res%constraint_error_max = value%reals(1)
     case ('nutation_period'); res%nutation_period = value%reals(1)
     case ('nutation_maxima'); res%nutation_maxima = value%int
+    case ('error_contact'); res%error_contact = value%reals(1)
+    case ('error_theta'); res%error_theta = value%reals(1)
+    case ('error_energy'); res%error_energy = value%reals(1)
+    case ('n_rhs_reference'); res%n_rhs_reference = value%int
+    case ('linear_periods'); res%linear_periods = value%reals(1:2)
     end select
   end subroutine set_summary_value
 end module ellroll_results

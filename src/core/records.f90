@@ -15,7 +15,7 @@ module ellroll_records
     character(len=16) :: units = ''
     character(len=96) :: description = ''
     integer :: kind = kind_real
-    integer :: ncomp = 1                !< 1 (scalar) or 3 (vector)
+    integer :: ncomp = 1                !< 1 (scalar), 2 (one value per mode) or 3 (vector)
     real(wp) :: reals(3) = 0
     integer(i8) :: int = 0
     character(len=64) :: text = ''
@@ -33,10 +33,10 @@ contains
 
   pure function vector_value(name, units, description, value) result(v)
     character(len=*), intent(in) :: name, units, description
-    real(wp), intent(in) :: value(3)
+    real(wp), intent(in) :: value(:)                !< 2 or 3 components
     type(named_value_t) :: v
-    v = named_value_t(name=name, units=units, description=description, kind=kind_real, ncomp=3)
-    v%reals = value
+    v = named_value_t(name=name, units=units, description=description, kind=kind_real, ncomp=size(value))
+    v%reals(:size(value)) = value
   end function vector_value
 
   pure function int_value(name, units, description, value) result(v)

@@ -9,7 +9,7 @@ module ellroll_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
-      field_ncomp, param_count, param_names, param_groups, param_index, get_param
+      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
       invalid_stop, invalid_skip
   use ellroll_integrators, only: method_names
@@ -108,8 +108,8 @@ contains
     type(run_input_t), intent(inout) :: inp
     ! &geometry, &ball, &environment, &initial, &integration, &output
     real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
-    character(len=32) :: method
-    real(wp) :: dt, t_end, fit_margin, interval
+    character(len=32) :: method, error_estimate
+    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)
     ! &campaign, &sweep, &sample
@@ -122,7 +122,7 @@ contains
     namelist /ball/ radius, weight, mass, mu, inertia_factor
     namelist /environment/ g
     namelist /initial/ x, y, omega
-    namelist /integration/ method, dt, t_end, fit_margin
+    namelist /integration/ method, dt, t_end, fit_margin, rtol, atol, error_estimate
     namelist /output/ file, interval, fields
     namelist /campaign/ combine, samples, seed, invalid
     namelist /sweep/ name, values, start, stop, count, spacing
@@ -136,6 +136,7 @@ contains
     a = nan(); b = nan(); c = nan(); radius = nan(); weight = nan(); mass = nan(); mu = 0
     inertia_factor = 0.4_wp; g = 9.81_wp; x = 0; y = 0; omega = nan()
     method = 'rk4'; dt = nan(); t_end = nan(); fit_margin = 1.0e-6_wp
+    rtol = 1.0e-9_wp; atol = 1.0e-12_wp; error_estimate = 'none'
     file = ''; interval = nan(); fields = ''
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
     allocate (sweeps(0), draws(0))
@@ -192,7 +193,7 @@ contains
       case ('environment'); ok = check_names(rd, gi, [character(len=16) :: 'g'])
       case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
       case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
-                                                      'fit_margin'])
+                                                      'fit_margin', 'rtol', 'atol', 'error_estimate'])
       case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields'])
       case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
                                                    'invalid'])
@@ -236,12 +237,23 @@ contains
       end if
       gi = rd%group('integration', .true.)
       if (gi == 0) return
-      if (.not. (rd%require(gi, 't_end', t_end) .and. rd%require(gi, 'dt', dt))) return
       method = lower(adjustl(method))
       if (index(' ' // method_names // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
         call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names // ')')
         return
       end if
+      if (.not. rd%require(gi, 't_end', t_end)) return
+      ! an adaptive method chooses its steps; dt, if given, is the largest
+      if (.not. (adaptive_method(method) .and. .not. rd%given(gi, 'dt'))) then
+        if (.not. rd%require(gi, 'dt', dt)) return
+      end if
+      select case (lower(adjustl(error_estimate)))
+      case ('none'); cs%error_estimate = .false.
+      case ('reference'); cs%error_estimate = .true.
+      case default
+        call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
+        return
+      end select
       if (t_end <= 0 .or. t_end > 1.0e9_wp) then
         call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
         return
@@ -250,11 +262,12 @@ contains
       cs%radius = radius; cs%mu = mu; cs%inertia_factor = inertia_factor; cs%g = g
       cs%x0 = x; cs%y0 = y; cs%omega0 = omega
       cs%method = method; cs%dt = dt; cs%t_end = t_end; cs%fit_margin = fit_margin
+      cs%rtol = rtol; cs%atol = atol
       call finalize_case(cs)
     end subroutine build_base
 
     subroutine build_plan(cs, plan)
-      type(case_t), intent(in) :: cs
+      type(case_t), intent(inout) :: cs
       type(output_plan_t), intent(inout) :: plan
       integer :: gi, k, f
       real(wp) :: bytes_per_sample, ratio
@@ -282,6 +295,7 @@ contains
       end if
       plan%interval = interval
       plan%n_samples = nint(ratio, i8) + 1
+      if (ieee_is_nan(cs%dt)) cs%dt = interval       ! adaptive, no dt given: largest step
 
       if (rd%given(gi, 'fields')) then
         plan%fields = .false.
@@ -329,7 +343,7 @@ contains
         call rd%fail_value(gi, variable, reason)
         return
       end if
-      plan%steps_per_sample = nint(plan%interval / cs%dt, i8)
+      plan%steps_per_sample = max(1_i8, nint(plan%interval / cs%dt, i8))
     end subroutine check_base
 
     subroutine add_sweep(gi)

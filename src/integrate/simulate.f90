@@ -1,25 +1,34 @@
 !> Integrate one case from t = 0 to t_end (or to the model limit it meets),
-!> sampling the requested fields every output interval.
+!> sampling the requested fields every output interval: fixed-step methods
+!> sample their own steps; the adaptive method samples its dense output.
+!> With error_estimate, the case is run again with the adaptive method at a
+!> tight tolerance and the differences are its error figures.
 module ellroll_simulate
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed
-  use ellroll_cases, only: case_t, output_plan_t, make_ball, &
+  use ellroll_cases, only: case_t, output_plan_t, make_ball, field_count, &
       field_contact, field_center, field_omega, field_normal, field_nutation, &
       field_reaction, field_energy
   use ellroll_results, only: case_result_t, new_case_result
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
       initial_state, observe, limit_status
-  use ellroll_integrators, only: integrator_t, new_integrator
+  use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
   use ellroll_events, only: crossing_search_t
+  use ellroll_linear, only: oscillation_periods
   implicit none
   private
 
-  public :: simulate_case, event_time_tolerance, maxima_t
+  public :: simulate_case, event_time_tolerance, maxima_t, reference_rtol, reference_atol
+
+  !> Model limits are located in time to this (s).
+  real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
+  !> Tolerances of the reference run behind error_estimate = 'reference'.
+  real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   !> Local maxima of a sampled signal, each refined by the parabola through
-  !> the three samples around it.
+  !> the three samples around it (uneven spacing allowed).
   type :: maxima_t
     real(wp) :: t(3) = 0, v(3) = 0       !< the last three samples
     integer :: n_samples = 0
@@ -30,8 +39,13 @@ module ellroll_simulate
     procedure :: mean_interval
   end type maxima_t
 
-  !> Model limits are located in time to this (s).
-  real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
+  !> What one integration needs as it goes.
+  type :: run_state_t
+    type(rolling_ball_t) :: ball
+    real(wp) :: energy0 = 0
+    type(maxima_t) :: maxima
+    integer(i8) :: next_sample = 2        !< index of the next output sample
+  end type run_state_t
 
 contains
 
@@ -40,110 +54,282 @@ contains
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(out) :: res
     type(error_t), intent(inout) :: err
-    type(rolling_ball_t) :: ball
+    type(output_plan_t) :: own_plan
+    type(case_t) :: reference_case
+    type(case_result_t) :: reference
+    integer :: f
+    if (.not. cs%error_estimate) then
+      call integrate(cs, plan, res, err)
+      return
+    end if
+    ! the error figures need these fields from both runs, stored or not
+    own_plan = plan
+    own_plan%fields([field_contact, field_nutation, field_energy]) = .true.
+    call integrate(cs, own_plan, res, err)
+    reference_case = cs
+    reference_case%method = 'dop853'
+    reference_case%rtol = reference_rtol
+    reference_case%atol = reference_atol
+    reference_case%dt = plan%interval
+    call integrate(reference_case, own_plan, reference, err)
+    res%error_contact = max_difference(res%fields(field_contact)%values, reference%fields(field_contact)%values)
+    res%error_theta = max_difference(res%fields(field_nutation)%values, reference%fields(field_nutation)%values)
+    res%error_energy = max_difference(res%fields(field_energy)%values, reference%fields(field_energy)%values) &
+                       / abs(reference%fields(field_energy)%values(1, 1))
+    res%n_rhs_reference = reference%n_rhs
+    do f = 1, field_count
+      if (.not. plan%fields(f) .and. allocated(res%fields(f)%values)) deallocate (res%fields(f)%values)
+    end do
+  contains
+    !> Largest distance between two sampled fields where both are defined.
+    real(wp) function max_difference(a, b)
+      real(wp), intent(in) :: a(:, :), b(:, :)
+      integer :: j
+      max_difference = 0
+      do j = 1, size(a, 2)
+        if (all(ieee_is_finite(a(:, j))) .and. all(ieee_is_finite(b(:, j)))) &
+          max_difference = max(max_difference, norm2(a(:, j) - b(:, j)))
+      end do
+    end function max_difference
+  end subroutine simulate_case
+
+  subroutine integrate(cs, plan, res, err)
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(case_result_t), intent(out) :: res
+    type(error_t), intent(inout) :: err
     class(integrator_t), allocatable :: integrator
-    real(wp) :: y(state_size), f(state_size), y_new(state_size), f_new(state_size)
-    real(wp) :: t, energy0
+    type(run_state_t) :: run
+    real(wp) :: y(state_size), f(state_size)
     type(observation_t) :: obs
-    type(maxima_t) :: maxima
-    integer(i8) :: k, n_steps, clock_start, clock_end, clock_rate
-    integer :: status
+    integer(i8) :: clock_start, clock_end, clock_rate
 
     call system_clock(clock_start, clock_rate)
     call new_integrator(trim(cs%method), integrator, err)
     if (err%failed()) return
-    ball = make_ball(cs)
+    run%ball = make_ball(cs)
     res = new_case_result(plan%fields, plan%n_samples)
 
-    y = initial_state(ball, cs%x0, cs%y0, cs%omega0)
-    call ball%rhs(0.0_wp, y, f)
+    y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
+    call run%ball%rhs(0.0_wp, y, f)
     res%n_rhs = 1
-    obs = observe(ball, y, f)
-    energy0 = obs%energy
-    call maxima%add(0.0_wp, obs%nutation)
-    call accumulate(res, obs, energy0)
+    obs = observe(run%ball, y, f)
+    run%energy0 = obs%energy
+    call run%maxima%add(0.0_wp, obs%nutation)
+    call accumulate(res, obs, run%energy0)
     call record_sample(res, 1_i8, obs)
-    t = 0
-    res%status = limit_status(ball, y, obs)   ! a start outside the model ends at once
-    n_steps = nint(cs%t_end / cs%dt, i8)
-    if (res%status /= status_completed) n_steps = 0
+    res%status = limit_status(run%ball, y, obs)   ! a start outside the model ends at once
 
+    if (res%status == status_completed) then
+      select type (integrator)
+      type is (dop853_t)
+        integrator%rtol = cs%rtol
+        integrator%atol = cs%atol
+        call adaptive_loop(integrator, cs, plan, run, y, f, res)
+      class default
+        call fixed_step_loop(integrator, cs, plan, run, y, f, res)
+      end select
+    end if
+    res%nutation_maxima = run%maxima%count
+    res%nutation_period = run%maxima%mean_interval()
+    res%linear_periods = oscillation_periods(run%ball, dot_product(cs%omega0, obs%normal))
+    call system_clock(clock_end)
+    res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
+  end subroutine integrate
+
+  subroutine fixed_step_loop(integrator, cs, plan, run, y, f, res)
+    class(integrator_t), intent(inout) :: integrator
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(inout) :: y(:), f(:)
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: y_new(state_size), f_new(state_size), t, offset
+    type(observation_t) :: obs, obs_valid
+    type(crossing_search_t) :: search
+    integer(i8) :: k, n_steps
+    integer :: status
+    logical :: found_valid
+
+    n_steps = nint(cs%t_end / cs%dt, i8)
+    t = 0
     do k = 1, n_steps
-      call integrator%step(ball, t, y, f, cs%dt, y_new, res%n_rhs)
-      call ball%project(y_new)
-      call ball%rhs(t + cs%dt, y_new, f_new)
-      res%n_rhs = res%n_rhs + 1
-      obs = observe(ball, y_new, f_new)
-      status = limit_status(ball, y_new, obs)
+      call integrator%step(run%ball, t, y, f, cs%dt, y_new, res%n_rhs)
+      call advance_to(y_new, f_new, obs, status)
       if (status /= status_completed) then
-        call end_at_limit(status)
-        exit
+        ! bisect on partial steps from the last valid state; end there
+        res%status = status
+        found_valid = .false.
+        call search%start(cs%dt, event_time_tolerance)
+        do while (.not. search%done())
+          offset = search%trial()
+          call integrator%step(run%ball, t, y, f, offset, y_new, res%n_rhs)
+          call advance_to(y_new, f_new, obs, status)
+          call search%report(offset, status == status_completed)
+          if (status == status_completed) then
+            obs_valid = obs
+            found_valid = .true.
+          else
+            res%status = status
+          end if
+        end do
+        res%t_final = t + search%valid
+        res%n_steps = k
+        if (found_valid) call accumulate(res, obs_valid, run%energy0)
+        return
       end if
       y = y_new
       f = f_new
       t = k * cs%dt
       res%n_steps = k
-      call maxima%add(t, obs%nutation)
-      call accumulate(res, obs, energy0)
+      call run%maxima%add(t, obs%nutation)
+      call accumulate(res, obs, run%energy0)
       if (mod(k, plan%steps_per_sample) == 0) call record_sample(res, k / plan%steps_per_sample + 1, obs)
     end do
-    if (res%status == status_completed) res%t_final = t
-    res%nutation_maxima = maxima%count
-    res%nutation_period = maxima%mean_interval()
-
-    call system_clock(clock_end)
-    res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
+    res%t_final = t
 
   contains
 
-    !> The step from t ended outside the model: bisect on partial steps from
-    !> the last valid state for the first offset where the limit is crossed,
-    !> and end the case at the last valid state found.
-    subroutine end_at_limit(step_status)
-      integer, intent(in) :: step_status
-      type(crossing_search_t) :: search
-      real(wp) :: offset, y_try(state_size), f_try(state_size)
-      type(observation_t) :: obs_try, obs_valid
-      integer :: trial_status
-      logical :: found_valid
-      res%status = step_status
-      found_valid = .false.
-      call search%start(cs%dt, event_time_tolerance)
-      do while (.not. search%done())
-        offset = search%trial()
-        call integrator%step(ball, t, y, f, offset, y_try, res%n_rhs)
-        call ball%project(y_try)
-        call ball%rhs(t + offset, y_try, f_try)
-        res%n_rhs = res%n_rhs + 1
-        obs_try = observe(ball, y_try, f_try)
-        trial_status = limit_status(ball, y_try, obs_try)
-        call search%report(offset, trial_status == status_completed)
-        if (trial_status == status_completed) then
-          obs_valid = obs_try
-          found_valid = .true.
+    !> Project, evaluate f and the derived outputs, and check the limits.
+    subroutine advance_to(y_next, f_next, obs_next, status_next)
+      real(wp), intent(inout) :: y_next(:)
+      real(wp), intent(out) :: f_next(:)
+      type(observation_t), intent(out) :: obs_next
+      integer, intent(out) :: status_next
+      call run%ball%project(y_next)
+      call run%ball%rhs(t, y_next, f_next)
+      res%n_rhs = res%n_rhs + 1
+      obs_next = observe(run%ball, y_next, f_next)
+      status_next = limit_status(run%ball, y_next, obs_next)
+    end subroutine advance_to
+  end subroutine fixed_step_loop
+
+  !> Step-size control after Hairer: accept when the error norm <= 1, next
+  !> step h (0.9 err^(-1/8)) within [0.2 h, 10 h], never above dt (the
+  !> largest step allowed). Output samples and limit crossings come from the
+  !> 7th-order dense output.
+  subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
+    type(dop853_t), intent(inout) :: integrator
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(inout) :: y(:), f(:)
+    type(case_result_t), intent(inout) :: res
+    real(wp), parameter :: safety = 0.9_wp, min_factor = 0.2_wp, max_factor = 10
+    real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max, factor, length, t_sample, offset
+    type(observation_t) :: obs, obs_valid
+    type(crossing_search_t) :: search
+    integer :: status
+    logical :: rejected, found_valid
+
+    t = 0
+    h_max = cs%dt
+    call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
+    rejected = .false.
+    do while (t < cs%t_end)
+      if (t + h >= cs%t_end - 1.0e-12_wp * cs%t_end) h = cs%t_end - t
+      call integrator%step(run%ball, t, y, f, h, y_new, res%n_rhs)
+      if (.not. ieee_is_finite(integrator%error_norm)) integrator%error_norm = huge(1.0_wp)
+      if (integrator%error_norm > 1) then
+        h = h * max(min_factor, safety * integrator%error_norm**(-1.0_wp / 8))
+        rejected = .true.
+        cycle
+      end if
+      length = norm2(y_new(1:3))
+      y_new(1:3) = y_new(1:3) / length
+      f_new = integrator%f_new
+      f_new(1:3) = f_new(1:3) / length          ! n' is homogeneous of degree one in |n|
+      obs = observe(run%ball, y_new, f_new)
+      status = limit_status(run%ball, y_new, obs)
+      if (status /= status_completed) then
+        res%status = status
+        found_valid = .false.
+        call search%start(h, event_time_tolerance)
+        do while (.not. search%done())
+          offset = search%trial()
+          call dense_state(offset / h, obs)
+          status = limit_status(run%ball, [obs%normal, obs%omega], obs)
+          call search%report(offset, status == status_completed)
+          if (status == status_completed) then
+            obs_valid = obs
+            found_valid = .true.
+          else
+            res%status = status
+          end if
+        end do
+        ! output samples before the end
+        call record_samples_until(t + search%valid)
+        res%t_final = t + search%valid
+        res%n_steps = res%n_steps + 1
+        if (found_valid) call accumulate(res, obs_valid, run%energy0)
+        return
+      end if
+      call record_samples_until(t + h)
+      t = t + h
+      y = y_new
+      f = f_new
+      res%n_steps = res%n_steps + 1
+      call run%maxima%add(t, obs%nutation)
+      call accumulate(res, obs, run%energy0)
+      if (integrator%error_norm == 0) then
+        factor = max_factor
+      else
+        factor = min(max_factor, safety * integrator%error_norm**(-1.0_wp / 8))
+      end if
+      if (rejected) factor = min(1.0_wp, factor)
+      rejected = .false.
+      h = min(h * factor, h_max)
+    end do
+    res%t_final = cs%t_end
+
+  contains
+
+    !> Derived outputs at t + theta h from the dense output.
+    subroutine dense_state(theta, obs_at)
+      real(wp), intent(in) :: theta
+      type(observation_t), intent(out) :: obs_at
+      real(wp) :: y_at(state_size), f_at(state_size)
+      call integrator%dense(run%ball, theta, y_at, res%n_rhs)
+      call run%ball%project(y_at)
+      call run%ball%rhs(t + theta * h, y_at, f_at)
+      res%n_rhs = res%n_rhs + 1
+      obs_at = observe(run%ball, y_at, f_at)
+    end subroutine dense_state
+
+    !> Record every output sample in (t, t_until] of the current step.
+    subroutine record_samples_until(t_until)
+      real(wp), intent(in) :: t_until
+      type(observation_t) :: obs_at
+      do while (run%next_sample <= plan%n_samples)
+        t_sample = real(run%next_sample - 1, wp) * plan%interval
+        if (t_sample > t_until * (1 + 1.0e-14_wp)) exit
+        if (abs(t_sample - (t + h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
+          call record_sample(res, run%next_sample, obs)         ! the step's own end point
         else
-          res%status = trial_status
+          call dense_state((t_sample - t) / h, obs_at)
+          call record_sample(res, run%next_sample, obs_at)
         end if
+        run%next_sample = run%next_sample + 1
       end do
-      res%t_final = t + search%valid
-      res%n_steps = k
-      if (found_valid) call accumulate(res, obs_valid, energy0)
-    end subroutine end_at_limit
-  end subroutine simulate_case
+    end subroutine record_samples_until
+  end subroutine adaptive_loop
 
   pure subroutine add_sample(self, t, v)
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t, v
-    real(wp) :: curvature, t_peak, h
+    real(wp) :: d1, d3, numerator, denominator, t_peak
     self%t = [self%t(2:3), t]
     self%v = [self%v(2:3), v]
     self%n_samples = self%n_samples + 1
     if (self%n_samples < 3) return
     if (.not. (self%v(2) > self%v(1) .and. self%v(2) >= self%v(3))) return
-    h = self%t(2) - self%t(1)
-    curvature = self%v(1) - 2 * self%v(2) + self%v(3)
+    ! vertex of the parabola through the three samples
+    d1 = self%t(2) - self%t(1)
+    d3 = self%t(2) - self%t(3)
+    numerator = d1**2 * (self%v(2) - self%v(3)) - d3**2 * (self%v(2) - self%v(1))
+    denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
     t_peak = self%t(2)
-    if (curvature < 0) t_peak = self%t(2) + h * (self%v(1) - self%v(3)) / (2 * curvature)
+    if (denominator /= 0) t_peak = self%t(2) - 0.5_wp * numerator / denominator
     if (self%count == 0) self%first = t_peak
     self%last = t_peak
     self%count = self%count + 1

@@ -92,7 +92,7 @@ contains
     type(provenance_t), intent(in) :: prov
     type(error_t), intent(inout) :: err
     integer :: hdferr, f, k
-    integer(hid_t) :: group, scale, time_scale, xyz_scale, fapl
+    integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl
     integer(i8) :: n_cases
 
     n_cases = size(indices, kind=i8)
@@ -132,6 +132,10 @@ contains
     if (err%failed()) return
     call write_text(xyz_scale, ['x', 'y', 'z'], 0_i8)
     call make_scale(xyz_scale, 'xyz')
+    mode_scale = new_int_dataset(self%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
+    if (err%failed()) return
+    call write_int(mode_scale, [1_i8, 2_i8], 0_i8)
+    call make_scale(mode_scale, 'mode')
     if (err%failed()) return
 
     ! /case: resolved inputs
@@ -157,6 +161,7 @@ contains
     call close_scale_and_group(scale, group)
     call h5dclose_f(time_scale, hdferr)
     call h5dclose_f(xyz_scale, hdferr)
+    call h5dclose_f(mode_scale, hdferr)
 
   contains
 
@@ -193,9 +198,10 @@ contains
             dset = new_real_dataset(group, rec(k)%name, [n_cases], rec(k)%units, rec(k)%description)
             call attach(dset, scale, 0)
           else
-            dset = new_real_dataset(group, rec(k)%name, [3_i8, n_cases], rec(k)%units, rec(k)%description)
+            dset = new_real_dataset(group, rec(k)%name, [int(rec(k)%ncomp, i8), n_cases], rec(k)%units, &
+                                    rec(k)%description)
             call attach(dset, scale, 0)
-            call attach(dset, xyz_scale, 1)
+            call attach(dset, merge(xyz_scale, mode_scale, rec(k)%ncomp == 3), 1)
           end if
         case (kind_int)
           dset = new_int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
@@ -416,7 +422,8 @@ contains
           if (rec(k)%ncomp == 1) then
             call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [icase], [1_i8])
           else
-            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [0_i8, icase], [3_i8, 1_i8])
+            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [0_i8, icase], &
+                               [int(rec(k)%ncomp, i8), 1_i8])
           end if
         case (kind_int)
           ints = rec(k)%int
@@ -745,7 +752,7 @@ contains
     type(error_t), intent(inout) :: err
     type(named_value_t), allocatable :: rec(:)
     integer(i8), target :: int_buffer(1)
-    real(wp), target :: real_buffer(1)
+    real(wp), target :: real_buffer(3)
     integer :: k, f
     call self%read_slab('summary/status', h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(int_buffer), &
                         [slot], [1_i8], err)
@@ -757,9 +764,14 @@ contains
                             c_loc(int_buffer), [slot], [1_i8], err)
         rec(k)%int = int_buffer(1)
       else
-        call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
-                            [slot], [1_i8], err)
-        rec(k)%reals(1) = real_buffer(1)
+        if (rec(k)%ncomp == 1) then
+          call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
+                              [slot], [1_i8], err)
+        else
+          call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
+                              [0_i8, slot], [int(rec(k)%ncomp, i8), 1_i8], err)
+        end if
+        rec(k)%reals = real_buffer
       end if
       call set_summary_value(res, rec(k))
     end do

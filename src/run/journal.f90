@@ -167,7 +167,7 @@ contains
   integer(i8) function words_per_record(header)
     type(journal_header_t), intent(in) :: header
     type(case_result_t) :: empty
-    words_per_record = 3 + size(summary_record(empty)) + &
+    words_per_record = 3 + 3 * size(summary_record(empty)) + &
         header%n_samples * sum(field_ncomp, mask=header%fields)
   end function words_per_record
 
@@ -182,14 +182,15 @@ contains
     allocate (words(words_per_record(header)))
     words(1:3) = [record_marker, slot, int(res%status, i8)]
     rec = summary_record(res)
+    ! three words per summary entry: an integer, or up to three reals
     do k = 1, size(rec)
       if (rec(k)%kind == kind_int) then
-        words(3 + k) = rec(k)%int
+        words(3 * k + 1:3 * k + 3) = [rec(k)%int, 0_i8, 0_i8]
       else
-        words(3 + k) = transfer(rec(k)%reals(1), 0_i8)
+        words(3 * k + 1:3 * k + 3) = transfer(rec(k)%reals, 0_i8, 3)
       end if
     end do
-    at = 3 + size(rec)
+    at = 3 + 3 * size(rec)
     do f = 1, field_count
       if (.not. header%fields(f)) cycle
       n = field_ncomp(f) * header%n_samples
@@ -211,13 +212,13 @@ contains
     rec = summary_record(res)
     do k = 1, size(rec)
       if (rec(k)%kind == kind_int) then
-        rec(k)%int = words(3 + k)
+        rec(k)%int = words(3 * k + 1)
       else
-        rec(k)%reals(1) = transfer(words(3 + k), 0.0_wp)
+        rec(k)%reals = transfer(words(3 * k + 1:3 * k + 3), 0.0_wp, 3)
       end if
       call set_summary_value(res, rec(k))
     end do
-    at = 3 + size(rec)
+    at = 3 + 3 * size(rec)
     do f = 1, field_count
       if (.not. header%fields(f)) cycle
       n = field_ncomp(f) * header%n_samples

@@ -10,9 +10,11 @@ module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
-  use ellroll_strings, only: itoa, text_hash
+  use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid
-  use ellroll_cases, only: case_t, check_case, param_names
+  use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method
+  use ellroll_rolling_ball, only: rolling_ball_t, initial_state
+  use ellroll_linear, only: fastest_rate
   use ellroll_campaign, only: campaign_t, invalid_stop
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
@@ -24,7 +26,7 @@ module ellroll_run_campaign
   implicit none
   private
 
-  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id
+  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id, step_size_advice
 
   type :: run_options_t
     integer :: threads = 0               !< 0: OMP_NUM_THREADS or all cores
@@ -75,6 +77,59 @@ contains
     end do
     if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(int(n_bad - 5)) // ' more'
   end subroutine find_invalid_cases
+
+  !> A warning (or '') for the cases whose fixed step dt is large against
+  !> the fastest rate of their linearised motion at the start: dt rate > 0.1.
+  function step_size_advice(inp) result(message)
+    type(run_input_t), intent(in) :: inp
+    character(len=:), allocatable :: message
+    real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
+    real(wp) :: rate, worst_rate, suggestion
+    integer(i8) :: i, worst, n_large
+    type(case_t) :: cs
+    type(rolling_ball_t) :: ball
+    message = ''
+    if (adaptive_method(inp%campaign%base%method)) return
+    n_large = 0
+    worst_rate = 0
+    worst = 0
+    do i = 0, inp%campaign%n_cases() - 1
+      cs = inp%campaign%case_at(i)
+      ball = make_ball(cs)
+      rate = fastest_rate(ball, initial_state(ball, cs%x0, cs%y0, cs%omega0))
+      if (cs%dt * rate <= warn_above) cycle
+      n_large = n_large + 1
+      if (rate > worst_rate) then
+        worst_rate = rate
+        worst = i
+      end if
+    end do
+    if (n_large == 0) return
+    suggestion = nice_step(aim / worst_rate, inp%plan%interval)
+    cs = inp%campaign%case_at(worst)
+    message = 'warning: ' // itoa(int(n_large)) // ' of ' // itoa(int(inp%campaign%n_cases())) // &
+        ' cases: dt is large for their fastest time scale (case ' // itoa(int(worst)) // ': dt = ' // &
+        format_real(cs%dt) // ' s, 1/rate = ' // format_real(1 / worst_rate) // &
+        ' s); suggested dt <= ' // format_real(suggestion) // ' s, or method = ''dop853'''
+  contains
+    !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval.
+    real(wp) function nice_step(limit, interval) result(step)
+      real(wp), intent(in) :: limit, interval
+      real(wp), parameter :: mantissas(3) = [1.0_wp, 2.0_wp, 5.0_wp]
+      real(wp) :: decade, ratio
+      integer :: k, m
+      decade = 10.0_wp**floor(log10(limit))
+      do k = 0, 30
+        do m = 3, 1, -1
+          step = mantissas(m) * decade / 10.0_wp**k
+          if (step > limit) cycle
+          ratio = interval / step
+          if (abs(ratio - anint(ratio)) <= 1.0e-9_wp * ratio) return
+        end do
+      end do
+      step = limit
+    end function nice_step
+  end function step_size_advice
 
   subroutine run_campaign(inp, opts, prov_in, err)
     type(run_input_t), intent(in) :: inp

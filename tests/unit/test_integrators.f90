@@ -1,5 +1,3 @@
-!> Observed order of convergence of RK4: on the harmonic oscillator (exact
-!> solution) and on the paper's case (against a much finer run).
 module oscillator
   use ellroll_kinds, only: wp
   use ellroll_ode, only: ode_system_t
@@ -24,10 +22,15 @@ contains
   end subroutine oscillator_rhs
 end module oscillator
 
+!> Every method's order, measured: on the harmonic oscillator (exact
+!> solution) and on the paper's case (against a much finer run); gauss4's
+!> exact conservation of the oscillator's quadratic invariant (it is
+!> symplectic); DOP853's dense-output order; the adaptive method's achieved
+!> error against rtol.
 program test_integrators
   use ellroll_kinds, only: wp, i8
   use oscillator, only: oscillator_t
-  use ellroll_integrators, only: integrator_t, new_integrator
+  use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
   use ellroll_errors, only: error_t
   use ellroll_cases, only: case_t, field_contact, field_omega
   use ellroll_results, only: case_result_t
@@ -35,44 +38,97 @@ program test_integrators
   use testing
   implicit none
 
-  class(integrator_t), allocatable :: rk4
+  class(integrator_t), allocatable :: method
   type(error_t) :: err
-  real(wp) :: errors(4), dts(4), reference(6)
+  real(wp) :: errors(4), dts(4), reference(6), drift, tolerances(4), slope
   type(case_result_t) :: res
+  type(case_t) :: cs
   integer :: k
+  character(len=6), parameter :: fixed_methods(2) = ['rk4   ', 'gauss4']
 
-  call new_integrator('rk4', rk4, err)
-  call check(.not. err%failed(), 'rk4 exists')
-  call check(rk4%order() == 4 .and. rk4%name() == 'rk4' .and. rk4%kind() == 'fixed', 'rk4 describes itself')
+  do k = 1, 2
+    call new_integrator(trim(fixed_methods(k)), method, err)
+    call check(.not. err%failed() .and. method%order() == '4', trim(fixed_methods(k)) // ' exists, order 4')
+    dts = [0.2_wp, 0.1_wp, 0.05_wp, 0.025_wp]
+    call orders_on_oscillator(method, dts, trim(fixed_methods(k)), 4.0_wp)
+    call orders_on_paper_case(trim(fixed_methods(k)), 4.0_wp)
+  end do
 
-  dts = [0.1_wp, 0.05_wp, 0.025_wp, 0.0125_wp]
+  call new_integrator('gauss4', method, err)
+  drift = invariant_drift(method, 0.1_wp, 100000)
+  call check_below(drift, 1.0e-12_wp, 'gauss4: |y|^2 of the oscillator over 1e5 steps (exactly conserved)')
+  call new_integrator('rk4', method, err)
+  call check(invariant_drift(method, 0.1_wp, 100000) > 1.0e-4_wp, 'rk4 drifts on the same run (contrast)')
+
+  call new_integrator('dop853', method, err)
+  call check(method%adaptive() .and. method%kind() == 'adaptive', 'dop853 is adaptive')
+  call orders_on_oscillator(method, [1.0_wp, 0.5_wp, 0.25_wp, 0.125_wp], 'dop853', 8.0_wp)
+  call dense_order()
+
+  ! the adaptive method's error tracks rtol (paper case, contact point at 2 s)
+  cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
+  cs%method = 'dop853'
+  cs%rtol = 1.0e-13_wp
+  cs%atol = 1.0e-15_wp
+  res = run_case(cs, 1)
+  reference(1:3) = res%fields(field_contact)%values(:, 2)
+  tolerances = [1.0e-5_wp, 1.0e-7_wp, 1.0e-9_wp, 1.0e-11_wp]
   do k = 1, 4
-    errors(k) = oscillator_error(dts(k))
+    cs%rtol = tolerances(k)
+    cs%atol = tolerances(k) * 1.0e-3_wp
+    res = run_case(cs, 1)
+    errors(k) = norm2(res%fields(field_contact)%values(:, 2) - reference(1:3))
+    print '(a, es8.1, a, es9.2, a, i0)', 'dop853 rtol ', tolerances(k), ': contact error ', errors(k), &
+          ' m, RHS evaluations ', res%n_rhs
+    call check(errors(k) < 100 * tolerances(k), 'dop853 error within 100 rtol')
   end do
-  do k = 1, 3
-    call check_close(log(errors(k) / errors(k+1)) / log(2.0_wp), 4.0_wp, 0.05_wp, &
-                     'RK4 order on the harmonic oscillator')
-  end do
-
-  ! Paper case to t = 2 s: contact point and omega at the end against dt = 1e-4.
-  res = run_case(paper_case(1.0e-4_wp, 2.0_wp), 20000)
-  reference = [res%fields(field_contact)%values(:, 2), res%fields(field_omega)%values(:, 2)]
-  dts = [0.01_wp, 0.005_wp, 0.0025_wp, 0.00125_wp]
-  do k = 1, 4
-    res = run_case(paper_case(dts(k), 2.0_wp), nint(2 / dts(k)))
-    errors(k) = maxval(abs([res%fields(field_contact)%values(:, 2) * 20, &
-                            res%fields(field_omega)%values(:, 2) / 20] - &
-                           [reference(1:3) * 20, reference(4:6) / 20]))
-  end do
-  do k = 1, 3
-    call check_close(log(errors(k) / errors(k+1)) / log(2.0_wp), 4.0_wp, 0.05_wp, &
-                     'RK4 order on the paper case')
-  end do
+  slope = log10(errors(1) / errors(4)) / 6
+  call check_close(slope, 1.0_wp, 0.3_wp, 'dop853: d log(error) / d log(rtol)')
   call finish('test_integrators')
 
 contains
 
-  real(wp) function oscillator_error(dt)
+  subroutine orders_on_oscillator(method, dts, name, order)
+    class(integrator_t), intent(inout) :: method
+    real(wp), intent(in) :: dts(:), order
+    character(len=*), intent(in) :: name
+    real(wp) :: errors(size(dts))
+    integer :: k
+    do k = 1, size(dts)
+      errors(k) = oscillator_error(method, dts(k))
+    end do
+    do k = 1, size(dts) - 1
+      call check_close(log(errors(k) / errors(k+1)) / log(dts(k) / dts(k+1)), order, 0.05_wp, &
+                       name // ' order on the harmonic oscillator')
+    end do
+  end subroutine orders_on_oscillator
+
+  subroutine orders_on_paper_case(name, order)
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: order
+    type(case_t) :: cs
+    real(wp) :: errors(4), dts(4), reference(6)
+    integer :: k
+    cs = paper_case(1.0e-4_wp, 2.0_wp)
+    cs%method = name
+    res = run_case(cs, 20000)
+    reference = [res%fields(field_contact)%values(:, 2), res%fields(field_omega)%values(:, 2)]
+    dts = [0.01_wp, 0.005_wp, 0.0025_wp, 0.00125_wp]
+    do k = 1, 4
+      cs%dt = dts(k)
+      res = run_case(cs, nint(2 / dts(k)))
+      errors(k) = maxval(abs([res%fields(field_contact)%values(:, 2) * 20, &
+                              res%fields(field_omega)%values(:, 2) / 20] - &
+                             [reference(1:3) * 20, reference(4:6) / 20]))
+    end do
+    do k = 1, 3
+      call check_close(log(errors(k) / errors(k+1)) / log(2.0_wp), order, 0.05_wp, &
+                       name // ' order on the paper case')
+    end do
+  end subroutine orders_on_paper_case
+
+  real(wp) function oscillator_error(method, dt)
+    class(integrator_t), intent(inout) :: method
     real(wp), intent(in) :: dt
     type(oscillator_t) :: osc
     real(wp) :: y(2), f(2), y_new(2), t
@@ -83,10 +139,51 @@ contains
     n_rhs = 0
     do step = 1, nint(10 / dt)
       call osc%rhs(t, y, f)
-      call rk4%step(osc, t, y, f, dt, y_new, n_rhs)
+      call method%step(osc, t, y, f, dt, y_new, n_rhs)
       y = y_new
       t = step * dt
     end do
     oscillator_error = norm2(y - [cos(t), -sin(t)])
   end function oscillator_error
+
+  real(wp) function invariant_drift(method, dt, n_steps)
+    class(integrator_t), intent(inout) :: method
+    real(wp), intent(in) :: dt
+    integer, intent(in) :: n_steps
+    type(oscillator_t) :: osc
+    real(wp) :: y(2), f(2), y_new(2)
+    integer(i8) :: n_rhs
+    integer :: step
+    y = [1.0_wp, 0.0_wp]
+    n_rhs = 0
+    invariant_drift = 0
+    do step = 1, n_steps
+      call osc%rhs(0.0_wp, y, f)
+      call method%step(osc, 0.0_wp, y, f, dt, y_new, n_rhs)
+      y = y_new
+      invariant_drift = max(invariant_drift, abs(sum(y**2) - 1))
+    end do
+  end function invariant_drift
+
+  !> One step from the exact state; the interpolant at mid-step against cos.
+  subroutine dense_order()
+    type(dop853_t) :: dop
+    type(oscillator_t) :: osc
+    real(wp) :: y(2), f(2), y_new(2), mid(2), h, errors(3)
+    integer(i8) :: n_rhs
+    integer :: k
+    n_rhs = 0
+    do k = 1, 3
+      h = 0.8_wp / 2**(k - 1)
+      y = [1.0_wp, 0.0_wp]
+      call osc%rhs(0.0_wp, y, f)
+      call dop%step(osc, 0.0_wp, y, f, h, y_new, n_rhs)
+      call dop%dense(osc, 0.37_wp, mid, n_rhs)
+      errors(k) = norm2(mid - [cos(0.37_wp * h), -sin(0.37_wp * h)])
+    end do
+    do k = 1, 2
+      call check_close(log(errors(k) / errors(k+1)) / log(2.0_wp), 8.0_wp, 0.06_wp, &
+                       'dop853 dense output: local error order (7th-order interpolant)')
+    end do
+  end subroutine dense_order
 end program test_integrators
