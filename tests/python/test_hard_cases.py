@@ -1,0 +1,137 @@
+"""The hard cases of input/hard/: each input states what it must do; these
+tests hold it to that."""
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT, run
+
+HARD = ROOT / "input" / "hard"
+G = 9.81
+
+
+def run_hard(ellroll, tmp_path, name, *extra, edits=()):
+    text = (HARD / name).read_text()
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    (tmp_path / name).write_text(text)
+    result = run(ellroll, "run", name, "-q", "--overwrite", "-o", "out.h5", *extra, cwd=tmp_path, timeout=300)
+    assert result.returncode == 0, result.stderr
+    return h5py.File(tmp_path / "out.h5", "r"), result
+
+
+def status(f, case=0):
+    ds = f["summary/status"]
+    return ds.attrs["flag_meanings"].split()[ds[case]]
+
+
+def crossing_period(t, u):
+    s = np.where(np.sign(u[:-1]) != np.sign(u[1:]))[0]
+    crossings = t[s] + u[s] / (u[s] - u[s + 1]) * (t[1] - t[0])
+    return 2 * (crossings[-1] - crossings[0]) / (len(crossings) - 1)
+
+
+def test_fast_spin_is_accurate_at_the_advised_step(ellroll, tmp_path):
+    f, result = run_hard(ellroll, tmp_path, "fast_spin.nml")
+    assert status(f) == "completed" and "warning" not in result.stderr
+    assert f["summary/error_contact"][0] < 1e-7
+    assert f["summary/error_theta"][0] < 1e-7
+
+
+def test_fast_spin_with_a_coarse_step_is_warned(ellroll, tmp_path):
+    f, result = run_hard(ellroll, tmp_path, "fast_spin_coarse.nml")
+    assert "dt is large" in result.stderr and "suggested dt <= 0.001 s" in result.stderr
+    assert f["summary/error_contact"][0] > 1e-4      # the warning was right
+
+
+def test_ball_just_smaller_than_the_smallest_radius(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "near_fit.nml")
+    assert status(f) == "completed"
+    period = crossing_period(f["time"][:], f["trajectory/contact"][0, :, 1])
+    expected = 2 * np.pi * np.sqrt(7 * (0.4**2 / 0.2 - 0.79992) / (5 * G))
+    assert abs(period / expected - 1) < 1e-5
+
+
+def test_ball_reaching_the_radius_of_curvature(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "reaches_no_fit.nml")
+    assert status(f) == "no_fit"
+    assert f["summary/theta_max"][0] == pytest.approx(0.17708961628, rel=1e-9)
+    theta = f["trajectory/nutation"][0]
+    done = f["time"][:] <= f["summary/t_final"][0]
+    assert np.all(np.isfinite(theta[done])) and np.all(np.isnan(theta[~done]))
+
+
+def test_energy_just_below_the_rim_stays_in(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "rim_below.nml")
+    assert status(f) == "completed"
+    assert 0.199 < np.nanmax(f["trajectory/contact"][0, :, 2]) < 0.2
+
+
+def test_energy_just_above_the_rim_stops_at_the_right_time(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "rim_above.nml")
+    t_rk4 = f["summary/t_final"][0]
+    assert status(f) == "rim"
+    f, _ = run_hard(ellroll, tmp_path, "rim_above.nml",
+                    edits=[("method = 'rk4', dt = 1.0e-4", "method = 'dop853', rtol = 1.0e-12, atol = 1.0e-14")])
+    assert status(f) == "rim"
+    assert abs(f["summary/t_final"][0] - t_rk4) < 1e-9
+    assert t_rk4 == pytest.approx(0.39725374360, abs=1e-9)
+
+
+def test_nearly_spherical_cup_loses_nothing_to_cancellation(ellroll, tmp_path):
+    sphere, _ = run_hard(ellroll, tmp_path, "near_sphere.nml",
+                         edits=[("a = 1.00000002, b = 1.00000001", "a = 1.0, b = 1.0")])
+    contact_sphere = sphere["trajectory/contact"][0]
+    sphere.close()
+    deviations = []
+    for eps in (1, 2):
+        f, _ = run_hard(ellroll, tmp_path, "near_sphere.nml",
+                        edits=[("a = 1.00000002, b = 1.00000001", f"a = {1 + 2e-8 * eps!r}, b = {1 + 1e-8 * eps!r}")])
+        assert f["summary/energy_drift"][0] < 1e-12
+        spin = (f["trajectory/omega"][0] * f["trajectory/normal"][0]).sum(axis=1)
+        assert np.abs(spin - spin[0]).max() < 1e-6 * eps
+        deviations.append(f["trajectory/contact"][0] - contact_sphere)
+        f.close()
+    # linear response: twice the asphericity, twice the deviation
+    ratio = np.linalg.norm(deviations[1]) / np.linalg.norm(deviations[0])
+    assert ratio == pytest.approx(2.0, rel=1e-3)
+
+
+def test_tiny_motions_keep_their_relative_accuracy(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "tiny_motion.nml")
+    expected = 2 * np.pi * np.sqrt(7 * (1.0 / 0.2 - 0.2) / (5 * G))
+    for case, x0 in enumerate((1e-9, 1e-150)):
+        assert status(f, case) == "completed"
+        x = f["trajectory/contact"][case, :, 0]
+        theta = f["trajectory/nutation"][case]
+        assert np.all(np.isfinite(x)) and np.all(np.isfinite(theta))
+        assert abs(crossing_period(f["time"][:], x / x0) / expected - 1) < 1e-10
+        assert abs(f["summary/theta_max"][case] / theta[0] - 1) < 1e-12
+        assert theta[0] == pytest.approx(x0 * 0.2, rel=1e-12)      # Theta(0) = x0 c / a^2
+
+
+def test_long_run_energy_drift_per_method(ellroll, tmp_path):
+    drift = {}
+    for method in ("rk4", "gauss4"):
+        for t_end in ("1000.0", "10000.0"):
+            f, _ = run_hard(ellroll, tmp_path, "long_run.nml",
+                            edits=[("method = 'gauss4'", f"method = '{method}'"), ("t_end = 10000.0", f"t_end = {t_end}")])
+            assert status(f) == "completed"
+            drift[method, t_end] = f["summary/energy_drift"][0]
+            f.close()
+    print("energy drift:", drift)
+    assert drift["rk4", "10000.0"] / drift["rk4", "1000.0"] > 5
+    assert drift["gauss4", "10000.0"] < 1.5 * drift["gauss4", "1000.0"]
+    assert drift["gauss4", "10000.0"] < 1e-3 * drift["rk4", "10000.0"]
+
+
+def test_slip(ellroll, tmp_path):
+    f, _ = run_hard(ellroll, tmp_path, "slip.nml")
+    assert status(f) == "slip"
+    assert f["summary/t_final"][0] == pytest.approx(1.43560110, abs=1e-8)
+    assert f["summary/friction_needed_max"][0] <= 0.085
+    f, _ = run_hard(ellroll, tmp_path, "slip.nml", edits=[("dt = 1.0e-3", "dt = 2.5e-4")])
+    assert f["summary/t_final"][0] == pytest.approx(1.43560110, abs=1e-8)
