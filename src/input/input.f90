@@ -295,7 +295,7 @@ contains
       end if
       plan%interval = interval
       plan%n_samples = nint(ratio, i8) + 1
-      if (ieee_is_nan(cs%dt)) cs%dt = interval       ! adaptive, no dt given: largest step
+      if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
 
       if (rd%given(gi, 'fields')) then
         plan%fields = .false.

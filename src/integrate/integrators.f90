@@ -17,6 +17,9 @@ module ellroll_integrators
   public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names, method_count
 
   integer, parameter :: method_count = 3
+  !> Largest system the integrators take: their work arrays are fixed-size
+  !> locals (on the stack), so a step allocates nothing.
+  integer, parameter, public :: max_equations = 16
   character(len=*), parameter :: method_names = 'rk4 dop853 gauss4'
 
   type, abstract :: integrator_t
@@ -59,7 +62,7 @@ module ellroll_integrators
     real(wp) :: rtol = 1.0e-9_wp, atol = 1.0e-12_wp
     real(wp) :: error_norm = 0
     real(wp), allocatable :: k(:, :)          !< stages of the last attempt (n, 16)
-    real(wp), allocatable :: y_old(:), y_new(:), f_new(:), dense_rows(:, :)
+    real(wp), allocatable :: y_old(:), y_new(:), f_new(:), dense_rows(:, :), stage(:)
     real(wp) :: t_old = 0, h = 0
     logical :: dense_ready = .false.
   contains
@@ -102,6 +105,115 @@ module ellroll_integrators
   real(wp), parameter :: bhh(3) = [0.244094488188976377952755905512_wp, &
       0.733846688281611857341361741547_wp, 0.220588235294117647058823529412e-1_wp]
 
+  !> DOP853 a(s, j): rows 2-12 the stages, 13 the weights b, 14-16 the dense-output stages.
+  real(wp), parameter :: a853(16, 15) = reshape([ &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      5.26001519587677318785587544488e-2_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      1.97250569845378994544595329183e-2_wp, 5.91751709536136983633785987549e-2_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      2.95875854768068491816892993775e-2_wp, 0.0_wp, 8.87627564304205475450678981324e-2_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      2.41365134159266685502369798665e-1_wp, 0.0_wp, -8.84549479328286085344864962717e-1_wp, &
+      9.24834003261792003115737966543e-1_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      3.7037037037037037037037037037e-2_wp, 0.0_wp, 0.0_wp, &
+      1.70828608729473871279604482173e-1_wp, 1.25467687566822425016691814123e-1_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      3.7109375e-2_wp, 0.0_wp, 0.0_wp, &
+      1.70252211019544039314978060272e-1_wp, 6.02165389804559606850219397283e-2_wp, -1.7578125e-2_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      3.70920001185047927108779319836e-2_wp, 0.0_wp, 0.0_wp, &
+      1.70383925712239993810214054705e-1_wp, 1.07262030446373284651809199168e-1_wp, -1.53194377486244017527936158236e-2_wp, &
+      8.27378916381402288758473766002e-3_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      6.24110958716075717114429577812e-1_wp, 0.0_wp, 0.0_wp, &
+      -3.36089262944694129406857109825_wp, -8.68219346841726006818189891453e-1_wp, 2.75920996994467083049415600797e1_wp, &
+      2.01540675504778934086186788979e1_wp, -4.34898841810699588477366255144e1_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      4.77662536438264365890433908527e-1_wp, 0.0_wp, 0.0_wp, &
+      -2.48811461997166764192642586468_wp, -5.90290826836842996371446475743e-1_wp, 2.12300514481811942347288949897e1_wp, &
+      1.52792336328824235832596922938e1_wp, -3.32882109689848629194453265587e1_wp, -2.03312017085086261358222928593e-2_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      -9.3714243008598732571704021658e-1_wp, 0.0_wp, 0.0_wp, &
+      5.18637242884406370830023853209_wp, 1.09143734899672957818500254654_wp, -8.14978701074692612513997267357_wp, &
+      -1.85200656599969598641566180701e1_wp, 2.27394870993505042818970056734e1_wp, 2.49360555267965238987089396762_wp, &
+      -3.0467644718982195003823669022_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      2.27331014751653820792359768449_wp, 0.0_wp, 0.0_wp, &
+      -1.05344954667372501984066689879e1_wp, -2.00087205822486249909675718444_wp, -1.79589318631187989172765950534e1_wp, &
+      2.79488845294199600508499808837e1_wp, -2.85899827713502369474065508674_wp, -8.87285693353062954433549289258_wp, &
+      1.23605671757943030647266201528e1_wp, 6.43392746015763530355970484046e-1_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      5.42937341165687622380535766363e-2_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 4.45031289275240888144113950566_wp, &
+      1.89151789931450038304281599044_wp, -5.8012039600105847814672114227_wp, 3.1116436695781989440891606237e-1_wp, &
+      -1.52160949662516078556178806805e-1_wp, 2.01365400804030348374776537501e-1_wp, 4.47106157277725905176885569043e-2_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      5.61675022830479523392909219681e-2_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      2.53500210216624811088794765333e-1_wp, -2.46239037470802489917441475441e-1_wp, -1.24191423263816360469010140626e-1_wp, &
+      1.5329179827876569731206322685e-1_wp, 8.20105229563468988491666602057e-3_wp, 7.56789766054569976138603589584e-3_wp, &
+      -8.298e-3_wp, 0.0_wp, 0.0_wp, &
+      3.18346481635021405060768473261e-2_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 2.83009096723667755288322961402e-2_wp, &
+      5.35419883074385676223797384372e-2_wp, -5.49237485713909884646569340306e-2_wp, 0.0_wp, &
+      0.0_wp, -1.08347328697249322858509316994e-4_wp, 3.82571090835658412954920192323e-4_wp, &
+      -3.40465008687404560802977114492e-4_wp, 1.41312443674632500278074618366e-1_wp, 0.0_wp, &
+      -4.28896301583791923408573538692e-1_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, -4.69762141536116384314449447206_wp, &
+      7.68342119606259904184240953878_wp, 4.06898981839711007970213554331_wp, 3.56727187455281109270669543021e-1_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      -1.39902416515901462129418009734e-3_wp, 2.9475147891527723389556272149_wp, -9.15095847217987001081870187138_wp], &
+      [16, 15], order=[2, 1])
+  !> DOP853 dense-output matrix D.
+  real(wp), parameter :: d853(4, 16) = reshape([ &
+      -0.84289382761090128651353491142e1_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.56671495351937776962531783590_wp, &
+      -0.30689499459498916912797304727e1_wp, 0.23846676565120698287728149680e1_wp, 0.21170345824450282767155149946e1_wp, &
+      -0.87139158377797299206789907490_wp, 0.22404374302607882758541771650e1_wp, 0.63157877876946881815570249290_wp, &
+      -0.88990336451333310820698117400e-1_wp, 0.18148505520854727256656404962e2_wp, -0.91946323924783554000451984436e1_wp, &
+      -0.44360363875948939664310572000e1_wp, 0.10427508642579134603413151009e2_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.24228349177525818288430175319e3_wp, 0.16520045171727028198505394887e3_wp, -0.37454675472269020279518312152e3_wp, &
+      -0.22113666853125306036270938578e2_wp, 0.77334326684722638389603898808e1_wp, -0.30674084731089398182061213626e2_wp, &
+      -0.93321305264302278729567221706e1_wp, 0.15697238121770843886131091075e2_wp, -0.31139403219565177677282850411e2_wp, &
+      -0.93529243588444783865713862664e1_wp, 0.35816841486394083752465898540e2_wp, 0.19985053242002433820987653617e2_wp, &
+      0.0_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, -0.38703730874935176555105901742e3_wp, -0.18917813819516756882830838328e3_wp, &
+      0.52780815920542364900561016686e3_wp, -0.11573902539959630126141871134e2_wp, 0.68812326946963000169666922661e1_wp, &
+      -0.10006050966910838403183860980e1_wp, 0.77771377980534432092869265740_wp, -0.27782057523535084065932004339e1_wp, &
+      -0.60196695231264120758267380846e2_wp, 0.84320405506677161018159903784e2_wp, 0.11992291136182789328035130030e2_wp, &
+      -0.25693933462703749003312586129e2_wp, 0.0_wp, 0.0_wp, &
+      0.0_wp, 0.0_wp, -0.15418974869023643374053993627e3_wp, &
+      -0.23152937917604549567536039109e3_wp, 0.35763911791061412378285349910e3_wp, 0.93405324183624310003907691704e2_wp, &
+      -0.37458323136451633156875139351e2_wp, 0.10409964950896230045147246184e3_wp, 0.29840293426660503123344363579e2_wp, &
+      -0.43533456590011143754432175058e2_wp, 0.96324553959188282948394950600e2_wp, -0.39177261675615439165231486172e2_wp, &
+      -0.14972683625798562581422125276e3_wp], &
+      [4, 16], order=[2, 1])
+
   ! ---- 2-stage Gauss-Legendre
   real(wp), parameter :: sqrt3_6 = 0.288675134594812882254574390250978727823800875635063438009_wp
   real(wp), parameter :: gl_a(2, 2) = reshape([0.25_wp, 0.25_wp + sqrt3_6, 0.25_wp - sqrt3_6, 0.25_wp], [2, 2])
@@ -134,11 +246,16 @@ contains
     real(wp), intent(in) :: y(:), f0(:)
     real(wp), intent(out) :: y_new(:)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: k2(size(y)), k3(size(y)), k4(size(y))
-    call sys%rhs(t + h/2, y + (h/2) * f0, k2)
-    call sys%rhs(t + h/2, y + (h/2) * k2, k3)
-    call sys%rhs(t + h, y + h * k3, k4)
-    y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
+    real(wp) :: k2(max_equations), k3(max_equations), k4(max_equations), stage(max_equations)
+    integer :: n
+    n = size(y)
+    stage(:n) = y + (h/2) * f0
+    call sys%rhs(t + h/2, stage(:n), k2(:n))
+    stage(:n) = y + (h/2) * k2(:n)
+    call sys%rhs(t + h/2, stage(:n), k3(:n))
+    stage(:n) = y + h * k3(:n)
+    call sys%rhs(t + h, stage(:n), k4(:n))
+    y_new = y + (h/6) * (f0 + 2*(k2(:n) + k3(:n)) + k4(:n))
     n_rhs = n_rhs + 3
   end subroutine rk4_step
 
@@ -153,25 +270,29 @@ contains
     real(wp), intent(in) :: y(:), f0(:)
     real(wp), intent(out) :: y_new(:)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: scale(size(y)), err5(size(y)), err3(size(y)), e5_norm2, e3_norm2, denominator
+    real(wp) :: scale(max_equations), err5(max_equations), err3(max_equations), e5_norm2, e3_norm2, denominator
     integer :: s, n
     n = size(y)
     if (.not. allocated(self%k)) allocate (self%k(n, stages_dense), self%y_old(n), self%y_new(n), &
-                                           self%f_new(n), self%dense_rows(n, 7))
+                                           self%f_new(n), self%dense_rows(n, 7), self%stage(n))
     self%k(:, 1) = f0
     do s = 2, stages
-      call sys%rhs(t + c853(s) * h, y + h * matmul(self%k(:, :s-1), a853_row(s, s - 1)), self%k(:, s))
+      call stage_point(self%k, y, h, s, self%stage)
+      call sys%rhs(t + c853(s) * h, self%stage, self%k(:, s))
     end do
-    y_new = y + h * matmul(self%k(:, :stages), a853_row(stages + 1, stages))
+    call stage_point(self%k, y, h, stages + 1, y_new)
     call sys%rhs(t + h, y_new, self%f_new)
     self%k(:, stages + 1) = self%f_new
     n_rhs = n_rhs + stages
-    scale = self%atol + max(abs(y), abs(y_new)) * self%rtol
-    err5 = matmul(self%k(:, :stages + 1), e5) / scale
-    err3 = (matmul(self%k(:, :stages), a853_row(stages + 1, stages)) - bhh(1) * self%k(:, 1) &
-            - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)) / scale
-    e5_norm2 = sum(err5**2)
-    e3_norm2 = sum(err3**2)
+    scale(:n) = self%atol + max(abs(y), abs(y_new)) * self%rtol
+    err5(:n) = 0
+    do s = 1, stages + 1
+      if (e5(s) /= 0) err5(:n) = err5(:n) + e5(s) * self%k(:, s)
+    end do
+    err5(:n) = err5(:n) / scale(:n)
+    err3(:n) = ((y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)) / scale(:n)
+    e5_norm2 = sum(err5(:n)**2)
+    e3_norm2 = sum(err3(:n)**2)
     if (e5_norm2 == 0 .and. e3_norm2 == 0) then
       self%error_norm = 0
     else
@@ -192,20 +313,24 @@ contains
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(:)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: delta(size(y))
-    integer :: s, i
+    real(wp) :: delta(max_equations)
+    integer :: s, i, n
+    n = size(y)
     if (.not. self%dense_ready) then
       do s = stages + 2, stages_dense
-        call sys%rhs(self%t_old + c853(s) * self%h, &
-                     self%y_old + self%h * matmul(self%k(:, :s-1), a853_row(s, s - 1)), self%k(:, s))
+        call stage_point(self%k, self%y_old, self%h, s, self%stage)
+        call sys%rhs(self%t_old + c853(s) * self%h, self%stage, self%k(:, s))
       end do
       n_rhs = n_rhs + 3
-      delta = self%y_new - self%y_old
-      self%dense_rows(:, 1) = delta
-      self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta
-      self%dense_rows(:, 3) = 2 * delta - self%h * (self%f_new + self%k(:, 1))
+      delta(:n) = self%y_new - self%y_old
+      self%dense_rows(:, 1) = delta(:n)
+      self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta(:n)
+      self%dense_rows(:, 3) = 2 * delta(:n) - self%h * (self%f_new + self%k(:, 1))
       do i = 1, 4
-        self%dense_rows(:, 3 + i) = self%h * matmul(self%k, d853_row(i))
+        self%dense_rows(:, 3 + i) = 0
+        do s = 1, stages_dense
+          if (d853(i, s) /= 0) self%dense_rows(:, 3 + i) = self%dense_rows(:, 3 + i) + (self%h * d853(i, s)) * self%k(:, s)
+        end do
       end do
       self%dense_ready = .true.
     end if
@@ -250,102 +375,17 @@ contains
     h = min(100 * h0, h1, h_max)
   end subroutine dop853_initial_step
 
-  !> Row s of the DOP853 matrix, its first n entries.
-  pure function a853_row(s, n) result(row)
-    integer, intent(in) :: s, n
-    real(wp) :: row(n)
-    real(wp) :: full(stages_dense)
-    full = 0
-    select case (s)
-    case (2); full(1) = 5.26001519587677318785587544488e-2_wp
-    case (3); full(1:2) = [1.97250569845378994544595329183e-2_wp, 5.91751709536136983633785987549e-2_wp]
-    case (4); full([1, 3]) = [2.95875854768068491816892993775e-2_wp, 8.87627564304205475450678981324e-2_wp]
-    case (5); full([1, 3, 4]) = [2.41365134159266685502369798665e-1_wp, -8.84549479328286085344864962717e-1_wp, &
-                                 9.24834003261792003115737966543e-1_wp]
-    case (6); full([1, 4, 5]) = [3.7037037037037037037037037037e-2_wp, 1.70828608729473871279604482173e-1_wp, &
-                                 1.25467687566822425016691814123e-1_wp]
-    case (7); full([1, 4, 5, 6]) = [3.7109375e-2_wp, 1.70252211019544039314978060272e-1_wp, &
-                                    6.02165389804559606850219397283e-2_wp, -1.7578125e-2_wp]
-    case (8); full([1, 4, 5, 6, 7]) = [3.70920001185047927108779319836e-2_wp, &
-        1.70383925712239993810214054705e-1_wp, 1.07262030446373284651809199168e-1_wp, &
-        -1.53194377486244017527936158236e-2_wp, 8.27378916381402288758473766002e-3_wp]
-    case (9); full([1, 4, 5, 6, 7, 8]) = [6.24110958716075717114429577812e-1_wp, &
-        -3.36089262944694129406857109825_wp, -8.68219346841726006818189891453e-1_wp, &
-        2.75920996994467083049415600797e1_wp, 2.01540675504778934086186788979e1_wp, &
-        -4.34898841810699588477366255144e1_wp]
-    case (10); full([1, 4, 5, 6, 7, 8, 9]) = [4.77662536438264365890433908527e-1_wp, &
-        -2.48811461997166764192642586468_wp, -5.90290826836842996371446475743e-1_wp, &
-        2.12300514481811942347288949897e1_wp, 1.52792336328824235832596922938e1_wp, &
-        -3.32882109689848629194453265587e1_wp, -2.03312017085086261358222928593e-2_wp]
-    case (11); full([1, 4, 5, 6, 7, 8, 9, 10]) = [-9.3714243008598732571704021658e-1_wp, &
-        5.18637242884406370830023853209_wp, 1.09143734899672957818500254654_wp, &
-        -8.14978701074692612513997267357_wp, -1.85200656599969598641566180701e1_wp, &
-        2.27394870993505042818970056734e1_wp, 2.49360555267965238987089396762_wp, &
-        -3.0467644718982195003823669022_wp]
-    case (12); full([1, 4, 5, 6, 7, 8, 9, 10, 11]) = [2.27331014751653820792359768449_wp, &
-        -1.05344954667372501984066689879e1_wp, -2.00087205822486249909675718444_wp, &
-        -1.79589318631187989172765950534e1_wp, 2.79488845294199600508499808837e1_wp, &
-        -2.85899827713502369474065508674_wp, -8.87285693353062954433549289258_wp, &
-        1.23605671757943030647266201528e1_wp, 6.43392746015763530355970484046e-1_wp]
-    case (13); full([1, 6, 7, 8, 9, 10, 11, 12]) = [5.42937341165687622380535766363e-2_wp, &
-        4.45031289275240888144113950566_wp, 1.89151789931450038304281599044_wp, &
-        -5.8012039600105847814672114227_wp, 3.1116436695781989440891606237e-1_wp, &
-        -1.52160949662516078556178806805e-1_wp, 2.01365400804030348374776537501e-1_wp, &
-        4.47106157277725905176885569043e-2_wp]
-    case (14); full([1, 7, 8, 9, 10, 11, 12, 13]) = [5.61675022830479523392909219681e-2_wp, &
-        2.53500210216624811088794765333e-1_wp, -2.46239037470802489917441475441e-1_wp, &
-        -1.24191423263816360469010140626e-1_wp, 1.5329179827876569731206322685e-1_wp, &
-        8.20105229563468988491666602057e-3_wp, 7.56789766054569976138603589584e-3_wp, -8.298e-3_wp]
-    case (15); full([1, 6, 7, 8, 11, 12, 13, 14]) = [3.18346481635021405060768473261e-2_wp, &
-        2.83009096723667755288322961402e-2_wp, 5.35419883074385676223797384372e-2_wp, &
-        -5.49237485713909884646569340306e-2_wp, -1.08347328697249322858509316994e-4_wp, &
-        3.82571090835658412954920192323e-4_wp, -3.40465008687404560802977114492e-4_wp, &
-        1.41312443674632500278074618366e-1_wp]
-    case (16); full([1, 6, 7, 8, 9, 13, 14, 15]) = [-4.28896301583791923408573538692e-1_wp, &
-        -4.69762141536116384314449447206_wp, 7.68342119606259904184240953878_wp, &
-        4.06898981839711007970213554331_wp, 3.56727187455281109270669543021e-1_wp, &
-        -1.39902416515901462129418009734e-3_wp, 2.9475147891527723389556272149_wp, &
-        -9.15095847217987001081870187138_wp]
-    end select
-    row = full(:n)
-  end function a853_row
-
-  !> Row i of the dense-output matrix D (over the 16 stages).
-  pure function d853_row(i) result(row)
-    integer, intent(in) :: i
-    real(wp) :: row(stages_dense)
-    row = 0
-    select case (i)
-    case (1); row([1, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16]) = [-0.84289382761090128651353491142e1_wp, &
-        0.56671495351937776962531783590_wp, -0.30689499459498916912797304727e1_wp, &
-        0.23846676565120698287728149680e1_wp, 0.21170345824450282767155149946e1_wp, &
-        -0.87139158377797299206789907490_wp, 0.22404374302607882758541771650e1_wp, &
-        0.63157877876946881815570249290_wp, -0.88990336451333310820698117400e-1_wp, &
-        0.18148505520854727256656404962e2_wp, -0.91946323924783554000451984436e1_wp, &
-        -0.44360363875948939664310572000e1_wp]
-    case (2); row([1, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16]) = [0.10427508642579134603413151009e2_wp, &
-        0.24228349177525818288430175319e3_wp, 0.16520045171727028198505394887e3_wp, &
-        -0.37454675472269020279518312152e3_wp, -0.22113666853125306036270938578e2_wp, &
-        0.77334326684722638389603898808e1_wp, -0.30674084731089398182061213626e2_wp, &
-        -0.93321305264302278729567221706e1_wp, 0.15697238121770843886131091075e2_wp, &
-        -0.31139403219565177677282850411e2_wp, -0.93529243588444783865713862664e1_wp, &
-        0.35816841486394083752465898540e2_wp]
-    case (3); row([1, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16]) = [0.19985053242002433820987653617e2_wp, &
-        -0.38703730874935176555105901742e3_wp, -0.18917813819516756882830838328e3_wp, &
-        0.52780815920542364900561016686e3_wp, -0.11573902539959630126141871134e2_wp, &
-        0.68812326946963000169666922661e1_wp, -0.10006050966910838403183860980e1_wp, &
-        0.77771377980534432092869265740_wp, -0.27782057523535084065932004339e1_wp, &
-        -0.60196695231264120758267380846e2_wp, 0.84320405506677161018159903784e2_wp, &
-        0.11992291136182789328035130030e2_wp]
-    case (4); row([1, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16]) = [-0.25693933462703749003312586129e2_wp, &
-        -0.15418974869023643374053993627e3_wp, -0.23152937917604549567536039109e3_wp, &
-        0.35763911791061412378285349910e3_wp, 0.93405324183624310003907691704e2_wp, &
-        -0.37458323136451633156875139351e2_wp, 0.10409964950896230045147246184e3_wp, &
-        0.29840293426660503123344363579e2_wp, -0.43533456590011143754432175058e2_wp, &
-        0.96324553959188282948394950600e2_wp, -0.39177261675615439165231486172e2_wp, &
-        -0.14972683625798562581422125276e3_wp]
-    end select
-  end function d853_row
+  !> point = y + h sum_j a(s, j) k_j over the nonzero coefficients of row s.
+  pure subroutine stage_point(k, y, h, s, point)
+    real(wp), intent(in) :: k(:, :), y(:), h
+    integer, intent(in) :: s
+    real(wp), intent(out) :: point(:)
+    integer :: j
+    point = y
+    do j = 1, s - 1
+      if (a853(s, j) /= 0) point = point + (h * a853(s, j)) * k(:, j)
+    end do
+  end subroutine stage_point
 
   ! ========================================================== Gauss4
 
@@ -361,52 +401,55 @@ contains
     real(wp), intent(out) :: y_new(:)
     integer(i8), intent(inout) :: n_rhs
     integer :: n, iteration, i, j, info
-    real(wp) :: z(size(y), 2), f(size(y), 2), residual(2 * size(y), 1), scale, size_now, size_before
+    real(wp) :: z(max_equations, 2), f(max_equations, 2), residual(2 * max_equations, 1), stage(max_equations)
+    real(wp) :: scale, size_now, size_before
     n = size(y)
     if (self%steps_since_jacobian >= 20 .or. h /= self%lu_h) call refresh(self)
     self%steps_since_jacobian = self%steps_since_jacobian + 1
     do i = 1, 2
-      z(:, i) = gl_c(i) * h * f0
+      z(:n, i) = gl_c(i) * h * f0
     end do
     scale = 1.0e-3_wp * max(maxval(abs(y)), tiny(1.0_wp))
     size_before = huge(1.0_wp)
     do iteration = 1, 12
       do i = 1, 2
-        call sys%rhs(t + gl_c(i) * h, y + z(:, i), f(:, i))
+        stage(:n) = y + z(:n, i)
+        call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
       end do
       n_rhs = n_rhs + 2
       do i = 1, 2
-        residual((i - 1) * n + 1:i * n, 1) = -(z(:, i) - h * (gl_a(i, 1) * f(:, 1) + gl_a(i, 2) * f(:, 2)))
+        residual((i - 1) * n + 1:i * n, 1) = -(z(:n, i) - h * (gl_a(i, 1) * f(:n, 1) + gl_a(i, 2) * f(:n, 2)))
       end do
-      call dgetrs('N', 2 * n, 1, self%lu, 2 * n, self%pivots, residual, 2 * n, info)
+      call dgetrs('N', 2 * n, 1, self%lu, 2 * n, self%pivots, residual, 2 * max_equations, info)
       do i = 1, 2
-        z(:, i) = z(:, i) + residual((i - 1) * n + 1:i * n, 1)
+        z(:n, i) = z(:n, i) + residual((i - 1) * n + 1:i * n, 1)
       end do
       self%newton_iterations = self%newton_iterations + 1
-      size_now = maxval(abs(residual))
+      size_now = maxval(abs(residual(:2 * n, 1)))
       if (size_now <= 4 * epsilon(1.0_wp) * scale .or. (size_now >= size_before .and. iteration > 3)) exit
       size_before = size_now
       if (iteration == 6) self%steps_since_jacobian = huge(1) / 2      ! slow: new Jacobian next step
     end do
     ! y_new = y + h sum b_i f_i, with f_i from the converged stages
     do i = 1, 2
-      call sys%rhs(t + gl_c(i) * h, y + z(:, i), f(:, i))
+      stage(:n) = y + z(:n, i)
+      call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
     end do
     n_rhs = n_rhs + 2
-    y_new = y + (h / 2) * (f(:, 1) + f(:, 2))
+    y_new = y + (h / 2) * (f(:n, 1) + f(:n, 2))
 
   contains
 
     subroutine refresh(self)
       class(gauss4_t), intent(inout) :: self
-      real(wp) :: delta, f_plus(n), y_plus(n)
+      real(wp) :: delta, f_plus(max_equations), y_plus(max_equations)
       if (.not. allocated(self%jacobian)) allocate (self%jacobian(n, n), self%lu(2 * n, 2 * n), self%pivots(2 * n))
       do j = 1, n
         delta = sqrt(epsilon(1.0_wp)) * max(abs(y(j)), 1.0_wp)
-        y_plus = y
+        y_plus(:n) = y
         y_plus(j) = y(j) + delta
-        call sys%rhs(t, y_plus, f_plus)
-        self%jacobian(:, j) = (f_plus - f0) / delta
+        call sys%rhs(t, y_plus(:n), f_plus(:n))
+        self%jacobian(:, j) = (f_plus(:n) - f0) / delta
       end do
       n_rhs = n_rhs + n
       self%lu = 0

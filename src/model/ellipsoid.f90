@@ -104,26 +104,34 @@ contains
     kv = (cup%axes2 * v - k%an * (dot_product(k%an, v) * k%inv_s**2)) * k%inv_s
   end function apply_radius_operator
 
-  !> Principal radii of curvature (smallest first) at the point with normal n.
-  !> Their difference is computed from A - c^2 I, so a nearly spherical cup
-  !> loses no digits to cancellation.
+  !> Principal radii of curvature (smallest first) at the point with unit
+  !> normal n. On the tangent plane, s K = c^2 I + dev with (e = the
+  !> diagonal of A - c^2 I, w = sum e_i n_i^2)
+  !>   dev_ij = delta_ij e_i - n_i n_j (e_i + e_j - w) - n_i n_j (e_i - w)(e_j - w) / s^2,
+  !> and r2 - r1 = sqrt(2 |dev|^2 - (tr dev)^2) / s comes from the small
+  !> matrix dev: a nearly spherical cup loses no digits to cancellation.
   pure function principal_radii(cup, n) result(r)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: n(3)
     real(wp) :: r(2)
-    real(wp) :: excess_n(3), proj(3, 3), dev(3, 3), pb(3), s2, trace_dev, disc, r_max
-    integer :: i
+    real(wp) :: s2, w, u(3), dev, frobenius2, trace_dev, disc, r_max
+    integer :: i, j
     s2 = dot_product(n, cup%axes2 * n)
-    excess_n = cup%excess2 * n
-    proj = -spread(n, 2, 3) * spread(n, 1, 3)
-    do i = 1, 3
-      proj(i, i) = proj(i, i) + 1
+    w = dot_product(cup%excess2, n * n)
+    u = cup%excess2 - w
+    frobenius2 = 0
+    trace_dev = 0
+    do j = 1, 3
+      do i = 1, 3
+        dev = -n(i) * n(j) * (cup%excess2(i) + cup%excess2(j) - w + u(i) * u(j) / s2)
+        if (i == j) then
+          dev = dev + cup%excess2(i)
+          trace_dev = trace_dev + dev
+        end if
+        frobenius2 = frobenius2 + dev * dev
+      end do
     end do
-    pb = matmul(proj, excess_n)
-    ! s K = c^2 P + dev on the tangent plane, dev = P (A - c^2 I) P - (P b)(P b)^T / s^2
-    dev = matmul(proj, spread(cup%excess2, 2, 3) * proj) - spread(pb, 2, 3) * spread(pb, 1, 3) / s2
-    trace_dev = dev(1,1) + dev(2,2) + dev(3,3)
-    disc = max(0.0_wp, 2 * sum(dev * dev) - trace_dev**2)
+    disc = max(0.0_wp, 2 * frobenius2 - trace_dev**2)
     r_max = (2 * cup%axes2(3) + trace_dev + sqrt(disc)) / (2 * sqrt(s2))
     r(2) = r_max
     r(1) = (cup%det_axes2 / (s2 * s2)) / r_max

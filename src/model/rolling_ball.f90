@@ -73,7 +73,7 @@ contains
     real(wp), intent(out) :: dydt(:)
     real(wp) :: length, n(3), omega(3), v_center(3), n_dot(3), det_l, spin
     type(radius_operator_t) :: k
-    length = norm2(y(1:3))
+    length = sqrt(dot_product(y(1:3), y(1:3)))   ! |n| ~ 1: no need for norm2's scaling
     n = y(1:3) / length
     omega = y(4:6)
     k = radius_operator(self%cup, n)
@@ -90,7 +90,7 @@ contains
   pure subroutine normalize_normal(self, y)
     class(rolling_ball_t), intent(in) :: self
     real(wp), intent(inout) :: y(:)
-    y(1:3) = y(1:3) / norm2(y(1:3))
+    y(1:3) = y(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
   end subroutine normalize_normal
 
   !> State for a start at contact point (x, y) of the lower half.
@@ -109,7 +109,7 @@ contains
     type(observation_t) :: obs
     real(wp) :: length, n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
     real(wp) :: v_center(3), lateral2, height_above_rest, radii(2)
-    length = norm2(y(1:3))
+    length = sqrt(dot_product(y(1:3), y(1:3)))
     n = y(1:3) / length
     n_dot = dydt(1:3) / length
     omega_dot = dydt(4:6)

@@ -1,0 +1,160 @@
+#!/usr/bin/env python3
+"""Work-precision of the paper's case (30 s): achieved error of the contact
+point (max over the output times, every 0.1 s) against wall time and RHS
+evaluations, for every ellroll method and for SciPy's solve_ivp DOP853 on
+the NumPy implementation of the same equations (bench/ball_numpy.py).
+
+The reference is ellroll's dop853 at rtol 1e-13, checked against gauss4 at
+dt = 2.5e-5 s (a second method). Wall times are the best of three runs; for
+ellroll the integration time it records itself (/summary/wall_time).
+
+    python bench/workprecision.py [--exe build/ellroll] [--out docs]
+writes a table on stdout, workprecision.png and workprecision.csv in --out.
+"""
+import argparse
+import pathlib
+import subprocess
+import sys
+import tempfile
+import time
+
+import h5py
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from ball_numpy import RollingBall  # noqa: E402
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+T_END, INTERVAL = 30.0, 0.1
+CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration {integration}, t_end = 30.0 /
+&output file = 'wp.h5', interval = 0.1, fields = 'contact' /
+"""
+
+
+def ellroll_run(exe, folder, integration, repeats=3):
+    """(contact (nt, 3), best integration seconds, RHS evaluations)."""
+    (folder / "wp.nml").write_text(CASE.format(integration=integration))
+    best = np.inf
+    for _ in range(repeats):
+        subprocess.run([str(exe), "run", "wp.nml", "-q", "--overwrite"], cwd=folder, check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        with h5py.File(folder / "wp.h5", "r") as f:
+            best = min(best, f["summary/wall_time"][0])
+            contact = f["trajectory/contact"][0]
+            n_rhs = int(f["summary/n_rhs"][0])
+    return contact, best, n_rhs
+
+
+def scipy_run(rtol, repeats=3):
+    from scipy.integrate import solve_ivp
+    ball = RollingBall(1.0, 0.4, 0.2, 0.2)
+    y0 = ball.initial_state(0.0, 0.0, np.array([-2.0, 2.0, 20.0]))
+    times = np.linspace(0, T_END, int(round(T_END / INTERVAL)) + 1)
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        sol = solve_ivp(ball.rhs, (0, T_END), y0, method="DOP853", rtol=rtol, atol=rtol * 1e-3, t_eval=times)
+        best = min(best, time.perf_counter() - start)
+    return ball.contact(sol.y).T, best, sol.nfev
+
+
+def error(contact, reference):
+    return float(np.max(np.linalg.norm(contact - reference, axis=1)))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
+    parser.add_argument("--out", default=str(ROOT / "docs"))
+    parser.add_argument("--quick", action="store_true", help="fewer points (for a smoke test)")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = pathlib.Path(tmp)
+        reference, _, _ = ellroll_run(args.exe, folder, "method = 'dop853', rtol = 1e-13, atol = 1e-15", 1)
+        check, _, _ = ellroll_run(args.exe, folder, "method = 'gauss4', dt = 2.5e-5", 1)
+        print(f"reference: dop853 rtol 1e-13; gauss4 dt 2.5e-5 differs by {error(check, reference):.1e} m")
+        rk4_steps = [1e-1, 5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4]
+        gauss_steps = [5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4]
+        tolerances = [10.0**-k for k in range(3, 13)]
+        if args.quick:
+            rk4_steps, gauss_steps, tolerances = rk4_steps[3:6], gauss_steps[2:4], tolerances[2:5]
+        for dt in rk4_steps:
+            rows.append(("ellroll rk4", f"dt={dt:g}", *ellroll_run(args.exe, folder, f"method = 'rk4', dt = {dt!r}")))
+        for dt in gauss_steps:
+            rows.append(("ellroll gauss4", f"dt={dt:g}",
+                         *ellroll_run(args.exe, folder, f"method = 'gauss4', dt = {dt!r}")))
+        for rtol in tolerances:
+            rows.append(("ellroll dop853", f"rtol={rtol:g}", *ellroll_run(
+                args.exe, folder, f"method = 'dop853', rtol = {rtol!r}, atol = {rtol * 1e-3!r}")))
+        for rtol in tolerances:
+            rows.append(("scipy DOP853", f"rtol={rtol:g}", *scipy_run(rtol)))
+
+    table = [(name, setting, error(contact, reference), seconds, n_rhs) for name, setting, contact, seconds, n_rhs in rows]
+    print(f"{'method':16} {'setting':12} {'error m':>10} {'time s':>10} {'RHS evals':>10}")
+    for name, setting, err, seconds, n_rhs in table:
+        print(f"{name:16} {setting:12} {err:10.2e} {seconds:10.2e} {n_rhs:10d}")
+    with open(out / "workprecision.csv", "w") as csv:
+        csv.write("method,setting,error_m,time_s,rhs_evaluations\n")
+        for row in table:
+            csv.write(",".join(map(str, row)) + "\n")
+
+    # speed at each error level: the cheapest run reaching it, per family
+    def cheapest(family, level, column):
+        costs = [row[column] for row in table if row[0] == family and row[2] <= level]
+        return min(costs) if costs else np.nan
+    print(f"\n{'error level':>11} {'best ellroll':>14} {'time s':>10} {'scipy s':>10} {'speed-up':>9} "
+          f"{'rk4 s':>9} {'dop853 s':>9}")
+    for level in [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]:
+        ours = {f: cheapest(f, level, 3) for f in ("ellroll rk4", "ellroll gauss4", "ellroll dop853")}
+        best_family = min(ours, key=lambda f: np.inf if np.isnan(ours[f]) else ours[f])
+        peer = cheapest("scipy DOP853", level, 3)
+        print(f"{level:11.0e} {best_family[8:]:>14} {ours[best_family]:10.2e} {peer:10.2e} "
+              f"{peer / ours[best_family]:9.0f} {ours['ellroll rk4']:9.2e} {ours['ellroll dop853']:9.2e}")
+    # endpoint efficiency: output at t_end only, so every RHS call integrates
+    endpoint = []
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = pathlib.Path(tmp)
+        global CASE
+        CASE = CASE.replace("interval = 0.1", "interval = 30.0")
+        reference_end = ellroll_run(args.exe, folder, "method = 'dop853', rtol = 1e-13, atol = 1e-15", 1)[0][-1]
+        for rtol in [10.0**(-k / 2) for k in range(10, 25)]:
+            contact, _, n_rhs = ellroll_run(args.exe, folder,
+                                            f"method = 'dop853', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", 1)
+            endpoint.append((rtol, float(np.linalg.norm(contact[-1] - reference_end)), n_rhs))
+    errors = np.array([e for _, e, _ in endpoint])
+    evaluations = np.array([n for _, _, n in endpoint])
+    order = np.argsort(errors)
+    at_3e8 = np.exp(np.interp(np.log(3e-8), np.log(errors[order]), np.log(evaluations[order])))
+    print("\ndop853, endpoint error of the contact point at 30 s (output at the end only):")
+    for rtol, err, n_rhs in endpoint:
+        print(f"  rtol {rtol:8.1e}: error {err:9.2e} m, {n_rhs:6d} RHS evaluations")
+    print(f"  at 3e-8: {at_3e8:.0f} RHS evaluations (DOP853's published efficiency: about 3,900)")
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
+    for family, marker in [("ellroll rk4", "o"), ("ellroll gauss4", "s"), ("ellroll dop853", "^"),
+                           ("scipy DOP853", "x")]:
+        points = np.array([(r[2], r[3], r[4]) for r in table if r[0] == family])
+        for ax, column in zip(axes, (1, 2)):
+            ax.loglog(points[:, column], points[:, 0], marker=marker, label=family)
+    axes[0].set_xlabel("wall time, s")
+    axes[1].set_xlabel("right-hand side evaluations")
+    for ax in axes:
+        ax.set_ylabel("max error of the contact point, m")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.suptitle("Work-precision, Legeza (1990) case, 30 s")
+    fig.savefig(out / "workprecision.png", dpi=120)
+    print(f"\nwrote {out / 'workprecision.png'} and {out / 'workprecision.csv'}")
+
+
+if __name__ == "__main__":
+    main()
