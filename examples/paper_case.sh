@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Sets up, runs the paper's case (Legeza 1990) and draws its Fig. 2 and Fig. 3.
-# Output: results/legeza1990.h5, results/fig2_trace.png, results/fig3_nutation.png
+# Sets up, runs the paper's case (Legeza 1990) and draws its Fig. 2 and Fig. 3,
+# and a report folder with every figure and the summary table.
+# Output: results/legeza1990.h5, results/fig2_trace.png, results/fig3_nutation.png,
+#         results/report/index.html
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup
@@ -8,4 +10,5 @@ mkdir -p results
 build/ellroll run input/legeza1990.nml -o results/legeza1990.h5 --overwrite
 .venv/bin/ellroll-plot trace results/legeza1990.h5 --out results
 .venv/bin/ellroll-plot nutation results/legeza1990.h5 --out results
-ls -l results
+.venv/bin/ellroll-plot report results/legeza1990.h5 --out results/report
+echo "open results/report/index.html"

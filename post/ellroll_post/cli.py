@@ -1,43 +1,131 @@
-"""ellroll-plot: figures from ellroll HDF5 files."""
+"""ellroll-plot: figures, reports and summaries of ellroll HDF5 files."""
 import argparse
+import csv
 import pathlib
 import sys
 
 from .reader import NotAnEllrollFile, open as open_run
-from .plots import plot_trace, plot_nutation
+from . import plots
+from .report import build_report
+from .summary import format_summary
 
-FIGURES = {
-    "trace": ("fig2_trace", plot_trace, (6.5, 5.0)),
-    "nutation": ("fig3_nutation", plot_nutation, (7.5, 4.0)),
-}
+FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy"}
+
+
+def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
+    """Draw figure `name` of `run` into folder `out`; return the file written."""
+    import matplotlib.pyplot as plt
+    if name == "sweep":
+        fig = plt.figure(figsize=(7.5, 3.2 * len(y_names) + 0.6), layout="constrained")
+        plots.plot_sweep(fig, run, x_names, y_names)
+        stem = "sweep_" + "_".join(x_names)
+    else:
+        if name == "reaction":
+            fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="constrained")
+            plots.plot_reaction(axes, run, case)
+        else:
+            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4)}[name]
+            fig, ax = plt.subplots(figsize=size, layout="constrained")
+            getattr(plots, f"plot_{name}")(ax, run, case)
+        stem = FILE_STEMS[name] + (f"_case{case}" if case else "")
+    path = pathlib.Path(out) / f"{stem}.{fmt}"
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+    return path
+
+
+def workprecision_points(paths):
+    """{method: [(error, seconds, rhs), ...]} from ellroll files run with
+    error_estimate = 'reference', or from bench/workprecision.py's CSV."""
+    points = {}
+    for path in paths:
+        if str(path).endswith(".csv"):
+            with open(path) as handle:
+                for row in csv.DictReader(handle):
+                    points.setdefault(row["method"], []).append(
+                        (float(row["error_m"]), float(row["time_s"]), float(row["rhs_evaluations"])))
+            continue
+        with open_run(path) as run:
+            errors = run.summary("error_contact")
+            times, rhs = run.summary("wall_time"), run.summary("n_rhs")
+            methods = [m.decode() if isinstance(m, bytes) else m for m in run._dataset("case/method").asstr()[:]]
+            if not any(e == e for e in errors):
+                raise NotAnEllrollFile(f"{path}: no error figures; run it with &integration error_estimate = 'reference'")
+            for method, e, t, r in zip(methods, errors, times, rhs):
+                points.setdefault(method, []).append((e, t, r))
+    return points
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="ellroll-plot", description=__doc__)
-    parser.add_argument("figure", choices=sorted(FIGURES), help="which figure to draw")
-    parser.add_argument("file", help="ellroll HDF5 file")
-    parser.add_argument("--case", type=int, default=0, help="case index (default 0)")
-    parser.add_argument("--out", default=".", help="output folder (default: current)")
-    parser.add_argument("--format", default="png", choices=["png", "pdf", "svg"])
+    sub = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--out", default=".", help="output folder (default: current)")
+    common.add_argument("--format", default="png", choices=["png", "pdf", "svg"])
+    for name, text in [("trace", "Fig. 2: XY trace of the contact point"), ("nutation", "Fig. 3: Theta against t"),
+                       ("reaction", "normal force, friction and the friction coefficient needed"),
+                       ("energy", "energy and constraint errors")]:
+        p = sub.add_parser(name, parents=[common], help=text)
+        p.add_argument("file")
+        p.add_argument("--case", type=int, default=0, help="case index (default 0)")
+    p = sub.add_parser("sweep", parents=[common], help="summary quantities against swept inputs")
+    p.add_argument("file")
+    p.add_argument("--x", help="one or two swept inputs, e.g. omega_z or omega_z,radius (default: the swept ones)")
+    p.add_argument("--y", default="theta_max", help="summary quantities, e.g. theta_max,nutation_period")
+    p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
+    p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
+    p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
+    p.add_argument("file")
+    p.add_argument("--case", type=int, default=0, help="case for the per-case figures (default 0)")
+    p = sub.add_parser("summary", help="the summary table")
+    p.add_argument("file")
+    p.add_argument("--format", default="text", choices=["text", "csv", "json"])
     args = parser.parse_args(argv)
+    if args.command == "report" and args.out == ".":
+        args.out = str(pathlib.Path(args.file).with_suffix("")) + "_report"
 
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    stem, draw, size = FIGURES[args.figure]
     try:
-        with open_run(args.file) as run:
-            fig, ax = plt.subplots(figsize=size, layout="constrained")
-            draw(ax, run, args.case)
-    except (NotAnEllrollFile, IndexError) as exc:
+        if args.command == "summary":
+            with open_run(args.file) as run:
+                sys.stdout.write(format_summary(run, args.format))
+            return 0
+        out = pathlib.Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        if args.command == "workprecision":
+            fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
+            plots.plot_workprecision(axes, workprecision_points(args.files))
+            written = [out / f"workprecision.{args.format}"]
+            fig.savefig(written[0], dpi=150)
+        else:
+            with open_run(args.file) as run:
+                if args.command == "report":
+                    written = build_report(run, out, draw, args.case, args.format) + [out / "index.html"]
+                elif args.command == "sweep":
+                    x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]
+                    if not x_names:
+                        raise NotAnEllrollFile(f"{args.file}: no input varies between its cases; nothing to sweep")
+                    for name in x_names:
+                        if name not in run.swept_inputs():
+                            raise NotAnEllrollFile(f"{args.file}: {name} is not a swept input "
+                                                   f"(swept: {', '.join(run.swept_inputs()) or 'none'})")
+                    y_names = args.y.split(",")
+                    for name in y_names:
+                        if name not in run.summary_names:
+                            raise NotAnEllrollFile(f"{args.file}: no summary quantity {name} "
+                                                   f"(known: {', '.join(run.summary_names)})")
+                    written = [draw("sweep", run, out, 0, args.format, x_names, y_names)]
+                else:
+                    run.check_case(args.case)
+                    written = [draw(args.command, run, out, args.case, args.format)]
+    except (NotAnEllrollFile, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{stem}.{args.format}"
-    fig.savefig(path, dpi=150)
-    print(path)
+    for path in written:
+        print(path)
     return 0
 
 

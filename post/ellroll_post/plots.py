@@ -1,38 +1,186 @@
-"""Figures of the source paper, each drawn on a given matplotlib Axes."""
+"""Figures of ellroll files, each drawn on given matplotlib Axes (or a Figure)."""
 import numpy as np
+
+from .geometry import energy_bound, surface_residual
+
+
+def _case_label(run, case):
+    return f"case {case}: {run.status_name(case)}"
+
+
+def energy_bound_level(run, case=0):
+    """Centre height the energy integral allows when the spin about the normal
+    keeps its initial value: m g z_C = E0 - J (omega0 . n0)^2 / 2."""
+    m, g, radius = run.case_input("mass", case), run.case_input("g", case), run.case_input("radius", case)
+    k = run.case_input("inertia_factor", case)
+    omega0 = run.trajectory("omega", case)[0]
+    n0 = run.trajectory("normal", case)[0]
+    energy0 = run.trajectory("energy", case)[0]
+    return (energy0 - 0.5 * k * m * radius**2 * (omega0 @ n0)**2) / (m * g)
 
 
 def plot_trace(ax, run, case=0):
-    """Fig. 2: the contact point's trace in the XY plane, with the cup's rim."""
+    """Fig. 2: the contact point's trace in the XY plane, the cup's rim, the
+    energy bound (the curve the ball does not cross), start and end."""
     contact = run.trajectory("contact", case)
     valid = np.isfinite(contact[:, 0])
     x, y = contact[valid, 0], contact[valid, 1]
-    a, b = run.case_input("a", case), run.case_input("b", case)
+    a, b, c = (run.case_input(n, case) for n in "abc")
     phi = np.linspace(0, 2 * np.pi, 400)
     ax.plot(a * np.cos(phi), b * np.sin(phi), color="0.6", lw=1, label="rim of the cup (z = c)")
-    ax.plot(x, y, lw=0.8, color="C0", label="contact point")
+    if {"energy", "omega", "normal"} <= set(run.fields):
+        bx, by = energy_bound(a, b, c, run.case_input("radius", case), energy_bound_level(run, case))
+        if np.any(np.isfinite(bx)):
+            ax.plot(bx, by, color="C1", lw=1, ls="--", label="energy bound (spin about n kept)")
+    ax.plot(x, y, lw=0.7, color="C0", label="contact point")
     ax.plot(x[:1], y[:1], "o", color="C2", label="start")
-    ax.plot(x[-1:], y[-1:], "s", color="C3", label=f"end, t = {run.time[valid][-1]:g} s (S)")
+    ax.plot(x[-1:], y[-1:], "s", color="C3", label=f"end S, t = {run.time[valid][-1]:g} s")
     ax.set_aspect("equal")
     ax.set_xlabel("X, m")
     ax.set_ylabel("Y, m")
-    ax.set_title(f"Contact point trace (case {case}: {run.status_name(case)})")
-    ax.legend(loc="upper right", fontsize="small")
+    ax.set_title(f"Contact point trace ({_case_label(run, case)})")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize="small", frameon=False)
     return ax
 
 
 def plot_nutation(ax, run, case=0):
-    """Fig. 3: the nutation angle Theta (rad) against time (s)."""
+    """Fig. 3: the nutation angle Theta against time, theta_max and the
+    measured nutation period annotated."""
     theta = run.trajectory("nutation", case)
     t = run.time
     ax.plot(t, theta, lw=0.8, color="C0")
     ax.set_xlabel("t, s")
     ax.set_ylabel(r"$\Theta$, rad")
-    theta_max = np.nanmax(theta)
+    theta_max = run.summary("theta_max", case)
+    period = run.summary("nutation_period", case) if "nutation_period" in run.summary_names else np.nan
     ax.axhline(theta_max, color="0.6", lw=0.8, ls="--")
-    ax.annotate(rf"$\Theta_{{max}}$ = {theta_max:.4f} rad ({np.degrees(theta_max):.2f}$^\circ$)",
-                xy=(t[0], theta_max), xytext=(4, 4), textcoords="offset points", fontsize="small")
+    text = rf"$\Theta_{{max}}$ = {theta_max:.4f} rad ({np.degrees(theta_max):.2f}$^\circ$)"
+    if np.isfinite(period):
+        text += f", nutation period {period:.4f} s"
+    ax.annotate(text, xy=(0.01, 0.98), xycoords="axes fraction", va="top", fontsize="small",
+                bbox=dict(boxstyle="round", fc="white", ec="0.8"))
+    ax.set_ylim(0, theta_max * 1.25 if theta_max > 0 else None)
     secondary = ax.secondary_yaxis("right", functions=(np.degrees, np.radians))
     secondary.set_ylabel(r"$\Theta$, deg")
-    ax.set_title(f"Nutation angle (case {case}: {run.status_name(case)})")
+    ax.set_title(f"Nutation angle ({_case_label(run, case)})")
     return ax
+
+
+def reaction_parts(run, case=0):
+    """Normal force N = F . n, friction |F - N n| and the friction coefficient needed."""
+    force = run.trajectory("reaction", case)
+    normal = run.trajectory("normal", case)
+    n_force = np.sum(force * normal, axis=1)
+    tangential = np.linalg.norm(force - n_force[:, None] * normal, axis=1)
+    return n_force, tangential, tangential / n_force
+
+
+def plot_reaction(axes, run, case=0):
+    """Normal force, friction force and the friction coefficient needed
+    against time; the weight m g as a reference (two Axes)."""
+    t = run.time
+    n_force, tangential, mu = reaction_parts(run, case)
+    weight = run.case_input("mass", case) * run.case_input("g", case)
+    axes[0].plot(t, n_force, lw=0.8, label="normal force N")
+    axes[0].plot(t, tangential, lw=0.8, label="friction force |F_t|")
+    axes[0].axhline(weight, color="0.5", ls="--", lw=0.8, label=f"weight m g = {weight:g} N")
+    axes[0].set_ylabel("force, N")
+    axes[0].legend(fontsize="small", loc="upper right")
+    axes[0].set_title(f"Force of the cup on the ball ({_case_label(run, case)})")
+    axes[1].plot(t, mu, lw=0.8, color="C2", label=r"friction coefficient needed $|F_t|/N$")
+    mu_limit = run.case_input("mu", case)
+    if np.isfinite(mu_limit):
+        axes[1].axhline(mu_limit, color="C3", ls="--", lw=0.8, label=f"mu = {mu_limit:g}")
+    axes[1].set_ylabel(r"$|F_t| / N$")
+    axes[1].set_xlabel("t, s")
+    axes[1].legend(fontsize="small", loc="upper right")
+    return axes
+
+
+def plot_energy(ax, run, case=0):
+    """Relative energy error and constraint error against time (log)."""
+    t = run.time
+    tiny = 1e-18
+    if "energy" in run.fields:
+        energy = run.trajectory("energy", case)
+        ax.semilogy(t, np.maximum(np.abs(energy / energy[0] - 1), tiny), lw=0.8, label=r"$|E - E_0| / E_0$")
+    if "contact" in run.fields:
+        a, b, c = (run.case_input(n, case) for n in "abc")
+        residual = surface_residual(a, b, c, run.trajectory("contact", case))
+        ax.semilogy(t, np.maximum(residual, tiny), lw=0.8,
+                    label=r"constraint error $|(x/a)^2+(y/b)^2+((z-c)/c)^2-1|$")
+    ax.set_xlabel("t, s")
+    ax.set_ylabel("error (zero shown as 1e-18)")
+    ax.set_title(f"Energy and constraint errors ({_case_label(run, case)})")
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_sweep(fig, run, x_names, y_names):
+    """Summary quantities against one swept input (lines, one per value of
+    any other swept input) or two (heat map); cases that ended early marked."""
+    status = np.array(run.status_names())
+    early = status != "completed"
+    axes = fig.subplots(len(y_names), 1, squeeze=False)[:, 0]
+    for ax, y_name in zip(axes, y_names):
+        y = run.summary(y_name).astype(float)
+        if y.ndim > 1:
+            y = y[:, 0]
+        units = run.units(f"summary/{y_name}")
+        if len(x_names) == 1:
+            x = run.input_column(x_names[0])
+            others = [n for n in run.swept_inputs() if n not in x_names]
+            groups = {(): np.ones(len(x), bool)}
+            if others:
+                keys = np.stack([run.input_column(n) for n in others], axis=1)
+                groups = {tuple(k): np.all(keys == k, axis=1) for k in np.unique(keys, axis=0)}
+            for key, mask in groups.items():
+                order = np.argsort(x[mask])
+                label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
+                ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
+            if np.any(early):
+                ax.plot(x[early], y[early], "x", color="C3", ms=7, label="ended early (status)")
+                for xi, yi, s in zip(x[early], y[early], status[early]):
+                    ax.annotate(s, (xi, yi), fontsize="x-small", color="C3", xytext=(3, 3),
+                                textcoords="offset points")
+            ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
+            if len(groups) > 1 or np.any(early):
+                ax.legend(fontsize="x-small")
+        else:
+            xa, xb = run.input_column(x_names[0]), run.input_column(x_names[1])
+            ua, ub = np.unique(xa), np.unique(xb)
+            grid = np.full((len(ub), len(ua)), np.nan)
+            grid[np.searchsorted(ub, xb), np.searchsorted(ua, xa)] = y
+            mesh = ax.pcolormesh(ua, ub, grid, shading="nearest")
+            fig.colorbar(mesh, ax=ax, label=f"{y_name}, {units}")
+            if np.any(early):
+                ax.plot(xa[early], xb[early], "x", color="w", ms=6, label="ended early")
+                ax.legend(fontsize="x-small")
+            ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
+            ax.set_ylabel(f"{x_names[1]}, {run.units(_input_dataset(x_names[1]))}")
+        if len(x_names) == 1:
+            ax.set_ylabel(f"{y_name}, {units}")
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"{', '.join(y_names)} against {' and '.join(x_names)} ({run.n_cases} cases)")
+    return axes
+
+
+def _input_dataset(name):
+    from .reader import INPUTS
+    return "case/" + INPUTS.get(name, (name, None))[0]
+
+
+def plot_workprecision(axes, points):
+    """Error against wall time and against RHS evaluations, per method.
+    points: {method: [(error, seconds, rhs_evaluations), ...]}"""
+    for method, rows in sorted(points.items()):
+        rows = np.array(sorted(rows, key=lambda r: r[1]), dtype=float)
+        for ax, column in zip(axes, (1, 2)):
+            ax.loglog(rows[:, column], rows[:, 0], marker="o", ms=4, label=method)
+    axes[0].set_xlabel("wall time, s")
+    axes[1].set_xlabel("right-hand side evaluations")
+    for ax in axes:
+        ax.set_ylabel("error of the contact point, m")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize="small")
+    return axes

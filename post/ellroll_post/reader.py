@@ -1,10 +1,19 @@
-"""Lazy access to an ellroll file: nothing is read until asked for."""
-
+"""Lazy access to an ellroll file: nothing is read until asked for, so a
+file of 10^5 cases costs only what is plotted."""
 import h5py
+import numpy as np
 
 
 class NotAnEllrollFile(Exception):
-    """The file is missing, unreadable, or was not written by ellroll."""
+    """The file is missing, unreadable, not written by ellroll, or lacks what is asked."""
+
+
+# inputs as the namelist names them -> (/case dataset, component)
+INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radius", None),
+          "weight": ("weight", None), "mass": ("mass", None), "mu": ("mu", None),
+          "inertia_factor": ("inertia_factor", None), "g": ("g", None), "x": ("x0", None), "y": ("y0", None),
+          "omega_x": ("omega0", 0), "omega_y": ("omega0", 1), "omega_z": ("omega0", 2), "dt": ("dt", None),
+          "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None)}
 
 
 class EllrollFile:
@@ -12,7 +21,7 @@ class EllrollFile:
         self.path = str(path)
         try:
             self._h5 = h5py.File(self.path, "r")
-        except OSError as exc:
+        except (OSError, ValueError) as exc:
             raise NotAnEllrollFile(f"{self.path}: cannot open as HDF5 ({exc})") from None
         if self._h5.attrs.get("program") != "ellroll":
             self._h5.close()
@@ -27,52 +36,94 @@ class EllrollFile:
     def __exit__(self, *exc):
         self.close()
 
+    # ---------------------------------------------------------- layout
+    @property
+    def attrs(self):
+        return dict(self._h5.attrs)
+
     @property
     def n_cases(self):
-        return self._h5["summary/status"].shape[0]
+        return self._dataset("summary/status").shape[0]
 
     @property
     def time(self):
-        return self._h5["time"][:]
+        return self._dataset("time")[:]
+
+    @property
+    def fields(self):
+        return sorted(k for k in self._h5["trajectory"] if k != "case")
+
+    @property
+    def summary_names(self):
+        return sorted(k for k in self._h5["summary"] if k != "case")
 
     def _dataset(self, name):
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
 
-    def _check_case(self, case):
+    def check_case(self, case):
         if not 0 <= case < self.n_cases:
-            raise IndexError(f"{self.path}: case {case} out of range (0..{self.n_cases - 1})")
+            raise NotAnEllrollFile(f"{self.path}: case {case} out of range (the file has cases 0..{self.n_cases - 1})")
 
+    def units(self, name):
+        return self._dataset(name).attrs.get("units", "")
+
+    # ------------------------------------------------------------ data
     def trajectory(self, field, case=0):
         """One case's samples of a trajectory field: (nt,) or (nt, 3)."""
-        self._check_case(case)
+        self.check_case(case)
         return self._dataset(f"trajectory/{field}")[case]
 
     def case_input(self, name, case=0):
-        self._check_case(case)
-        value = self._dataset(f"case/{name}")[case]
+        """A resolved input of one case, by its namelist name (omega_z) or /case name (omega0)."""
+        self.check_case(case)
+        dataset, component = INPUTS.get(name, (name, None))
+        value = self._dataset(f"case/{dataset}")[case]
+        if component is not None:
+            value = value[component]
         return value.decode() if isinstance(value, bytes) else value
+
+    def input_column(self, name):
+        """An input over all cases (for sweeps)."""
+        dataset, component = INPUTS.get(name, (name, None))
+        values = self._dataset(f"case/{dataset}")
+        return values[:, component] if component is not None else values[:]
+
+    def swept_inputs(self):
+        """The inputs that differ between cases, in namelist names."""
+        if self.n_cases < 2:
+            return []
+        swept = []
+        for name in INPUTS:
+            dataset, _ = INPUTS[name]
+            if f"case/{dataset}" not in self._h5:
+                continue
+            column = self.input_column(name)
+            if np.unique(column[np.isfinite(column)]).size > 1:
+                swept.append(name)
+        if "weight" in swept and "mass" in swept:
+            swept.remove("mass" if np.unique(self.input_column("g")).size == 1 else "weight")
+        return swept
 
     def summary(self, name, case=None):
         ds = self._dataset(f"summary/{name}")
         if case is None:
             return ds[:]
-        self._check_case(case)
+        self.check_case(case)
         return ds[case]
 
-    def status_name(self, case=0):
+    def status_names(self):
         ds = self._dataset("summary/status")
         names = ds.attrs["flag_meanings"].split()
         values = list(ds.attrs["flag_values"])
-        return names[values.index(int(self.summary("status", case)))]
+        return [names[values.index(int(s))] for s in ds[:]]
 
-    def units(self, name):
-        return self._dataset(name).attrs.get("units", "")
+    def status_name(self, case=0):
+        self.check_case(case)
+        return self.status_names()[case]
 
 
 def open(path):  # noqa: A001 - mirrors h5py.File / xarray.open_dataset naming
     """Open an ellroll file for reading."""
     return EllrollFile(path)
-
-

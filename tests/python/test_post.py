@@ -1,4 +1,9 @@
-"""post/: the figures carry exactly the file's data; bad files give clear errors."""
+"""post/: every subcommand on files written by the real solver; the figures
+carry exactly the file's data; the energy bound satisfies the energy
+equation; bad files and arguments give clear errors, not tracebacks."""
+import csv
+import io
+import json
 import subprocess
 import sys
 
@@ -11,55 +16,167 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import ellroll_post  # noqa: E402
+from conftest import run  # noqa: E402
+from test_campaign import BASE  # noqa: E402
 
 
 def plot_cli(*args):
-    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)],
-                          capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], capture_output=True, text=True)
 
 
-def test_trace_plots_the_contact_points_and_rim(paper_file):
-    with ellroll_post.open(paper_file) as run, h5py.File(paper_file, "r") as f:
+@pytest.fixture(scope="module")
+def sweep_file(ellroll, tmp_path_factory):
+    """A 2 x 3 campaign with error figures; radius 0.5 ends early (no_fit)."""
+    folder = tmp_path_factory.mktemp("sweep")
+    (folder / "s.nml").write_text(BASE.format(t_end=3.0).replace("dt = 1.0e-3", "dt = 1.0e-3, error_estimate = 'reference'")
+                                  + "&sweep name = 'omega_z', values = 10, 40 /\n"
+                                  + "&sweep name = 'radius', values = 0.1, 0.2, 0.5 /\n")
+    assert run(ellroll, "run", "s.nml", "-q", cwd=folder).returncode == 0
+    return folder / "out.h5"
+
+
+def is_png(path):
+    return path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
+
+
+def test_trace_carries_the_contact_points_rim_and_energy_bound(paper_file):
+    with ellroll_post.open(paper_file) as runfile, h5py.File(paper_file, "r") as f:
         fig, ax = plt.subplots()
-        ellroll_post.plot_trace(ax, run)
+        ellroll_post.plot_trace(ax, runfile)
         lines = {line.get_label(): line for line in ax.get_lines()}
         contact = f["trajectory/contact"][0]
         np.testing.assert_array_equal(lines["contact point"].get_xdata(), contact[:, 0])
         np.testing.assert_array_equal(lines["contact point"].get_ydata(), contact[:, 1])
         rim = lines["rim of the cup (z = c)"]
-        np.testing.assert_allclose((rim.get_xdata() / 1.0) ** 2 + (rim.get_ydata() / 0.4) ** 2, 1, rtol=1e-12)
+        np.testing.assert_allclose((rim.get_xdata() / 1.0)**2 + (rim.get_ydata() / 0.4)**2, 1, rtol=1e-12)
         assert ax.get_aspect() == 1.0
+        # the energy bound: m g z_C + J (omega0 . n0)^2 / 2 = E0 at every point
+        bound = lines["energy bound (spin about n kept)"]
+        x, y = bound.get_xdata(), bound.get_ydata()
+        m, g, radius = f["case/mass"][0], f["case/g"][0], 0.2
+        omega0, n0, energy0 = f["trajectory/omega"][0, 0], f["trajectory/normal"][0, 0], f["trajectory/energy"][0, 0]
+        z_center = ellroll_post.center_height(1.0, 0.4, 0.2, radius, x, y)
+        energy = m * g * z_center + 0.5 * 0.4 * m * radius**2 * (omega0 @ n0)**2
+        np.testing.assert_allclose(energy, energy0, rtol=1e-12)
+        # and the ball does not cross it (the paper's claim for this case)
+        center = f["trajectory/center"][0]
+        assert np.max(center[:, 2]) < np.max(z_center)
         plt.close(fig)
 
 
-def test_nutation_plots_theta_against_time(paper_file):
-    with ellroll_post.open(paper_file) as run, h5py.File(paper_file, "r") as f:
+def test_nutation_reaction_energy_carry_the_file_data(paper_file):
+    with ellroll_post.open(paper_file) as runfile, h5py.File(paper_file, "r") as f:
         fig, ax = plt.subplots()
-        ellroll_post.plot_nutation(ax, run)
+        ellroll_post.plot_nutation(ax, runfile)
         line = ax.get_lines()[0]
         np.testing.assert_array_equal(line.get_xdata(), f["time"][:])
         np.testing.assert_array_equal(line.get_ydata(), f["trajectory/nutation"][0])
-        assert "rad" in ax.get_ylabel() and "s" in ax.get_xlabel()
-        plt.close(fig)
+        assert "nutation period" in ax.texts[0].get_text() and "rad" in ax.get_ylabel()
+        fig, axes = plt.subplots(2, 1)
+        ellroll_post.plot_reaction(axes, runfile)
+        force, normal = f["trajectory/reaction"][0], f["trajectory/normal"][0]
+        n_force = np.sum(force * normal, axis=1)
+        lines = {line.get_label(): line for line in axes[0].get_lines()}
+        np.testing.assert_allclose(lines["normal force N"].get_ydata(), n_force)
+        assert lines["weight m g = 2620 N"].get_ydata()[0] == pytest.approx(2620)
+        mu = axes[1].get_lines()[0].get_ydata()
+        np.testing.assert_allclose(mu.max(), f["summary/friction_needed_max"][0], rtol=1e-3)
+        fig, ax = plt.subplots()
+        ellroll_post.plot_energy(ax, runfile)
+        energy = f["trajectory/energy"][0]
+        np.testing.assert_allclose(ax.get_lines()[0].get_ydata(),
+                                   np.maximum(np.abs(energy / energy[0] - 1), 1e-18))
+        assert ax.get_yscale() == "log"
+        plt.close("all")
 
 
-@pytest.mark.parametrize("figure,stem", [("trace", "fig2_trace"), ("nutation", "fig3_nutation")])
-def test_cli_writes_images(paper_file, tmp_path, figure, stem):
+@pytest.mark.parametrize("figure,stem", [("trace", "fig2_trace"), ("nutation", "fig3_nutation"),
+                                         ("reaction", "reaction"), ("energy", "energy")])
+def test_case_subcommands_write_images(paper_file, tmp_path, figure, stem):
     result = plot_cli(figure, paper_file, "--out", tmp_path)
     assert result.returncode == 0, result.stderr
-    png = tmp_path / f"{stem}.png"
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
+    assert is_png(tmp_path / f"{stem}.png")
+    result = plot_cli(figure, paper_file, "--out", tmp_path, "--format", "svg")
+    assert result.returncode == 0 and (tmp_path / f"{stem}.svg").read_text().startswith("<?xml")
 
 
-def test_clear_errors(paper_file, tmp_path):
+def test_sweep_line_and_heat_map(sweep_file, tmp_path):
+    result = plot_cli("sweep", sweep_file, "--x", "omega_z", "--y", "theta_max,nutation_period", "--out", tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert is_png(tmp_path / "sweep_omega_z.png")
+    with ellroll_post.open(sweep_file) as runfile:
+        assert runfile.swept_inputs() == ["radius", "omega_z"]
+        fig = plt.figure()
+        axes = ellroll_post.plot_sweep(fig, runfile, ["omega_z"], ["theta_max"])
+        lines = {line.get_label(): line for line in axes[0].get_lines()}
+        theta_max = runfile.summary("theta_max")
+        spin, radius = runfile.input_column("omega_z"), runfile.input_column("radius")
+        line = lines["radius = 0.2"]
+        np.testing.assert_array_equal(line.get_xdata(), [10, 40])
+        np.testing.assert_array_equal(line.get_ydata(), theta_max[radius == 0.2][np.argsort(spin[radius == 0.2])])
+        early = lines["ended early (status)"]
+        assert len(early.get_xdata()) == 2 and all(r == 0.5 for r in radius[np.array(runfile.status_names()) != "completed"])
+        plt.close(fig)
+    result = plot_cli("sweep", sweep_file, "--x", "omega_z,radius", "--out", tmp_path)
+    assert result.returncode == 0 and is_png(tmp_path / "sweep_omega_z_radius.png")
+
+
+def test_summary_formats(sweep_file):
+    text = plot_cli("summary", sweep_file)
+    assert text.returncode == 0 and "no_fit" in text.stdout and "omega_z" in text.stdout.splitlines()[0]
+    rows = list(csv.DictReader(io.StringIO(plot_cli("summary", sweep_file, "--format", "csv").stdout)))
+    assert len(rows) == 6 and rows[2]["radius"] == "0.5" and rows[2]["status"] == "no_fit"
+    data = json.loads(plot_cli("summary", sweep_file, "--format", "json").stdout)
+    with h5py.File(sweep_file, "r") as f:
+        assert [c["theta_max"] for c in data["cases"]] == list(f["summary/theta_max"][:])
+
+
+def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
+    result = plot_cli("workprecision", sweep_file, "--out", tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert is_png(tmp_path / "workprecision.png")
+    table = tmp_path / "wp.csv"
+    table.write_text("method,setting,error_m,time_s,rhs_evaluations\nrk4,dt=0.01,1e-6,1e-3,12001\n"
+                     "rk4,dt=0.001,1e-10,1e-2,120001\n")
+    assert plot_cli("workprecision", table, "--out", tmp_path).returncode == 0
+    from ellroll_post.cli import workprecision_points
+    assert workprecision_points([table]) == {"rk4": [(1e-6, 1e-3, 12001.0), (1e-10, 1e-2, 120001.0)]}
+
+
+def test_report_folder(paper_file, sweep_file, tmp_path):
+    for source, expected in [(paper_file, ["fig2_trace.png", "fig3_nutation.png", "reaction.png", "energy.png"]),
+                             (sweep_file, ["sweep_radius.png", "sweep_omega_z.png", "sweep_radius_omega_z.png", "fig2_trace.png"])]:
+        out = tmp_path / source.stem
+        result = plot_cli("report", source, "--out", out)
+        assert result.returncode == 0, result.stderr
+        index = (out / "index.html").read_text()
+        for name in expected:
+            assert is_png(out / name) and f'src="{name}"' in index
+        assert (out / "summary.csv").exists() and "<table>" in index
+
+
+def test_clear_errors(paper_file, sweep_file, tmp_path):
     not_hdf5 = tmp_path / "notes.txt"
     not_hdf5.write_text("hello")
-    result = plot_cli("trace", not_hdf5)
-    assert result.returncode == 2 and "cannot open as HDF5" in result.stderr and "Traceback" not in result.stderr
     other = tmp_path / "other.h5"
     with h5py.File(other, "w") as f:
         f["x"] = 1
-    result = plot_cli("trace", other)
-    assert result.returncode == 2 and "not an ellroll file" in result.stderr
-    result = plot_cli("nutation", paper_file, "--case", 5)
-    assert result.returncode == 2 and "case 5 out of range" in result.stderr
+    cases = [(["trace", not_hdf5], "cannot open as HDF5"), (["trace", other], "not an ellroll file"),
+             (["nutation", paper_file, "--case", 5], "case 5 out of range"),
+             (["sweep", paper_file], "no input varies"),
+             (["sweep", sweep_file, "--x", "mu"], "mu is not a swept input"),
+             (["sweep", sweep_file, "--y", "speed"], "no summary quantity speed"),
+             (["workprecision", paper_file], "no error figures")]
+    for args, words in cases:
+        result = plot_cli(*args, "--out", tmp_path) if args[0] != "summary" else plot_cli(*args)
+        assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr, (args, result.stderr)
+
+
+def test_lazy_on_large_campaigns(sweep_file):
+    """Only what is asked is read: the reader never touches trajectories for a summary."""
+    with ellroll_post.open(sweep_file) as runfile:
+        touched = []
+        original = runfile._dataset
+        runfile._dataset = lambda name: touched.append(name) or original(name)
+        ellroll_post.format_summary(runfile, "csv")
+        assert not any(name.startswith("trajectory/") for name in touched)

@@ -1,0 +1,66 @@
+"""A report folder: every figure that applies to the file and an index.html
+that shows them beside the summary table."""
+import html
+import pathlib
+
+from .summary import format_summary, summary_rows
+
+# figure name -> trajectory fields it needs
+CASE_FIGURES = {"trace": {"contact"}, "nutation": {"nutation"}, "reaction": {"reaction", "normal"},
+                "energy": {"energy"}}
+
+
+def build_report(run, out, draw, case=0, fmt="png"):
+    """Draw what applies into out/, write out/index.html; return the paths."""
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    made = []
+    swept = run.swept_inputs()
+    if swept:
+        y_names = [n for n in ("theta_max", "nutation_period") if n in run.summary_names]
+        for x in swept[:2]:
+            made.append(draw("sweep", run, out, case, fmt, x_names=[x], y_names=y_names))
+        if len(swept) == 2:
+            made.append(draw("sweep", run, out, case, fmt, x_names=swept, y_names=y_names[:1]))
+    for name, needs in CASE_FIGURES.items():
+        if needs <= set(run.fields):
+            made.append(draw(name, run, out, case, fmt))
+    (out / "summary.csv").write_text(format_summary(run, "csv"))
+    (out / "index.html").write_text(_index_html(run, made, case))
+    return made
+
+
+def _index_html(run, figures, case):
+    attrs = run.attrs
+    rows = summary_rows(run)
+    shown = rows[:200]
+    keys = list(rows[0].keys()) if rows else []
+    table = "<tr>" + "".join(f"<th>{html.escape(k)}</th>" for k in keys) + "</tr>\n"
+    for row in shown:
+        table += "<tr>" + "".join(f"<td>{html.escape(_cell(row[k]))}</td>" for k in keys) + "</tr>\n"
+    more = f"<p>{len(rows) - len(shown)} more cases in summary.csv</p>" if len(rows) > len(shown) else ""
+    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{p.stem}</figcaption></figure>'
+                       for p in figures)
+    return f"""<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>ellroll report: {html.escape(run.path)}</title>
+<style>body{{font-family:sans-serif;margin:2em}} img{{max-width:100%}} figure{{margin:1em 0}}
+table{{border-collapse:collapse;font-size:small}} td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}</style>
+</head><body>
+<h1>ellroll report</h1>
+<p>File <code>{html.escape(run.path)}</code>, {run.n_cases} cases; written by ellroll {html.escape(str(attrs.get('version', '')))}
+on {html.escape(str(attrs.get('created', '')))} from <code>{html.escape(str(attrs.get('input_file', '')))}</code>.
+Per-case figures show case {case}.</p>
+<h2>Summary</h2>
+<table>
+{table}</table>
+{more}
+<h2>Figures</h2>
+{images}
+<h2>Input</h2>
+<pre>{html.escape(str(attrs.get('input_namelist', '')))}</pre>
+</body></html>
+"""
+
+
+def _cell(value):
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
