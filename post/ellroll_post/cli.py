@@ -9,7 +9,8 @@ from . import plots
 from .report import build_report
 from .summary import format_summary
 
-FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy"}
+FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
+              "transmissibility": "transmissibility"}
 
 
 def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
@@ -24,9 +25,12 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
             fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="constrained")
             plots.plot_reaction(axes, run, case)
         else:
-            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4)}[name]
+            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4), "transmissibility": (8, 5)}[name]
             fig, ax = plt.subplots(figsize=size, layout="constrained")
-            getattr(plots, f"plot_{name}")(ax, run, case)
+            if name == "transmissibility":
+                plots.plot_transmissibility(ax, run)
+            else:
+                getattr(plots, f"plot_{name}")(ax, run, case)
         stem = FILE_STEMS[name] + (f"_case{case}" if case else "")
     path = pathlib.Path(out) / f"{stem}.{fmt}"
     fig.savefig(path, dpi=150)
@@ -72,6 +76,9 @@ def main(argv=None):
     p.add_argument("file")
     p.add_argument("--x", help="one or two swept inputs, e.g. omega_z or omega_z,radius (default: the swept ones)")
     p.add_argument("--y", default="theta_max", help="summary quantities, e.g. theta_max,nutation_period")
+    p = sub.add_parser("transmissibility", parents=[common],
+                       help="transmissibility against an excitation_frequency sweep, linear resonances marked")
+    p.add_argument("file")
     p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
     p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
@@ -104,6 +111,11 @@ def main(argv=None):
             with open_run(args.file) as run:
                 if args.command == "report":
                     written = build_report(run, out, draw, args.case, args.format) + [out / "index.html"]
+                elif args.command == "transmissibility":
+                    if "excitation_frequency" not in run.swept_inputs():
+                        raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
+                                               "(&sweep name = 'excitation_frequency')")
+                    written = [draw("transmissibility", run, out)]
                 elif args.command == "sweep":
                     x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]
                     if not x_names:

@@ -184,3 +184,38 @@ def plot_workprecision(axes, points):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize="small")
     return axes
+
+
+def linear_transmissibility(ratio, inertia_factor=0.4):
+    """Transmissibility of the linearised rolling ball along a principal
+    axis: |1 + k - k r^2| / ((1 + k) |1 - r^2|), r = f / f_n (docs/model.md);
+    1 at low frequency, 0 at r^2 = (1 + k) / k, k / (1 + k) at high frequency."""
+    ratio = np.asarray(ratio, float)
+    k = inertia_factor
+    return np.abs(1 + k - k * ratio**2) / ((1 + k) * np.abs(1 - ratio**2))
+
+
+def plot_transmissibility(ax, run):
+    """Transmissibility against the excitation frequency (log-log), with the
+    linear resonance frequencies (/summary/linear_periods) marked and the
+    linear prediction for each."""
+    frequency = run.input_column("excitation_frequency")
+    transmissibility = run.summary("transmissibility")
+    order = np.argsort(frequency)
+    ax.loglog(frequency[order], transmissibility[order], "o-", ms=3, lw=1, label="ellroll (measured)")
+    periods = run.summary("linear_periods", 0)
+    k = run.case_input("inertia_factor", 0)
+    grid = np.geomspace(frequency.min(), frequency.max(), 400)
+    for mode, period in enumerate(periods):
+        if np.isfinite(period):
+            ax.axvline(1 / period, color=f"C{mode + 1}", ls="--", lw=0.8,
+                       label=f"linear resonance, mode {mode + 1}: {1 / period:.4g} Hz")
+            ax.loglog(grid, linear_transmissibility(grid * period, k), color=f"C{mode + 1}", lw=0.7, alpha=0.6,
+                      label=f"linear prediction, mode {mode + 1}")
+    ax.axhline(1, color="0.6", lw=0.6)
+    ax.set_xlabel("excitation frequency, Hz")
+    ax.set_ylabel("transmissibility |a_ball| / |a_base|")
+    ax.set_title(f"Transmissibility ({run.n_cases} frequencies)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="x-small")
+    return ax

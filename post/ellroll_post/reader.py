@@ -13,7 +13,10 @@ INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radi
           "weight": ("weight", None), "mass": ("mass", None), "mu": ("mu", None),
           "inertia_factor": ("inertia_factor", None), "g": ("g", None), "x": ("x0", None), "y": ("y0", None),
           "omega_x": ("omega0", 0), "omega_y": ("omega0", 1), "omega_z": ("omega0", 2), "dt": ("dt", None),
-          "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None)}
+          "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None),
+          "excitation_frequency": ("excitation_frequency", None), "excitation_phase": ("excitation_phase", None),
+          "excitation_amplitude_x": ("excitation_amplitude", 0), "excitation_amplitude_y": ("excitation_amplitude", 1),
+          "excitation_amplitude_z": ("excitation_amplitude", 2)}
 
 
 class EllrollFile:

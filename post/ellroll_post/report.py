@@ -22,6 +22,8 @@ def build_report(run, out, draw, case=0, fmt="png"):
             made.append(draw("sweep", run, out, case, fmt, x_names=[x], y_names=y_names))
         if len(swept) == 2:
             made.append(draw("sweep", run, out, case, fmt, x_names=swept, y_names=y_names[:1]))
+    if "excitation_frequency" in swept:
+        made.append(draw("transmissibility", run, out, case, fmt))
     for name, needs in CASE_FIGURES.items():
         if needs <= set(run.fields):
             made.append(draw(name, run, out, case, fmt))

@@ -8,6 +8,7 @@ module ellroll_cases
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
+  use ellroll_excitation, only: excitation_t, excitation_kind_names
   implicit none
   private
 
@@ -15,7 +16,7 @@ module ellroll_cases
   public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
-            field_reaction, field_energy
+            field_reaction, field_energy, field_base_acceleration
 
   type :: case_t
     integer(i8) :: index = 0
@@ -35,36 +36,42 @@ module ellroll_cases
     real(wp) :: rtol = 1.0e-9_wp          !< adaptive method: relative tolerance
     real(wp) :: atol = 1.0e-12_wp         !< adaptive method: absolute tolerance
     logical :: error_estimate = .false.   !< also run the reference and store error figures
+    type(excitation_t) :: excitation      !< translation of the cup (none by default)
   end type case_t
 
   ! The scalar parameters: what a sweep or a sample can vary.
-  integer, parameter :: param_count = 18
-  character(len=*), parameter :: param_names(param_count) = [character(len=14) :: &
+  integer, parameter :: param_count = 23
+  character(len=*), parameter :: param_names(param_count) = [character(len=22) :: &
       'a', 'b', 'c', 'radius', 'weight', 'mass', 'mu', 'inertia_factor', 'g', &
-      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin', 'rtol', 'atol']
+      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin', 'rtol', 'atol', &
+      'excitation_frequency', 'excitation_phase', 'excitation_amplitude_x', 'excitation_amplitude_y', &
+      'excitation_amplitude_z']
   character(len=*), parameter :: param_groups(param_count) = [character(len=11) :: &
       'geometry', 'geometry', 'geometry', 'ball', 'ball', 'ball', 'ball', 'ball', 'environment', &
       'initial', 'initial', 'initial', 'initial', 'initial', 'integration', 'integration', &
-      'integration', 'integration']
+      'integration', 'integration', 'excitation', 'excitation', 'excitation', 'excitation', 'excitation']
   character(len=*), parameter :: param_units(param_count) = [character(len=5) :: &
-      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '', '', '']
+      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '', '', '', &
+      'Hz', 'rad', 'm/s^2', 'm/s^2', 'm/s^2']
   ! Bounds keep every derived quantity finite (squares, products, s^4).
   real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
   real(wp), parameter :: param_low(param_count) = [length_min, length_min, length_min, length_min, &
       tiny(1.0_wp), tiny(1.0_wp), 0.0_wp, tiny(1.0_wp), 0.0_wp, -length_max, -length_max, &
-      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp, 1.0e-14_wp, 0.0_wp]
+      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp, 1.0e-14_wp, 0.0_wp, &
+      0.0_wp, -1.0e3_wp, -1.0e4_wp, -1.0e4_wp, -1.0e4_wp]
   real(wp), parameter :: param_high(param_count) = [length_max, length_max, length_max, length_max, &
       1.0e12_wp, 1.0e12_wp, 1.0e6_wp, 2.0_wp / 3, 1.0e4_wp, length_max, length_max, &
-      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp, 0.1_wp, 1.0_wp]
+      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp, 0.1_wp, 1.0_wp, &
+      1.0e6_wp, 1.0e3_wp, 1.0e4_wp, 1.0e4_wp, 1.0e4_wp]
 
-  integer, parameter :: field_count = 7
+  integer, parameter :: field_count = 8
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
-                        field_nutation = 5, field_reaction = 6, field_energy = 7
-  character(len=*), parameter :: field_names(field_count) = [character(len=8) :: &
-      'contact', 'center', 'omega', 'normal', 'nutation', 'reaction', 'energy']
+                        field_nutation = 5, field_reaction = 6, field_energy = 7, field_base_acceleration = 8
+  character(len=*), parameter :: field_names(field_count) = [character(len=17) :: &
+      'contact', 'center', 'omega', 'normal', 'nutation', 'reaction', 'energy', 'base_acceleration']
   character(len=*), parameter :: field_units(field_count) = [character(len=5) :: &
-      'm', 'm', 'rad/s', '1', 'rad', 'N', 'J']
-  integer, parameter :: field_ncomp(field_count) = [3, 3, 3, 3, 1, 3, 1]
+      'm', 'm', 'rad/s', '1', 'rad', 'N', 'J', 'm/s^2']
+  integer, parameter :: field_ncomp(field_count) = [3, 3, 3, 3, 1, 3, 1, 3]
   character(len=*), parameter :: field_descriptions(field_count) = [character(len=80) :: &
       'contact point A of the ball on the cup', &
       'centre C of the ball', &
@@ -72,7 +79,8 @@ module ellroll_cases
       'unit normal at A, pointing from A to C', &
       'nutation angle Theta between the normal and the vertical', &
       'force of the cup on the ball at A (normal force plus friction)', &
-      'total energy J|w|^2/2 + m|V_C|^2/2 + m g z_C, z from the cup bottom']
+      'total energy J|w|^2/2 + m|V_C|^2/2 + m g z_C, z from the cup bottom (cup frame)', &
+      'acceleration of the cup (inertial frame)']
 
   !> What a run writes: shared by all its cases.
   type :: output_plan_t
@@ -113,7 +121,10 @@ contains
     case (15); value = cs%dt
     case (16); value = cs%fit_margin
     case (17); value = cs%rtol
-    case default; value = cs%atol
+    case (18); value = cs%atol
+    case (19); value = cs%excitation%frequency
+    case (20); value = cs%excitation%phase
+    case default; value = cs%excitation%amplitude(id - 20)
     end select
   end function get_param
 
@@ -137,7 +148,10 @@ contains
     case (15); cs%dt = value
     case (16); cs%fit_margin = value
     case (17); cs%rtol = value
-    case default; cs%atol = value
+    case (18); cs%atol = value
+    case (19); cs%excitation%frequency = value
+    case (20); cs%excitation%phase = value
+    case default; cs%excitation%amplitude(id - 20) = value
     end select
   end subroutine set_param
 
@@ -242,6 +256,7 @@ contains
     ball%inertia_factor = cs%inertia_factor
     ball%mu = cs%mu
     ball%fit_margin = cs%fit_margin
+    ball%excitation = cs%excitation
   end function make_ball
 
   !> Every resolved input of a case, as stored under /case/.
@@ -272,6 +287,12 @@ contains
       real_value('rtol', '1', 'relative tolerance (adaptive method)', cs%rtol), &
       real_value('atol', '1', 'absolute tolerance (adaptive method)', cs%atol), &
       int_value('error_estimate', '1', '1: error figures from a reference run are in /summary', &
-                merge(1_i8, 0_i8, cs%error_estimate)) ]
+                merge(1_i8, 0_i8, cs%error_estimate)), &
+      text_value('excitation_kind', 'motion of the cup: none, harmonic or record', &
+                 excitation_kind_names(cs%excitation%kind)), &
+      vector_value('excitation_amplitude', 'm/s^2', 'harmonic: amplitude of the cup acceleration', &
+                   cs%excitation%amplitude), &
+      real_value('excitation_frequency', 'Hz', 'harmonic: frequency', cs%excitation%frequency), &
+      real_value('excitation_phase', 'rad', 'harmonic: phase', cs%excitation%phase) ]
   end function case_record
 end module ellroll_cases

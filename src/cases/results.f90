@@ -36,6 +36,9 @@ module ellroll_results
     real(wp) :: error_energy = nan_value     !< max |E - E_reference| / |E0|
     integer(i8) :: n_rhs_reference = 0
     real(wp) :: linear_periods(2) = nan_value  !< small-oscillation periods about the bottom, s
+    real(wp) :: displacement_max = 0           !< largest |C - (0, 0, R)|, m (cup frame)
+    real(wp) :: horizontal_force_max = 0       !< largest horizontal force on the ball, N
+    real(wp) :: transmissibility = nan_value   !< harmonic: |a_C,abs| / |a_base| at the forcing frequency
     type(field_buffer_t) :: fields(field_count)
   end type case_result_t
 
@@ -58,7 +61,7 @@ contains
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
-    type(named_value_t) :: rec(16)
+    type(named_value_t) :: rec(19)
     rec = [ &
       real_value('t_final', 's', 'time at which the case ended', res%t_final), &
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
@@ -82,7 +85,14 @@ contains
                 res%n_rhs_reference), &
       vector_value('linear_periods', 's', &
                    'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', &
-                   res%linear_periods) ]
+                   res%linear_periods), &
+      real_value('displacement_max', 'm', 'largest distance of the centre from its rest position (cup frame)', &
+                 res%displacement_max), &
+      real_value('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball', &
+                 res%horizontal_force_max), &
+      real_value('transmissibility', '1', &
+                 'harmonic: horizontal |a_C,absolute| / |a_base| at the forcing frequency, last whole periods (NaN: n/a)', &
+                 res%transmissibility) ]
   end function summary_record
 
   !> The inverse of summary_record for one entry (reading a stored summary back).
@@ -106,6 +116,9 @@ contains
     case ('error_energy'); res%error_energy = value%reals(1)
     case ('n_rhs_reference'); res%n_rhs_reference = value%int
     case ('linear_periods'); res%linear_periods = value%reals(1:2)
+    case ('displacement_max'); res%displacement_max = value%reals(1)
+    case ('horizontal_force_max'); res%horizontal_force_max = value%reals(1)
+    case ('transmissibility'); res%transmissibility = value%reals(1)
     end select
   end subroutine set_summary_value
 end module ellroll_results

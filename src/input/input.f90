@@ -9,9 +9,11 @@ module ellroll_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
-      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method
+      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method, &
+      field_base_acceleration
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
       invalid_stop, invalid_skip
+  use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
   use ellroll_integrators, only: method_names
   implicit none
   private
@@ -26,8 +28,9 @@ module ellroll_input
     character(len=:), allocatable :: canonical  !< groups and assignments without comments or layout
   end type run_input_t
 
-  character(len=*), parameter :: known_groups(9) = [character(len=12) :: &
-      'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'campaign', 'sweep', 'sample']
+  character(len=*), parameter :: known_groups(10) = [character(len=12) :: &
+      'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'excitation', 'campaign', &
+      'sweep', 'sample']
   integer, parameter :: max_values = 10000, max_fields = 32
   !> Largest memory one case's output buffers may take.
   real(wp), parameter :: max_case_buffer_bytes = 2.0_wp**31
@@ -112,6 +115,10 @@ contains
     real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)
+    ! &excitation
+    character(len=16) :: kind
+    real(wp) :: amplitude(3), frequency, phase
+    character(len=1024) :: record_file
     ! &campaign, &sweep, &sample
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
@@ -124,6 +131,7 @@ contains
     namelist /initial/ x, y, omega
     namelist /integration/ method, dt, t_end, fit_margin, rtol, atol, error_estimate
     namelist /output/ file, interval, fields
+    namelist /excitation/ kind, amplitude, frequency, phase, record_file
     namelist /campaign/ combine, samples, seed, invalid
     namelist /sweep/ name, values, start, stop, count, spacing
     namelist /sample/ name, low, high, spacing
@@ -139,6 +147,7 @@ contains
     rtol = 1.0e-9_wp; atol = 1.0e-12_wp; error_estimate = 'none'
     file = ''; interval = nan(); fields = ''
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
+    kind = 'none'; amplitude = 0; frequency = 0; phase = 0; record_file = ''
     allocate (sweeps(0), draws(0))
 
     do gi = 1, size(rd%file%groups)
@@ -155,6 +164,7 @@ contains
           case ('initial'); read (lines, nml=initial, iostat=ios, iomsg=msg)
           case ('integration'); read (lines, nml=integration, iostat=ios, iomsg=msg)
           case ('output'); read (lines, nml=output, iostat=ios, iomsg=msg)
+          case ('excitation'); read (lines, nml=excitation, iostat=ios, iomsg=msg)
           case ('campaign'); read (lines, nml=campaign, iostat=ios, iomsg=msg)
           case ('sweep'); read (lines, nml=sweep, iostat=ios, iomsg=msg)
           case ('sample'); read (lines, nml=sample, iostat=ios, iomsg=msg)
@@ -176,6 +186,8 @@ contains
 
     call build_base(inp%campaign%base)
     if (rd%err%failed()) return
+    call build_excitation(inp%campaign%base)
+    if (rd%err%failed()) return
     call build_plan(inp%campaign%base, inp%plan)
     if (rd%err%failed()) return
     call check_base(inp%campaign%base, inp%plan)
@@ -195,6 +207,8 @@ contains
       case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
                                                       'fit_margin', 'rtol', 'atol', 'error_estimate'])
       case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields'])
+      case ('excitation'); ok = check_names(rd, gi, [character(len=16) :: 'kind', 'amplitude', 'frequency', &
+                                                     'phase', 'record_file'])
       case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
                                                    'invalid'])
       case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
@@ -266,6 +280,38 @@ contains
       call finalize_case(cs)
     end subroutine build_base
 
+    subroutine build_excitation(cs)
+      type(case_t), intent(inout) :: cs
+      integer :: gi
+      character(len=:), allocatable :: reason, path
+      gi = rd%group('excitation', .false.)
+      if (gi == 0) return
+      select case (lower(adjustl(kind)))
+      case ('none')
+        cs%excitation%kind = excitation_none
+      case ('harmonic')
+        cs%excitation%kind = excitation_harmonic
+        if (.not. all(ieee_is_finite(amplitude))) then
+          call rd%fail_value(gi, 'amplitude', 'three finite numbers are needed (ax, ay, az in m/s^2)')
+          return
+        end if
+        cs%excitation%amplitude = amplitude
+        cs%excitation%frequency = frequency
+        cs%excitation%phase = phase
+      case ('record')
+        cs%excitation%kind = excitation_record
+        if (len_trim(record_file) == 0) then
+          call rd%fail_missing(gi, 'record_file', 'name the ground-acceleration file (time, ax, ay[, az])')
+          return
+        end if
+        path = resolve_path(trim(adjustl(record_file)), rd%file%path)
+        call load_record(path, cs%t_end, cs%excitation%times, cs%excitation%values, reason)
+        if (len(reason) > 0) call rd%fail_value(gi, 'record_file', reason)
+      case default
+        call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
+      end select
+    end subroutine build_excitation
+
     subroutine build_plan(cs, plan)
       type(case_t), intent(inout) :: cs
       type(output_plan_t), intent(inout) :: plan
@@ -297,6 +343,8 @@ contains
       plan%n_samples = nint(ratio, i8) + 1
       if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
 
+      ! the cup's acceleration is stored only when the cup moves
+      plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
       if (rd%given(gi, 'fields')) then
         plan%fields = .false.
         do k = 1, max_fields
@@ -335,6 +383,8 @@ contains
         gi = rd%group(trim(param_groups(param)), .true.)
         variable = trim(param_names(param))
         if (variable(1:min(6, len(variable))) == 'omega_') variable = 'omega'
+        if (index(variable, 'excitation_') == 1) variable = variable(12:)
+        if (index(variable, 'amplitude_') == 1) variable = 'amplitude'
         if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
           gi = rd%group('output', .true.)
           variable = 'interval'
@@ -669,6 +719,113 @@ contains
       text = text // ' /' // achar(10)
     end do
   end function canonical_text
+
+  !> A path relative to the input file's folder (absolute paths unchanged).
+  function resolve_path(path, input_path) result(resolved)
+    character(len=*), intent(in) :: path, input_path
+    character(len=:), allocatable :: resolved
+    integer :: slash
+    slash = index(input_path, '/', back=.true.)
+    if (path(1:1) == '/' .or. slash == 0) then
+      resolved = path
+    else
+      resolved = input_path(:slash) // path
+    end if
+  end function resolve_path
+
+  !> Read a ground-acceleration record: lines of 'time, ax, ay[, az]' (commas
+  !> or blanks; '#' comments and a header line allowed). reason = '' when it
+  !> is usable: finite values, strictly increasing times, covering [0, t_end].
+  subroutine load_record(path, t_end, times, values, reason)
+    character(len=*), intent(in) :: path
+    real(wp), intent(in) :: t_end
+    real(wp), allocatable, intent(out) :: times(:), values(:, :)
+    character(len=:), allocatable, intent(out) :: reason
+    integer :: unit, ios, line_number, n, columns, k, width
+    character(len=4096) :: line
+    real(wp) :: row(4)
+    logical :: header_allowed
+    reason = ''
+    allocate (times(0), values(3, 0))
+    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) then
+      reason = 'cannot open ' // path
+      return
+    end if
+    line_number = 0
+    n = 0
+    columns = 0
+    header_allowed = .true.
+    do
+      read (unit, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      line_number = line_number + 1
+      if (index(line, '#') > 0) line = line(:index(line, '#') - 1)
+      do k = 1, len_trim(line)
+        if (line(k:k) == ',' .or. line(k:k) == ';' .or. iachar(line(k:k)) == 9 .or. iachar(line(k:k)) == 13) &
+          line(k:k) = ' '
+      end do
+      if (len_trim(line) == 0) cycle
+      width = count_words(line)
+      if (width < 3 .or. width > 4) then
+        if (header_allowed .and. n == 0) then
+          header_allowed = .false.
+          cycle
+        end if
+        reason = path // ':' // itoa(line_number) // ': expected 3 or 4 numbers (time, ax, ay[, az]), found ' // &
+                 itoa(width)
+        exit
+      end if
+      row = 0
+      read (line, *, iostat=ios) row(:width)
+      if (ios /= 0) then
+        if (header_allowed .and. n == 0) then
+          header_allowed = .false.
+          cycle
+        end if
+        reason = path // ':' // itoa(line_number) // ': not numbers: ' // trim(adjustl(line))
+        exit
+      end if
+      header_allowed = .false.
+      if (columns == 0) columns = width
+      if (width /= columns) then
+        reason = path // ':' // itoa(line_number) // ': ' // itoa(width) // ' columns where the first row has ' // &
+                 itoa(columns)
+        exit
+      end if
+      if (.not. all(ieee_is_finite(row(:width)))) then
+        reason = path // ':' // itoa(line_number) // ': a value is not finite'
+        exit
+      end if
+      if (n > 0) then
+        if (row(1) <= times(n)) then
+          reason = path // ':' // itoa(line_number) // ': time ' // format_real(row(1)) // &
+                   ' s does not increase (previous ' // format_real(times(n)) // ' s)'
+          exit
+        end if
+      end if
+      n = n + 1
+      times = [times, row(1)]
+      values = reshape([values, row(2:4)], [3, n])
+    end do
+    close (unit)
+    if (len(reason) > 0) return
+    if (n < 2) then
+      reason = path // ': fewer than two samples'
+    else if (times(1) > 0 .or. times(n) < t_end) then
+      reason = path // ': the record covers ' // format_real(times(1)) // ' to ' // format_real(times(n)) // &
+               ' s, not 0 to t_end = ' // format_real(t_end) // ' s'
+    end if
+  end subroutine load_record
+
+  pure integer function count_words(text)
+    character(len=*), intent(in) :: text
+    integer :: k
+    count_words = 0
+    do k = 1, len_trim(text)
+      if (text(k:k) /= ' ' .and. (k == 1 .or. text(max(1, k-1):max(1, k-1)) == ' ')) count_words = count_words + 1
+    end do
+  end function count_words
 
   !> Entries of a NaN-initialised list that were given.
   pure integer function count_given(list)

@@ -5,12 +5,13 @@
 !> tight tolerance and the differences are its error figures.
 module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
-  use ellroll_kinds, only: wp, i8
+  use ellroll_kinds, only: wp, i8, two_pi
+  use ellroll_excitation, only: excitation_harmonic
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_count, &
       field_contact, field_center, field_omega, field_normal, field_nutation, &
-      field_reaction, field_energy
+      field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t, new_case_result
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
       initial_state, observe, limit_status
@@ -39,11 +40,28 @@ module ellroll_simulate
     procedure :: mean_interval
   end type maxima_t
 
+  !> Fourier components at the forcing frequency of the horizontal absolute
+  !> acceleration of the ball and of the cup, over the last whole forcing
+  !> periods (at least half the run): their ratio is the transmissibility.
+  !> The model has no damping, so free oscillations never decay; projecting
+  !> on the forcing frequency over whole periods separates them out.
+  type :: spectrum_t
+    real(wp) :: omega = 0                 !< 2 pi f
+    real(wp) :: start = huge(1.0_wp)      !< window start, s
+    complex(wp) :: ball(2) = 0, base(2) = 0
+    real(wp) :: t_prev = 0, ball_prev(2) = 0, base_prev(2) = 0
+    logical :: has_prev = .false.
+  contains
+    procedure :: add => add_spectrum
+    procedure :: ratio => spectrum_ratio
+  end type spectrum_t
+
   !> What one integration needs as it goes.
   type :: run_state_t
     type(rolling_ball_t) :: ball
     real(wp) :: energy0 = 0
     type(maxima_t) :: maxima
+    type(spectrum_t) :: spectrum
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
 
@@ -113,10 +131,14 @@ contains
     y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
     call run%ball%rhs(0.0_wp, y, f)
     res%n_rhs = 1
-    obs = observe(run%ball, y, f)
+    obs = observe(run%ball, 0.0_wp, y, f)
     run%energy0 = obs%energy
-    call run%maxima%add(0.0_wp, obs%nutation)
-    call accumulate(res, obs, run%energy0)
+    if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
+      run%spectrum%omega = two_pi * cs%excitation%frequency
+      if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &
+          cs%t_end - floor(0.5_wp * cs%t_end * cs%excitation%frequency) / cs%excitation%frequency
+    end if
+    call track(run, res, 0.0_wp, obs)
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)   ! a start outside the model ends at once
 
@@ -132,6 +154,8 @@ contains
     end if
     res%nutation_maxima = run%maxima%count
     res%nutation_period = run%maxima%mean_interval()
+    if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
+      res%transmissibility = run%spectrum%ratio()
     res%linear_periods = oscillation_periods(run%ball, dot_product(cs%omega0, obs%normal))
     call system_clock(clock_end)
     res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
@@ -155,7 +179,7 @@ contains
     t = 0
     do k = 1, n_steps
       call integrator%step(run%ball, t, y, f, cs%dt, y_new, res%n_rhs)
-      call advance_to(y_new, f_new, obs, status)
+      call advance_to(k * cs%dt, y_new, f_new, obs, status)
       if (status /= status_completed) then
         ! bisect on partial steps from the last valid state; end there
         res%status = status
@@ -164,7 +188,7 @@ contains
         do while (.not. search%done())
           offset = search%trial()
           call integrator%step(run%ball, t, y, f, offset, y_new, res%n_rhs)
-          call advance_to(y_new, f_new, obs, status)
+          call advance_to(t + offset, y_new, f_new, obs, status)
           call search%report(offset, status == status_completed)
           if (status == status_completed) then
             obs_valid = obs
@@ -175,31 +199,31 @@ contains
         end do
         res%t_final = t + search%valid
         res%n_steps = k
-        if (found_valid) call accumulate(res, obs_valid, run%energy0)
+        if (found_valid) call accumulate(res, obs_valid, run%energy0, run%ball%radius)
         return
       end if
       y = y_new
       f = f_new
       t = k * cs%dt
       res%n_steps = k
-      call run%maxima%add(t, obs%nutation)
-      call accumulate(res, obs, run%energy0)
+      call track(run, res, t, obs)
       if (mod(k, plan%steps_per_sample) == 0) call record_sample(res, k / plan%steps_per_sample + 1, obs)
     end do
     res%t_final = t
 
   contains
 
-    !> Project, evaluate f and the derived outputs, and check the limits.
-    subroutine advance_to(y_next, f_next, obs_next, status_next)
+    !> Project, evaluate f and the derived outputs at t_next, and check the limits.
+    subroutine advance_to(t_next, y_next, f_next, obs_next, status_next)
+      real(wp), intent(in) :: t_next
       real(wp), intent(inout) :: y_next(:)
       real(wp), intent(out) :: f_next(:)
       type(observation_t), intent(out) :: obs_next
       integer, intent(out) :: status_next
       call run%ball%project(y_next)
-      call run%ball%rhs(t, y_next, f_next)
+      call run%ball%rhs(t_next, y_next, f_next)
       res%n_rhs = res%n_rhs + 1
-      obs_next = observe(run%ball, y_next, f_next)
+      obs_next = observe(run%ball, t_next, y_next, f_next)
       status_next = limit_status(run%ball, y_next, obs_next)
     end subroutine advance_to
   end subroutine fixed_step_loop
@@ -239,7 +263,7 @@ contains
       y_new(1:3) = y_new(1:3) / length
       f_new = integrator%f_new
       f_new(1:3) = f_new(1:3) / length          ! n' is homogeneous of degree one in |n|
-      obs = observe(run%ball, y_new, f_new)
+      obs = observe(run%ball, t + h, y_new, f_new)
       status = limit_status(run%ball, y_new, obs)
       if (status /= status_completed) then
         res%status = status
@@ -261,7 +285,7 @@ contains
         call record_samples_until(t + search%valid)
         res%t_final = t + search%valid
         res%n_steps = res%n_steps + 1
-        if (found_valid) call accumulate(res, obs_valid, run%energy0)
+        if (found_valid) call accumulate(res, obs_valid, run%energy0, run%ball%radius)
         return
       end if
       call record_samples_until(t + h)
@@ -269,8 +293,7 @@ contains
       y = y_new
       f = f_new
       res%n_steps = res%n_steps + 1
-      call run%maxima%add(t, obs%nutation)
-      call accumulate(res, obs, run%energy0)
+      call track(run, res, t, obs)
       if (integrator%error_norm == 0) then
         factor = max_factor
       else
@@ -299,7 +322,7 @@ contains
       else
         f_at = 0
       end if
-      obs_at = observe(run%ball, y_at, f_at)
+      obs_at = observe(run%ball, t + theta * h, y_at, f_at)
     end subroutine dense_state
 
     !> Record every output sample in (t, t_until] of the current step.
@@ -350,11 +373,51 @@ contains
     end if
   end function mean_interval
 
-  pure subroutine accumulate(res, obs, energy0)
+  !> Everything a step's end point adds to the summary.
+  pure subroutine track(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    call run%maxima%add(t, obs%nutation)
+    if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    call accumulate(res, obs, run%energy0, run%ball%radius)
+  end subroutine track
+
+  pure subroutine add_spectrum(self, t, ball, base)
+    class(spectrum_t), intent(inout) :: self
+    real(wp), intent(in) :: t, ball(2), base(2)
+    complex(wp) :: phase_prev, phase_now
+    if (t < self%start) return
+    if (self%has_prev) then       ! trapezoid rule on (t_prev, t]
+      phase_prev = exp(cmplx(0.0_wp, -self%omega * self%t_prev, wp))
+      phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
+      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * phase_prev + ball * phase_now)
+      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * phase_prev + base * phase_now)
+    end if
+    self%t_prev = t
+    self%ball_prev = ball
+    self%base_prev = base
+    self%has_prev = .true.
+  end subroutine add_spectrum
+
+  !> NaN when the cup does not move horizontally (undefined, not infinite).
+  pure real(wp) function spectrum_ratio(self)
+    class(spectrum_t), intent(in) :: self
+    if (sum(abs(self%base)**2) > 0) then
+      spectrum_ratio = sqrt(sum(abs(self%ball)**2) / sum(abs(self%base)**2))
+    else
+      spectrum_ratio = ieee_value(0.0_wp, ieee_quiet_nan)
+    end if
+  end function spectrum_ratio
+
+  pure subroutine accumulate(res, obs, energy0, radius)
     type(case_result_t), intent(inout) :: res
     type(observation_t), intent(in) :: obs
-    real(wp), intent(in) :: energy0
+    real(wp), intent(in) :: energy0, radius
     res%theta_max = max(res%theta_max, obs%nutation)
+    res%displacement_max = max(res%displacement_max, norm2(obs%center - [0.0_wp, 0.0_wp, radius]))
+    res%horizontal_force_max = max(res%horizontal_force_max, norm2(obs%reaction(1:2)))
     res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
     res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
     res%energy_drift = max(res%energy_drift, abs(obs%energy - energy0) / abs(energy0))
@@ -372,6 +435,7 @@ contains
     call put(res, field_nutation, [obs%nutation])
     call put(res, field_reaction, obs%reaction)
     call put(res, field_energy, [obs%energy])
+    call put(res, field_base_acceleration, obs%base_acceleration)
   contains
     pure subroutine put(res, field, values)
       type(case_result_t), intent(inout) :: res

@@ -17,6 +17,7 @@ module ellroll_rolling_ball
   use ellroll_ellipsoid, only: ellipsoid_t, radius_operator_t, radius_operator, &
       apply_radius_operator, contact_from_normal, normal_from_contact, surface_residual, &
       principal_radii
+  use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -37,6 +38,7 @@ module ellroll_rolling_ball
     real(wp) :: inertia_factor = 0.4_wp   !< J / (m R^2)
     real(wp) :: mu = -1                   !< friction coefficient; <= 0: no slip check
     real(wp) :: fit_margin = 1.0e-6_wp    !< end when r_min / R - 1 falls to this
+    type(excitation_t) :: excitation      !< translation of the cup
   contains
     procedure :: rhs => ball_rhs
     procedure :: project => normalize_normal
@@ -56,6 +58,8 @@ module ellroll_rolling_ball
     real(wp) :: energy_of_motion = 0     !< energy - m g R (the bottom at rest is 0)
     real(wp) :: surface_residual = 0
     real(wp) :: fit_ratio = 0            !< smallest principal radius / R
+    real(wp) :: base_acceleration(3) = 0 !< acceleration of the cup, m/s^2
+    real(wp) :: center_acceleration(3) = 0  !< absolute acceleration of the centre, m/s^2
   end type observation_t
 
 contains
@@ -85,6 +89,11 @@ contains
     ! n x (0, 0, -g) = g (-n_y, n_x, 0)
     dydt(4:6) = (spin * n_dot + (self%g / self%radius) * [-n(2), n(1), 0.0_wp]) &
                 / (1 + self%inertia_factor)
+    ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
+    ! a fixed cup costs nothing)
+    if (self%excitation%kind /= excitation_none) &
+      dydt(4:6) = dydt(4:6) - cross(n, base_acceleration(self%excitation, t)) &
+                  / (self%radius * (1 + self%inertia_factor))
   end subroutine ball_rhs
 
   pure subroutine normalize_normal(self, y)
@@ -102,9 +111,10 @@ contains
     state(4:6) = omega
   end function initial_state
 
-  !> Derived outputs of a state y with time derivative dydt.
-  pure function observe(ball, y, dydt) result(obs)
+  !> Derived outputs of a state y at time t with time derivative dydt.
+  pure function observe(ball, t, y, dydt) result(obs)
     type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:), dydt(:)
     type(observation_t) :: obs
     real(wp) :: length, n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
@@ -120,7 +130,13 @@ contains
     lateral2 = n(1)**2 + n(2)**2
     obs%nutation = atan2(sqrt(lateral2), n(3))
     a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
-    obs%reaction = ball%mass * (a_center + [0.0_wp, 0.0_wp, ball%g])
+    obs%center_acceleration = a_center
+    if (ball%excitation%kind /= excitation_none) then
+      obs%base_acceleration = base_acceleration(ball%excitation, t)
+      obs%center_acceleration = a_center + obs%base_acceleration
+    end if
+    ! the force in the inertial frame: m (a_C,rel + a_base - g_vec)
+    obs%reaction = ball%mass * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
     obs%reaction_normal = dot_product(obs%reaction, n)
     tangential = obs%reaction - obs%reaction_normal * n
     if (obs%reaction_normal > 0) then
