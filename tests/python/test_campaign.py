@@ -131,7 +131,7 @@ def journal_wall_times(path, n_samples, n_fields_components):
     """(slot -> wall_time) of the complete records of a journal."""
     data = path.read_bytes()
     header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 7
-    words = 3 + 3 * 16 + n_samples * n_fields_components
+    words = 3 + 3 * 19 + n_samples * n_fields_components
     size = 8 * (words + 1)
     out = {}
     for start in range(header, len(data) - size + 1, size):
@@ -164,7 +164,7 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
                  t_end=5.0)
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
     n_samples, components = 501, 17
-    record = 8 * (3 + 3 * 16 + n_samples * components + 1)
+    record = 8 * (3 + 3 * 19 + n_samples * components + 1)
     journal = tmp_path / "out.h5.journal"
     rng = random.Random(4)
     kept_before = {}
@@ -194,7 +194,7 @@ def test_resume_refusals(ellroll, tmp_path):
     result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
     assert result.returncode == 3 and "no interrupted run to resume" in result.stderr
     journal = tmp_path / "out.h5.journal"
-    record = 8 * (3 + 3 * 16 + 301 * 17 + 1)
+    record = 8 * (3 + 3 * 19 + 301 * 17 + 1)
     assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 1, record)
     result = run(ellroll, "run", name, cwd=tmp_path)
     assert result.returncode == 3 and "--resume" in result.stderr
