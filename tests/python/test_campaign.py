@@ -130,7 +130,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 def journal_wall_times(path, n_samples, n_fields_components):
     """(slot -> wall_time) of the complete records of a journal."""
     data = path.read_bytes()
-    header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 7
+    header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 8      # magic, id, slots, samples, shard, one flag per field
     words = 3 + 3 * 19 + n_samples * n_fields_components
     size = 8 * (words + 1)
     out = {}
