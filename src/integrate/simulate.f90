@@ -14,8 +14,8 @@ module ellroll_simulate
       field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t, new_case_result
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
-      initial_state, observe, limit_status
-  use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
+      initial_state, observe, limit_status, ball_derivative, rk4_ball_step, nutation_angle
+  use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
   implicit none
@@ -62,6 +62,7 @@ module ellroll_simulate
     real(wp) :: energy0 = 0
     type(maxima_t) :: maxima
     type(spectrum_t) :: spectrum
+    real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
 
@@ -178,7 +179,7 @@ contains
     n_steps = nint(cs%t_end / cs%dt, i8)
     t = 0
     do k = 1, n_steps
-      call integrator%step(run%ball, t, y, f, cs%dt, y_new, res%n_rhs)
+      call take_step(cs%dt)
       call advance_to(k * cs%dt, y_new, f_new, obs, status)
       if (status /= status_completed) then
         ! bisect on partial steps from the last valid state; end there
@@ -187,7 +188,7 @@ contains
         call search%start(cs%dt, event_time_tolerance)
         do while (.not. search%done())
           offset = search%trial()
-          call integrator%step(run%ball, t, y, f, offset, y_new, res%n_rhs)
+          call take_step(offset)
           call advance_to(t + offset, y_new, f_new, obs, status)
           call search%report(offset, status == status_completed)
           if (status == status_completed) then
@@ -199,7 +200,7 @@ contains
         end do
         res%t_final = t + search%valid
         res%n_steps = k
-        if (found_valid) call accumulate(res, obs_valid, run%energy0, run%ball%radius)
+        if (found_valid) call accumulate(run, res, obs_valid)
         return
       end if
       y = y_new
@@ -213,6 +214,19 @@ contains
 
   contains
 
+    !> RK4 takes the fused step of the ball (the same arithmetic, tested
+    !> against the generic one); other methods their own.
+    subroutine take_step(h)
+      real(wp), intent(in) :: h
+      select type (integrator)
+      type is (rk4_t)
+        call rk4_ball_step(run%ball, t, y, f, h, y_new)
+        res%n_rhs = res%n_rhs + 3
+      class default
+        call integrator%step(run%ball, t, y, f, h, y_new, res%n_rhs)
+      end select
+    end subroutine take_step
+
     !> Project, evaluate f and the derived outputs at t_next, and check the limits.
     subroutine advance_to(t_next, y_next, f_next, obs_next, status_next)
       real(wp), intent(in) :: t_next
@@ -221,7 +235,7 @@ contains
       type(observation_t), intent(out) :: obs_next
       integer, intent(out) :: status_next
       call run%ball%project(y_next)
-      call run%ball%rhs(t_next, y_next, f_next)
+      call ball_derivative(run%ball, t_next, y_next, f_next)
       res%n_rhs = res%n_rhs + 1
       obs_next = observe(run%ball, t_next, y_next, f_next)
       status_next = limit_status(run%ball, y_next, obs_next)
@@ -285,7 +299,7 @@ contains
         call record_samples_until(t + search%valid)
         res%t_final = t + search%valid
         res%n_steps = res%n_steps + 1
-        if (found_valid) call accumulate(res, obs_valid, run%energy0, run%ball%radius)
+        if (found_valid) call accumulate(run, res, obs_valid)
         return
       end if
       call record_samples_until(t + h)
@@ -379,9 +393,10 @@ contains
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    call run%maxima%add(t, obs%nutation)
+    ! maxima of tan Theta are the maxima of Theta (tan is increasing)
+    call run%maxima%add(t, obs%tan_nutation)
     if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    call accumulate(res, obs, run%energy0, run%ball%radius)
+    call accumulate(run, res, obs)
   end subroutine track
 
   pure subroutine add_spectrum(self, t, ball, base)
@@ -411,16 +426,19 @@ contains
     end if
   end function spectrum_ratio
 
-  pure subroutine accumulate(res, obs, energy0, radius)
+  pure subroutine accumulate(run, res, obs)
+    type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     type(observation_t), intent(in) :: obs
-    real(wp), intent(in) :: energy0, radius
-    res%theta_max = max(res%theta_max, obs%nutation)
-    res%displacement_max = max(res%displacement_max, norm2(obs%center - [0.0_wp, 0.0_wp, radius]))
+    if (obs%tan_nutation > run%tan_theta_max) then     ! one atan2 per new maximum only
+      run%tan_theta_max = obs%tan_nutation
+      res%theta_max = nutation_angle(obs)
+    end if
+    res%displacement_max = max(res%displacement_max, norm2(obs%center - [0.0_wp, 0.0_wp, run%ball%radius]))
     res%horizontal_force_max = max(res%horizontal_force_max, norm2(obs%reaction(1:2)))
     res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
     res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
-    res%energy_drift = max(res%energy_drift, abs(obs%energy - energy0) / abs(energy0))
+    res%energy_drift = max(res%energy_drift, abs(obs%energy - run%energy0) / abs(run%energy0))
     res%constraint_error_max = max(res%constraint_error_max, obs%surface_residual)
   end subroutine accumulate
 
@@ -432,7 +450,7 @@ contains
     call put(res, field_center, obs%center)
     call put(res, field_omega, obs%omega)
     call put(res, field_normal, obs%normal)
-    call put(res, field_nutation, [obs%nutation])
+    if (allocated(res%fields(field_nutation)%values)) call put(res, field_nutation, [nutation_angle(obs)])
     call put(res, field_reaction, obs%reaction)
     call put(res, field_energy, [obs%energy])
     call put(res, field_base_acceleration, obs%base_acceleration)

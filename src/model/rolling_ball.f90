@@ -15,8 +15,7 @@ module ellroll_rolling_ball
   use ellroll_kinds, only: wp
   use ellroll_ode, only: ode_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, radius_operator_t, radius_operator, &
-      apply_radius_operator, contact_from_normal, normal_from_contact, surface_residual, &
-      principal_radii
+      apply_radius_operator, contact_from_normal, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
@@ -24,7 +23,8 @@ module ellroll_rolling_ball
   private
 
   public :: rolling_ball_t, observation_t, state_size
-  public :: initial_state, observe, limit_status, constraint_tolerance
+  public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, rk4_ball_step, &
+            nutation_angle
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -50,14 +50,15 @@ module ellroll_rolling_ball
     real(wp) :: omega(3) = 0
     real(wp) :: contact(3) = 0
     real(wp) :: center(3) = 0
-    real(wp) :: nutation = 0             !< angle between n and the vertical, rad
+    real(wp) :: lateral = 0              !< sqrt(n_x^2 + n_y^2): Theta = atan2(lateral, n_z)
+    real(wp) :: tan_nutation = 0         !< tan Theta (huge past the rim): cheap, and ordered like Theta
     real(wp) :: reaction(3) = 0          !< force of the cup on the ball, N
     real(wp) :: reaction_normal = 0      !< N = F . n
     real(wp) :: friction_needed = 0      !< |F_t| / N
     real(wp) :: energy = 0               !< J |w|^2/2 + m |V_C|^2/2 + m g z_C
     real(wp) :: energy_of_motion = 0     !< energy - m g R (the bottom at rest is 0)
     real(wp) :: surface_residual = 0
-    real(wp) :: fit_ratio = 0            !< smallest principal radius / R
+    logical :: fits = .true.             !< r_min > R (1 + fit_margin): the ball fits the cup here
     real(wp) :: base_acceleration(3) = 0 !< acceleration of the cup, m/s^2
     real(wp) :: center_acceleration(3) = 0  !< absolute acceleration of the centre, m/s^2
   end type observation_t
@@ -75,26 +76,54 @@ contains
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:)
     real(wp), intent(out) :: dydt(:)
+    call ball_derivative(self, t, y, dydt)
+  end subroutine ball_rhs
+
+  !> The right-hand side on explicit-shape arrays: the one implementation,
+  !> behind the generic interface (ball_rhs) and the fused RK4 step.
+  pure subroutine ball_derivative(ball, t, y, dydt)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t
+    real(wp), intent(in) :: y(state_size)
+    real(wp), intent(out) :: dydt(state_size)
     real(wp) :: length, n(3), omega(3), v_center(3), n_dot(3), det_l, spin
     type(radius_operator_t) :: k
-    length = sqrt(dot_product(y(1:3), y(1:3)))   ! |n| ~ 1: no need for norm2's scaling
+    length = sqrt(y(1)**2 + y(2)**2 + y(3)**2)   ! |n| ~ 1: no need for norm2's scaling
     n = y(1:3) / length
     omega = y(4:6)
-    k = radius_operator(self%cup, n)
-    v_center = self%radius * cross(omega, n)
-    det_l = self%radius * (self%radius - k%trace) + k%det
-    n_dot = ((self%radius - k%trace) * v_center + apply_radius_operator(self%cup, k, v_center)) / det_l
+    k = radius_operator(ball%cup, n)
+    v_center = ball%radius * cross(omega, n)
+    det_l = ball%radius * (ball%radius - k%trace) + k%det
+    n_dot = ((ball%radius - k%trace) * v_center + apply_radius_operator(ball%cup, k, v_center)) / det_l
     spin = dot_product(omega, n)
     dydt(1:3) = length * n_dot
     ! n x (0, 0, -g) = g (-n_y, n_x, 0)
-    dydt(4:6) = (spin * n_dot + (self%g / self%radius) * [-n(2), n(1), 0.0_wp]) &
-                / (1 + self%inertia_factor)
+    dydt(4:6) = (spin * n_dot + (ball%g / ball%radius) * [-n(2), n(1), 0.0_wp]) &
+                / (1 + ball%inertia_factor)
     ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
     ! a fixed cup costs nothing)
-    if (self%excitation%kind /= excitation_none) &
-      dydt(4:6) = dydt(4:6) - cross(n, base_acceleration(self%excitation, t)) &
-                  / (self%radius * (1 + self%inertia_factor))
-  end subroutine ball_rhs
+    if (ball%excitation%kind /= excitation_none) &
+      dydt(4:6) = dydt(4:6) - cross(n, base_acceleration(ball%excitation, t)) &
+                  / (ball%radius * (1 + ball%inertia_factor))
+  end subroutine ball_derivative
+
+  !> One classical RK4 step of the ball, fused: the same arithmetic as the
+  !> generic rk4_t step on ball_rhs, on fixed-size arrays the compiler keeps
+  !> in registers (no dynamic dispatch, no array descriptors).
+  pure subroutine rk4_ball_step(ball, t, y, f0, h, y_new)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, h
+    real(wp), intent(in) :: y(state_size), f0(state_size)
+    real(wp), intent(out) :: y_new(state_size)
+    real(wp) :: k2(state_size), k3(state_size), k4(state_size), stage(state_size)
+    stage = y + (h/2) * f0
+    call ball_derivative(ball, t + h/2, stage, k2)
+    stage = y + (h/2) * k2
+    call ball_derivative(ball, t + h/2, stage, k3)
+    stage = y + h * k3
+    call ball_derivative(ball, t + h, stage, k4)
+    y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
+  end subroutine rk4_ball_step
 
   pure subroutine normalize_normal(self, y)
     class(rolling_ball_t), intent(in) :: self
@@ -118,7 +147,8 @@ contains
     real(wp), intent(in) :: y(:), dydt(:)
     type(observation_t) :: obs
     real(wp) :: length, n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
-    real(wp) :: v_center(3), lateral2, height_above_rest, radii(2)
+    real(wp) :: v_center(3), lateral2, height_above_rest, fit_radius
+    type(radius_operator_t) :: k
     length = sqrt(dot_product(y(1:3), y(1:3)))
     n = y(1:3) / length
     n_dot = dydt(1:3) / length
@@ -128,7 +158,9 @@ contains
     obs%contact = contact_from_normal(ball%cup, n)
     obs%center = obs%contact + ball%radius * n
     lateral2 = n(1)**2 + n(2)**2
-    obs%nutation = atan2(sqrt(lateral2), n(3))
+    obs%lateral = sqrt(lateral2)
+    obs%tan_nutation = huge(1.0_wp)
+    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
     a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
     obs%center_acceleration = a_center
     if (ball%excitation%kind /= excitation_none) then
@@ -152,12 +184,21 @@ contains
         + ball%mass * ball%g * height_above_rest
     obs%energy = obs%energy_of_motion + ball%mass * ball%g * ball%radius
     obs%surface_residual = surface_residual(ball%cup, obs%contact)
-    radii = principal_radii(ball%cup, n)
-    obs%fit_ratio = radii(1) / ball%radius
+    ! R' = R (1 + margin) is below both principal radii r1 <= r2 exactly when
+    ! (R' - r1)(R' - r2) = R'^2 - R' tr K + det K > 0 and R' < (r1 + r2) / 2
+    k = radius_operator(ball%cup, n)
+    fit_radius = ball%radius * (1 + ball%fit_margin)
+    obs%fits = fit_radius * (fit_radius - k%trace) + k%det > 0 .and. 2 * fit_radius < k%trace
   end function observe
 
   !> status_completed while the state is inside the model's domain, otherwise
   !> the limit it crossed (first match in the order of physics.md).
+  !> The nutation angle Theta, between n and the vertical (rad).
+  pure real(wp) function nutation_angle(obs)
+    type(observation_t), intent(in) :: obs
+    nutation_angle = atan2(obs%lateral, obs%normal(3))
+  end function nutation_angle
+
   pure integer function limit_status(ball, y, obs) result(status)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(:)
@@ -167,7 +208,7 @@ contains
       status = status_nonfinite
     else if (obs%normal(3) <= 0) then
       status = status_rim
-    else if (obs%fit_ratio - 1 <= ball%fit_margin) then
+    else if (.not. obs%fits) then
       status = status_no_fit
     else if (obs%surface_residual > constraint_tolerance) then
       status = status_constraint

@@ -1,0 +1,114 @@
+!> RK4 steps per second per core on the paper's case (30 s, dt = 1e-3),
+!> measured side by side in one run:
+!>   baseline         a straightforward scalar RK4 of the paper's equations (bench/baseline_rk4.f90)
+!>   integrate only   ellroll's RK4 on the ball model: steps, nothing observed
+!>   summary only     a full ellroll case without trajectories (every summary figure, every step)
+!>   full output      a full ellroll case storing every field at 100 Hz
+!> Each figure is the best of several repetitions; ratios are to the baseline
+!> and, for the output cost, to summary only. Usage: build/bench_throughput [repeats]
+program throughput
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t
+  use ellroll_cases, only: case_t, output_plan_t, make_ball
+  use ellroll_results, only: case_result_t
+  use ellroll_simulate, only: simulate_case
+  use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
+  use ellroll_integrators, only: rk4_t
+  use baseline_rk4, only: baseline_run
+  implicit none
+  real(wp), parameter :: dt = 1.0e-3_wp, t_end = 30.0_wp
+  integer, parameter :: n_steps = 30000
+  integer :: repeats, k
+  character(len=16) :: arg
+  real(wp) :: best(4), seconds, check_baseline(6), check_ellroll(6)
+  type(case_t) :: cs
+  type(output_plan_t) :: summary_plan, full_plan
+  type(case_result_t) :: res
+  type(error_t) :: err
+
+  repeats = 7
+  if (command_argument_count() > 0) then
+    call get_command_argument(1, arg)
+    read (arg, *) repeats
+  end if
+  cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
+  cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
+  summary_plan%interval = t_end
+  summary_plan%steps_per_sample = n_steps
+  summary_plan%n_samples = 2
+  summary_plan%fields = .false.
+  full_plan%interval = 0.01_wp
+  full_plan%steps_per_sample = 10
+  full_plan%n_samples = 3001
+  full_plan%fields = .true.
+
+  best = huge(1.0_wp)
+  do k = 1, repeats
+    seconds = timed_baseline()
+    best(1) = min(best(1), seconds)
+    seconds = timed_integration()
+    best(2) = min(best(2), seconds)
+    seconds = timed_case(summary_plan)
+    best(3) = min(best(3), seconds)
+    seconds = timed_case(full_plan)
+    best(4) = min(best(4), seconds)
+  end do
+
+  write (output_unit, '(a)') 'RK4 on the paper case, 30 s, dt = 1e-3 (30,000 steps), best of repeats, one core'
+  write (output_unit, '(a28, a14, a14, a12)') 'path', 'steps/s', 'ns/step', 'vs baseline'
+  call report('baseline (3x3 solve per RHS)', best(1))
+  call report('ellroll, integrate only', best(2))
+  call report('ellroll, summary only', best(3))
+  call report('ellroll, full output 100 Hz', best(4))
+  write (output_unit, '(a, f6.1, a)') 'full output over summary only: +', 100 * (best(4) / best(3) - 1), ' %'
+  write (output_unit, '(a, es10.2)') 'baseline and ellroll agree at 30 s (max |omega| difference, rad/s):', &
+      maxval(abs(check_baseline(4:6) - check_ellroll(4:6)))
+
+contains
+
+  subroutine report(name, seconds)
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: seconds
+    write (output_unit, '(a28, f14.0, f14.1, f11.2, a)') name, n_steps / seconds, 1.0e9_wp * seconds / n_steps, &
+        best(1) / seconds, 'x'
+  end subroutine report
+
+  real(wp) function timed_baseline() result(seconds)
+    integer(i8) :: start, finish, rate
+    call system_clock(start, rate)
+    check_baseline = baseline_run(dt, n_steps)
+    call system_clock(finish)
+    seconds = real(finish - start, wp) / rate
+  end function timed_baseline
+
+  real(wp) function timed_integration() result(seconds)
+    type(rolling_ball_t) :: ball
+    type(rk4_t) :: rk4
+    real(wp) :: y(state_size), f(state_size), y_new(state_size)
+    integer(i8) :: start, finish, rate, n_rhs
+    integer :: step
+    ball = make_ball(cs)
+    call system_clock(start, rate)
+    y = initial_state(ball, 0.0_wp, 0.0_wp, cs%omega0)
+    n_rhs = 0
+    do step = 1, n_steps
+      call ball%rhs(0.0_wp, y, f)
+      call rk4%step(ball, 0.0_wp, y, f, dt, y_new, n_rhs)
+      call ball%project(y_new)
+      y = y_new
+    end do
+    call system_clock(finish)
+    check_ellroll = y
+    seconds = real(finish - start, wp) / rate
+  end function timed_integration
+
+  real(wp) function timed_case(plan) result(seconds)
+    type(output_plan_t), intent(in) :: plan
+    integer(i8) :: start, finish, rate
+    call system_clock(start, rate)
+    call simulate_case(cs, plan, res, err)
+    call system_clock(finish)
+    seconds = real(finish - start, wp) / rate
+  end function timed_case
+end program throughput
