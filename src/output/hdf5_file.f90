@@ -42,6 +42,8 @@ module ellroll_hdf5
     end function c_h5free_memory
   end interface
 
+  !> Width of per-case text datasets (bytes, null-terminated).
+  integer, parameter :: text_width = 32
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
 
@@ -337,7 +339,7 @@ contains
       dset = -1
       if (err%failed()) return
       call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
-      text_type = new_text_type()
+      text_type = fixed_text_type()
       call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
       call h5tclose_f(text_type, hdferr)
       call h5sclose_f(space, hdferr)
@@ -558,28 +560,31 @@ contains
     call h5tclose_f(text_type, hdferr)
   end subroutine write_text_attribute
 
+  !> Per-case text (method, excitation kind) is fixed-length: variable-length
+  !> strings written case by case would fill HDF5's global heap, in memory
+  !> and in the file, in proportion to the number of cases.
+  integer(hid_t) function fixed_text_type() result(text_type)
+    integer :: hdferr
+    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
+    call h5tset_size_f(text_type, int(text_width, size_t), hdferr)
+    call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
+    call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
+  end function fixed_text_type
+
   subroutine write_text_slab(self, dset, values, offset, err)
     type(h5_output_t), intent(in) :: self
     integer(hid_t), intent(in) :: dset
     character(len=*), intent(in) :: values(:)
     integer(i8), intent(in) :: offset
     type(error_t), intent(inout) :: err
-    integer(hid_t) :: text_type, file_space, mem_space
-    character(len=len(values)+1, kind=c_char), target :: texts(size(values))
-    type(c_ptr), target :: pointers(size(values))
-    integer :: hdferr, k
-    if (err%failed()) return
+    character(len=text_width, kind=c_char), target :: texts(size(values))
+    integer(hid_t) :: text_type
+    integer :: k, hdferr
     do k = 1, size(values)
       texts(k) = trim(values(k)) // c_null_char
-      pointers(k) = c_loc(texts(k))
     end do
-    text_type = new_text_type()
-    call select_slab(dset, [offset], [size(values, kind=i8)], file_space, mem_space)
-    call h5dwrite_f(dset, text_type, c_loc(pointers), hdferr, &
-                    mem_space_id=mem_space, file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write text data')
-    call h5sclose_f(file_space, hdferr)
-    call h5sclose_f(mem_space, hdferr)
+    text_type = fixed_text_type()
+    call write_slab(self, dset, text_type, c_loc(texts), [offset], [size(values, kind=i8)], err)
     call h5tclose_f(text_type, hdferr)
   end subroutine write_text_slab
 
