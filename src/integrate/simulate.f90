@@ -56,6 +56,17 @@ module ellroll_simulate
     procedure :: ratio => spectrum_ratio
   end type spectrum_t
 
+  !> The search for where a step crossed a model limit, keeping the last
+  !> valid observation and the status of the limit met.
+  type, extends(crossing_search_t) :: limit_search_t
+    type(observation_t) :: last_valid
+    logical :: found_valid = .false.
+    integer :: crossed = status_completed
+  contains
+    procedure :: begin => begin_limit_search
+    procedure :: record => record_trial
+  end type limit_search_t
+
   !> What one integration needs as it goes.
   type :: run_state_t
     type(rolling_ball_t) :: ball
@@ -170,11 +181,10 @@ contains
     real(wp), intent(inout) :: y(:), f(:)
     type(case_result_t), intent(inout) :: res
     real(wp) :: y_new(state_size), f_new(state_size), t, offset
-    type(observation_t) :: obs, obs_valid
-    type(crossing_search_t) :: search
+    type(observation_t) :: obs
+    type(limit_search_t) :: search
     integer(i8) :: k, n_steps
     integer :: status
-    logical :: found_valid
 
     n_steps = nint(cs%t_end / cs%dt, i8)
     t = 0
@@ -183,24 +193,17 @@ contains
       call advance_to(k * cs%dt, y_new, f_new, obs, status)
       if (status /= status_completed) then
         ! bisect on partial steps from the last valid state; end there
-        res%status = status
-        found_valid = .false.
-        call search%start(cs%dt, event_time_tolerance)
+        call search%begin(cs%dt, status)
         do while (.not. search%done())
           offset = search%trial()
           call take_step(offset)
           call advance_to(t + offset, y_new, f_new, obs, status)
-          call search%report(offset, status == status_completed)
-          if (status == status_completed) then
-            obs_valid = obs
-            found_valid = .true.
-          else
-            res%status = status
-          end if
+          call search%record(offset, status, obs)
         end do
+        res%status = search%crossed
         res%t_final = t + search%valid
         res%n_steps = k
-        if (found_valid) call accumulate(run, res, obs_valid)
+        if (search%found_valid) call accumulate(run, res, search%last_valid)
         return
       end if
       y = y_new
@@ -255,10 +258,10 @@ contains
     type(case_result_t), intent(inout) :: res
     real(wp), parameter :: safety = 0.9_wp, min_factor = 0.333_wp, max_factor = 6
     real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max, factor, length, t_sample, offset
-    type(observation_t) :: obs, obs_valid
-    type(crossing_search_t) :: search
+    type(observation_t) :: obs
+    type(limit_search_t) :: search
     integer :: status
-    logical :: rejected, found_valid
+    logical :: rejected
 
     t = 0
     h_max = cs%dt
@@ -280,26 +283,18 @@ contains
       obs = observe(run%ball, t + h, y_new, f_new)
       status = limit_status(run%ball, y_new, obs)
       if (status /= status_completed) then
-        res%status = status
-        found_valid = .false.
-        call search%start(h, event_time_tolerance)
+        ! bisect on the dense output; end at the last valid point
+        call search%begin(h, status)
         do while (.not. search%done())
           offset = search%trial()
           call dense_state(offset / h, obs, .true.)
-          status = limit_status(run%ball, [obs%normal, obs%omega], obs)
-          call search%report(offset, status == status_completed)
-          if (status == status_completed) then
-            obs_valid = obs
-            found_valid = .true.
-          else
-            res%status = status
-          end if
+          call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
         end do
-        ! output samples before the end
-        call record_samples_until(t + search%valid)
+        call record_samples_until(t + search%valid)        ! output samples before the end
+        res%status = search%crossed
         res%t_final = t + search%valid
         res%n_steps = res%n_steps + 1
-        if (found_valid) call accumulate(run, res, obs_valid)
+        if (search%found_valid) call accumulate(run, res, search%last_valid)
         return
       end if
       call record_samples_until(t + h)
@@ -356,6 +351,29 @@ contains
       end do
     end subroutine record_samples_until
   end subroutine adaptive_loop
+
+  pure subroutine begin_limit_search(self, invalid, crossed)
+    class(limit_search_t), intent(inout) :: self
+    real(wp), intent(in) :: invalid
+    integer, intent(in) :: crossed
+    call self%start(invalid, event_time_tolerance)
+    self%found_valid = .false.
+    self%crossed = crossed
+  end subroutine begin_limit_search
+
+  pure subroutine record_trial(self, offset, status, obs)
+    class(limit_search_t), intent(inout) :: self
+    real(wp), intent(in) :: offset
+    integer, intent(in) :: status
+    type(observation_t), intent(in) :: obs
+    call self%report(offset, status == status_completed)
+    if (status == status_completed) then
+      self%last_valid = obs
+      self%found_valid = .true.
+    else
+      self%crossed = status
+    end if
+  end subroutine record_trial
 
   pure subroutine add_sample(self, t, v)
     class(maxima_t), intent(inout) :: self
