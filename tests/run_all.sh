@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Sets up, builds (Release and Debug) and runs every test: ctest on both builds, then pytest.
+# Sets up, builds (Release, Debug, portable, MPI) and runs every test: ctest on
+# the Release, Debug and portable builds, then pytest (which also uses Debug and MPI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup test
@@ -8,6 +9,8 @@ echo "== ctest (Release)"
 ctest --test-dir build --output-on-failure -j 2
 echo "== ctest (Debug: -fcheck=all, FP traps)"
 ctest --test-dir build-debug --output-on-failure -j 2
+echo "== ctest (portable: -DELLROLL_NATIVE=OFF)"
+ctest --test-dir build-portable --output-on-failure -j 2
 echo "== pytest"
 ELLROLL_EXE="$PWD/build/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-debug/ellroll" \
   ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q tests/python
