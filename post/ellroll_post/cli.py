@@ -52,7 +52,7 @@ def workprecision_points(paths):
         with open_run(path) as run:
             errors = run.summary("error_contact")
             times, rhs = run.summary("wall_time"), run.summary("n_rhs")
-            methods = [m.decode() if isinstance(m, bytes) else m for m in run._dataset("case/method").asstr()[:]]
+            methods = list(run._dataset("case/method").asstr()[:])
             if not any(e == e for e in errors):
                 raise NotAnEllrollFile(f"{path}: no error figures; run it with &integration error_estimate = 'reference'")
             for method, e, t, r in zip(methods, errors, times, rhs):

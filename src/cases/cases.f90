@@ -12,7 +12,7 @@ module ellroll_cases
   implicit none
   private
 
-  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case, adaptive_method
+  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case, adaptive_method, is_multiple
   public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -239,6 +239,7 @@ contains
     adaptive_method = trim(method) == 'dop853'
   end function adaptive_method
 
+  !> whole is a whole number (>= 1) of parts, to 1e-9 relative.
   logical pure function is_multiple(whole, part)
     real(wp), intent(in) :: whole, part
     real(wp) :: ratio

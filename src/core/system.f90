@@ -5,7 +5,7 @@ module ellroll_system
   implicit none
   private
 
-  public :: rename_file, remove_file, utc_timestamp, process_id, file_exists
+  public :: rename_file, remove_file, utc_timestamp, file_exists
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -31,9 +31,6 @@ module ellroll_system
       character(kind=c_char), intent(in) :: format(*)
       type(c_ptr), value :: tm
     end function c_strftime
-    integer(c_int) function c_getpid() bind(c, name='getpid')
-      import :: c_int
-    end function c_getpid
   end interface
 
 contains
@@ -73,7 +70,4 @@ contains
     end do
   end function utc_timestamp
 
-  integer function process_id()
-    process_id = int(c_getpid())
-  end function process_id
 end module ellroll_system

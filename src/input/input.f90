@@ -10,7 +10,7 @@ module ellroll_input
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
       field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method, &
-      field_base_acceleration
+      field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
       invalid_stop, invalid_skip
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
@@ -316,7 +316,7 @@ contains
       type(case_t), intent(inout) :: cs
       type(output_plan_t), intent(inout) :: plan
       integer :: gi, k, f
-      real(wp) :: bytes_per_sample, ratio
+      real(wp) :: bytes_per_sample
       character(len=32) :: field
       gi = rd%group('output', .true.)
       if (gi == 0) return
@@ -333,14 +333,13 @@ contains
         call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
         return
       end if
-      ratio = cs%t_end / interval
-      if (abs(ratio - anint(ratio)) > 1.0e-9_wp * ratio) then
+      if (.not. is_multiple(cs%t_end, interval)) then
         call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
                            ' s must be a whole number of output intervals')
         return
       end if
       plan%interval = interval
-      plan%n_samples = nint(ratio, i8) + 1
+      plan%n_samples = nint(cs%t_end / interval, i8) + 1
       if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
 
       ! the cup's acceleration is stored only when the cup moves
@@ -567,22 +566,30 @@ contains
     integer, intent(in) :: param
     character(len=*), intent(in) :: reason
     character(len=:), allocatable :: text
+    character(len=:), allocatable :: varied
     integer :: k
-    text = inp%path // ': case ' // itoa(int(cs%index)) // ' ('
-    do k = 1, size(inp%campaign%sweeps)
-      text = text // trim(param_names(inp%campaign%sweeps(k)%param)) // ' = ' // &
-             format_real(get_param(cs, inp%campaign%sweeps(k)%param)) // ', '
+    varied = ''
+    do k = 1, size(inp%campaign%sweeps) + size(inp%campaign%samples)
+      if (k > 1) varied = varied // ', '
+      varied = varied // setting(varied_param(k))
     end do
-    do k = 1, size(inp%campaign%samples)
-      text = text // trim(param_names(inp%campaign%samples(k)%param)) // ' = ' // &
-             format_real(get_param(cs, inp%campaign%samples(k)%param)) // ', '
-    end do
-    if (text(len(text)-1:) == ', ') then
-      text = text(:len(text)-2) // '): '
-    else
-      text = text(:len(text)-2) // '): '
-    end if
-    text = text // trim(param_names(param)) // ' = ' // format_real(get_param(cs, param)) // ': ' // reason
+    text = inp%path // ': case ' // itoa(int(cs%index))
+    if (len(varied) > 0) text = text // ' (' // varied // ')'
+    text = text // ': ' // setting(param) // ': ' // reason
+  contains
+    integer function varied_param(k)
+      integer, intent(in) :: k
+      if (k <= size(inp%campaign%sweeps)) then
+        varied_param = inp%campaign%sweeps(k)%param
+      else
+        varied_param = inp%campaign%samples(k - size(inp%campaign%sweeps))%param
+      end if
+    end function varied_param
+    function setting(p) result(s)
+      integer, intent(in) :: p
+      character(len=:), allocatable :: s
+      s = trim(param_names(p)) // ' = ' // format_real(get_param(cs, p))
+    end function setting
   end function describe_invalid
 
   ! --------------------------------------------------------------- helpers

@@ -14,9 +14,8 @@ module ellroll_integrators
   implicit none
   private
 
-  public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names, method_count
+  public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names
 
-  integer, parameter :: method_count = 3
   !> Largest system the integrators take: their work arrays are fixed-size
   !> locals (on the stack), so a step allocates nothing.
   integer, parameter, public :: max_equations = 16

@@ -21,7 +21,7 @@ module ellroll_simulate
   implicit none
   private
 
-  public :: simulate_case, event_time_tolerance, maxima_t, reference_rtol, reference_atol
+  public :: simulate_case, event_time_tolerance, reference_rtol, reference_atol
 
   !> Model limits are located in time to this (s).
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp

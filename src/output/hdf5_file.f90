@@ -57,7 +57,6 @@ module ellroll_hdf5
     procedure :: has
     procedure :: dataset_length
     procedure :: text_attribute
-    procedure :: int_attribute
     procedure :: real_column
     procedure :: int_column
     procedure :: read_case_result
@@ -714,19 +713,6 @@ contains
     call h5tclose_f(text_type, hdferr)
     call h5aclose_f(attr, hdferr)
   end function text_attribute
-
-  integer function int_attribute(self, name) result(value)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer :: buffer(1), type_class, hdferr
-    integer(hsize_t) :: dims(1)
-    integer(size_t) :: type_size
-    value = -1
-    call h5ltget_attribute_info_f(self%file, '.', name, dims, type_class, type_size, hdferr)
-    if (hdferr < 0) return
-    call h5ltget_attribute_int_f(self%file, '.', name, buffer, hdferr)
-    if (hdferr >= 0) value = buffer(1)
-  end function int_attribute
 
   !> A whole 1-D real dataset (e.g. one value per case).
   function real_column(self, name, err) result(values)

@@ -12,7 +12,7 @@ module ellroll_run_campaign
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid
-  use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method
+  use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
   use ellroll_campaign, only: campaign_t, invalid_stop
@@ -116,15 +116,14 @@ contains
     real(wp) function nice_step(limit, interval) result(step)
       real(wp), intent(in) :: limit, interval
       real(wp), parameter :: mantissas(3) = [1.0_wp, 2.0_wp, 5.0_wp]
-      real(wp) :: decade, ratio
+      real(wp) :: decade
       integer :: k, m
       decade = 10.0_wp**floor(log10(limit))
       do k = 0, 30
         do m = 3, 1, -1
           step = mantissas(m) * decade / 10.0_wp**k
           if (step > limit) cycle
-          ratio = interval / step
-          if (abs(ratio - anint(ratio)) <= 1.0e-9_wp * ratio) return
+          if (is_multiple(interval, step)) return
         end do
       end do
       step = limit
