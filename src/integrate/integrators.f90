@@ -17,8 +17,11 @@ module ellroll_integrators
   public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names
 
   !> Largest system the integrators take: their work arrays are fixed-size
-  !> locals (on the stack), so a step allocates nothing.
-  integer, parameter, public :: max_equations = 16
+  !> (on the stack), so a step allocates nothing. DOP853 works on whole
+  !> columns of this length, entries past the system's size kept zero: the
+  !> loops have a length known at compile time (unrolled, vectorized) and
+  !> the system's entries come out as if computed alone.
+  integer, parameter, public :: max_equations = 8
   character(len=*), parameter :: method_names = 'rk4 dop853 gauss4'
 
   type, abstract :: integrator_t
@@ -54,20 +57,27 @@ module ellroll_integrators
     procedure, nopass :: order => order_4
   end type rk4_t
 
-  !> The step of an adaptive method is an attempt: it also returns f at the
-  !> new point and the error norm (< 1: accept). Dense output covers the
-  !> last attempted step.
+  !> The step of an adaptive method is an attempt: it also returns the error
+  !> norm (<= 1: accept) and keeps f at the new point as its last stage
+  !> (k(:, end_stage)). Dense output covers the last attempted step. The
+  !> stage arithmetic is public (stage_input, finish_attempt, build_dense,
+  !> dense_value) so that a fused step of one system shares it.
   type, extends(integrator_t) :: dop853_t
     real(wp) :: rtol = 1.0e-9_wp, atol = 1.0e-12_wp
     real(wp) :: error_norm = 0
-    real(wp), allocatable :: k(:, :)          !< stages of the last attempt (n, 16)
-    real(wp), allocatable :: y_old(:), y_new(:), f_new(:), dense_rows(:, :), stage(:)
+    real(wp) :: k(max_equations, 16) = 0      !< stages of the last attempt
+    real(wp) :: y_old(max_equations) = 0, y_new(max_equations) = 0
+    real(wp) :: dense_rows(max_equations, 7) = 0
     real(wp) :: t_old = 0, h = 0
     logical :: dense_ready = .false.
   contains
     procedure :: step => dop853_step
     procedure :: dense => dop853_dense
     procedure :: initial_step => dop853_initial_step
+    procedure :: stage_input => dop853_stage_input
+    procedure :: finish_attempt => dop853_finish_attempt
+    procedure :: build_dense => dop853_build_dense
+    procedure :: dense_value => dop853_dense_value
     procedure, nopass :: name => dop853_name
     procedure, nopass :: kind => adaptive_kind
     procedure, nopass :: order => order_853
@@ -90,7 +100,10 @@ module ellroll_integrators
   ! ---- Dormand-Prince 8(5,3): E. Hairer, S. P. Norsett, G. Wanner, Solving
   ! Ordinary Differential Equations I, 2nd ed., Springer 1993 (DOP853).
   integer, parameter :: stages = 12, stages_dense = 16
-  real(wp), parameter :: c853(stages_dense) = [0.0_wp, &
+  !> Stage s = end_stage is f(t + h, y_new); stages dense_stages are only for dense output.
+  integer, parameter, public :: end_stage = stages + 1
+  integer, parameter :: first_dense_stage = stages + 2
+  real(wp), parameter, public :: c853(stages_dense) = [0.0_wp, &
       0.526001519587677318785587544488e-01_wp, 0.789002279381515978178381316732e-01_wp, &
       0.118350341907227396726757197510_wp, 0.281649658092772603273242802490_wp, &
       0.333333333333333333333333333333_wp, 0.25_wp, 0.307692307692307692307692307692_wp, &
@@ -260,8 +273,8 @@ contains
 
   ! =========================================================== DOP853
 
-  !> One attempt of size h; sets self%error_norm (accept when <= 1),
-  !> self%f_new = f(t + h, y_new), and prepares dense output lazily.
+  !> One attempt of size h; sets self%error_norm (accept when <= 1) and
+  !> self%k(:, end_stage) = f(t + h, y_new); dense output is prepared lazily.
   subroutine dop853_step(self, sys, t, y, f0, h, y_new, n_rhs)
     class(dop853_t), intent(inout) :: self
     class(ode_system_t), intent(in) :: sys
@@ -269,41 +282,63 @@ contains
     real(wp), intent(in) :: y(:), f0(:)
     real(wp), intent(out) :: y_new(:)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: scale(max_equations), err5(max_equations), err3(max_equations), e5_norm2, e3_norm2, denominator
+    real(wp) :: start(max_equations), stage(max_equations)
     integer :: s, n
     n = size(y)
-    if (.not. allocated(self%k)) allocate (self%k(n, stages_dense), self%y_old(n), self%y_new(n), &
-                                           self%f_new(n), self%dense_rows(n, 7), self%stage(n))
-    self%k(:, 1) = f0
-    do s = 2, stages
-      call stage_point(self%k, y, h, s, self%stage)
-      call sys%rhs(t + c853(s) * h, self%stage, self%k(:, s))
+    start = 0
+    start(:n) = y
+    self%k(:n, 1) = f0
+    do s = 2, end_stage                       ! the last stage input is y_new
+      call self%stage_input(s, start, h, stage)
+      call sys%rhs(t + c853(s) * h, stage(:n), self%k(:n, s))
     end do
-    call stage_point(self%k, y, h, stages + 1, y_new)
-    call sys%rhs(t + h, y_new, self%f_new)
-    self%k(:, stages + 1) = self%f_new
+    y_new = stage(:n)
     n_rhs = n_rhs + stages
-    scale(:n) = self%atol + max(abs(y), abs(y_new)) * self%rtol
-    err5(:n) = 0
-    do s = 1, stages + 1
-      if (e5(s) /= 0) err5(:n) = err5(:n) + e5(s) * self%k(:, s)
+    call self%finish_attempt(n, t, start, h, stage)
+  end subroutine dop853_step
+
+  !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
+  !> (s = end_stage: the new solution; s > end_stage: dense-output stages,
+  !> from y = y_old).
+  pure subroutine dop853_stage_input(self, s, y, h, point)
+    class(dop853_t), intent(in) :: self
+    integer, intent(in) :: s
+    real(wp), intent(in) :: y(max_equations), h
+    real(wp), intent(out) :: point(max_equations)
+    integer :: j
+    point = y
+    do j = 1, s - 1
+      if (a853(s, j) /= 0) point = point + (h * a853(s, j)) * self%k(:, j)
     end do
-    err5(:n) = err5(:n) / scale(:n)
-    err3(:n) = ((y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)) / scale(:n)
-    e5_norm2 = sum(err5(:n)**2)
-    e3_norm2 = sum(err3(:n)**2)
+  end subroutine dop853_stage_input
+
+  !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
+  !> to end_stage in self%k): Hairer's mix of the 5th- and 3rd-order estimates.
+  pure subroutine dop853_finish_attempt(self, n, t, y, h, y_new)
+    class(dop853_t), intent(inout) :: self
+    integer, intent(in) :: n
+    real(wp), intent(in) :: t, y(max_equations), h, y_new(max_equations)
+    real(wp) :: err5(max_equations), err3(max_equations), scale(max_equations), e5_norm2, e3_norm2
+    integer :: s
+    err5 = 0
+    do s = 1, end_stage
+      if (e5(s) /= 0) err5 = err5 + e5(s) * self%k(:, s)
+    end do
+    err3 = (y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)
+    scale(:n) = self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol
+    e5_norm2 = sum((err5(:n) / scale(:n))**2)
+    e3_norm2 = sum((err3(:n) / scale(:n))**2)
     if (e5_norm2 == 0 .and. e3_norm2 == 0) then
       self%error_norm = 0
     else
-      denominator = e5_norm2 + 0.01_wp * e3_norm2
-      self%error_norm = abs(h) * e5_norm2 / sqrt(denominator * n)
+      self%error_norm = abs(h) * e5_norm2 / sqrt((e5_norm2 + 0.01_wp * e3_norm2) * n)
     end if
     self%y_old = y
     self%y_new = y_new
     self%t_old = t
     self%h = h
     self%dense_ready = .false.
-  end subroutine dop853_step
+  end subroutine dop853_finish_attempt
 
   !> y(t_old + theta h), theta in [0, 1], for the last attempted step.
   subroutine dop853_dense(self, sys, theta, y, n_rhs)
@@ -312,38 +347,56 @@ contains
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(:)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: delta(max_equations)
-    integer :: s, i, n
+    real(wp) :: stage(max_equations)
+    integer :: s, n
     n = size(y)
     if (.not. self%dense_ready) then
-      do s = stages + 2, stages_dense
-        call stage_point(self%k, self%y_old, self%h, s, self%stage)
-        call sys%rhs(self%t_old + c853(s) * self%h, self%stage, self%k(:, s))
+      do s = first_dense_stage, stages_dense
+        call self%stage_input(s, self%y_old, self%h, stage)
+        call sys%rhs(self%t_old + c853(s) * self%h, stage(:n), self%k(:n, s))
       end do
-      n_rhs = n_rhs + 3
-      delta(:n) = self%y_new - self%y_old
-      self%dense_rows(:, 1) = delta(:n)
-      self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta(:n)
-      self%dense_rows(:, 3) = 2 * delta(:n) - self%h * (self%f_new + self%k(:, 1))
-      do i = 1, 4
-        self%dense_rows(:, 3 + i) = 0
-        do s = 1, stages_dense
-          if (d853(i, s) /= 0) self%dense_rows(:, 3 + i) = self%dense_rows(:, 3 + i) + (self%h * d853(i, s)) * self%k(:, s)
-        end do
-      end do
-      self%dense_ready = .true.
+      n_rhs = n_rhs + (stages_dense - end_stage)
+      call self%build_dense()
     end if
-    y = 0
-    do i = 7, 1, -1
-      y = y + self%dense_rows(:, i)
-      if (mod(7 - i, 2) == 0) then
-        y = y * theta
-      else
-        y = y * (1 - theta)
-      end if
-    end do
-    y = y + self%y_old
+    call self%dense_value(theta, stage)
+    y = stage(:n)
   end subroutine dop853_dense
+
+  !> The interpolant's coefficients, once the dense-output stages are in self%k.
+  pure subroutine dop853_build_dense(self)
+    class(dop853_t), intent(inout) :: self
+    real(wp) :: delta(max_equations)
+    integer :: s, i
+    delta = self%y_new - self%y_old
+    self%dense_rows(:, 1) = delta
+    self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta
+    self%dense_rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
+    self%dense_rows(:, 4:7) = 0
+    do s = 1, stages_dense
+      if (all(d853(:, s) == 0)) cycle
+      do i = 1, 4
+        self%dense_rows(:, 3 + i) = self%dense_rows(:, 3 + i) + (self%h * d853(i, s)) * self%k(:, s)
+      end do
+    end do
+    self%dense_ready = .true.
+  end subroutine dop853_build_dense
+
+  pure subroutine dop853_dense_value(self, theta, y)
+    class(dop853_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(max_equations)
+    real(wp) :: theta1
+    theta1 = 1 - theta
+    ! Horner in theta and (1 - theta), alternating
+    y = self%dense_rows(:, 7) * theta
+    y = (y + self%dense_rows(:, 6)) * theta1
+    y = (y + self%dense_rows(:, 5)) * theta
+    y = (y + self%dense_rows(:, 4)) * theta1
+    y = (y + self%dense_rows(:, 3)) * theta
+    y = (y + self%dense_rows(:, 2)) * theta1
+    y = (y + self%dense_rows(:, 1)) * theta
+    y = y + self%y_old
+  end subroutine dop853_dense_value
 
   !> Hairer's starting step: first guess from |y|/|f|, refined with one Euler step.
   subroutine dop853_initial_step(self, sys, t, y, f0, h_max, h, n_rhs)
@@ -373,18 +426,6 @@ contains
     end if
     h = min(100 * h0, h1, h_max)
   end subroutine dop853_initial_step
-
-  !> point = y + h sum_j a(s, j) k_j over the nonzero coefficients of row s.
-  pure subroutine stage_point(k, y, h, s, point)
-    real(wp), intent(in) :: k(:, :), y(:), h
-    integer, intent(in) :: s
-    real(wp), intent(out) :: point(:)
-    integer :: j
-    point = y
-    do j = 1, s - 1
-      if (a853(s, j) /= 0) point = point + (h * a853(s, j)) * k(:, j)
-    end do
-  end subroutine stage_point
 
   ! ========================================================== Gauss4
 

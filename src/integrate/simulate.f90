@@ -14,8 +14,10 @@ module ellroll_simulate
       field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t, new_case_result
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
-      initial_state, observe, limit_status, ball_derivative, rk4_ball_step, nutation_angle
-  use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator
+      initial_state, observe, observe_geometry, limit_status, ball_derivative, nutation_angle
+  use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator, end_stage
+  use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense, &
+      dop853_attempt_calls, dop853_dense_calls
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
   implicit none
@@ -248,7 +250,8 @@ contains
   !> Step-size control of Hairer's DOP853: accept when the error norm <= 1,
   !> next step h (0.9 err^(-1/8)) within [h/3, 6 h], never above dt (the
   !> largest step allowed). Output samples and limit crossings come from the
-  !> 7th-order dense output.
+  !> 7th-order dense output; a sample computes only what the stored fields
+  !> need. The steps are the fused ones of the ball (ellroll_ball_steppers).
   subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
     type(dop853_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cs
@@ -261,7 +264,9 @@ contains
     type(observation_t) :: obs
     type(limit_search_t) :: search
     integer :: status
-    logical :: rejected
+    logical :: rejected, samples_complete
+
+    samples_complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
 
     t = 0
     h_max = cs%dt
@@ -269,16 +274,17 @@ contains
     rejected = .false.
     do while (t < cs%t_end)
       if (t + h >= cs%t_end - 1.0e-12_wp * cs%t_end) h = cs%t_end - t
-      call integrator%step(run%ball, t, y, f, h, y_new, res%n_rhs)
+      call dop853_ball_step(integrator, run%ball, t, y, f, h, y_new)
+      res%n_rhs = res%n_rhs + dop853_attempt_calls
       if (.not. ieee_is_finite(integrator%error_norm)) integrator%error_norm = huge(1.0_wp)
       if (integrator%error_norm > 1) then
-        h = h * max(min_factor, safety * integrator%error_norm**(-1.0_wp / 8))
+        h = h * max(min_factor, safety / eighth_root(integrator%error_norm))
         rejected = .true.
         cycle
       end if
       length = sqrt(dot_product(y_new(1:3), y_new(1:3)))
       y_new(1:3) = y_new(1:3) / length
-      f_new = integrator%f_new
+      f_new = integrator%k(:state_size, end_stage)
       f_new(1:3) = f_new(1:3) / length          ! n' is homogeneous of degree one in |n|
       obs = observe(run%ball, t + h, y_new, f_new)
       status = limit_status(run%ball, y_new, obs)
@@ -287,7 +293,7 @@ contains
         call search%begin(h, status)
         do while (.not. search%done())
           offset = search%trial()
-          call dense_state(offset / h, obs, .true.)
+          call dense_state(offset / h, obs, complete=.true., with_rate=.true.)
           call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
         end do
         call record_samples_until(t + search%valid)        ! output samples before the end
@@ -306,7 +312,7 @@ contains
       if (integrator%error_norm == 0) then
         factor = max_factor
       else
-        factor = min(max_factor, safety * integrator%error_norm**(-1.0_wp / 8))
+        factor = min(max_factor, safety / eighth_root(integrator%error_norm))
       end if
       if (rejected) factor = min(1.0_wp, factor)
       rejected = .false.
@@ -316,20 +322,32 @@ contains
 
   contains
 
-    !> Derived outputs at t + theta h from the dense output; f there (one
-    !> more RHS call) only when the limits or the stored reaction need it.
-    subroutine dense_state(theta, obs_at, need_f)
+    !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
+    pure real(wp) function eighth_root(x)
+      real(wp), intent(in) :: x
+      eighth_root = sqrt(sqrt(sqrt(x)))
+    end function eighth_root
+
+    !> Derived outputs at t + theta h from the dense output: the geometry
+    !> only, or when complete all of them, with f there (one more RHS call)
+    !> when with_rate (the limits and the stored reaction need it).
+    subroutine dense_state(theta, obs_at, complete, with_rate)
       real(wp), intent(in) :: theta
       type(observation_t), intent(out) :: obs_at
-      logical, intent(in) :: need_f
+      logical, intent(in) :: complete, with_rate
       real(wp) :: y_at(state_size), f_at(state_size)
-      call integrator%dense(run%ball, theta, y_at, res%n_rhs)
+      logical :: prepared
+      call dop853_ball_dense(integrator, run%ball, theta, y_at, prepared)
+      if (prepared) res%n_rhs = res%n_rhs + dop853_dense_calls
       call run%ball%project(y_at)
-      if (need_f) then
-        call run%ball%rhs(t + theta * h, y_at, f_at)
+      if (.not. complete) then
+        obs_at = observe_geometry(run%ball, y_at)
+        return
+      end if
+      f_at = 0
+      if (with_rate) then
+        call ball_derivative(run%ball, t + theta * h, y_at, f_at)
         res%n_rhs = res%n_rhs + 1
-      else
-        f_at = 0
       end if
       obs_at = observe(run%ball, t + theta * h, y_at, f_at)
     end subroutine dense_state
@@ -344,7 +362,7 @@ contains
         if (abs(t_sample - (t + h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
           call record_sample(res, run%next_sample, obs)         ! the step's own end point
         else
-          call dense_state((t_sample - t) / h, obs_at, plan%fields(field_reaction))
+          call dense_state((t_sample - t) / h, obs_at, samples_complete, plan%fields(field_reaction))
           call record_sample(res, run%next_sample, obs_at)
         end if
         run%next_sample = run%next_sample + 1

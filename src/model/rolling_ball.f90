@@ -23,7 +23,7 @@ module ellroll_rolling_ball
   private
 
   public :: rolling_ball_t, observation_t, state_size
-  public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, rk4_ball_step, &
+  public :: initial_state, observe, observe_geometry, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle
 
   integer, parameter :: state_size = 6
@@ -80,7 +80,7 @@ contains
   end subroutine ball_rhs
 
   !> The right-hand side on explicit-shape arrays: the one implementation,
-  !> behind the generic interface (ball_rhs) and the fused RK4 step.
+  !> behind the generic interface (ball_rhs) and the fused steps.
   pure subroutine ball_derivative(ball, t, y, dydt)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
@@ -107,24 +107,6 @@ contains
                   / (ball%radius * (1 + ball%inertia_factor))
   end subroutine ball_derivative
 
-  !> One classical RK4 step of the ball, fused: the same arithmetic as the
-  !> generic rk4_t step on ball_rhs, on fixed-size arrays the compiler keeps
-  !> in registers (no dynamic dispatch, no array descriptors).
-  pure subroutine rk4_ball_step(ball, t, y, f0, h, y_new)
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, h
-    real(wp), intent(in) :: y(state_size), f0(state_size)
-    real(wp), intent(out) :: y_new(state_size)
-    real(wp) :: k2(state_size), k3(state_size), k4(state_size), stage(state_size)
-    stage = y + (h/2) * f0
-    call ball_derivative(ball, t + h/2, stage, k2)
-    stage = y + (h/2) * k2
-    call ball_derivative(ball, t + h/2, stage, k3)
-    stage = y + h * k3
-    call ball_derivative(ball, t + h, stage, k4)
-    y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
-  end subroutine rk4_ball_step
-
   pure subroutine normalize_normal(self, y)
     class(rolling_ball_t), intent(in) :: self
     real(wp), intent(inout) :: y(:)
@@ -140,27 +122,36 @@ contains
     state(4:6) = omega
   end function initial_state
 
-  !> Derived outputs of a state y at time t with time derivative dydt.
+  !> The outputs of a state that are pure geometry: normal, omega, contact
+  !> point, centre and the nutation measures (what most samples need).
+  pure function observe_geometry(ball, y) result(obs)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:)
+    type(observation_t) :: obs
+    real(wp) :: n(3)
+    n = y(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
+    obs%normal = n
+    obs%omega = y(4:6)
+    obs%contact = contact_from_normal(ball%cup, n)
+    obs%center = obs%contact + ball%radius * n
+    obs%lateral = sqrt(n(1)**2 + n(2)**2)
+    obs%tan_nutation = huge(1.0_wp)
+    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
+  end function observe_geometry
+
+  !> Every derived output of a state y at time t with time derivative dydt.
   pure function observe(ball, t, y, dydt) result(obs)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:), dydt(:)
     type(observation_t) :: obs
-    real(wp) :: length, n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
-    real(wp) :: v_center(3), lateral2, height_above_rest, fit_radius
+    real(wp) :: n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
+    real(wp) :: v_center(3), height_above_rest, fit_radius
     type(radius_operator_t) :: k
-    length = sqrt(dot_product(y(1:3), y(1:3)))
-    n = y(1:3) / length
-    n_dot = dydt(1:3) / length
+    obs = observe_geometry(ball, y)
+    n = obs%normal
+    n_dot = dydt(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
     omega_dot = dydt(4:6)
-    obs%normal = n
-    obs%omega = y(4:6)
-    obs%contact = contact_from_normal(ball%cup, n)
-    obs%center = obs%contact + ball%radius * n
-    lateral2 = n(1)**2 + n(2)**2
-    obs%lateral = sqrt(lateral2)
-    obs%tan_nutation = huge(1.0_wp)
-    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
     a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
     obs%center_acceleration = a_center
     if (ball%excitation%kind /= excitation_none) then
@@ -178,7 +169,7 @@ contains
     end if
     v_center = ball%radius * cross(obs%omega, n)
     ! z_C - R = z_A - R (1 - n_z), with 1 - n_z = (nx^2 + ny^2)/(1 + n_z): no cancellation
-    height_above_rest = obs%contact(3) - ball%radius * lateral2 / (1 + n(3))
+    height_above_rest = obs%contact(3) - ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
     obs%energy_of_motion = 0.5_wp * ball%inertia_factor * ball%mass * ball%radius**2 &
         * dot_product(obs%omega, obs%omega) + 0.5_wp * ball%mass * dot_product(v_center, v_center) &
         + ball%mass * ball%g * height_above_rest
@@ -191,14 +182,14 @@ contains
     obs%fits = fit_radius * (fit_radius - k%trace) + k%det > 0 .and. 2 * fit_radius < k%trace
   end function observe
 
-  !> status_completed while the state is inside the model's domain, otherwise
-  !> the limit it crossed (first match in the order of physics.md).
   !> The nutation angle Theta, between n and the vertical (rad).
   pure real(wp) function nutation_angle(obs)
     type(observation_t), intent(in) :: obs
     nutation_angle = atan2(obs%lateral, obs%normal(3))
   end function nutation_angle
 
+  !> status_completed while the state is inside the model's domain, otherwise
+  !> the limit it crossed (first match in the order of physics.md).
   pure integer function limit_status(ball, y, obs) result(status)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(:)

@@ -5,7 +5,8 @@ program test_rolling_ball
   use ellroll_kinds, only: wp
   use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal
   use ellroll_rolling_ball
-  use ellroll_integrators, only: rk4_t
+  use ellroll_integrators, only: rk4_t, dop853_t
+  use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense
   use ellroll_kinds, only: i8
   use testing
   implicit none
@@ -39,9 +40,10 @@ program test_rolling_ball
   call check_below(maxval(abs(reference(1:3) / 3 - f(1:3))) + maxval(abs(reference(4:6) - f(4:6))), &
                    1.0e-13_wp, 'RHS is homogeneous of degree one in |n|')
 
-  ! The fused RK4 step of the ball equals the generic RK4 step on its RHS
+  ! The fused steps of the ball equal the generic steps on its RHS
   ! (same arithmetic; 1e-13 allows for different instruction scheduling).
   call fused_against_generic()
+  call fused_dop853_against_generic()
 
   ! At rest at the bottom the cup carries the weight, with no friction.
   y = [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp]
@@ -73,6 +75,40 @@ contains
     call check_below(maxval(abs(y_fused - y_generic)) / maxval(abs(y_generic)), 1.0e-13_wp, &
                      'fused RK4 step vs generic RK4 step over 5000 steps (max rel. diff)')
   end subroutine fused_against_generic
+
+  !> 300 DOP853 attempts of growing size (accepted or not, the fused and the
+  !> generic path take the same ones) and the dense output of each.
+  subroutine fused_dop853_against_generic()
+    type(dop853_t) :: fused, generic
+    real(wp) :: y_fused(6), y_generic(6), f(6), next_fused(6), next_generic(6), mid_fused(6), mid_generic(6)
+    real(wp) :: h, worst_state, worst_norm, worst_dense
+    integer(i8) :: n_rhs
+    integer :: attempt
+    logical :: prepared
+    y_fused = initial_state(ball, 0.01_wp, -0.02_wp, [-2.0_wp, 2.0_wp, 20.0_wp])
+    y_generic = y_fused
+    fused%rtol = 1.0e-8_wp; fused%atol = 1.0e-11_wp
+    generic%rtol = fused%rtol; generic%atol = fused%atol
+    worst_state = 0; worst_norm = 0; worst_dense = 0
+    n_rhs = 0
+    do attempt = 1, 300
+      h = 1.0e-3_wp * (1 + mod(attempt, 40))
+      call ball%rhs(0.0_wp, y_fused, f)
+      call dop853_ball_step(fused, ball, 0.0_wp, y_fused, f, h, next_fused)
+      call dop853_ball_dense(fused, ball, 0.3_wp, mid_fused, prepared)
+      call ball%rhs(0.0_wp, y_generic, f)
+      call generic%step(ball, 0.0_wp, y_generic, f, h, next_generic, n_rhs)
+      call generic%dense(ball, 0.3_wp, mid_generic, n_rhs)
+      worst_state = max(worst_state, maxval(abs(next_fused - next_generic)) / maxval(abs(next_generic)))
+      worst_dense = max(worst_dense, maxval(abs(mid_fused - mid_generic)) / maxval(abs(mid_generic)))
+      worst_norm = max(worst_norm, abs(fused%error_norm - generic%error_norm) / max(generic%error_norm, tiny(h)))
+      y_fused = next_fused / [spread(norm2(next_fused(1:3)), 1, 3), [1, 1, 1] * 1.0_wp]
+      y_generic = next_generic / [spread(norm2(next_generic(1:3)), 1, 3), [1, 1, 1] * 1.0_wp]
+    end do
+    call check_below(worst_state, 1.0e-13_wp, 'fused DOP853 attempt vs generic over 300 attempts (max rel. diff)')
+    call check_below(worst_norm, 1.0e-12_wp, 'fused DOP853 error norm vs generic (max rel. diff)')
+    call check_below(worst_dense, 1.0e-13_wp, 'fused DOP853 dense output vs generic (max rel. diff)')
+  end subroutine fused_dop853_against_generic
 
   function rhs_from_physics_md(ball, y) result(dydt)
     type(rolling_ball_t), intent(in) :: ball
