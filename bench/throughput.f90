@@ -4,6 +4,9 @@
 !>   integrate only   ellroll's RK4 on the ball model: steps, nothing observed
 !>   summary only     a full ellroll case without trajectories (every summary figure, every step)
 !>   full output      a full ellroll case storing every field at 100 Hz
+!>   batch of 8       8 cases (the paper case with spins 20..27 rad/s) advanced
+!>                    together across SIMD lanes (simulate_batch), per case-step;
+!>                    summary only and full output, and one case alone in a batch
 !> Each figure is the best of several repetitions; ratios are to the baseline
 !> and, for the output cost, to summary only. Usage: build/bench_throughput [repeats]
 program throughput
@@ -12,7 +15,7 @@ program throughput
   use ellroll_errors, only: error_t
   use ellroll_cases, only: case_t, output_plan_t, make_ball
   use ellroll_results, only: case_result_t
-  use ellroll_simulate, only: simulate_case
+  use ellroll_simulate, only: simulate_case, simulate_batch, lanes
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
   use ellroll_integrators, only: rk4_t
   use baseline_rk4, only: baseline_run
@@ -21,10 +24,10 @@ program throughput
   integer, parameter :: n_steps = 30000
   integer :: repeats, k
   character(len=16) :: arg
-  real(wp) :: best(4), seconds, check_baseline(6), check_ellroll(6)
-  type(case_t) :: cs
+  real(wp) :: best(7), seconds, check_baseline(6), check_ellroll(6)
+  type(case_t) :: cs, batch_cases(lanes)
   type(output_plan_t) :: summary_plan, full_plan
-  type(case_result_t) :: res
+  type(case_result_t) :: res, batch_results(lanes)
   type(error_t) :: err
 
   repeats = 7
@@ -43,6 +46,11 @@ program throughput
   full_plan%n_samples = 3001
   full_plan%fields = .true.
 
+  batch_cases = cs
+  do k = 1, lanes
+    batch_cases(k)%omega0(3) = 19 + k
+  end do
+
   best = huge(1.0_wp)
   do k = 1, repeats
     seconds = timed_baseline()
@@ -53,6 +61,12 @@ program throughput
     best(3) = min(best(3), seconds)
     seconds = timed_case(full_plan)
     best(4) = min(best(4), seconds)
+    seconds = timed_batch(summary_plan, lanes)
+    best(5) = min(best(5), seconds / lanes)
+    seconds = timed_batch(full_plan, lanes)
+    best(6) = min(best(6), seconds / lanes)
+    seconds = timed_batch(summary_plan, 1)
+    best(7) = min(best(7), seconds)
   end do
 
   write (output_unit, '(a)') 'RK4 on the paper case, 30 s, dt = 1e-3 (30,000 steps), best of repeats, one core'
@@ -61,7 +75,11 @@ program throughput
   call report('ellroll, integrate only', best(2))
   call report('ellroll, summary only', best(3))
   call report('ellroll, full output 100 Hz', best(4))
-  write (output_unit, '(a, f6.1, a)') 'full output over summary only: +', 100 * (best(4) / best(3) - 1), ' %'
+  call report('batch of 8, summary only', best(5))
+  call report('batch of 8, full output', best(6))
+  call report('batch of 1, summary only', best(7))
+  write (output_unit, '(a, f6.1, a)') 'full output over summary only: +', 100 * (best(4) / best(3) - 1), ' % (one case), +', &
+      100 * (best(6) / best(5) - 1), ' % (batch of 8)'
   write (output_unit, '(a, es10.2)') 'baseline and ellroll agree at 30 s (max |omega| difference, rad/s):', &
       maxval(abs(check_baseline(4:6) - check_ellroll(4:6)))
 
@@ -111,4 +129,14 @@ contains
     call system_clock(finish)
     seconds = real(finish - start, wp) / rate
   end function timed_case
+
+  real(wp) function timed_batch(plan, n) result(seconds)
+    type(output_plan_t), intent(in) :: plan
+    integer, intent(in) :: n
+    integer(i8) :: start, finish, rate
+    call system_clock(start, rate)
+    call simulate_batch(batch_cases(:n), plan, batch_results(:n))
+    call system_clock(finish)
+    seconds = real(finish - start, wp) / rate
+  end function timed_batch
 end program throughput

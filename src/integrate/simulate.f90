@@ -6,7 +6,7 @@
 module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8, two_pi
-  use ellroll_excitation, only: excitation_harmonic
+  use ellroll_excitation, only: excitation_harmonic, excitation_none
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_count, &
@@ -20,10 +20,11 @@ module ellroll_simulate
       dop853_attempt_calls, dop853_dense_calls
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_rk4_step, lanes_observe
   implicit none
   private
 
-  public :: simulate_case, event_time_tolerance, reference_rtol, reference_atol
+  public :: simulate_case, simulate_batch, batchable, lanes, event_time_tolerance, reference_rtol, reference_atol
 
   !> Model limits are located in time to this (s).
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
@@ -75,6 +76,7 @@ module ellroll_simulate
     real(wp) :: energy0 = 0
     type(maxima_t) :: maxima
     type(spectrum_t) :: spectrum
+    real(wp) :: spin0 = 0                 !< omega . n at the start
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
@@ -133,29 +135,12 @@ contains
     class(integrator_t), allocatable :: integrator
     type(run_state_t) :: run
     real(wp) :: y(state_size), f(state_size)
-    type(observation_t) :: obs
     integer(i8) :: clock_start, clock_end, clock_rate
 
     call system_clock(clock_start, clock_rate)
     call new_integrator(trim(cs%method), integrator, err)
     if (err%failed()) return
-    run%ball = make_ball(cs)
-    res = new_case_result(plan%fields, plan%n_samples)
-
-    y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
-    call run%ball%rhs(0.0_wp, y, f)
-    res%n_rhs = 1
-    obs = observe(run%ball, 0.0_wp, y, f)
-    run%energy0 = obs%energy
-    if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
-      run%spectrum%omega = two_pi * cs%excitation%frequency
-      if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &
-          cs%t_end - floor(0.5_wp * cs%t_end * cs%excitation%frequency) / cs%excitation%frequency
-    end if
-    call track(run, res, 0.0_wp, obs)
-    call record_sample(res, 1_i8, obs)
-    res%status = limit_status(run%ball, y, obs)   ! a start outside the model ends at once
-
+    call start_case(cs, plan, run, res, y, f)
     if (res%status == status_completed) then
       select type (integrator)
       type is (dop853_t)
@@ -166,14 +151,49 @@ contains
         call fixed_step_loop(integrator, cs, plan, run, y, f, res)
       end select
     end if
+    call finish_case(cs, run, res)
+    call system_clock(clock_end)
+    res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
+  end subroutine integrate
+
+  !> The state at t = 0 and everything it adds to the result; a start
+  !> outside the model ends the case at once (res%status).
+  subroutine start_case(cs, plan, run, res, y, f)
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(out) :: run
+    type(case_result_t), intent(out) :: res
+    real(wp), intent(out) :: y(state_size), f(state_size)
+    type(observation_t) :: obs
+    run%ball = make_ball(cs)
+    res = new_case_result(plan%fields, plan%n_samples)
+    y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
+    call ball_derivative(run%ball, 0.0_wp, y, f)
+    res%n_rhs = 1
+    obs = observe(run%ball, 0.0_wp, y, f)
+    run%energy0 = obs%energy
+    run%spin0 = dot_product(cs%omega0, obs%normal)
+    if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
+      run%spectrum%omega = two_pi * cs%excitation%frequency
+      if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &
+          cs%t_end - floor(0.5_wp * cs%t_end * cs%excitation%frequency) / cs%excitation%frequency
+    end if
+    call track(run, res, 0.0_wp, obs)
+    call record_sample(res, 1_i8, obs)
+    res%status = limit_status(run%ball, y, obs)
+  end subroutine start_case
+
+  !> The figures made from the whole run.
+  subroutine finish_case(cs, run, res)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    type(case_result_t), intent(inout) :: res
     res%nutation_maxima = run%maxima%count
     res%nutation_period = run%maxima%mean_interval()
     if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
       res%transmissibility = run%spectrum%ratio()
-    res%linear_periods = oscillation_periods(run%ball, dot_product(cs%omega0, obs%normal))
-    call system_clock(clock_end)
-    res%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp)
-  end subroutine integrate
+    res%linear_periods = oscillation_periods(run%ball, run%spin0)
+  end subroutine finish_case
 
   subroutine fixed_step_loop(integrator, cs, plan, run, y, f, res)
     class(integrator_t), intent(inout) :: integrator
@@ -182,30 +202,18 @@ contains
     type(run_state_t), intent(inout) :: run
     real(wp), intent(inout) :: y(:), f(:)
     type(case_result_t), intent(inout) :: res
-    real(wp) :: y_new(state_size), f_new(state_size), t, offset
+    real(wp) :: y_new(state_size), f_new(state_size), t
     type(observation_t) :: obs
-    type(limit_search_t) :: search
     integer(i8) :: k, n_steps
     integer :: status
 
     n_steps = nint(cs%t_end / cs%dt, i8)
     t = 0
     do k = 1, n_steps
-      call take_step(cs%dt)
-      call advance_to(k * cs%dt, y_new, f_new, obs, status)
+      call fixed_step(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
       if (status /= status_completed) then
-        ! bisect on partial steps from the last valid state; end there
-        call search%begin(cs%dt, status)
-        do while (.not. search%done())
-          offset = search%trial()
-          call take_step(offset)
-          call advance_to(t + offset, y_new, f_new, obs, status)
-          call search%record(offset, status, obs)
-        end do
-        res%status = search%crossed
-        res%t_final = t + search%valid
+        call end_at_limit(integrator, run, t, y, f, cs%dt, status, res)
         res%n_steps = k
-        if (search%found_valid) call accumulate(run, res, search%last_valid)
         return
       end if
       y = y_new
@@ -216,36 +224,190 @@ contains
       if (mod(k, plan%steps_per_sample) == 0) call record_sample(res, k / plan%steps_per_sample + 1, obs)
     end do
     res%t_final = t
+  end subroutine fixed_step_loop
+
+  !> One step of a fixed-step method from (t, y, f): the new state projected,
+  !> f and the derived outputs there, and the limits checked. RK4 takes the
+  !> fused step of the ball (the same arithmetic, tested against the generic
+  !> one); other methods their own.
+  subroutine fixed_step(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
+    integer, intent(out) :: status
+    integer(i8), intent(inout) :: n_rhs
+    select type (integrator)
+    type is (rk4_t)
+      call rk4_ball_step(run%ball, t, y, f, h, y_new)
+      n_rhs = n_rhs + 3
+    class default
+      call integrator%step(run%ball, t, y, f, h, y_new, n_rhs)
+    end select
+    call run%ball%project(y_new)
+    call ball_derivative(run%ball, t + h, y_new, f_new)
+    n_rhs = n_rhs + 1
+    obs = observe(run%ball, t + h, y_new, f_new)
+    status = limit_status(run%ball, y_new, obs)
+  end subroutine fixed_step
+
+  !> A step of size h from the valid state (t, y, f) crossed a limit
+  !> (status): bisect on partial steps for where, and end the case there.
+  subroutine end_at_limit(integrator, run, t, y, f, h, status, res)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    integer, intent(in) :: status
+    type(case_result_t), intent(inout) :: res
+    type(limit_search_t) :: search
+    real(wp) :: y_trial(state_size), f_trial(state_size), offset
+    type(observation_t) :: obs
+    integer :: trial_status
+    call search%begin(h, status)
+    do while (.not. search%done())
+      offset = search%trial()
+      call fixed_step(integrator, run, t, y, f, offset, y_trial, f_trial, obs, trial_status, res%n_rhs)
+      call search%record(offset, trial_status, obs)
+    end do
+    res%status = search%crossed
+    res%t_final = t + search%valid
+    if (search%found_valid) call accumulate(run, res, search%last_valid)
+  end subroutine end_at_limit
+
+  !> Whether a case runs in a batch (simulate_batch): RK4 on a fixed cup,
+  !> without the reference run; a property of the case alone, so that every
+  !> run and every shard takes the same path for it.
+  pure logical function batchable(cs)
+    type(case_t), intent(in) :: cs
+    batchable = cs%method == 'rk4' .and. cs%excitation%kind == excitation_none .and. .not. cs%error_estimate
+  end function batchable
+
+  !> Up to `lanes` batchable cases advanced together, one per SIMD lane
+  !> (ellroll_ball_lanes): steps, f, the summary's quantities and the limits
+  !> for all lanes at once; samples, maxima of Theta and the search for a
+  !> crossed limit per lane with the one-case code. Each result equals
+  !> simulate_case's to round-off (tested), whatever the other lanes hold;
+  !> wall_time is the batch's time shared equally among its cases.
+  subroutine simulate_batch(cases, plan, results)
+    type(case_t), intent(in) :: cases(:)
+    type(output_plan_t), intent(in) :: plan
+    type(case_result_t), intent(out) :: results(:)
+    type(run_state_t) :: run(lanes)
+    type(ball_lanes_t) :: balls
+    type(lane_outputs_t) :: out
+    type(rk4_t) :: rk4
+    type(observation_t) :: obs
+    real(wp), dimension(lanes, state_size) :: y, f, y_new, f_new
+    real(wp), dimension(lanes) :: h, energy0, tan_max, lateral_at_max, normal_z_at_max
+    real(wp), dimension(lanes) :: displacement_max, horizontal_force_max, reaction_normal_max, &
+                                  friction_needed_max, energy_drift, constraint_error_max
+    integer(i8) :: n_steps(lanes), step, clock_start, clock_end, clock_rate
+    logical :: active(lanes), accepted(lanes), theta_moved(lanes), sampled
+    real(wp) :: t
+    integer :: n, l, i
+
+    call system_clock(clock_start, clock_rate)
+    n = size(cases)
+    do l = 1, lanes
+      i = min(l, n)                  ! lanes past n repeat the first case, idle
+      if (l <= n) then
+        call start_case(cases(l), plan, run(l), results(l), y(l, :), f(l, :))
+      else
+        y(l, :) = y(1, :)
+        f(l, :) = f(1, :)
+      end if
+      call set_lane(balls, l, run(i)%ball)
+      h(l) = cases(i)%dt
+      n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
+      energy0(l) = run(i)%energy0
+      tan_max(l) = run(i)%tan_theta_max
+      displacement_max(l) = results(i)%displacement_max
+      horizontal_force_max(l) = results(i)%horizontal_force_max
+      reaction_normal_max(l) = results(i)%reaction_normal_max
+      friction_needed_max(l) = results(i)%friction_needed_max
+      energy_drift(l) = results(i)%energy_drift
+      constraint_error_max(l) = results(i)%constraint_error_max
+      active(l) = l <= n .and. results(i)%status == status_completed .and. n_steps(l) > 0
+    end do
+    lateral_at_max = 0
+    normal_z_at_max = 1
+    theta_moved = .false.
+    sampled = any(plan%fields)
+
+    step = 0
+    do while (any(active))
+      step = step + 1
+      call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+      call lanes_observe(balls, y_new, f_new, out)
+      accepted = active .and. out%status == status_completed
+      do l = 1, lanes                ! accumulate as in accumulate()
+        if (.not. accepted(l)) cycle
+        if (out%tan_nutation(l) > tan_max(l)) then
+          tan_max(l) = out%tan_nutation(l)
+          lateral_at_max(l) = out%lateral(l)
+          normal_z_at_max(l) = out%normal_z(l)
+          theta_moved(l) = .true.
+        end if
+        displacement_max(l) = max(displacement_max(l), out%displacement(l))
+        horizontal_force_max(l) = max(horizontal_force_max(l), out%horizontal_force(l))
+        reaction_normal_max(l) = max(reaction_normal_max(l), out%reaction_normal(l))
+        friction_needed_max(l) = max(friction_needed_max(l), out%friction_needed(l))
+        energy_drift(l) = max(energy_drift(l), abs(out%energy(l) - energy0(l)) / abs(energy0(l)))
+        constraint_error_max(l) = max(constraint_error_max(l), out%surface_residual(l))
+      end do
+      do l = 1, n
+        if (.not. active(l)) cycle
+        results(l)%n_rhs = results(l)%n_rhs + 4
+        results(l)%n_steps = step
+        if (.not. accepted(l)) then
+          call store_summary(l)
+          call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
+                            results(l))
+          active(l) = .false.
+          cycle
+        end if
+        t = step * h(l)
+        call run(l)%maxima%add(t, out%tan_nutation(l))
+        if (sampled .and. mod(step, plan%steps_per_sample) == 0) then
+          obs = observe(run(l)%ball, t, y_new(l, :), f_new(l, :))
+          call record_sample(results(l), step / plan%steps_per_sample + 1, obs)
+        end if
+        if (step == n_steps(l)) then
+          results(l)%t_final = t
+          call store_summary(l)
+          active(l) = .false.
+        end if
+      end do
+      do i = 1, state_size
+        where (accepted)
+          y(:, i) = y_new(:, i)
+          f(:, i) = f_new(:, i)
+        end where
+      end do
+    end do
+
+    call system_clock(clock_end)
+    do l = 1, n
+      call finish_case(cases(l), run(l), results(l))
+      results(l)%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp) / n
+    end do
 
   contains
 
-    !> RK4 takes the fused step of the ball (the same arithmetic, tested
-    !> against the generic one); other methods their own.
-    subroutine take_step(h)
-      real(wp), intent(in) :: h
-      select type (integrator)
-      type is (rk4_t)
-        call rk4_ball_step(run%ball, t, y, f, h, y_new)
-        res%n_rhs = res%n_rhs + 3
-      class default
-        call integrator%step(run%ball, t, y, f, h, y_new, res%n_rhs)
-      end select
-    end subroutine take_step
-
-    !> Project, evaluate f and the derived outputs at t_next, and check the limits.
-    subroutine advance_to(t_next, y_next, f_next, obs_next, status_next)
-      real(wp), intent(in) :: t_next
-      real(wp), intent(inout) :: y_next(:)
-      real(wp), intent(out) :: f_next(:)
-      type(observation_t), intent(out) :: obs_next
-      integer, intent(out) :: status_next
-      call run%ball%project(y_next)
-      call ball_derivative(run%ball, t_next, y_next, f_next)
-      res%n_rhs = res%n_rhs + 1
-      obs_next = observe(run%ball, t_next, y_next, f_next)
-      status_next = limit_status(run%ball, y_next, obs_next)
-    end subroutine advance_to
-  end subroutine fixed_step_loop
+    !> The lane's running summary into its result (and run state).
+    subroutine store_summary(l)
+      integer, intent(in) :: l
+      run(l)%tan_theta_max = tan_max(l)
+      if (theta_moved(l)) results(l)%theta_max = atan2(lateral_at_max(l), normal_z_at_max(l))
+      results(l)%displacement_max = displacement_max(l)
+      results(l)%horizontal_force_max = horizontal_force_max(l)
+      results(l)%reaction_normal_max = reaction_normal_max(l)
+      results(l)%friction_needed_max = friction_needed_max(l)
+      results(l)%energy_drift = energy_drift(l)
+      results(l)%constraint_error_max = constraint_error_max(l)
+    end subroutine store_summary
+  end subroutine simulate_batch
 
   !> Step-size control of Hairer's DOP853: accept when the error norm <= 1,
   !> next step h (0.9 err^(-1/8)) within [h/3, 6 h], never above dt (the
@@ -470,8 +632,10 @@ contains
       run%tan_theta_max = obs%tan_nutation
       res%theta_max = nutation_angle(obs)
     end if
-    res%displacement_max = max(res%displacement_max, norm2(obs%center - [0.0_wp, 0.0_wp, run%ball%radius]))
-    res%horizontal_force_max = max(res%horizontal_force_max, norm2(obs%reaction(1:2)))
+    ! the norms written out, as the batch path (ellroll_ball_lanes) computes them
+    res%displacement_max = max(res%displacement_max, &
+        sqrt(obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2))
+    res%horizontal_force_max = max(res%horizontal_force_max, sqrt(obs%reaction(1)**2 + obs%reaction(2)**2))
     res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
     res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
     res%energy_drift = max(res%energy_drift, abs(obs%energy - run%energy0) / abs(run%energy0))

@@ -20,6 +20,7 @@ module ellroll_ellipsoid
     real(wp) :: axes2(3) = 1          !< (a^2, b^2, c^2): the diagonal of A
     real(wp) :: det_axes2 = 1         !< a^2 b^2 c^2
     real(wp) :: excess2(3) = 0        !< A - c^2 I, computed without cancellation
+    real(wp) :: inv_axes(3) = 1       !< (1/a, 1/b, 1/c)
   end type ellipsoid_t
 
   !> The radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s.
@@ -41,6 +42,7 @@ contains
     cup%axes2 = [a*a, b*b, c*c]
     cup%det_axes2 = cup%axes2(1) * cup%axes2(2) * cup%axes2(3)
     cup%excess2 = [(a - c)*(a + c), (b - c)*(b + c), 0.0_wp]
+    cup%inv_axes = 1 / [a, b, c]
   end function new_ellipsoid
 
   !> Contact point for a unit normal n with n_z > 0 (the lower half).
@@ -50,15 +52,16 @@ contains
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: n(3)
     real(wp) :: p(3)
-    real(wp) :: horizontal, s
+    real(wp) :: horizontal, s, inv_s
     horizontal = cup%axes2(1)*n(1)**2 + cup%axes2(2)*n(2)**2
     s = sqrt(horizontal + cup%axes2(3)*n(3)**2)
-    p(1) = -cup%axes2(1) * n(1) / s
-    p(2) = -cup%axes2(2) * n(2) / s
+    inv_s = 1 / s
+    p(1) = -cup%axes2(1) * n(1) * inv_s
+    p(2) = -cup%axes2(2) * n(2) * inv_s
     if (n(3) > 0) then
       p(3) = cup%c * horizontal / (s * (s + cup%c * n(3)))
     else
-      p(3) = cup%c - cup%axes2(3) * n(3) / s
+      p(3) = cup%c - cup%axes2(3) * n(3) * inv_s
     end if
   end function contact_from_normal
 
@@ -79,7 +82,8 @@ contains
   pure real(wp) function surface_residual(cup, p)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: p(3)
-    surface_residual = abs((p(1)/cup%a)**2 + (p(2)/cup%b)**2 + ((p(3) - cup%c)/cup%c)**2 - 1)
+    surface_residual = abs((p(1) * cup%inv_axes(1))**2 + (p(2) * cup%inv_axes(2))**2 &
+                           + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
 
   pure function radius_operator(cup, n) result(k)
@@ -87,6 +91,8 @@ contains
     real(wp), intent(in) :: n(3)
     type(radius_operator_t) :: k
     real(wp) :: s2
+    ! tr K and det K by division, not by 1/s^2: near R = r1 or r2 the motion
+    ! depends on R - tr K + det K / R, where every rounding error counts
     k%an = cup%axes2 * n
     s2 = dot_product(n, k%an)
     k%s = sqrt(s2)

@@ -86,20 +86,22 @@ contains
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
-    real(wp) :: length, n(3), omega(3), v_center(3), n_dot(3), det_l, spin
+    real(wp) :: length, inv_length, n(3), omega(3), v_center(3), n_dot(3), inv_det_l, spin
     type(radius_operator_t) :: k
+    ! divisions only where unavoidable: they bound the batched kernel's speed
     length = sqrt(y(1)**2 + y(2)**2 + y(3)**2)   ! |n| ~ 1: no need for norm2's scaling
-    n = y(1:3) / length
+    inv_length = 1 / length
+    n = y(1:3) * inv_length
     omega = y(4:6)
     k = radius_operator(ball%cup, n)
     v_center = ball%radius * cross(omega, n)
-    det_l = ball%radius * (ball%radius - k%trace) + k%det
-    n_dot = ((ball%radius - k%trace) * v_center + apply_radius_operator(ball%cup, k, v_center)) / det_l
+    inv_det_l = 1 / (ball%radius * (ball%radius - k%trace) + k%det)
+    n_dot = ((ball%radius - k%trace) * v_center + apply_radius_operator(ball%cup, k, v_center)) * inv_det_l
     spin = dot_product(omega, n)
     dydt(1:3) = length * n_dot
     ! n x (0, 0, -g) = g (-n_y, n_x, 0)
     dydt(4:6) = (spin * n_dot + (ball%g / ball%radius) * [-n(2), n(1), 0.0_wp]) &
-                / (1 + ball%inertia_factor)
+                * (1 / (1 + ball%inertia_factor))
     ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
     ! a fixed cup costs nothing)
     if (ball%excitation%kind /= excitation_none) &
@@ -129,7 +131,7 @@ contains
     real(wp), intent(in) :: y(:)
     type(observation_t) :: obs
     real(wp) :: n(3)
-    n = y(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
+    n = y(1:3) * (1 / sqrt(dot_product(y(1:3), y(1:3))))
     obs%normal = n
     obs%omega = y(4:6)
     obs%contact = contact_from_normal(ball%cup, n)
@@ -150,7 +152,7 @@ contains
     type(radius_operator_t) :: k
     obs = observe_geometry(ball, y)
     n = obs%normal
-    n_dot = dydt(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
+    n_dot = dydt(1:3) * (1 / sqrt(dot_product(y(1:3), y(1:3))))
     omega_dot = dydt(4:6)
     a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
     obs%center_acceleration = a_center
@@ -163,7 +165,7 @@ contains
     obs%reaction_normal = dot_product(obs%reaction, n)
     tangential = obs%reaction - obs%reaction_normal * n
     if (obs%reaction_normal > 0) then
-      obs%friction_needed = norm2(tangential) / obs%reaction_normal
+      obs%friction_needed = sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / obs%reaction_normal
     else
       obs%friction_needed = huge(1.0_wp)
     end if

@@ -18,7 +18,7 @@ module ellroll_run_campaign
   use ellroll_campaign, only: campaign_t, invalid_stop
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
-  use ellroll_simulate, only: simulate_case
+  use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
   use ellroll_hdf5, only: h5_output_t, provenance_t
   use ellroll_journal, only: journal_t, journal_header_t
   use ellroll_progress, only: progress_t
@@ -138,7 +138,8 @@ contains
     character(len=:), allocatable :: target, partial, journal_path, messages
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
-    integer(i8) :: n_slots, slot, i
+    integer(i8) :: n_slots, slot, i, chunk
+    logical :: use_batches
     real(wp), allocatable :: times(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -146,8 +147,7 @@ contains
     type(provenance_t) :: prov
     type(progress_t) :: progress
     type(case_result_t) :: res
-    type(case_t) :: cs
-    type(error_t) :: case_err, shared_err
+    type(error_t) :: shared_err
     logical :: found
     integer :: n_threads
 
@@ -236,19 +236,14 @@ contains
     if (opts%threads > 0) n_threads = opts%threads
     call progress%start(n_slots, count(done, kind=i8), opts%quiet)
 
-    !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) &
-    !$omp private(slot, cs, res, case_err)
-    do slot = 0, n_slots - 1
-      if (done(slot) .or. shared_err%failed()) cycle
-      case_err = error_t()             ! private copies start undefined
-      cs = inp%campaign%case_at(global_index(slot))
-      call simulate_case(cs, inp%plan, res, case_err)
-      !$omp critical (ellroll_writer)
-      if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
-      if (.not. shared_err%failed()) call journal%append(slot, res, shared_err)
-      if (.not. shared_err%failed()) call out%write_case(slot, cs, res, shared_err)
-      call progress%advance()
-      !$omp end critical (ellroll_writer)
+    ! blocks of `lanes` slots: in a campaign of at least `lanes` cases the
+    ! batchable cases of a block run together across SIMD lanes, the others
+    ! one by one. The choice depends on the case and the campaign's size only,
+    ! never on threads, shards or resumption, so results stay bitwise the same.
+    use_batches = inp%campaign%n_cases() >= lanes
+    !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
+    do chunk = 0, (n_slots - 1) / lanes
+      if (.not. shared_err%failed()) call run_block(chunk)
     end do
     !$omp end parallel do
     call progress%finish()
@@ -270,6 +265,49 @@ contains
     call journal%close(delete=.true.)
 
   contains
+
+    !> Integrate the slots of one block not done yet and write them, in order.
+    subroutine run_block(chunk)
+      integer(i8), intent(in) :: chunk
+      type(case_t) :: cases(lanes)
+      type(case_result_t) :: results(lanes), batch_results(lanes)
+      type(error_t) :: case_err
+      integer(i8) :: slots(lanes), slot
+      integer :: n, j, in_batch(lanes), n_batch
+      n = 0
+      do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
+        if (done(slot)) cycle
+        n = n + 1
+        slots(n) = slot
+        cases(n) = inp%campaign%case_at(global_index(slot))
+      end do
+      n_batch = 0
+      do j = 1, n
+        if (.not. in_lanes(cases(j))) cycle
+        n_batch = n_batch + 1
+        in_batch(n_batch) = j
+      end do
+      if (n_batch > 0) then
+        call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
+        results(in_batch(:n_batch)) = batch_results(:n_batch)
+      end if
+      do j = 1, n
+        if (.not. in_lanes(cases(j))) call simulate_case(cases(j), inp%plan, results(j), case_err)
+        !$omp critical (ellroll_writer)
+        if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
+        if (.not. shared_err%failed()) call journal%append(slots(j), results(j), shared_err)
+        if (.not. shared_err%failed()) call out%write_case(slots(j), cases(j), results(j), shared_err)
+        call progress%advance()
+        !$omp end critical (ellroll_writer)
+      end do
+    end subroutine run_block
+
+    !> A case of a small campaign (the paper's single case, say) runs alone:
+    !> a batch costs all its lanes whether they are filled or not.
+    pure logical function in_lanes(cs)
+      type(case_t), intent(in) :: cs
+      in_lanes = use_batches .and. batchable(cs)
+    end function in_lanes
 
     pure integer(i8) function global_index(slot)
       integer(i8), intent(in) :: slot

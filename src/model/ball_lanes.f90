@@ -1,0 +1,245 @@
+!> Several balls on fixed cups advanced together, one per SIMD lane: the
+!> state is stored structure-of-arrays, y(lane, component), and every kernel
+!> is a loop over lanes of straight-line scalar code that the compiler
+!> vectorizes across cases. The arithmetic is that of the one-case path
+!> (ball_derivative, rk4_ball_step, observe, limit_status), written out
+!> expression by expression in the same order; the batch is tested against
+!> it. Lanes never interact, so a case's result does not depend on which
+!> lane or which batch it runs in.
+module ellroll_ball_lanes
+  use ellroll_kinds, only: wp
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
+  use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
+      status_liftoff, status_nonfinite, status_constraint
+  implicit none
+  private
+
+  public :: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_rk4_step, &
+            lanes_observe
+
+  !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
+  integer, parameter :: lanes = 8
+
+  !> One ball and cup per lane, with the constants the kernels use.
+  type :: ball_lanes_t
+    real(wp), dimension(lanes) :: c = 1, inv_a = 1, inv_b = 1, inv_c = 1
+    real(wp), dimension(lanes) :: a2 = 1, b2 = 1, c2 = 1   !< squared semi-axes
+    real(wp), dimension(lanes) :: axes2_sum = 3, det_axes2 = 1
+    real(wp), dimension(lanes) :: radius = 1, mass = 1, g = 1, inertia_factor = 0.4_wp
+    real(wp), dimension(lanes) :: g_over_r = 1, inv_one_plus_k = 1, fit_radius = 1, mu = -1
+  end type ball_lanes_t
+
+  !> What the summary and the limits need of a state, per lane.
+  type :: lane_outputs_t
+    real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0, normal_z = 1
+    real(wp), dimension(lanes) :: displacement = 0, horizontal_force = 0
+    real(wp), dimension(lanes) :: reaction_normal = 0, friction_needed = 0, energy = 0, surface_residual = 0
+    integer, dimension(lanes) :: status = status_completed
+  end type lane_outputs_t
+
+contains
+
+  !> Put a ball (on a fixed cup) into lane l.
+  pure subroutine set_lane(p, l, ball)
+    type(ball_lanes_t), intent(inout) :: p
+    integer, intent(in) :: l
+    type(rolling_ball_t), intent(in) :: ball
+    p%c(l) = ball%cup%c
+    p%inv_a(l) = ball%cup%inv_axes(1)
+    p%inv_b(l) = ball%cup%inv_axes(2)
+    p%inv_c(l) = ball%cup%inv_axes(3)
+    p%a2(l) = ball%cup%axes2(1)
+    p%b2(l) = ball%cup%axes2(2)
+    p%c2(l) = ball%cup%axes2(3)
+    p%axes2_sum(l) = sum(ball%cup%axes2)
+    p%det_axes2(l) = ball%cup%det_axes2
+    p%radius(l) = ball%radius
+    p%mass(l) = ball%mass
+    p%g(l) = ball%g
+    p%inertia_factor(l) = ball%inertia_factor
+    p%g_over_r(l) = ball%g / ball%radius
+    p%inv_one_plus_k(l) = 1 / (1 + ball%inertia_factor)
+    p%fit_radius(l) = ball%radius * (1 + ball%fit_margin)
+    p%mu(l) = ball%mu
+  end subroutine set_lane
+
+  !> dy/dt of every lane (ball_derivative on a fixed cup).
+  pure subroutine lanes_derivative(p, y, dydt)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size)
+    real(wp), intent(out) :: dydt(lanes, state_size)
+    real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, an1, an2, an3, s2, inv_s, trace, det
+    real(wp) :: v1, v2, v3, inv_det_l, an_v, kv1, kv2, kv3, nd1, nd2, nd3, spin, r
+    integer :: l
+    do l = 1, lanes
+      r = p%radius(l)
+      length = sqrt(y(l, 1)**2 + y(l, 2)**2 + y(l, 3)**2)
+      inv_length = 1 / length
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
+      w1 = y(l, 4)
+      w2 = y(l, 5)
+      w3 = y(l, 6)
+      ! radius operator K(n): A n, s^2 = n . A n, tr K, det K
+      an1 = p%a2(l) * n1
+      an2 = p%b2(l) * n2
+      an3 = p%c2(l) * n3
+      s2 = n1 * an1 + n2 * an2 + n3 * an3
+      inv_s = 1 / sqrt(s2)
+      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * inv_s
+      det = p%det_axes2(l) / (s2 * s2)
+      ! V_C = R omega x n; n' = ((R - tr K) V_C + K V_C) / det L
+      v1 = r * (w2 * n3 - w3 * n2)
+      v2 = r * (w3 * n1 - w1 * n3)
+      v3 = r * (w1 * n2 - w2 * n1)
+      inv_det_l = 1 / (r * (r - trace) + det)
+      an_v = (an1 * v1 + an2 * v2 + an3 * v3) * inv_s**2
+      kv1 = (p%a2(l) * v1 - an1 * an_v) * inv_s
+      kv2 = (p%b2(l) * v2 - an2 * an_v) * inv_s
+      kv3 = (p%c2(l) * v3 - an3 * an_v) * inv_s
+      nd1 = ((r - trace) * v1 + kv1) * inv_det_l
+      nd2 = ((r - trace) * v2 + kv2) * inv_det_l
+      nd3 = ((r - trace) * v3 + kv3) * inv_det_l
+      spin = w1 * n1 + w2 * n2 + w3 * n3
+      dydt(l, 1) = length * nd1
+      dydt(l, 2) = length * nd2
+      dydt(l, 3) = length * nd3
+      dydt(l, 4) = (spin * nd1 + p%g_over_r(l) * (-n2)) * p%inv_one_plus_k(l)
+      dydt(l, 5) = (spin * nd2 + p%g_over_r(l) * n1) * p%inv_one_plus_k(l)
+      dydt(l, 6) = (spin * nd3 + p%g_over_r(l) * 0.0_wp) * p%inv_one_plus_k(l)
+    end do
+  end subroutine lanes_derivative
+
+  !> One classical RK4 step of every lane (rk4_ball_step), the new normal
+  !> projected to unit length, and f there.
+  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
+    real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
+    real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
+    real(wp) :: length
+    integer :: i, l
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + (h/2) * f0(:, i)
+    end do
+    call lanes_derivative(p, stage, k2)
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + (h/2) * k2(:, i)
+    end do
+    call lanes_derivative(p, stage, k3)
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + h * k3(:, i)
+    end do
+    call lanes_derivative(p, stage, k4)
+    do i = 1, state_size
+      y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
+    end do
+    do l = 1, lanes
+      length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
+      y_new(l, 1:3) = y_new(l, 1:3) / length
+    end do
+    call lanes_derivative(p, y_new, f_new)
+  end subroutine lanes_rk4_step
+
+  !> The summary's quantities and the limit status of every lane's state y
+  !> with derivative f (observe and limit_status on a fixed cup).
+  pure subroutine lanes_observe(p, y, f, out)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size)
+    type(lane_outputs_t), intent(inout) :: out
+    real(wp) :: inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, p1, p2, p3, lateral
+    real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
+    real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, s2, inv_s, trace, det, r, m, fr
+    logical :: finite, fits
+    integer :: l
+    do l = 1, lanes
+      r = p%radius(l)
+      m = p%mass(l)
+      inv_length = 1 / sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
+      w1 = y(l, 4)
+      w2 = y(l, 5)
+      w3 = y(l, 6)
+      ! contact point (contact_from_normal), centre, nutation
+      horizontal = p%a2(l) * n1**2 + p%b2(l) * n2**2
+      s = sqrt(horizontal + p%c2(l) * n3**2)
+      inv_s = 1 / s
+      p1 = -p%a2(l) * n1 * inv_s
+      p2 = -p%b2(l) * n2 * inv_s
+      if (n3 > 0) then
+        p3 = p%c(l) * horizontal / (s * (s + p%c(l) * n3))
+      else
+        p3 = p%c(l) - p%c2(l) * n3 * inv_s
+      end if
+      lateral = sqrt(n1**2 + n2**2)
+      out%tan_nutation(l) = huge(1.0_wp)
+      if (n3 > lateral * tiny(1.0_wp)) out%tan_nutation(l) = lateral / n3
+      out%lateral(l) = lateral
+      out%normal_z(l) = n3
+      out%displacement(l) = sqrt((p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2)
+      ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
+      nd1 = f(l, 1) * inv_length
+      nd2 = f(l, 2) * inv_length
+      nd3 = f(l, 3) * inv_length
+      ac1 = r * ((f(l, 5) * n3 - f(l, 6) * n2) + (w2 * nd3 - w3 * nd2))
+      ac2 = r * ((f(l, 6) * n1 - f(l, 4) * n3) + (w3 * nd1 - w1 * nd3))
+      ac3 = r * ((f(l, 4) * n2 - f(l, 5) * n1) + (w1 * nd2 - w2 * nd1))
+      f1 = m * (ac1 + 0.0_wp)
+      f2 = m * (ac2 + 0.0_wp)
+      f3 = m * (ac3 + p%g(l))
+      out%horizontal_force(l) = sqrt(f1**2 + f2**2)
+      normal_force = f1 * n1 + f2 * n2 + f3 * n3
+      out%reaction_normal(l) = normal_force
+      t1 = f1 - normal_force * n1
+      t2 = f2 - normal_force * n2
+      t3 = f3 - normal_force * n3
+      out%friction_needed(l) = huge(1.0_wp)
+      if (normal_force > 0) out%friction_needed(l) = sqrt(t1**2 + t2**2 + t3**2) / normal_force
+      ! energy, with z_C - R written without cancellation
+      v1 = r * (w2 * n3 - w3 * n2)
+      v2 = r * (w3 * n1 - w1 * n3)
+      v3 = r * (w1 * n2 - w2 * n1)
+      height = p3 - r * (n1**2 + n2**2) / (1 + n3)
+      energy = 0.5_wp * p%inertia_factor(l) * m * r**2 * (w1 * w1 + w2 * w2 + w3 * w3) &
+               + 0.5_wp * m * (v1 * v1 + v2 * v2 + v3 * v3) + m * p%g(l) * height
+      energy = energy + m * p%g(l) * r
+      out%energy(l) = energy
+      residual = abs((p1 * p%inv_a(l))**2 + (p2 * p%inv_b(l))**2 + ((p3 - p%c(l)) * p%inv_c(l))**2 - 1)
+      out%surface_residual(l) = residual
+      ! does the ball fit (R (1 + margin) below both principal radii)?
+      an1 = p%a2(l) * n1
+      an2 = p%b2(l) * n2
+      an3 = p%c2(l) * n3
+      s2 = n1 * an1 + n2 * an2 + n3 * an3
+      inv_s = 1 / sqrt(s2)
+      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * inv_s
+      det = p%det_axes2(l) / (s2 * s2)
+      fr = p%fit_radius(l)
+      fits = fr * (fr - trace) + det > 0 .and. 2 * fr < trace
+      ! limits in the order of limit_status; |x| <= huge is false for NaN and Inf
+      finite = abs(y(l, 1)) <= huge(1.0_wp) .and. abs(y(l, 2)) <= huge(1.0_wp) .and. &
+               abs(y(l, 3)) <= huge(1.0_wp) .and. abs(w1) <= huge(1.0_wp) .and. &
+               abs(w2) <= huge(1.0_wp) .and. abs(w3) <= huge(1.0_wp) .and. &
+               abs(energy) <= huge(1.0_wp) .and. abs(f1) <= huge(1.0_wp) .and. &
+               abs(f2) <= huge(1.0_wp) .and. abs(f3) <= huge(1.0_wp)
+      if (.not. finite) then
+        out%status(l) = status_nonfinite
+      else if (n3 <= 0) then
+        out%status(l) = status_rim
+      else if (.not. fits) then
+        out%status(l) = status_no_fit
+      else if (residual > constraint_tolerance) then
+        out%status(l) = status_constraint
+      else if (normal_force <= 0) then
+        out%status(l) = status_liftoff
+      else if (p%mu(l) > 0 .and. out%friction_needed(l) > p%mu(l)) then
+        out%status(l) = status_slip
+      else
+        out%status(l) = status_completed
+      end if
+    end do
+  end subroutine lanes_observe
+end module ellroll_ball_lanes

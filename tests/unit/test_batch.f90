@@ -1,0 +1,158 @@
+!> The batch path (simulate_batch: cases across SIMD lanes) against the
+!> one-case path (simulate_case) on cases that differ in everything a lane
+!> holds: geometry, ball, spin, step, length, and how they end (completed,
+!> rim, no_fit, slip). Every summary figure and every stored sample agrees
+!> to 1e-13 relative; a case's result does not depend on its lane or on the
+!> other cases of its batch (bitwise).
+program test_batch
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t
+  use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip
+  use ellroll_cases, only: case_t, output_plan_t, field_count
+  use ellroll_results, only: case_result_t
+  use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
+  use fixtures, only: paper_case
+  use testing
+  implicit none
+  integer, parameter :: n_cases = lanes
+  type(case_t) :: cases(n_cases)
+  type(output_plan_t) :: plan
+  type(case_result_t) :: single(n_cases), batch(n_cases), reordered(n_cases), alone(1)
+  type(error_t) :: err
+  real(wp) :: worst_summary, worst_samples, worst_at_limit
+  integer :: l, order(n_cases)
+  logical :: same_status, same_counts, lane_independent
+
+  cases = make_cases()
+  ! output every 0.01 s of the longest case; shorter cases leave NaN after their end
+  plan%interval = 0.01_wp
+  plan%steps_per_sample = 10
+  plan%n_samples = 301
+  plan%fields = .true.
+
+  do l = 1, n_cases
+    call check(batchable(cases(l)), 'test case is batchable')
+    call simulate_case(cases(l), plan, single(l), err)
+  end do
+  call simulate_batch(cases, plan, batch)
+
+  same_status = .true.
+  same_counts = .true.
+  worst_summary = 0
+  worst_samples = 0
+  worst_at_limit = 0
+  do l = 1, n_cases
+    same_status = same_status .and. single(l)%status == batch(l)%status
+    same_counts = same_counts .and. single(l)%n_steps == batch(l)%n_steps .and. single(l)%n_rhs == batch(l)%n_rhs &
+                  .and. single(l)%nutation_maxima == batch(l)%nutation_maxima
+    if (single(l)%status == status_no_fit .or. single(l)%status == status_rim) then
+      worst_at_limit = max(worst_at_limit, summary_difference(single(l), batch(l)))
+      worst_summary = max(worst_summary, summary_difference(single(l), batch(l), without_forces=.true.))
+    else
+      worst_summary = max(worst_summary, summary_difference(single(l), batch(l)))
+    end if
+    worst_samples = max(worst_samples, sample_difference(single(l), batch(l)))
+  end do
+  call check(same_status, 'batch: every case ends with the status of the one-case path')
+  call check(same_counts, 'batch: same steps, RHS calls and maxima of Theta per case')
+  call check_below(worst_summary, 1.0e-13_wp, 'batch vs one case: summary figures (max rel. diff)')
+  ! A case that stops at no_fit or at the rim has its largest forces at the
+  ! stop, where the model turns singular: at no_fit det L = (R - r1)(R - r2)
+  ! ~ 1e-6 R^2 (fit_margin) and n' ~ 1/det L, so the reaction amplifies the
+  ! round-off difference of the two paths' states (1e-14, below) by about
+  ! R^2 / det L = 1e6; at the rim n_z -> 0 and the friction needed grows
+  ! without bound. There the force maxima (normal, horizontal, friction) are
+  ! checked at that conditioning, every other figure as above.
+  call check_below(worst_at_limit, 1.0e-6_wp, &
+                   'batch vs one case, cases ending at no_fit or rim: force maxima (max rel. diff)')
+  call check_below(worst_samples, 1.0e-13_wp, 'batch vs one case: stored samples (max rel. diff)')
+  call check(count(batch%status == status_rim) == 1 .and. count(batch%status == status_no_fit) == 1 &
+                  .and. count(batch%status == status_slip) == 1 .and. count(batch%status == status_completed) == 5, &
+                  'the cases end as designed (5 completed, rim, no_fit, slip)')
+
+  ! lanes are independent: reversed order, and each case alone in a batch
+  order = [(n_cases + 1 - l, l = 1, n_cases)]
+  call simulate_batch(cases(order), plan, reordered)
+  lane_independent = .true.
+  do l = 1, n_cases
+    lane_independent = lane_independent .and. identical(reordered(n_cases + 1 - l), batch(l))
+    call simulate_batch(cases(l:l), plan, alone)
+    lane_independent = lane_independent .and. identical(alone(1), batch(l))
+  end do
+  call check(lane_independent, 'batch: a result does not depend on its lane or its neighbours (bitwise)')
+  call finish('test_batch')
+
+contains
+
+  function make_cases() result(cs)
+    type(case_t) :: cs(n_cases)
+    cs = paper_case(1.0e-3_wp, 3.0_wp)
+    cs(2)%omega0 = [1.0_wp, -3.0_wp, 45.0_wp]                 ! faster spin
+    cs(3)%a = 0.8_wp; cs(3)%b = 0.5_wp; cs(3)%c = 0.3_wp       ! another cup
+    cs(3)%x0 = 0.05_wp; cs(3)%y0 = -0.03_wp
+    cs(4)%dt = 2.0e-3_wp; cs(4)%t_end = 2.0_wp                 ! another step and length
+    cs(5)%radius = 0.05_wp; cs(5)%mass = 100 / 9.81_wp         ! reaches the rim
+    cs(5)%omega0 = [-29.05_wp, 0.0_wp, 0.0_wp]
+    cs(6)%radius = 0.7_wp; cs(6)%mass = 100 / 9.81_wp          ! stops fitting the cup
+    cs(6)%omega0 = [-1.0_wp, 0.0_wp, 0.0_wp]
+    cs(7)%mu = 0.085_wp                                        ! slips
+    cs(8)%inertia_factor = 2.0_wp / 3; cs(8)%g = 3.71_wp       ! hollow ball on Mars
+  end function make_cases
+
+  !> Largest relative difference of the summary figures.
+  real(wp) function summary_difference(a, b, without_forces)
+    type(case_result_t), intent(in) :: a, b
+    logical, intent(in), optional :: without_forces
+    real(wp) :: x(11), z(11)
+    ! round-off-sized figures (drift, residual) compare in absolute terms: + 1
+    x = [a%t_final, a%theta_max, a%reaction_normal_max, a%friction_needed_max, a%energy_drift + 1, &
+         a%constraint_error_max + 1, a%nutation_period, a%linear_periods, a%displacement_max, &
+         a%horizontal_force_max]
+    z = [b%t_final, b%theta_max, b%reaction_normal_max, b%friction_needed_max, b%energy_drift + 1, &
+         b%constraint_error_max + 1, b%nutation_period, b%linear_periods, b%displacement_max, &
+         b%horizontal_force_max]
+    where (x /= x) x = 0        ! NaN (no nutation period): equal when both are
+    where (z /= z) z = 0
+    if (present(without_forces)) then       ! the normal, friction and horizontal force maxima
+      x([3, 4, 11]) = 0
+      z([3, 4, 11]) = 0
+    end if
+    summary_difference = maxval(abs(x - z) / max(abs(z), tiny(1.0_wp)))
+  end function summary_difference
+
+  real(wp) function sample_difference(a, b)
+    type(case_result_t), intent(in) :: a, b
+    integer :: f
+    sample_difference = 0
+    do f = 1, field_count
+      if (.not. allocated(a%fields(f)%values)) cycle
+      associate (u => a%fields(f)%values, v => b%fields(f)%values)
+        if (any((u /= u) .neqv. (v /= v))) then
+          sample_difference = huge(1.0_wp)       ! NaN in one only
+        else
+          sample_difference = max(sample_difference, &
+              maxval(abs(u - v), mask=u == u) / max(maxval(abs(v), mask=v == v), tiny(1.0_wp)))
+        end if
+      end associate
+    end do
+  end function sample_difference
+
+  logical function identical(a, b)
+    type(case_result_t), intent(in) :: a, b
+    integer :: f
+    identical = a%status == b%status .and. a%n_steps == b%n_steps .and. &
+        same(a%t_final, b%t_final) .and. same(a%theta_max, b%theta_max) .and. &
+        same(a%energy_drift, b%energy_drift) .and. same(a%friction_needed_max, b%friction_needed_max) .and. &
+        same(a%displacement_max, b%displacement_max) .and. same(a%nutation_period, b%nutation_period)
+    do f = 1, field_count
+      if (allocated(a%fields(f)%values)) identical = identical .and. &
+          all(transfer(a%fields(f)%values, 1_i8, size(a%fields(f)%values)) == &
+              transfer(b%fields(f)%values, 1_i8, size(b%fields(f)%values)))
+    end do
+  end function identical
+
+  logical function same(x, y)
+    real(wp), intent(in) :: x, y
+    same = transfer(x, 1_i8) == transfer(y, 1_i8)
+  end function same
+end program test_batch
