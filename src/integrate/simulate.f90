@@ -284,9 +284,9 @@ contains
   end function batchable
 
   !> Up to `lanes` batchable cases advanced together, one per SIMD lane
-  !> (ellroll_ball_lanes): steps, f, the summary's quantities and the limits
-  !> for all lanes at once; samples, maxima of Theta and the search for a
-  !> crossed limit per lane with the one-case code. Each result equals
+  !> (ellroll_ball_lanes): steps, f, the summary's quantities, the stored
+  !> outputs and the limits for all lanes at once; maxima of Theta and the
+  !> search for a crossed limit per lane with the one-case code. Each result equals
   !> simulate_case's to round-off (tested), whatever the other lanes hold;
   !> wall_time is the batch's time shared equally among its cases.
   subroutine simulate_batch(cases, plan, results)
@@ -370,7 +370,14 @@ contains
         t = step * h(l)
         call run(l)%maxima%add(t, out%tan_nutation(l))
         if (sampled .and. mod(step, plan%steps_per_sample) == 0) then
-          obs = observe(run(l)%ball, t, y_new(l, :), f_new(l, :))
+          ! the sample from the lane's own outputs (base acceleration: 0)
+          obs%normal = out%normal(l, :)
+          obs%omega = y_new(l, 4:6)
+          obs%contact = out%contact(l, :)
+          obs%center = obs%contact + run(l)%ball%radius * obs%normal
+          obs%lateral = out%lateral(l)
+          obs%reaction = out%reaction(l, :)
+          obs%energy = out%energy(l)
           call record_sample(results(l), step / plan%steps_per_sample + 1, obs)
         end if
         if (step == n_steps(l)) then

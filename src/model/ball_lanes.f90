@@ -29,8 +29,9 @@ module ellroll_ball_lanes
     real(wp), dimension(lanes) :: g_over_r = 1, inv_one_plus_k = 1, fit_radius = 1, mu = -1
   end type ball_lanes_t
 
-  !> What the summary and the limits need of a state, per lane.
+  !> What the summary, the limits and the stored samples need of a state, per lane.
   type :: lane_outputs_t
+    real(wp), dimension(lanes, 3) :: normal = 0, contact = 0, reaction = 0
     real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0, normal_z = 1
     real(wp), dimension(lanes) :: displacement = 0, horizontal_force = 0
     real(wp), dimension(lanes) :: reaction_normal = 0, friction_needed = 0, energy = 0, surface_residual = 0
@@ -143,16 +144,18 @@ contains
   end subroutine lanes_rk4_step
 
   !> The summary's quantities and the limit status of every lane's state y
-  !> with derivative f (observe and limit_status on a fixed cup).
+  !> with derivative f (observe and limit_status on a fixed cup). Branch-free
+  !> (merge with safe divisors instead of if), so that the loop vectorizes.
   pure subroutine lanes_observe(p, y, f, out)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size)
     type(lane_outputs_t), intent(inout) :: out
-    real(wp) :: inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, p1, p2, p3, lateral
+    real(wp) :: inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
-    real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, s2, inv_s, trace, det, r, m, fr
-    logical :: finite, fits
-    integer :: l
+    real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, s2, trace, det, r, m, fr
+    real(wp) :: p3_lower, p3_upper, quotient, divisor
+    logical :: upright, pressed, finite, fits, slipping
+    integer :: l, status
     do l = 1, lanes
       r = p%radius(l)
       m = p%mass(l)
@@ -169,16 +172,23 @@ contains
       inv_s = 1 / s
       p1 = -p%a2(l) * n1 * inv_s
       p2 = -p%b2(l) * n2 * inv_s
-      if (n3 > 0) then
-        p3 = p%c(l) * horizontal / (s * (s + p%c(l) * n3))
-      else
-        p3 = p%c(l) - p%c2(l) * n3 * inv_s
-      end if
+      ! both branches computed (divisors made safe), then one picked: a merge
+      ! of values, which vectorizes; a merge of expressions that may trap
+      ! (divisions) compiles to branches, which do not
+      ! (merge's arguments are plain values: arithmetic inside them may trap
+      ! under IEEE rules, and the compiler keeps such a branch a branch)
+      divisor = s * (s + p%c(l) * n3)
+      p3_lower = p%c(l) * horizontal / merge(divisor, 1.0_wp, n3 > 0)
+      p3_upper = p%c(l) - p%c2(l) * n3 * inv_s
+      p3 = merge(p3_lower, p3_upper, n3 > 0)
       lateral = sqrt(n1**2 + n2**2)
-      out%tan_nutation(l) = huge(1.0_wp)
-      if (n3 > lateral * tiny(1.0_wp)) out%tan_nutation(l) = lateral / n3
+      upright = n3 > lateral * tiny(1.0_wp)
+      quotient = lateral / merge(n3, 1.0_wp, upright)
+      out%tan_nutation(l) = merge(quotient, huge(1.0_wp), upright)
       out%lateral(l) = lateral
       out%normal_z(l) = n3
+      out%normal(l, :) = [n1, n2, n3]
+      out%contact(l, :) = [p1, p2, p3]
       out%displacement(l) = sqrt((p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2)
       ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
       nd1 = f(l, 1) * inv_length
@@ -190,14 +200,17 @@ contains
       f1 = m * (ac1 + 0.0_wp)
       f2 = m * (ac2 + 0.0_wp)
       f3 = m * (ac3 + p%g(l))
+      out%reaction(l, :) = [f1, f2, f3]
       out%horizontal_force(l) = sqrt(f1**2 + f2**2)
       normal_force = f1 * n1 + f2 * n2 + f3 * n3
       out%reaction_normal(l) = normal_force
       t1 = f1 - normal_force * n1
       t2 = f2 - normal_force * n2
       t3 = f3 - normal_force * n3
-      out%friction_needed(l) = huge(1.0_wp)
-      if (normal_force > 0) out%friction_needed(l) = sqrt(t1**2 + t2**2 + t3**2) / normal_force
+      pressed = normal_force > 0
+      divisor = sqrt(t1**2 + t2**2 + t3**2)
+      quotient = divisor / merge(normal_force, 1.0_wp, pressed)
+      out%friction_needed(l) = merge(quotient, huge(1.0_wp), pressed)
       ! energy, with z_C - R written without cancellation
       v1 = r * (w2 * n3 - w3 * n2)
       v2 = r * (w3 * n1 - w1 * n3)
@@ -214,32 +227,24 @@ contains
       an2 = p%b2(l) * n2
       an3 = p%c2(l) * n3
       s2 = n1 * an1 + n2 * an2 + n3 * an3
-      inv_s = 1 / sqrt(s2)
-      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * inv_s
+      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * (1 / sqrt(s2))
       det = p%det_axes2(l) / (s2 * s2)
       fr = p%fit_radius(l)
-      fits = fr * (fr - trace) + det > 0 .and. 2 * fr < trace
-      ! limits in the order of limit_status; |x| <= huge is false for NaN and Inf
-      finite = abs(y(l, 1)) <= huge(1.0_wp) .and. abs(y(l, 2)) <= huge(1.0_wp) .and. &
-               abs(y(l, 3)) <= huge(1.0_wp) .and. abs(w1) <= huge(1.0_wp) .and. &
-               abs(w2) <= huge(1.0_wp) .and. abs(w3) <= huge(1.0_wp) .and. &
-               abs(energy) <= huge(1.0_wp) .and. abs(f1) <= huge(1.0_wp) .and. &
-               abs(f2) <= huge(1.0_wp) .and. abs(f3) <= huge(1.0_wp)
-      if (.not. finite) then
-        out%status(l) = status_nonfinite
-      else if (n3 <= 0) then
-        out%status(l) = status_rim
-      else if (.not. fits) then
-        out%status(l) = status_no_fit
-      else if (residual > constraint_tolerance) then
-        out%status(l) = status_constraint
-      else if (normal_force <= 0) then
-        out%status(l) = status_liftoff
-      else if (p%mu(l) > 0 .and. out%friction_needed(l) > p%mu(l)) then
-        out%status(l) = status_slip
-      else
-        out%status(l) = status_completed
-      end if
+      ! (both > 0) as min(...) > 0; trace - 2 fr has the sign of the exact difference
+      fits = min(fr * (fr - trace) + det, trace - 2 * fr) > 0
+      ! the limits of limit_status, the first match winning: applied last to
+      ! first. A sum of magnitudes is NaN or Inf when one of them is (in a
+      ! valid state they are far from overflow).
+      finite = abs(y(l, 1)) + abs(y(l, 2)) + abs(y(l, 3)) + abs(w1) + abs(w2) + abs(w3) &
+               + abs(energy) + abs(f1) + abs(f2) + abs(f3) <= huge(1.0_wp)
+      slipping = out%friction_needed(l) > p%mu(l)
+      slipping = merge(slipping, .false., p%mu(l) > 0)
+      status = merge(status_slip, status_completed, slipping)
+      status = merge(status_liftoff, status, .not. pressed)
+      status = merge(status_constraint, status, residual > constraint_tolerance)
+      status = merge(status_no_fit, status, .not. fits)
+      status = merge(status_rim, status, n3 <= 0)
+      out%status(l) = merge(status_nonfinite, status, .not. finite)
     end do
   end subroutine lanes_observe
 end module ellroll_ball_lanes
