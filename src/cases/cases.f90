@@ -89,6 +89,7 @@ module ellroll_cases
     integer(i8) :: steps_per_sample = 1
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .true.
+    integer :: compression = 0          !< deflate level of the trajectories, 0 (none) to 9
   end type output_plan_t
 
 contains

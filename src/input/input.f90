@@ -115,6 +115,7 @@ contains
     real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)
+    integer :: compression
     ! &excitation
     character(len=16) :: kind
     real(wp) :: amplitude(3), frequency, phase
@@ -130,7 +131,7 @@ contains
     namelist /environment/ g
     namelist /initial/ x, y, omega
     namelist /integration/ method, dt, t_end, fit_margin, rtol, atol, error_estimate
-    namelist /output/ file, interval, fields
+    namelist /output/ file, interval, fields, compression
     namelist /excitation/ kind, amplitude, frequency, phase, record_file
     namelist /campaign/ combine, samples, seed, invalid
     namelist /sweep/ name, values, start, stop, count, spacing
@@ -145,7 +146,7 @@ contains
     inertia_factor = 0.4_wp; g = 9.81_wp; x = 0; y = 0; omega = nan()
     method = 'rk4'; dt = nan(); t_end = nan(); fit_margin = 1.0e-6_wp
     rtol = 1.0e-9_wp; atol = 1.0e-12_wp; error_estimate = 'none'
-    file = ''; interval = nan(); fields = ''
+    file = ''; interval = nan(); fields = ''; compression = 0
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
     kind = 'none'; amplitude = 0; frequency = 0; phase = 0; record_file = ''
     allocate (sweeps(0), draws(0))
@@ -206,7 +207,8 @@ contains
       case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
       case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
                                                       'fit_margin', 'rtol', 'atol', 'error_estimate'])
-      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields'])
+      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
+                                                 'compression'])
       case ('excitation'); ok = check_names(rd, gi, [character(len=16) :: 'kind', 'amplitude', 'frequency', &
                                                      'phase', 'record_file'])
       case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
@@ -362,6 +364,11 @@ contains
           plan%fields(f) = .true.
         end do
       end if
+      if (compression < 0 .or. compression > 9) then
+        call rd%fail_value(gi, 'compression', 'must be 0 (none) to 9 (deflate level, with shuffle)')
+        return
+      end if
+      plan%compression = compression
       bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
       if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
         call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &

@@ -12,7 +12,7 @@ module ellroll_hdf5
   use h5ds
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output, err_input
-  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
+  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text, int_value
   use ellroll_status, only: status_count, status_name, status_pending
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, &
       field_ncomp, field_descriptions
@@ -44,6 +44,20 @@ module ellroll_hdf5
 
   !> Width of per-case text datasets (bytes, null-terminated).
   integer, parameter :: text_width = 32
+
+  !> Table rows (the case's inputs, summary and status) are kept per window
+  !> of consecutive cases and written with one hyperslab per dataset when the
+  !> window is complete: row by row, some 45 small writes per case cost more
+  !> than integrating it. At most max_windows are kept (a resume replays its
+  !> journal in any order); the oldest then goes out as it is.
+  integer, parameter :: window_rows = 64, max_windows = 32
+
+  type :: row_window_t
+    integer(i8) :: first = 0                         !< the case of its first row
+    integer :: expected = 0, filled = 0
+    logical, allocatable :: present(:)
+    type(named_value_t), allocatable :: rows(:, :)   !< (entry, row)
+  end type row_window_t
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
 
@@ -73,6 +87,8 @@ module ellroll_hdf5
     ! datasets per case cost more than integrating it
     character(len=64), allocatable :: open_names(:)
     integer(hid_t), allocatable :: open_ids(:)
+    type(row_window_t), allocatable :: windows(:)
+    character(len=8), allocatable :: row_groups(:)   !< the group of each row entry
   contains
     procedure :: create
     procedure :: write_case
@@ -83,7 +99,7 @@ contains
 
   !> Create the file (truncating any file of that name) and every dataset,
   !> filled with NaN / status 'pending' until cases are written.
-  subroutine create(self, path, indices, times, fields, template, prov, err)
+  subroutine create(self, path, indices, times, fields, template, prov, err, compression)
     class(h5_output_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer(i8), intent(in) :: indices(:)      !< global index of each case slot
@@ -92,6 +108,7 @@ contains
     type(case_t), intent(in) :: template         !< gives the /case/ layout
     type(provenance_t), intent(in) :: prov
     type(error_t), intent(inout) :: err
+    integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
     integer :: hdferr, f, k
     integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl
     integer(i8) :: n_cases
@@ -301,8 +318,14 @@ contains
       call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, c_loc(fill), hdferr)
       if (present(chunk)) then
         call h5pset_chunk_f(dcpl, size(chunk), int(chunk, hsize_t), hdferr)
-        call h5pset_shuffle_f(dcpl, hdferr)
-        call h5pset_deflate_f(dcpl, 4, hdferr)
+        ! off by default: trajectories shrink by some 15 % and deflating them
+        ! in the single writer took as long as integrating them
+        if (present(compression)) then
+          if (compression > 0) then
+            call h5pset_shuffle_f(dcpl, hdferr)
+            call h5pset_deflate_f(dcpl, compression, hdferr)
+          end if
+        end if
       end if
       call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
       call h5pclose_f(dcpl, hdferr)
@@ -389,84 +412,125 @@ contains
     type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
     type(error_t), intent(inout) :: err
-    type(named_value_t), allocatable :: rec(:)
+    type(named_value_t), allocatable :: inputs(:), summary(:)
+    integer(hid_t) :: dset
     integer :: f
-    integer(i8), target :: status(1)
 
-    rec = case_record(cs)
-    call write_table('case', rec)
     do f = 1, field_count
       ! a case that was never integrated has no buffers: its samples stay NaN
-      if (.not. self%fields(f) .or. .not. allocated(res%fields(f)%values) .or. err%failed()) cycle
+      if (.not. self%fields(f) .or. .not. allocated(res%fields(f)%values)) cycle
+      if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) return
       if (field_ncomp(f) == 1) then
-        call write_real_at('trajectory/' // trim(field_names(f)), res%fields(f)%values, &
-                           [0_i8, icase], [self%n_samples, 1_i8])
+        call write_real_slab(self, dset, res%fields(f)%values, [0_i8, icase], [self%n_samples, 1_i8], err)
       else
-        call write_real_at('trajectory/' // trim(field_names(f)), res%fields(f)%values, &
-                           [0_i8, 0_i8, icase], [3_i8, self%n_samples, 1_i8])
+        call write_real_slab(self, dset, res%fields(f)%values, [0_i8, 0_i8, icase], [3_i8, self%n_samples, 1_i8], err)
       end if
     end do
-    status = res%status
-    call write_int_at('summary/status', status, icase)
-    call write_table('summary', summary_record(res))
-
-  contains
-
-    subroutine write_table(group, rec)
-      character(len=*), intent(in) :: group
-      type(named_value_t), intent(in) :: rec(:)
-      integer :: k
-      integer(i8), target :: ints(1)
-      do k = 1, size(rec)
-        select case (rec(k)%kind)
-        case (kind_real)
-          if (rec(k)%ncomp == 1) then
-            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [icase], [1_i8])
-          else
-            call write_real_at(group // '/' // trim(rec(k)%name), rec(k)%reals, [0_i8, icase], &
-                               [int(rec(k)%ncomp, i8), 1_i8])
-          end if
-        case (kind_int)
-          ints = rec(k)%int
-          call write_int_at(group // '/' // trim(rec(k)%name), ints, icase)
-        case (kind_text)
-          call write_text_at(group // '/' // trim(rec(k)%name), rec(k)%text, icase)
-        end select
-      end do
-    end subroutine write_table
-
-    subroutine write_real_at(name, values, offset, counts)
-      character(len=*), intent(in) :: name
-      real(wp), intent(in), target :: values(*)
-      integer(i8), intent(in) :: offset(:), counts(:)
-      integer(hid_t) :: dset
-      if (.not. open_dataset(self, name, dset, err)) return
-      call write_real_slab(self, dset, values, offset, counts, err)
-    end subroutine write_real_at
-
-    subroutine write_int_at(name, values, offset)
-      character(len=*), intent(in) :: name
-      integer(i8), intent(in), target :: values(:)
-      integer(i8), intent(in) :: offset
-      integer(hid_t) :: dset
-      if (.not. open_dataset(self, name, dset, err)) return
-      call write_int_slab(self, dset, values, [offset], [1_i8], err)
-    end subroutine write_int_at
-
-    subroutine write_text_at(name, value, offset)
-      character(len=*), intent(in) :: name, value
-      integer(i8), intent(in) :: offset
-      integer(hid_t) :: dset
-      if (.not. open_dataset(self, name, dset, err)) return
-      call write_text_slab(self, dset, [value], offset, err)
-    end subroutine write_text_at
+    inputs = case_record(cs)
+    summary = [summary_record(res), int_value('status', '', '', int(res%status, i8))]
+    if (.not. allocated(self%row_groups)) &
+      self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(summary))]
+    call keep_row(self, icase, [inputs, summary], err)
   end subroutine write_case
+
+  !> Keep a case's table row in its window; write the window once complete.
+  subroutine keep_row(self, icase, row, err)
+    type(h5_output_t), intent(inout) :: self
+    integer(i8), intent(in) :: icase
+    type(named_value_t), intent(in) :: row(:)
+    type(error_t), intent(inout) :: err
+    type(row_window_t) :: new_window
+    integer :: w, r
+    if (.not. allocated(self%windows)) allocate (self%windows(0))
+    w = findloc(self%windows%first, (icase / window_rows) * window_rows, dim=1)
+    if (w == 0) then
+      if (size(self%windows) >= max_windows) call write_window(self, 1, err)
+      new_window%first = (icase / window_rows) * window_rows
+      new_window%expected = int(min(int(window_rows, i8), self%n_cases - new_window%first))
+      allocate (new_window%present(new_window%expected), source=.false.)
+      allocate (new_window%rows(size(row), new_window%expected))
+      self%windows = [self%windows, new_window]
+      w = size(self%windows)
+    end if
+    r = int(icase - self%windows(w)%first) + 1
+    if (.not. self%windows(w)%present(r)) self%windows(w)%filled = self%windows(w)%filled + 1
+    self%windows(w)%present(r) = .true.
+    self%windows(w)%rows(:, r) = row
+    if (self%windows(w)%filled == self%windows(w)%expected) call write_window(self, w, err)
+  end subroutine keep_row
+
+  !> Write window w (each run of consecutive rows as one hyperslab per
+  !> dataset) and drop it.
+  subroutine write_window(self, w, err)
+    type(h5_output_t), intent(inout) :: self
+    integer, intent(in) :: w
+    type(error_t), intent(inout) :: err
+    integer :: first_row, last_row
+    associate (win => self%windows(w))
+      last_row = 0
+      do while (.not. err%failed())
+        first_row = findloc(win%present(last_row + 1:), .true., dim=1)
+        if (first_row == 0) exit
+        first_row = last_row + first_row
+        last_row = first_row
+        do while (last_row < win%expected)
+          if (.not. win%present(last_row + 1)) exit
+          last_row = last_row + 1
+        end do
+        call write_rows(self, win%rows(:, first_row:last_row), win%first + first_row - 1, err)
+      end do
+    end associate
+    self%windows = [self%windows(:w - 1), self%windows(w + 1:)]
+  end subroutine write_window
+
+  !> Rows of consecutive cases from `offset` on, one hyperslab per dataset.
+  subroutine write_rows(self, rows, offset, err)
+    type(h5_output_t), intent(inout) :: self
+    type(named_value_t), intent(in) :: rows(:, :)
+    integer(i8), intent(in) :: offset
+    type(error_t), intent(inout) :: err
+    integer(hid_t) :: dset
+    integer(i8) :: n
+    integer :: k, ncomp
+    n = size(rows, 2, kind=i8)
+    do k = 1, size(rows, 1)
+      if (.not. open_dataset(self, trim(self%row_groups(k)) // '/' // trim(rows(k, 1)%name), dset, err)) return
+      select case (rows(k, 1)%kind)
+      case (kind_real)
+        ncomp = rows(k, 1)%ncomp
+        if (ncomp == 1) then
+          call write_real_slab(self, dset, reals_of(1), [offset], [n], err)
+        else
+          call write_real_slab(self, dset, reals_of(ncomp), [0_i8, offset], [int(ncomp, i8), n], err)
+        end if
+      case (kind_int)
+        call write_int_slab(self, dset, rows(k, :)%int, [offset], [n], err)
+      case (kind_text)
+        call write_text_slab(self, dset, rows(k, :)%text, offset, err)
+      end select
+    end do
+  contains
+    !> The first ncomp components of entry k of every row, row after row.
+    pure function reals_of(ncomp) result(values)
+      integer, intent(in) :: ncomp
+      real(wp) :: values(ncomp * size(rows, 2))
+      integer :: j
+      do j = 1, size(rows, 2)
+        values((j - 1) * ncomp + 1:j * ncomp) = rows(k, j)%reals(:ncomp)
+      end do
+    end function reals_of
+  end subroutine write_rows
 
   subroutine close_file(self, err)
     class(h5_output_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
     integer :: hdferr, k
     if (self%file < 0) return
+    if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
+      do while (size(self%windows) > 0)
+        call write_window(self, 1, err)
+      end do
+    end if
     if (allocated(self%open_ids)) then
       do k = 1, size(self%open_ids)
         call h5dclose_f(self%open_ids(k), hdferr)

@@ -98,7 +98,7 @@ contains
     prov%shard = '0/1'
     partial = target // '.partial'
     call out%create(partial, [(i, i = 0, inp%campaign%n_cases() - 1)], shards(1)%real_column('time', err), &
-                    inp%plan%fields, inp%campaign%base, prov, err)
+                    inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
     do index = 0, n_shards - 1
       slots = shard_slots(inp%campaign%n_cases(), [index, n_shards])
       if (size(slots, kind=i8) /= shards(shard_of(index))%n_cases .and. .not. err%failed()) &

@@ -195,7 +195,7 @@ contains
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
-    call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err)
+    call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call out%close(err)

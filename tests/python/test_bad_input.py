@@ -31,6 +31,8 @@ CASES = [
     ("unknown method", [("'rk4'", "'euler'")], ["&integration", "method = 'euler'", "unknown method", "rk4"]),
     ("unknown field", [("interval = 0.01 /", "interval = 0.01, fields = 'speed' /")],
      ["&output", "unknown field 'speed'", "nutation"]),
+    ("compression out of range", [("interval = 0.01 /", "interval = 0.01, compression = 12 /")],
+     ["case.nml:9:", "&output", "compression = 12", "0 (none) to 9"]),
     ("too few omega components", [("omega = -2.0, 2.0, 20.0", "omega = -2.0, 2.0")],
      ["case.nml:7:", "&initial", "omega = -2.0, 2.0", "three finite numbers"]),
     ("weight and mass", [("weight = 2620.0", "weight = 2620.0, mass = 267.0")], ["&ball", "not both"]),

@@ -27,7 +27,7 @@ def test_layout_shapes_units_and_scales(paper_file):
             assert scales == (["/trajectory/case", "/time", "/xyz"] if ncomp == 3
                               else ["/trajectory/case", "/time"])
             assert ds.chunks[0] == 1 and np.prod(ds.chunks) * 8 <= 2**20
-            assert ds.compression == "gzip" and ds.shuffle
+            assert ds.compression is None     # by default; see test_compression
         for name in SUMMARY:
             assert f["summary"][name].shape == (1,)
         for name in ["a", "b", "c", "radius", "mass", "g", "x0", "y0", "dt", "t_end", "method"]:
@@ -54,6 +54,22 @@ def test_inputs_and_provenance(paper_file):
         assert abs((datetime.datetime.utcnow() - created).total_seconds()) < 3600
         assert attrs["input_namelist"] == PAPER_INPUT.read_text()
         assert " run legeza1990.nml" in attrs["command_line"]
+
+
+def test_compression(ellroll, tmp_path):
+    """&output compression = 4: shuffle + deflate, the same numbers."""
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 2.0")
+    plain = text.replace("file = 'legeza1990.h5'", "file = 'plain.h5'")
+    packed = text.replace("file = 'legeza1990.h5'", "file = 'packed.h5', compression = 4")
+    for name, content in [("plain.nml", plain), ("packed.nml", packed)]:
+        (tmp_path / name).write_text(content)
+        assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "plain.h5", "r") as a, h5py.File(tmp_path / "packed.h5", "r") as b:
+        for name in FIELDS:
+            assert a["trajectory"][name].compression is None
+            assert b["trajectory"][name].compression == "gzip" and b["trajectory"][name].shuffle
+            assert b["trajectory"][name].compression_opts == 4
+            assert a["trajectory"][name][()].tobytes() == b["trajectory"][name][()].tobytes()
 
 
 def test_paper_case_results(paper_file):
