@@ -31,7 +31,7 @@ program ellroll
   integer :: rank, n_ranks
 
   call ranks_start(rank, n_ranks)
-  call parse_arguments(err)
+  call parse_arguments()
   if (.not. err%failed()) then
     select case (command)
     case ('help')
@@ -60,8 +60,7 @@ program ellroll
 
 contains
 
-  subroutine parse_arguments(err)
-    type(error_t), intent(inout) :: err
+  subroutine parse_arguments()
     integer :: k, n, ios
     character(len=:), allocatable :: arg, value
     command = ''

@@ -64,6 +64,18 @@ contains
     p%mu(l) = ball%mu
   end subroutine set_lane
 
+  !> |n| of lane l's state (its first three components), 1/|n| and n/|n|.
+  pure subroutine unit_normal(y, l, length, inv_length, n1, n2, n3)
+    real(wp), intent(in) :: y(lanes, state_size)
+    integer, intent(in) :: l
+    real(wp), intent(out) :: length, inv_length, n1, n2, n3
+    length = sqrt(y(l, 1)**2 + y(l, 2)**2 + y(l, 3)**2)
+    inv_length = 1 / length
+    n1 = y(l, 1) * inv_length
+    n2 = y(l, 2) * inv_length
+    n3 = y(l, 3) * inv_length
+  end subroutine unit_normal
+
   !> dy/dt of every lane (ball_derivative on a fixed cup).
   pure subroutine lanes_derivative(p, y, dydt)
     type(ball_lanes_t), intent(in) :: p
@@ -74,11 +86,7 @@ contains
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
-      length = sqrt(y(l, 1)**2 + y(l, 2)**2 + y(l, 3)**2)
-      inv_length = 1 / length
-      n1 = y(l, 1) * inv_length
-      n2 = y(l, 2) * inv_length
-      n3 = y(l, 3) * inv_length
+      call unit_normal(y, l, length, inv_length, n1, n2, n3)
       w1 = y(l, 4)
       w2 = y(l, 5)
       w3 = y(l, 6)
@@ -150,7 +158,7 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size)
     type(lane_outputs_t), intent(inout) :: out
-    real(wp) :: inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
+    real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
     real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, s2, trace, det, r, m, fr
     real(wp) :: p3_lower, p3_upper, quotient, divisor
@@ -159,10 +167,7 @@ contains
     do l = 1, lanes
       r = p%radius(l)
       m = p%mass(l)
-      inv_length = 1 / sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
-      n1 = y(l, 1) * inv_length
-      n2 = y(l, 2) * inv_length
-      n3 = y(l, 3) * inv_length
+      call unit_normal(y, l, length, inv_length, n1, n2, n3)
       w1 = y(l, 4)
       w2 = y(l, 5)
       w3 = y(l, 6)
