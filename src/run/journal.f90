@@ -37,6 +37,7 @@ module ellroll_journal
     procedure :: create
     procedure :: open_existing
     procedure :: next_record
+    procedure :: record => encode_record
     procedure :: append
     procedure :: close => close_journal
   end type journal_t
@@ -132,16 +133,25 @@ contains
     found = .true.
   end subroutine next_record
 
-  subroutine append(self, slot, res, err)
-    class(journal_t), intent(inout) :: self
+  !> A case's record, checksum included, ready for append: made by the thread
+  !> that integrated the case, so that the single writer only writes it.
+  function encode_record(self, slot, res) result(words)
+    class(journal_t), intent(in) :: self
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
-    type(error_t), intent(inout) :: err
     integer(i8), allocatable :: words(:)
+    words = pack_record(self%header, slot, res)
+    words = [words, checksum(words)]
+  end function encode_record
+
+  !> Append a record made by encode_record and flush it.
+  subroutine append(self, words, err)
+    class(journal_t), intent(inout) :: self
+    integer(i8), intent(in) :: words(:)
+    type(error_t), intent(inout) :: err
     integer :: ios
     character(len=256) :: msg
-    words = pack_record(self%header, slot, res)
-    write (self%unit, pos=self%next_position, iostat=ios, iomsg=msg) words, checksum(words)
+    write (self%unit, pos=self%next_position, iostat=ios, iomsg=msg) words
     if (ios == 0) flush (self%unit, iostat=ios)
     if (ios /= 0) then
       call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // trim(msg))

@@ -274,6 +274,7 @@ contains
       type(error_t) :: case_err
       integer(i8) :: slots(lanes), slot
       integer :: n, j, in_batch(lanes), n_batch
+      integer(i8), allocatable :: record(:)
       n = 0
       do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
         if (done(slot)) cycle
@@ -293,9 +294,10 @@ contains
       end if
       do j = 1, n
         if (.not. in_lanes(cases(j))) call simulate_case(cases(j), inp%plan, results(j), case_err)
+        record = journal%record(slots(j), results(j))
         !$omp critical (ellroll_writer)
         if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
-        if (.not. shared_err%failed()) call journal%append(slots(j), results(j), shared_err)
+        if (.not. shared_err%failed()) call journal%append(record, shared_err)
         if (.not. shared_err%failed()) call out%write_case(slots(j), cases(j), results(j), shared_err)
         call progress%advance()
         !$omp end critical (ellroll_writer)
