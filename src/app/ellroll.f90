@@ -3,6 +3,7 @@
 !> error, 2 bad input, 3 output error.
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  !$ use omp_lib, only: omp_set_num_threads
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, exit_code
   use ellroll_strings, only: itoa, format_real
@@ -32,6 +33,7 @@ program ellroll
 
   call ranks_start(rank, n_ranks)
   call parse_arguments()
+  !$ if (opts%threads > 0) call omp_set_num_threads(opts%threads)   ! for every parallel loop
   if (.not. err%failed()) then
     select case (command)
     case ('help')

@@ -53,7 +53,9 @@ module ellroll_hdf5
   integer, parameter :: window_rows = 64, max_windows = 32
 
   type :: row_window_t
+    logical :: in_use = .false.
     integer(i8) :: first = 0                         !< the case of its first row
+    integer(i8) :: opened = 0                        !< when it was opened (the oldest goes first)
     integer :: expected = 0, filled = 0
     logical, allocatable :: present(:)
     type(named_value_t), allocatable :: rows(:, :)   !< (entry, row)
@@ -87,7 +89,8 @@ module ellroll_hdf5
     ! datasets per case cost more than integrating it
     character(len=64), allocatable :: open_names(:)
     integer(hid_t), allocatable :: open_ids(:)
-    type(row_window_t), allocatable :: windows(:)
+    type(row_window_t), allocatable :: windows(:)    !< max_windows slots, allocated once
+    integer(i8) :: windows_opened = 0
     character(len=8), allocatable :: row_groups(:)   !< the group of each row entry
   contains
     procedure :: create
@@ -430,37 +433,51 @@ contains
     summary = [summary_record(res), int_value('status', '', '', int(res%status, i8))]
     if (.not. allocated(self%row_groups)) &
       self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(summary))]
-    call keep_row(self, icase, [inputs, summary], err)
+    call keep_row(self, icase, inputs, summary, err)
   end subroutine write_case
 
-  !> Keep a case's table row in its window; write the window once complete.
-  subroutine keep_row(self, icase, row, err)
+  !> Keep a case's table row (inputs, then summary) in its window; write the
+  !> window once complete.
+  subroutine keep_row(self, icase, inputs, summary, err)
     type(h5_output_t), intent(inout) :: self
     integer(i8), intent(in) :: icase
-    type(named_value_t), intent(in) :: row(:)
+    type(named_value_t), intent(in) :: inputs(:), summary(:)
     type(error_t), intent(inout) :: err
-    type(row_window_t) :: new_window
+    integer(i8) :: first
     integer :: w, r
-    if (.not. allocated(self%windows)) allocate (self%windows(0))
-    w = findloc(self%windows%first, (icase / window_rows) * window_rows, dim=1)
+    if (.not. allocated(self%windows)) allocate (self%windows(max_windows))
+    first = (icase / window_rows) * window_rows
+    w = findloc(self%windows%in_use .and. self%windows%first == first, .true., dim=1)
     if (w == 0) then
-      if (size(self%windows) >= max_windows) call write_window(self, 1, err)
-      new_window%first = (icase / window_rows) * window_rows
-      new_window%expected = int(min(int(window_rows, i8), self%n_cases - new_window%first))
-      allocate (new_window%present(new_window%expected), source=.false.)
-      allocate (new_window%rows(size(row), new_window%expected))
-      self%windows = [self%windows, new_window]
-      w = size(self%windows)
+      w = findloc(self%windows%in_use, .false., dim=1)
+      if (w == 0) then                    ! all in use: the oldest goes out as it is
+        w = minloc(self%windows%opened, dim=1)
+        call write_window(self, w, err)
+      end if
+      associate (win => self%windows(w))
+        win%in_use = .true.
+        win%first = first
+        self%windows_opened = self%windows_opened + 1
+        win%opened = self%windows_opened
+        win%expected = int(min(int(window_rows, i8), self%n_cases - first))
+        win%filled = 0
+        if (.not. allocated(win%present)) &
+          allocate (win%present(window_rows), win%rows(size(inputs) + size(summary), window_rows))
+        win%present = .false.
+      end associate
     end if
-    r = int(icase - self%windows(w)%first) + 1
-    if (.not. self%windows(w)%present(r)) self%windows(w)%filled = self%windows(w)%filled + 1
-    self%windows(w)%present(r) = .true.
-    self%windows(w)%rows(:, r) = row
-    if (self%windows(w)%filled == self%windows(w)%expected) call write_window(self, w, err)
+    associate (win => self%windows(w))
+      r = int(icase - first) + 1
+      if (.not. win%present(r)) win%filled = win%filled + 1
+      win%present(r) = .true.
+      win%rows(:size(inputs), r) = inputs
+      win%rows(size(inputs) + 1:, r) = summary
+      if (win%filled == win%expected) call write_window(self, w, err)
+    end associate
   end subroutine keep_row
 
   !> Write window w (each run of consecutive rows as one hyperslab per
-  !> dataset) and drop it.
+  !> dataset) and free its slot.
   subroutine write_window(self, w, err)
     type(h5_output_t), intent(inout) :: self
     integer, intent(in) :: w
@@ -469,7 +486,7 @@ contains
     associate (win => self%windows(w))
       last_row = 0
       do while (.not. err%failed())
-        first_row = findloc(win%present(last_row + 1:), .true., dim=1)
+        first_row = findloc(win%present(last_row + 1:win%expected), .true., dim=1)
         if (first_row == 0) exit
         first_row = last_row + first_row
         last_row = first_row
@@ -479,8 +496,8 @@ contains
         end do
         call write_rows(self, win%rows(:, first_row:last_row), win%first + first_row - 1, err)
       end do
+      win%in_use = .false.
     end associate
-    self%windows = [self%windows(:w - 1), self%windows(w + 1:)]
   end subroutine write_window
 
   !> Rows of consecutive cases from `offset` on, one hyperslab per dataset.
@@ -527,9 +544,10 @@ contains
     integer :: hdferr, k
     if (self%file < 0) return
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
-      do while (size(self%windows) > 0)
-        call write_window(self, 1, err)
+      do k = 1, size(self%windows)
+        if (self%windows(k)%in_use) call write_window(self, k, err)
       end do
+      deallocate (self%windows)
     end if
     if (allocated(self%open_ids)) then
       do k = 1, size(self%open_ids)
@@ -556,6 +574,7 @@ contains
     integer(hid_t), intent(out) :: dset
     type(error_t), intent(inout) :: err
     integer :: hdferr, k
+    integer(hid_t) :: dapl
     ok = .false.
     if (err%failed()) return
     if (.not. allocated(self%open_names)) allocate (self%open_names(0), self%open_ids(0))
@@ -566,7 +585,12 @@ contains
         return
       end if
     end do
-    call h5dopen_f(self%file, name, dset, hdferr)
+    ! no chunk cache: every chunk is one whole case, written once, so caching
+    ! it only adds a copy and a later eviction
+    call h5pcreate_f(H5P_DATASET_ACCESS_F, dapl, hdferr)
+    call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
+    call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
+    call h5pclose_f(dapl, k)
     if (hdferr < 0) then
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return

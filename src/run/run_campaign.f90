@@ -65,17 +65,32 @@ contains
     character(len=:), allocatable :: reason
     type(case_t) :: cs
     allocate (invalid(0:inp%campaign%n_cases() - 1))
+    ! every case checked (in parallel: a sweep may hold millions), then the
+    ! messages of the first five in case order
+    !$omp parallel do schedule(dynamic, 256)
+    do i = 0, inp%campaign%n_cases() - 1
+      invalid(i) = case_is_invalid(i)
+    end do
+    !$omp end parallel do
     messages = ''
     n_bad = 0
     do i = 0, inp%campaign%n_cases() - 1
+      if (.not. invalid(i)) cycle
+      n_bad = n_bad + 1
+      if (n_bad > 5) cycle
       cs = inp%campaign%case_at(i)
       call check_case(cs, inp%plan%interval, param, reason)
-      invalid(i) = param /= 0
-      if (param == 0) cycle
-      n_bad = n_bad + 1
-      if (n_bad <= 5) messages = messages // achar(10) // '  ' // describe_invalid(inp, cs, param, reason)
+      messages = messages // achar(10) // '  ' // describe_invalid(inp, cs, param, reason)
     end do
     if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(int(n_bad - 5)) // ' more'
+  contains
+    logical function case_is_invalid(index)
+      integer(i8), intent(in) :: index
+      integer :: bad_param
+      character(len=:), allocatable :: why
+      call check_case(inp%campaign%case_at(index), inp%plan%interval, bad_param, why)
+      case_is_invalid = bad_param /= 0
+    end function case_is_invalid
   end subroutine find_invalid_cases
 
   !> A warning (or '') for the cases whose fixed step dt is large against
@@ -84,23 +99,26 @@ contains
     type(run_input_t), intent(in) :: inp
     character(len=:), allocatable :: message
     real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
-    real(wp) :: rate, worst_rate, suggestion
+    real(wp) :: worst_rate, suggestion
+    real(wp), allocatable :: rates(:), steps(:)
     integer(i8) :: i, worst, n_large
     type(case_t) :: cs
-    type(rolling_ball_t) :: ball
     message = ''
     if (adaptive_method(inp%campaign%base%method)) return
+    allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1))
+    !$omp parallel do schedule(dynamic, 256)
+    do i = 0, inp%campaign%n_cases() - 1
+      call start_rate(i, rates(i), steps(i))
+    end do
+    !$omp end parallel do
     n_large = 0
     worst_rate = 0
     worst = 0
     do i = 0, inp%campaign%n_cases() - 1
-      cs = inp%campaign%case_at(i)
-      ball = make_ball(cs)
-      rate = fastest_rate(ball, initial_state(ball, cs%x0, cs%y0, cs%omega0))
-      if (cs%dt * rate <= warn_above) cycle
+      if (steps(i) * rates(i) <= warn_above) cycle
       n_large = n_large + 1
-      if (rate > worst_rate) then
-        worst_rate = rate
+      if (rates(i) > worst_rate) then
+        worst_rate = rates(i)
         worst = i
       end if
     end do
@@ -112,6 +130,18 @@ contains
         format_real(cs%dt) // ' s, 1/rate = ' // format_real(1 / worst_rate) // &
         ' s); suggested dt <= ' // format_real(suggestion) // ' s, or method = ''dop853'''
   contains
+    !> Case `index`'s fastest rate at the start and its step.
+    subroutine start_rate(index, rate, dt)
+      integer(i8), intent(in) :: index
+      real(wp), intent(out) :: rate, dt
+      type(case_t) :: one
+      type(rolling_ball_t) :: ball
+      one = inp%campaign%case_at(index)
+      ball = make_ball(one)
+      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0))
+      dt = one%dt
+    end subroutine start_rate
+
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval.
     real(wp) function nice_step(limit, interval) result(step)
       real(wp), intent(in) :: limit, interval
