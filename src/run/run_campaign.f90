@@ -177,7 +177,7 @@ contains
     type(provenance_t) :: prov
     type(progress_t) :: progress
     type(case_result_t) :: res
-    type(error_t) :: shared_err
+    type(error_t) :: shared_err, journal_err
     logical :: found
     integer :: n_threads
 
@@ -273,11 +273,12 @@ contains
     use_batches = inp%campaign%n_cases() >= lanes
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
     do chunk = 0, (n_slots - 1) / lanes
-      if (.not. shared_err%failed()) call run_block(chunk)
+      if (.not. (shared_err%failed() .or. journal_err%failed())) call run_block(chunk)
     end do
     !$omp end parallel do
     call progress%finish()
 
+    if (journal_err%failed() .and. .not. shared_err%failed()) shared_err = journal_err
     if (shared_err%failed()) then
       err = shared_err
       call abandon()
@@ -325,10 +326,17 @@ contains
       do j = 1, n
         if (.not. in_lanes(cases(j))) call simulate_case(cases(j), inp%plan, results(j), case_err)
         record = journal%record(slots(j), results(j))
+        ! the journal and the HDF5 file each have one writer at a time, but
+        ! one thread may write the journal while another writes the file
+        ! (a resume rebuilds the file from the journal, so their order does
+        ! not matter)
+        !$omp critical (ellroll_journal)
+        if (case_err%failed() .and. .not. journal_err%failed()) journal_err = case_err
+        if (.not. journal_err%failed()) call journal%append(record, journal_err)
+        !$omp end critical (ellroll_journal)
         !$omp critical (ellroll_writer)
-        if (case_err%failed() .and. .not. shared_err%failed()) shared_err = case_err
-        if (.not. shared_err%failed()) call journal%append(record, shared_err)
-        if (.not. shared_err%failed()) call out%write_case(slots(j), cases(j), results(j), shared_err)
+        if (.not. (shared_err%failed() .or. journal_err%failed())) &
+          call out%write_case(slots(j), cases(j), results(j), shared_err)
         call progress%advance()
         !$omp end critical (ellroll_writer)
       end do

@@ -182,8 +182,9 @@ def kill_after_records(args, cwd, journal, records, record_bytes, delay=0.0):
 
 
 def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
-    name = write(tmp_path, SPIN_RADIUS.replace("values = 5, 10, 20, 40, 80", "values = 5, 10, 20, 40, 80, 100"),
-                 t_end=5.0)
+    # 240 cases: long enough (about 0.1 s) for several kills to land mid-run
+    name = write(tmp_path, SPIN_RADIUS.replace("values = 5, 10, 20, 40, 80", "values = 5, 10, 20, 40, 80, 100")
+                 .replace("count = 4", "count = 40"), t_end=5.0)
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
     n_samples, components = 501, 17
     record = 8 * (3 + 3 * 19 + n_samples * components + 1)
