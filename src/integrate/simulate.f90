@@ -307,8 +307,9 @@ contains
     real(wp) :: t
     integer :: n, l, i
 
-    call system_clock(clock_start, clock_rate)
     n = size(cases)
+    if (n == 0) return
+    call system_clock(clock_start, clock_rate)
     do l = 1, lanes
       i = min(l, n)                  ! lanes past n repeat the first case, idle
       if (l <= n) then
