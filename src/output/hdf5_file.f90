@@ -45,12 +45,20 @@ module ellroll_hdf5
   !> Width of per-case text datasets (bytes, null-terminated).
   integer, parameter :: text_width = 32
 
-  !> Table rows (the case's inputs, summary and status) are kept per window
-  !> of consecutive cases and written with one hyperslab per dataset when the
-  !> window is complete: row by row, some 45 small writes per case cost more
-  !> than integrating it. At most max_windows are kept (a resume replays its
-  !> journal in any order); the oldest then goes out as it is.
-  integer, parameter :: window_rows = 64, max_windows = 32
+  !> Cases are kept per window of consecutive cases (their table rows: inputs,
+  !> summary, status; and their trajectories) and written with one hyperslab
+  !> per dataset when the window is complete: case by case, the HDF5 calls
+  !> (some 45 small writes and one per field) cost as much as integrating a
+  !> short case, in the one writer every thread waits for. A window holds at
+  !> most max_window_rows cases and about window_bytes of trajectories; at
+  !> most max_windows are kept (a resume replays its journal in any order),
+  !> the oldest then goes out as it is.
+  integer, parameter :: max_window_rows = 64, max_windows = 16
+  integer(i8), parameter :: window_bytes = 4 * 2_i8**20
+
+  type :: sample_block_t
+    real(wp), allocatable :: values(:, :)            !< (component x sample, row)
+  end type sample_block_t
 
   type :: row_window_t
     logical :: in_use = .false.
@@ -59,6 +67,7 @@ module ellroll_hdf5
     integer :: expected = 0, filled = 0
     logical, allocatable :: present(:)
     type(named_value_t), allocatable :: rows(:, :)   !< (entry, row)
+    type(sample_block_t) :: samples(field_count)     !< the stored fields' trajectories
   end type row_window_t
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
@@ -91,6 +100,7 @@ module ellroll_hdf5
     integer(hid_t), allocatable :: open_ids(:)
     type(row_window_t), allocatable :: windows(:)    !< max_windows slots, allocated once
     integer(i8) :: windows_opened = 0
+    integer :: window_rows = 1                       !< cases per window
     character(len=8), allocatable :: row_groups(:)   !< the group of each row entry
   contains
     procedure :: create
@@ -121,6 +131,8 @@ contains
     self%n_cases = n_cases
     self%n_samples = size(times, kind=i8)
     self%fields = fields
+    self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
+        max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=fields)))))
     call h5open_f(hdferr)
     if (failed(hdferr, 'initialise HDF5')) return
     call h5eset_auto_f(0, hdferr)   ! errors are reported through err, not printed by HDF5
@@ -416,37 +428,25 @@ contains
     type(case_result_t), intent(in) :: res
     type(error_t), intent(inout) :: err
     type(named_value_t), allocatable :: inputs(:), summary(:)
-    integer(hid_t) :: dset
-    integer :: f
-
-    do f = 1, field_count
-      ! a case that was never integrated has no buffers: its samples stay NaN
-      if (.not. self%fields(f) .or. .not. allocated(res%fields(f)%values)) cycle
-      if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) return
-      if (field_ncomp(f) == 1) then
-        call write_real_slab(self, dset, res%fields(f)%values, [0_i8, icase], [self%n_samples, 1_i8], err)
-      else
-        call write_real_slab(self, dset, res%fields(f)%values, [0_i8, 0_i8, icase], [3_i8, self%n_samples, 1_i8], err)
-      end if
-    end do
     inputs = case_record(cs)
     summary = [summary_record(res), int_value('status', '', '', int(res%status, i8))]
     if (.not. allocated(self%row_groups)) &
       self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(summary))]
-    call keep_row(self, icase, inputs, summary, err)
+    call keep_case(self, icase, inputs, summary, res, err)
   end subroutine write_case
 
-  !> Keep a case's table row (inputs, then summary) in its window; write the
-  !> window once complete.
-  subroutine keep_row(self, icase, inputs, summary, err)
+  !> Keep a case (its table row: inputs, then summary; and its trajectories)
+  !> in its window; write the window once complete.
+  subroutine keep_case(self, icase, inputs, summary, res, err)
     type(h5_output_t), intent(inout) :: self
     integer(i8), intent(in) :: icase
     type(named_value_t), intent(in) :: inputs(:), summary(:)
+    type(case_result_t), intent(in) :: res
     type(error_t), intent(inout) :: err
     integer(i8) :: first
-    integer :: w, r
+    integer :: w, r, f
     if (.not. allocated(self%windows)) allocate (self%windows(max_windows))
-    first = (icase / window_rows) * window_rows
+    first = (icase / self%window_rows) * self%window_rows
     w = findloc(self%windows%in_use .and. self%windows%first == first, .true., dim=1)
     if (w == 0) then
       w = findloc(self%windows%in_use, .false., dim=1)
@@ -459,10 +459,15 @@ contains
         win%first = first
         self%windows_opened = self%windows_opened + 1
         win%opened = self%windows_opened
-        win%expected = int(min(int(window_rows, i8), self%n_cases - first))
+        win%expected = int(min(int(self%window_rows, i8), self%n_cases - first))
         win%filled = 0
-        if (.not. allocated(win%present)) &
-          allocate (win%present(window_rows), win%rows(size(inputs) + size(summary), window_rows))
+        if (.not. allocated(win%present)) then
+          allocate (win%present(self%window_rows), win%rows(size(inputs) + size(summary), self%window_rows))
+          do f = 1, field_count
+            if (self%fields(f)) &
+              allocate (win%samples(f)%values(field_ncomp(f) * self%n_samples, self%window_rows))
+          end do
+        end if
         win%present = .false.
       end associate
     end if
@@ -472,17 +477,27 @@ contains
       win%present(r) = .true.
       win%rows(:size(inputs), r) = inputs
       win%rows(size(inputs) + 1:, r) = summary
+      do f = 1, field_count
+        if (.not. self%fields(f)) cycle
+        if (allocated(res%fields(f)%values)) then
+          win%samples(f)%values(:, r) = reshape(res%fields(f)%values, [size(res%fields(f)%values)])
+        else                              ! never integrated (invalid): NaN, as the fill value
+          win%samples(f)%values(:, r) = ieee_value(0.0_wp, ieee_quiet_nan)
+        end if
+      end do
       if (win%filled == win%expected) call write_window(self, w, err)
     end associate
-  end subroutine keep_row
+  end subroutine keep_case
 
-  !> Write window w (each run of consecutive rows as one hyperslab per
+  !> Write window w (each run of consecutive cases as one hyperslab per
   !> dataset) and free its slot.
   subroutine write_window(self, w, err)
     type(h5_output_t), intent(inout) :: self
     integer, intent(in) :: w
     type(error_t), intent(inout) :: err
-    integer :: first_row, last_row
+    integer :: first_row, last_row, f
+    integer(i8) :: offset, n
+    integer(hid_t) :: dset
     associate (win => self%windows(w))
       last_row = 0
       do while (.not. err%failed())
@@ -494,7 +509,20 @@ contains
           if (.not. win%present(last_row + 1)) exit
           last_row = last_row + 1
         end do
-        call write_rows(self, win%rows(:, first_row:last_row), win%first + first_row - 1, err)
+        offset = win%first + first_row - 1
+        n = last_row - first_row + 1
+        call write_rows(self, win%rows(:, first_row:last_row), offset, err)
+        do f = 1, field_count
+          if (.not. self%fields(f)) cycle
+          if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) exit
+          if (field_ncomp(f) == 1) then
+            call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, offset], &
+                                 [self%n_samples, n], err)
+          else
+            call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, 0_i8, offset], &
+                                 [3_i8, self%n_samples, n], err)
+          end if
+        end do
       end do
       win%in_use = .false.
     end associate
