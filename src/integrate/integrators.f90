@@ -365,19 +365,21 @@ contains
   !> The interpolant's coefficients, once the dense-output stages are in self%k.
   pure subroutine dop853_build_dense(self)
     class(dop853_t), intent(inout) :: self
-    real(wp) :: delta(max_equations)
+    real(wp) :: delta(max_equations), rows(max_equations, 4), stage(max_equations)
     integer :: s, i
     delta = self%y_new - self%y_old
     self%dense_rows(:, 1) = delta
     self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta
     self%dense_rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
-    self%dense_rows(:, 4:7) = 0
+    rows = 0                   ! local, fixed-size: kept in registers
     do s = 1, stages_dense
       if (all(d853(:, s) == 0)) cycle
+      stage = self%k(:, s)
       do i = 1, 4
-        self%dense_rows(:, 3 + i) = self%dense_rows(:, 3 + i) + (self%h * d853(i, s)) * self%k(:, s)
+        rows(:, i) = rows(:, i) + (self%h * d853(i, s)) * stage
       end do
     end do
+    self%dense_rows(:, 4:7) = rows
     self%dense_ready = .true.
   end subroutine dop853_build_dense
 
