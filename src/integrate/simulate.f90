@@ -347,7 +347,7 @@ contains
         if (out%tan_nutation(l) > tan_max(l)) then
           tan_max(l) = out%tan_nutation(l)
           lateral_at_max(l) = out%lateral(l)
-          normal_z_at_max(l) = out%normal_z(l)
+          normal_z_at_max(l) = out%normal(l, 3)
           theta_moved(l) = .true.
         end if
         displacement_max(l) = max(displacement_max(l), out%displacement(l))

@@ -32,7 +32,7 @@ module ellroll_ball_lanes
   !> What the summary, the limits and the stored samples need of a state, per lane.
   type :: lane_outputs_t
     real(wp), dimension(lanes, 3) :: normal = 0, contact = 0, reaction = 0
-    real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0, normal_z = 1
+    real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0
     real(wp), dimension(lanes) :: displacement = 0, horizontal_force = 0
     real(wp), dimension(lanes) :: reaction_normal = 0, friction_needed = 0, energy = 0, surface_residual = 0
     integer, dimension(lanes) :: status = status_completed
@@ -191,7 +191,6 @@ contains
       quotient = lateral / merge(n3, 1.0_wp, upright)
       out%tan_nutation(l) = merge(quotient, huge(1.0_wp), upright)
       out%lateral(l) = lateral
-      out%normal_z(l) = n3
       out%normal(l, :) = [n1, n2, n3]
       out%contact(l, :) = [p1, p2, p3]
       out%displacement(l) = sqrt((p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2)

@@ -602,7 +602,6 @@ contains
     integer(hid_t), intent(out) :: dset
     type(error_t), intent(inout) :: err
     integer :: hdferr, k
-    integer(hid_t) :: dapl
     ok = .false.
     if (err%failed()) return
     if (.not. allocated(self%open_names)) allocate (self%open_names(0), self%open_ids(0))
@@ -613,12 +612,7 @@ contains
         return
       end if
     end do
-    ! no chunk cache: every chunk is one whole case, written once, so caching
-    ! it only adds a copy and a later eviction
-    call h5pcreate_f(H5P_DATASET_ACCESS_F, dapl, hdferr)
-    call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
-    call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
-    call h5pclose_f(dapl, k)
+    call h5dopen_f(self%file, name, dset, hdferr)
     if (hdferr < 0) then
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return
