@@ -20,7 +20,8 @@ program throughput
   use ellroll_simulate, only: simulate_case, simulate_batch, lanes
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
   use ellroll_integrators, only: rk4_t
-  use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative, lanes_rk4_step
+  use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative
+  use ellroll_ball_steppers, only: lanes_rk4_step
   use baseline_rk4, only: baseline_run
   implicit none
   real(wp), parameter :: dt = 1.0e-3_wp, t_end = 30.0_wp

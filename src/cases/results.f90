@@ -67,7 +67,8 @@ contains
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
       int_value('n_rhs', '1', 'right-hand side evaluations', res%n_rhs), &
       real_value('wall_time', 's', 'wall-clock time of the integration (not reproducible)', res%wall_time), &
-      real_value('theta_max', 'rad', 'largest nutation angle over all steps', res%theta_max), &
+      real_value('theta_max', 'rad', &
+                 'largest nutation angle (at step ends; adaptive methods: located on the dense output)', res%theta_max), &
       real_value('reaction_normal_max', 'N', 'largest normal force over all steps', res%reaction_normal_max), &
       real_value('friction_needed_max', '1', 'largest |F_t|/N over all steps', res%friction_needed_max), &
       real_value('energy_drift', '1', 'max |E - E0| / |E0| over all steps', res%energy_drift), &

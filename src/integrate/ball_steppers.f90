@@ -2,14 +2,18 @@
 !> generic steps (tested against them), but calling the ball's right-hand
 !> side directly on fixed-size arrays the compiler keeps in registers: no
 !> dynamic dispatch, no array descriptors, sizes known at compile time.
+!> The lanes_ steps advance several balls at once, one per SIMD lane
+!> (ellroll_ball_lanes), each lane with its own step size.
 module ellroll_ball_steppers
   use ellroll_kinds, only: wp
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative
-  use ellroll_integrators, only: dop853_t, c853, end_stage, max_equations
+  use ellroll_integrators, only: dop853_t, max_equations
+  use ellroll_dop853_tableau, only: c853, end_stage, a853, e5, bhh
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lanes_derivative
   implicit none
   private
 
-  public :: rk4_ball_step, dop853_ball_step, dop853_ball_dense
+  public :: rk4_ball_step, dop853_ball_step, dop853_ball_dense, lanes_rk4_step, lanes_dop853_attempt
 
   !> Right-hand-side calls of one DOP853 attempt and of its dense output.
   integer, parameter, public :: dop853_attempt_calls = end_stage - 1, dop853_dense_calls = 3
@@ -74,4 +78,78 @@ contains
     call dop%dense_value(theta, stage)
     y = stage(:state_size)
   end subroutine dop853_ball_dense
+  !> One classical RK4 step of every lane (rk4_ball_step), the new normal
+  !> projected to unit length, and f there.
+  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
+    real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
+    real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
+    real(wp) :: length
+    integer :: i, l
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + (h/2) * f0(:, i)
+    end do
+    call lanes_derivative(p, stage, k2)
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + (h/2) * k2(:, i)
+    end do
+    call lanes_derivative(p, stage, k3)
+    do i = 1, state_size
+      stage(:, i) = y(:, i) + h * k3(:, i)
+    end do
+    call lanes_derivative(p, stage, k4)
+    do i = 1, state_size
+      y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
+    end do
+    do l = 1, lanes
+      length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
+      y_new(l, 1:3) = y_new(l, 1:3) / length
+    end do
+    call lanes_derivative(p, y_new, f_new)
+  end subroutine lanes_rk4_step
+
+  !> One DOP853 attempt of every lane, each with its own h (dop853_ball_step
+!> across lanes, the same sums in the same order): the stages
+  !> k(:, :, 1:end_stage) (the last one f at the new point), the new point
+  !> (not projected) and the error norm of dop853_t%finish_attempt.
+  pure subroutine lanes_dop853_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), dimension(lanes, state_size), intent(in) :: y, f0
+    real(wp), dimension(lanes), intent(in) :: h, rtol, atol
+    real(wp), intent(out) :: k(lanes, state_size, end_stage), y_new(lanes, state_size), error_norm(lanes)
+    real(wp), dimension(lanes) :: err5, err3, scale, e5_norm2, e3_norm2
+    real(wp) :: stage(lanes, state_size)
+    integer :: s, j, i, l
+    k(:, :, 1) = f0
+    do s = 2, end_stage                       ! the last stage input is y_new
+      do i = 1, state_size
+        stage(:, i) = y(:, i)
+        do j = 1, s - 1
+          if (a853(s, j) /= 0) stage(:, i) = stage(:, i) + (h * a853(s, j)) * k(:, i, j)
+        end do
+      end do
+      call lanes_derivative(p, stage, k(:, :, s))
+    end do
+    y_new = stage
+    e5_norm2 = 0
+    e3_norm2 = 0
+    do i = 1, state_size
+      err5 = 0
+      do s = 1, end_stage
+        if (e5(s) /= 0) err5 = err5 + e5(s) * k(:, i, s)
+      end do
+      err3 = (y_new(:, i) - y(:, i)) / h - bhh(1) * k(:, i, 1) - bhh(2) * k(:, i, 9) - bhh(3) * k(:, i, 12)
+      scale = atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol
+      e5_norm2 = e5_norm2 + (err5 / scale)**2
+      e3_norm2 = e3_norm2 + (err3 / scale)**2
+    end do
+    do l = 1, lanes
+      if (e5_norm2(l) == 0 .and. e3_norm2(l) == 0) then
+        error_norm(l) = 0
+      else
+        error_norm(l) = abs(h(l)) * e5_norm2(l) / sqrt((e5_norm2(l) + 0.01_wp * e3_norm2(l)) * state_size)
+      end if
+    end do
+  end subroutine lanes_dop853_attempt
 end module ellroll_ball_steppers

@@ -15,12 +15,13 @@ module ellroll_simulate
   use ellroll_results, only: case_result_t, new_case_result
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
       initial_state, observe, observe_geometry, limit_status, ball_derivative, nutation_angle
-  use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator, end_stage
+  use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator, max_equations
+  use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense, &
-      dop853_attempt_calls, dop853_dense_calls
+      dop853_attempt_calls, dop853_dense_calls, lanes_rk4_step, lanes_dop853_attempt
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_rk4_step, lanes_observe
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
   implicit none
   private
 
@@ -30,6 +31,8 @@ module ellroll_simulate
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
   !> Tolerances of the reference run behind error_estimate = 'reference'.
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
+  !> Step-size control of DOP853 (Hairer's constants).
+  real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp, adaptive_max_factor = 6
 
   !> Local maxima of a sampled signal, each refined by the parabola through
   !> the three samples around it (uneven spacing allowed).
@@ -40,6 +43,7 @@ module ellroll_simulate
     real(wp) :: first = 0, last = 0      !< times of the first and last maximum
   contains
     procedure :: add => add_sample
+    procedure :: add_peak
     procedure :: mean_interval
   end type maxima_t
 
@@ -58,6 +62,12 @@ module ellroll_simulate
     procedure :: add => add_spectrum
     procedure :: ratio => spectrum_ratio
   end type spectrum_t
+
+  !> A maximum of the nutation angle located inside a step.
+  type :: nutation_peak_t
+    real(wp) :: t = 0, theta = 0, tan_nutation = 0
+    real(wp) :: lateral = 0, normal_z = 1     !< of the unit normal there
+  end type nutation_peak_t
 
   !> The search for where a step crossed a model limit, keeping the last
   !> valid observation and the status of the limit met.
@@ -80,6 +90,19 @@ module ellroll_simulate
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
+
+  !> The running summary of every lane of a batch (accumulate across lanes).
+  type :: lane_summary_t
+    real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
+    real(wp), dimension(lanes) :: displacement_max = 0, horizontal_force_max = 0, reaction_normal_max = 0, &
+                                  friction_needed_max = 0, energy_drift = 0, constraint_error_max = 0
+    logical :: theta_moved(lanes) = .false.
+  contains
+    procedure :: load => load_summary
+    procedure :: add => add_to_summary
+    procedure :: note_nutation
+    procedure :: store => store_summary
+  end type lane_summary_t
 
 contains
 
@@ -275,18 +298,20 @@ contains
     if (search%found_valid) call accumulate(run, res, search%last_valid)
   end subroutine end_at_limit
 
-  !> Whether a case runs in a batch (simulate_batch): RK4 on a fixed cup,
-  !> without the reference run; a property of the case alone, so that every
-  !> run and every shard takes the same path for it.
+  !> Whether a case runs in a batch (simulate_batch): RK4 or DOP853 on a
+  !> fixed cup, without the reference run; a property of the case alone, so
+  !> that every run and every shard takes the same path for it.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
-    batchable = cs%method == 'rk4' .and. cs%excitation%kind == excitation_none .and. .not. cs%error_estimate
+    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853') .and. cs%excitation%kind == excitation_none &
+                .and. .not. cs%error_estimate
   end function batchable
 
-  !> Up to `lanes` batchable cases advanced together, one per SIMD lane
-  !> (ellroll_ball_lanes): steps, f, the summary's quantities, the stored
-  !> outputs and the limits for all lanes at once; maxima of Theta and the
-  !> search for a crossed limit per lane with the one-case code. Each result equals
+  !> Up to `lanes` batchable cases of one method advanced together, one per
+  !> SIMD lane (ellroll_ball_lanes): steps, f, the summary's quantities, the
+  !> stored outputs and the limits for all lanes at once, each lane with its
+  !> own step; maxima of Theta, dense output and the search for a crossed
+  !> limit per lane with the one-case code. Each result equals
   !> simulate_case's to round-off (tested), whatever the other lanes hold;
   !> wall_time is the batch's time shared equally among its cases.
   subroutine simulate_batch(cases, plan, results)
@@ -295,105 +320,37 @@ contains
     type(case_result_t), intent(out) :: results(:)
     type(run_state_t) :: run(lanes)
     type(ball_lanes_t) :: balls
-    type(lane_outputs_t) :: out
-    type(rk4_t) :: rk4
-    type(observation_t) :: obs
-    real(wp), dimension(lanes, state_size) :: y, f, y_new, f_new
-    real(wp), dimension(lanes) :: h, energy0, tan_max, lateral_at_max, normal_z_at_max
-    real(wp), dimension(lanes) :: displacement_max, horizontal_force_max, reaction_normal_max, &
-                                  friction_needed_max, energy_drift, constraint_error_max
-    integer(i8) :: n_steps(lanes), step, clock_start, clock_end, clock_rate
-    logical :: active(lanes), accepted(lanes), theta_moved(lanes), sampled
-    real(wp) :: t
-    integer :: n, l, i
+    type(lane_summary_t) :: summary
+    real(wp), dimension(lanes, state_size) :: y, f
+    integer(i8) :: clock_start, clock_end, clock_rate
+    logical :: active(lanes)
+    integer :: n, l, donor
 
     n = size(cases)
     if (n == 0) return
     call system_clock(clock_start, clock_rate)
-    do l = 1, lanes
-      i = min(l, n)                  ! lanes past n repeat the first case, idle
-      if (l <= n) then
-        call start_case(cases(l), plan, run(l), results(l), y(l, :), f(l, :))
+    do l = 1, n
+      call start_case(cases(l), plan, run(l), results(l), y(l, :), f(l, :))
+      call set_lane(balls, l, run(l)%ball)
+      call summary%load(l, run(l), results(l))
+      active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
+    end do
+    active(n + 1:) = .false.
+    ! idle lanes compute a valid case's steps alongside, never a state outside the model
+    donor = findloc(active, .true., dim=1)
+    if (donor > 0) then
+      do l = 1, lanes
+        if (active(l)) cycle
+        call set_lane(balls, l, run(donor)%ball)
+        y(l, :) = y(donor, :)
+        f(l, :) = f(donor, :)
+      end do
+      if (cases(1)%method == 'dop853') then
+        call adaptive_lanes()
       else
-        y(l, :) = y(1, :)
-        f(l, :) = f(1, :)
+        call fixed_step_lanes()
       end if
-      call set_lane(balls, l, run(i)%ball)
-      h(l) = cases(i)%dt
-      n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
-      energy0(l) = run(i)%energy0
-      tan_max(l) = run(i)%tan_theta_max
-      displacement_max(l) = results(i)%displacement_max
-      horizontal_force_max(l) = results(i)%horizontal_force_max
-      reaction_normal_max(l) = results(i)%reaction_normal_max
-      friction_needed_max(l) = results(i)%friction_needed_max
-      energy_drift(l) = results(i)%energy_drift
-      constraint_error_max(l) = results(i)%constraint_error_max
-      active(l) = l <= n .and. results(i)%status == status_completed .and. n_steps(l) > 0
-    end do
-    lateral_at_max = 0
-    normal_z_at_max = 1
-    theta_moved = .false.
-    sampled = any(plan%fields)
-
-    step = 0
-    do while (any(active))
-      step = step + 1
-      call lanes_rk4_step(balls, y, f, h, y_new, f_new)
-      call lanes_observe(balls, y_new, f_new, out)
-      accepted = active .and. out%status == status_completed
-      do l = 1, lanes                ! accumulate as in accumulate()
-        if (.not. accepted(l)) cycle
-        if (out%tan_nutation(l) > tan_max(l)) then
-          tan_max(l) = out%tan_nutation(l)
-          lateral_at_max(l) = out%lateral(l)
-          normal_z_at_max(l) = out%normal(l, 3)
-          theta_moved(l) = .true.
-        end if
-        displacement_max(l) = max(displacement_max(l), out%displacement(l))
-        horizontal_force_max(l) = max(horizontal_force_max(l), out%horizontal_force(l))
-        reaction_normal_max(l) = max(reaction_normal_max(l), out%reaction_normal(l))
-        friction_needed_max(l) = max(friction_needed_max(l), out%friction_needed(l))
-        energy_drift(l) = max(energy_drift(l), abs(out%energy(l) - energy0(l)) / abs(energy0(l)))
-        constraint_error_max(l) = max(constraint_error_max(l), out%surface_residual(l))
-      end do
-      do l = 1, n
-        if (.not. active(l)) cycle
-        results(l)%n_rhs = results(l)%n_rhs + 4
-        results(l)%n_steps = step
-        if (.not. accepted(l)) then
-          call store_summary(l)
-          call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
-                            results(l))
-          active(l) = .false.
-          cycle
-        end if
-        t = step * h(l)
-        call run(l)%maxima%add(t, out%tan_nutation(l))
-        if (sampled .and. mod(step, plan%steps_per_sample) == 0) then
-          ! the sample from the lane's own outputs (base acceleration: 0)
-          obs%normal = out%normal(l, :)
-          obs%omega = y_new(l, 4:6)
-          obs%contact = out%contact(l, :)
-          obs%center = obs%contact + run(l)%ball%radius * obs%normal
-          obs%lateral = out%lateral(l)
-          obs%reaction = out%reaction(l, :)
-          obs%energy = out%energy(l)
-          call record_sample(results(l), step / plan%steps_per_sample + 1, obs)
-        end if
-        if (step == n_steps(l)) then
-          results(l)%t_final = t
-          call store_summary(l)
-          active(l) = .false.
-        end if
-      end do
-      do i = 1, state_size
-        where (accepted)
-          y(:, i) = y_new(:, i)
-          f(:, i) = f_new(:, i)
-        end where
-      end do
-    end do
+    end if
 
     call system_clock(clock_end)
     do l = 1, n
@@ -403,25 +360,259 @@ contains
 
   contains
 
-    !> The lane's running summary into its result (and run state).
-    subroutine store_summary(l)
-      integer, intent(in) :: l
-      run(l)%tan_theta_max = tan_max(l)
-      if (theta_moved(l)) results(l)%theta_max = atan2(lateral_at_max(l), normal_z_at_max(l))
-      results(l)%displacement_max = displacement_max(l)
-      results(l)%horizontal_force_max = horizontal_force_max(l)
-      results(l)%reaction_normal_max = reaction_normal_max(l)
-      results(l)%friction_needed_max = friction_needed_max(l)
-      results(l)%energy_drift = energy_drift(l)
-      results(l)%constraint_error_max = constraint_error_max(l)
-    end subroutine store_summary
+    !> RK4 with each case's dt (fixed_step_loop across lanes).
+    subroutine fixed_step_lanes()
+      type(rk4_t) :: rk4
+      type(lane_outputs_t) :: out
+      real(wp), dimension(lanes, state_size) :: y_new, f_new
+      real(wp) :: h(lanes), t
+      integer(i8) :: n_steps(lanes), step
+      logical :: accepted(lanes), sampled
+      integer :: i
+      do l = 1, lanes
+        i = merge(l, donor, active(l))
+        h(l) = cases(i)%dt
+        n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
+        if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
+      end do
+      sampled = any(plan%fields)
+      step = 0
+      do while (any(active))
+        step = step + 1
+        call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+        call lanes_observe(balls, y_new, f_new, out)
+        accepted = active .and. out%status == status_completed
+        call summary%add(out, accepted)
+        do l = 1, n
+          if (.not. active(l)) cycle
+          results(l)%n_rhs = results(l)%n_rhs + 4
+          results(l)%n_steps = step
+          if (.not. accepted(l)) then
+            call summary%store(l, run(l), results(l))
+            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
+                              results(l))
+            active(l) = .false.
+            cycle
+          end if
+          t = step * h(l)
+          call run(l)%maxima%add(t, out%tan_nutation(l))
+          if (sampled .and. mod(step, plan%steps_per_sample) == 0) &
+            call record_sample(results(l), step / plan%steps_per_sample + 1, &
+                               lane_observation(out, y_new, l, run(l)%ball%radius))
+          if (step == n_steps(l)) then
+            results(l)%t_final = t
+            call summary%store(l, run(l), results(l))
+            active(l) = .false.
+          end if
+        end do
+        do i = 1, state_size
+          where (accepted)
+            y(:, i) = y_new(:, i)
+            f(:, i) = f_new(:, i)
+          end where
+        end do
+      end do
+    end subroutine fixed_step_lanes
+
+    !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
+    !> attempts of all lanes together, the step control of each lane its
+    !> own. An attempt is copied into the lane's dop853_t only when its dense
+    !> output is needed (a sample inside the step, a crossed limit).
+    subroutine adaptive_lanes()
+      type(dop853_t) :: dop(lanes)
+      type(lane_outputs_t) :: out
+      real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
+      real(wp) :: k(lanes, state_size, end_stage)
+      real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
+      type(nutation_peak_t) :: peak
+      logical :: accepted(lanes), rejected(lanes), loaded
+      integer :: i
+      t = 0
+      rejected = .false.
+      do l = 1, lanes
+        i = merge(l, donor, active(l))
+        dop(l)%rtol = cases(i)%rtol
+        dop(l)%atol = cases(i)%atol
+        rtol(l) = cases(i)%rtol
+        atol(l) = cases(i)%atol
+        h_max(l) = cases(i)%dt
+        t_end(l) = cases(i)%t_end
+        call dop(l)%initial_step(run(i)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), results(i)%n_rhs)
+      end do
+      ! the donor's copies counted one initial RHS call per idle lane
+      results(donor)%n_rhs = results(donor)%n_rhs - count(.not. active)
+      do while (any(active))
+        do l = 1, lanes
+          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
+        end do
+        call lanes_dop853_attempt(balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        accepted = .false.
+        do l = 1, n
+          if (.not. active(l)) cycle
+          results(l)%n_rhs = results(l)%n_rhs + dop853_attempt_calls
+          if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
+          accepted(l) = error_norm(l) <= 1
+          if (.not. accepted(l)) then
+            h(l) = h(l) * rejected_step_factor(error_norm(l))
+            rejected(l) = .true.
+          end if
+        end do
+        if (.not. any(accepted)) cycle
+        do l = 1, lanes
+          y_new(l, :) = y_raw(l, :)
+          call project_with_rate(y_new(l, :), k(l, :, end_stage), f_new(l, :))
+        end do
+        call lanes_observe(balls, y_new, f_new, out)
+        call summary%add(out, accepted .and. out%status == status_completed)
+        do l = 1, n
+          if (.not. accepted(l)) cycle
+          if (out%status(l) /= status_completed) then
+            call summary%store(l, run(l), results(l))
+            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
+            active(l) = .false.
+            cycle
+          end if
+          loaded = .false.
+          if (sample_due(run(l), plan, t(l) + h(l))) then
+            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            loaded = .true.
+            call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
+                                      lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
+          end if
+          if (nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))) then
+            if (.not. loaded) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            call locate_nutation_peak(dop(l), run(l)%ball, peak, results(l)%n_rhs)
+            call run(l)%maxima%add_peak(peak%t)
+            call summary%note_nutation(l, peak%tan_nutation, peak%lateral, peak%normal_z)
+          end if
+          t(l) = t(l) + h(l)
+          results(l)%n_steps = results(l)%n_steps + 1
+          if (t(l) < t_end(l)) then
+            y(l, :) = y_new(l, :)
+            f(l, :) = f_new(l, :)
+            h(l) = min(h(l) * accepted_step_factor(error_norm(l), rejected(l)), h_max(l))
+            rejected(l) = .false.
+          else                     ! done: the lane repeats its last attempt, idle
+            results(l)%t_final = t_end(l)
+            call summary%store(l, run(l), results(l))
+            active(l) = .false.
+          end if
+        end do
+      end do
+    end subroutine adaptive_lanes
   end subroutine simulate_batch
+
+  !> Whether an output sample falls before t_until (record_samples_until's test).
+  pure logical function sample_due(run, plan, t_until)
+    type(run_state_t), intent(in) :: run
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_until
+    sample_due = run%next_sample <= plan%n_samples
+    if (sample_due) sample_due = real(run%next_sample - 1, wp) * plan%interval <= t_until * (1 + 1.0e-14_wp)
+  end function sample_due
+
+  !> Lane l's last attempt (from t, step h: y -> y_raw, stages k) into a
+  !> dop853_t, as dop853_ball_step leaves it, for its dense output.
+  pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
+    type(dop853_t), intent(inout) :: dop
+    integer, intent(in) :: l
+    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, end_stage)
+    real(wp), intent(in) :: error_norm
+    dop%k(:state_size, :end_stage) = k(l, :, :)
+    dop%y_old(:state_size) = y(l, :)
+    dop%y_new(:state_size) = y_raw(l, :)
+    dop%t_old = t
+    dop%h = h
+    dop%error_norm = error_norm
+    dop%dense_ready = .false.
+  end subroutine load_attempt
+
+  !> Lane l's end-of-step observation for an output sample (no base acceleration).
+  pure function lane_observation(out, y, l, radius) result(obs)
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: y(lanes, state_size), radius
+    integer, intent(in) :: l
+    type(observation_t) :: obs
+    obs%normal = out%normal(l, :)
+    obs%omega = y(l, 4:6)
+    obs%contact = out%contact(l, :)
+    obs%center = obs%contact + radius * obs%normal
+    obs%lateral = out%lateral(l)
+    obs%reaction = out%reaction(l, :)
+    obs%energy = out%energy(l)
+  end function lane_observation
+
+  !> A case's running summary (accumulate), lane by lane.
+  pure subroutine load_summary(self, l, run, res)
+    class(lane_summary_t), intent(inout) :: self
+    integer, intent(in) :: l
+    type(run_state_t), intent(in) :: run
+    type(case_result_t), intent(in) :: res
+    self%energy0(l) = run%energy0
+    self%tan_max(l) = run%tan_theta_max
+    self%displacement_max(l) = res%displacement_max
+    self%horizontal_force_max(l) = res%horizontal_force_max
+    self%reaction_normal_max(l) = res%reaction_normal_max
+    self%friction_needed_max(l) = res%friction_needed_max
+    self%energy_drift(l) = res%energy_drift
+    self%constraint_error_max(l) = res%constraint_error_max
+  end subroutine load_summary
+
+  !> What the accepted lanes' new states add to the summary (accumulate).
+  pure subroutine add_to_summary(self, out, accepted)
+    class(lane_summary_t), intent(inout) :: self
+    type(lane_outputs_t), intent(in) :: out
+    logical, intent(in) :: accepted(lanes)
+    integer :: l
+    do l = 1, lanes
+      if (.not. accepted(l)) cycle
+      call self%note_nutation(l, out%tan_nutation(l), out%lateral(l), out%normal(l, 3))
+      self%displacement_max(l) = max(self%displacement_max(l), out%displacement(l))
+      self%horizontal_force_max(l) = max(self%horizontal_force_max(l), out%horizontal_force(l))
+      self%reaction_normal_max(l) = max(self%reaction_normal_max(l), out%reaction_normal(l))
+      self%friction_needed_max(l) = max(self%friction_needed_max(l), out%friction_needed(l))
+      self%energy_drift(l) = max(self%energy_drift(l), abs(out%energy(l) - self%energy0(l)) / abs(self%energy0(l)))
+      self%constraint_error_max(l) = max(self%constraint_error_max(l), out%surface_residual(l))
+    end do
+  end subroutine add_to_summary
+
+  !> A nutation angle of lane l's case (tan Theta, and the lateral and
+  !> vertical components of the unit normal) for the largest Theta.
+  pure subroutine note_nutation(self, l, tan_nutation, lateral, normal_z)
+    class(lane_summary_t), intent(inout) :: self
+    integer, intent(in) :: l
+    real(wp), intent(in) :: tan_nutation, lateral, normal_z
+    if (tan_nutation > self%tan_max(l)) then
+      self%tan_max(l) = tan_nutation
+      self%lateral_at_max(l) = lateral
+      self%normal_z_at_max(l) = normal_z
+      self%theta_moved(l) = .true.
+    end if
+  end subroutine note_nutation
+
+  !> Lane l's running summary into its result (and run state).
+  pure subroutine store_summary(self, l, run, res)
+    class(lane_summary_t), intent(in) :: self
+    integer, intent(in) :: l
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    run%tan_theta_max = self%tan_max(l)
+    if (self%theta_moved(l)) res%theta_max = atan2(self%lateral_at_max(l), self%normal_z_at_max(l))
+    res%displacement_max = self%displacement_max(l)
+    res%horizontal_force_max = self%horizontal_force_max(l)
+    res%reaction_normal_max = self%reaction_normal_max(l)
+    res%friction_needed_max = self%friction_needed_max(l)
+    res%energy_drift = self%energy_drift(l)
+    res%constraint_error_max = self%constraint_error_max(l)
+  end subroutine store_summary
 
   !> Step-size control of Hairer's DOP853: accept when the error norm <= 1,
   !> next step h (0.9 err^(-1/8)) within [h/3, 6 h], never above dt (the
-  !> largest step allowed). Output samples and limit crossings come from the
-  !> 7th-order dense output; a sample computes only what the stored fields
-  !> need. The steps are the fused ones of the ball (ellroll_ball_steppers).
+  !> largest step allowed). Output samples, limit crossings and the maxima
+  !> of Theta come from the 7th-order dense output, so that they do not
+  !> depend on where the steps fall; a sample computes only what the stored
+  !> fields need. The steps are the fused ones of the ball (ellroll_ball_steppers).
   subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
     type(dop853_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cs
@@ -429,116 +620,232 @@ contains
     type(run_state_t), intent(inout) :: run
     real(wp), intent(inout) :: y(:), f(:)
     type(case_result_t), intent(inout) :: res
-    real(wp), parameter :: safety = 0.9_wp, min_factor = 0.333_wp, max_factor = 6
-    real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max, factor, length, t_sample, offset
+    real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max
     type(observation_t) :: obs
-    type(limit_search_t) :: search
+    type(nutation_peak_t) :: peak
     integer :: status
-    logical :: rejected, samples_complete
-
-    samples_complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
+    logical :: rejected
 
     t = 0
     h_max = cs%dt
     call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     rejected = .false.
     do while (t < cs%t_end)
-      if (t + h >= cs%t_end - 1.0e-12_wp * cs%t_end) h = cs%t_end - t
+      h = last_step_clipped(t, h, cs%t_end)
       call dop853_ball_step(integrator, run%ball, t, y, f, h, y_new)
       res%n_rhs = res%n_rhs + dop853_attempt_calls
       if (.not. ieee_is_finite(integrator%error_norm)) integrator%error_norm = huge(1.0_wp)
       if (integrator%error_norm > 1) then
-        h = h * max(min_factor, safety / eighth_root(integrator%error_norm))
+        h = h * rejected_step_factor(integrator%error_norm)
         rejected = .true.
         cycle
       end if
-      length = sqrt(dot_product(y_new(1:3), y_new(1:3)))
-      y_new(1:3) = y_new(1:3) / length
-      f_new = integrator%k(:state_size, end_stage)
-      f_new(1:3) = f_new(1:3) / length          ! n' is homogeneous of degree one in |n|
+      call project_with_rate(y_new, integrator%k(:state_size, end_stage), f_new)
       obs = observe(run%ball, t + h, y_new, f_new)
       status = limit_status(run%ball, y_new, obs)
       if (status /= status_completed) then
-        ! bisect on the dense output; end at the last valid point
-        call search%begin(h, status)
-        do while (.not. search%done())
-          offset = search%trial()
-          call dense_state(offset / h, obs, complete=.true., with_rate=.true.)
-          call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
-        end do
-        call record_samples_until(t + search%valid)        ! output samples before the end
-        res%status = search%crossed
-        res%t_final = t + search%valid
-        res%n_steps = res%n_steps + 1
-        if (search%found_valid) call accumulate(run, res, search%last_valid)
+        call stop_in_step(integrator, run, plan, status, res)
         return
       end if
-      call record_samples_until(t + h)
+      call record_samples_until(integrator, run, plan, t + h, obs, res)
+      if (nutation_peak_inside(y, f, y_new, f_new)) then
+        call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
+        call run%maxima%add_peak(peak%t)
+        if (peak%tan_nutation > run%tan_theta_max) then
+          run%tan_theta_max = peak%tan_nutation
+          res%theta_max = peak%theta
+        end if
+      end if
       t = t + h
       y = y_new
       f = f_new
       res%n_steps = res%n_steps + 1
-      call track(run, res, t, obs)
-      if (integrator%error_norm == 0) then
-        factor = max_factor
-      else
-        factor = min(max_factor, safety / eighth_root(integrator%error_norm))
-      end if
-      if (rejected) factor = min(1.0_wp, factor)
+      call track_step_end(run, res, t, obs)
+      h = min(h * accepted_step_factor(integrator%error_norm, rejected), h_max)
       rejected = .false.
-      h = min(h * factor, h_max)
     end do
     res%t_final = cs%t_end
-
-  contains
-
-    !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
-    pure real(wp) function eighth_root(x)
-      real(wp), intent(in) :: x
-      eighth_root = sqrt(sqrt(sqrt(x)))
-    end function eighth_root
-
-    !> Derived outputs at t + theta h from the dense output: the geometry
-    !> only, or when complete all of them, with f there (one more RHS call)
-    !> when with_rate (the limits and the stored reaction need it).
-    subroutine dense_state(theta, obs_at, complete, with_rate)
-      real(wp), intent(in) :: theta
-      type(observation_t), intent(out) :: obs_at
-      logical, intent(in) :: complete, with_rate
-      real(wp) :: y_at(state_size), f_at(state_size)
-      logical :: prepared
-      call dop853_ball_dense(integrator, run%ball, theta, y_at, prepared)
-      if (prepared) res%n_rhs = res%n_rhs + dop853_dense_calls
-      call run%ball%project(y_at)
-      if (.not. complete) then
-        obs_at = observe_geometry(run%ball, y_at)
-        return
-      end if
-      f_at = 0
-      if (with_rate) then
-        call ball_derivative(run%ball, t + theta * h, y_at, f_at)
-        res%n_rhs = res%n_rhs + 1
-      end if
-      obs_at = observe(run%ball, t + theta * h, y_at, f_at)
-    end subroutine dense_state
-
-    !> Record every output sample in (t, t_until] of the current step.
-    subroutine record_samples_until(t_until)
-      real(wp), intent(in) :: t_until
-      type(observation_t) :: obs_at
-      do while (run%next_sample <= plan%n_samples)
-        t_sample = real(run%next_sample - 1, wp) * plan%interval
-        if (t_sample > t_until * (1 + 1.0e-14_wp)) exit
-        if (abs(t_sample - (t + h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
-          call record_sample(res, run%next_sample, obs)         ! the step's own end point
-        else
-          call dense_state((t_sample - t) / h, obs_at, samples_complete, plan%fields(field_reaction))
-          call record_sample(res, run%next_sample, obs_at)
-        end if
-        run%next_sample = run%next_sample + 1
-      end do
-    end subroutine record_samples_until
   end subroutine adaptive_loop
+
+  !> The step from t, shortened to end exactly at t_end when it would end
+  !> at or within round-off of it.
+  pure real(wp) function last_step_clipped(t, h, t_end) result(step)
+    real(wp), intent(in) :: t, h, t_end
+    step = h
+    if (t + h >= t_end - 1.0e-12_wp * t_end) step = t_end - t
+  end function last_step_clipped
+
+  !> The new step after a rejected attempt with this error norm (> 1).
+  pure real(wp) function rejected_step_factor(error_norm) result(factor)
+    real(wp), intent(in) :: error_norm
+    factor = max(adaptive_min_factor, adaptive_safety / eighth_root(error_norm))
+  end function rejected_step_factor
+
+  !> The next step after an accepted one; no growth right after a rejection.
+  pure real(wp) function accepted_step_factor(error_norm, after_rejection) result(factor)
+    real(wp), intent(in) :: error_norm
+    logical, intent(in) :: after_rejection
+    if (error_norm == 0) then
+      factor = adaptive_max_factor
+    else
+      factor = min(adaptive_max_factor, adaptive_safety / eighth_root(error_norm))
+    end if
+    if (after_rejection) factor = min(1.0_wp, factor)
+  end function accepted_step_factor
+
+  !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
+  pure real(wp) function eighth_root(x)
+    real(wp), intent(in) :: x
+    eighth_root = sqrt(sqrt(sqrt(x)))
+  end function eighth_root
+
+  !> The end point of an accepted attempt (raw: y, its f: f_raw) projected
+  !> onto the unit normal, and f there: n' is homogeneous of degree one in
+  !> |n|, so f at the projected point is f_raw with n' divided by |n|.
+  pure subroutine project_with_rate(y, f_raw, f)
+    real(wp), intent(inout) :: y(state_size)
+    real(wp), intent(in) :: f_raw(state_size)
+    real(wp), intent(out) :: f(state_size)
+    real(wp) :: length
+    length = sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+    y(1:3) = y(1:3) / length
+    f = f_raw
+    f(1:3) = f(1:3) / length
+  end subroutine project_with_rate
+
+  !> Whether Theta has a maximum in the step from (y, f) to (y_new, f_new):
+  !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
+  !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
+  !> step's end is found once).
+  pure logical function nutation_peak_inside(y, f, y_new, f_new)
+    real(wp), intent(in) :: y(state_size), f(state_size), y_new(state_size), f_new(state_size)
+    nutation_peak_inside = nutation_trend(y, f) >= 0 .and. nutation_trend(y_new, f_new) < 0
+  end function nutation_peak_inside
+
+  !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
+  !> of either: the part of y' along y cancels, so |n| need not be 1).
+  pure real(wp) function nutation_trend(y, rate)
+    real(wp), intent(in) :: y(state_size), rate(state_size)
+    nutation_trend = (y(1) * rate(1) + y(2) * rate(2)) * y(3) - (y(1)**2 + y(2)**2) * rate(3)
+  end function nutation_trend
+
+  !> The maximum of Theta inside the last attempt (in dop): the root of
+  !> d tan(Theta)/dt on its dense output and the interpolant's derivative, by
+  !> bisection to round-off (a simple root: its time is well conditioned).
+  subroutine locate_nutation_peak(dop, ball, peak, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(rolling_ball_t), intent(in) :: ball
+    type(nutation_peak_t), intent(out) :: peak
+    integer(i8), intent(inout) :: n_rhs
+    integer, parameter :: iterations = 52             ! 2**-52: the double's resolution of [0, 1]
+    real(wp) :: low, high, middle, y(state_size), rate(max_equations), lateral
+    logical :: prepared
+    integer :: i
+    call dop853_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
+    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    low = 0
+    high = 1
+    do i = 1, iterations
+      middle = 0.5_wp * (low + high)
+      call dop853_ball_dense(dop, ball, middle, y, prepared)
+      call dop%dense_rate(middle, rate)
+      if (nutation_trend(y, rate(:state_size)) >= 0) then
+        low = middle
+      else
+        high = middle
+      end if
+    end do
+    middle = 0.5_wp * (low + high)
+    call dop853_ball_dense(dop, ball, middle, y, prepared)
+    y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
+    lateral = sqrt(y(1)**2 + y(2)**2)
+    peak%t = dop%t_old + middle * dop%h
+    peak%tan_nutation = lateral / y(3)
+    peak%theta = atan2(lateral, y(3))
+    peak%lateral = lateral
+    peak%normal_z = y(3)
+  end subroutine locate_nutation_peak
+
+  !> The last attempt (in dop) crossed a limit (status): bisect on its dense
+  !> output, record the output samples before the crossing, and end the
+  !> case at the last valid point.
+  subroutine stop_in_step(dop, run, plan, status, res)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
+    integer, intent(in) :: status
+    type(case_result_t), intent(inout) :: res
+    type(limit_search_t) :: search
+    type(observation_t) :: obs
+    real(wp) :: offset
+    call search%begin(dop%h, status)
+    do while (.not. search%done())
+      offset = search%trial()
+      call dense_state(dop, run, offset / dop%h, .true., .true., obs, res%n_rhs)
+      call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
+    end do
+    call record_samples_until(dop, run, plan, dop%t_old + search%valid, obs, res)
+    res%status = search%crossed
+    res%t_final = dop%t_old + search%valid
+    res%n_steps = res%n_steps + 1
+    if (search%found_valid) call accumulate(run, res, search%last_valid)
+  end subroutine stop_in_step
+
+  !> Record every output sample in (t_old, t_until] of the last attempt (in
+  !> dop), from its dense output; a sample at the step's end is obs_end.
+  subroutine record_samples_until(dop, run, plan, t_until, obs_end, res)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_until
+    type(observation_t), intent(in) :: obs_end
+    type(case_result_t), intent(inout) :: res
+    type(observation_t) :: obs
+    real(wp) :: t_sample
+    logical :: complete
+    complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
+    do while (run%next_sample <= plan%n_samples)
+      t_sample = real(run%next_sample - 1, wp) * plan%interval
+      if (t_sample > t_until * (1 + 1.0e-14_wp)) exit
+      if (abs(t_sample - (dop%t_old + dop%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
+        call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
+      else
+        call dense_state(dop, run, (t_sample - dop%t_old) / dop%h, complete, plan%fields(field_reaction), &
+                         obs, res%n_rhs)
+        call record_sample(res, run%next_sample, obs)
+      end if
+      run%next_sample = run%next_sample + 1
+    end do
+  end subroutine record_samples_until
+
+  !> Derived outputs at t_old + theta h of the last attempt, from its dense
+  !> output: the geometry only, or when complete all of them, with f there
+  !> (one more RHS call) when with_rate (the limits and the stored reaction
+  !> need it).
+  subroutine dense_state(dop, run, theta, complete, with_rate, obs, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: theta
+    logical, intent(in) :: complete, with_rate
+    type(observation_t), intent(out) :: obs
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: y(state_size), f(state_size), t
+    logical :: prepared
+    call dop853_ball_dense(dop, run%ball, theta, y, prepared)
+    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    call run%ball%project(y)
+    if (.not. complete) then
+      obs = observe_geometry(run%ball, y)
+      return
+    end if
+    t = dop%t_old + theta * dop%h
+    f = 0
+    if (with_rate) then
+      call ball_derivative(run%ball, t, y, f)
+      n_rhs = n_rhs + 1
+    end if
+    obs = observe(run%ball, t, y, f)
+  end subroutine dense_state
 
   pure subroutine begin_limit_search(self, invalid, crossed)
     class(limit_search_t), intent(inout) :: self
@@ -579,10 +886,17 @@ contains
     denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
     t_peak = self%t(2)
     if (denominator /= 0) t_peak = self%t(2) - 0.5_wp * numerator / denominator
+    call self%add_peak(t_peak)
+  end subroutine add_sample
+
+  !> A maximum located exactly (by the adaptive method's dense output).
+  pure subroutine add_peak(self, t_peak)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: t_peak
     if (self%count == 0) self%first = t_peak
     self%last = t_peak
     self%count = self%count + 1
-  end subroutine add_sample
+  end subroutine add_peak
 
   pure real(wp) function mean_interval(self)
     class(maxima_t), intent(in) :: self
@@ -593,7 +907,8 @@ contains
     end if
   end function mean_interval
 
-  !> Everything a step's end point adds to the summary.
+  !> Everything a fixed step's end point adds to the summary; the maxima of
+  !> Theta from the step ends (refined by parabolas).
   pure subroutine track(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
@@ -601,9 +916,18 @@ contains
     type(observation_t), intent(in) :: obs
     ! maxima of tan Theta are the maxima of Theta (tan is increasing)
     call run%maxima%add(t, obs%tan_nutation)
+    call track_step_end(run, res, t, obs)
+  end subroutine track
+
+  !> What any step's end point adds to the summary but the maxima of Theta.
+  pure subroutine track_step_end(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
     if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
     call accumulate(run, res, obs)
-  end subroutine track
+  end subroutine track_step_end
 
   pure subroutine add_spectrum(self, t, ball, base)
     class(spectrum_t), intent(inout) :: self

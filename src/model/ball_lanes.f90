@@ -2,7 +2,7 @@
 !> state is stored structure-of-arrays, y(lane, component), and every kernel
 !> is a loop over lanes of straight-line scalar code that the compiler
 !> vectorizes across cases. The arithmetic is that of the one-case path
-!> (ball_derivative, rk4_ball_step, observe, limit_status), written out
+!> (ball_derivative, observe, limit_status), written out
 !> expression by expression in the same order; the batch is tested against
 !> it. Lanes never interact, so a case's result does not depend on which
 !> lane or which batch it runs in.
@@ -14,8 +14,7 @@ module ellroll_ball_lanes
   implicit none
   private
 
-  public :: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_rk4_step, &
-            lanes_observe
+  public :: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_observe
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -119,37 +118,6 @@ contains
       dydt(l, 6) = (spin * nd3 + p%g_over_r(l) * 0.0_wp) * p%inv_one_plus_k(l)
     end do
   end subroutine lanes_derivative
-
-  !> One classical RK4 step of every lane (rk4_ball_step), the new normal
-  !> projected to unit length, and f there.
-  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new)
-    type(ball_lanes_t), intent(in) :: p
-    real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
-    real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
-    real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
-    real(wp) :: length
-    integer :: i, l
-    do i = 1, state_size
-      stage(:, i) = y(:, i) + (h/2) * f0(:, i)
-    end do
-    call lanes_derivative(p, stage, k2)
-    do i = 1, state_size
-      stage(:, i) = y(:, i) + (h/2) * k2(:, i)
-    end do
-    call lanes_derivative(p, stage, k3)
-    do i = 1, state_size
-      stage(:, i) = y(:, i) + h * k3(:, i)
-    end do
-    call lanes_derivative(p, stage, k4)
-    do i = 1, state_size
-      y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
-    end do
-    do l = 1, lanes
-      length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
-      y_new(l, 1:3) = y_new(l, 1:3) / length
-    end do
-    call lanes_derivative(p, y_new, f_new)
-  end subroutine lanes_rk4_step
 
   !> The summary's quantities and the limit status of every lane's state y
   !> with derivative f (observe and limit_status on a fixed cup). Branch-free

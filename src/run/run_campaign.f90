@@ -304,7 +304,8 @@ contains
       type(case_result_t) :: results(lanes), batch_results(lanes)
       type(error_t) :: case_err
       integer(i8) :: slots(lanes), slot
-      integer :: n, j, in_batch(lanes), n_batch
+      integer :: n, j, in_batch(lanes), n_batch, first
+      logical :: waiting(lanes)
       integer(i8), allocatable :: record(:)
       n = 0
       do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
@@ -313,16 +314,20 @@ contains
         slots(n) = slot
         cases(n) = inp%campaign%case_at(global_index(slot))
       end do
-      n_batch = 0
-      do j = 1, n
-        if (.not. in_lanes(cases(j))) cycle
-        n_batch = n_batch + 1
-        in_batch(n_batch) = j
-      end do
-      if (n_batch > 0) then
+      ! one batch per method among the block's batchable cases
+      waiting(:n) = [(in_lanes(cases(j)), j = 1, n)]
+      do while (any(waiting(:n)))
+        first = findloc(waiting(:n), .true., dim=1)
+        n_batch = 0
+        do j = first, n
+          if (.not. waiting(j) .or. cases(j)%method /= cases(first)%method) cycle
+          n_batch = n_batch + 1
+          in_batch(n_batch) = j
+          waiting(j) = .false.
+        end do
         call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
         results(in_batch(:n_batch)) = batch_results(:n_batch)
-      end if
+      end do
       do j = 1, n
         if (.not. in_lanes(cases(j))) call simulate_case(cases(j), inp%plan, results(j), case_err)
         record = journal%record(slots(j), results(j))

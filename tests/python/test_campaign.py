@@ -102,25 +102,41 @@ def test_thread_count_does_not_change_any_dataset(ellroll, tmp_path):
     assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t3.h5")
 
 
-def test_batched_cases_equal_the_same_cases_run_alone(ellroll, tmp_path):
-    """A campaign of >= 8 RK4 cases runs them across SIMD lanes; each result
-    equals the one-case path (the case alone in its own input) to 1e-13."""
-    name = write(tmp_path, SPIN_RADIUS)
-    assert run(ellroll, "run", name, "-q", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
+# What the batch (SIMD lanes) and the one-case path share to round-off, per
+# method: RK4 takes the same steps on both; DOP853's steps carry the round-off
+# of its error estimate (eps / rtol relative), so figures at step ends (the
+# maxima of forces and displacement) move at that level, while samples at fixed
+# times, Theta's maxima located on the dense output and the periods do not.
+BATCH_AGREEMENT = {
+    "rk4": ("dt = 1.0e-3", 1e-13, 1e-13),
+    "dop853": ("method = 'dop853', rtol = 1.0e-9, atol = 1.0e-12, dt = 0.5", 1e-12, 1e-6),
+}
+
+
+@pytest.mark.parametrize("method", sorted(BATCH_AGREEMENT))
+def test_batched_cases_equal_the_same_cases_run_alone(ellroll, tmp_path, method):
+    """A campaign of >= 8 cases runs them across SIMD lanes; each result
+    equals the one-case path (the case alone in its own input)."""
+    integration, rtol, rtol_step_ends = BATCH_AGREEMENT[method]
+    base = BASE.replace("dt = 1.0e-3", integration)
+    (tmp_path / "camp.nml").write_text(base.format(t_end=1.0) + SPIN_RADIUS)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
     for index in (6, 19):
         with h5py.File(tmp_path / "campaign.h5", "r") as c:
             spin, radius = float(c["case/omega0"][index][2]), float(c["case/radius"][index])
-        alone = (BASE.format(t_end=1.0).replace("omega = -2.0, 2.0, 20.0", f"omega = -2.0, 2.0, {spin!r}")
+        alone = (base.format(t_end=1.0).replace("omega = -2.0, 2.0, 20.0", f"omega = -2.0, 2.0, {spin!r}")
                  .replace("radius = 0.2", f"radius = {radius!r}"))
         (tmp_path / "alone.nml").write_text(alone)
         assert run(ellroll, "run", "alone.nml", "-q", "--overwrite", "-o", "alone.h5", cwd=tmp_path).returncode == 0
         with h5py.File(tmp_path / "campaign.h5", "r") as c, h5py.File(tmp_path / "alone.h5", "r") as a:
             for field in ("contact", "omega", "reaction", "energy"):
                 np.testing.assert_allclose(c[f"trajectory/{field}"][index], a[f"trajectory/{field}"][0],
-                                           rtol=1e-13, atol=1e-13 * np.max(np.abs(a[f"trajectory/{field}"][0])))
-            for figure in ("theta_max", "reaction_normal_max", "friction_needed_max", "nutation_period",
-                           "displacement_max", "horizontal_force_max"):
-                np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=1e-13)
+                                           rtol=rtol, atol=rtol * np.max(np.abs(a[f"trajectory/{field}"][0])))
+            for figure in ("theta_max", "nutation_period"):
+                np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=rtol)
+            for figure in ("reaction_normal_max", "friction_needed_max", "displacement_max", "horizontal_force_max"):
+                np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0],
+                                           rtol=rtol_step_ends)
             assert c["summary/n_rhs"][index] == a["summary/n_rhs"][0]
 
 

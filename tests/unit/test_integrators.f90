@@ -64,6 +64,8 @@ program test_integrators
   call check(method%adaptive() .and. method%kind() == 'adaptive', 'dop853 is adaptive')
   call orders_on_oscillator(method, [1.0_wp, 0.5_wp, 0.25_wp, 0.125_wp], 'dop853', 8.0_wp)
   call dense_order()
+  call dense_rate_matches()
+  call adaptive_nutation_maxima()
 
   ! the adaptive method's error tracks rtol (paper case, contact point at 2 s)
   cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
@@ -186,4 +188,71 @@ contains
                        'dop853 dense output: local error order (7th-order interpolant)')
     end do
   end subroutine dense_order
+
+  !> The interpolant's derivative: h f at both ends of the step (the
+  !> interpolant matches them) and, inside, the exact derivative with the
+  !> error order of the 7th-order interpolant differentiated (7 in h).
+  subroutine dense_rate_matches()
+    type(dop853_t) :: dop
+    type(oscillator_t) :: osc
+    real(wp) :: y(2), f(2), y_new(2), f_new(2), mid(2), rate(8), h, theta, errors(3), worst_ends
+    integer(i8) :: n_rhs
+    integer :: k, i
+    n_rhs = 0
+    worst_ends = 0
+    do i = 1, 3
+      h = 0.8_wp / 2**(i - 1)
+      y = [1.0_wp, 0.0_wp]
+      call osc%rhs(0.0_wp, y, f)
+      call dop%step(osc, 0.0_wp, y, f, h, y_new, n_rhs)
+      call dop%dense(osc, 0.5_wp, mid, n_rhs)        ! builds the interpolant
+      call osc%rhs(h, y_new, f_new)
+      call dop%dense_rate(0.0_wp, rate)
+      worst_ends = max(worst_ends, maxval(abs(rate(1:2) - h * f)) / h)
+      call dop%dense_rate(1.0_wp, rate)
+      worst_ends = max(worst_ends, maxval(abs(rate(1:2) - h * f_new)) / h)
+      errors(i) = 0
+      do k = 1, 9
+        theta = k / 10.0_wp
+        call dop%dense_rate(theta, rate)
+        errors(i) = max(errors(i), maxval(abs(rate(1:2) / h - [-sin(theta * h), -cos(theta * h)])))
+      end do
+    end do
+    call check_below(worst_ends, 1.0e-15_wp, 'dop853 dense rate at both ends of the step is h f there')
+    do i = 1, 2
+      call check_close(log(errors(i) / errors(i + 1)) / log(2.0_wp), 7.0_wp, 0.1_wp, &
+                       'dop853 dense rate inside the step: error order (the interpolant differentiated)')
+    end do
+  end subroutine dense_rate_matches
+
+  !> DOP853 locates the maxima of Theta on its dense output, wherever its
+  !> (long) steps end: Theta_max and the nutation period converge with rtol
+  !> and agree with fine RK4, whose step ends every 1e-4 s bound Theta_max
+  !> from below to Theta'' dt^2 / 8 ~ 2e-8 rad. (Taken at step ends, the
+  !> adaptive run's Theta_max was 3e-4 rad low.)
+  subroutine adaptive_nutation_maxima()
+    type(case_t) :: cs
+    type(case_result_t) :: tight, loose, fine_rk4
+    real(wp), parameter :: loose_rtol = 1.0e-8_wp
+    cs = paper_case(1.0e-4_wp, 3.0_wp)
+    fine_rk4 = run_case(cs, 30000)
+    cs%method = 'dop853'
+    cs%dt = cs%t_end
+    cs%rtol = 1.0e-12_wp
+    cs%atol = 1.0e-14_wp
+    tight = run_case(cs, 1)
+    cs%rtol = loose_rtol
+    cs%atol = 1.0e-3_wp * loose_rtol
+    loose = run_case(cs, 1)
+    call check(all([loose%nutation_maxima, tight%nutation_maxima] == fine_rk4%nutation_maxima) &
+               .and. fine_rk4%nutation_maxima == 3, 'dop853: the three maxima of Theta in 3 s that RK4 finds')
+    call check_below(abs(loose%theta_max - tight%theta_max), 1.0e-8_wp, 'dop853 Theta_max, rtol 1e-8 vs 1e-12 (rad)')
+    call check_below(abs(loose%nutation_period / tight%nutation_period - 1), 10 * loose_rtol, &
+                     'dop853 nutation period, rtol 1e-8 vs 1e-12 (rel.; within 10 rtol)')
+    call check_below(abs(tight%theta_max - fine_rk4%theta_max), 3.0e-8_wp, &
+                     'dop853 Theta_max vs RK4 dt = 1e-4 (rad; the latter at step ends)')
+    call check(tight%theta_max >= fine_rk4%theta_max, 'dop853 Theta_max bounds the RK4 step ends from above')
+    call check_below(abs(tight%nutation_period / fine_rk4%nutation_period - 1), 1.0e-8_wp, &
+                     'dop853 nutation period vs RK4 dt = 1e-4 (rel.)')
+  end subroutine adaptive_nutation_maxima
 end program test_integrators
