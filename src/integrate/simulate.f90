@@ -65,7 +65,7 @@ module ellroll_simulate
 
   !> A maximum of the nutation angle located inside a step.
   type :: nutation_peak_t
-    real(wp) :: t = 0, theta = 0, tan_nutation = 0
+    real(wp) :: t = 0, tan_nutation = 0
     real(wp) :: lateral = 0, normal_z = 1     !< of the unit normal there
   end type nutation_peak_t
 
@@ -100,7 +100,7 @@ module ellroll_simulate
   contains
     procedure :: load => load_summary
     procedure :: add => add_to_summary
-    procedure :: note_nutation
+    procedure :: note_nutation => note_lane_nutation
     procedure :: store => store_summary
   end type lane_summary_t
 
@@ -426,7 +426,9 @@ contains
       real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
       type(nutation_peak_t) :: peak
       logical :: accepted(lanes), rejected(lanes), loaded
+      integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
       integer :: i
+      idle_rhs = 0
       t = 0
       rejected = .false.
       do l = 1, lanes
@@ -437,10 +439,12 @@ contains
         atol(l) = cases(i)%atol
         h_max(l) = cases(i)%dt
         t_end(l) = cases(i)%t_end
-        call dop(l)%initial_step(run(i)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), results(i)%n_rhs)
+        if (active(l)) then
+          call dop(l)%initial_step(run(l)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), results(l)%n_rhs)
+        else
+          call dop(l)%initial_step(run(i)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), idle_rhs)
+        end if
       end do
-      ! the donor's copies counted one initial RHS call per idle lane
-      results(donor)%n_rhs = results(donor)%n_rhs - count(.not. active)
       do while (any(active))
         do l = 1, lanes
           if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
@@ -503,7 +507,7 @@ contains
     end subroutine adaptive_lanes
   end subroutine simulate_batch
 
-  !> Whether an output sample falls before t_until (record_samples_until's test).
+  !> Whether the next output sample falls at or before t_until (to round-off).
   pure logical function sample_due(run, plan, t_until)
     type(run_state_t), intent(in) :: run
     type(output_plan_t), intent(in) :: plan
@@ -579,7 +583,7 @@ contains
 
   !> A nutation angle of lane l's case (tan Theta, and the lateral and
   !> vertical components of the unit normal) for the largest Theta.
-  pure subroutine note_nutation(self, l, tan_nutation, lateral, normal_z)
+  pure subroutine note_lane_nutation(self, l, tan_nutation, lateral, normal_z)
     class(lane_summary_t), intent(inout) :: self
     integer, intent(in) :: l
     real(wp), intent(in) :: tan_nutation, lateral, normal_z
@@ -589,7 +593,7 @@ contains
       self%normal_z_at_max(l) = normal_z
       self%theta_moved(l) = .true.
     end if
-  end subroutine note_nutation
+  end subroutine note_lane_nutation
 
   !> Lane l's running summary into its result (and run state).
   pure subroutine store_summary(self, l, run, res)
@@ -651,10 +655,7 @@ contains
       if (nutation_peak_inside(y, f, y_new, f_new)) then
         call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
         call run%maxima%add_peak(peak%t)
-        if (peak%tan_nutation > run%tan_theta_max) then
-          run%tan_theta_max = peak%tan_nutation
-          res%theta_max = peak%theta
-        end if
+        call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
       end if
       t = t + h
       y = y_new
@@ -761,7 +762,6 @@ contains
     lateral = sqrt(y(1)**2 + y(2)**2)
     peak%t = dop%t_old + middle * dop%h
     peak%tan_nutation = lateral / y(3)
-    peak%theta = atan2(lateral, y(3))
     peak%lateral = lateral
     peak%normal_z = y(3)
   end subroutine locate_nutation_peak
@@ -804,9 +804,8 @@ contains
     real(wp) :: t_sample
     logical :: complete
     complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
-    do while (run%next_sample <= plan%n_samples)
+    do while (sample_due(run, plan, t_until))
       t_sample = real(run%next_sample - 1, wp) * plan%interval
-      if (t_sample > t_until * (1 + 1.0e-14_wp)) exit
       if (abs(t_sample - (dop%t_old + dop%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
         call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
       else
@@ -956,14 +955,23 @@ contains
     end if
   end function spectrum_ratio
 
+  !> A nutation angle (tan Theta, and the lateral and vertical components of
+  !> the unit normal) for the largest Theta; one atan2 per new maximum only.
+  pure subroutine note_nutation(run, res, tan_nutation, lateral, normal_z)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: tan_nutation, lateral, normal_z
+    if (tan_nutation > run%tan_theta_max) then
+      run%tan_theta_max = tan_nutation
+      res%theta_max = atan2(lateral, normal_z)
+    end if
+  end subroutine note_nutation
+
   pure subroutine accumulate(run, res, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     type(observation_t), intent(in) :: obs
-    if (obs%tan_nutation > run%tan_theta_max) then     ! one atan2 per new maximum only
-      run%tan_theta_max = obs%tan_nutation
-      res%theta_max = nutation_angle(obs)
-    end if
+    call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     ! the norms written out, as the batch path (ellroll_ball_lanes) computes them
     res%displacement_max = max(res%displacement_max, &
         sqrt(obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2))
