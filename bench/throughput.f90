@@ -18,6 +18,7 @@ program throughput
   use ellroll_cases, only: case_t, output_plan_t, make_ball
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case, simulate_batch, lanes
+  use ellroll_system, only: tune_runtime
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
   use ellroll_integrators, only: rk4_t
   use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative
@@ -34,6 +35,7 @@ program throughput
   type(case_result_t) :: res, batch_results(lanes)
   type(error_t) :: err
 
+  call tune_runtime()               ! as the ellroll program does
   repeats = 7
   if (command_argument_count() > 0) then
     call get_command_argument(1, arg)

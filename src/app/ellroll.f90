@@ -20,7 +20,7 @@ program ellroll
   use ellroll_linear, only: oscillation_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
-  use ellroll_system, only: utc_timestamp, file_exists, remove_file
+  use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime
   use ellroll_ranks, only: ranks_start, ranks_all_ok, ranks_stop
   use ellroll_version, only: version_string
   implicit none
@@ -31,6 +31,7 @@ program ellroll
   type(error_t) :: err
   integer :: rank, n_ranks
 
+  call tune_runtime()
   call ranks_start(rank, n_ranks)
   call parse_arguments()
   !$ if (opts%threads > 0) call omp_set_num_threads(opts%threads)   ! for every parallel loop

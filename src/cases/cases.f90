@@ -172,8 +172,10 @@ contains
     integer, intent(out) :: param
     character(len=:), allocatable, intent(out) :: reason
     real(wp) :: value, level, radii(2)
-    integer :: k
+    integer :: k, weight_id, mass_id
     reason = ''
+    weight_id = param_index('weight')      ! looked up once: this runs for every case
+    mass_id = param_index('mass')
     do k = 1, param_count
       param = k
       value = get_param(cs, k)
@@ -181,8 +183,8 @@ contains
         reason = 'must be a finite number'
         return
       end if
-      if (k == param_index('weight') .and. value == 0) cycle     ! mass given instead
-      if (k == param_index('mass') .and. cs%weight > 0) cycle
+      if (k == weight_id .and. value == 0) cycle     ! mass given instead
+      if (k == mass_id .and. cs%weight > 0) cycle
       if (value < param_low(k) .or. value > param_high(k)) then
         reason = range_text(k)
         return

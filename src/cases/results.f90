@@ -9,7 +9,7 @@ module ellroll_results
   implicit none
   private
 
-  public :: field_buffer_t, case_result_t, summary_record, set_summary_value, new_case_result
+  public :: field_buffer_t, case_result_t, summary_record, set_summary_value, allocate_fields, fill_unrecorded
 
   !> A NaN for default initialisation (0/0 is not a constant expression).
   real(wp), parameter :: nan_value = transfer(9221120237041090560_i8, 1.0_wp)
@@ -40,23 +40,38 @@ module ellroll_results
     real(wp) :: horizontal_force_max = 0       !< largest horizontal force on the ball, N
     real(wp) :: transmissibility = nan_value   !< harmonic: |a_C,abs| / |a_base| at the forcing frequency
     type(field_buffer_t) :: fields(field_count)
+    integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)
   end type case_result_t
 
 contains
 
-  !> A result with NaN-filled buffers for the wanted fields only.
-  pure function new_case_result(wanted, n_samples) result(res)
+  !> Buffers in res for the wanted fields only (in place: a function result
+  !> would copy every buffer once more); fill_unrecorded makes what the case
+  !> did not reach NaN, so that no sample is written twice.
+  pure subroutine allocate_fields(res, wanted, n_samples)
+    type(case_result_t), intent(inout) :: res
     logical, intent(in) :: wanted(field_count)
     integer(i8), intent(in) :: n_samples
-    type(case_result_t) :: res
     integer :: f
     do f = 1, field_count
+      if (allocated(res%fields(f)%values)) deallocate (res%fields(f)%values)
       if (wanted(f)) then
         allocate (res%fields(f)%values(field_ncomp(f), n_samples))
-        res%fields(f)%values = ieee_value(0.0_wp, ieee_quiet_nan)
       end if
     end do
-  end function new_case_result
+    res%n_recorded = 0
+  end subroutine allocate_fields
+
+  !> NaN in every output sample after the last one recorded (the case ended
+  !> before it).
+  pure subroutine fill_unrecorded(res)
+    type(case_result_t), intent(inout) :: res
+    integer :: f
+    do f = 1, field_count
+      if (allocated(res%fields(f)%values)) &
+        res%fields(f)%values(:, res%n_recorded + 1:) = ieee_value(0.0_wp, ieee_quiet_nan)
+    end do
+  end subroutine fill_unrecorded
 
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)

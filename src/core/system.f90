@@ -5,7 +5,7 @@ module ellroll_system
   implicit none
   private
 
-  public :: rename_file, remove_file, utc_timestamp, file_exists
+  public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -31,6 +31,10 @@ module ellroll_system
       character(kind=c_char), intent(in) :: format(*)
       type(c_ptr), value :: tm
     end function c_strftime
+    !> Process-wide runtime settings, once at start (src/core/runtime.c):
+    !> the heap keeps freed memory; OpenBLAS, if linked, runs one thread.
+    subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
+    end subroutine tune_runtime
   end interface
 
 contains

@@ -12,14 +12,15 @@ module ellroll_simulate
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_count, &
       field_contact, field_center, field_omega, field_normal, field_nutation, &
       field_reaction, field_energy, field_base_acceleration
-  use ellroll_results, only: case_result_t, new_case_result
+  use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, &
-      initial_state, observe, observe_geometry, limit_status, ball_derivative, nutation_angle
+      initial_state, observe, limit_status, ball_derivative, nutation_angle
   use ellroll_integrators, only: integrator_t, dop853_t, rk4_t, new_integrator, max_equations
   use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense, &
       dop853_attempt_calls, dop853_dense_calls, lanes_rk4_step, lanes_dop853_attempt
   use ellroll_events, only: crossing_search_t
+  use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_linear, only: oscillation_periods
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
   implicit none
@@ -189,7 +190,7 @@ contains
     real(wp), intent(out) :: y(state_size), f(state_size)
     type(observation_t) :: obs
     run%ball = make_ball(cs)
-    res = new_case_result(plan%fields, plan%n_samples)
+    call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
@@ -216,6 +217,7 @@ contains
     if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
       res%transmissibility = run%spectrum%ratio()
     res%linear_periods = oscillation_periods(run%ball, run%spin0)
+    call fill_unrecorded(res)
   end subroutine finish_case
 
   subroutine fixed_step_loop(integrator, cs, plan, run, y, f, res)
@@ -367,7 +369,7 @@ contains
       real(wp), dimension(lanes, state_size) :: y_new, f_new
       real(wp) :: h(lanes), t
       integer(i8) :: n_steps(lanes), step
-      logical :: accepted(lanes), sampled
+      logical :: accepted(lanes), sampled, sample_step
       integer :: i
       do l = 1, lanes
         i = merge(l, donor, active(l))
@@ -381,6 +383,7 @@ contains
         step = step + 1
         call lanes_rk4_step(balls, y, f, h, y_new, f_new)
         call lanes_observe(balls, y_new, f_new, out)
+        sample_step = sampled .and. mod(step, plan%steps_per_sample) == 0
         accepted = active .and. out%status == status_completed
         call summary%add(out, accepted)
         do l = 1, n
@@ -396,9 +399,8 @@ contains
           end if
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
-          if (sampled .and. mod(step, plan%steps_per_sample) == 0) &
-            call record_sample(results(l), step / plan%steps_per_sample + 1, &
-                               lane_observation(out, y_new, l, run(l)%ball%radius))
+          if (sample_step) call record_lane_sample(results(l), step / plan%steps_per_sample + 1, out, y_new, l, &
+                                                   run(l)%ball%radius)
           if (step == n_steps(l)) then
             results(l)%t_final = t
             call summary%store(l, run(l), results(l))
@@ -731,29 +733,50 @@ contains
   end function nutation_trend
 
   !> The maximum of Theta inside the last attempt (in dop): the root of
-  !> d tan(Theta)/dt on its dense output and the interpolant's derivative, by
-  !> bisection to round-off (a simple root: its time is well conditioned).
+  !> d tan(Theta)/dt on its dense output and the interpolant's derivative (a
+  !> simple root: its time is well conditioned), by regula falsi with the
+  !> Illinois modification (superlinear, the bracket kept) to a bracket of
+  !> 4 units of round-off in theta: about 10 evaluations where bisection
+  !> takes 52.
   subroutine locate_nutation_peak(dop, ball, peak, n_rhs)
     type(dop853_t), intent(inout) :: dop
     type(rolling_ball_t), intent(in) :: ball
     type(nutation_peak_t), intent(out) :: peak
     integer(i8), intent(inout) :: n_rhs
-    integer, parameter :: iterations = 52             ! 2**-52: the double's resolution of [0, 1]
-    real(wp) :: low, high, middle, y(state_size), rate(max_equations), lateral
+    integer, parameter :: max_iterations = 100
+    real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
+    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
+    integer :: i, kept_side
     logical :: prepared
-    integer :: i
     call dop853_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
     if (prepared) n_rhs = n_rhs + dop853_dense_calls
     low = 0
     high = 1
-    do i = 1, iterations
-      middle = 0.5_wp * (low + high)
-      call dop853_ball_dense(dop, ball, middle, y, prepared)
-      call dop%dense_rate(middle, rate)
-      if (nutation_trend(y, rate(:state_size)) >= 0) then
+    trend_low = trend_at(low)
+    trend_high = trend_at(high)
+    ! a root at an end, where round-off decided the step's test: that end
+    if (trend_low < 0) then
+      high = low
+    else if (trend_high >= 0) then
+      low = high
+    end if
+    kept_side = 0
+    do i = 1, max_iterations
+      if (high - low <= resolution) exit
+      middle = (low * trend_high - high * trend_low) / (trend_high - trend_low)
+      ! round-off may put the secant's root on an end: halve instead
+      if (.not. (middle > low .and. middle < high)) middle = 0.5_wp * (low + high)
+      trend = trend_at(middle)
+      if (trend >= 0) then
         low = middle
+        trend_low = trend
+        if (kept_side == 1) trend_high = 0.5_wp * trend_high      ! Illinois: the other end stayed twice
+        kept_side = 1
       else
         high = middle
+        trend_high = trend
+        if (kept_side == -1) trend_low = 0.5_wp * trend_low
+        kept_side = -1
       end if
     end do
     middle = 0.5_wp * (low + high)
@@ -764,6 +787,14 @@ contains
     peak%tan_nutation = lateral / y(3)
     peak%lateral = lateral
     peak%normal_z = y(3)
+  contains
+    real(wp) function trend_at(theta)
+      real(wp), intent(in) :: theta
+      real(wp) :: state(state_size), rate(max_equations)
+      call dop853_ball_dense(dop, ball, theta, state, prepared)
+      call dop%dense_rate(theta, rate)
+      trend_at = nutation_trend(state, rate(:state_size))
+    end function trend_at
   end subroutine locate_nutation_peak
 
   !> The last attempt (in dop) crossed a limit (status): bisect on its dense
@@ -781,7 +812,7 @@ contains
     call search%begin(dop%h, status)
     do while (.not. search%done())
       offset = search%trial()
-      call dense_state(dop, run, offset / dop%h, .true., .true., obs, res%n_rhs)
+      call dense_state(dop, run, offset / dop%h, .true., obs, res%n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
     call record_samples_until(dop, run, plan, dop%t_old + search%valid, obs, res)
@@ -792,7 +823,9 @@ contains
   end subroutine stop_in_step
 
   !> Record every output sample in (t_old, t_until] of the last attempt (in
-  !> dop), from its dense output; a sample at the step's end is obs_end.
+  !> dop), from its dense output; a sample at the step's end is obs_end. A
+  !> sample computes only what the stored fields need: the geometry of the
+  !> state, or every derived output (with f there when the reaction is stored).
   subroutine record_samples_until(dop, run, plan, t_until, obs_end, res)
     type(dop853_t), intent(inout) :: dop
     type(run_state_t), intent(inout) :: run
@@ -801,42 +834,54 @@ contains
     type(observation_t), intent(in) :: obs_end
     type(case_result_t), intent(inout) :: res
     type(observation_t) :: obs
-    real(wp) :: t_sample
+    real(wp) :: t_sample, theta, y(state_size), contact(3), lateral
     logical :: complete
     complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
     do while (sample_due(run, plan, t_until))
       t_sample = real(run%next_sample - 1, wp) * plan%interval
+      theta = (t_sample - dop%t_old) / dop%h
       if (abs(t_sample - (dop%t_old + dop%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
         call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
-      else
-        call dense_state(dop, run, (t_sample - dop%t_old) / dop%h, complete, plan%fields(field_reaction), &
-                         obs, res%n_rhs)
+      else if (complete) then
+        call dense_state(dop, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
         call record_sample(res, run%next_sample, obs)
+      else
+        call dense_point(dop, run, theta, y, res%n_rhs)
+        contact = contact_from_normal(run%ball%cup, y(1:3))
+        lateral = sqrt(y(1)**2 + y(2)**2)
+        call store_sample(res, run%next_sample, contact, contact + run%ball%radius * y(1:3), y(4:6), y(1:3), &
+                          lateral, [0.0_wp, 0.0_wp, 0.0_wp], 0.0_wp, [0.0_wp, 0.0_wp, 0.0_wp])
       end if
       run%next_sample = run%next_sample + 1
     end do
   end subroutine record_samples_until
 
-  !> Derived outputs at t_old + theta h of the last attempt, from its dense
-  !> output: the geometry only, or when complete all of them, with f there
-  !> (one more RHS call) when with_rate (the limits and the stored reaction
-  !> need it).
-  subroutine dense_state(dop, run, theta, complete, with_rate, obs, n_rhs)
+  !> The state at t_old + theta h of the last attempt, from its dense
+  !> output, the normal projected to unit length.
+  subroutine dense_point(dop, run, theta, y, n_rhs)
     type(dop853_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: theta
-    logical, intent(in) :: complete, with_rate
-    type(observation_t), intent(out) :: obs
+    real(wp), intent(out) :: y(state_size)
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: y(state_size), f(state_size), t
     logical :: prepared
     call dop853_ball_dense(dop, run%ball, theta, y, prepared)
     if (prepared) n_rhs = n_rhs + dop853_dense_calls
     call run%ball%project(y)
-    if (.not. complete) then
-      obs = observe_geometry(run%ball, y)
-      return
-    end if
+  end subroutine dense_point
+
+  !> Every derived output at t_old + theta h of the last attempt, from its
+  !> dense output, with f there (one more RHS call) when with_rate (the
+  !> limits and the stored reaction need it).
+  subroutine dense_state(dop, run, theta, with_rate, obs, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: theta
+    logical, intent(in) :: with_rate
+    type(observation_t), intent(out) :: obs
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: y(state_size), f(state_size), t
+    call dense_point(dop, run, theta, y, n_rhs)
     t = dop%t_old + theta * dop%h
     f = 0
     if (with_rate) then
@@ -986,20 +1031,46 @@ contains
     type(case_result_t), intent(inout) :: res
     integer(i8), intent(in) :: sample
     type(observation_t), intent(in) :: obs
-    call put(res, field_contact, obs%contact)
-    call put(res, field_center, obs%center)
-    call put(res, field_omega, obs%omega)
-    call put(res, field_normal, obs%normal)
-    if (allocated(res%fields(field_nutation)%values)) call put(res, field_nutation, [nutation_angle(obs)])
-    call put(res, field_reaction, obs%reaction)
-    call put(res, field_energy, [obs%energy])
-    call put(res, field_base_acceleration, obs%base_acceleration)
+    call store_sample(res, sample, obs%contact, obs%center, obs%omega, obs%normal, obs%lateral, obs%reaction, &
+                      obs%energy, obs%base_acceleration)
+  end subroutine record_sample
+
+  !> Lane l's end-of-step outputs as output sample `sample` of res (a fixed
+  !> cup: no base acceleration), straight from the lane arrays.
+  pure subroutine record_lane_sample(res, sample, out, y, l, radius)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: y(lanes, state_size), radius
+    integer, intent(in) :: l
+    call store_sample(res, sample, out%contact(l, :), out%contact(l, :) + radius * out%normal(l, :), y(l, 4:6), &
+                      out%normal(l, :), out%lateral(l), out%reaction(l, :), out%energy(l), [0.0_wp, 0.0_wp, 0.0_wp])
+  end subroutine record_lane_sample
+
+  !> Every stored field's values at one output sample (Theta from the
+  !> lateral and vertical parts of the normal, only when it is stored).
+  pure subroutine store_sample(res, sample, contact, center, omega, normal, lateral, reaction, energy, &
+                               base_acceleration)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    real(wp), intent(in) :: contact(3), center(3), omega(3), normal(3), lateral, reaction(3), energy, &
+                            base_acceleration(3)
+    call put(res, field_contact, contact)
+    call put(res, field_center, center)
+    call put(res, field_omega, omega)
+    call put(res, field_normal, normal)
+    if (allocated(res%fields(field_nutation)%values)) &
+      res%fields(field_nutation)%values(1, sample) = atan2(lateral, normal(3))
+    call put(res, field_reaction, reaction)
+    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, sample) = energy
+    call put(res, field_base_acceleration, base_acceleration)
+    res%n_recorded = sample
   contains
     pure subroutine put(res, field, values)
       type(case_result_t), intent(inout) :: res
       integer, intent(in) :: field
-      real(wp), intent(in) :: values(:)
+      real(wp), intent(in) :: values(3)
       if (allocated(res%fields(field)%values)) res%fields(field)%values(:, sample) = values
     end subroutine put
-  end subroutine record_sample
+  end subroutine store_sample
 end module ellroll_simulate
