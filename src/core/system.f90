@@ -32,7 +32,7 @@ module ellroll_system
       type(c_ptr), value :: tm
     end function c_strftime
     !> Process-wide runtime settings, once at start (src/core/runtime.c):
-    !> the heap keeps freed memory; OpenBLAS, if linked, runs one thread.
+    !> the heap keeps freed memory for reuse.
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
   end interface

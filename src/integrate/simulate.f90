@@ -565,21 +565,32 @@ contains
     self%constraint_error_max(l) = res%constraint_error_max
   end subroutine load_summary
 
-  !> What the accepted lanes' new states add to the summary (accumulate).
+  !> What the accepted lanes' new states add to the summary (accumulate);
+  !> branch-free (merge), so that the loop vectorizes.
   pure subroutine add_to_summary(self, out, accepted)
     class(lane_summary_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
     logical, intent(in) :: accepted(lanes)
+    logical :: higher
     integer :: l
     do l = 1, lanes
-      if (.not. accepted(l)) cycle
-      call self%note_nutation(l, out%tan_nutation(l), out%lateral(l), out%normal(l, 3))
-      self%displacement_max(l) = max(self%displacement_max(l), out%displacement(l))
-      self%horizontal_force_max(l) = max(self%horizontal_force_max(l), out%horizontal_force(l))
-      self%reaction_normal_max(l) = max(self%reaction_normal_max(l), out%reaction_normal(l))
-      self%friction_needed_max(l) = max(self%friction_needed_max(l), out%friction_needed(l))
-      self%energy_drift(l) = max(self%energy_drift(l), abs(out%energy(l) - self%energy0(l)) / abs(self%energy0(l)))
-      self%constraint_error_max(l) = max(self%constraint_error_max(l), out%surface_residual(l))
+      higher = accepted(l) .and. out%tan_nutation(l) > self%tan_max(l)
+      self%tan_max(l) = merge(out%tan_nutation(l), self%tan_max(l), higher)
+      self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
+      self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
+      self%theta_moved(l) = self%theta_moved(l) .or. higher
+      self%displacement_max(l) = merge(max(self%displacement_max(l), out%displacement(l)), &
+                                       self%displacement_max(l), accepted(l))
+      self%horizontal_force_max(l) = merge(max(self%horizontal_force_max(l), out%horizontal_force(l)), &
+                                           self%horizontal_force_max(l), accepted(l))
+      self%reaction_normal_max(l) = merge(max(self%reaction_normal_max(l), out%reaction_normal(l)), &
+                                          self%reaction_normal_max(l), accepted(l))
+      self%friction_needed_max(l) = merge(max(self%friction_needed_max(l), out%friction_needed(l)), &
+                                          self%friction_needed_max(l), accepted(l))
+      self%energy_drift(l) = merge(max(self%energy_drift(l), abs(out%energy(l) - self%energy0(l)) / abs(self%energy0(l))), &
+                                   self%energy_drift(l), accepted(l))
+      self%constraint_error_max(l) = merge(max(self%constraint_error_max(l), out%surface_residual(l)), &
+                                           self%constraint_error_max(l), accepted(l))
     end do
   end subroutine add_to_summary
 
