@@ -615,7 +615,7 @@ contains
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     run%tan_theta_max = self%tan_max(l)
-    if (self%theta_moved(l)) res%theta_max = atan2(self%lateral_at_max(l), self%normal_z_at_max(l))
+    if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
     res%displacement_max = self%displacement_max(l)
     res%horizontal_force_max = self%horizontal_force_max(l)
     res%reaction_normal_max = self%reaction_normal_max(l)
@@ -1012,14 +1012,14 @@ contains
   end function spectrum_ratio
 
   !> A nutation angle (tan Theta, and the lateral and vertical components of
-  !> the unit normal) for the largest Theta; one atan2 per new maximum only.
+  !> the unit normal) for the largest Theta; one nutation_angle per new maximum only.
   pure subroutine note_nutation(run, res, tan_nutation, lateral, normal_z)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: tan_nutation, lateral, normal_z
     if (tan_nutation > run%tan_theta_max) then
       run%tan_theta_max = tan_nutation
-      res%theta_max = atan2(lateral, normal_z)
+      res%theta_max = nutation_angle(lateral, normal_z)
     end if
   end subroutine note_nutation
 
@@ -1071,7 +1071,7 @@ contains
     call put(res, field_omega, omega)
     call put(res, field_normal, normal)
     if (allocated(res%fields(field_nutation)%values)) &
-      res%fields(field_nutation)%values(1, sample) = atan2(lateral, normal(3))
+      res%fields(field_nutation)%values(1, sample) = nutation_angle(lateral, normal(3))
     call put(res, field_reaction, reaction)
     if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, sample) = energy
     call put(res, field_base_acceleration, base_acceleration)

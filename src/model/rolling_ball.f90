@@ -184,10 +184,11 @@ contains
     obs%fits = fit_radius * (fit_radius - k%trace) + k%det > 0 .and. 2 * fit_radius < k%trace
   end function observe
 
-  !> The nutation angle Theta, between n and the vertical (rad).
-  pure real(wp) function nutation_angle(obs)
-    type(observation_t), intent(in) :: obs
-    nutation_angle = atan2(obs%lateral, obs%normal(3))
+  !> The nutation angle Theta, between n and the vertical (rad), from the
+  !> lateral and vertical parts of the unit normal.
+  elemental real(wp) function nutation_angle(lateral, normal_z)
+    real(wp), intent(in) :: lateral, normal_z
+    nutation_angle = atan2(lateral, normal_z)
   end function nutation_angle
 
   !> status_completed while the state is inside the model's domain, otherwise
