@@ -33,7 +33,10 @@ MEASURE = ("import resource, subprocess, sys, time; t = time.perf_counter(); "
 def measure(exe, folder, n_cases, threads):
     """(wall seconds, peak RSS in MiB) of one run in a fresh process."""
     (folder / "bench.nml").write_text(INPUT.format(spins=n_cases // 10))
-    out = subprocess.run([sys.executable, "-c", MEASURE, str(exe), "run", "bench.nml", "-q", "--overwrite",
+    # the previous run's file is removed outside the timing: --overwrite would
+    # free its pages inside it, serially, a cost of that file, not of this run
+    (folder / "bench.h5").unlink(missing_ok=True)
+    out = subprocess.run([sys.executable, "-c", MEASURE, str(pathlib.Path(exe).resolve()), "run", "bench.nml", "-q",
                           "--threads", str(threads)], cwd=folder, check=True, capture_output=True, text=True)
     seconds, rss_kib = out.stdout.split()
     return float(seconds), int(rss_kib) / 1024

@@ -20,7 +20,7 @@ module ellroll_hdf5
   implicit none
   private
 
-  public :: h5_output_t, h5_input_t, provenance_t
+  public :: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
@@ -69,6 +69,15 @@ module ellroll_hdf5
     type(named_value_t), allocatable :: rows(:, :)   !< (entry, row)
     type(sample_block_t) :: samples(field_count)     !< the stored fields' trajectories
   end type row_window_t
+
+  !> Windows taken out of the writer, complete (or evicted), to be written:
+  !> keeping a case is a copy, writing a window is HDF5 and the disk, so the
+  !> threads of a campaign hold one lock for the first and another for the
+  !> second, and keep cases while a window is being written.
+  type :: window_list_t
+    integer :: n = 0
+    type(row_window_t), allocatable :: items(:)
+  end type window_list_t
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
 
@@ -104,6 +113,8 @@ module ellroll_hdf5
     character(len=8), allocatable :: row_groups(:)   !< the group of each row entry
   contains
     procedure :: create
+    procedure :: keep_case
+    procedure :: write_windows
     procedure :: write_case
     procedure :: close => close_file
   end type h5_output_t
@@ -192,6 +203,8 @@ contains
     call create_status(group, scale)
     call create_table(group, summary_record(case_result_t()), scale)
     call close_scale_and_group(scale, group)
+    self%row_groups = [spread('case    ', 1, size(case_record(template))), &
+                       spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
     call h5dclose_f(time_scale, hdferr)
     call h5dclose_f(xyz_scale, hdferr)
     call h5dclose_f(mode_scale, hdferr)
@@ -427,22 +440,27 @@ contains
     type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
     type(error_t), intent(inout) :: err
-    type(named_value_t), allocatable :: inputs(:), summary(:)
-    inputs = case_record(cs)
-    summary = [summary_record(res), int_value('status', '', '', int(res%status, i8))]
-    if (.not. allocated(self%row_groups)) &
-      self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(summary))]
-    call keep_case(self, icase, inputs, summary, res, err)
+    type(window_list_t) :: full
+    call self%keep_case(icase, table_row(cs, res), res, full)
+    call self%write_windows(full, err)
   end subroutine write_case
 
-  !> Keep a case (its table row: inputs, then summary; and its trajectories)
-  !> in its window; write the window once complete.
-  subroutine keep_case(self, icase, inputs, summary, res, err)
-    type(h5_output_t), intent(inout) :: self
-    integer(i8), intent(in) :: icase
-    type(named_value_t), intent(in) :: inputs(:), summary(:)
+  !> A case's row of the case and summary tables: its inputs, its summary, its status.
+  function table_row(cs, res) result(row)
+    type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
-    type(error_t), intent(inout) :: err
+    type(named_value_t), allocatable :: row(:)
+    row = [case_record(cs), summary_record(res), int_value('status', '', '', int(res%status, i8))]
+  end function table_row
+
+  !> Keep a case (its table row and its trajectories) in its window; a window
+  !> complete, or the oldest when all are in use, goes to `full`.
+  subroutine keep_case(self, icase, row, res, full)
+    class(h5_output_t), intent(inout) :: self
+    integer(i8), intent(in) :: icase
+    type(named_value_t), intent(in) :: row(:)
+    type(case_result_t), intent(in) :: res
+    type(window_list_t), intent(inout) :: full
     integer(i8) :: first
     integer :: w, r, f
     if (.not. allocated(self%windows)) allocate (self%windows(max_windows))
@@ -452,7 +470,7 @@ contains
       w = findloc(self%windows%in_use, .false., dim=1)
       if (w == 0) then                    ! all in use: the oldest goes out as it is
         w = minloc(self%windows%opened, dim=1)
-        call write_window(self, w, err)
+        call take_window(self%windows(w), full)
       end if
       associate (win => self%windows(w))
         win%in_use = .true.
@@ -462,7 +480,7 @@ contains
         win%expected = int(min(int(self%window_rows, i8), self%n_cases - first))
         win%filled = 0
         if (.not. allocated(win%present)) then
-          allocate (win%present(self%window_rows), win%rows(size(inputs) + size(summary), self%window_rows))
+          allocate (win%present(self%window_rows), win%rows(size(row), self%window_rows))
           do f = 1, field_count
             if (self%fields(f)) &
               allocate (win%samples(f)%values(field_ncomp(f) * self%n_samples, self%window_rows))
@@ -475,57 +493,107 @@ contains
       r = int(icase - first) + 1
       if (.not. win%present(r)) win%filled = win%filled + 1
       win%present(r) = .true.
-      win%rows(:size(inputs), r) = inputs
-      win%rows(size(inputs) + 1:, r) = summary
+      win%rows(:, r) = row
       do f = 1, field_count
         if (.not. self%fields(f)) cycle
         if (allocated(res%fields(f)%values)) then
-          win%samples(f)%values(:, r) = reshape(res%fields(f)%values, [size(res%fields(f)%values)])
+          call copy_flat(res%fields(f)%values, size(res%fields(f)%values), win%samples(f)%values(:, r))
         else                              ! never integrated (invalid): NaN, as the fill value
           win%samples(f)%values(:, r) = ieee_value(0.0_wp, ieee_quiet_nan)
         end if
       end do
-      if (win%filled == win%expected) call write_window(self, w, err)
+      if (win%filled == win%expected) call take_window(win, full)
     end associate
   end subroutine keep_case
 
-  !> Write window w (each run of consecutive cases as one hyperslab per
-  !> dataset) and free its slot.
-  subroutine write_window(self, w, err)
+  !> The values of an array of any shape, in array element order (no temporary).
+  subroutine copy_flat(from, n, to)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: from(n)
+    real(wp), intent(out) :: to(n)
+    to = from
+  end subroutine copy_flat
+
+  !> Move window `win` (its buffers, not a copy) to the end of `list`, and free its slot.
+  subroutine take_window(win, list)
+    type(row_window_t), intent(inout) :: win
+    type(window_list_t), intent(inout) :: list
+    type(row_window_t), allocatable :: grown(:)
+    integer :: k
+    if (.not. allocated(list%items)) allocate (list%items(2))
+    if (list%n == size(list%items)) then
+      allocate (grown(2 * list%n))
+      do k = 1, list%n
+        call move_window(list%items(k), grown(k))
+      end do
+      call move_alloc(grown, list%items)
+    end if
+    list%n = list%n + 1
+    call move_window(win, list%items(list%n))
+    win%in_use = .false.
+  end subroutine take_window
+
+  subroutine move_window(from, to)
+    type(row_window_t), intent(inout) :: from, to
+    integer :: f
+    to%in_use = from%in_use
+    to%first = from%first
+    to%opened = from%opened
+    to%expected = from%expected
+    to%filled = from%filled
+    call move_alloc(from%present, to%present)
+    call move_alloc(from%rows, to%rows)
+    do f = 1, field_count
+      call move_alloc(from%samples(f)%values, to%samples(f)%values)
+    end do
+  end subroutine move_window
+
+  !> Write the windows of `full` and empty it.
+  subroutine write_windows(self, full, err)
+    class(h5_output_t), intent(inout) :: self
+    type(window_list_t), intent(inout) :: full
+    type(error_t), intent(inout) :: err
+    integer :: k
+    do k = 1, full%n
+      call write_window(self, full%items(k), err)
+    end do
+    full%n = 0
+    if (allocated(full%items)) deallocate (full%items)
+  end subroutine write_windows
+
+  !> Write a window: each run of consecutive cases as one hyperslab per dataset.
+  subroutine write_window(self, win, err)
     type(h5_output_t), intent(inout) :: self
-    integer, intent(in) :: w
+    type(row_window_t), intent(in) :: win
     type(error_t), intent(inout) :: err
     integer :: first_row, last_row, f
     integer(i8) :: offset, n
     integer(hid_t) :: dset
-    associate (win => self%windows(w))
-      last_row = 0
-      do while (.not. err%failed())
-        first_row = findloc(win%present(last_row + 1:win%expected), .true., dim=1)
-        if (first_row == 0) exit
-        first_row = last_row + first_row
-        last_row = first_row
-        do while (last_row < win%expected)
-          if (.not. win%present(last_row + 1)) exit
-          last_row = last_row + 1
-        end do
-        offset = win%first + first_row - 1
-        n = last_row - first_row + 1
-        call write_rows(self, win%rows(:, first_row:last_row), offset, err)
-        do f = 1, field_count
-          if (.not. self%fields(f)) cycle
-          if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) exit
-          if (field_ncomp(f) == 1) then
-            call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, offset], &
-                                 [self%n_samples, n], err)
-          else
-            call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, 0_i8, offset], &
-                                 [3_i8, self%n_samples, n], err)
-          end if
-        end do
+    last_row = 0
+    do while (.not. err%failed())
+      first_row = findloc(win%present(last_row + 1:win%expected), .true., dim=1)
+      if (first_row == 0) exit
+      first_row = last_row + first_row
+      last_row = first_row
+      do while (last_row < win%expected)
+        if (.not. win%present(last_row + 1)) exit
+        last_row = last_row + 1
       end do
-      win%in_use = .false.
-    end associate
+      offset = win%first + first_row - 1
+      n = last_row - first_row + 1
+      call write_rows(self, win%rows(:, first_row:last_row), offset, err)
+      do f = 1, field_count
+        if (.not. self%fields(f)) cycle
+        if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) exit
+        if (field_ncomp(f) == 1) then
+          call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, offset], &
+                               [self%n_samples, n], err)
+        else
+          call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, 0_i8, offset], &
+                               [3_i8, self%n_samples, n], err)
+        end if
+      end do
+    end do
   end subroutine write_window
 
   !> Rows of consecutive cases from `offset` on, one hyperslab per dataset.
@@ -573,7 +641,7 @@ contains
     if (self%file < 0) return
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
       do k = 1, size(self%windows)
-        if (self%windows(k)%in_use) call write_window(self, k, err)
+        if (self%windows(k)%in_use) call write_window(self, self%windows(k), err)
       end do
       deallocate (self%windows)
     end if
@@ -602,6 +670,7 @@ contains
     integer(hid_t), intent(out) :: dset
     type(error_t), intent(inout) :: err
     integer :: hdferr, k
+    integer(hid_t) :: dapl
     ok = .false.
     if (err%failed()) return
     if (.not. allocated(self%open_names)) allocate (self%open_names(0), self%open_ids(0))
@@ -612,7 +681,12 @@ contains
         return
       end if
     end do
-    call h5dopen_f(self%file, name, dset, hdferr)
+    ! no chunk cache: each window writes whole chunks (one case each) once,
+    ! so caching them only adds a copy per chunk
+    call h5pcreate_f(H5P_DATASET_ACCESS_F, dapl, hdferr)
+    call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
+    call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
+    call h5pclose_f(dapl, hdferr)
     if (hdferr < 0) then
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return

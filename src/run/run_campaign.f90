@@ -19,7 +19,8 @@ module ellroll_run_campaign
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
-  use ellroll_hdf5, only: h5_output_t, provenance_t
+  use ellroll_hdf5, only: h5_output_t, provenance_t, window_list_t, table_row
+  use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t, journal_header_t
   use ellroll_progress, only: progress_t
   use ellroll_system, only: rename_file, remove_file, file_exists
@@ -297,16 +298,19 @@ contains
 
   contains
 
-    !> Integrate the slots of one block not done yet and write them, in order.
+    !> Integrate the slots of one block not done yet, then journal them and
+    !> write them, each with one entry into its lock.
     subroutine run_block(chunk)
       integer(i8), intent(in) :: chunk
       type(case_t) :: cases(lanes)
       type(case_result_t) :: results(lanes), batch_results(lanes)
       type(error_t) :: case_err
+      type(window_list_t) :: full
       integer(i8) :: slots(lanes), slot
-      integer :: n, j, in_batch(lanes), n_batch, first
+      integer :: n, n_done, j, in_batch(lanes), n_batch, first
       logical :: waiting(lanes)
-      integer(i8), allocatable :: record(:)
+      integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
+      type(named_value_t), allocatable :: rows(:, :)
       n = 0
       do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
         if (done(slot)) cycle
@@ -314,6 +318,7 @@ contains
         slots(n) = slot
         cases(n) = inp%campaign%case_at(global_index(slot))
       end do
+      if (n == 0) return
       ! one batch per method among the block's batchable cases
       waiting(:n) = [(in_lanes(cases(j)), j = 1, n)]
       do while (any(waiting(:n)))
@@ -325,26 +330,49 @@ contains
           in_batch(n_batch) = j
           waiting(j) = .false.
         end do
-        call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
-        results(in_batch(:n_batch)) = batch_results(:n_batch)
+        if (n_batch == n) then           ! the whole block: no copy of the results
+          call simulate_batch(cases(:n), inp%plan, results(:n))
+        else
+          call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
+          results(in_batch(:n_batch)) = batch_results(:n_batch)
+        end if
       end do
+      n_done = n
       do j = 1, n
-        if (.not. in_lanes(cases(j))) call simulate_case(cases(j), inp%plan, results(j), case_err)
-        record = journal%record(slots(j), results(j))
-        ! the journal and the HDF5 file each have one writer at a time, but
-        ! one thread may write the journal while another writes the file
-        ! (a resume rebuilds the file from the journal, so their order does
-        ! not matter)
-        !$omp critical (ellroll_journal)
-        if (case_err%failed() .and. .not. journal_err%failed()) journal_err = case_err
-        if (.not. journal_err%failed()) call journal%append(record, journal_err)
-        !$omp end critical (ellroll_journal)
-        !$omp critical (ellroll_writer)
-        if (.not. (shared_err%failed() .or. journal_err%failed())) &
-          call out%write_case(slots(j), cases(j), results(j), shared_err)
-        call progress%advance()
-        !$omp end critical (ellroll_writer)
+        if (in_lanes(cases(j))) cycle
+        call simulate_case(cases(j), inp%plan, results(j), case_err)
+        if (case_err%failed()) then
+          n_done = j - 1
+          exit
+        end if
       end do
+      ! records and table rows are built here, outside the locks
+      do j = 1, n_done
+        associate (record => journal%record(slots(j), results(j)), row => table_row(cases(j), results(j)))
+          if (j == 1) allocate (records(size(record) * n_done), rows(size(row), n_done))
+          records((j - 1) * size(record) + 1:j * size(record)) = record
+          rows(:, j) = row
+        end associate
+      end do
+      ! the journal and the HDF5 file each have one writer at a time, but one
+      ! thread may write the journal while another writes the file (a resume
+      ! rebuilds the file from the journal, so their order does not matter)
+      !$omp critical (ellroll_journal)
+      if (case_err%failed() .and. .not. journal_err%failed()) journal_err = case_err
+      if (n_done > 0 .and. .not. journal_err%failed()) &
+        call journal%append(records, journal_err)
+      !$omp end critical (ellroll_journal)
+      if (n_done == 0) return
+      !$omp critical (ellroll_keep)
+      do j = 1, n_done
+        call out%keep_case(slots(j), rows(:, j), results(j), full)
+        call progress%advance()
+      end do
+      !$omp end critical (ellroll_keep)
+      if (full%n == 0) return
+      !$omp critical (ellroll_writer)
+      if (.not. (shared_err%failed() .or. journal_err%failed())) call out%write_windows(full, shared_err)
+      !$omp end critical (ellroll_writer)
     end subroutine run_block
 
     !> A case of a small campaign (the paper's single case, say) runs alone:
