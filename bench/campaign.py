@@ -7,7 +7,7 @@ nutation stored every 0.01 s) is run with 1 and 2 threads (and more with
 campaign with 1,000 and 10,000 cases gives peak RSS, which must not grow with
 the number of cases (trajectories stream to disk).
 
-    python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16]
+    python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16] [--cases 10000] [--repeat 3]
 """
 import argparse
 import pathlib
@@ -47,6 +47,9 @@ def main():
     parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--cases", type=int, default=1000)
+    parser.add_argument("--repeat", type=int, default=1, help="best of this many runs per thread count")
+    parser.add_argument("--rss-cases", type=int, nargs="+", default=[1000, 10000],
+                        help="campaign sizes whose peak RSS is compared (the largest thread count)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
@@ -54,16 +57,17 @@ def main():
         print(f"{'threads':>8} {'wall s':>8} {'cases/s':>9} {'speed-up':>9} {'efficiency':>11}")
         base = None
         for threads in args.threads:
-            seconds, _ = measure(args.exe, folder, args.cases, threads)
+            seconds = min(measure(args.exe, folder, args.cases, threads)[0] for _ in range(args.repeat))
             rate = args.cases / seconds
             base = base or rate
             print(f"{threads:8d} {seconds:8.2f} {rate:9.1f} {rate / base:9.2f} {rate / base / threads:10.0%}")
         print(f"{'cases':>8} {'peak RSS MiB':>13}")
         rss = {}
-        for n in (1000, 10000):
+        for n in args.rss_cases:
             _, rss[n] = measure(args.exe, folder, n, max(args.threads))
             print(f"{n:8d} {rss[n]:13.1f}")
-        print(f"RSS ratio 10,000 / 1,000 cases: {rss[10000] / rss[1000]:.2f}")
+        low, high = min(rss), max(rss)
+        print(f"RSS ratio {high:,} / {low:,} cases: {rss[high] / rss[low]:.2f}")
 
 
 if __name__ == "__main__":

@@ -140,8 +140,9 @@ contains
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
     integer(i8), allocatable :: words(:)
-    words = pack_record(self%header, slot, res)
-    words = [words, checksum(words)]
+    allocate (words(self%record_words + 1))
+    call pack_record(self%header, slot, res, words(:self%record_words))
+    words(self%record_words + 1) = checksum(words(:self%record_words))
   end function encode_record
 
   !> Append a record made by encode_record and flush it.
@@ -181,15 +182,15 @@ contains
         header%n_samples * sum(field_ncomp, mask=header%fields)
   end function words_per_record
 
-  function pack_record(header, slot, res) result(words)
+  !> The words of a record (words_per_record of them), its checksum aside.
+  subroutine pack_record(header, slot, res, words)
     type(journal_header_t), intent(in) :: header
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
-    integer(i8), allocatable :: words(:)
+    integer(i8), intent(out) :: words(:)
     type(named_value_t), allocatable :: rec(:)
     integer :: k, f
     integer(i8) :: at, n
-    allocate (words(words_per_record(header)))
     words(1:3) = [record_marker, slot, int(res%status, i8)]
     rec = summary_record(res)
     ! three words per summary entry: an integer, or up to three reals
@@ -204,10 +205,10 @@ contains
     do f = 1, field_count
       if (.not. header%fields(f)) cycle
       n = field_ncomp(f) * header%n_samples
-      words(at + 1:at + n) = transfer(reshape(res%fields(f)%values, [n]), 0_i8, n)
+      words(at + 1:at + n) = transfer(res%fields(f)%values, 0_i8, n)
       at = at + n
     end do
-  end function pack_record
+  end subroutine pack_record
 
   subroutine unpack_record(header, words, slot, res)
     type(journal_header_t), intent(in) :: header
