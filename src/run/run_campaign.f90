@@ -373,6 +373,9 @@ contains
       !$omp critical (ellroll_writer)
       if (.not. (shared_err%failed() .or. journal_err%failed())) call out%write_windows(full, shared_err)
       !$omp end critical (ellroll_writer)
+      !$omp critical (ellroll_keep)
+      call out%recycle(full)
+      !$omp end critical (ellroll_keep)
     end subroutine run_block
 
     !> A case of a small campaign (the paper's single case, say) runs alone:
