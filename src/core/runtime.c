@@ -3,13 +3,14 @@
  *
  * Keep freed memory in the process instead of handing it back to the system
  * at once. Every case allocates its output buffers and frees them once they
- * are written, and the writer does the same with its windows of cases (about
- * 1 MiB each). With glibc's defaults the heap shrinks after each batch
- * (trim threshold 128 KiB) and blocks over 128 KiB are mapped and unmapped
- * each time (setting the trim threshold also fixes the mmap threshold at
- * its default): the next batch or window page-faults its memory in again,
- * about 6 ns per case-step of a batch storing every field at 100 Hz
- * (bench/throughput) and 4 % of a campaign (perf). Up to 256 MiB of freed
+ * are written, and a campaign block its journal records (over 128 KiB for
+ * 8 cases). With glibc's defaults the heap shrinks after each batch (trim
+ * threshold 128 KiB) and blocks over 128 KiB are mapped and unmapped each
+ * time (setting the trim threshold also fixes the mmap threshold at its
+ * default): the next batch page-faults its memory in again, about 6 ns per
+ * case-step of a batch storing every field at 100 Hz (bench/throughput) and
+ * 4 % of a campaign (perf, when the writer's windows were still freed and
+ * allocated; they are recycled now, src/output). Up to 256 MiB of freed
  * heap is kept for reuse and blocks up to 32 MiB come from the heap; peak
  * memory does not change. Other C libraries (no M_TRIM_THRESHOLD): nothing. */
 #ifdef __linux__
