@@ -4,10 +4,11 @@
 A spin x radius sweep of the paper's cup (t_end = 5 s, dt = 1e-3, contact and
 nutation stored every 0.01 s) is run with 1 and 2 threads (and more with
 --threads), giving cases/s and the parallel efficiency; then the same
-campaign with 1,000 and 10,000 cases gives peak RSS, which must not grow with
-the number of cases (trajectories stream to disk).
+campaign with 1,000 and 10,000 cases (or --rss-cases) gives peak RSS, which
+must not grow with the number of cases (trajectories stream to disk).
 
     python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16] [--cases 10000] [--repeat 3]
+                             [--rss-cases 1000 10000 100000]
 """
 import argparse
 import pathlib
