@@ -33,6 +33,8 @@ module ellroll_simulate
   !> Tolerances of the reference run behind error_estimate = 'reference'.
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
   !> Step-size control of DOP853 (Hairer's constants).
+  !> Output samples held per batch lane between flushes into the results.
+  integer, parameter :: block_samples = 32
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp, adaptive_max_factor = 6
 
   !> Local maxima of a sampled signal, each refined by the parabola through
@@ -104,6 +106,23 @@ module ellroll_simulate
     procedure :: note_nutation => note_lane_nutation
     procedure :: store => store_summary
   end type lane_summary_t
+
+  !> Output samples of a batch's RK4 lanes, held a block at a time: a
+  !> sample step stores each value for every lane at once, and each case's
+  !> result takes its samples of the block in one pass (flush). Stored lane
+  !> by lane into the eight results, a sample cost about 90 ns per case,
+  !> 14 % of a batch storing every field at 100 Hz (bench/throughput).
+  type :: lane_sample_block_t
+    integer :: count = 0                  !< samples held
+    integer(i8) :: first = 2              !< output sample index of the first one held
+    logical :: fields(field_count) = .false.
+    real(wp), dimension(lanes, 3, block_samples) :: contact, center, omega, normal, reaction
+    real(wp), dimension(lanes, block_samples) :: lateral, energy
+  contains
+    procedure :: add => add_lane_samples
+    procedure :: flush => flush_lane_samples
+    procedure :: next_block => next_sample_block
+  end type lane_sample_block_t
 
 contains
 
@@ -366,6 +385,7 @@ contains
     subroutine fixed_step_lanes()
       type(rk4_t) :: rk4
       type(lane_outputs_t) :: out
+      type(lane_sample_block_t) :: samples
       real(wp), dimension(lanes, state_size) :: y_new, f_new
       real(wp) :: h(lanes), t
       integer(i8) :: n_steps(lanes), step
@@ -377,6 +397,7 @@ contains
         n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
         if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
       end do
+      samples%fields = plan%fields
       sampled = any(plan%fields)
       step = 0
       do while (any(active))
@@ -384,13 +405,15 @@ contains
         call lanes_rk4_step(balls, y, f, h, y_new, f_new)
         call lanes_observe(balls, y_new, f_new, out)
         sample_step = sampled .and. mod(step, plan%steps_per_sample) == 0
+        if (sample_step) call samples%add(out, y_new, balls%radius)
         accepted = active .and. out%status == status_completed
         call summary%add(out, accepted)
         do l = 1, n
           if (.not. active(l)) cycle
           results(l)%n_rhs = results(l)%n_rhs + 4
           results(l)%n_steps = step
-          if (.not. accepted(l)) then
+          if (.not. accepted(l)) then      ! this step's sample is past the limit: not the case's
+            call samples%flush(l, samples%count - merge(1, 0, sample_step), results(l))
             call summary%store(l, run(l), results(l))
             call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
                               results(l))
@@ -399,14 +422,19 @@ contains
           end if
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
-          if (sample_step) call record_lane_sample(results(l), step / plan%steps_per_sample + 1, out, y_new, l, &
-                                                   run(l)%ball%radius)
           if (step == n_steps(l)) then
+            call samples%flush(l, samples%count, results(l))
             results(l)%t_final = t
             call summary%store(l, run(l), results(l))
             active(l) = .false.
           end if
         end do
+        if (samples%count == block_samples) then
+          do l = 1, n
+            if (active(l)) call samples%flush(l, samples%count, results(l))
+          end do
+          call samples%next_block()
+        end if
         do i = 1, state_size
           where (accepted)
             y(:, i) = y_new(:, i)
@@ -1046,17 +1074,87 @@ contains
                       obs%energy, obs%base_acceleration)
   end subroutine record_sample
 
-  !> Lane l's end-of-step outputs as output sample `sample` of res (a fixed
-  !> cup: no base acceleration), straight from the lane arrays.
-  pure subroutine record_lane_sample(res, sample, out, y, l, radius)
-    type(case_result_t), intent(inout) :: res
-    integer(i8), intent(in) :: sample
+  !> Every lane's values at one output sample into the next slot of the block.
+  pure subroutine add_lane_samples(self, out, y, radius)
+    class(lane_sample_block_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: y(lanes, state_size), radius
-    integer, intent(in) :: l
-    call store_sample(res, sample, out%contact(l, :), out%contact(l, :) + radius * out%normal(l, :), y(l, 4:6), &
-                      out%normal(l, :), out%lateral(l), out%reaction(l, :), out%energy(l), [0.0_wp, 0.0_wp, 0.0_wp])
-  end subroutine record_lane_sample
+    real(wp), intent(in) :: y(lanes, state_size), radius(lanes)
+    integer :: i, j
+    self%count = self%count + 1
+    j = self%count
+    if (self%fields(field_contact)) self%contact(:, :, j) = out%contact
+    do i = 1, 3
+      if (self%fields(field_center)) self%center(:, i, j) = out%contact(:, i) + radius * out%normal(:, i)
+    end do
+    if (self%fields(field_omega)) self%omega(:, :, j) = y(:, 4:6)
+    if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(:, :, j) = out%normal
+    if (self%fields(field_nutation)) self%lateral(:, j) = out%lateral
+    if (self%fields(field_reaction)) self%reaction(:, :, j) = out%reaction
+    if (self%fields(field_energy)) self%energy(:, j) = out%energy
+  end subroutine add_lane_samples
+
+  !> Lane l's first n samples of the block into its result (Theta from the
+  !> lateral and vertical parts of the normal, as store_sample; a batch's
+  !> cup does not move).
+  pure subroutine flush_lane_samples(self, l, n, res)
+    class(lane_sample_block_t), intent(in) :: self
+    integer, intent(in) :: l, n
+    type(case_result_t), intent(inout) :: res
+    integer(i8) :: last
+    if (n <= 0) return
+    last = self%first + n - 1
+    call put(res, field_contact, self%contact)
+    call put(res, field_center, self%center)
+    call put(res, field_omega, self%omega)
+    call put(res, field_normal, self%normal)
+    call put(res, field_reaction, self%reaction)
+    if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, self%first:last))
+    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, self%first:last) = self%energy(l, :n)
+    if (allocated(res%fields(field_base_acceleration)%values)) &
+      res%fields(field_base_acceleration)%values(:, self%first:last) = 0
+    res%n_recorded = last
+  contains
+    pure subroutine put(res, field, values)
+      type(case_result_t), intent(inout) :: res
+      integer, intent(in) :: field
+      real(wp), intent(in) :: values(lanes, 3, block_samples)
+      if (allocated(res%fields(field)%values)) call copy_lane(values, res%fields(field)%values(:, self%first:last))
+    end subroutine put
+    !> Theta of lane l's samples: a loop the compiler vectorizes, with the
+    !> vector atan2 of the C library's libmvec where there is one (within a
+    !> few units of round-off of the scalar atan2, 3 % of the batch's time).
+    pure subroutine put_nutation(stored)
+      real(wp), intent(inout) :: stored(n)
+      real(wp) :: lateral(n), normal_z(n)
+      integer :: j
+      do j = 1, n
+        lateral(j) = self%lateral(l, j)
+        normal_z(j) = self%normal(l, 3, j)
+      end do
+      do j = 1, n
+        stored(j) = nutation_angle(lateral(j), normal_z(j))
+      end do
+    end subroutine put_nutation
+    !> Lane l's vectors, explicit loops on explicit shapes: the array
+    !> assignment on the strided section was a slow generic loop.
+    pure subroutine copy_lane(values, stored)
+      real(wp), intent(in) :: values(lanes, 3, block_samples)
+      real(wp), intent(inout) :: stored(3, n)
+      integer :: j
+      do j = 1, n
+        stored(1, j) = values(l, 1, j)
+        stored(2, j) = values(l, 2, j)
+        stored(3, j) = values(l, 3, j)
+      end do
+    end subroutine copy_lane
+  end subroutine flush_lane_samples
+
+  !> Start the next block, after the one held was flushed.
+  pure subroutine next_sample_block(self)
+    class(lane_sample_block_t), intent(inout) :: self
+    self%first = self%first + self%count
+    self%count = 0
+  end subroutine next_sample_block
 
   !> Every stored field's values at one output sample (Theta from the
   !> lateral and vertical parts of the normal, only when it is stored).

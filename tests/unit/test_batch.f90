@@ -28,6 +28,16 @@ program test_batch
 
   cases = make_cases()
   call compare_paths(cases, 'rk4')
+  ! a sample at every step: the step that crosses a limit is a sample step
+  ! (its sample is past the limit, not the case's), and the batch's sample
+  ! blocks fill and flush many times
+  plan%interval = 1.0e-3_wp
+  plan%steps_per_sample = 1
+  plan%n_samples = 3001
+  call compare_paths(cases, 'rk4, a sample every step')
+  plan%interval = 0.01_wp
+  plan%steps_per_sample = 10
+  plan%n_samples = 301
   ! DOP853: each lane its own tolerances and largest step
   do l = 1, n_cases
     cases(l)%method = 'dop853'
