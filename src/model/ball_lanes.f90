@@ -80,8 +80,8 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
-    real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, an1, an2, an3, s2, inv_s, trace, det
-    real(wp) :: v1, v2, v3, inv_det_l, an_v, kv1, kv2, kv3, nd1, nd2, nd3, spin, r
+    real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, ay1, ay2, ay3, inv_sy2, inv_s2, inv_s, trace, det
+    real(wp) :: v1, v2, v3, inv_det_l, ay_v, kv1, kv2, kv3, nd1, nd2, nd3, spin, r
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
@@ -89,23 +89,24 @@ contains
       w1 = y(l, 4)
       w2 = y(l, 5)
       w3 = y(l, 6)
-      ! radius operator K(n): A n, s^2 = n . A n, tr K, det K
-      an1 = p%a2(l) * n1
-      an2 = p%b2(l) * n2
-      an3 = p%c2(l) * n3
-      s2 = n1 * an1 + n2 * an2 + n3 * an3
-      inv_s = 1 / sqrt(s2)
-      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * inv_s
-      det = p%det_axes2(l) / (s2 * s2)
+      ! radius operator K (radius_operator, from y): A y, 1 / (y . A y), 1 / s, tr K, det K
+      ay1 = p%a2(l) * y(l, 1)
+      ay2 = p%b2(l) * y(l, 2)
+      ay3 = p%c2(l) * y(l, 3)
+      inv_sy2 = 1 / (y(l, 1) * ay1 + y(l, 2) * ay2 + y(l, 3) * ay3)
+      inv_s2 = (y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)) * inv_sy2
+      inv_s = sqrt(inv_s2)
+      trace = (p%axes2_sum(l) - (ay1 * ay1 + ay2 * ay2 + ay3 * ay3) * inv_sy2) * inv_s
+      det = p%det_axes2(l) * inv_s2 * inv_s2
       ! V_C = R omega x n; n' = ((R - tr K) V_C + K V_C) / det L
       v1 = r * (w2 * n3 - w3 * n2)
       v2 = r * (w3 * n1 - w1 * n3)
       v3 = r * (w1 * n2 - w2 * n1)
       inv_det_l = 1 / (r * (r - trace) + det)
-      an_v = (an1 * v1 + an2 * v2 + an3 * v3) * inv_s**2
-      kv1 = (p%a2(l) * v1 - an1 * an_v) * inv_s
-      kv2 = (p%b2(l) * v2 - an2 * an_v) * inv_s
-      kv3 = (p%c2(l) * v3 - an3 * an_v) * inv_s
+      ay_v = (ay1 * v1 + ay2 * v2 + ay3 * v3) * inv_sy2
+      kv1 = (p%a2(l) * v1 - ay1 * ay_v) * inv_s
+      kv2 = (p%b2(l) * v2 - ay2 * ay_v) * inv_s
+      kv3 = (p%c2(l) * v3 - ay3 * ay_v) * inv_s
       nd1 = ((r - trace) * v1 + kv1) * inv_det_l
       nd2 = ((r - trace) * v2 + kv2) * inv_det_l
       nd3 = ((r - trace) * v3 + kv3) * inv_det_l

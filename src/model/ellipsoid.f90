@@ -25,10 +25,14 @@ module ellroll_ellipsoid
 
   !> The radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s.
   !> K n = 0; on the tangent plane its eigenvalues are the principal radii.
+  !> It is built from any positive multiple y of the unit normal (a state's
+  !> normal between projections): with s_y^2 = y . A y = |y|^2 s^2,
+  !> K v = (A v - (Ay)(Ay . v) / s_y^2) / s, so n = y / |y| is not needed
+  !> and the square root and division that make it are off the path to K.
   type :: radius_operator_t
-    real(wp) :: an(3) = 0       !< A n
-    real(wp) :: s = 1           !< sqrt(n . A n)
-    real(wp) :: inv_s = 1
+    real(wp) :: ay(3) = 0       !< A y
+    real(wp) :: inv_sy2 = 1     !< 1 / (y . A y)
+    real(wp) :: inv_s = 1       !< 1 / s = |y| / sqrt(y . A y)
     real(wp) :: trace = 0       !< r1 + r2
     real(wp) :: det = 0         !< r1 r2 (product of principal radii)
   end type radius_operator_t
@@ -86,19 +90,20 @@ contains
                            + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
 
-  pure function radius_operator(cup, n) result(k)
+  !> K at the unit normal y / |y|. Three of the RHS's five divisions were
+  !> here (1/s, tr K and det K by division): one reciprocal now serves all,
+  !> which costs each of them at most one rounding more.
+  pure function radius_operator(cup, y) result(k)
     type(ellipsoid_t), intent(in) :: cup
-    real(wp), intent(in) :: n(3)
+    real(wp), intent(in) :: y(3)
     type(radius_operator_t) :: k
-    real(wp) :: s2
-    ! tr K and det K by division, not by 1/s^2: near R = r1 or r2 the motion
-    ! depends on R - tr K + det K / R, where every rounding error counts
-    k%an = cup%axes2 * n
-    s2 = dot_product(n, k%an)
-    k%s = sqrt(s2)
-    k%inv_s = 1 / k%s
-    k%trace = (sum(cup%axes2) - dot_product(k%an, k%an) / s2) * k%inv_s
-    k%det = cup%det_axes2 / (s2 * s2)
+    real(wp) :: inv_s2
+    k%ay = cup%axes2 * y
+    k%inv_sy2 = 1 / dot_product(y, k%ay)
+    inv_s2 = dot_product(y, y) * k%inv_sy2
+    k%inv_s = sqrt(inv_s2)
+    k%trace = (sum(cup%axes2) - dot_product(k%ay, k%ay) * k%inv_sy2) * k%inv_s
+    k%det = cup%det_axes2 * inv_s2 * inv_s2
   end function radius_operator
 
   !> K v for a vector v.
@@ -107,7 +112,7 @@ contains
     type(radius_operator_t), intent(in) :: k
     real(wp), intent(in) :: v(3)
     real(wp) :: kv(3)
-    kv = (cup%axes2 * v - k%an * (dot_product(k%an, v) * k%inv_s**2)) * k%inv_s
+    kv = (cup%axes2 * v - k%ay * (dot_product(k%ay, v) * k%inv_sy2)) * k%inv_s
   end function apply_radius_operator
 
   !> Principal radii of curvature (smallest first) at the point with unit

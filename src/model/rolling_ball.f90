@@ -93,7 +93,7 @@ contains
     inv_length = 1 / length
     n = y(1:3) * inv_length
     omega = y(4:6)
-    k = radius_operator(ball%cup, n)
+    k = radius_operator(ball%cup, y(1:3))        ! from y: beside the normalisation, not after it
     v_center = ball%radius * cross(omega, n)
     inv_det_l = 1 / (ball%radius * (ball%radius - k%trace) + k%det)
     n_dot = ((ball%radius - k%trace) * v_center + apply_radius_operator(ball%cup, k, v_center)) * inv_det_l

@@ -3,7 +3,7 @@
 !> and the component form of Appell's equations. Plus the reaction at rest.
 program test_rolling_ball
   use ellroll_kinds, only: wp
-  use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal
+  use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal, principal_radii
   use ellroll_rolling_ball
   use ellroll_integrators, only: rk4_t, dop853_t
   use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense
@@ -11,7 +11,7 @@ program test_rolling_ball
   use testing
   implicit none
   type(rolling_ball_t) :: ball
-  real(wp) :: y(6), f(6), reference(6), u(6), worst, n(3)
+  real(wp) :: y(6), f(6), reference(6), u(6), worst, n(3), radii(2), kappa
   type(observation_t) :: obs
   integer :: trial, size_seed
 
@@ -21,6 +21,10 @@ program test_rolling_ball
   ball%g = 9.81_wp
   call random_seed(size=size_seed)
   call random_seed(put=[(99 + trial, trial = 1, size_seed)])
+  ! Both sides solve (R I - K) n' = V_C on the tangent plane, whose condition
+  ! kappa = (R + r2) / min |R - r_i| reaches several hundred among these
+  ! states (where R nears a principal radius): each agrees with the exact
+  ! value to a few kappa eps, so the difference is measured in kappa eps.
   worst = 0
   do trial = 1, 1000
     call random_number(u)
@@ -29,9 +33,11 @@ program test_rolling_ball
     y(4:6) = 40 * (u(4:6) - 0.5_wp)
     call ball%rhs(0.0_wp, y, f)
     reference = rhs_from_physics_md(ball, y)
-    worst = max(worst, maxval(abs(f - reference)) / maxval(abs(reference)))
+    radii = principal_radii(ball%cup, y(1:3))
+    kappa = (ball%radius + radii(2)) / minval(abs(ball%radius - radii))
+    worst = max(worst, maxval(abs(f - reference)) / maxval(abs(reference)) / (kappa * epsilon(1.0_wp)))
   end do
-  call check_below(worst, 1.0e-12_wp, 'closed-form RHS vs 3x3 solve of physics.md (max rel. diff)')
+  call check_below(worst, 16.0_wp, 'closed-form RHS vs 3x3 solve of physics.md (max rel. diff / (kappa eps))')
 
   ! A non-unit normal gives the same motion of the direction (homogeneity).
   y(1:3) = 3 * y(1:3)
