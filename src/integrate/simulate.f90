@@ -32,9 +32,9 @@ module ellroll_simulate
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
   !> Tolerances of the reference run behind error_estimate = 'reference'.
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
-  !> Step-size control of DOP853 (Hairer's constants).
   !> Output samples held per batch lane between flushes into the results.
   integer, parameter :: block_samples = 32
+  !> Step-size control of DOP853 (Hairer's constants).
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp, adaptive_max_factor = 6
 
   !> Local maxima of a sampled signal, each refined by the parabola through
