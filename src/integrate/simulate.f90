@@ -32,8 +32,9 @@ module ellroll_simulate
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
   !> Tolerances of the reference run behind error_estimate = 'reference'.
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
-  !> Output samples held per batch lane between flushes into the results.
-  integer, parameter :: block_samples = 32
+  !> Output samples held per batch lane between flushes into the results
+  !> (lane_sample_block_t).
+  integer, parameter :: block_samples = 128
   !> Step-size control of DOP853 (Hairer's constants).
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp, adaptive_max_factor = 6
 
@@ -111,7 +112,10 @@ module ellroll_simulate
   !> sample step stores each value for every lane at once, and each case's
   !> result takes its samples of the block in one pass (flush). Stored lane
   !> by lane into the eight results, a sample cost about 90 ns per case,
-  !> 14 % of a batch storing every field at 100 Hz (bench/throughput).
+  !> 14 % of a batch storing every field at 100 Hz (bench/throughput); now
+  !> 6-9 %, mostly the results' memory filling. Long blocks give each of the
+  !> 40 streams a flush writes runs that the prefetcher follows (32 samples:
+  !> 6-10 %; 128: 6.5-8 %); the block is 139 kB.
   type :: lane_sample_block_t
     integer :: count = 0                  !< samples held
     integer(i8) :: first = 2              !< output sample index of the first one held
