@@ -90,9 +90,9 @@ contains
                            + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
 
-  !> K at the unit normal y / |y|. Three of the RHS's five divisions were
-  !> here (1/s, tr K and det K by division): one reciprocal now serves all,
-  !> which costs each of them at most one rounding more.
+  !> K at the unit normal y / |y|. One reciprocal serves 1/s, tr K and
+  !> det K (each at most one rounding more than by its own division), so
+  !> the RHS needs three divisions where it needed five.
   pure function radius_operator(cup, y) result(k)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: y(3)
