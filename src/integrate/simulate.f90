@@ -96,10 +96,13 @@ module ellroll_simulate
   end type run_state_t
 
   !> The running summary of every lane of a batch (accumulate across lanes).
+  !> Maxima of a norm or of a ratio to a fixed positive number are kept
+  !> before the root or the division, which are taken once at the end: both
+  !> are correctly rounded and monotonic, so the result is the same number.
   type :: lane_summary_t
     real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
-    real(wp), dimension(lanes) :: displacement_max = 0, horizontal_force_max = 0, reaction_normal_max = 0, &
-                                  friction_needed_max = 0, energy_drift = 0, constraint_error_max = 0
+    real(wp), dimension(lanes) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, reaction_normal_max = 0, &
+                                  friction_needed_max = 0, energy_deviation_max = 0, constraint_error_max = 0
     logical :: theta_moved(lanes) = .false.
   contains
     procedure :: load => load_summary
@@ -439,12 +442,17 @@ contains
           end do
           call samples%next_block()
         end if
-        do i = 1, state_size
-          where (accepted)
-            y(:, i) = y_new(:, i)
-            f(:, i) = f_new(:, i)
-          end where
-        end do
+        if (all(accepted)) then             ! the rule: whole vectors, no test per lane
+          y = y_new
+          f = f_new
+        else
+          do i = 1, state_size
+            where (accepted)
+              y(:, i) = y_new(:, i)
+              f(:, i) = f_new(:, i)
+            end where
+          end do
+        end if
       end do
     end subroutine fixed_step_lanes
 
@@ -589,11 +597,11 @@ contains
     type(case_result_t), intent(in) :: res
     self%energy0(l) = run%energy0
     self%tan_max(l) = run%tan_theta_max
-    self%displacement_max(l) = res%displacement_max
-    self%horizontal_force_max(l) = res%horizontal_force_max
+    self%displacement_sq_max(l) = res%displacement_max**2        ! sqrt(x**2) == x: no rounding lost
+    self%horizontal_force_sq_max(l) = res%horizontal_force_max**2
     self%reaction_normal_max(l) = res%reaction_normal_max
     self%friction_needed_max(l) = res%friction_needed_max
-    self%energy_drift(l) = res%energy_drift
+    self%energy_deviation_max(l) = res%energy_drift * abs(run%energy0)   ! 0 at the start
     self%constraint_error_max(l) = res%constraint_error_max
   end subroutine load_summary
 
@@ -611,16 +619,16 @@ contains
       self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
       self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
       self%theta_moved(l) = self%theta_moved(l) .or. higher
-      self%displacement_max(l) = merge(max(self%displacement_max(l), out%displacement(l)), &
-                                       self%displacement_max(l), accepted(l))
-      self%horizontal_force_max(l) = merge(max(self%horizontal_force_max(l), out%horizontal_force(l)), &
-                                           self%horizontal_force_max(l), accepted(l))
+      self%displacement_sq_max(l) = merge(max(self%displacement_sq_max(l), out%displacement_sq(l)), &
+                                          self%displacement_sq_max(l), accepted(l))
+      self%horizontal_force_sq_max(l) = merge(max(self%horizontal_force_sq_max(l), out%horizontal_force_sq(l)), &
+                                              self%horizontal_force_sq_max(l), accepted(l))
       self%reaction_normal_max(l) = merge(max(self%reaction_normal_max(l), out%reaction_normal(l)), &
                                           self%reaction_normal_max(l), accepted(l))
       self%friction_needed_max(l) = merge(max(self%friction_needed_max(l), out%friction_needed(l)), &
                                           self%friction_needed_max(l), accepted(l))
-      self%energy_drift(l) = merge(max(self%energy_drift(l), abs(out%energy(l) - self%energy0(l)) / abs(self%energy0(l))), &
-                                   self%energy_drift(l), accepted(l))
+      self%energy_deviation_max(l) = merge(max(self%energy_deviation_max(l), abs(out%energy(l) - self%energy0(l))), &
+                                           self%energy_deviation_max(l), accepted(l))
       self%constraint_error_max(l) = merge(max(self%constraint_error_max(l), out%surface_residual(l)), &
                                            self%constraint_error_max(l), accepted(l))
     end do
@@ -648,11 +656,11 @@ contains
     type(case_result_t), intent(inout) :: res
     run%tan_theta_max = self%tan_max(l)
     if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
-    res%displacement_max = self%displacement_max(l)
-    res%horizontal_force_max = self%horizontal_force_max(l)
+    res%displacement_max = sqrt(self%displacement_sq_max(l))
+    res%horizontal_force_max = sqrt(self%horizontal_force_sq_max(l))
     res%reaction_normal_max = self%reaction_normal_max(l)
     res%friction_needed_max = self%friction_needed_max(l)
-    res%energy_drift = self%energy_drift(l)
+    res%energy_drift = self%energy_deviation_max(l) / abs(self%energy0(l))
     res%constraint_error_max = self%constraint_error_max(l)
   end subroutine store_summary
 

@@ -32,7 +32,10 @@ module ellroll_ball_lanes
   type :: lane_outputs_t
     real(wp), dimension(lanes, 3) :: normal = 0, contact = 0, reaction = 0
     real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0
-    real(wp), dimension(lanes) :: displacement = 0, horizontal_force = 0
+    !> squared, so that no square root is taken per step: the summary keeps
+    !> their maxima and takes the root once (sqrt is monotonic and correctly
+    !> rounded, so the root of the maximum is the maximum of the roots)
+    real(wp), dimension(lanes) :: displacement_sq = 0, horizontal_force_sq = 0
     real(wp), dimension(lanes) :: reaction_normal = 0, friction_needed = 0, energy = 0, surface_residual = 0
     integer, dimension(lanes) :: status = status_completed
   end type lane_outputs_t
@@ -129,7 +132,7 @@ contains
     type(lane_outputs_t), intent(inout) :: out
     real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
-    real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, s2, trace, det, r, m, fr
+    real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, inv_s2, trace, det, r, m, fr
     real(wp) :: p3_lower, p3_upper, quotient, divisor
     logical :: upright, pressed, finite, fits, slipping
     integer :: l, status
@@ -162,7 +165,7 @@ contains
       out%lateral(l) = lateral
       out%normal(l, :) = [n1, n2, n3]
       out%contact(l, :) = [p1, p2, p3]
-      out%displacement(l) = sqrt((p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2)
+      out%displacement_sq(l) = (p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2
       ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
       nd1 = f(l, 1) * inv_length
       nd2 = f(l, 2) * inv_length
@@ -174,7 +177,7 @@ contains
       f2 = m * (ac2 + 0.0_wp)
       f3 = m * (ac3 + p%g(l))
       out%reaction(l, :) = [f1, f2, f3]
-      out%horizontal_force(l) = sqrt(f1**2 + f2**2)
+      out%horizontal_force_sq(l) = f1**2 + f2**2
       normal_force = f1 * n1 + f2 * n2 + f3 * n3
       out%reaction_normal(l) = normal_force
       t1 = f1 - normal_force * n1
@@ -195,13 +198,14 @@ contains
       out%energy(l) = energy
       residual = abs((p1 * p%inv_a(l))**2 + (p2 * p%inv_b(l))**2 + ((p3 - p%c(l)) * p%inv_c(l))**2 - 1)
       out%surface_residual(l) = residual
-      ! does the ball fit (R (1 + margin) below both principal radii)?
+      ! does the ball fit (R (1 + margin) below both principal radii)? K from
+      ! the contact's s = sqrt(n . A n): no root or division of its own
       an1 = p%a2(l) * n1
       an2 = p%b2(l) * n2
       an3 = p%c2(l) * n3
-      s2 = n1 * an1 + n2 * an2 + n3 * an3
-      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) / s2) * (1 / sqrt(s2))
-      det = p%det_axes2(l) / (s2 * s2)
+      inv_s2 = inv_s * inv_s
+      trace = (p%axes2_sum(l) - (an1 * an1 + an2 * an2 + an3 * an3) * inv_s2) * inv_s
+      det = p%det_axes2(l) * inv_s2 * inv_s2
       fr = p%fit_radius(l)
       ! (both > 0) as min(...) > 0; trace - 2 fr has the sign of the exact difference
       fits = min(fr * (fr - trace) + det, trace - 2 * fr) > 0
