@@ -83,43 +83,47 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
-    real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, ay1, ay2, ay3, inv_sy2, inv_s2, inv_s, trace, det
-    real(wp) :: v1, v2, v3, inv_det_l, ay_v, kv1, kv2, kv3, nd1, nd2, nd3, spin, r
+    real(wp) :: r, length2, length, inv_length, ay1, ay2, ay3, q, inv_q, inv_s, inv_s2, trace, det
+    real(wp) :: v1, v2, v3, ay_v, kv1, kv2, kv3, nl1, nl2, nl3, inv_det_l, spin, radial
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
-      call unit_normal(y, l, length, inv_length, n1, n2, n3)
-      w1 = y(l, 4)
-      w2 = y(l, 5)
-      w3 = y(l, 6)
-      ! radius operator K (radius_operator, from y): A y, 1 / (y . A y), 1 / s, tr K, det K
+      length2 = y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)
+      length = sqrt(length2)
+      inv_length = 1 / length
+      ! radius operator K from y: 1 / (y . A y), 1 / s, tr K, det K
       ay1 = p%a2(l) * y(l, 1)
       ay2 = p%b2(l) * y(l, 2)
       ay3 = p%c2(l) * y(l, 3)
-      inv_sy2 = 1 / (y(l, 1) * ay1 + y(l, 2) * ay2 + y(l, 3) * ay3)
-      inv_s2 = (y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)) * inv_sy2
-      inv_s = sqrt(inv_s2)
-      trace = (p%axes2_sum(l) - (ay1 * ay1 + ay2 * ay2 + ay3 * ay3) * inv_sy2) * inv_s
+      q = y(l, 1) * ay1 + y(l, 2) * ay2 + y(l, 3) * ay3
+      inv_q = 1 / q
+      inv_s = sqrt(q) * (length * inv_q)
+      inv_s2 = length2 * inv_q
+      trace = (p%axes2_sum(l) - (ay1 * ay1 + ay2 * ay2 + ay3 * ay3) * inv_q) * inv_s
       det = p%det_axes2(l) * inv_s2 * inv_s2
-      ! V_C = R omega x n; n' = ((R - tr K) V_C + K V_C) / det L
-      v1 = r * (w2 * n3 - w3 * n2)
-      v2 = r * (w3 * n1 - w1 * n3)
-      v3 = r * (w1 * n2 - w2 * n1)
-      inv_det_l = 1 / (r * (r - trace) + det)
-      ay_v = (ay1 * v1 + ay2 * v2 + ay3 * v3) * inv_sy2
+      ! V_C = R omega x n; n' det L = (R - tr K) V_C + K V_C
+      radial = r * inv_length
+      v1 = radial * (y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2))
+      v2 = radial * (y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3))
+      v3 = radial * (y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1))
+      ay_v = (ay1 * v1 + ay2 * v2 + ay3 * v3) * inv_q
       kv1 = (p%a2(l) * v1 - ay1 * ay_v) * inv_s
       kv2 = (p%b2(l) * v2 - ay2 * ay_v) * inv_s
       kv3 = (p%c2(l) * v3 - ay3 * ay_v) * inv_s
-      nd1 = ((r - trace) * v1 + kv1) * inv_det_l
-      nd2 = ((r - trace) * v2 + kv2) * inv_det_l
-      nd3 = ((r - trace) * v3 + kv3) * inv_det_l
-      spin = w1 * n1 + w2 * n2 + w3 * n3
-      dydt(l, 1) = length * nd1
-      dydt(l, 2) = length * nd2
-      dydt(l, 3) = length * nd3
-      dydt(l, 4) = (spin * nd1 + p%g_over_r(l) * (-n2)) * p%inv_one_plus_k(l)
-      dydt(l, 5) = (spin * nd2 + p%g_over_r(l) * n1) * p%inv_one_plus_k(l)
-      dydt(l, 6) = (spin * nd3 + p%g_over_r(l) * 0.0_wp) * p%inv_one_plus_k(l)
+      nl1 = (r - trace) * v1 + kv1
+      nl2 = (r - trace) * v2 + kv2
+      nl3 = (r - trace) * v3 + kv3
+      inv_det_l = 1 / (r * (r - trace) + det)
+      spin = (y(l, 4) * y(l, 1) + y(l, 5) * y(l, 2) + y(l, 6) * y(l, 3)) * inv_length
+      dydt(l, 1) = (length * nl1) * inv_det_l
+      dydt(l, 2) = (length * nl2) * inv_det_l
+      dydt(l, 3) = (length * nl3) * inv_det_l
+      dydt(l, 4) = ((spin * p%inv_one_plus_k(l)) * nl1) * inv_det_l &
+                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * (-y(l, 2))
+      dydt(l, 5) = ((spin * p%inv_one_plus_k(l)) * nl2) * inv_det_l &
+                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * y(l, 1)
+      dydt(l, 6) = ((spin * p%inv_one_plus_k(l)) * nl3) * inv_det_l &
+                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * 0.0_wp
     end do
   end subroutine lanes_derivative
 

@@ -12,7 +12,7 @@ module ellroll_ellipsoid
 
   public :: ellipsoid_t, new_ellipsoid
   public :: contact_from_normal, normal_from_contact, surface_residual
-  public :: radius_operator_t, radius_operator, apply_radius_operator
+  public :: radius_operator_t, radius_operator
   public :: principal_radii, bottom_radii
 
   type :: ellipsoid_t
@@ -24,11 +24,11 @@ module ellroll_ellipsoid
   end type ellipsoid_t
 
   !> The radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s.
-  !> K n = 0; on the tangent plane its eigenvalues are the principal radii.
-  !> It is built from any positive multiple y of the unit normal (a state's
-  !> normal between projections): with s_y^2 = y . A y = |y|^2 s^2,
-  !> K v = (A v - (Ay)(Ay . v) / s_y^2) / s, so n = y / |y| is not needed
-  !> and the square root and division that make it are off the path to K.
+  !> K n = 0; on the tangent plane its eigenvalues are the principal radii,
+  !> whose sum and product are all the fit test needs. Built from any
+  !> positive multiple y of the unit normal: with s_y^2 = y . A y = |y|^2 s^2,
+  !> K v = (A v - (Ay)(Ay . v) / s_y^2) / s (the RHS, ball_derivative,
+  !> writes the same out).
   type :: radius_operator_t
     real(wp) :: ay(3) = 0       !< A y
     real(wp) :: inv_sy2 = 1     !< 1 / (y . A y)
@@ -90,9 +90,7 @@ contains
                            + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
 
-  !> K at the unit normal y / |y|. One reciprocal serves 1/s, tr K and
-  !> det K (each at most one rounding more than by its own division), so
-  !> the RHS needs three divisions where it needed five.
+  !> K at the unit normal y / |y|.
   pure function radius_operator(cup, y) result(k)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: y(3)
@@ -105,15 +103,6 @@ contains
     k%trace = (sum(cup%axes2) - dot_product(k%ay, k%ay) * k%inv_sy2) * k%inv_s
     k%det = cup%det_axes2 * inv_s2 * inv_s2
   end function radius_operator
-
-  !> K v for a vector v.
-  pure function apply_radius_operator(cup, k, v) result(kv)
-    type(ellipsoid_t), intent(in) :: cup
-    type(radius_operator_t), intent(in) :: k
-    real(wp), intent(in) :: v(3)
-    real(wp) :: kv(3)
-    kv = (cup%axes2 * v - k%ay * (dot_product(k%ay, v) * k%inv_sy2)) * k%inv_s
-  end function apply_radius_operator
 
   !> Principal radii of curvature (smallest first) at the point with unit
   !> normal n. On the tangent plane, s K = c^2 I + dev with (e = the

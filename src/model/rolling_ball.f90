@@ -15,7 +15,7 @@ module ellroll_rolling_ball
   use ellroll_kinds, only: wp
   use ellroll_ode, only: ode_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, radius_operator_t, radius_operator, &
-      apply_radius_operator, contact_from_normal, normal_from_contact, surface_residual
+      contact_from_normal, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
@@ -80,32 +80,46 @@ contains
   end subroutine ball_rhs
 
   !> The right-hand side on explicit-shape arrays: the one implementation,
-  !> behind the generic interface (ball_rhs) and the fused steps.
+  !> behind the generic interface (ball_rhs) and the fused steps; the batch's
+  !> lanes_derivative is the same arithmetic, expression by expression.
+  !> K comes from y as it is (y = |y| n between projections): with
+  !> q = y . A y = |y|^2 s^2, tr K and det K need 1/q and 1/s = |y| / sqrt(q),
+  !> whose reciprocal and root run side by side, and n' det L is formed
+  !> before 1/det L, the last long operation, is known.
   pure subroutine ball_derivative(ball, t, y, dydt)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
-    real(wp) :: length, inv_length, n(3), omega(3), v_center(3), n_dot(3), inv_det_l, spin
-    type(radius_operator_t) :: k
-    ! divisions only where unavoidable: they bound the batched kernel's speed
-    length = sqrt(y(1)**2 + y(2)**2 + y(3)**2)   ! |n| ~ 1: no need for norm2's scaling
+    real(wp) :: r, length2, length, inv_length, ay(3), q, inv_q, inv_s, inv_s2, trace, det, v(3), ay_v, kv(3)
+    real(wp) :: n_dot_det_l(3), inv_det_l, j_star, spin
+    r = ball%radius
+    length2 = y(1) * y(1) + y(2) * y(2) + y(3) * y(3)
+    length = sqrt(length2)
     inv_length = 1 / length
-    n = y(1:3) * inv_length
-    omega = y(4:6)
-    k = radius_operator(ball%cup, y(1:3))        ! from y: beside the normalisation, not after it
-    v_center = ball%radius * cross(omega, n)
-    inv_det_l = 1 / (ball%radius * (ball%radius - k%trace) + k%det)
-    n_dot = ((ball%radius - k%trace) * v_center + apply_radius_operator(ball%cup, k, v_center)) * inv_det_l
-    spin = dot_product(omega, n)
-    dydt(1:3) = length * n_dot
-    ! n x (0, 0, -g) = g (-n_y, n_x, 0)
-    dydt(4:6) = (spin * n_dot + (ball%g / ball%radius) * [-n(2), n(1), 0.0_wp]) &
-                * (1 / (1 + ball%inertia_factor))
+    ay = ball%cup%axes2 * y(1:3)
+    q = y(1) * ay(1) + y(2) * ay(2) + y(3) * ay(3)
+    inv_q = 1 / q
+    inv_s = sqrt(q) * (length * inv_q)
+    inv_s2 = length2 * inv_q
+    trace = (sum(ball%cup%axes2) - (ay(1) * ay(1) + ay(2) * ay(2) + ay(3) * ay(3)) * inv_q) * inv_s
+    det = ball%cup%det_axes2 * inv_s2 * inv_s2
+    ! V_C = R omega x n; n' = ((R - tr K) V_C + K V_C) / det L
+    v = (r * inv_length) * [y(5) * y(3) - y(6) * y(2), y(6) * y(1) - y(4) * y(3), y(4) * y(2) - y(5) * y(1)]
+    ay_v = (ay(1) * v(1) + ay(2) * v(2) + ay(3) * v(3)) * inv_q
+    kv = (ball%cup%axes2 * v - ay * ay_v) * inv_s
+    n_dot_det_l = (r - trace) * v + kv
+    inv_det_l = 1 / (r * (r - trace) + det)
+    ! omega' = J* ((omega . n) n' + (g / R) (-n_y, n_x, 0))
+    j_star = 1 / (1 + ball%inertia_factor)
+    spin = (y(4) * y(1) + y(5) * y(2) + y(6) * y(3)) * inv_length
+    dydt(1:3) = (length * n_dot_det_l) * inv_det_l
+    dydt(4:6) = ((spin * j_star) * n_dot_det_l) * inv_det_l &
+                + ((ball%g / r) * j_star * inv_length) * [-y(2), y(1), 0.0_wp]
     ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
     ! a fixed cup costs nothing)
     if (ball%excitation%kind /= excitation_none) &
-      dydt(4:6) = dydt(4:6) - cross(n, base_acceleration(ball%excitation, t)) &
+      dydt(4:6) = dydt(4:6) - cross(y(1:3) * inv_length, base_acceleration(ball%excitation, t)) &
                   / (ball%radius * (1 + ball%inertia_factor))
   end subroutine ball_derivative
 
