@@ -23,18 +23,13 @@ module ellroll_ellipsoid
     real(wp) :: inv_axes(3) = 1       !< (1/a, 1/b, 1/c)
   end type ellipsoid_t
 
-  !> The radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s.
-  !> K n = 0; on the tangent plane its eigenvalues are the principal radii,
-  !> whose sum and product are all the fit test needs. Built from any
-  !> positive multiple y of the unit normal: with s_y^2 = y . A y = |y|^2 s^2,
-  !> K v = (A v - (Ay)(Ay . v) / s_y^2) / s (the RHS, ball_derivative,
-  !> writes the same out).
+  !> The sum and the product of the principal radii: the trace and the
+  !> determinant of the radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s
+  !> on the tangent plane (K n = 0), all that the fit test needs. The RHS
+  !> (ball_derivative) writes K out from the state's unnormalised normal.
   type :: radius_operator_t
-    real(wp) :: ay(3) = 0       !< A y
-    real(wp) :: inv_sy2 = 1     !< 1 / (y . A y)
-    real(wp) :: inv_s = 1       !< 1 / s = |y| / sqrt(y . A y)
     real(wp) :: trace = 0       !< r1 + r2
-    real(wp) :: det = 0         !< r1 r2 (product of principal radii)
+    real(wp) :: det = 0         !< r1 r2
   end type radius_operator_t
 
 contains
@@ -90,17 +85,17 @@ contains
                            + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
 
-  !> K at the unit normal y / |y|.
+  !> tr K and det K at the unit normal y / |y| (y any positive multiple of
+  !> it: with s_y^2 = y . A y = |y|^2 s^2, one reciprocal serves both).
   pure function radius_operator(cup, y) result(k)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: y(3)
     type(radius_operator_t) :: k
-    real(wp) :: inv_s2
-    k%ay = cup%axes2 * y
-    k%inv_sy2 = 1 / dot_product(y, k%ay)
-    inv_s2 = dot_product(y, y) * k%inv_sy2
-    k%inv_s = sqrt(inv_s2)
-    k%trace = (sum(cup%axes2) - dot_product(k%ay, k%ay) * k%inv_sy2) * k%inv_s
+    real(wp) :: ay(3), inv_sy2, inv_s2
+    ay = cup%axes2 * y
+    inv_sy2 = 1 / dot_product(y, ay)
+    inv_s2 = dot_product(y, y) * inv_sy2
+    k%trace = (sum(cup%axes2) - dot_product(ay, ay) * inv_sy2) * sqrt(inv_s2)
     k%det = cup%det_axes2 * inv_s2 * inv_s2
   end function radius_operator
 
