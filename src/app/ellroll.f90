@@ -352,7 +352,7 @@ contains
     radii = principal_radii(ball%cup, n0)
     y = initial_state(ball, cs%x0, cs%y0, cs%omega0)
     call ball%rhs(0.0_wp, y, f)
-    obs = observe(ball, 0.0_wp, y, f)
+    call observe(ball, 0.0_wp, y, f, obs)
     write (output_unit, '(a)') 'derived:'
     write (output_unit, '(a)') '  z0 = ' // format_real(obs%contact(3)) // ' m'
     write (output_unit, '(a)') '  principal radii of curvature at the start = ' // &

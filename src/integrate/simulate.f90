@@ -92,13 +92,15 @@ module ellroll_simulate
     type(spectrum_t) :: spectrum
     real(wp) :: spin0 = 0                 !< omega . n at the start
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
+    !> maxima kept before the root or the division by |E0|, taken once in
+    !> finish_case: both are correctly rounded and monotonic, so the result
+    !> is the same number (the batch's lanes keep the same)
+    real(wp) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, energy_deviation_max = 0
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
 
-  !> The running summary of every lane of a batch (accumulate across lanes).
-  !> Maxima of a norm or of a ratio to a fixed positive number are kept
-  !> before the root or the division, which are taken once at the end: both
-  !> are correctly rounded and monotonic, so the result is the same number.
+  !> The running summary of every lane of a batch (accumulate across lanes),
+  !> the squared maxima as run_state_t keeps them.
   type :: lane_summary_t
     real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
     real(wp), dimension(lanes) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, reaction_normal_max = 0, &
@@ -220,7 +222,7 @@ contains
     y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
-    obs = observe(run%ball, 0.0_wp, y, f)
+    call observe(run%ball, 0.0_wp, y, f, obs)
     run%energy0 = obs%energy
     run%spin0 = dot_product(cs%omega0, obs%normal)
     if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
@@ -242,6 +244,9 @@ contains
     res%nutation_period = run%maxima%mean_interval()
     if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
       res%transmissibility = run%spectrum%ratio()
+    res%displacement_max = sqrt(run%displacement_sq_max)
+    res%horizontal_force_max = sqrt(run%horizontal_force_sq_max)
+    res%energy_drift = run%energy_deviation_max / abs(run%energy0)
     res%linear_periods = oscillation_periods(run%ball, run%spin0)
     call fill_unrecorded(res)
   end subroutine finish_case
@@ -299,7 +304,7 @@ contains
     call run%ball%project(y_new)
     call ball_derivative(run%ball, t + h, y_new, f_new)
     n_rhs = n_rhs + 1
-    obs = observe(run%ball, t + h, y_new, f_new)
+    call observe(run%ball, t + h, y_new, f_new, obs)
     status = limit_status(run%ball, y_new, obs)
   end subroutine fixed_step
 
@@ -574,7 +579,8 @@ contains
     dop%dense_ready = .false.
   end subroutine load_attempt
 
-  !> Lane l's end-of-step observation for an output sample (no base acceleration).
+  !> Lane l's end-of-step observation, what an output sample stores (no base
+  !> acceleration: batches have fixed cups).
   pure function lane_observation(out, y, l, radius) result(obs)
     type(lane_outputs_t), intent(in) :: out
     real(wp), intent(in) :: y(lanes, state_size), radius
@@ -587,6 +593,7 @@ contains
     obs%lateral = out%lateral(l)
     obs%reaction = out%reaction(l, :)
     obs%energy = out%energy(l)
+    obs%base_acceleration = 0
   end function lane_observation
 
   !> A case's running summary (accumulate), lane by lane.
@@ -597,11 +604,11 @@ contains
     type(case_result_t), intent(in) :: res
     self%energy0(l) = run%energy0
     self%tan_max(l) = run%tan_theta_max
-    self%displacement_sq_max(l) = res%displacement_max**2        ! sqrt(x**2) == x: no rounding lost
-    self%horizontal_force_sq_max(l) = res%horizontal_force_max**2
+    self%displacement_sq_max(l) = run%displacement_sq_max
+    self%horizontal_force_sq_max(l) = run%horizontal_force_sq_max
     self%reaction_normal_max(l) = res%reaction_normal_max
     self%friction_needed_max(l) = res%friction_needed_max
-    self%energy_deviation_max(l) = res%energy_drift * abs(run%energy0)   ! 0 at the start
+    self%energy_deviation_max(l) = run%energy_deviation_max
     self%constraint_error_max(l) = res%constraint_error_max
   end subroutine load_summary
 
@@ -656,11 +663,11 @@ contains
     type(case_result_t), intent(inout) :: res
     run%tan_theta_max = self%tan_max(l)
     if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
-    res%displacement_max = sqrt(self%displacement_sq_max(l))
-    res%horizontal_force_max = sqrt(self%horizontal_force_sq_max(l))
+    run%displacement_sq_max = self%displacement_sq_max(l)
+    run%horizontal_force_sq_max = self%horizontal_force_sq_max(l)
     res%reaction_normal_max = self%reaction_normal_max(l)
     res%friction_needed_max = self%friction_needed_max(l)
-    res%energy_drift = self%energy_deviation_max(l) / abs(self%energy0(l))
+    run%energy_deviation_max = self%energy_deviation_max(l)
     res%constraint_error_max = self%constraint_error_max(l)
   end subroutine store_summary
 
@@ -698,7 +705,7 @@ contains
         cycle
       end if
       call project_with_rate(y_new, integrator%k(:state_size, end_stage), f_new)
-      obs = observe(run%ball, t + h, y_new, f_new)
+      call observe(run%ball, t + h, y_new, f_new, obs)
       status = limit_status(run%ball, y_new, obs)
       if (status /= status_completed) then
         call stop_in_step(integrator, run, plan, status, res)
@@ -939,7 +946,7 @@ contains
       call ball_derivative(run%ball, t, y, f)
       n_rhs = n_rhs + 1
     end if
-    obs = observe(run%ball, t, y, f)
+    call observe(run%ball, t, y, f, obs)
   end subroutine dense_state
 
   pure subroutine begin_limit_search(self, invalid, crossed)
@@ -1069,12 +1076,12 @@ contains
     type(observation_t), intent(in) :: obs
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     ! the norms written out, as the batch path (ellroll_ball_lanes) computes them
-    res%displacement_max = max(res%displacement_max, &
-        sqrt(obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2))
-    res%horizontal_force_max = max(res%horizontal_force_max, sqrt(obs%reaction(1)**2 + obs%reaction(2)**2))
+    run%displacement_sq_max = max(run%displacement_sq_max, &
+        obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2)
+    run%horizontal_force_sq_max = max(run%horizontal_force_sq_max, obs%reaction(1)**2 + obs%reaction(2)**2)
     res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
     res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
-    res%energy_drift = max(res%energy_drift, abs(obs%energy - run%energy0) / abs(run%energy0))
+    run%energy_deviation_max = max(run%energy_deviation_max, abs(obs%energy - run%energy0))
     res%constraint_error_max = max(res%constraint_error_max, obs%surface_residual)
   end subroutine accumulate
 

@@ -11,8 +11,7 @@ module ellroll_ellipsoid
   private
 
   public :: ellipsoid_t, new_ellipsoid
-  public :: contact_from_normal, normal_from_contact, surface_residual
-  public :: radius_operator_t, radius_operator
+  public :: contact_from_normal, contact_point, normal_from_contact, surface_residual
   public :: principal_radii, bottom_radii
 
   type :: ellipsoid_t
@@ -22,15 +21,6 @@ module ellroll_ellipsoid
     real(wp) :: excess2(3) = 0        !< A - c^2 I, computed without cancellation
     real(wp) :: inv_axes(3) = 1       !< (1/a, 1/b, 1/c)
   end type ellipsoid_t
-
-  !> The sum and the product of the principal radii: the trace and the
-  !> determinant of the radius-of-curvature operator K(n) = (A - (An)(An)^T / s^2) / s
-  !> on the tangent plane (K n = 0), all that the fit test needs. The RHS
-  !> (ball_derivative) writes K out from the state's unnormalised normal.
-  type :: radius_operator_t
-    real(wp) :: trace = 0       !< r1 + r2
-    real(wp) :: det = 0         !< r1 r2
-  end type radius_operator_t
 
 contains
 
@@ -51,7 +41,17 @@ contains
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: n(3)
     real(wp) :: p(3)
-    real(wp) :: horizontal, s, inv_s
+    real(wp) :: inv_s
+    call contact_point(cup, n, p, inv_s)
+  end function contact_from_normal
+
+  !> The contact point p with unit normal n and 1/s, s = sqrt(n . A n) (the
+  !> radius operator K = (A - (An)(An)^T / s^2) / s needs it too).
+  pure subroutine contact_point(cup, n, p, inv_s)
+    type(ellipsoid_t), intent(in) :: cup
+    real(wp), intent(in) :: n(3)
+    real(wp), intent(out) :: p(3), inv_s
+    real(wp) :: horizontal, s
     horizontal = cup%axes2(1)*n(1)**2 + cup%axes2(2)*n(2)**2
     s = sqrt(horizontal + cup%axes2(3)*n(3)**2)
     inv_s = 1 / s
@@ -62,7 +62,7 @@ contains
     else
       p(3) = cup%c - cup%axes2(3) * n(3) * inv_s
     end if
-  end function contact_from_normal
+  end subroutine contact_point
 
   !> Inward unit normal at the point of the lower half above (x, y).
   !> Requires (x/a)^2 + (y/b)^2 < 1.
@@ -84,20 +84,6 @@ contains
     surface_residual = abs((p(1) * cup%inv_axes(1))**2 + (p(2) * cup%inv_axes(2))**2 &
                            + ((p(3) - cup%c) * cup%inv_axes(3))**2 - 1)
   end function surface_residual
-
-  !> tr K and det K at the unit normal y / |y| (y any positive multiple of
-  !> it: with s_y^2 = y . A y = |y|^2 s^2, one reciprocal serves both).
-  pure function radius_operator(cup, y) result(k)
-    type(ellipsoid_t), intent(in) :: cup
-    real(wp), intent(in) :: y(3)
-    type(radius_operator_t) :: k
-    real(wp) :: ay(3), inv_sy2, inv_s2
-    ay = cup%axes2 * y
-    inv_sy2 = 1 / dot_product(y, ay)
-    inv_s2 = dot_product(y, y) * inv_sy2
-    k%trace = (sum(cup%axes2) - dot_product(ay, ay) * inv_sy2) * sqrt(inv_s2)
-    k%det = cup%det_axes2 * inv_s2 * inv_s2
-  end function radius_operator
 
   !> Principal radii of curvature (smallest first) at the point with unit
   !> normal n. On the tangent plane, s K = c^2 I + dev with (e = the

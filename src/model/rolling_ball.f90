@@ -14,8 +14,7 @@ module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
   use ellroll_ode, only: ode_system_t
-  use ellroll_ellipsoid, only: ellipsoid_t, radius_operator_t, radius_operator, &
-      contact_from_normal, normal_from_contact, surface_residual
+  use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
@@ -23,7 +22,7 @@ module ellroll_rolling_ball
   private
 
   public :: rolling_ball_t, observation_t, state_size
-  public :: initial_state, observe, observe_geometry, limit_status, constraint_tolerance, ball_derivative, &
+  public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle
 
   integer, parameter :: state_size = 6
@@ -44,23 +43,24 @@ module ellroll_rolling_ball
     procedure :: project => normalize_normal
   end type rolling_ball_t
 
-  !> Everything derived from one state and its time derivative.
+  !> Everything derived from one state and its time derivative (observe sets
+  !> every component; no default values, so that none is copied in per call).
   type :: observation_t
-    real(wp) :: normal(3) = 0
-    real(wp) :: omega(3) = 0
-    real(wp) :: contact(3) = 0
-    real(wp) :: center(3) = 0
-    real(wp) :: lateral = 0              !< sqrt(n_x^2 + n_y^2): Theta = atan2(lateral, n_z)
-    real(wp) :: tan_nutation = 0         !< tan Theta (huge past the rim): cheap, and ordered like Theta
-    real(wp) :: reaction(3) = 0          !< force of the cup on the ball, N
-    real(wp) :: reaction_normal = 0      !< N = F . n
-    real(wp) :: friction_needed = 0      !< |F_t| / N
-    real(wp) :: energy = 0               !< J |w|^2/2 + m |V_C|^2/2 + m g z_C
-    real(wp) :: energy_of_motion = 0     !< energy - m g R (the bottom at rest is 0)
-    real(wp) :: surface_residual = 0
-    logical :: fits = .true.             !< r_min > R (1 + fit_margin): the ball fits the cup here
-    real(wp) :: base_acceleration(3) = 0 !< acceleration of the cup, m/s^2
-    real(wp) :: center_acceleration(3) = 0  !< absolute acceleration of the centre, m/s^2
+    real(wp) :: normal(3)
+    real(wp) :: omega(3)
+    real(wp) :: contact(3)
+    real(wp) :: center(3)
+    real(wp) :: lateral              !< sqrt(n_x^2 + n_y^2): Theta = atan2(lateral, n_z)
+    real(wp) :: tan_nutation         !< tan Theta (huge past the rim): cheap, and ordered like Theta
+    real(wp) :: reaction(3)          !< force of the cup on the ball, N
+    real(wp) :: reaction_normal      !< N = F . n
+    real(wp) :: friction_needed      !< |F_t| / N
+    real(wp) :: energy               !< J |w|^2/2 + m |V_C|^2/2 + m g z_C
+    real(wp) :: energy_of_motion     !< energy - m g R (the bottom at rest is 0)
+    real(wp) :: surface_residual
+    logical :: fits            !< r_min > R (1 + fit_margin): the ball fits the cup here
+    real(wp) :: base_acceleration(3) !< acceleration of the cup, m/s^2
+    real(wp) :: center_acceleration(3)  !< absolute acceleration of the centre, m/s^2
   end type observation_t
 
 contains
@@ -138,65 +138,60 @@ contains
     state(4:6) = omega
   end function initial_state
 
-  !> The outputs of a state that are pure geometry: normal, omega, contact
-  !> point, centre and the nutation measures (what most samples need).
-  pure function observe_geometry(ball, y) result(obs)
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: y(:)
-    type(observation_t) :: obs
-    real(wp) :: n(3)
-    n = y(1:3) * (1 / sqrt(dot_product(y(1:3), y(1:3))))
-    obs%normal = n
-    obs%omega = y(4:6)
-    obs%contact = contact_from_normal(ball%cup, n)
-    obs%center = obs%contact + ball%radius * n
-    obs%lateral = sqrt(n(1)**2 + n(2)**2)
-    obs%tan_nutation = huge(1.0_wp)
-    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
-  end function observe_geometry
-
-  !> Every derived output of a state y at time t with time derivative dydt.
-  pure function observe(ball, t, y, dydt) result(obs)
+  !> Every derived output of a state y at time t with time derivative dydt,
+  !> written out flat: one 1/|y| serves every quantity, and the contact
+  !> point's 1/s the fit test's tr K and det K. The batch's lanes_observe
+  !> is the same arithmetic, expression by expression (tested bitwise).
+  pure subroutine observe(ball, t, y, dydt, obs)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:), dydt(:)
-    type(observation_t) :: obs
-    real(wp) :: n(3), n_dot(3), omega_dot(3), a_center(3), tangential(3)
-    real(wp) :: v_center(3), height_above_rest, fit_radius
-    type(radius_operator_t) :: k
-    obs = observe_geometry(ball, y)
-    n = obs%normal
-    n_dot = dydt(1:3) * (1 / sqrt(dot_product(y(1:3), y(1:3))))
-    omega_dot = dydt(4:6)
-    a_center = ball%radius * (cross(omega_dot, n) + cross(obs%omega, n_dot))
-    obs%center_acceleration = a_center
-    if (ball%excitation%kind /= excitation_none) then
-      obs%base_acceleration = base_acceleration(ball%excitation, t)
-      obs%center_acceleration = a_center + obs%base_acceleration
-    end if
-    ! the force in the inertial frame: m (a_C,rel + a_base - g_vec)
-    obs%reaction = ball%mass * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
-    obs%reaction_normal = dot_product(obs%reaction, n)
+    type(observation_t), intent(out) :: obs
+    real(wp) :: r, m, inv_length, n(3), inv_s, inv_s2, p(3), n_dot(3), a_center(3)
+    real(wp) :: tangential(3), v_center(3), height_above_rest, an(3), trace, det, fit_radius
+    r = ball%radius
+    m = ball%mass
+    inv_length = 1 / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
+    n = y(1:3) * inv_length
+    obs%normal = n
+    obs%omega = y(4:6)
+    call contact_point(ball%cup, n, p, inv_s)
+    obs%contact = p
+    obs%center = p + r * n
+    obs%lateral = sqrt(n(1)**2 + n(2)**2)
+    obs%tan_nutation = huge(1.0_wp)
+    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
+    ! the force of the cup, m (a_C + a_base - g_vec), a_C = R (omega' x n + omega x n')
+    n_dot = dydt(1:3) * inv_length
+    a_center = r * (cross(dydt(4:6), n) + cross(obs%omega, n_dot))
+    obs%base_acceleration = 0
+    if (ball%excitation%kind /= excitation_none) obs%base_acceleration = base_acceleration(ball%excitation, t)
+    obs%center_acceleration = a_center + obs%base_acceleration
+    obs%reaction = m * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
+    obs%reaction_normal = obs%reaction(1) * n(1) + obs%reaction(2) * n(2) + obs%reaction(3) * n(3)
     tangential = obs%reaction - obs%reaction_normal * n
-    if (obs%reaction_normal > 0) then
-      obs%friction_needed = sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / obs%reaction_normal
-    else
-      obs%friction_needed = huge(1.0_wp)
-    end if
-    v_center = ball%radius * cross(obs%omega, n)
+    obs%friction_needed = huge(1.0_wp)
+    if (obs%reaction_normal > 0) obs%friction_needed = &
+      sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / obs%reaction_normal
     ! z_C - R = z_A - R (1 - n_z), with 1 - n_z = (nx^2 + ny^2)/(1 + n_z): no cancellation
-    height_above_rest = obs%contact(3) - ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
-    obs%energy_of_motion = 0.5_wp * ball%inertia_factor * ball%mass * ball%radius**2 &
-        * dot_product(obs%omega, obs%omega) + 0.5_wp * ball%mass * dot_product(v_center, v_center) &
-        + ball%mass * ball%g * height_above_rest
-    obs%energy = obs%energy_of_motion + ball%mass * ball%g * ball%radius
-    obs%surface_residual = surface_residual(ball%cup, obs%contact)
+    v_center = r * cross(obs%omega, n)
+    height_above_rest = p(3) - r * (n(1)**2 + n(2)**2) / (1 + n(3))
+    obs%energy_of_motion = 0.5_wp * ball%inertia_factor * m * r**2 &
+        * (obs%omega(1) * obs%omega(1) + obs%omega(2) * obs%omega(2) + obs%omega(3) * obs%omega(3)) &
+        + 0.5_wp * m * (v_center(1) * v_center(1) + v_center(2) * v_center(2) + v_center(3) * v_center(3)) &
+        + m * ball%g * height_above_rest
+    obs%energy = obs%energy_of_motion + m * ball%g * r
+    obs%surface_residual = surface_residual(ball%cup, p)
     ! R' = R (1 + margin) is below both principal radii r1 <= r2 exactly when
-    ! (R' - r1)(R' - r2) = R'^2 - R' tr K + det K > 0 and R' < (r1 + r2) / 2
-    k = radius_operator(ball%cup, n)
-    fit_radius = ball%radius * (1 + ball%fit_margin)
-    obs%fits = fit_radius * (fit_radius - k%trace) + k%det > 0 .and. 2 * fit_radius < k%trace
-  end function observe
+    ! (R' - r1)(R' - r2) = R'^2 - R' tr K + det K > 0 and R' < (r1 + r2) / 2;
+    ! K = (A - (An)(An)^T / s^2) / s on the tangent plane
+    an = ball%cup%axes2 * n
+    inv_s2 = inv_s * inv_s
+    trace = (sum(ball%cup%axes2) - (an(1) * an(1) + an(2) * an(2) + an(3) * an(3)) * inv_s2) * inv_s
+    det = ball%cup%det_axes2 * inv_s2 * inv_s2
+    fit_radius = r * (1 + ball%fit_margin)
+    obs%fits = min(fit_radius * (fit_radius - trace) + det, trace - 2 * fit_radius) > 0
+  end subroutine observe
 
   !> The nutation angle Theta, between n and the vertical (rad), from the
   !> lateral and vertical parts of the unit normal.

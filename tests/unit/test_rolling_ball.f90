@@ -59,7 +59,7 @@ program test_rolling_ball
   ! At rest at the bottom the cup carries the weight, with no friction.
   y = [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp]
   call ball%rhs(0.0_wp, y, f)
-  obs = observe(ball, 0.0_wp, y, f)
+  call observe(ball, 0.0_wp, y, f, obs)
   call check_close(obs%reaction_normal, ball%mass * ball%g, 1.0e-15_wp, 'normal force at rest = m g')
   call check_below(obs%friction_needed, 0.0_wp, 'friction needed at rest')
   call check_below(obs%energy_of_motion, 0.0_wp, 'energy of motion at rest')
