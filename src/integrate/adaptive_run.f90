@@ -1,0 +1,314 @@
+!> One case with the adaptive DOP853: step-size control, and everything
+!> taken from the 7th-order dense output inside a step (output samples, the
+!> maxima of Theta, where a model limit is crossed), so that no result
+!> depends on where the steps fall. The batches use the same pieces per lane.
+module ellroll_adaptive_run
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp, i8
+  use ellroll_status, only: status_completed
+  use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
+  use ellroll_results, only: case_result_t
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
+      ball_derivative
+  use ellroll_integrators, only: dop853_t, max_equations
+  use ellroll_dop853_tableau, only: end_stage
+  use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
+      dop853_dense_calls
+  use ellroll_ellipsoid, only: contact_from_normal
+  use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, track_step_end, note_nutation, &
+      accumulate, record_sample, store_sample
+  implicit none
+  private
+
+  public :: nutation_peak_t, adaptive_loop, last_step_clipped, rejected_step_factor, accepted_step_factor
+  public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
+
+  !> Step-size control of DOP853 (Hairer's constants).
+  real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp, adaptive_max_factor = 6
+
+  !> A maximum of the nutation angle located inside a step.
+  type :: nutation_peak_t
+    real(wp) :: t = 0, tan_nutation = 0
+    real(wp) :: lateral = 0, normal_z = 1     !< of the unit normal there
+  end type nutation_peak_t
+
+contains
+
+  !> Step-size control of Hairer's DOP853: accept when the error norm <= 1,
+  !> next step h (0.9 err^(-1/8)) within [h/3, 6 h], never above dt (the
+  !> largest step allowed). Output samples, limit crossings and the maxima
+  !> of Theta come from the 7th-order dense output, so that they do not
+  !> depend on where the steps fall; a sample computes only what the stored
+  !> fields need. The steps are the fused ones of the ball (ellroll_ball_steppers).
+  subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
+    type(dop853_t), intent(inout) :: integrator
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(inout) :: y(:), f(:)
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max
+    type(observation_t) :: obs
+    type(nutation_peak_t) :: peak
+    integer :: status
+    logical :: rejected
+
+    t = 0
+    h_max = cs%dt
+    call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
+    rejected = .false.
+    do while (t < cs%t_end)
+      h = last_step_clipped(t, h, cs%t_end)
+      call dop853_ball_step(integrator, run%ball, t, y, f, h, y_new)
+      res%n_rhs = res%n_rhs + dop853_attempt_calls
+      if (.not. ieee_is_finite(integrator%error_norm)) integrator%error_norm = huge(1.0_wp)
+      if (integrator%error_norm > 1) then
+        h = h * rejected_step_factor(integrator%error_norm)
+        rejected = .true.
+        cycle
+      end if
+      call project_with_rate(y_new, integrator%k(:state_size, end_stage), f_new)
+      call observe(run%ball, t + h, y_new, f_new, obs)
+      status = limit_status(run%ball, y_new, obs)
+      if (status /= status_completed) then
+        call stop_in_step(integrator, run, plan, status, res)
+        return
+      end if
+      call record_samples_until(integrator, run, plan, t + h, obs, res)
+      if (nutation_peak_inside(y, f, y_new, f_new)) then
+        call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
+        call run%maxima%add_peak(peak%t)
+        call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
+      end if
+      t = t + h
+      y = y_new
+      f = f_new
+      res%n_steps = res%n_steps + 1
+      call track_step_end(run, res, t, obs)
+      h = min(h * accepted_step_factor(integrator%error_norm, rejected), h_max)
+      rejected = .false.
+    end do
+    res%t_final = cs%t_end
+  end subroutine adaptive_loop
+
+  !> The step from t, shortened to end exactly at t_end when it would end
+  !> at or within round-off of it.
+  pure real(wp) function last_step_clipped(t, h, t_end) result(step)
+    real(wp), intent(in) :: t, h, t_end
+    step = h
+    if (t + h >= t_end - 1.0e-12_wp * t_end) step = t_end - t
+  end function last_step_clipped
+
+  !> The new step after a rejected attempt with this error norm (> 1).
+  pure real(wp) function rejected_step_factor(error_norm) result(factor)
+    real(wp), intent(in) :: error_norm
+    factor = max(adaptive_min_factor, adaptive_safety / eighth_root(error_norm))
+  end function rejected_step_factor
+
+  !> The next step after an accepted one; no growth right after a rejection.
+  pure real(wp) function accepted_step_factor(error_norm, after_rejection) result(factor)
+    real(wp), intent(in) :: error_norm
+    logical, intent(in) :: after_rejection
+    if (error_norm == 0) then
+      factor = adaptive_max_factor
+    else
+      factor = min(adaptive_max_factor, adaptive_safety / eighth_root(error_norm))
+    end if
+    if (after_rejection) factor = min(1.0_wp, factor)
+  end function accepted_step_factor
+
+  !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
+  pure real(wp) function eighth_root(x)
+    real(wp), intent(in) :: x
+    eighth_root = sqrt(sqrt(sqrt(x)))
+  end function eighth_root
+
+  !> The end point of an accepted attempt (raw: y, its f: f_raw) projected
+  !> onto the unit normal, and f there: n' is homogeneous of degree one in
+  !> |n|, so f at the projected point is f_raw with n' divided by |n|.
+  pure subroutine project_with_rate(y, f_raw, f)
+    real(wp), intent(inout) :: y(state_size)
+    real(wp), intent(in) :: f_raw(state_size)
+    real(wp), intent(out) :: f(state_size)
+    real(wp) :: length
+    length = sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+    y(1:3) = y(1:3) / length
+    f = f_raw
+    f(1:3) = f(1:3) / length
+  end subroutine project_with_rate
+
+  !> Whether Theta has a maximum in the step from (y, f) to (y_new, f_new):
+  !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
+  !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
+  !> step's end is found once).
+  pure logical function nutation_peak_inside(y, f, y_new, f_new)
+    real(wp), intent(in) :: y(state_size), f(state_size), y_new(state_size), f_new(state_size)
+    nutation_peak_inside = nutation_trend(y, f) >= 0 .and. nutation_trend(y_new, f_new) < 0
+  end function nutation_peak_inside
+
+  !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
+  !> of either: the part of y' along y cancels, so |n| need not be 1).
+  pure real(wp) function nutation_trend(y, rate)
+    real(wp), intent(in) :: y(state_size), rate(state_size)
+    nutation_trend = (y(1) * rate(1) + y(2) * rate(2)) * y(3) - (y(1)**2 + y(2)**2) * rate(3)
+  end function nutation_trend
+
+  !> The maximum of Theta inside the last attempt (in dop): the root of
+  !> d tan(Theta)/dt on its dense output and the interpolant's derivative (a
+  !> simple root: its time is well conditioned), by regula falsi with the
+  !> Illinois modification (superlinear, the bracket kept) to a bracket of
+  !> 4 units of round-off in theta: about 10 evaluations where bisection
+  !> takes 52.
+  subroutine locate_nutation_peak(dop, ball, peak, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(rolling_ball_t), intent(in) :: ball
+    type(nutation_peak_t), intent(out) :: peak
+    integer(i8), intent(inout) :: n_rhs
+    integer, parameter :: max_iterations = 100
+    real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
+    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
+    integer :: i, kept_side
+    logical :: prepared
+    call dop853_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
+    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    low = 0
+    high = 1
+    trend_low = trend_at(low)
+    trend_high = trend_at(high)
+    ! a root at an end, where round-off decided the step's test: that end
+    if (trend_low < 0) then
+      high = low
+    else if (trend_high >= 0) then
+      low = high
+    end if
+    kept_side = 0
+    do i = 1, max_iterations
+      if (high - low <= resolution) exit
+      middle = (low * trend_high - high * trend_low) / (trend_high - trend_low)
+      ! round-off may put the secant's root on an end: halve instead
+      if (.not. (middle > low .and. middle < high)) middle = 0.5_wp * (low + high)
+      trend = trend_at(middle)
+      if (trend >= 0) then
+        low = middle
+        trend_low = trend
+        if (kept_side == 1) trend_high = 0.5_wp * trend_high      ! Illinois: the other end stayed twice
+        kept_side = 1
+      else
+        high = middle
+        trend_high = trend
+        if (kept_side == -1) trend_low = 0.5_wp * trend_low
+        kept_side = -1
+      end if
+    end do
+    middle = 0.5_wp * (low + high)
+    call dop853_ball_dense(dop, ball, middle, y, prepared)
+    y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
+    lateral = sqrt(y(1)**2 + y(2)**2)
+    peak%t = dop%t_old + middle * dop%h
+    peak%tan_nutation = lateral / y(3)
+    peak%lateral = lateral
+    peak%normal_z = y(3)
+  contains
+    real(wp) function trend_at(theta)
+      real(wp), intent(in) :: theta
+      real(wp) :: state(state_size), rate(max_equations)
+      call dop853_ball_dense(dop, ball, theta, state, prepared)
+      call dop%dense_rate(theta, rate)
+      trend_at = nutation_trend(state, rate(:state_size))
+    end function trend_at
+  end subroutine locate_nutation_peak
+
+  !> The last attempt (in dop) crossed a limit (status): bisect on its dense
+  !> output, record the output samples before the crossing, and end the
+  !> case at the last valid point.
+  subroutine stop_in_step(dop, run, plan, status, res)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
+    integer, intent(in) :: status
+    type(case_result_t), intent(inout) :: res
+    type(limit_search_t) :: search
+    type(observation_t) :: obs
+    real(wp) :: offset
+    call search%begin(dop%h, status)
+    do while (.not. search%done())
+      offset = search%trial()
+      call dense_state(dop, run, offset / dop%h, .true., obs, res%n_rhs)
+      call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
+    end do
+    call record_samples_until(dop, run, plan, dop%t_old + search%valid, obs, res)
+    res%status = search%crossed
+    res%t_final = dop%t_old + search%valid
+    res%n_steps = res%n_steps + 1
+    if (search%found_valid) call accumulate(run, res, search%last_valid)
+  end subroutine stop_in_step
+
+  !> Record every output sample in (t_old, t_until] of the last attempt (in
+  !> dop), from its dense output; a sample at the step's end is obs_end. A
+  !> sample computes only what the stored fields need: the geometry of the
+  !> state, or every derived output (with f there when the reaction is stored).
+  subroutine record_samples_until(dop, run, plan, t_until, obs_end, res)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_until
+    type(observation_t), intent(in) :: obs_end
+    type(case_result_t), intent(inout) :: res
+    type(observation_t) :: obs
+    real(wp) :: t_sample, theta, y(state_size), contact(3), lateral
+    logical :: complete
+    complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
+    do while (sample_due(run, plan, t_until))
+      t_sample = real(run%next_sample - 1, wp) * plan%interval
+      theta = (t_sample - dop%t_old) / dop%h
+      if (abs(t_sample - (dop%t_old + dop%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
+        call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
+      else if (complete) then
+        call dense_state(dop, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
+        call record_sample(res, run%next_sample, obs)
+      else
+        call dense_point(dop, run, theta, y, res%n_rhs)
+        contact = contact_from_normal(run%ball%cup, y(1:3))
+        lateral = sqrt(y(1)**2 + y(2)**2)
+        call store_sample(res, run%next_sample, contact, contact + run%ball%radius * y(1:3), y(4:6), y(1:3), &
+                          lateral, [0.0_wp, 0.0_wp, 0.0_wp], 0.0_wp, [0.0_wp, 0.0_wp, 0.0_wp])
+      end if
+      run%next_sample = run%next_sample + 1
+    end do
+  end subroutine record_samples_until
+
+  !> The state at t_old + theta h of the last attempt, from its dense
+  !> output, the normal projected to unit length.
+  subroutine dense_point(dop, run, theta, y, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(state_size)
+    integer(i8), intent(inout) :: n_rhs
+    logical :: prepared
+    call dop853_ball_dense(dop, run%ball, theta, y, prepared)
+    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    call run%ball%project(y)
+  end subroutine dense_point
+
+  !> Every derived output at t_old + theta h of the last attempt, from its
+  !> dense output, with f there (one more RHS call) when with_rate (the
+  !> limits and the stored reaction need it).
+  subroutine dense_state(dop, run, theta, with_rate, obs, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: theta
+    logical, intent(in) :: with_rate
+    type(observation_t), intent(out) :: obs
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: y(state_size), f(state_size), t
+    call dense_point(dop, run, theta, y, n_rhs)
+    t = dop%t_old + theta * dop%h
+    f = 0
+    if (with_rate) then
+      call ball_derivative(run%ball, t, y, f)
+      n_rhs = n_rhs + 1
+    end if
+    call observe(run%ball, t, y, f, obs)
+  end subroutine dense_state
+end module ellroll_adaptive_run

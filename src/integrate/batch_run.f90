@@ -1,0 +1,481 @@
+!> Batches of up to `lanes` cases on fixed cups, one per SIMD lane
+!> (ellroll_ball_lanes): the steps, the observations and the summary of all
+!> lanes at once; what happens to one lane alone (dense output, a crossed
+!> limit, a maximum of Theta) is the one-case code on that lane.
+module ellroll_batch_run
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp, i8
+  use ellroll_excitation, only: excitation_none
+  use ellroll_status, only: status_completed
+  use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_center, field_omega, &
+      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
+  use ellroll_results, only: case_result_t
+  use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
+  use ellroll_integrators, only: dop853_t, rk4_t
+  use ellroll_dop853_tableau, only: end_stage
+  use ellroll_ball_steppers, only: dop853_attempt_calls, lanes_rk4_step, lanes_dop853_attempt
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
+  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due
+  use ellroll_fixed_step_run, only: end_at_limit
+  use ellroll_adaptive_run, only: nutation_peak_t, last_step_clipped, rejected_step_factor, &
+      accepted_step_factor, project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, &
+      record_samples_until
+  implicit none
+  private
+
+  public :: lanes, batchable, simulate_batch
+
+  !> Output samples held per batch lane between flushes into the results
+  !> (lane_sample_block_t).
+  integer, parameter :: block_samples = 128
+
+  !> The running summary of every lane of a batch (accumulate across lanes),
+  !> the squared maxima as run_state_t keeps them.
+  type :: lane_summary_t
+    real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
+    real(wp), dimension(lanes) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, reaction_normal_max = 0, &
+                                  friction_needed_max = 0, energy_deviation_max = 0, constraint_error_max = 0
+    logical :: theta_moved(lanes) = .false.
+  contains
+    procedure :: load => load_summary
+    procedure :: add => add_to_summary
+    procedure :: note_nutation => note_lane_nutation
+    procedure :: store => store_summary
+  end type lane_summary_t
+
+  !> Output samples of a batch's RK4 lanes, held a block at a time: a
+  !> sample step stores each value for every lane at once, and each case's
+  !> result takes its samples of the block in one pass (flush). Stored lane
+  !> by lane into the eight results, a sample cost about 90 ns per case,
+  !> 14 % of a batch storing every field at 100 Hz (bench/throughput); now
+  !> 6-9 %, mostly the results' memory filling. Long blocks give each of the
+  !> 40 streams a flush writes runs that the prefetcher follows (32 samples:
+  !> 6-10 %; 128: 6.5-8 %); the block is 139 kB.
+  type :: lane_sample_block_t
+    integer :: count = 0                  !< samples held
+    integer(i8) :: first = 2              !< output sample index of the first one held
+    logical :: fields(field_count) = .false.
+    real(wp), dimension(lanes, 3, block_samples) :: contact, center, omega, normal, reaction
+    real(wp), dimension(lanes, block_samples) :: lateral, energy
+  contains
+    procedure :: add => add_lane_samples
+    procedure :: flush => flush_lane_samples
+    procedure :: next_block => next_sample_block
+  end type lane_sample_block_t
+
+contains
+
+  !> Whether a case runs in a batch (simulate_batch): RK4 or DOP853 on a
+  !> fixed cup, without the reference run; a property of the case alone, so
+  !> that every run and every shard takes the same path for it.
+  pure logical function batchable(cs)
+    type(case_t), intent(in) :: cs
+    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853') .and. cs%excitation%kind == excitation_none &
+                .and. .not. cs%error_estimate
+  end function batchable
+
+  !> Up to `lanes` batchable cases of one method advanced together, one per
+  !> SIMD lane (ellroll_ball_lanes): steps, f, the summary's quantities, the
+  !> stored outputs and the limits for all lanes at once, each lane with its
+  !> own step; maxima of Theta, dense output and the search for a crossed
+  !> limit per lane with the one-case code. Each result equals
+  !> simulate_case's to round-off (tested), whatever the other lanes hold;
+  !> wall_time is the batch's time shared equally among its cases.
+  subroutine simulate_batch(cases, plan, results)
+    type(case_t), intent(in) :: cases(:)
+    type(output_plan_t), intent(in) :: plan
+    type(case_result_t), intent(out) :: results(:)
+    type(run_state_t) :: run(lanes)
+    type(ball_lanes_t) :: balls
+    type(lane_summary_t) :: summary
+    real(wp), dimension(lanes, state_size) :: y, f
+    integer(i8) :: clock_start, clock_end, clock_rate
+    logical :: active(lanes)
+    integer :: n, l, donor
+
+    n = size(cases)
+    if (n == 0) return
+    call system_clock(clock_start, clock_rate)
+    do l = 1, n
+      call start_case(cases(l), plan, run(l), results(l), y(l, :), f(l, :))
+      call set_lane(balls, l, run(l)%ball)
+      call summary%load(l, run(l), results(l))
+      active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
+    end do
+    active(n + 1:) = .false.
+    ! idle lanes compute a valid case's steps alongside, never a state outside the model
+    donor = findloc(active, .true., dim=1)
+    if (donor > 0) then
+      do l = 1, lanes
+        if (active(l)) cycle
+        call set_lane(balls, l, run(donor)%ball)
+        y(l, :) = y(donor, :)
+        f(l, :) = f(donor, :)
+      end do
+      if (cases(1)%method == 'dop853') then
+        call adaptive_lanes()
+      else
+        call fixed_step_lanes()
+      end if
+    end if
+
+    call system_clock(clock_end)
+    do l = 1, n
+      call finish_case(cases(l), run(l), results(l))
+      results(l)%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp) / n
+    end do
+
+  contains
+
+    !> RK4 with each case's dt (fixed_step_loop across lanes).
+    subroutine fixed_step_lanes()
+      type(rk4_t) :: rk4
+      type(lane_outputs_t) :: out
+      type(lane_sample_block_t) :: samples
+      real(wp), dimension(lanes, state_size) :: y_new, f_new
+      real(wp) :: h(lanes), t
+      integer(i8) :: n_steps(lanes), step
+      logical :: accepted(lanes), sampled, sample_step
+      integer :: i
+      do l = 1, lanes
+        i = merge(l, donor, active(l))
+        h(l) = cases(i)%dt
+        n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
+        if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
+      end do
+      samples%fields = plan%fields
+      sampled = any(plan%fields)
+      step = 0
+      do while (any(active))
+        step = step + 1
+        call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+        call lanes_observe(balls, y_new, f_new, out)
+        sample_step = sampled .and. mod(step, plan%steps_per_sample) == 0
+        if (sample_step) call samples%add(out, y_new, balls%radius)
+        accepted = active .and. out%status == status_completed
+        call summary%add(out, accepted)
+        do l = 1, n
+          if (.not. active(l)) cycle
+          results(l)%n_rhs = results(l)%n_rhs + 4
+          results(l)%n_steps = step
+          if (.not. accepted(l)) then      ! this step's sample is past the limit: not the case's
+            call samples%flush(l, samples%count - merge(1, 0, sample_step), results(l))
+            call summary%store(l, run(l), results(l))
+            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
+                              results(l))
+            active(l) = .false.
+            cycle
+          end if
+          t = step * h(l)
+          call run(l)%maxima%add(t, out%tan_nutation(l))
+          if (step == n_steps(l)) then
+            call samples%flush(l, samples%count, results(l))
+            results(l)%t_final = t
+            call summary%store(l, run(l), results(l))
+            active(l) = .false.
+          end if
+        end do
+        if (samples%count == block_samples) then
+          do l = 1, n
+            if (active(l)) call samples%flush(l, samples%count, results(l))
+          end do
+          call samples%next_block()
+        end if
+        if (all(accepted)) then             ! the rule: whole vectors, no test per lane
+          y = y_new
+          f = f_new
+        else
+          do i = 1, state_size
+            where (accepted)
+              y(:, i) = y_new(:, i)
+              f(:, i) = f_new(:, i)
+            end where
+          end do
+        end if
+      end do
+    end subroutine fixed_step_lanes
+
+    !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
+    !> attempts of all lanes together, the step control of each lane its
+    !> own. An attempt is copied into the lane's dop853_t only when its dense
+    !> output is needed (a sample inside the step, a crossed limit).
+    subroutine adaptive_lanes()
+      type(dop853_t) :: dop(lanes)
+      type(lane_outputs_t) :: out
+      real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
+      real(wp) :: k(lanes, state_size, end_stage)
+      real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
+      type(nutation_peak_t) :: peak
+      logical :: accepted(lanes), rejected(lanes), loaded
+      integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
+      integer :: i
+      idle_rhs = 0
+      t = 0
+      rejected = .false.
+      do l = 1, lanes
+        i = merge(l, donor, active(l))
+        dop(l)%rtol = cases(i)%rtol
+        dop(l)%atol = cases(i)%atol
+        rtol(l) = cases(i)%rtol
+        atol(l) = cases(i)%atol
+        h_max(l) = cases(i)%dt
+        t_end(l) = cases(i)%t_end
+        if (active(l)) then
+          call dop(l)%initial_step(run(l)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), results(l)%n_rhs)
+        else
+          call dop(l)%initial_step(run(i)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), idle_rhs)
+        end if
+      end do
+      do while (any(active))
+        do l = 1, lanes
+          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
+        end do
+        call lanes_dop853_attempt(balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        accepted = .false.
+        do l = 1, n
+          if (.not. active(l)) cycle
+          results(l)%n_rhs = results(l)%n_rhs + dop853_attempt_calls
+          if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
+          accepted(l) = error_norm(l) <= 1
+          if (.not. accepted(l)) then
+            h(l) = h(l) * rejected_step_factor(error_norm(l))
+            rejected(l) = .true.
+          end if
+        end do
+        if (.not. any(accepted)) cycle
+        do l = 1, lanes
+          y_new(l, :) = y_raw(l, :)
+          call project_with_rate(y_new(l, :), k(l, :, end_stage), f_new(l, :))
+        end do
+        call lanes_observe(balls, y_new, f_new, out)
+        call summary%add(out, accepted .and. out%status == status_completed)
+        do l = 1, n
+          if (.not. accepted(l)) cycle
+          if (out%status(l) /= status_completed) then
+            call summary%store(l, run(l), results(l))
+            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
+            active(l) = .false.
+            cycle
+          end if
+          loaded = .false.
+          if (sample_due(run(l), plan, t(l) + h(l))) then
+            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            loaded = .true.
+            call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
+                                      lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
+          end if
+          if (nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))) then
+            if (.not. loaded) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+            call locate_nutation_peak(dop(l), run(l)%ball, peak, results(l)%n_rhs)
+            call run(l)%maxima%add_peak(peak%t)
+            call summary%note_nutation(l, peak%tan_nutation, peak%lateral, peak%normal_z)
+          end if
+          t(l) = t(l) + h(l)
+          results(l)%n_steps = results(l)%n_steps + 1
+          if (t(l) < t_end(l)) then
+            y(l, :) = y_new(l, :)
+            f(l, :) = f_new(l, :)
+            h(l) = min(h(l) * accepted_step_factor(error_norm(l), rejected(l)), h_max(l))
+            rejected(l) = .false.
+          else                     ! done: the lane repeats its last attempt, idle
+            results(l)%t_final = t_end(l)
+            call summary%store(l, run(l), results(l))
+            active(l) = .false.
+          end if
+        end do
+      end do
+    end subroutine adaptive_lanes
+  end subroutine simulate_batch
+
+  !> Lane l's last attempt (from t, step h: y -> y_raw, stages k) into a
+  !> dop853_t, as dop853_ball_step leaves it, for its dense output.
+  pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
+    type(dop853_t), intent(inout) :: dop
+    integer, intent(in) :: l
+    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, end_stage)
+    real(wp), intent(in) :: error_norm
+    dop%k(:state_size, :end_stage) = k(l, :, :)
+    dop%y_old(:state_size) = y(l, :)
+    dop%y_new(:state_size) = y_raw(l, :)
+    dop%t_old = t
+    dop%h = h
+    dop%error_norm = error_norm
+    dop%dense_ready = .false.
+  end subroutine load_attempt
+
+  !> Lane l's end-of-step observation, what an output sample stores (no base
+  !> acceleration: batches have fixed cups).
+  pure function lane_observation(out, y, l, radius) result(obs)
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: y(lanes, state_size), radius
+    integer, intent(in) :: l
+    type(observation_t) :: obs
+    obs%normal = out%normal(l, :)
+    obs%omega = y(l, 4:6)
+    obs%contact = out%contact(l, :)
+    obs%center = obs%contact + radius * obs%normal
+    obs%lateral = out%lateral(l)
+    obs%reaction = out%reaction(l, :)
+    obs%energy = out%energy(l)
+    obs%base_acceleration = 0
+  end function lane_observation
+
+  !> A case's running summary (accumulate), lane by lane.
+  pure subroutine load_summary(self, l, run, res)
+    class(lane_summary_t), intent(inout) :: self
+    integer, intent(in) :: l
+    type(run_state_t), intent(in) :: run
+    type(case_result_t), intent(in) :: res
+    self%energy0(l) = run%energy0
+    self%tan_max(l) = run%tan_theta_max
+    self%displacement_sq_max(l) = run%displacement_sq_max
+    self%horizontal_force_sq_max(l) = run%horizontal_force_sq_max
+    self%reaction_normal_max(l) = res%reaction_normal_max
+    self%friction_needed_max(l) = res%friction_needed_max
+    self%energy_deviation_max(l) = run%energy_deviation_max
+    self%constraint_error_max(l) = res%constraint_error_max
+  end subroutine load_summary
+
+  !> What the accepted lanes' new states add to the summary (accumulate);
+  !> branch-free (merge), so that the loop vectorizes.
+  pure subroutine add_to_summary(self, out, accepted)
+    class(lane_summary_t), intent(inout) :: self
+    type(lane_outputs_t), intent(in) :: out
+    logical, intent(in) :: accepted(lanes)
+    logical :: higher
+    integer :: l
+    do l = 1, lanes
+      higher = accepted(l) .and. out%tan_nutation(l) > self%tan_max(l)
+      self%tan_max(l) = merge(out%tan_nutation(l), self%tan_max(l), higher)
+      self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
+      self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
+      self%theta_moved(l) = self%theta_moved(l) .or. higher
+      self%displacement_sq_max(l) = merge(max(self%displacement_sq_max(l), out%displacement_sq(l)), &
+                                          self%displacement_sq_max(l), accepted(l))
+      self%horizontal_force_sq_max(l) = merge(max(self%horizontal_force_sq_max(l), out%horizontal_force_sq(l)), &
+                                              self%horizontal_force_sq_max(l), accepted(l))
+      self%reaction_normal_max(l) = merge(max(self%reaction_normal_max(l), out%reaction_normal(l)), &
+                                          self%reaction_normal_max(l), accepted(l))
+      self%friction_needed_max(l) = merge(max(self%friction_needed_max(l), out%friction_needed(l)), &
+                                          self%friction_needed_max(l), accepted(l))
+      self%energy_deviation_max(l) = merge(max(self%energy_deviation_max(l), abs(out%energy(l) - self%energy0(l))), &
+                                           self%energy_deviation_max(l), accepted(l))
+      self%constraint_error_max(l) = merge(max(self%constraint_error_max(l), out%surface_residual(l)), &
+                                           self%constraint_error_max(l), accepted(l))
+    end do
+  end subroutine add_to_summary
+
+  !> A nutation angle of lane l's case (tan Theta, and the lateral and
+  !> vertical components of the unit normal) for the largest Theta.
+  pure subroutine note_lane_nutation(self, l, tan_nutation, lateral, normal_z)
+    class(lane_summary_t), intent(inout) :: self
+    integer, intent(in) :: l
+    real(wp), intent(in) :: tan_nutation, lateral, normal_z
+    if (tan_nutation > self%tan_max(l)) then
+      self%tan_max(l) = tan_nutation
+      self%lateral_at_max(l) = lateral
+      self%normal_z_at_max(l) = normal_z
+      self%theta_moved(l) = .true.
+    end if
+  end subroutine note_lane_nutation
+
+  !> Lane l's running summary into its result (and run state).
+  pure subroutine store_summary(self, l, run, res)
+    class(lane_summary_t), intent(in) :: self
+    integer, intent(in) :: l
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    run%tan_theta_max = self%tan_max(l)
+    if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
+    run%displacement_sq_max = self%displacement_sq_max(l)
+    run%horizontal_force_sq_max = self%horizontal_force_sq_max(l)
+    res%reaction_normal_max = self%reaction_normal_max(l)
+    res%friction_needed_max = self%friction_needed_max(l)
+    run%energy_deviation_max = self%energy_deviation_max(l)
+    res%constraint_error_max = self%constraint_error_max(l)
+  end subroutine store_summary
+
+  !> Every lane's values at one output sample into the next slot of the block.
+  pure subroutine add_lane_samples(self, out, y, radius)
+    class(lane_sample_block_t), intent(inout) :: self
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: y(lanes, state_size), radius(lanes)
+    integer :: i, j
+    self%count = self%count + 1
+    j = self%count
+    if (self%fields(field_contact)) self%contact(:, :, j) = out%contact
+    do i = 1, 3
+      if (self%fields(field_center)) self%center(:, i, j) = out%contact(:, i) + radius * out%normal(:, i)
+    end do
+    if (self%fields(field_omega)) self%omega(:, :, j) = y(:, 4:6)
+    if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(:, :, j) = out%normal
+    if (self%fields(field_nutation)) self%lateral(:, j) = out%lateral
+    if (self%fields(field_reaction)) self%reaction(:, :, j) = out%reaction
+    if (self%fields(field_energy)) self%energy(:, j) = out%energy
+  end subroutine add_lane_samples
+
+  !> Lane l's first n samples of the block into its result (Theta from the
+  !> lateral and vertical parts of the normal, as store_sample; a batch's
+  !> cup does not move).
+  pure subroutine flush_lane_samples(self, l, n, res)
+    class(lane_sample_block_t), intent(in) :: self
+    integer, intent(in) :: l, n
+    type(case_result_t), intent(inout) :: res
+    integer(i8) :: last
+    if (n <= 0) return
+    last = self%first + n - 1
+    call put(res, field_contact, self%contact)
+    call put(res, field_center, self%center)
+    call put(res, field_omega, self%omega)
+    call put(res, field_normal, self%normal)
+    call put(res, field_reaction, self%reaction)
+    if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, self%first:last))
+    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, self%first:last) = self%energy(l, :n)
+    if (allocated(res%fields(field_base_acceleration)%values)) &
+      res%fields(field_base_acceleration)%values(:, self%first:last) = 0
+    res%n_recorded = last
+  contains
+    pure subroutine put(res, field, values)
+      type(case_result_t), intent(inout) :: res
+      integer, intent(in) :: field
+      real(wp), intent(in) :: values(lanes, 3, block_samples)
+      if (allocated(res%fields(field)%values)) call copy_lane(values, res%fields(field)%values(:, self%first:last))
+    end subroutine put
+    !> Theta of lane l's samples: a loop the compiler vectorizes, with the
+    !> vector atan2 of the C library's libmvec where there is one (within a
+    !> few units of round-off of the scalar atan2, which took 3 % of a batch
+    !> storing every field).
+    pure subroutine put_nutation(stored)
+      real(wp), intent(inout) :: stored(n)
+      real(wp) :: lateral(n), normal_z(n)
+      integer :: j
+      do j = 1, n
+        lateral(j) = self%lateral(l, j)
+        normal_z(j) = self%normal(l, 3, j)
+      end do
+      do j = 1, n
+        stored(j) = nutation_angle(lateral(j), normal_z(j))
+      end do
+    end subroutine put_nutation
+    !> Lane l's vectors, explicit loops on explicit shapes: the array
+    !> assignment on the strided section was a slow generic loop.
+    pure subroutine copy_lane(values, stored)
+      real(wp), intent(in) :: values(lanes, 3, block_samples)
+      real(wp), intent(inout) :: stored(3, n)
+      integer :: j
+      do j = 1, n
+        stored(1, j) = values(l, 1, j)
+        stored(2, j) = values(l, 2, j)
+        stored(3, j) = values(l, 3, j)
+      end do
+    end subroutine copy_lane
+  end subroutine flush_lane_samples
+
+  !> Start the next block, after the one held was flushed.
+  pure subroutine next_sample_block(self)
+    class(lane_sample_block_t), intent(inout) :: self
+    self%first = self%first + self%count
+    self%count = 0
+  end subroutine next_sample_block
+end module ellroll_batch_run

@@ -1,0 +1,306 @@
+!> The running state of one case and everything its accepted points add to
+!> the result: the start and the end of a case, the summary's running maxima,
+!> the maxima of Theta, the transmissibility's Fourier sums, the output
+!> samples, and the search for where a step crossed a model limit. Shared by
+!> the one-case loops (fixed-step and adaptive) and the batches.
+module ellroll_case_run
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use ellroll_kinds, only: wp, i8, two_pi
+  use ellroll_excitation, only: excitation_harmonic
+  use ellroll_status, only: status_completed
+  use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
+      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
+  use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
+      limit_status, ball_derivative, nutation_angle
+  use ellroll_events, only: crossing_search_t
+  use ellroll_linear, only: oscillation_periods
+  implicit none
+  private
+
+  public :: run_state_t, limit_search_t, event_time_tolerance, start_case, finish_case, sample_due
+  public :: track, track_step_end, note_nutation, accumulate, record_sample, store_sample
+
+  !> Model limits are located in time to this (s).
+  real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
+
+  !> Local maxima of a sampled signal, each refined by the parabola through
+  !> the three samples around it (uneven spacing allowed).
+  type :: maxima_t
+    real(wp) :: t(3) = 0, v(3) = 0       !< the last three samples
+    integer :: n_samples = 0
+    integer(i8) :: count = 0
+    real(wp) :: first = 0, last = 0      !< times of the first and last maximum
+  contains
+    procedure :: add => add_sample
+    procedure :: add_peak
+    procedure :: mean_interval
+  end type maxima_t
+
+  !> Fourier components at the forcing frequency of the horizontal absolute
+  !> acceleration of the ball and of the cup, over the last whole forcing
+  !> periods (at least half the run): their ratio is the transmissibility.
+  !> The model has no damping, so free oscillations never decay; projecting
+  !> on the forcing frequency over whole periods separates them out.
+  type :: spectrum_t
+    real(wp) :: omega = 0                 !< 2 pi f
+    real(wp) :: start = huge(1.0_wp)      !< window start, s
+    complex(wp) :: ball(2) = 0, base(2) = 0
+    real(wp) :: t_prev = 0, ball_prev(2) = 0, base_prev(2) = 0
+    logical :: has_prev = .false.
+  contains
+    procedure :: add => add_spectrum
+    procedure :: ratio => spectrum_ratio
+  end type spectrum_t
+
+  !> The search for where a step crossed a model limit, keeping the last
+  !> valid observation and the status of the limit met.
+  type, extends(crossing_search_t) :: limit_search_t
+    type(observation_t) :: last_valid
+    logical :: found_valid = .false.
+    integer :: crossed = status_completed
+  contains
+    procedure :: begin => begin_limit_search
+    procedure :: record => record_trial
+  end type limit_search_t
+
+  !> What one integration needs as it goes.
+  type :: run_state_t
+    type(rolling_ball_t) :: ball
+    real(wp) :: energy0 = 0
+    type(maxima_t) :: maxima
+    type(spectrum_t) :: spectrum
+    real(wp) :: spin0 = 0                 !< omega . n at the start
+    real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
+    !> maxima kept before the root or the division by |E0|, taken once in
+    !> finish_case: both are correctly rounded and monotonic, so the result
+    !> is the same number (the batch's lanes keep the same)
+    real(wp) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, energy_deviation_max = 0
+    integer(i8) :: next_sample = 2        !< index of the next output sample
+  end type run_state_t
+
+contains
+
+  !> The state at t = 0 and everything it adds to the result; a start
+  !> outside the model ends the case at once (res%status).
+  subroutine start_case(cs, plan, run, res, y, f)
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(out) :: run
+    type(case_result_t), intent(out) :: res
+    real(wp), intent(out) :: y(state_size), f(state_size)
+    type(observation_t) :: obs
+    run%ball = make_ball(cs)
+    call allocate_fields(res, plan%fields, plan%n_samples)
+    y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
+    call ball_derivative(run%ball, 0.0_wp, y, f)
+    res%n_rhs = 1
+    call observe(run%ball, 0.0_wp, y, f, obs)
+    run%energy0 = obs%energy
+    run%spin0 = dot_product(cs%omega0, obs%normal)
+    if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
+      run%spectrum%omega = two_pi * cs%excitation%frequency
+      if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &
+          cs%t_end - floor(0.5_wp * cs%t_end * cs%excitation%frequency) / cs%excitation%frequency
+    end if
+    call track(run, res, 0.0_wp, obs)
+    call record_sample(res, 1_i8, obs)
+    res%status = limit_status(run%ball, y, obs)
+  end subroutine start_case
+
+  !> The figures made from the whole run.
+  subroutine finish_case(cs, run, res)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    type(case_result_t), intent(inout) :: res
+    res%nutation_maxima = run%maxima%count
+    res%nutation_period = run%maxima%mean_interval()
+    if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
+      res%transmissibility = run%spectrum%ratio()
+    res%displacement_max = sqrt(run%displacement_sq_max)
+    res%horizontal_force_max = sqrt(run%horizontal_force_sq_max)
+    res%energy_drift = run%energy_deviation_max / abs(run%energy0)
+    res%linear_periods = oscillation_periods(run%ball, run%spin0)
+    call fill_unrecorded(res)
+  end subroutine finish_case
+
+  !> Whether the next output sample falls at or before t_until (to round-off).
+  pure logical function sample_due(run, plan, t_until)
+    type(run_state_t), intent(in) :: run
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_until
+    sample_due = run%next_sample <= plan%n_samples
+    if (sample_due) sample_due = real(run%next_sample - 1, wp) * plan%interval <= t_until * (1 + 1.0e-14_wp)
+  end function sample_due
+
+  pure subroutine begin_limit_search(self, invalid, crossed)
+    class(limit_search_t), intent(inout) :: self
+    real(wp), intent(in) :: invalid
+    integer, intent(in) :: crossed
+    call self%start(invalid, event_time_tolerance)
+    self%found_valid = .false.
+    self%crossed = crossed
+  end subroutine begin_limit_search
+
+  pure subroutine record_trial(self, offset, status, obs)
+    class(limit_search_t), intent(inout) :: self
+    real(wp), intent(in) :: offset
+    integer, intent(in) :: status
+    type(observation_t), intent(in) :: obs
+    call self%report(offset, status == status_completed)
+    if (status == status_completed) then
+      self%last_valid = obs
+      self%found_valid = .true.
+    else
+      self%crossed = status
+    end if
+  end subroutine record_trial
+
+  pure subroutine add_sample(self, t, v)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: t, v
+    real(wp) :: d1, d3, numerator, denominator, t_peak
+    self%t = [self%t(2:3), t]
+    self%v = [self%v(2:3), v]
+    self%n_samples = self%n_samples + 1
+    if (self%n_samples < 3) return
+    if (.not. (self%v(2) > self%v(1) .and. self%v(2) >= self%v(3))) return
+    ! vertex of the parabola through the three samples
+    d1 = self%t(2) - self%t(1)
+    d3 = self%t(2) - self%t(3)
+    numerator = d1**2 * (self%v(2) - self%v(3)) - d3**2 * (self%v(2) - self%v(1))
+    denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
+    t_peak = self%t(2)
+    if (denominator /= 0) t_peak = self%t(2) - 0.5_wp * numerator / denominator
+    call self%add_peak(t_peak)
+  end subroutine add_sample
+
+  !> A maximum located exactly (by the adaptive method's dense output).
+  pure subroutine add_peak(self, t_peak)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: t_peak
+    if (self%count == 0) self%first = t_peak
+    self%last = t_peak
+    self%count = self%count + 1
+  end subroutine add_peak
+
+  pure real(wp) function mean_interval(self)
+    class(maxima_t), intent(in) :: self
+    if (self%count < 3) then
+      mean_interval = ieee_value(0.0_wp, ieee_quiet_nan)
+    else
+      mean_interval = (self%last - self%first) / real(self%count - 1, wp)
+    end if
+  end function mean_interval
+
+  !> Everything a fixed step's end point adds to the summary; the maxima of
+  !> Theta from the step ends (refined by parabolas).
+  pure subroutine track(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    ! maxima of tan Theta are the maxima of Theta (tan is increasing)
+    call run%maxima%add(t, obs%tan_nutation)
+    call track_step_end(run, res, t, obs)
+  end subroutine track
+
+  !> What any step's end point adds to the summary but the maxima of Theta.
+  pure subroutine track_step_end(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    call accumulate(run, res, obs)
+  end subroutine track_step_end
+
+  pure subroutine add_spectrum(self, t, ball, base)
+    class(spectrum_t), intent(inout) :: self
+    real(wp), intent(in) :: t, ball(2), base(2)
+    complex(wp) :: phase_prev, phase_now
+    if (t < self%start) return
+    if (self%has_prev) then       ! trapezoid rule on (t_prev, t]
+      phase_prev = exp(cmplx(0.0_wp, -self%omega * self%t_prev, wp))
+      phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
+      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * phase_prev + ball * phase_now)
+      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * phase_prev + base * phase_now)
+    end if
+    self%t_prev = t
+    self%ball_prev = ball
+    self%base_prev = base
+    self%has_prev = .true.
+  end subroutine add_spectrum
+
+  !> NaN when the cup does not move horizontally (undefined, not infinite).
+  pure real(wp) function spectrum_ratio(self)
+    class(spectrum_t), intent(in) :: self
+    if (sum(abs(self%base)**2) > 0) then
+      spectrum_ratio = sqrt(sum(abs(self%ball)**2) / sum(abs(self%base)**2))
+    else
+      spectrum_ratio = ieee_value(0.0_wp, ieee_quiet_nan)
+    end if
+  end function spectrum_ratio
+
+  !> A nutation angle (tan Theta, and the lateral and vertical components of
+  !> the unit normal) for the largest Theta; one nutation_angle per new maximum only.
+  pure subroutine note_nutation(run, res, tan_nutation, lateral, normal_z)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: tan_nutation, lateral, normal_z
+    if (tan_nutation > run%tan_theta_max) then
+      run%tan_theta_max = tan_nutation
+      res%theta_max = nutation_angle(lateral, normal_z)
+    end if
+  end subroutine note_nutation
+
+  pure subroutine accumulate(run, res, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    type(observation_t), intent(in) :: obs
+    call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
+    ! the norms written out, as the batch path (ellroll_ball_lanes) computes them
+    run%displacement_sq_max = max(run%displacement_sq_max, &
+        obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2)
+    run%horizontal_force_sq_max = max(run%horizontal_force_sq_max, obs%reaction(1)**2 + obs%reaction(2)**2)
+    res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
+    res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
+    run%energy_deviation_max = max(run%energy_deviation_max, abs(obs%energy - run%energy0))
+    res%constraint_error_max = max(res%constraint_error_max, obs%surface_residual)
+  end subroutine accumulate
+
+  pure subroutine record_sample(res, sample, obs)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    type(observation_t), intent(in) :: obs
+    call store_sample(res, sample, obs%contact, obs%center, obs%omega, obs%normal, obs%lateral, obs%reaction, &
+                      obs%energy, obs%base_acceleration)
+  end subroutine record_sample
+
+  !> Every stored field's values at one output sample (Theta from the
+  !> lateral and vertical parts of the normal, only when it is stored).
+  pure subroutine store_sample(res, sample, contact, center, omega, normal, lateral, reaction, energy, &
+                               base_acceleration)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    real(wp), intent(in) :: contact(3), center(3), omega(3), normal(3), lateral, reaction(3), energy, &
+                            base_acceleration(3)
+    call put(res, field_contact, contact)
+    call put(res, field_center, center)
+    call put(res, field_omega, omega)
+    call put(res, field_normal, normal)
+    if (allocated(res%fields(field_nutation)%values)) &
+      res%fields(field_nutation)%values(1, sample) = nutation_angle(lateral, normal(3))
+    call put(res, field_reaction, reaction)
+    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, sample) = energy
+    call put(res, field_base_acceleration, base_acceleration)
+    res%n_recorded = sample
+  contains
+    pure subroutine put(res, field, values)
+      type(case_result_t), intent(inout) :: res
+      integer, intent(in) :: field
+      real(wp), intent(in) :: values(3)
+      if (allocated(res%fields(field)%values)) res%fields(field)%values(:, sample) = values
+    end subroutine put
+  end subroutine store_sample
+end module ellroll_case_run
