@@ -2,7 +2,8 @@
 !> sampling the requested fields every output interval: fixed-step methods
 !> sample their own steps; the adaptive method samples its dense output.
 !> With error_estimate, the case is run again with the adaptive method at a
-!> tight tolerance and the differences are its error figures.
+!> tight tolerance and the differences are its error figures. The one entry
+!> point of the integration room: it passes on the batches (ellroll_batch_run).
 module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -26,6 +27,7 @@ module ellroll_simulate
 
 contains
 
+  !> One case, with its reference run when it asks for error figures.
   subroutine simulate_case(cs, plan, res, err)
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
@@ -70,6 +72,7 @@ contains
     end function max_difference
   end subroutine simulate_case
 
+  !> One case with its own method, timed (res%wall_time).
   subroutine integrate(cs, plan, res, err)
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
