@@ -1,6 +1,7 @@
 !> The right-hand side against physics.md's own formulation: contact-point
 !> velocity from the 3x3 system H r_A' = V_C (LAPACK dgesv), n' = (dn/dr_A) r_A',
-!> and the component form of Appell's equations. Plus the reaction at rest.
+!> and the component form of Appell's equations. Plus observe's fit test
+!> against the principal radii, and the reaction at rest.
 program test_rolling_ball
   use ellroll_kinds, only: wp
   use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal, principal_radii
@@ -17,7 +18,7 @@ program test_rolling_ball
   type(rolling_ball_t), allocatable :: ball
   real(wp) :: y(6), f(6), reference(6), u(6), worst, n(3), radii(2), kappa
   type(observation_t) :: obs
-  integer :: trial, size_seed
+  integer :: trial, size_seed, fit_count, misfit_count, wrong
 
   allocate (ball)
   ball%cup = new_ellipsoid(1.0_wp, 0.4_wp, 0.2_wp)
@@ -43,6 +44,37 @@ program test_rolling_ball
     worst = max(worst, maxval(abs(f - reference)) / maxval(abs(reference)) / (kappa * epsilon(1.0_wp)))
   end do
   call check_below(worst, 16.0_wp, 'closed-form RHS vs 3x3 solve of physics.md (max rel. diff / (kappa eps))')
+
+  ! observe's fit test (tr K and det K from the contact point's 1/s) against
+  ! the principal radii computed apart (principal_radii, from the small
+  ! deviator): the ball fits where R (1 + margin) is below both. Two balls:
+  ! one that fits most of the cup, one larger than both radii near the rim
+  ! (where (R - r1)(R - r2) > 0 too). States within 1e-9 of the threshold are
+  ! left out; both outcomes must occur.
+  fit_count = 0
+  misfit_count = 0
+  wrong = 0
+  do trial = 1, 20000
+    ball%radius = merge(0.05_wp, 0.5_wp, trial <= 10000)
+    call random_number(u)
+    n = [2 * u(1) - 1, 2 * u(2) - 1, 0.05_wp + u(3)]
+    y(1:3) = n / norm2(n)
+    y(4:6) = 0
+    f = 0                 ! the fit test needs no rates (and R near a radius makes them huge)
+    call observe(ball, 0.0_wp, y, f, obs)
+    radii = principal_radii(ball%cup, y(1:3))
+    if (abs(radii(1) / (ball%radius * (1 + ball%fit_margin)) - 1) < 1.0e-9_wp) cycle
+    if (radii(1) > ball%radius * (1 + ball%fit_margin)) then
+      fit_count = fit_count + 1
+      if (.not. obs%fits) wrong = wrong + 1
+    else
+      misfit_count = misfit_count + 1
+      if (obs%fits) wrong = wrong + 1
+    end if
+  end do
+  ball%radius = 0.05_wp
+  call check(wrong == 0 .and. fit_count > 1000 .and. misfit_count > 1000, &
+             'fit test agrees with the principal radii (both outcomes occur)')
 
   ! A non-unit normal gives the same motion of the direction (homogeneity).
   y(1:3) = 3 * y(1:3)
