@@ -22,6 +22,7 @@ module ellroll_results
     integer :: status = status_pending
     real(wp) :: t_final = 0
     integer(i8) :: n_steps = 0
+    integer(i8) :: n_rejected = 0
     integer(i8) :: n_rhs = 0
     real(wp) :: wall_time = 0
     real(wp) :: theta_max = 0
@@ -76,10 +77,11 @@ contains
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
-    type(named_value_t) :: rec(19)
+    type(named_value_t) :: rec(20)
     rec = [ &
       real_value('t_final', 's', 'time at which the case ended', res%t_final), &
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
+      int_value('n_rejected', '1', 'attempts rejected by the step control (adaptive methods)', res%n_rejected), &
       int_value('n_rhs', '1', 'right-hand side evaluations', res%n_rhs), &
       real_value('wall_time', 's', 'wall-clock time of the integration (not reproducible)', res%wall_time), &
       real_value('theta_max', 'rad', &
@@ -118,6 +120,7 @@ contains
     select case (trim(value%name))
     case ('t_final'); res%t_final = value%reals(1)
     case ('n_steps'); res%n_steps = value%int
+    case ('n_rejected'); res%n_rejected = value%int
     case ('n_rhs'); res%n_rhs = value%int
     case ('wall_time'); res%wall_time = value%reals(1)
     case ('theta_max'); res%theta_max = value%reals(1)

@@ -17,9 +17,8 @@ module ellroll_batch_run
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due
   use ellroll_fixed_step_run, only: end_at_limit
-  use ellroll_adaptive_run, only: nutation_peak_t, last_step_clipped, rejected_step_factor, &
-      accepted_step_factor, project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, &
-      record_samples_until
+  use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
+      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
   implicit none
   private
 
@@ -206,12 +205,12 @@ contains
       real(wp) :: k(lanes, state_size, end_stage)
       real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
       type(nutation_peak_t) :: peak
-      logical :: accepted(lanes), rejected(lanes), loaded
+      type(step_control_t) :: control(lanes)
+      logical :: accepted(lanes), loaded
       integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
       integer :: i
       idle_rhs = 0
       t = 0
-      rejected = .false.
       do l = 1, lanes
         i = merge(l, donor, active(l))
         dop(l)%rtol = cases(i)%rtol
@@ -238,8 +237,8 @@ contains
           if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
           accepted(l) = error_norm(l) <= 1
           if (.not. accepted(l)) then
-            h(l) = h(l) * rejected_step_factor(error_norm(l))
-            rejected(l) = .true.
+            call control(l)%reject(h(l), error_norm(l))
+            results(l)%n_rejected = results(l)%n_rejected + 1
           end if
         end do
         if (.not. any(accepted)) cycle
@@ -276,8 +275,7 @@ contains
           if (t(l) < t_end(l)) then
             y(l, :) = y_new(l, :)
             f(l, :) = f_new(l, :)
-            h(l) = min(h(l) * accepted_step_factor(error_norm(l), rejected(l)), h_max(l))
-            rejected(l) = .false.
+            call control(l)%accept(h(l), error_norm(l), h_max(l))
           else                     ! done: the lane repeats its last attempt, idle
             results(l)%t_final = t_end(l)
             call summary%store(l, run(l), results(l))

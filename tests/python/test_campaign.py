@@ -165,16 +165,21 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
     assert not any((tmp_path / n).exists() for n in ("m2.h5", "m3.h5", "m4.h5"))
 
 
+# a journal record holds the summary as (value, kind, spare) words per entry,
+# in summary_record's order (src/cases/results.f90): wall_time is the 5th
+SUMMARY_ENTRIES, WALL_TIME_ENTRY = 20, 4
+
+
 def journal_wall_times(path, n_samples, n_fields_components):
     """(slot -> wall_time) of the complete records of a journal."""
     data = path.read_bytes()
     header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 8      # magic, id, slots, samples, shard, one flag per field
-    words = 3 + 3 * 19 + n_samples * n_fields_components
+    words = 3 + 3 * SUMMARY_ENTRIES + n_samples * n_fields_components
     size = 8 * (words + 1)
     out = {}
     for start in range(header, len(data) - size + 1, size):
         record = struct.unpack(f"<{words + 1}q", data[start:start + size])
-        slot, wall = record[1], struct.unpack("<d", struct.pack("<q", record[3 + 3 * 3]))[0]  # 4th summary entry
+        slot, wall = record[1], struct.unpack("<d", struct.pack("<q", record[3 + 3 * WALL_TIME_ENTRY]))[0]
         out[slot] = wall
     return out
 
@@ -203,7 +208,7 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
                  .replace("count = 4", "count = 40"), t_end=5.0)
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
     n_samples, components = 501, 17
-    record = 8 * (3 + 3 * 19 + n_samples * components + 1)
+    record = 8 * (3 + 3 * SUMMARY_ENTRIES + n_samples * components + 1)
     journal = tmp_path / "out.h5.journal"
     rng = random.Random(4)
     kept_before = {}
@@ -233,7 +238,7 @@ def test_resume_refusals(ellroll, tmp_path):
     result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
     assert result.returncode == 3 and "no interrupted run to resume" in result.stderr
     journal = tmp_path / "out.h5.journal"
-    record = 8 * (3 + 3 * 19 + 301 * 17 + 1)
+    record = 8 * (3 + 3 * SUMMARY_ENTRIES + 301 * 17 + 1)
     assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 1, record)
     result = run(ellroll, "run", name, cwd=tmp_path)
     assert result.returncode == 3 and "--resume" in result.stderr

@@ -10,7 +10,7 @@ from conftest import PAPER_INPUT, run
 
 FIELDS = {"contact": ("m", 3), "center": ("m", 3), "omega": ("rad/s", 3), "normal": ("1", 3),
           "nutation": ("rad", 1), "reaction": ("N", 3), "energy": ("J", 1)}
-SUMMARY = ["status", "t_final", "n_steps", "n_rhs", "wall_time", "theta_max", "reaction_normal_max",
+SUMMARY = ["status", "t_final", "n_steps", "n_rejected", "n_rhs", "wall_time", "theta_max", "reaction_normal_max",
            "friction_needed_max", "energy_drift", "constraint_error_max"]
 
 

@@ -101,6 +101,7 @@ contains
       worst_end_time = max(worst_end_time, abs(single(l)%t_final - batch(l)%t_final))
       if (at_limit .and. adaptive) cycle       ! below
       same_counts = same_counts .and. single(l)%n_steps == batch(l)%n_steps .and. single(l)%n_rhs == batch(l)%n_rhs &
+                    .and. single(l)%n_rejected == batch(l)%n_rejected &
                     .and. single(l)%nutation_maxima == batch(l)%nutation_maxima
       worst_located = max(worst_located, maxval(difference(located)), maxval(difference(round_off)))
       if (at_limit) then
@@ -192,7 +193,7 @@ contains
   logical function identical(a, b)
     type(case_result_t), intent(in) :: a, b
     integer :: f
-    identical = a%status == b%status .and. a%n_steps == b%n_steps .and. &
+    identical = a%status == b%status .and. a%n_steps == b%n_steps .and. a%n_rejected == b%n_rejected .and. &
         same(a%t_final, b%t_final) .and. same(a%theta_max, b%theta_max) .and. &
         same(a%energy_drift, b%energy_drift) .and. same(a%friction_needed_max, b%friction_needed_max) .and. &
         same(a%displacement_max, b%displacement_max) .and. same(a%nutation_period, b%nutation_period)

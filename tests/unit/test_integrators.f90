@@ -35,6 +35,7 @@ program test_integrators
   use ellroll_cases, only: case_t, field_contact, field_omega
   use ellroll_results, only: case_result_t
   use fixtures, only: paper_case, run_case
+  use ellroll_adaptive_run, only: step_control_t
   use testing
   implicit none
 
@@ -65,6 +66,8 @@ program test_integrators
   call orders_on_oscillator(method, [1.0_wp, 0.5_wp, 0.25_wp, 0.125_wp], 'dop853', 8.0_wp)
   call dense_order()
   call adaptive_nutation_maxima()
+  call step_control_floors()
+  call stability_limited_steps()
 
   ! the adaptive method's error tracks rtol (paper case, contact point at 2 s)
   cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
@@ -88,6 +91,61 @@ program test_integrators
   call finish('test_integrators')
 
 contains
+
+  !> Error norms where they are partly round-off choose the same next step
+  !> (a case alone and in a SIMD batch must agree), and the controller's
+  !> memory of the last error (its proportional part) acts above them.
+  subroutine step_control_floors()
+    type(step_control_t) :: a, b
+    real(wp) :: ha, hb
+    a = step_control_t(previous_norm=0.3_wp)
+    b = a
+    ha = 1
+    hb = 1
+    call a%accept(ha, 1.0e-9_wp, 100.0_wp)
+    call b%accept(hb, 1.0e-12_wp, 100.0_wp)
+    call check_below(abs(ha - hb), 0.0_wp, 'step control: steps after error norms 1e-9 and 1e-12 differ by')
+    call check(ha > 2, 'step control: the step grows more than twofold after a tiny error norm')
+    a = step_control_t()
+    b = step_control_t()
+    call a%accept(ha, 1.0e-6_wp, 100.0_wp)
+    call b%accept(hb, 3.0e-5_wp, 100.0_wp)
+    ha = 1
+    hb = 1
+    call a%accept(ha, 0.5_wp, 100.0_wp)
+    call b%accept(hb, 0.5_wp, 100.0_wp)
+    call check_below(abs(ha - hb), 0.0_wp, 'step control: steps after previous error norms 1e-6 and 3e-5 differ by')
+    a = step_control_t(previous_norm=0.1_wp)
+    b = step_control_t(previous_norm=0.9_wp)
+    ha = 1
+    hb = 1
+    call a%accept(ha, 0.5_wp, 100.0_wp)
+    call b%accept(hb, 0.5_wp, 100.0_wp)
+    call check(ha < hb, 'step control: a rising error norm grows the step less than a falling one')
+    call a%reject(ha, 4.0_wp)
+    hb = ha
+    call a%accept(ha, 1.0e-3_wp, 100.0_wp)
+    call check_below(abs(ha - hb), 0.0_wp, 'step control: growth right after a rejection')
+  end subroutine step_control_floors
+
+  !> At loose tolerances the paper's case is stability-limited (the step
+  !> sits where DOP853's stability region ends): the plain controller
+  !> overshoots into rejection on every third attempt (32 % at rtol 1e-3);
+  !> the PI controller damps that.
+  subroutine stability_limited_steps()
+    type(case_t) :: cs
+    type(case_result_t) :: res
+    real(wp) :: rejected
+    cs = paper_case(30.0_wp, 30.0_wp)
+    cs%method = 'dop853'
+    cs%rtol = 1.0e-3_wp
+    cs%atol = 1.0e-6_wp
+    res = run_case(cs, 1)
+    rejected = real(res%n_rejected, wp) / real(res%n_steps + res%n_rejected, wp)
+    print '(a, i0, a, i0, a)', 'dop853 rtol 1e-3 on the paper case: ', res%n_steps, ' steps, ', res%n_rejected, &
+          ' rejected'
+    call check_below(rejected, 0.2_wp, 'dop853 rtol 1e-3, stability-limited: fraction of attempts rejected')
+  end subroutine stability_limited_steps
 
   subroutine orders_on_oscillator(method, dts, name, order)
     class(integrator_t), intent(inout) :: method
