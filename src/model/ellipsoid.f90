@@ -46,7 +46,8 @@ contains
   end function contact_from_normal
 
   !> The contact point p with unit normal n and 1/s, s = sqrt(n . A n) (the
-  !> radius operator K = (A - (An)(An)^T / s^2) / s needs it too).
+  !> radius operator K = (A - (An)(An)^T / s^2) / s needs it too). p is
+  !> homogeneous of degree 0 in n: any positive multiple of n gives it.
   pure subroutine contact_point(cup, n, p, inv_s)
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: n(3)
