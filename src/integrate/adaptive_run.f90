@@ -14,9 +14,8 @@ module ellroll_adaptive_run
   use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
       dop853_dense_calls
-  use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, track_step_end, note_nutation, &
-      accumulate, record_sample, store_sample
+      accumulate, record_sample, record_geometry_sample
   implicit none
   private
 
@@ -39,11 +38,11 @@ module ellroll_adaptive_run
   !> ratio after an accepted step lies in [0.57, 3.4]: no clamp is needed.
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp
   real(wp), parameter :: integral_gain = 0.3_wp / 8, proportional_gain = 0.4_wp / 8
-  real(wp), parameter :: error_norm_floor = 2.6e-7_wp, previous_norm_floor = 1.0e-4_wp
+  real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
 
   type, public :: step_control_t
     logical :: after_rejection = .false.
-    real(wp) :: previous_norm = previous_norm_floor     !< err of the last accepted step
+    real(wp) :: log_previous_norm = log_previous_floor    !< log err of the last accepted step
   contains
     procedure :: reject => step_control_reject
     procedure :: accept => step_control_accept
@@ -135,13 +134,14 @@ contains
     class(step_control_t), intent(inout) :: self
     real(wp), intent(inout) :: h
     real(wp), intent(in) :: error_norm, h_max
-    real(wp) :: factor
-    factor = adaptive_safety * max(error_norm, error_norm_floor)**(-(integral_gain + proportional_gain)) &
-             * self%previous_norm**proportional_gain
+    real(wp) :: log_norm, factor
+    log_norm = log(max(error_norm, error_norm_floor))
+    factor = adaptive_safety * exp(proportional_gain * self%log_previous_norm &
+                                   - (integral_gain + proportional_gain) * log_norm)
     if (self%after_rejection) factor = min(1.0_wp, factor)
     h = min(h * factor, h_max)
     self%after_rejection = .false.
-    self%previous_norm = max(error_norm, previous_norm_floor)
+    self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
   !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
@@ -282,7 +282,7 @@ contains
     type(observation_t), intent(in) :: obs_end
     type(case_result_t), intent(inout) :: res
     type(observation_t) :: obs
-    real(wp) :: t_sample, theta, y(state_size), normal(3), contact(3), lateral
+    real(wp) :: t_sample, theta, y(state_size)
     logical :: complete, prepared
     complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
     do while (sample_due(run, plan, t_until))
@@ -296,13 +296,7 @@ contains
       else
         call dop853_ball_dense(dop, run%ball, theta, y, prepared)
         if (prepared) res%n_rhs = res%n_rhs + dop853_dense_calls
-        ! the contact point is homogeneous of degree 0 in the normal: taken
-        ! from the interpolated one as it is, beside its normalisation
-        contact = contact_from_normal(run%ball%cup, y(1:3))
-        normal = y(1:3) / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
-        lateral = sqrt(normal(1)**2 + normal(2)**2)
-        call store_sample(res, run%next_sample, contact, contact + run%ball%radius * normal, y(4:6), normal, &
-                          lateral, [0.0_wp, 0.0_wp, 0.0_wp], 0.0_wp, [0.0_wp, 0.0_wp, 0.0_wp])
+        call record_geometry_sample(res, run%next_sample, run%ball, y)
       end if
       run%next_sample = run%next_sample + 1
     end do

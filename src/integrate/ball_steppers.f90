@@ -8,12 +8,14 @@ module ellroll_ball_steppers
   use ellroll_kinds, only: wp
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative
   use ellroll_integrators, only: dop853_t, max_equations
-  use ellroll_dop853_tableau, only: c853, end_stage, a853, e5, bhh
+  use ellroll_dop853_tableau, only: c853, end_stage, first_dense_stage, stages_dense, a_value, a_column, a_row, &
+      e5, bhh
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lanes_derivative
   implicit none
   private
 
-  public :: rk4_ball_step, dop853_ball_step, dop853_ball_dense, lanes_rk4_step, lanes_dop853_attempt
+  public :: rk4_ball_step, dop853_ball_step, dop853_ball_dense, lanes_rk4_step, lanes_dop853_attempt, &
+            lanes_dop853_dense_stages
 
   !> Right-hand-side calls of one DOP853 attempt and of its dense output.
   integer, parameter, public :: dop853_attempt_calls = end_stage - 1, dop853_dense_calls = 3
@@ -69,10 +71,12 @@ contains
     integer :: s
     prepared = .not. dop%dense_ready
     if (prepared) then
-      do s = end_stage + 1, end_stage + dop853_dense_calls
-        call dop%stage_input(s, dop%y_old, dop%h, stage)
-        call ball_derivative(ball, dop%t_old + c853(s) * dop%h, stage(:state_size), dop%k(:state_size, s))
-      end do
+      if (.not. dop%dense_stages_ready) then
+        do s = first_dense_stage, stages_dense
+          call dop%stage_input(s, dop%y_old, dop%h, stage)
+          call ball_derivative(ball, dop%t_old + c853(s) * dop%h, stage(:state_size), dop%k(:state_size, s))
+        end do
+      end if
       call dop%build_dense()
     end if
     call dop%dense_value(theta, stage)
@@ -117,18 +121,13 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), dimension(lanes, state_size), intent(in) :: y, f0
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
-    real(wp), intent(out) :: k(lanes, state_size, end_stage), y_new(lanes, state_size), error_norm(lanes)
+    real(wp), intent(out) :: k(lanes, state_size, stages_dense), y_new(lanes, state_size), error_norm(lanes)
     real(wp), dimension(lanes) :: err5, err3, scale, e5_norm2, e3_norm2
     real(wp) :: stage(lanes, state_size)
-    integer :: s, j, i, l
+    integer :: s, i, l
     k(:, :, 1) = f0
     do s = 2, end_stage                       ! the last stage input is y_new
-      do i = 1, state_size
-        stage(:, i) = y(:, i)
-        do j = 1, s - 1
-          if (a853(s, j) /= 0) stage(:, i) = stage(:, i) + (h * a853(s, j)) * k(:, i, j)
-        end do
-      end do
+      call lanes_stage_input(s, y, h, k, stage)
       call lanes_derivative(p, stage, k(:, :, s))
     end do
     y_new = stage
@@ -152,4 +151,36 @@ contains
       end if
     end do
   end subroutine lanes_dop853_attempt
+
+  !> The dense-output stages k(:, :, first_dense_stage:) of every lane's
+  !> last attempt from y with step h (dop853_ball_dense across lanes).
+  pure subroutine lanes_dop853_dense_stages(p, y, h, k)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), h(lanes)
+    real(wp), intent(inout) :: k(lanes, state_size, stages_dense)
+    real(wp) :: stage(lanes, state_size)
+    integer :: s
+    do s = first_dense_stage, stages_dense
+      call lanes_stage_input(s, y, h, k, stage)
+      call lanes_derivative(p, stage, k(:, :, s))
+    end do
+  end subroutine lanes_dop853_dense_stages
+
+  !> The input of stage s of every lane: y + h sum_j a(s, j) k_j, over the
+  !> nonzero a(s, j) in the order of dop853_t%stage_input.
+  pure subroutine lanes_stage_input(s, y, h, k, stage)
+    integer, intent(in) :: s
+    real(wp), intent(in) :: y(lanes, state_size), h(lanes), k(lanes, state_size, stages_dense)
+    real(wp), intent(out) :: stage(lanes, state_size)
+    real(wp) :: total(lanes)
+    integer :: i, m
+    do i = 1, state_size
+      m = a_row(s)
+      total = y(:, i) + (h * a_value(m)) * k(:, i, a_column(m))
+      do m = a_row(s) + 1, a_row(s + 1) - 1
+        total = total + (h * a_value(m)) * k(:, i, a_column(m))
+      end do
+      stage(:, i) = total
+    end do
+  end subroutine lanes_stage_input
 end module ellroll_ball_steppers

@@ -12,8 +12,8 @@ module ellroll_batch_run
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
   use ellroll_integrators, only: dop853_t, rk4_t
-  use ellroll_dop853_tableau, only: end_stage
-  use ellroll_ball_steppers, only: dop853_attempt_calls, lanes_rk4_step, lanes_dop853_attempt
+  use ellroll_dop853_tableau, only: end_stage, stages_dense
+  use ellroll_ball_steppers, only: dop853_attempt_calls, lanes_rk4_step, lanes_dop853_attempt, lanes_dop853_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due
   use ellroll_fixed_step_run, only: end_at_limit
@@ -202,11 +202,11 @@ contains
       type(dop853_t) :: dop(lanes)
       type(lane_outputs_t) :: out
       real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
-      real(wp) :: k(lanes, state_size, end_stage)
+      real(wp) :: k(lanes, state_size, stages_dense)
       real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
       type(nutation_peak_t) :: peak
       type(step_control_t) :: control(lanes)
-      logical :: accepted(lanes), loaded
+      logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
       integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
       integer :: i
       idle_rhs = 0
@@ -248,24 +248,27 @@ contains
         end do
         call lanes_observe(balls, y_new, f_new, out)
         call summary%add(out, accepted .and. out%status == status_completed)
+        ! a step with a sample, a maximum of Theta or a crossed limit inside
+        ! needs its dense output: the stages for all lanes at once
+        do l = 1, lanes
+          sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
+          peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
+        end do
+        dense = accepted .and. (sample_inside .or. peak_inside .or. out%status /= status_completed)
+        dense(n + 1:) = .false.
+        if (any(dense)) call lanes_dop853_dense_stages(balls, y, h, k)
         do l = 1, n
           if (.not. accepted(l)) cycle
+          if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
           if (out%status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
-            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
             call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
             active(l) = .false.
             cycle
           end if
-          loaded = .false.
-          if (sample_due(run(l), plan, t(l) + h(l))) then
-            call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
-            loaded = .true.
-            call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
-                                      lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
-          end if
-          if (nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))) then
-            if (.not. loaded) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+          if (sample_inside(l)) call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
+                                                          lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
+          if (peak_inside(l)) then
             call locate_nutation_peak(dop(l), run(l)%ball, peak, results(l)%n_rhs)
             call run(l)%maxima%add_peak(peak%t)
             call summary%note_nutation(l, peak%tan_nutation, peak%lateral, peak%normal_z)
@@ -286,20 +289,22 @@ contains
     end subroutine adaptive_lanes
   end subroutine simulate_batch
 
-  !> Lane l's last attempt (from t, step h: y -> y_raw, stages k) into a
-  !> dop853_t, as dop853_ball_step leaves it, for its dense output.
+  !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
+  !> dense-output ones) into a dop853_t, as dop853_ball_step leaves it, for
+  !> its dense output.
   pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
     type(dop853_t), intent(inout) :: dop
     integer, intent(in) :: l
-    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, end_stage)
+    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, stages_dense)
     real(wp), intent(in) :: error_norm
-    dop%k(:state_size, :end_stage) = k(l, :, :)
+    dop%k(:state_size, :) = k(l, :, :)
     dop%y_old(:state_size) = y(l, :)
     dop%y_new(:state_size) = y_raw(l, :)
     dop%t_old = t
     dop%h = h
     dop%error_norm = error_norm
     dop%dense_ready = .false.
+    dop%dense_stages_ready = .true.
   end subroutine load_attempt
 
   !> Lane l's end-of-step observation, what an output sample stores (no base

@@ -15,11 +15,12 @@ module ellroll_case_run
       limit_status, ball_derivative, nutation_angle
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
+  use ellroll_ellipsoid, only: contact_from_normal
   implicit none
   private
 
   public :: run_state_t, limit_search_t, event_time_tolerance, start_case, finish_case, sample_due
-  public :: track, track_step_end, note_nutation, accumulate, record_sample, store_sample
+  public :: track, track_step_end, note_nutation, accumulate, record_sample, record_geometry_sample
 
   !> Model limits are located in time to this (s).
   real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
@@ -269,38 +270,59 @@ contains
     res%constraint_error_max = max(res%constraint_error_max, obs%surface_residual)
   end subroutine accumulate
 
+  !> Every stored field's values at one output sample (Theta from the
+  !> lateral and vertical parts of the normal, only when it is stored).
   pure subroutine record_sample(res, sample, obs)
     type(case_result_t), intent(inout) :: res
     integer(i8), intent(in) :: sample
     type(observation_t), intent(in) :: obs
-    call store_sample(res, sample, obs%contact, obs%center, obs%omega, obs%normal, obs%lateral, obs%reaction, &
-                      obs%energy, obs%base_acceleration)
+    call put(res, sample, field_contact, obs%contact)
+    call put(res, sample, field_center, obs%center)
+    call put(res, sample, field_omega, obs%omega)
+    call put(res, sample, field_normal, obs%normal)
+    if (stored(res, field_nutation)) res%fields(field_nutation)%values(1, sample) = nutation_angle(obs%lateral, obs%normal(3))
+    call put(res, sample, field_reaction, obs%reaction)
+    if (stored(res, field_energy)) res%fields(field_energy)%values(1, sample) = obs%energy
+    call put(res, sample, field_base_acceleration, obs%base_acceleration)
+    res%n_recorded = sample
   end subroutine record_sample
 
-  !> Every stored field's values at one output sample (Theta from the
-  !> lateral and vertical parts of the normal, only when it is stored).
-  pure subroutine store_sample(res, sample, contact, center, omega, normal, lateral, reaction, energy, &
-                               base_acceleration)
+  !> An output sample of the state y (normal not projected) that stores only
+  !> its geometry (contact point, centre, omega, normal, Theta), each figure
+  !> computed only when a stored field needs it. The contact point is
+  !> homogeneous of degree 0 in the normal: taken from y as it is.
+  pure subroutine record_geometry_sample(res, sample, ball, y)
     type(case_result_t), intent(inout) :: res
     integer(i8), intent(in) :: sample
-    real(wp), intent(in) :: contact(3), center(3), omega(3), normal(3), lateral, reaction(3), energy, &
-                            base_acceleration(3)
-    call put(res, field_contact, contact)
-    call put(res, field_center, center)
-    call put(res, field_omega, omega)
-    call put(res, field_normal, normal)
-    if (allocated(res%fields(field_nutation)%values)) &
-      res%fields(field_nutation)%values(1, sample) = nutation_angle(lateral, normal(3))
-    call put(res, field_reaction, reaction)
-    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, sample) = energy
-    call put(res, field_base_acceleration, base_acceleration)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(state_size)
+    real(wp) :: contact(3), normal(3)
+    if (stored(res, field_contact) .or. stored(res, field_center)) then
+      contact = contact_from_normal(ball%cup, y(1:3))
+      call put(res, sample, field_contact, contact)
+    end if
+    call put(res, sample, field_omega, y(4:6))
+    if (stored(res, field_center) .or. stored(res, field_normal) .or. stored(res, field_nutation)) then
+      normal = y(1:3) / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+      if (stored(res, field_center)) res%fields(field_center)%values(:, sample) = contact + ball%radius * normal
+      call put(res, sample, field_normal, normal)
+      if (stored(res, field_nutation)) &
+        res%fields(field_nutation)%values(1, sample) = nutation_angle(sqrt(normal(1)**2 + normal(2)**2), normal(3))
+    end if
     res%n_recorded = sample
-  contains
-    pure subroutine put(res, field, values)
-      type(case_result_t), intent(inout) :: res
-      integer, intent(in) :: field
-      real(wp), intent(in) :: values(3)
-      if (allocated(res%fields(field)%values)) res%fields(field)%values(:, sample) = values
-    end subroutine put
-  end subroutine store_sample
+  end subroutine record_geometry_sample
+
+  pure logical function stored(res, field)
+    type(case_result_t), intent(in) :: res
+    integer, intent(in) :: field
+    stored = allocated(res%fields(field)%values)
+  end function stored
+
+  pure subroutine put(res, sample, field, values)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    integer, intent(in) :: field
+    real(wp), intent(in) :: values(3)
+    if (stored(res, field)) res%fields(field)%values(:, sample) = values
+  end subroutine put
 end module ellroll_case_run

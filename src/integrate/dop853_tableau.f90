@@ -5,8 +5,9 @@ module ellroll_dop853_tableau
   use ellroll_kinds, only: wp
   implicit none
   private
+  integer, private :: j, s              ! of the implied loops in the constants below
 
-  public :: stages, stages_dense, end_stage, first_dense_stage, c853, a853, e5, bhh, d853
+  public :: stages, stages_dense, end_stage, first_dense_stage, c853, a853, a_value, a_column, a_row, e5, bhh, d853
 
   ! ---- Dormand-Prince 8(5,3): E. Hairer, S. P. Norsett, G. Wanner, Solving
   ! Ordinary Differential Equations I, 2nd ed., Springer 1993 (DOP853).
@@ -111,6 +112,13 @@ module ellroll_dop853_tableau
       0.0_wp, 0.0_wp, 0.0_wp, &
       -1.39902416515901462129418009734e-3_wp, 2.9475147891527723389556272149_wp, -9.15095847217987001081870187138_wp], &
       [16, 15], order=[2, 1])
+  !> The nonzero a(s, j), row by row (sum over them without a test per
+  !> entry): a_value(m) = a853(s, a_column(m)) for m in a_row(s):a_row(s + 1) - 1.
+  integer, parameter, private :: a_count = count(a853 /= 0)
+  real(wp), parameter :: a_value(a_count) = pack(transpose(a853), transpose(a853) /= 0)
+  integer, parameter :: a_column(a_count) = pack(transpose(spread([(j, j = 1, 15)], 1, 16)), transpose(a853) /= 0)
+  integer, parameter, private :: row_of(16, 15) = spread([(s, s = 1, 16)], 2, 15)
+  integer, parameter :: a_row(17) = [(1 + count(a853 /= 0 .and. row_of < s), s = 1, 17)]
   !> DOP853 dense-output matrix D.
   real(wp), parameter :: d853(4, 16) = reshape([ &
       -0.84289382761090128651353491142e1_wp, 0.0_wp, 0.0_wp, &

@@ -11,7 +11,8 @@ module ellroll_integrators
   use ellroll_kinds, only: wp, i8
   use ellroll_ode, only: ode_system_t
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_dop853_tableau, only: stages, stages_dense, end_stage, first_dense_stage, c853, a853, e5, bhh, d853
+  use ellroll_dop853_tableau, only: stages, stages_dense, end_stage, first_dense_stage, c853, a_value, a_column, a_row, &
+      e5, bhh, d853
   implicit none
   private
 
@@ -68,9 +69,12 @@ module ellroll_integrators
     real(wp) :: error_norm = 0
     real(wp) :: k(max_equations, 16) = 0      !< stages of the last attempt
     real(wp) :: y_old(max_equations) = 0, y_new(max_equations) = 0
-    real(wp) :: dense_rows(max_equations, 7) = 0
+    !> the interpolant y_old + sum_i c(:, i - 1) theta^i, theta = (t - t_old) / h
+    real(wp) :: dense_coefficients(max_equations, 0:6) = 0
     real(wp) :: t_old = 0, h = 0
     logical :: dense_ready = .false.
+    !> the dense-output stages are in k already (computed with other lanes of a batch)
+    logical :: dense_stages_ready = .false.
   contains
     procedure :: step => dop853_step
     procedure :: dense => dop853_dense
@@ -172,17 +176,22 @@ contains
 
   !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
   !> (s = end_stage: the new solution; s > end_stage: dense-output stages,
-  !> from y = y_old).
+  !> from y = y_old). The sum runs in a local, so that it stays in registers
+  !> and its first term loads y directly: a copy of y into point first cost
+  !> a stalled store-to-load forward per stage.
   pure subroutine dop853_stage_input(self, s, y, h, point)
     class(dop853_t), intent(in) :: self
     integer, intent(in) :: s
     real(wp), intent(in) :: y(max_equations), h
     real(wp), intent(out) :: point(max_equations)
-    integer :: j
-    point = y
-    do j = 1, s - 1
-      if (a853(s, j) /= 0) point = point + (h * a853(s, j)) * self%k(:, j)
+    real(wp) :: total(max_equations)
+    integer :: m
+    m = a_row(s)
+    total = y + (h * a_value(m)) * self%k(:, a_column(m))
+    do m = a_row(s) + 1, a_row(s + 1) - 1
+      total = total + (h * a_value(m)) * self%k(:, a_column(m))
     end do
+    point = total
   end subroutine dop853_stage_input
 
   !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
@@ -194,7 +203,8 @@ contains
     real(wp) :: err5(max_equations), err3(max_equations), scale(max_equations), e5_norm2, e3_norm2
     integer :: s
     err5 = 0
-    do s = 1, end_stage
+    !GCC$ unroll 16
+    do s = 1, end_stage                  ! unrolled, the tests on e5 fold away
       if (e5(s) /= 0) err5 = err5 + e5(s) * self%k(:, s)
     end do
     err3 = (y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)
@@ -211,6 +221,7 @@ contains
     self%t_old = t
     self%h = h
     self%dense_ready = .false.
+    self%dense_stages_ready = .false.
   end subroutine dop853_finish_attempt
 
   !> y(t_old + theta h), theta in [0, 1], for the last attempted step.
@@ -235,71 +246,66 @@ contains
     y = stage(:n)
   end subroutine dop853_dense
 
-  !> The interpolant's coefficients, once the dense-output stages are in self%k.
+  !> The interpolant's coefficients, once the dense-output stages are in
+  !> self%k: Hairer's form y_old + theta (r1 + theta1 (r2 + theta (r3 + ...
+  !> r7))), theta1 = 1 - theta, rewritten in powers of theta, y_old + sum_i
+  !> c_i theta^i, so that a value or a rate is a tree of independent
+  !> products (Estrin) rather than a chain of fourteen dependent operations.
   pure subroutine dop853_build_dense(self)
     class(dop853_t), intent(inout) :: self
-    real(wp) :: delta(max_equations), rows(max_equations, 4), stage(max_equations)
+    real(wp) :: delta(max_equations), rows(max_equations, 7), stage(max_equations)
     integer :: s, i
     delta = self%y_new - self%y_old
-    self%dense_rows(:, 1) = delta
-    self%dense_rows(:, 2) = self%h * self%k(:, 1) - delta
-    self%dense_rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
     rows = 0                   ! local, fixed-size: kept in registers
+    rows(:, 1) = delta
+    rows(:, 2) = self%h * self%k(:, 1) - delta
+    rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
     do s = 1, stages_dense
       if (all(d853(:, s) == 0)) cycle
       stage = self%k(:, s)
       do i = 1, 4
-        rows(:, i) = rows(:, i) + (self%h * d853(i, s)) * stage
+        rows(:, 3 + i) = rows(:, 3 + i) + (self%h * d853(i, s)) * stage
       end do
     end do
-    self%dense_rows(:, 4:7) = rows
+    ! theta (r1 + theta1 (r2 + theta (r3 + theta1 (r4 + ... theta r7)))) expanded
+    associate (c => self%dense_coefficients)
+      c(:, 0) = rows(:, 1) + rows(:, 2)
+      c(:, 1) = (rows(:, 3) - rows(:, 2)) + rows(:, 4)
+      c(:, 2) = (rows(:, 5) + rows(:, 6)) - (rows(:, 3) + 2 * rows(:, 4))
+      c(:, 3) = (rows(:, 4) + rows(:, 7)) - (2 * rows(:, 5) + 3 * rows(:, 6))
+      c(:, 4) = (rows(:, 5) + 3 * rows(:, 6)) - 3 * rows(:, 7)
+      c(:, 5) = 3 * rows(:, 7) - rows(:, 6)
+      c(:, 6) = -rows(:, 7)
+    end associate
     self%dense_ready = .true.
   end subroutine dop853_build_dense
 
+  !> y(t_old + theta h), theta in [0, 1], of the last attempt's interpolant.
   pure subroutine dop853_dense_value(self, theta, y)
     class(dop853_t), intent(in) :: self
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(max_equations)
-    real(wp) :: theta1
-    theta1 = 1 - theta
-    ! Horner in theta and (1 - theta), alternating
-    y = self%dense_rows(:, 7) * theta
-    y = (y + self%dense_rows(:, 6)) * theta1
-    y = (y + self%dense_rows(:, 5)) * theta
-    y = (y + self%dense_rows(:, 4)) * theta1
-    y = (y + self%dense_rows(:, 3)) * theta
-    y = (y + self%dense_rows(:, 2)) * theta1
-    y = (y + self%dense_rows(:, 1)) * theta
-    y = y + self%y_old
+    real(wp) :: theta2, theta4
+    theta2 = theta * theta
+    theta4 = theta2 * theta2
+    associate (c => self%dense_coefficients)
+      y = self%y_old + theta * (((c(:, 0) + theta * c(:, 1)) + theta2 * (c(:, 2) + theta * c(:, 3))) &
+                                + theta4 * ((c(:, 4) + theta * c(:, 5)) + theta2 * c(:, 6)))
+    end associate
   end subroutine dop853_dense_value
 
-  !> dy/dtheta = h dy/dt of the interpolant at t_old + theta h (dense_value
-  !> differentiated, Horner step by Horner step).
+  !> dy/dtheta = h dy/dt of the interpolant at t_old + theta h.
   pure subroutine dop853_dense_rate(self, theta, rate)
     class(dop853_t), intent(in) :: self
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: rate(max_equations)
-    real(wp) :: theta1, p(max_equations), q(max_equations)
-    theta1 = 1 - theta
-    p = self%dense_rows(:, 7) * theta
-    rate = self%dense_rows(:, 7)
-    q = p + self%dense_rows(:, 6)
-    p = q * theta1
-    rate = rate * theta1 - q
-    q = p + self%dense_rows(:, 5)
-    p = q * theta
-    rate = rate * theta + q
-    q = p + self%dense_rows(:, 4)
-    p = q * theta1
-    rate = rate * theta1 - q
-    q = p + self%dense_rows(:, 3)
-    p = q * theta
-    rate = rate * theta + q
-    q = p + self%dense_rows(:, 2)
-    p = q * theta1
-    rate = rate * theta1 - q
-    q = p + self%dense_rows(:, 1)
-    rate = rate * theta + q
+    real(wp) :: theta2, theta4
+    theta2 = theta * theta
+    theta4 = theta2 * theta2
+    associate (c => self%dense_coefficients)
+      rate = ((c(:, 0) + (2 * theta) * c(:, 1)) + theta2 * (3 * c(:, 2) + (4 * theta) * c(:, 3))) &
+             + theta4 * ((5 * c(:, 4) + (6 * theta) * c(:, 5)) + (7 * theta2) * c(:, 6))
+    end associate
   end subroutine dop853_dense_rate
 
   !> Hairer's starting step: first guess from |y|/|f|, refined with one Euler step.

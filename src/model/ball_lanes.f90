@@ -83,47 +83,40 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
-    real(wp) :: r, length2, length, inv_length, ay1, ay2, ay3, q, inv_q, inv_s, inv_s2, trace, det
-    real(wp) :: v1, v2, v3, ay_v, kv1, kv2, kv3, nl1, nl2, nl3, inv_det_l, spin, radial
+    real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
+    real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
       length2 = y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)
       length = sqrt(length2)
-      inv_length = 1 / length
-      ! radius operator K from y: 1 / (y . A y), 1 / s, tr K, det K
+      inv_length2 = 1 / length2
       ay1 = p%a2(l) * y(l, 1)
       ay2 = p%b2(l) * y(l, 2)
       ay3 = p%c2(l) * y(l, 3)
       q = y(l, 1) * ay1 + y(l, 2) * ay2 + y(l, 3) * ay3
-      inv_q = 1 / q
-      inv_s = sqrt(q) * (length * inv_q)
-      inv_s2 = length2 * inv_q
-      trace = (p%axes2_sum(l) - (ay1 * ay1 + ay2 * ay2 + ay3 * ay3) * inv_q) * inv_s
-      det = p%det_axes2(l) * inv_s2 * inv_s2
-      ! V_C = R omega x n; n' det L = (R - tr K) V_C + K V_C
-      radial = r * inv_length
-      v1 = radial * (y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2))
-      v2 = radial * (y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3))
-      v3 = radial * (y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1))
-      ay_v = (ay1 * v1 + ay2 * v2 + ay3 * v3) * inv_q
-      kv1 = (p%a2(l) * v1 - ay1 * ay_v) * inv_s
-      kv2 = (p%b2(l) * v2 - ay2 * ay_v) * inv_s
-      kv3 = (p%c2(l) * v3 - ay3 * ay_v) * inv_s
-      nl1 = (r - trace) * v1 + kv1
-      nl2 = (r - trace) * v2 + kv2
-      nl3 = (r - trace) * v3 + kv3
-      inv_det_l = 1 / (r * (r - trace) + det)
-      spin = (y(l, 4) * y(l, 1) + y(l, 5) * y(l, 2) + y(l, 6) * y(l, 3)) * inv_length
-      dydt(l, 1) = (length * nl1) * inv_det_l
-      dydt(l, 2) = (length * nl2) * inv_det_l
-      dydt(l, 3) = (length * nl3) * inv_det_l
-      dydt(l, 4) = ((spin * p%inv_one_plus_k(l)) * nl1) * inv_det_l &
-                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * (-y(l, 2))
-      dydt(l, 5) = ((spin * p%inv_one_plus_k(l)) * nl2) * inv_det_l &
-                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * y(l, 1)
-      dydt(l, 6) = ((spin * p%inv_one_plus_k(l)) * nl3) * inv_det_l &
-                   + (p%g_over_r(l) * p%inv_one_plus_k(l) * inv_length) * 0.0_wp
+      sigma = sqrt(q)
+      pq = p%axes2_sum(l) * q - (ay1 * ay1 + ay2 * ay2 + ay3 * ay3)
+      r_sigma = r * sigma
+      e = r_sigma * q - length * pq
+      denominator = r_sigma * e + p%det_axes2(l) * (length2 * length2)
+      w1 = y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2)
+      w2 = y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3)
+      w3 = y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1)
+      ay_w = ay1 * w1 + ay2 * w2 + ay3 * w3
+      x1 = e * w1 + length * (q * (p%a2(l) * w1) - ay_w * ay1)
+      x2 = e * w2 + length * (q * (p%b2(l) * w2) - ay_w * ay2)
+      x3 = e * w3 + length * (q * (p%c2(l) * w3) - ay_w * ay3)
+      rate = r_sigma / denominator
+      dydt(l, 1) = rate * x1
+      dydt(l, 2) = rate * x2
+      dydt(l, 3) = rate * x3
+      spin_rate = (p%inv_one_plus_k(l) * (y(l, 4) * y(l, 1) + y(l, 5) * y(l, 2) + y(l, 6) * y(l, 3)) * inv_length2) &
+                  * rate
+      gravity = p%g_over_r(l) * p%inv_one_plus_k(l) * (length * inv_length2)
+      dydt(l, 4) = spin_rate * x1 + gravity * (-y(l, 2))
+      dydt(l, 5) = spin_rate * x2 + gravity * y(l, 1)
+      dydt(l, 6) = spin_rate * x3 + gravity * 0.0_wp
     end do
   end subroutine lanes_derivative
 

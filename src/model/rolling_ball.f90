@@ -82,45 +82,48 @@ contains
   !> The right-hand side on explicit-shape arrays: the one implementation,
   !> behind the generic interface (ball_rhs) and the fused steps; the batch's
   !> lanes_derivative is the same arithmetic, expression by expression.
-  !> K comes from y as it is (y = |y| n between projections): with
-  !> q = y . A y = |y|^2 s^2, tr K and det K need 1/q and 1/s = |y| / sqrt(q),
-  !> whose reciprocal and root run side by side, and n' det L is formed
-  !> before 1/det L, the last long operation, is known.
+  !> From y as it is (y = L n between projections, L = |y|), with q = y . A y
+  !> = L^2 s^2 and sigma = sqrt(q), every quotient over one denominator:
+  !>   E = sigma^3 (R - tr K) = R sigma q - L P,   P = tr(A) q - |A y|^2,
+  !>   D = sigma^4 det L = R sigma E + det(A) L^4,
+  !>   n' = R sigma (E w + L M) / D,   w = omega x y,  M = q A w - (A y . w) A y,
+  !>   omega' = J* ((omega . y) / L^2 n' + (g / R) (-y_y, y_x, 0) / L).
+  !> The two roots and the quotients by D and L^2 are the only long
+  !> operations, and the longest chain (q, sigma, E, D, 1/D) is a fifth
+  !> shorter than with 1/|y|, 1/q and 1/det L each in turn.
   pure subroutine ball_derivative(ball, t, y, dydt)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
-    real(wp) :: r, length2, length, inv_length, ay(3), q, inv_q, inv_s, inv_s2, trace, det, v(3), ay_v, kv(3)
-    real(wp) :: n_dot_det_l(3), inv_det_l, j_star, spin
+    real(wp) :: r, length2, length, inv_length2, ay(3), q, sigma, r_sigma, pq, e, denominator, w(3), ay_w, m(3), x(3)
+    real(wp) :: rate
     r = ball%radius
     length2 = y(1) * y(1) + y(2) * y(2) + y(3) * y(3)
     length = sqrt(length2)
-    inv_length = 1 / length
+    inv_length2 = 1 / length2
     ay = ball%cup%axes2 * y(1:3)
     q = y(1) * ay(1) + y(2) * ay(2) + y(3) * ay(3)
-    inv_q = 1 / q
-    inv_s = sqrt(q) * (length * inv_q)
-    inv_s2 = length2 * inv_q
-    trace = (sum(ball%cup%axes2) - (ay(1) * ay(1) + ay(2) * ay(2) + ay(3) * ay(3)) * inv_q) * inv_s
-    det = ball%cup%det_axes2 * inv_s2 * inv_s2
-    ! V_C = R omega x n; n' = ((R - tr K) V_C + K V_C) / det L
-    v = (r * inv_length) * [y(5) * y(3) - y(6) * y(2), y(6) * y(1) - y(4) * y(3), y(4) * y(2) - y(5) * y(1)]
-    ay_v = (ay(1) * v(1) + ay(2) * v(2) + ay(3) * v(3)) * inv_q
-    kv = (ball%cup%axes2 * v - ay * ay_v) * inv_s
-    n_dot_det_l = (r - trace) * v + kv
-    inv_det_l = 1 / (r * (r - trace) + det)
-    ! omega' = J* ((omega . n) n' + (g / R) (-n_y, n_x, 0))
-    j_star = 1 / (1 + ball%inertia_factor)
-    spin = (y(4) * y(1) + y(5) * y(2) + y(6) * y(3)) * inv_length
-    dydt(1:3) = (length * n_dot_det_l) * inv_det_l
-    dydt(4:6) = ((spin * j_star) * n_dot_det_l) * inv_det_l &
-                + ((ball%g / r) * j_star * inv_length) * [-y(2), y(1), 0.0_wp]
-    ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
-    ! a fixed cup costs nothing)
-    if (ball%excitation%kind /= excitation_none) &
-      dydt(4:6) = dydt(4:6) - cross(y(1:3) * inv_length, base_acceleration(ball%excitation, t)) &
-                  / (ball%radius * (1 + ball%inertia_factor))
+    sigma = sqrt(q)
+    pq = sum(ball%cup%axes2) * q - (ay(1) * ay(1) + ay(2) * ay(2) + ay(3) * ay(3))
+    r_sigma = r * sigma
+    e = r_sigma * q - length * pq
+    denominator = r_sigma * e + ball%cup%det_axes2 * (length2 * length2)
+    w = [y(5) * y(3) - y(6) * y(2), y(6) * y(1) - y(4) * y(3), y(4) * y(2) - y(5) * y(1)]
+    ay_w = ay(1) * w(1) + ay(2) * w(2) + ay(3) * w(3)
+    m = q * (ball%cup%axes2 * w) - ay_w * ay
+    x = e * w + length * m
+    rate = r_sigma / denominator
+    dydt(1:3) = rate * x
+    associate (j_star => 1 / (1 + ball%inertia_factor))
+      dydt(4:6) = ((j_star * (y(4) * y(1) + y(5) * y(2) + y(6) * y(3)) * inv_length2) * rate) * x &
+                  + ((ball%g / r) * j_star * (length * inv_length2)) * [-y(2), y(1), 0.0_wp]
+      ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
+      ! a fixed cup costs nothing)
+      if (ball%excitation%kind /= excitation_none) &
+        dydt(4:6) = dydt(4:6) - cross(y(1:3) * (length * inv_length2), base_acceleration(ball%excitation, t)) &
+                    / (ball%radius * (1 + ball%inertia_factor))
+    end associate
   end subroutine ball_derivative
 
   pure subroutine normalize_normal(self, y)

@@ -98,7 +98,7 @@ contains
   subroutine step_control_floors()
     type(step_control_t) :: a, b
     real(wp) :: ha, hb
-    a = step_control_t(previous_norm=0.3_wp)
+    a = step_control_t(log_previous_norm=log(0.3_wp))
     b = a
     ha = 1
     hb = 1
@@ -115,8 +115,8 @@ contains
     call a%accept(ha, 0.5_wp, 100.0_wp)
     call b%accept(hb, 0.5_wp, 100.0_wp)
     call check_below(abs(ha - hb), 0.0_wp, 'step control: steps after previous error norms 1e-6 and 3e-5 differ by')
-    a = step_control_t(previous_norm=0.1_wp)
-    b = step_control_t(previous_norm=0.9_wp)
+    a = step_control_t(log_previous_norm=log(0.1_wp))
+    b = step_control_t(log_previous_norm=log(0.9_wp))
     ha = 1
     hb = 1
     call a%accept(ha, 0.5_wp, 100.0_wp)
