@@ -1,7 +1,8 @@
 !> Batches of up to `lanes` cases on fixed cups, one per SIMD lane
-!> (ellroll_ball_lanes): the steps, the observations and the summary of all
-!> lanes at once; what happens to one lane alone (dense output, a crossed
-!> limit, a maximum of Theta) is the one-case code on that lane.
+!> (ellroll_ball_lanes): the steps, the observations, the summary and
+!> DOP853's dense-output stages of all lanes at once; what happens to one
+!> lane alone (its interpolant, a crossed limit, a maximum of Theta) is the
+!> one-case code on that lane.
 module ellroll_batch_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -196,8 +197,9 @@ contains
 
     !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
     !> attempts of all lanes together, the step control of each lane its
-    !> own. An attempt is copied into the lane's dop853_t only when its dense
-    !> output is needed (a sample inside the step, a crossed limit).
+    !> own. An attempt, with the dense-output stages computed for all lanes,
+    !> is copied into the lane's dop853_t only when its dense output is needed
+    !> (a sample or a maximum of Theta inside the step, a crossed limit).
     subroutine adaptive_lanes()
       type(dop853_t) :: dop(lanes)
       type(lane_outputs_t) :: out

@@ -28,13 +28,16 @@ end module oscillator
 !> symplectic); DOP853's dense-output order; the adaptive method's achieved
 !> error against rtol.
 program test_integrators
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use oscillator, only: oscillator_t
   use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
   use ellroll_errors, only: error_t
-  use ellroll_cases, only: case_t, field_contact, field_omega
+  use ellroll_cases, only: case_t, output_plan_t, field_contact, field_center, field_omega, field_normal, &
+      field_nutation, field_energy
   use ellroll_results, only: case_result_t
   use fixtures, only: paper_case, run_case
+  use ellroll_simulate, only: simulate_case
   use ellroll_adaptive_run, only: step_control_t
   use testing
   implicit none
@@ -68,6 +71,7 @@ program test_integrators
   call adaptive_nutation_maxima()
   call step_control_floors()
   call stability_limited_steps()
+  call geometry_samples()
 
   ! the adaptive method's error tracks rtol (paper case, contact point at 2 s)
   cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
@@ -146,6 +150,50 @@ contains
           ' rejected'
     call check_below(rejected, 0.2_wp, 'dop853 rtol 1e-3, stability-limited: fraction of attempts rejected')
   end subroutine stability_limited_steps
+
+  !> A DOP853 sample that stores only geometry (contact, centre, omega,
+  !> normal, Theta) computes each value alone from the dense output; it
+  !> equals, to round-off, the sample of a run that also stores the energy
+  !> (every derived output from the projected state), whichever subset of
+  !> the geometry is stored.
+  subroutine geometry_samples()
+    integer, parameter :: geometry(5) = [field_contact, field_center, field_omega, field_normal, field_nutation]
+    type(case_t) :: cs
+    type(output_plan_t) :: plan
+    type(case_result_t) :: full, part
+    type(error_t) :: err
+    real(wp) :: worst
+    integer :: f, subset
+    logical :: finite
+    cs = paper_case(0.5_wp, 10.0_wp)
+    cs%method = 'dop853'
+    cs%rtol = 1.0e-9_wp
+    cs%atol = 1.0e-12_wp
+    plan%interval = 0.1_wp
+    plan%n_samples = 101
+    plan%fields = .false.
+    plan%fields([geometry, field_energy]) = .true.
+    call simulate_case(cs, plan, full, err)
+    worst = 0
+    finite = .true.
+    do subset = 1, 6           ! each geometry field alone, then all of them
+      plan%fields = .false.
+      if (subset <= 5) then
+        plan%fields(geometry(subset)) = .true.
+      else
+        plan%fields(geometry) = .true.
+      end if
+      call simulate_case(cs, plan, part, err)
+      do f = 1, 5
+        if (.not. plan%fields(geometry(f))) cycle
+        finite = finite .and. all(ieee_is_finite(part%fields(geometry(f))%values))
+        worst = max(worst, maxval(abs(part%fields(geometry(f))%values - full%fields(geometry(f))%values)) &
+                           / maxval(abs(full%fields(geometry(f))%values)))
+      end do
+    end do
+    call check(finite, 'dop853 geometry-only samples are finite, any subset')
+    call check_below(worst, 1.0e-14_wp, 'dop853 geometry-only samples vs complete ones, any subset (max rel. diff)')
+  end subroutine geometry_samples
 
   subroutine orders_on_oscillator(method, dts, name, order)
     class(integrator_t), intent(inout) :: method
