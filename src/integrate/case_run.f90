@@ -312,12 +312,14 @@ contains
     res%n_recorded = sample
   end subroutine record_geometry_sample
 
+  !> Whether the case stores this output field.
   pure logical function stored(res, field)
     type(case_result_t), intent(in) :: res
     integer, intent(in) :: field
     stored = allocated(res%fields(field)%values)
   end function stored
 
+  !> A 3-vector field's values at one output sample, when it is stored.
   pure subroutine put(res, sample, field, values)
     type(case_result_t), intent(inout) :: res
     integer(i8), intent(in) :: sample

@@ -91,6 +91,7 @@ contains
       length2 = y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)
       length = sqrt(length2)
       inv_length2 = 1 / length2
+      ! ball_derivative's q, sigma, P, E, D, w, M (see there)
       ay1 = p%a2(l) * y(l, 1)
       ay2 = p%b2(l) * y(l, 2)
       ay3 = p%c2(l) * y(l, 3)
