@@ -300,13 +300,7 @@ contains
     real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, stages_dense)
     real(wp), intent(in) :: error_norm
     dop%k(:state_size, :) = k(l, :, :)
-    dop%y_old(:state_size) = y(l, :)
-    dop%y_new(:state_size) = y_raw(l, :)
-    dop%t_old = t
-    dop%h = h
-    dop%error_norm = error_norm
-    dop%dense_ready = .false.
-    dop%dense_stages_ready = .true.
+    call dop%hold_attempt(t, h, y(l, :), y_raw(l, :), error_norm, dense_stages_ready=.true.)
   end subroutine load_attempt
 
   !> Lane l's end-of-step observation, what an output sample stores (no base

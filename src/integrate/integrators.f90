@@ -81,6 +81,7 @@ module ellroll_integrators
     procedure :: initial_step => dop853_initial_step
     procedure :: stage_input => dop853_stage_input
     procedure :: finish_attempt => dop853_finish_attempt
+    procedure :: hold_attempt => dop853_hold_attempt
     procedure :: build_dense => dop853_build_dense
     procedure :: dense_value => dop853_dense_value
     procedure :: dense_rate => dop853_dense_rate
@@ -200,7 +201,7 @@ contains
     class(dop853_t), intent(inout) :: self
     integer, intent(in) :: n
     real(wp), intent(in) :: t, y(max_equations), h, y_new(max_equations)
-    real(wp) :: err5(max_equations), err3(max_equations), scale(max_equations), e5_norm2, e3_norm2
+    real(wp) :: err5(max_equations), err3(max_equations), scale(max_equations), e5_norm2, e3_norm2, error_norm
     integer :: s
     err5 = 0
     !GCC$ unroll 16
@@ -212,17 +213,28 @@ contains
     e5_norm2 = sum((err5(:n) / scale(:n))**2)
     e3_norm2 = sum((err3(:n) / scale(:n))**2)
     if (e5_norm2 == 0 .and. e3_norm2 == 0) then
-      self%error_norm = 0
+      error_norm = 0
     else
-      self%error_norm = abs(h) * e5_norm2 / sqrt((e5_norm2 + 0.01_wp * e3_norm2) * n)
+      error_norm = abs(h) * e5_norm2 / sqrt((e5_norm2 + 0.01_wp * e3_norm2) * n)
     end if
-    self%y_old = y
-    self%y_new = y_new
+    call self%hold_attempt(t, h, y, y_new, error_norm, dense_stages_ready=.false.)
+  end subroutine dop853_finish_attempt
+
+  !> Keep the attempt y -> y_new from t with step h and its error norm as
+  !> the last one, whose dense output is prepared on demand;
+  !> dense_stages_ready: its dense-output stages are in k already.
+  pure subroutine dop853_hold_attempt(self, t, h, y, y_new, error_norm, dense_stages_ready)
+    class(dop853_t), intent(inout) :: self
+    real(wp), intent(in) :: t, h, y(:), y_new(:), error_norm
+    logical, intent(in) :: dense_stages_ready
+    self%y_old(:size(y)) = y
+    self%y_new(:size(y_new)) = y_new
     self%t_old = t
     self%h = h
+    self%error_norm = error_norm
     self%dense_ready = .false.
-    self%dense_stages_ready = .false.
-  end subroutine dop853_finish_attempt
+    self%dense_stages_ready = dense_stages_ready
+  end subroutine dop853_hold_attempt
 
   !> y(t_old + theta h), theta in [0, 1], for the last attempted step.
   subroutine dop853_dense(self, sys, theta, y, n_rhs)
