@@ -252,12 +252,14 @@ contains
         call summary%add(out, accepted .and. out%status == status_completed)
         ! a step with a sample, a maximum of Theta or a crossed limit inside
         ! needs its dense output: the stages for all lanes at once
-        do l = 1, lanes
+        sample_inside = .false.
+        peak_inside = .false.
+        do l = 1, n
+          if (.not. accepted(l)) cycle
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
-        dense = accepted .and. (sample_inside .or. peak_inside .or. out%status /= status_completed)
-        dense(n + 1:) = .false.
+        dense = sample_inside .or. peak_inside .or. (accepted .and. out%status /= status_completed)
         if (any(dense)) call lanes_dop853_dense_stages(balls, y, h, k)
         do l = 1, n
           if (.not. accepted(l)) cycle

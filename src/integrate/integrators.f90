@@ -247,10 +247,12 @@ contains
     integer :: s, n
     n = size(y)
     if (.not. self%dense_ready) then
-      do s = first_dense_stage, stages_dense
-        call self%stage_input(s, self%y_old, self%h, stage)
-        call sys%rhs(self%t_old + c853(s) * self%h, stage(:n), self%k(:n, s))
-      end do
+      if (.not. self%dense_stages_ready) then
+        do s = first_dense_stage, stages_dense
+          call self%stage_input(s, self%y_old, self%h, stage)
+          call sys%rhs(self%t_old + c853(s) * self%h, stage(:n), self%k(:n, s))
+        end do
+      end if
       n_rhs = n_rhs + (stages_dense - end_stage)
       call self%build_dense()
     end if
