@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Reading ellroll files with h5py: one case's full trajectory and the whole
-summary of a 10^4-case campaign (chunks hold one case each, so reading one
-case touches one chunk per dataset).
+summary of a 10^4-case campaign (a case's samples are one piece of each
+contiguous trajectory dataset, so reading a case is one read per dataset).
 
     python bench/post.py [--exe build/ellroll] [--cases 10000]
 """

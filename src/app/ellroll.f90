@@ -15,6 +15,7 @@ program ellroll
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_hdf5, only: provenance_t
+  use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice
   use ellroll_integrators, only: integrator_t, new_integrator, method_names
   use ellroll_linear, only: oscillation_periods
@@ -108,6 +109,8 @@ contains
         opts%resume = .true.
       case ('-q', '--quiet')
         opts%quiet = .true.
+      case ('--timings')
+        opts%timings = .true.
       case ('run', 'check', 'merge', 'summary', 'methods', 'modes')
         if (len(command) > 0) then
           call usage_error('more than one command given (' // command // ', ' // arg // ')')
@@ -189,6 +192,8 @@ contains
       '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
       '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file', &
       '  -q, --quiet           no progress lines on stderr', &
+      '  --timings             print where the run''s time went: before, in and after the loop', &
+      '                        over cases, and each lock of the loop (held and waited for)', &
       '', &
       'exit codes: 0 ok (also when a case ended at a model limit), 1 internal error,', &
       '            2 bad input, 3 output error', &
@@ -266,7 +271,9 @@ contains
     character(len=:), allocatable :: advice
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
+    opts%advice_seconds = wall_clock()
     advice = step_size_advice(inp)
+    opts%advice_seconds = wall_clock() - opts%advice_seconds
     if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') 'ellroll: ' // advice
     if (n_ranks > 1) then
       call run_ranks(inp, err)

@@ -1,11 +1,13 @@
 !> The few operating-system services the program needs, through the C library.
 module ellroll_system
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_size_t, c_ptr, &
-      c_null_ptr, c_associated
+      c_null_ptr, c_associated, c_int64_t
+  use ellroll_kinds, only: wp, i8
   implicit none
   private
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime
+  public :: open_for_writing, write_words_at, write_pieces_at, close_descriptor, system_error_text
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -35,6 +37,36 @@ module ellroll_system
     !> the heap keeps freed memory for reuse.
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
+    ! positioned writes (src/core/positioned_write.c)
+    integer(c_int) function c_open_for_writing(path) bind(c, name='ellroll_open_for_writing')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_open_for_writing
+    integer(c_int) function c_write_at(fd, buffer, bytes, offset) bind(c, name='ellroll_write_at')
+      import :: c_int, c_size_t, c_int64_t
+      integer(c_int), value :: fd
+      type(*), intent(in) :: buffer(*)
+      integer(c_size_t), value :: bytes
+      integer(c_int64_t), value :: offset
+    end function c_write_at
+    integer(c_int) function c_write_pieces_at(fd, pieces, bytes, count, offset) &
+        bind(c, name='ellroll_write_pieces_at')
+      import :: c_int, c_ptr, c_int64_t
+      integer(c_int), value :: fd, count
+      type(c_ptr), intent(in) :: pieces(*)
+      integer(c_int64_t), intent(in) :: bytes(*)
+      integer(c_int64_t), value :: offset
+    end function c_write_pieces_at
+    integer(c_int) function c_close_descriptor(fd) bind(c, name='ellroll_close_descriptor')
+      import :: c_int
+      integer(c_int), value :: fd
+    end function c_close_descriptor
+    subroutine c_error_text(code, text, size) bind(c, name='ellroll_error_text')
+      import :: c_int, c_char, c_size_t
+      integer(c_int), value :: code
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_size_t), value :: size
+    end subroutine c_error_text
   end interface
 
 contains
@@ -55,6 +87,51 @@ contains
     integer(c_int) :: rc
     rc = c_remove(path // c_null_char)
   end subroutine remove_file
+
+  !> A descriptor of existing file `path` open for writing (>= 0), or a
+  !> negative errno value.
+  integer function open_for_writing(path) result(fd)
+    character(len=*), intent(in) :: path
+    fd = c_open_for_writing(path // c_null_char)
+  end function open_for_writing
+
+  !> Write the n words of `values` at byte `offset` (from 0) of descriptor
+  !> fd, all of them; 0, or an errno value. Threads may write disjoint
+  !> regions of one file at the same time.
+  integer function write_words_at(fd, values, n, offset) result(code)
+    integer, intent(in) :: fd
+    integer(i8), intent(in) :: n, offset
+    integer(i8), intent(in) :: values(n)
+    code = c_write_at(fd, values, int(storage_size(values) / 8 * n, c_size_t), offset)
+  end function write_words_at
+
+  !> Write pieces of memory (bytes(k) bytes at pieces(k)) one after the
+  !> other from byte `offset`, in one system call; 0, or an errno value.
+  integer function write_pieces_at(fd, pieces, bytes, offset) result(code)
+    integer, intent(in) :: fd
+    type(c_ptr), intent(in) :: pieces(:)
+    integer(i8), intent(in) :: bytes(:), offset
+    code = c_write_pieces_at(fd, pieces, bytes, size(pieces), offset)
+  end function write_pieces_at
+
+  !> Close a descriptor of open_for_writing: 0, or an errno value.
+  integer function close_descriptor(fd) result(code)
+    integer, intent(in) :: fd
+    code = c_close_descriptor(fd)
+  end function close_descriptor
+
+  !> The system's words for errno value `code`.
+  function system_error_text(code) result(text)
+    integer, intent(in) :: code
+    character(len=:), allocatable :: text
+    character(kind=c_char) :: buffer(200)
+    integer :: n
+    call c_error_text(code, buffer, size(buffer, kind=c_size_t))
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    allocate (character(len=n) :: text)
+    text = transfer(buffer(:n), text)
+  end function system_error_text
 
   !> Current time as ISO 8601 UTC, e.g. 2026-11-23T03:22:15Z.
   function utc_timestamp() result(stamp)

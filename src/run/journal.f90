@@ -1,14 +1,20 @@
-!> The journal of a run: an append-only binary file beside the output that
-!> records each finished case (status, summary, trajectories) as soon as it
-!> is done, flushed to the operating system. A run killed at any moment
-!> loses nothing that is in the journal; `--resume` reads the valid records
-!> back (a torn last record fails its length or checksum and is dropped).
+!> The journal of a run: a binary file beside the output that records each
+!> finished case (status, summary, trajectories) as soon as it is done,
+!> written to the operating system. A run killed at any moment loses
+!> nothing that is in the journal; `--resume` reads the valid records back.
+!>
+!> Records have one size, so a record's place is a multiple of it: threads
+!> reserve places one after the other (under a lock, a few nanoseconds) and
+!> write their records there at the same time (pwrite). A kill may leave a
+!> place unwritten or a record torn; it fails its marker or checksum and is
+!> skipped, and its case is run again.
 module ellroll_journal
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
+  use ellroll_system, only: open_for_writing, write_words_at, close_descriptor, system_error_text
   implicit none
   private
 
@@ -27,7 +33,8 @@ module ellroll_journal
   end type journal_header_t
 
   type :: journal_t
-    integer :: unit = 0
+    integer :: unit = 0                   !< the header, and reading records back
+    integer :: fd = -1                    !< writing records
     logical :: is_open = .false.          !< newunit= numbers are negative: no sentinel
     character(len=:), allocatable :: path
     type(journal_header_t) :: header
@@ -38,7 +45,8 @@ module ellroll_journal
     procedure :: open_existing
     procedure :: next_record
     procedure :: record => encode_record
-    procedure :: append
+    procedure :: reserve
+    procedure :: write_records
     procedure :: close => close_journal
   end type journal_t
 
@@ -69,7 +77,16 @@ contains
       return
     end if
     inquire (unit=self%unit, pos=self%next_position)
+    call open_for_records(self, err)
   end subroutine create
+
+  subroutine open_for_records(self, err)
+    type(journal_t), intent(inout) :: self
+    type(error_t), intent(inout) :: err
+    self%fd = open_for_writing(self%path)
+    if (self%fd < 0) call set_error(err, err_output, self%path // ': cannot open the journal for writing: ' // &
+                                    system_error_text(-self%fd))
+  end subroutine open_for_records
 
   !> Open a journal to resume it; refuse one written for another campaign.
   subroutine open_existing(self, path, expected, err)
@@ -110,10 +127,12 @@ contains
     self%header = found
     self%record_words = words_per_record(found)
     inquire (unit=self%unit, pos=self%next_position)
+    call open_for_records(self, err)
   end subroutine open_existing
 
-  !> The next valid record, or found = .false. at the end (a torn or
-  !> damaged record ends the journal: appending starts over it).
+  !> The next valid record, or found = .false. at the end. Places never
+  !> written and damaged records are skipped; a torn last record ends the
+  !> journal, and the next record reserved goes in its place.
   subroutine next_record(self, slot, res, found)
     class(journal_t), intent(inout) :: self
     integer(i8), intent(out) :: slot
@@ -124,17 +143,18 @@ contains
     integer :: ios
     allocate (words(self%record_words))
     found = .false.
-    read (self%unit, pos=self%next_position, iostat=ios) words, stored_checksum
-    if (ios /= 0) return
-    if (words(1) /= record_marker .or. stored_checksum /= checksum(words)) return
-    if (words(2) < 0 .or. words(2) >= self%header%n_slots) return
+    do while (.not. found)
+      read (self%unit, pos=self%next_position, iostat=ios) words, stored_checksum
+      if (ios /= 0) return
+      self%next_position = self%next_position + 8 * (self%record_words + 1)
+      found = words(1) == record_marker .and. stored_checksum == checksum(words) .and. &
+              words(2) >= 0 .and. words(2) < self%header%n_slots
+    end do
     call unpack_record(self%header, words, slot, res)
-    inquire (unit=self%unit, pos=self%next_position)
-    found = .true.
   end subroutine next_record
 
   !> A case's record, checksum included, ready for append: made by the thread
-  !> that integrated the case, so that the single writer only writes it.
+  !> that integrated the case, which also writes it (write_records).
   function encode_record(self, slot, res) result(words)
     class(journal_t), intent(in) :: self
     integer(i8), intent(in) :: slot
@@ -145,25 +165,34 @@ contains
     words(self%record_words + 1) = checksum(words(:self%record_words))
   end function encode_record
 
-  !> Append a record made by encode_record and flush it.
-  subroutine append(self, words, err)
+  !> The place (a byte offset from 0) of the next n_words words of records
+  !> made by encode_record. One thread at a time: the caller's lock.
+  integer(i8) function reserve(self, n_words) result(offset)
     class(journal_t), intent(inout) :: self
+    integer(i8), intent(in) :: n_words
+    offset = self%next_position - 1
+    self%next_position = self%next_position + 8 * n_words
+  end function reserve
+
+  !> Write records made by encode_record at a place from reserve. Threads
+  !> may write their places at the same time.
+  subroutine write_records(self, offset, words, err)
+    class(journal_t), intent(in) :: self
+    integer(i8), intent(in) :: offset
     integer(i8), intent(in) :: words(:)
     type(error_t), intent(inout) :: err
-    integer :: ios
-    character(len=256) :: msg
-    write (self%unit, pos=self%next_position, iostat=ios, iomsg=msg) words
-    if (ios == 0) flush (self%unit, iostat=ios)
-    if (ios /= 0) then
-      call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // trim(msg))
-      return
-    end if
-    inquire (unit=self%unit, pos=self%next_position)
-  end subroutine append
+    integer :: code
+    code = write_words_at(self%fd, words, size(words, kind=i8), offset)
+    if (code /= 0) call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // &
+                                  system_error_text(code))
+  end subroutine write_records
 
   subroutine close_journal(self, delete)
     class(journal_t), intent(inout) :: self
     logical, intent(in) :: delete
+    integer :: ignored
+    if (self%fd >= 0) ignored = close_descriptor(self%fd)
+    self%fd = -1
     if (.not. self%is_open) return
     if (delete) then
       close (self%unit, status='delete')

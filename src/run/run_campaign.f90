@@ -1,7 +1,8 @@
 !> Running a campaign (or one shard of it) into one HDF5 file: OpenMP over
-!> cases with dynamic scheduling, a single writer (HDF5's Fortran API is not
-!> thread-safe), a journal that makes an interruption lose nothing, resume,
-!> and the decisions about existing outputs.
+!> cases with dynamic scheduling, a single writer of the table rows (HDF5's
+!> Fortran API is not thread-safe) while each thread writes its cases'
+!> trajectories and journal records in place, a journal that makes an
+!> interruption lose nothing, resume, and the decisions about existing outputs.
 !>
 !> Files, for output OUT: OUT.partial (the HDF5 file being written, moved to
 !> OUT when complete) and OUT.journal (every finished case, the durable
@@ -24,6 +25,8 @@ module ellroll_run_campaign
   use ellroll_journal, only: journal_t, journal_header_t
   use ellroll_progress, only: progress_t
   use ellroll_system, only: rename_file, remove_file, file_exists
+  use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
+      writes_trajectories, writes_journal
   implicit none
   private
 
@@ -34,6 +37,8 @@ module ellroll_run_campaign
     logical :: quiet = .false.
     logical :: resume = .false.
     logical :: overwrite = .false.
+    logical :: timings = .false.         !< print where the time went (phases, locks)
+    real(wp) :: advice_seconds = 0       !< time of step_size_advice before the run (parallel), for the timings
     integer :: shard(2) = [0, 1]         !< this shard's index I and the count N
   end type run_options_t
 
@@ -53,7 +58,8 @@ contains
     integer, intent(in) :: shard(2)
     integer(i8), allocatable :: indices(:)
     integer(i8) :: j
-    indices = [(int(shard(1), i8) + j * shard(2), j = 0, (n_total - shard(1) - 1) / shard(2))]
+    ! floor division: a shard past the last case gets none (truncation gave it one)
+    indices = [(int(shard(1), i8) + j * shard(2), j = 0, floor(real(n_total - shard(1) - 1, wp) / shard(2), i8))]
   end function shard_slots
 
   !> Every invalid case of the campaign, with the message for the first few.
@@ -178,16 +184,20 @@ contains
     type(provenance_t) :: prov
     type(progress_t) :: progress
     type(case_result_t) :: res
-    type(error_t) :: shared_err, journal_err
+    type(error_t) :: shared_err, block_err
+    type(run_timings_t) :: timings
     logical :: found
     integer :: n_threads
 
+    timings%started = wall_clock()
     target = inp%plan%file
     partial = target // '.partial'
     journal_path = target // '.journal'
 
     ! invalid cases: stop before any work, or skip them
     call find_invalid_cases(inp, invalid, messages)
+    timings%parallel_before = opts%advice_seconds + (wall_clock() - timings%started)
+    timings%started = wall_clock()
     if (any(invalid) .and. inp%campaign%invalid == invalid_stop) then
       call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
           ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
@@ -272,14 +282,16 @@ contains
     ! one by one. The choice depends on the case and the campaign's size only,
     ! never on threads, shards or resumption, so results stay bitwise the same.
     use_batches = inp%campaign%n_cases() >= lanes
+    timings%loop_started = wall_clock()
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
     do chunk = 0, (n_slots - 1) / lanes
-      if (.not. (shared_err%failed() .or. journal_err%failed())) call run_block(chunk)
+      if (.not. (shared_err%failed() .or. block_err%failed())) call run_block(chunk)
     end do
     !$omp end parallel do
+    timings%loop_ended = wall_clock()
     call progress%finish()
 
-    if (journal_err%failed() .and. .not. shared_err%failed()) shared_err = journal_err
+    if (block_err%failed() .and. .not. shared_err%failed()) shared_err = block_err
     if (shared_err%failed()) then
       err = shared_err
       call abandon()
@@ -295,22 +307,27 @@ contains
       return
     end if
     call journal%close(delete=.true.)
+    timings%ended = wall_clock()
+    if (opts%timings) call timings%report()
 
   contains
 
-    !> Integrate the slots of one block not done yet, then journal them and
-    !> write them, each with one entry into its lock.
+    !> Integrate the slots of one block not done yet, write their trajectories
+    !> and journal records, then hand their table rows to the writer: each
+    !> lock taken once per block.
     subroutine run_block(chunk)
       integer(i8), intent(in) :: chunk
       type(case_t) :: cases(lanes)
       type(case_result_t) :: results(lanes), batch_results(lanes)
-      type(error_t) :: case_err
+      type(error_t) :: case_err, write_err
       type(window_list_t) :: full
       integer(i8) :: slots(lanes), slot
-      integer :: n, n_done, j, in_batch(lanes), n_batch, first
+      integer :: n, n_done, j, in_batch(lanes), n_batch, first, run_start
       logical :: waiting(lanes)
       integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
       type(named_value_t), allocatable :: rows(:, :)
+      real(wp) :: asked, taken
+      integer(i8) :: place
       n = 0
       do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
         if (done(slot)) cycle
@@ -346,7 +363,18 @@ contains
           exit
         end if
       end do
-      ! records and table rows are built here, outside the locks
+      ! the trajectories go to their place in the file, one write per run of
+      ! consecutive slots; records and table rows are built here: all outside the locks
+      asked = wall_clock()
+      run_start = 1
+      do j = 1, n_done
+        if (j < n_done) then
+          if (slots(j + 1) == slots(j) + 1) cycle
+        end if
+        call out%put_trajectories(slots(run_start), results(run_start:j), write_err)
+        run_start = j + 1
+      end do
+      if (n_done > 0) call timings%add_write(writes_trajectories, asked)
       do j = 1, n_done
         associate (record => journal%record(slots(j), results(j)), row => table_row(cases(j), results(j)))
           if (j == 1) allocate (records(size(record) * n_done), rows(size(row), n_done))
@@ -354,27 +382,48 @@ contains
           rows(:, j) = row
         end associate
       end do
-      ! the journal and the HDF5 file each have one writer at a time, but one
-      ! thread may write the journal while another writes the file (a resume
-      ! rebuilds the file from the journal, so their order does not matter)
-      !$omp critical (ellroll_journal)
-      if (case_err%failed() .and. .not. journal_err%failed()) journal_err = case_err
-      if (n_done > 0 .and. .not. journal_err%failed()) &
-        call journal%append(records, journal_err)
-      !$omp end critical (ellroll_journal)
+      ! the journal: places taken under its lock, the records written there
+      ! outside it (a resume rebuilds the file from the journal, so which of
+      ! the two is written first does not matter)
+      if (n_done > 0) then
+        asked = wall_clock()
+        !$omp critical (ellroll_journal)
+        taken = wall_clock()
+        place = journal%reserve(size(records, kind=i8))
+        call timings%tally(lock_journal, asked, taken)
+        !$omp end critical (ellroll_journal)
+        asked = wall_clock()
+        call journal%write_records(place, records, write_err)
+        call timings%add_write(writes_journal, asked)
+      end if
+      if (case_err%failed() .or. write_err%failed()) then
+        !$omp critical (ellroll_block_error)
+        if (.not. block_err%failed() .and. case_err%failed()) block_err = case_err
+        if (.not. block_err%failed()) block_err = write_err
+        !$omp end critical (ellroll_block_error)
+      end if
       if (n_done == 0) return
+      asked = wall_clock()
       !$omp critical (ellroll_keep)
+      taken = wall_clock()
       do j = 1, n_done
         call out%keep_case(slots(j), rows(:, j), results(j), full)
         call progress%advance()
       end do
+      call timings%tally(lock_keep, asked, taken)
       !$omp end critical (ellroll_keep)
       if (full%n == 0) return
+      asked = wall_clock()
       !$omp critical (ellroll_writer)
-      if (.not. (shared_err%failed() .or. journal_err%failed())) call out%write_windows(full, shared_err)
+      taken = wall_clock()
+      if (.not. (shared_err%failed() .or. block_err%failed())) call out%write_windows(full, shared_err)
+      call timings%tally(lock_writer, asked, taken)
       !$omp end critical (ellroll_writer)
+      asked = wall_clock()
       !$omp critical (ellroll_keep)
+      taken = wall_clock()
       call out%recycle(full)
+      call timings%tally(lock_keep, asked, taken)
       !$omp end critical (ellroll_keep)
     end subroutine run_block
 

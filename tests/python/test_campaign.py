@@ -170,15 +170,32 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 20, 4
 
 
+JOURNAL_HEADER = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 8   # magic, id, slots, samples, shard, one flag per field
+RECORD_MARKER = 7310312871522813004
+
+
+def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n")
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    for index in range(3):
+        assert run(ellroll, "run", name, "-q", "--shard", f"{index}/3", "-o", f"s{index}.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "s2.h5", "r") as f:
+        assert f["summary/status"].shape == (0,) and f["trajectory/contact"].shape[0] == 0
+    assert run(ellroll, "merge", "merged.h5", "s0.h5", "s1.h5", "s2.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
+
+
 def journal_wall_times(path, n_samples, n_fields_components):
-    """(slot -> wall_time) of the complete records of a journal."""
+    """(slot -> wall_time) of the records of a journal (places never
+    written, as a kill leaves them, are skipped)."""
     data = path.read_bytes()
-    header = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 8      # magic, id, slots, samples, shard, one flag per field
     words = 3 + 3 * SUMMARY_ENTRIES + n_samples * n_fields_components
     size = 8 * (words + 1)
     out = {}
-    for start in range(header, len(data) - size + 1, size):
+    for start in range(JOURNAL_HEADER, len(data) - size + 1, size):
         record = struct.unpack(f"<{words + 1}q", data[start:start + size])
+        if record[0] != RECORD_MARKER:
+            continue
         slot, wall = record[1], struct.unpack("<d", struct.pack("<q", record[3 + 3 * WALL_TIME_ENTRY]))[0]
         out[slot] = wall
     return out
@@ -231,6 +248,32 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
         wall = f["summary/wall_time"][:]
         for slot, seconds in kept_before.items():
             assert wall[slot] == seconds, "a case finished before the kill was computed again"
+
+
+def test_resume_skips_a_journal_place_never_written(ellroll, tmp_path):
+    # threads reserve journal places in turn and fill them at once: a kill can
+    # leave an early place empty behind later records; resume must skip it,
+    # keep the later records and run the empty place's case again
+    name = write(tmp_path, SPIN_RADIUS, t_end=3.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    record = 8 * (3 + 3 * SUMMARY_ENTRIES + 301 * 17 + 1)
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 2, record)
+    before = journal_wall_times(journal, 301, 17)
+    assert len(before) >= 2
+    with open(journal, "r+b") as f:
+        f.seek(JOURNAL_HEADER)
+        emptied = struct.unpack("<3q", f.read(24))[1]
+        f.seek(JOURNAL_HEADER)
+        f.write(bytes(record))
+    kept = journal_wall_times(journal, 301, 17)
+    assert emptied not in kept and len(kept) == len(before) - 1
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+        assert all(wall[slot] == seconds for slot, seconds in kept.items()), "a journaled case was run again"
 
 
 def test_resume_refusals(ellroll, tmp_path):

@@ -26,8 +26,9 @@ def test_layout_shapes_units_and_scales(paper_file):
             scales = [d[0].name for d in ds.dims]
             assert scales == (["/trajectory/case", "/time", "/xyz"] if ncomp == 3
                               else ["/trajectory/case", "/time"])
-            assert ds.chunks[0] == 1 and np.prod(ds.chunks) * 8 <= 2**20
-            assert ds.compression is None     # by default; see test_compression
+            # uncompressed (the default; see test_compression): contiguous, each
+            # case's samples in one piece, written in place by the thread that ran it
+            assert ds.chunks is None and ds.compression is None
         for name in SUMMARY:
             assert f["summary"][name].shape == (1,)
         for name in ["a", "b", "c", "radius", "mass", "g", "x0", "y0", "dt", "t_end", "method"]:
@@ -69,6 +70,8 @@ def test_compression(ellroll, tmp_path):
             assert a["trajectory"][name].compression is None
             assert b["trajectory"][name].compression == "gzip" and b["trajectory"][name].shuffle
             assert b["trajectory"][name].compression_opts == 4
+            # chunks of one case (at most 1 MiB): reading a case reads its chunks only
+            assert b["trajectory"][name].chunks[0] == 1 and np.prod(b["trajectory"][name].chunks) * 8 <= 2**20
             assert a["trajectory"][name][()].tobytes() == b["trajectory"][name][()].tobytes()
 
 

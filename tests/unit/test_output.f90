@@ -2,7 +2,9 @@
 !> window when it is complete, or the oldest one when all are in use. Cases
 !> given in any order (as a resume replays its journal) must all land in
 !> their slots: here more windows are open at once than the writer keeps,
-!> so windows are written partly filled and later completed.
+!> so windows are written partly filled and later completed. Compressed
+!> trajectories go with their windows; uncompressed ones are written in
+!> place, case by case, and only the table rows are kept in windows.
 program test_output
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -13,62 +15,71 @@ program test_output
   use fixtures, only: paper_case
   use testing, only: check, finish
   implicit none
-  ! one field of 3 components at n_samples samples is 720 kB a case: the
-  ! writer's 4 MiB windows hold 5 cases, and 20 windows are opened at once
-  integer(i8), parameter :: n_samples = 30000, n_cases = 100, rows = 5
   character(len=*), parameter :: path = 'test_output.h5'
   integer :: contact
-  integer(i8) :: order(n_cases), k, slot, n_wrong
-  logical :: fields(field_count)
-  real(wp) :: times(n_samples)
-  type(case_t) :: cs
-  type(case_result_t) :: res, expected
-  type(h5_output_t) :: out
-  type(h5_input_t) :: file
-  type(provenance_t) :: prov
-  type(error_t) :: err
 
   contact = findloc(field_names, 'contact', dim=1)
-  fields = .false.
-  fields(contact) = .true.
-  times = [(real(k, wp), k = 0, n_samples - 1)]
-  ! the first case of every window, then all the others from the last back
-  order(:n_cases / rows) = [(k * rows, k = 0, n_cases / rows - 1)]
-  order(n_cases / rows + 1:) = pack([(k, k = n_cases - 1, 0, -1)], mod([(k, k = n_cases - 1, 0, -1)], rows) /= 0)
-  call check(all([(count(order == k) == 1, k = 0, n_cases - 1)]), 'the order is a permutation of the slots')
-
-  prov = provenance_t(program='ellroll', version='0', created='now', input_file='-', input_namelist='-', &
-                      command_line='-', campaign_id='0', n_cases_total=n_cases, shard='0/1')
-  cs = paper_case(1.0e-3_wp, 1.0_wp)
-  call out%create(path, [(k, k = 0, n_cases - 1)], times, fields, cs, prov, err)
-  do k = 1, n_cases
-    slot = order(k)
-    cs%index = slot
-    call out%write_case(slot, cs, result_of(slot), err)
-  end do
-  call out%close(err)
-  call check(.not. err%failed(), 'written without error: ' // err%message)
-
-  call file%open(path, err)
-  n_wrong = 0
-  do slot = 0, n_cases - 1
-    call file%read_case_result(slot, n_samples, res, err)
-    expected = result_of(slot)
-    if (res%status /= expected%status .or. res%t_final /= expected%t_final .or. &
-        any(res%fields(contact)%values /= expected%fields(contact)%values)) n_wrong = n_wrong + 1
-  end do
-  call file%close()
-  call check(.not. err%failed(), 'read back without error: ' // err%message)
-  call check(n_wrong == 0, 'every case in its slot, status, summary and trajectory')
-  open (newunit=k, file=path)
-  close (k, status='delete')
+  ! compressed: one field of 3 components at 30,000 samples is 720 kB a
+  ! case, so the writer's 4 MiB windows hold 5 cases: 20 windows at once
+  call write_in_any_order_and_read_back(compression=1, n_cases=100_i8, n_samples=30000_i8, rows=5_i8)
+  ! in place: windows of 64 rows, 20 of them at once
+  call write_in_any_order_and_read_back(compression=0, n_cases=1280_i8, n_samples=10_i8, rows=64_i8)
   call finish('test_output')
 
 contains
 
+  subroutine write_in_any_order_and_read_back(compression, n_cases, n_samples, rows)
+    integer, intent(in) :: compression
+    integer(i8), intent(in) :: n_cases, n_samples, rows
+    character(len=*), parameter :: how(0:1) = ['in place  ', 'compressed']
+    integer(i8) :: order(n_cases), k, slot, n_wrong
+    logical :: fields(field_count)
+    real(wp) :: times(n_samples)
+    type(case_t) :: cs
+    type(case_result_t) :: res, expected
+    type(h5_output_t) :: out
+    type(h5_input_t) :: file
+    type(provenance_t) :: prov
+    type(error_t) :: err
+
+    fields = .false.
+    fields(contact) = .true.
+    times = [(real(k, wp), k = 0, n_samples - 1)]
+    ! the first case of every window, then all the others from the last back
+    order(:n_cases / rows) = [(k * rows, k = 0, n_cases / rows - 1)]
+    order(n_cases / rows + 1:) = pack([(k, k = n_cases - 1, 0, -1)], mod([(k, k = n_cases - 1, 0, -1)], rows) /= 0)
+    call check(all([(count(order == k) == 1, k = 0, n_cases - 1)]), 'the order is a permutation of the slots')
+
+    prov = provenance_t(program='ellroll', version='0', created='now', input_file='-', input_namelist='-', &
+                        command_line='-', campaign_id='0', n_cases_total=n_cases, shard='0/1')
+    cs = paper_case(1.0e-3_wp, 1.0_wp)
+    call out%create(path, [(k, k = 0, n_cases - 1)], times, fields, cs, prov, err, compression)
+    do k = 1, n_cases
+      slot = order(k)
+      cs%index = slot
+      call out%write_case(slot, cs, result_of(slot, n_samples), err)
+    end do
+    call out%close(err)
+    call check(.not. err%failed(), trim(how(compression)) // ': written without error: ' // err%message)
+
+    call file%open(path, err)
+    n_wrong = 0
+    do slot = 0, n_cases - 1
+      call file%read_case_result(slot, n_samples, res, err)
+      expected = result_of(slot, n_samples)
+      if (res%status /= expected%status .or. .not. same(res%t_final, expected%t_final) .or. &
+          .not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
+    end do
+    call file%close()
+    call check(.not. err%failed(), trim(how(compression)) // ': read back without error: ' // err%message)
+    call check(n_wrong == 0, trim(how(compression)) // ': every case in its slot, status, summary and trajectory')
+    open (newunit=k, file=path)
+    close (k, status='delete')
+  end subroutine write_in_any_order_and_read_back
+
   !> A result that names its slot in every value.
-  function result_of(slot) result(r)
-    integer(i8), intent(in) :: slot
+  function result_of(slot, n_samples) result(r)
+    integer(i8), intent(in) :: slot, n_samples
     type(case_result_t) :: r
     integer(i8) :: j
     r%status = merge(status_completed, status_rim, mod(slot, 3_i8) /= 0)
@@ -78,4 +89,10 @@ contains
       r%fields(contact)%values(:, j) = real(slot, wp) + [1, 2, 3] * 1.0e-6_wp * real(j, wp)
     end do
   end function result_of
+
+  !> Bitwise equality of reals.
+  elemental logical function same(a, b)
+    real(wp), intent(in) :: a, b
+    same = transfer(a, 0_i8) == transfer(b, 0_i8)
+  end function same
 end program test_output
