@@ -60,14 +60,6 @@ int ellroll_write_pieces_at(int fd, void *const *pieces, const int64_t *bytes, i
     return 0;
 }
 
-/* All `bytes` of `buffer` at `offset`. */
-int ellroll_write_at(int fd, const void *buffer, size_t bytes, int64_t offset)
-{
-    void *const pieces[1] = {(void *)buffer};
-    const int64_t sizes[1] = {(int64_t)bytes};
-    return ellroll_write_pieces_at(fd, pieces, sizes, 1, offset);
-}
-
 /* 0, or the errno of a failed close (a delayed write error, say). */
 int ellroll_close_descriptor(int fd)
 {

@@ -7,7 +7,7 @@ module ellroll_system
   private
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime
-  public :: open_for_writing, write_words_at, write_pieces_at, close_descriptor, system_error_text
+  public :: open_for_writing, write_pieces_at, close_descriptor, system_error_text
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -42,13 +42,6 @@ module ellroll_system
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
     end function c_open_for_writing
-    integer(c_int) function c_write_at(fd, buffer, bytes, offset) bind(c, name='ellroll_write_at')
-      import :: c_int, c_size_t, c_int64_t
-      integer(c_int), value :: fd
-      type(*), intent(in) :: buffer(*)
-      integer(c_size_t), value :: bytes
-      integer(c_int64_t), value :: offset
-    end function c_write_at
     integer(c_int) function c_write_pieces_at(fd, pieces, bytes, count, offset) &
         bind(c, name='ellroll_write_pieces_at')
       import :: c_int, c_ptr, c_int64_t
@@ -95,18 +88,9 @@ contains
     fd = c_open_for_writing(path // c_null_char)
   end function open_for_writing
 
-  !> Write the n words of `values` at byte `offset` (from 0) of descriptor
-  !> fd, all of them; 0, or an errno value. Threads may write disjoint
-  !> regions of one file at the same time.
-  integer function write_words_at(fd, values, n, offset) result(code)
-    integer, intent(in) :: fd
-    integer(i8), intent(in) :: n, offset
-    integer(i8), intent(in) :: values(n)
-    code = c_write_at(fd, values, int(storage_size(values) / 8 * n, c_size_t), offset)
-  end function write_words_at
-
   !> Write pieces of memory (bytes(k) bytes at pieces(k)) one after the
-  !> other from byte `offset`, in one system call; 0, or an errno value.
+  !> other from byte `offset` (from 0), in one system call; 0, or an errno
+  !> value. Threads may write disjoint regions of one file at the same time.
   integer function write_pieces_at(fd, pieces, bytes, offset) result(code)
     integer, intent(in) :: fd
     type(c_ptr), intent(in) :: pieces(:)

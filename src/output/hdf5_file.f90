@@ -733,12 +733,12 @@ contains
   subroutine close_file(self, err)
     class(h5_output_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
-    integer :: hdferr, k
+    integer :: hdferr, k, code
     if (self%file < 0) return
     if (self%direct_fd >= 0) then
-      k = close_descriptor(self%direct_fd)
-      if (k /= 0 .and. .not. err%failed()) call set_error(err, err_output, self%path // &
-          ': cannot write the trajectories (disk full?): ' // system_error_text(k))
+      code = close_descriptor(self%direct_fd)
+      if (code /= 0 .and. .not. err%failed()) call set_error(err, err_output, self%path // &
+          ': cannot write the trajectories (disk full?): ' // system_error_text(code))
       self%direct_fd = -1
     end if
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)

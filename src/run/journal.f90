@@ -9,12 +9,13 @@
 !> place unwritten or a record torn; it fails its marker or checksum and is
 !> skipped, and its case is run again.
 module ellroll_journal
+  use, intrinsic :: iso_c_binding, only: c_loc
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_system, only: open_for_writing, write_words_at, close_descriptor, system_error_text
+  use ellroll_system, only: open_for_writing, write_pieces_at, close_descriptor, system_error_text
   implicit none
   private
 
@@ -179,10 +180,10 @@ contains
   subroutine write_records(self, offset, words, err)
     class(journal_t), intent(in) :: self
     integer(i8), intent(in) :: offset
-    integer(i8), intent(in) :: words(:)
+    integer(i8), intent(in), target, contiguous :: words(:)
     type(error_t), intent(inout) :: err
     integer :: code
-    code = write_words_at(self%fd, words, size(words, kind=i8), offset)
+    code = write_pieces_at(self%fd, [c_loc(words)], [storage_size(words, kind=i8) / 8 * size(words, kind=i8)], offset)
     if (code /= 0) call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // &
                                   system_error_text(code))
   end subroutine write_records

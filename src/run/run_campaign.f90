@@ -196,8 +196,8 @@ contains
 
     ! invalid cases: stop before any work, or skip them
     call find_invalid_cases(inp, invalid, messages)
-    timings%parallel_before = opts%advice_seconds + (wall_clock() - timings%started)
-    timings%started = wall_clock()
+    timings%advice = opts%advice_seconds
+    timings%checked = wall_clock()
     if (any(invalid) .and. inp%campaign%invalid == invalid_stop) then
       call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
           ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)

@@ -23,8 +23,8 @@ module ellroll_run_timings
       'trajectory writes (the file''s lock)', 'journal writes (the file''s lock)']
 
   type :: run_timings_t
-    real(wp) :: started = 0, loop_started = 0, loop_ended = 0, ended = 0
-    real(wp) :: parallel_before = 0      !< of the time before the loop, what ran in parallel (checks, advice)
+    real(wp) :: advice = 0               !< seconds of the step advice, before the run (parallel)
+    real(wp) :: started = 0, checked = 0, loop_started = 0, loop_ended = 0, ended = 0   !< checked: cases checked (parallel)
     real(wp) :: held(section_count) = 0, waited(section_count) = 0   !< waited: for the locks only
   contains
     procedure :: tally
@@ -71,8 +71,9 @@ contains
     out = output_unit
     if (present(unit)) out = unit
     loop = self%loop_ended - self%loop_started
-    write (out, '(a, 4(f7.4, a))') 'timings:', self%parallel_before, ' s in parallel before the loop (checks, ' // &
-        'step advice),', self%loop_started - self%started, ' s serial before it (file layout),', loop, &
+    write (out, '(a, 4(f7.4, a))') 'timings:', self%advice + (self%checked - self%started), &
+        ' s in parallel before the loop (checks, step advice),', self%loop_started - self%checked, &
+        ' s serial before it (file layout),', loop, &
         ' s in the loop,', self%ended - self%loop_ended, ' s after it (closing)'
     write (out, '(2x, a36, a)') 'one thread at a time', '   inside s  waiting s  (summed over the threads)'
     do k = 1, section_count
