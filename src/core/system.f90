@@ -7,7 +7,7 @@ module ellroll_system
   private
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime
-  public :: open_for_writing, write_pieces_at, close_descriptor, system_error_text
+  public :: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, system_error_text
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -37,11 +37,12 @@ module ellroll_system
     !> the heap keeps freed memory for reuse.
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
-    ! positioned writes (src/core/positioned_write.c)
-    integer(c_int) function c_open_for_writing(path) bind(c, name='ellroll_open_for_writing')
+    ! positioned writes and reads (src/core/positioned_io.c)
+    integer(c_int) function c_open_descriptor(path, writing) bind(c, name='ellroll_open_descriptor')
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
-    end function c_open_for_writing
+      integer(c_int), value :: writing
+    end function c_open_descriptor
     integer(c_int) function c_write_pieces_at(fd, pieces, bytes, count, offset) &
         bind(c, name='ellroll_write_pieces_at')
       import :: c_int, c_ptr, c_int64_t
@@ -50,6 +51,12 @@ module ellroll_system
       integer(c_int64_t), intent(in) :: bytes(*)
       integer(c_int64_t), value :: offset
     end function c_write_pieces_at
+    integer(c_int) function c_read_at(fd, buffer, bytes, offset) bind(c, name='ellroll_read_at')
+      import :: c_int, c_ptr, c_int64_t
+      integer(c_int), value :: fd
+      type(c_ptr), value :: buffer
+      integer(c_int64_t), value :: bytes, offset
+    end function c_read_at
     integer(c_int) function c_close_descriptor(fd) bind(c, name='ellroll_close_descriptor')
       import :: c_int
       integer(c_int), value :: fd
@@ -85,8 +92,14 @@ contains
   !> negative errno value.
   integer function open_for_writing(path) result(fd)
     character(len=*), intent(in) :: path
-    fd = c_open_for_writing(path // c_null_char)
+    fd = c_open_descriptor(path // c_null_char, 1_c_int)
   end function open_for_writing
+
+  !> The same, for reading.
+  integer function open_for_reading(path) result(fd)
+    character(len=*), intent(in) :: path
+    fd = c_open_descriptor(path // c_null_char, 0_c_int)
+  end function open_for_reading
 
   !> Write pieces of memory (bytes(k) bytes at pieces(k)) one after the
   !> other from byte `offset` (from 0), in one system call; 0, or an errno
@@ -98,7 +111,16 @@ contains
     code = c_write_pieces_at(fd, pieces, bytes, size(pieces), offset)
   end function write_pieces_at
 
-  !> Close a descriptor of open_for_writing: 0, or an errno value.
+  !> Read `bytes` bytes from byte `offset` (from 0) into `buffer`: 0, an
+  !> errno value, or -1 where the file ends first.
+  integer function read_at(fd, buffer, bytes, offset) result(code)
+    integer, intent(in) :: fd
+    type(c_ptr), intent(in) :: buffer
+    integer(i8), intent(in) :: bytes, offset
+    code = c_read_at(fd, buffer, bytes, offset)
+  end function read_at
+
+  !> Close a descriptor of open_for_writing or open_for_reading: 0, or an errno value.
   integer function close_descriptor(fd) result(code)
     integer, intent(in) :: fd
     code = c_close_descriptor(fd)

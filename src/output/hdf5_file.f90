@@ -18,8 +18,9 @@ module ellroll_hdf5
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, &
       field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_system, only: open_for_writing, write_pieces_at, close_descriptor, system_error_text
+  use ellroll_system, only: rename_file
   use ellroll_strings, only: itoa
+  use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
   implicit none
   private
 
@@ -120,8 +121,7 @@ module ellroll_hdf5
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .false.           !< the stored fields
     logical :: in_windows(field_count) = .false.       !< stored fields written through HDF5 (compressed)
-    integer(i8) :: field_address(field_count) = -1     !< the others: the file address of their data
-    integer :: direct_fd = -1                          !< a descriptor for writing them in place
+    type(trajectory_store_t) :: in_place               !< the others, written in place
     ! datasets stay open while cases are written: opening and closing some 30
     ! datasets per case cost more than integrating it
     character(len=64), allocatable :: open_names(:)
@@ -138,6 +138,7 @@ module ellroll_hdf5
     procedure :: write_windows
     procedure :: recycle
     procedure :: write_case
+    procedure :: move_to
     procedure :: close => close_file
   end type h5_output_t
 
@@ -156,10 +157,12 @@ contains
     type(error_t), intent(inout) :: err
     integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
     integer :: hdferr, f, k, deflate_level
-    integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl
+    integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl, fcpl
+    integer(i8) :: address(field_count)
     integer(i8) :: n_cases
 
     n_cases = size(indices, kind=i8)
+    address = -1
     deflate_level = 0
     if (present(compression)) deflate_level = compression
     self%path = path
@@ -176,8 +179,12 @@ contains
     ! fixed array instead of a B-tree: memory stays flat as cases are added
     call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
-    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, access_prp=fapl)
+    ! a user block for the label of the trajectories written in place
+    call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
+    if (any(fields .and. .not. self%in_windows)) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
+    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
     call h5pclose_f(fapl, hdferr)
+    call h5pclose_f(fcpl, hdferr)
     if (failed(hdferr, 'create the file')) return
 
     call put_text_attribute(self%file, 'program', prov%program)
@@ -233,11 +240,8 @@ contains
     call h5dclose_f(time_scale, hdferr)
     call h5dclose_f(xyz_scale, hdferr)
     call h5dclose_f(mode_scale, hdferr)
-    if (err%failed() .or. all(self%in_windows .eqv. fields)) return
-    self%direct_fd = open_for_writing(path)
-    if (self%direct_fd < 0) &
-      call set_error(err, err_output, path // ': cannot open for writing the trajectories: ' // &
-                     system_error_text(-self%direct_fd))
+    if (err%failed()) return
+    call self%in_place%start(path, n_cases, self%n_samples, fields .and. .not. self%in_windows, address, err)
 
   contains
 
@@ -334,8 +338,8 @@ contains
           dset = new_real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
                                   trim(field_descriptions(f)), in_place=.true.)
           if (dset >= 0) then
-            self%field_address(f) = h5d_address(int(dset, c_int64_t))
-            if (self%field_address(f) < 0 .and. n_cases > 0) &   ! an empty shard has no data, no address
+            address(f) = h5d_address(int(dset, c_int64_t))
+            if (address(f) < 0 .and. n_cases > 0) &   ! an empty shard has no data, no address
               call set_error(err, err_output, path // ': no file address for /trajectory/' // trim(field_names(f)))
           end if
         end if
@@ -493,36 +497,29 @@ contains
   end subroutine write_case
 
   !> Write the uncompressed trajectories of cases in consecutive slots, from
-  !> slot `first` on, in their place in the file: one system call per field
-  !> (the other fields go with their windows). Threads may call this at the
-  !> same time, for different cases, and beside the writer.
+  !> slot `first` on, in their place in the file (the other fields go with
+  !> their windows). Threads may call this at the same time, for different
+  !> cases, and beside the writer.
   subroutine put_trajectories(self, first, results, err)
     class(h5_output_t), intent(in) :: self
     integer(i8), intent(in) :: first
-    type(case_result_t), intent(in), target :: results(:)
+    type(case_result_t), intent(in) :: results(:)
     type(error_t), intent(inout) :: err
-    real(wp), allocatable, target :: never_integrated(:)
-    type(c_ptr) :: pieces(size(results))
-    integer(i8) :: n
-    integer :: f, j, code
-    do f = 1, field_count
-      if (.not. self%fields(f) .or. self%in_windows(f) .or. err%failed()) cycle
-      n = field_ncomp(f) * self%n_samples
-      do j = 1, size(results)
-        if (allocated(results(j)%fields(f)%values)) then
-          pieces(j) = c_loc(results(j)%fields(f)%values)
-        else                                ! never integrated (invalid): NaN, as the fill value
-          if (.not. allocated(never_integrated)) &
-            never_integrated = spread(ieee_value(0.0_wp, ieee_quiet_nan), 1, int(maxval(field_ncomp) * self%n_samples))
-          pieces(j) = c_loc(never_integrated)
-        end if
-      end do
-      code = write_pieces_at(self%direct_fd, pieces, spread(8 * n, 1, size(results)), &
-                             self%field_address(f) + 8 * n * first)
-      if (code /= 0) call set_error(err, err_output, self%path // ': cannot write /trajectory/' // &
-          trim(field_names(f)) // ' (disk full?): ' // system_error_text(code))
-    end do
+    call self%in_place%put(first, results, err)
   end subroutine put_trajectories
+
+  !> Rename the open file to `path` (atomically replacing a file there).
+  subroutine move_to(self, path, err)
+    class(h5_output_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    if (.not. rename_file(self%path, path)) then
+      call set_error(err, err_output, path // ': cannot move ' // self%path // ' there')
+      return
+    end if
+    self%path = path
+    self%in_place%path = path
+  end subroutine move_to
 
   !> A case's row of the case and summary tables: its inputs, its summary, its status.
   function table_row(cs, res) result(row)
@@ -733,14 +730,9 @@ contains
   subroutine close_file(self, err)
     class(h5_output_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
-    integer :: hdferr, k, code
+    integer :: hdferr, k
     if (self%file < 0) return
-    if (self%direct_fd >= 0) then
-      code = close_descriptor(self%direct_fd)
-      if (code /= 0 .and. .not. err%failed()) call set_error(err, err_output, self%path // &
-          ': cannot write the trajectories (disk full?): ' // system_error_text(code))
-      self%direct_fd = -1
-    end if
+    call self%in_place%close(err)
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
       do k = 1, size(self%windows)
         if (self%windows(k)%in_use) call write_window(self, self%windows(k), err)

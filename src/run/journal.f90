@@ -1,7 +1,16 @@
 !> The journal of a run: a binary file beside the output that records each
-!> finished case (status, summary, trajectories) as soon as it is done,
-!> written to the operating system. A run killed at any moment loses
-!> nothing that is in the journal; `--resume` reads the valid records back.
+!> finished case (status and summary) as soon as it is done, written to the
+!> operating system. A run killed at any moment loses nothing that is in the
+!> journal; `--resume` reads the valid records back.
+!>
+!> Trajectories written in place in the output file (uncompressed, the
+!> default) stay there: a record holds their checksum, and a resume reads
+!> them back from the killed run's file (ellroll_trajectory_store), keeping
+!> the case only if they match it. A thread writes its cases' trajectories
+!> before their records, so a record's trajectories are in the file unless
+!> the system lost writes (a power cut): then they fail the check and the
+!> case runs again. Compressed trajectories go through HDF5, whose file a
+!> kill may damage, so their records hold them whole.
 !>
 !> Records have one size, so a record's place is a multiple of it: threads
 !> reserve places one after the other (under a lock, a few nanoseconds) and
@@ -15,13 +24,14 @@ module ellroll_journal
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
+  use ellroll_checksum, only: checksum, checksum_start, fold_reals
   use ellroll_system, only: open_for_writing, write_pieces_at, close_descriptor, system_error_text
   implicit none
   private
 
   public :: journal_t, journal_header_t
 
-  character(len=8), parameter :: magic = 'ELLROLL1'
+  character(len=8), parameter :: magic = 'ELLROLL2'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
 
   !> What a journal must agree on with the run that resumes it.
@@ -30,7 +40,8 @@ module ellroll_journal
     integer(i8) :: n_slots = 0
     integer(i8) :: n_samples = 0
     integer :: shard(2) = [0, 1]
-    logical :: fields(field_count) = .false.
+    logical :: fields(field_count) = .false.       !< the stored fields
+    logical :: in_place(field_count) = .false.     !< those written in place in the output file, not here
   end type journal_header_t
 
   type :: journal_t
@@ -46,6 +57,7 @@ module ellroll_journal
     procedure :: open_existing
     procedure :: next_record
     procedure :: record => encode_record
+    procedure :: fingerprint
     procedure :: reserve
     procedure :: write_records
     procedure :: close => close_journal
@@ -71,7 +83,7 @@ contains
     end if
     self%is_open = .true.
     write (self%unit, iostat=ios, iomsg=msg) magic, header%campaign_id, header%n_slots, header%n_samples, &
-        header%shard, merge(1, 0, header%fields)
+        header%shard, merge(1, 0, header%fields), merge(1, 0, header%in_place)
     if (ios == 0) flush (self%unit, iostat=ios)
     if (ios /= 0) then
       call set_error(err, err_output, path // ': cannot write the journal: ' // trim(msg))
@@ -97,7 +109,7 @@ contains
     type(error_t), intent(inout) :: err
     character(len=8) :: found_magic
     type(journal_header_t) :: found
-    integer :: ios, flags(field_count)
+    integer :: ios, flags(field_count), in_place_flags(field_count)
     character(len=256) :: msg
     self%path = path
     open (newunit=self%unit, file=path, access='stream', form='unformatted', status='old', &
@@ -108,10 +120,12 @@ contains
     end if
     self%is_open = .true.
     read (self%unit, iostat=ios) found_magic, found%campaign_id, found%n_slots, found%n_samples, &
-        found%shard, flags
+        found%shard, flags, in_place_flags
     found%fields = flags == 1
+    found%in_place = in_place_flags == 1
     if (ios /= 0 .or. found_magic /= magic) then
-      call set_error(err, err_output, path // ': not an ellroll journal, or damaged before its first case')
+      call set_error(err, err_output, path // ': not a journal of this version of ellroll, or damaged ' // &
+                     'before its first case; start over with --overwrite')
       return
     end if
     if (found%campaign_id /= expected%campaign_id) then
@@ -120,7 +134,8 @@ contains
       return
     end if
     if (found%n_slots /= expected%n_slots .or. found%n_samples /= expected%n_samples .or. &
-        any(found%shard /= expected%shard) .or. any(found%fields .neqv. expected%fields)) then
+        any(found%shard /= expected%shard) .or. any(found%fields .neqv. expected%fields) .or. &
+        any(found%in_place .neqv. expected%in_place)) then
       call set_error(err, err_input, path // ': this run was started with other options (shard, output ' // &
           'or case count); resume it with the same command, or start over with --overwrite')
       return
@@ -133,11 +148,14 @@ contains
 
   !> The next valid record, or found = .false. at the end. Places never
   !> written and damaged records are skipped; a torn last record ends the
-  !> journal, and the next record reserved goes in its place.
-  subroutine next_record(self, slot, res, found)
+  !> journal, and the next record reserved goes in its place. The
+  !> trajectories written in place are not in res: `in_place` is their
+  !> fingerprint, to compare with that of the ones read back.
+  subroutine next_record(self, slot, res, in_place, found)
     class(journal_t), intent(inout) :: self
     integer(i8), intent(out) :: slot
     type(case_result_t), intent(out) :: res
+    integer(i8), intent(out) :: in_place
     logical, intent(out) :: found
     integer(i8), allocatable :: words(:)
     integer(i8) :: stored_checksum
@@ -151,20 +169,33 @@ contains
       found = words(1) == record_marker .and. stored_checksum == checksum(words) .and. &
               words(2) >= 0 .and. words(2) < self%header%n_slots
     end do
-    call unpack_record(self%header, words, slot, res)
+    call unpack_record(self%header, words, slot, res, in_place)
   end subroutine next_record
 
-  !> A case's record, checksum included, ready for append: made by the thread
-  !> that integrated the case, which also writes it (write_records).
+  !> A case's record, checksum included: made by the thread that integrated
+  !> the case, which also writes it (write_records).
   function encode_record(self, slot, res) result(words)
     class(journal_t), intent(in) :: self
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
     integer(i8), allocatable :: words(:)
     allocate (words(self%record_words + 1))
-    call pack_record(self%header, slot, res, words(:self%record_words))
+    call pack_record(self%header, slot, res, self%fingerprint(res), words(:self%record_words))
     words(self%record_words + 1) = checksum(words(:self%record_words))
   end function encode_record
+
+  !> A checksum of the case's trajectories written in place, not in its record.
+  pure integer(i8) function fingerprint(self, res)
+    class(journal_t), intent(in) :: self
+    type(case_result_t), intent(in) :: res
+    integer :: f
+    fingerprint = checksum_start
+    do f = 1, field_count
+      if (.not. self%header%in_place(f)) cycle
+      if (allocated(res%fields(f)%values)) &
+        call fold_reals(fingerprint, res%fields(f)%values, size(res%fields(f)%values, kind=i8))
+    end do
+  end function fingerprint
 
   !> The place (a byte offset from 0) of the next n_words words of records
   !> made by encode_record. One thread at a time: the caller's lock.
@@ -208,19 +239,29 @@ contains
   integer(i8) function words_per_record(header)
     type(journal_header_t), intent(in) :: header
     type(case_result_t) :: empty
-    words_per_record = 3 + 3 * size(summary_record(empty)) + &
-        header%n_samples * sum(field_ncomp, mask=header%fields)
+    words_per_record = 3 + 3 * size(summary_record(empty)) + 1 + &
+        header%n_samples * sum(field_ncomp, mask=in_record(header))
   end function words_per_record
 
+  !> The fields a record holds whole.
+  pure function in_record(header)
+    type(journal_header_t), intent(in) :: header
+    logical :: in_record(field_count)
+    in_record = header%fields .and. .not. header%in_place
+  end function in_record
+
   !> The words of a record (words_per_record of them), its checksum aside.
-  subroutine pack_record(header, slot, res, words)
+  subroutine pack_record(header, slot, res, in_place, words)
     type(journal_header_t), intent(in) :: header
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
+    integer(i8), intent(in) :: in_place       !< the fingerprint of the trajectories written in place
     integer(i8), intent(out) :: words(:)
     type(named_value_t), allocatable :: rec(:)
     integer :: k, f
     integer(i8) :: at, n
+    logical :: whole(field_count)
+    whole = in_record(header)
     words(1:3) = [record_marker, slot, int(res%status, i8)]
     rec = summary_record(res)
     ! three words per summary entry: an integer, or up to three reals
@@ -231,23 +272,27 @@ contains
         words(3 * k + 1:3 * k + 3) = transfer(rec(k)%reals, 0_i8, 3)
       end if
     end do
-    at = 3 + 3 * size(rec)
+    at = 3 + 3 * size(rec) + 1
+    words(at) = in_place
     do f = 1, field_count
-      if (.not. header%fields(f)) cycle
+      if (.not. whole(f)) cycle
       n = field_ncomp(f) * header%n_samples
       words(at + 1:at + n) = transfer(res%fields(f)%values, 0_i8, n)
       at = at + n
     end do
   end subroutine pack_record
 
-  subroutine unpack_record(header, words, slot, res)
+  subroutine unpack_record(header, words, slot, res, in_place)
     type(journal_header_t), intent(in) :: header
     integer(i8), intent(in) :: words(:)
     integer(i8), intent(out) :: slot
     type(case_result_t), intent(out) :: res
+    integer(i8), intent(out) :: in_place
     type(named_value_t), allocatable :: rec(:)
     integer :: k, f
     integer(i8) :: at, n
+    logical :: whole(field_count)
+    whole = in_record(header)
     slot = words(2)
     res%status = int(words(3))
     rec = summary_record(res)
@@ -259,23 +304,14 @@ contains
       end if
       call set_summary_value(res, rec(k))
     end do
-    at = 3 + 3 * size(rec)
+    at = 3 + 3 * size(rec) + 1
+    in_place = words(at)
     do f = 1, field_count
-      if (.not. header%fields(f)) cycle
+      if (.not. whole(f)) cycle
       n = field_ncomp(f) * header%n_samples
       res%fields(f)%values = reshape(transfer(words(at + 1:at + n), 0.0_wp, n), &
                                      [int(field_ncomp(f), i8), header%n_samples])
       at = at + n
     end do
   end subroutine unpack_record
-
-  !> A rotate-xor checksum of the record's words: catches a torn write.
-  pure integer(i8) function checksum(words)
-    integer(i8), intent(in) :: words(:)
-    integer(i8) :: k
-    checksum = 1469598103934665603_i8
-    do k = 1, size(words, kind=i8)
-      checksum = ieor(ishftc(checksum, 7), words(k))
-    end do
-  end function checksum
 end module ellroll_journal

@@ -6,9 +6,13 @@
 !>
 !> Files, for output OUT: OUT.partial (the HDF5 file being written, moved to
 !> OUT when complete) and OUT.journal (every finished case, the durable
-!> record; deleted when OUT is in place).
+!> record; deleted when OUT is in place). A resume builds OUT.partial.new
+!> from the journal and the killed run's OUT.partial, which holds the
+!> journaled cases' trajectories, and moves it over OUT.partial: at every
+!> moment OUT.partial holds the trajectories of every case in the journal.
 module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_strings, only: itoa, text_hash, format_real
@@ -21,6 +25,7 @@ module ellroll_run_campaign
   use ellroll_input, only: run_input_t, describe_invalid
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
   use ellroll_hdf5, only: h5_output_t, provenance_t, window_list_t, table_row
+  use ellroll_trajectory_store, only: trajectory_store_t
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t, journal_header_t
   use ellroll_progress, only: progress_t
@@ -172,7 +177,7 @@ contains
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: target, partial, journal_path, messages
+    character(len=:), allocatable :: target, partial, resumed, journal_path, messages
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
     integer(i8) :: n_slots, slot, i, chunk
@@ -186,12 +191,12 @@ contains
     type(case_result_t) :: res
     type(error_t) :: shared_err, block_err
     type(run_timings_t) :: timings
-    logical :: found
     integer :: n_threads
 
     timings%started = wall_clock()
     target = inp%plan%file
     partial = target // '.partial'
+    resumed = partial // '.new'
     journal_path = target // '.journal'
 
     ! invalid cases: stop before any work, or skip them
@@ -226,36 +231,35 @@ contains
       end if
     end if
 
+    if (opts%overwrite) call remove_file(resumed)       ! left by a resume killed before its end
+
     globals = shard_slots(inp%campaign%n_cases(), opts%shard)
     n_slots = size(globals, kind=i8)
-    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, &
-                              n_samples=inp%plan%n_samples, shard=opts%shard, fields=inp%plan%fields)
     prov = prov_in
     prov%campaign_id = campaign_id(inp)
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
-    call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    if (opts%resume) then
+      call out%create(resumed, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    else
+      call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    end if
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call out%close(err)
-      call remove_file(partial)
+      call remove_file(out%path)
       return
     end if
+    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, n_samples=inp%plan%n_samples, &
+                              shard=opts%shard, fields=inp%plan%fields, in_place=out%in_place%fields)
 
     ! cases already done: from the journal of the interrupted run
     allocate (done(0:n_slots - 1))
     done = .false.
     if (opts%resume) then
-      call journal%open_existing(journal_path, header, err)
-      do while (.not. err%failed())
-        call journal%next_record(slot, res, found)
-        if (.not. found) exit
-        if (done(slot)) cycle
-        call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
-        done(slot) = .true.
-      end do
+      call resume_from_journal()
     else
       call journal%create(journal_path, header, err)
     end if
@@ -311,6 +315,51 @@ contains
     if (opts%timings) call timings%report()
 
   contains
+
+    !> Copy the journaled cases into the new file, their trajectories read
+    !> back from the killed run's file, then move the new file over it. A
+    !> case whose trajectories are missing there or fail their check (the
+    !> system lost writes) runs again.
+    subroutine resume_from_journal()
+      type(trajectory_store_t) :: killed_run
+      type(error_t) :: unreadable, read_err
+      type(case_result_t) :: res
+      integer(i8) :: slot, in_place
+      logical :: found
+      logical, allocatable :: lost(:)
+      call journal%open_existing(journal_path, header, err)
+      if (err%failed()) return
+      if (any(header%in_place)) &
+        call killed_run%open_existing(partial, n_slots, inp%plan%n_samples, header%in_place, unreadable)
+      allocate (lost(0:n_slots - 1))
+      lost = .false.
+      do while (.not. err%failed())
+        call journal%next_record(slot, res, in_place, found)
+        if (.not. found) exit
+        if (done(slot)) cycle
+        if (any(header%in_place)) then
+          if (.not. unreadable%failed()) call killed_run%get(slot, res, read_err)
+          if (unreadable%failed() .or. read_err%failed() .or. journal%fingerprint(res) /= in_place) then
+            lost(slot) = .true.
+            read_err = error_t()
+            cycle
+          end if
+        end if
+        call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
+        done(slot) = .true.
+      end do
+      call killed_run%close(read_err)
+      if (any(lost .and. .not. done)) then
+        if (unreadable%failed()) then
+          messages = unreadable%message
+        else
+          messages = partial // ': their trajectories there are damaged'
+        end if
+        write (error_unit, '(a)') 'ellroll: warning: ' // itoa(count(lost .and. .not. done)) // &
+            ' finished cases run again: ' // messages
+      end if
+      if (.not. err%failed()) call out%move_to(partial, err)
+    end subroutine resume_from_journal
 
     !> Integrate the slots of one block not done yet, write their trajectories
     !> and journal records, then hand their table rows to the writer: each
@@ -383,9 +432,9 @@ contains
         end associate
       end do
       ! the journal: places taken under its lock, the records written there
-      ! outside it (a resume rebuilds the file from the journal, so which of
-      ! the two is written first does not matter)
-      if (n_done > 0) then
+      ! outside it, after the trajectories (a resume takes a journaled case's
+      ! trajectories from the file)
+      if (n_done > 0 .and. .not. write_err%failed()) then
         asked = wall_clock()
         !$omp critical (ellroll_journal)
         taken = wall_clock()
@@ -444,6 +493,7 @@ contains
     subroutine abandon()
       type(error_t) :: ignored
       call out%close(ignored)
+      if (out%path == resumed) call remove_file(resumed)    ! a resume that failed before its copy was complete
       call journal%close(delete=.false.)
       err%message = err%message // achar(10) // '  ' // partial // ' holds the cases finished so far and ' // &
                     journal_path // ' keeps them; fix the cause and run again with --resume'

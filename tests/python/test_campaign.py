@@ -165,13 +165,20 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
     assert not any((tmp_path / n).exists() for n in ("m2.h5", "m3.h5", "m4.h5"))
 
 
-# a journal record holds the summary as (value, kind, spare) words per entry,
-# in summary_record's order (src/cases/results.f90): wall_time is the 5th
+# a journal record (src/run/journal.f90): marker, slot, status, the summary
+# as (value, kind, spare) words per entry in summary_record's order
+# (src/cases/results.f90: wall_time is the 5th), the checksum of the
+# trajectories written in place, the trajectories written through HDF5
+# (compressed), the record's checksum
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 20, 4
-
-
-JOURNAL_HEADER = 8 + 64 + 8 + 8 + 4 * 2 + 4 * 8   # magic, id, slots, samples, shard, one flag per field
+JOURNAL_HEADER = 8 + 64 + 8 + 8 + 4 * 2 + 2 * 4 * 8   # magic, id, slots, samples, shard, two flags per field
 RECORD_MARKER = 7310312871522813004
+
+
+def record_bytes(samples_in_record=0):
+    """The size of a journal record holding `samples_in_record` trajectory
+    values (samples x components of the compressed fields)."""
+    return 8 * (3 + 3 * SUMMARY_ENTRIES + 1 + samples_in_record + 1)
 
 
 def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
@@ -185,15 +192,14 @@ def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
 
 
-def journal_wall_times(path, n_samples, n_fields_components):
+def journal_wall_times(path, samples_in_record=0):
     """(slot -> wall_time) of the records of a journal (places never
     written, as a kill leaves them, are skipped)."""
     data = path.read_bytes()
-    words = 3 + 3 * SUMMARY_ENTRIES + n_samples * n_fields_components
-    size = 8 * (words + 1)
+    size = record_bytes(samples_in_record)
     out = {}
     for start in range(JOURNAL_HEADER, len(data) - size + 1, size):
-        record = struct.unpack(f"<{words + 1}q", data[start:start + size])
+        record = struct.unpack(f"<{size // 8}q", data[start:start + size])
         if record[0] != RECORD_MARKER:
             continue
         slot, wall = record[1], struct.unpack("<d", struct.pack("<q", record[3 + 3 * WALL_TIME_ENTRY]))[0]
@@ -201,14 +207,14 @@ def journal_wall_times(path, n_samples, n_fields_components):
     return out
 
 
-def kill_after_records(args, cwd, journal, records, record_bytes, delay=0.0):
+def kill_after_records(args, cwd, journal, records, size_of_record, delay=0.0):
     """Start a run, kill it -9 once its journal has grown by `records` cases
     (plus `delay` seconds); False if it finished first."""
     size_at_start = journal.stat().st_size if journal.exists() else 0
     proc = subprocess.Popen(args, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < deadline:
-        if journal.exists() and journal.stat().st_size >= size_at_start + records * record_bytes:
+        if journal.exists() and journal.stat().st_size >= size_at_start + records * size_of_record:
             break
         time.sleep(0.002)
     time.sleep(delay)
@@ -219,13 +225,17 @@ def kill_after_records(args, cwd, journal, records, record_bytes, delay=0.0):
     return True
 
 
-def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
-    # 240 cases: long enough (about 0.1 s) for several kills to land mid-run
+@pytest.mark.parametrize("compression", [0, 4])
+def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path, compression):
+    # 240 cases: long enough (about 0.1 s) for several kills to land mid-run.
+    # Uncompressed, a resume takes the journaled cases' trajectories from the
+    # killed run's file; compressed, from their journal records.
     name = write(tmp_path, SPIN_RADIUS.replace("values = 5, 10, 20, 40, 80", "values = 5, 10, 20, 40, 80, 100")
                  .replace("count = 4", "count = 40"), t_end=5.0)
+    text = (tmp_path / name).read_text()
+    (tmp_path / name).write_text(text.replace("interval = 0.01 /", f"interval = 0.01, compression = {compression} /"))
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
-    n_samples, components = 501, 17
-    record = 8 * (3 + 3 * SUMMARY_ENTRIES + n_samples * components + 1)
+    in_record = 501 * 17 if compression else 0
     journal = tmp_path / "out.h5.journal"
     rng = random.Random(4)
     kept_before = {}
@@ -233,47 +243,110 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path):
     for attempt in range(5):
         args = [str(ellroll), "run", name, "-q", "--threads", "2"] + (["--resume"] if attempt else [])
         # kill at a random moment after this attempt has finished at least one case
-        if not kill_after_records(args, tmp_path, journal, 2, record, rng.uniform(0.0, 0.03)):
+        if not kill_after_records(args, tmp_path, journal, 2, record_bytes(in_record), rng.uniform(0.0, 0.03)):
             break
         kills += 1
-        kept_before.update(journal_wall_times(journal, n_samples, components))
+        kept_before.update(journal_wall_times(journal, in_record))
         assert not (tmp_path / "out.h5").exists()
     if not (tmp_path / "out.h5").exists():
         result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
         assert result.returncode == 0, result.stderr
+        assert "run again" not in result.stderr
     assert kills >= 2 and kept_before
     assert not journal.exists() and not (tmp_path / "out.h5.partial").exists()
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
     with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert (f["trajectory/nutation"].compression is not None) == bool(compression)
         wall = f["summary/wall_time"][:]
         for slot, seconds in kept_before.items():
             assert wall[slot] == seconds, "a case finished before the kill was computed again"
+
+
+def killed_run(ellroll, tmp_path, records=2):
+    """A run of 20 cases killed -9 after `records` journal records (one
+    thread); its journaled (slot -> wall_time), and the uninterrupted
+    run's file whole.h5 beside it."""
+    name = write(tmp_path, SPIN_RADIUS, t_end=3.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, records,
+                              record_bytes())
+    journaled = journal_wall_times(journal)
+    assert len(journaled) >= records
+    return name, journaled
+
+
+def resume_equals_the_whole_run(ellroll, tmp_path, name):
+    """Resume; the file must equal the uninterrupted run's. Its wall times
+    and the resume's standard error."""
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    assert not any((tmp_path / f"out.h5.{end}").exists() for end in ("journal", "partial", "partial.new"))
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        return f["summary/wall_time"][:], result.stderr
 
 
 def test_resume_skips_a_journal_place_never_written(ellroll, tmp_path):
     # threads reserve journal places in turn and fill them at once: a kill can
     # leave an early place empty behind later records; resume must skip it,
     # keep the later records and run the empty place's case again
-    name = write(tmp_path, SPIN_RADIUS, t_end=3.0)
-    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    name, before = killed_run(ellroll, tmp_path)
     journal = tmp_path / "out.h5.journal"
-    record = 8 * (3 + 3 * SUMMARY_ENTRIES + 301 * 17 + 1)
-    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 2, record)
-    before = journal_wall_times(journal, 301, 17)
-    assert len(before) >= 2
     with open(journal, "r+b") as f:
         f.seek(JOURNAL_HEADER)
         emptied = struct.unpack("<3q", f.read(24))[1]
         f.seek(JOURNAL_HEADER)
-        f.write(bytes(record))
-    kept = journal_wall_times(journal, 301, 17)
+        f.write(bytes(record_bytes()))
+    kept = journal_wall_times(journal)
     assert emptied not in kept and len(kept) == len(before) - 1
-    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
-    with h5py.File(tmp_path / "out.h5", "r") as f:
-        wall = f["summary/wall_time"][:]
-        assert all(wall[slot] == seconds for slot, seconds in kept.items()), "a journaled case was run again"
+    wall, _ = resume_equals_the_whole_run(ellroll, tmp_path, name)
+    assert all(wall[slot] == seconds for slot, seconds in kept.items()), "a journaled case was run again"
+
+
+def trajectory_label(path):
+    """The label in an output file's first 512 bytes (src/output/trajectory_store.f90):
+    marker, version, cases, samples, the address of each field (-1: not in place)."""
+    words = struct.unpack("<13q", path.read_bytes()[:13 * 8])
+    assert words[0].to_bytes(8, "little", signed=True) == b"ellroll:" and words[1] == 1
+    return words[2], words[3], words[4:12]
+
+
+def test_resume_runs_again_a_case_whose_trajectories_are_damaged(ellroll, tmp_path):
+    # a journal record vouches for its case's trajectories in the file by
+    # their checksum: if the system lost them (a power cut), the case runs again
+    name, before = killed_run(ellroll, tmp_path)
+    partial = tmp_path / "out.h5.partial"
+    n_cases, n_samples, addresses = trajectory_label(partial)
+    assert n_cases == 20 and n_samples == 301 and all(a > 0 for a in addresses[:7]) and addresses[7] == -1
+    damaged = min(before)
+    nutation = addresses[4] + damaged * n_samples * 8    # one component per sample
+    with open(partial, "r+b") as f:
+        f.seek(nutation + 8 * 100)
+        f.write(struct.pack("<d", 0.125))
+    wall, stderr = resume_equals_the_whole_run(ellroll, tmp_path, name)
+    assert "warning: 1 finished cases run again" in stderr and "damaged" in stderr
+    assert wall[damaged] != before[damaged], "a case with damaged trajectories was kept"
+    assert all(wall[slot] == seconds for slot, seconds in before.items() if slot != damaged)
+
+
+def test_resume_without_the_killed_runs_file_runs_its_cases_again(ellroll, tmp_path):
+    name, before = killed_run(ellroll, tmp_path)
+    (tmp_path / "out.h5.partial").unlink()
+    wall, stderr = resume_equals_the_whole_run(ellroll, tmp_path, name)
+    assert f"warning: {len(before)} finished cases run again" in stderr and "out.h5.partial: cannot open" in stderr
+    assert not any(wall[slot] == seconds for slot, seconds in before.items())
+
+
+def test_a_resume_killed_while_copying_leaves_the_killed_runs_file_whole(ellroll, tmp_path):
+    # a resume builds out.h5.partial.new and moves it over out.h5.partial
+    # only once every journaled case is in it: killed before, it leaves
+    # out.h5.partial as it was, and a half-built .new that the next resume replaces
+    name, before = killed_run(ellroll, tmp_path)
+    (tmp_path / "out.h5.partial.new").write_bytes(bytes(4096))
+    wall, stderr = resume_equals_the_whole_run(ellroll, tmp_path, name)
+    assert "warning" not in stderr
+    assert all(wall[slot] == seconds for slot, seconds in before.items()), "a journaled case was run again"
 
 
 def test_resume_refusals(ellroll, tmp_path):
@@ -281,8 +354,8 @@ def test_resume_refusals(ellroll, tmp_path):
     result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
     assert result.returncode == 3 and "no interrupted run to resume" in result.stderr
     journal = tmp_path / "out.h5.journal"
-    record = 8 * (3 + 3 * SUMMARY_ENTRIES + 301 * 17 + 1)
-    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 1, record)
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 1,
+                              record_bytes())
     result = run(ellroll, "run", name, cwd=tmp_path)
     assert result.returncode == 3 and "--resume" in result.stderr
     write(tmp_path, SPIN_RADIUS.replace("80", "90"), t_end=3.0)

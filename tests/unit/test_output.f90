@@ -4,7 +4,8 @@
 !> their slots: here more windows are open at once than the writer keeps,
 !> so windows are written partly filled and later completed. Compressed
 !> trajectories go with their windows; uncompressed ones are written in
-!> place, case by case, and only the table rows are kept in windows.
+!> place, case by case, and only the table rows are kept in windows; the
+!> file's label leads a reader (a resume) to them without HDF5.
 program test_output
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -12,6 +13,7 @@ program test_output
   use ellroll_cases, only: case_t, field_count, field_names
   use ellroll_results, only: case_result_t
   use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t
+  use ellroll_trajectory_store, only: trajectory_store_t
   use fixtures, only: paper_case
   use testing, only: check, finish
   implicit none
@@ -73,9 +75,41 @@ contains
     call file%close()
     call check(.not. err%failed(), trim(how(compression)) // ': read back without error: ' // err%message)
     call check(n_wrong == 0, trim(how(compression)) // ': every case in its slot, status, summary and trajectory')
+    call read_back_in_place(compression == 0, n_cases, n_samples, fields)
     open (newunit=k, file=path)
     close (k, status='delete')
   end subroutine write_in_any_order_and_read_back
+
+  !> The trajectories read back through the file's label, as a resume
+  !> does; a file without a label (compressed), or labelled for another
+  !> layout, is refused.
+  subroutine read_back_in_place(labelled, n_cases, n_samples, fields)
+    logical, intent(in) :: labelled
+    integer(i8), intent(in) :: n_cases, n_samples
+    logical, intent(in) :: fields(field_count)
+    type(trajectory_store_t) :: store, other_layout
+    type(case_result_t) :: res, expected
+    type(error_t) :: err, refusal
+    integer(i8) :: slot, n_wrong
+    call store%open_existing(path, n_cases, n_samples, fields, err)
+    if (.not. labelled) then
+      call check(err%failed() .and. index(err%message, 'no trajectory label') > 0, &
+                 'compressed: no label, refused: ' // err%message)
+      call store%close(err)
+      return
+    end if
+    n_wrong = 0
+    do slot = 0, n_cases - 1
+      call store%get(slot, res, err)
+      expected = result_of(slot, n_samples)
+      if (.not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
+    end do
+    call store%close(err)
+    call check(.not. err%failed() .and. n_wrong == 0, 'in place: every trajectory read back through the label')
+    call other_layout%open_existing(path, n_cases, n_samples + 1, fields, refusal)
+    call check(index(refusal%message, 'laid out for another run') > 0, 'in place: another layout refused')
+    call other_layout%close(refusal)
+  end subroutine read_back_in_place
 
   !> A result that names its slot in every value.
   function result_of(slot, n_samples) result(r)

@@ -1,7 +1,8 @@
-/* Writes at a given byte offset of a file (POSIX pwrite), for data whose
- * place in the file is fixed in advance: threads write their own regions at
- * the same time, with no lock and no shared file position. Errors come back
- * as errno values (0: success); ellroll_error_text turns them into words. */
+/* Writes and reads at a given byte offset of a file (POSIX pwrite, pread),
+ * for data whose place in the file is fixed in advance: threads write their
+ * own regions at the same time, with no lock and no shared file position.
+ * Errors come back as errno values (0: success); ellroll_error_text turns
+ * them into words. */
 #define _DEFAULT_SOURCE    /* pwritev: BSD and glibc, not POSIX */
 #include <errno.h>
 #include <fcntl.h>
@@ -11,12 +12,13 @@
 #include <sys/uio.h>
 #include <unistd.h>
 
-/* A descriptor open for writing (>= 0), or -errno. */
-int ellroll_open_for_writing(const char *path)
+/* A descriptor of an existing file, open for writing (writing != 0) or for
+ * reading (>= 0), or -errno. */
+int ellroll_open_descriptor(const char *path, int writing)
 {
     int fd;
     do {
-        fd = open(path, O_WRONLY | O_CLOEXEC);
+        fd = open(path, (writing ? O_WRONLY : O_RDONLY) | O_CLOEXEC);
     } while (fd < 0 && errno == EINTR);
     return fd < 0 ? -errno : fd;
 }
@@ -56,6 +58,27 @@ int ellroll_write_pieces_at(int fd, void *const *pieces, const int64_t *bytes, i
             ++first;
         }
         done_in_first += (size_t)written;
+    }
+    return 0;
+}
+
+/* `bytes` bytes from `offset` into `buffer`: 0, an errno value, or -1 where
+ * the file ends first. */
+int ellroll_read_at(int fd, void *buffer, int64_t bytes, int64_t offset)
+{
+    char *next = buffer;
+    while (bytes > 0) {
+        ssize_t got = pread(fd, next, (size_t)bytes, (off_t)offset);
+        if (got < 0) {
+            if (errno == EINTR)
+                continue;
+            return errno;
+        }
+        if (got == 0)
+            return -1;
+        next += got;
+        offset += got;
+        bytes -= got;
     }
     return 0;
 }
