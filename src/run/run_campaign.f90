@@ -327,6 +327,7 @@ contains
       integer(i8) :: slot, in_place
       logical :: found
       logical, allocatable :: lost(:)
+      character(len=:), allocatable :: why
       call journal%open_existing(journal_path, header, err)
       if (err%failed()) return
       if (any(header%in_place)) &
@@ -351,12 +352,12 @@ contains
       call killed_run%close(read_err)
       if (any(lost .and. .not. done)) then
         if (unreadable%failed()) then
-          messages = unreadable%message
+          why = unreadable%message
         else
-          messages = partial // ': their trajectories there are damaged'
+          why = partial // ': their trajectories there are damaged'
         end if
         write (error_unit, '(a)') 'ellroll: warning: ' // itoa(count(lost .and. .not. done)) // &
-            ' finished cases run again: ' // messages
+            ' finished cases run again: ' // why
       end if
       if (.not. err%failed()) call out%move_to(partial, err)
     end subroutine resume_from_journal
