@@ -160,6 +160,7 @@ contains
     integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl, fcpl
     integer(i8) :: address(field_count)
     integer(i8) :: n_cases
+    logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
 
     n_cases = size(indices, kind=i8)
     address = -1
@@ -170,6 +171,7 @@ contains
     self%n_samples = size(times, kind=i8)
     self%fields = fields
     self%in_windows = fields .and. deflate_level > 0
+    in_place_fields = fields .and. .not. self%in_windows
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
     call h5open_f(hdferr)
@@ -181,7 +183,7 @@ contains
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
     ! a user block for the label of the trajectories written in place
     call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
-    if (any(fields .and. .not. self%in_windows)) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
+    if (any(in_place_fields)) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
     call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
     call h5pclose_f(fapl, hdferr)
     call h5pclose_f(fcpl, hdferr)
@@ -241,7 +243,7 @@ contains
     call h5dclose_f(xyz_scale, hdferr)
     call h5dclose_f(mode_scale, hdferr)
     if (err%failed()) return
-    call self%in_place%start(path, n_cases, self%n_samples, fields .and. .not. self%in_windows, address, err)
+    call self%in_place%start(path, n_cases, self%n_samples, in_place_fields, address, err)
 
   contains
 

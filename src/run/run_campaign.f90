@@ -177,7 +177,7 @@ contains
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: target, partial, resumed, journal_path, messages
+    character(len=:), allocatable :: target, partial, resumed, writing, journal_path, messages
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
     integer(i8) :: n_slots, slot, i, chunk
@@ -241,11 +241,9 @@ contains
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
-    if (opts%resume) then
-      call out%create(resumed, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
-    else
-      call out%create(partial, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
-    end if
+    writing = partial
+    if (opts%resume) writing = resumed      ! moved over partial once the journaled cases are in it
+    call out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call out%close(err)
