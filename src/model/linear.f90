@@ -1,11 +1,12 @@
 !> Linear analysis of the rolling ball: the Jacobian of the right-hand side
 !> (central differences) and its eigenvalues (LAPACK dgeev).
 !>  - small-oscillation periods about the bottom equilibrium spinning with
-!>    sigma = omega . n about the vertical (n = e_z, omega = sigma e_z);
+!>    sigma = omega . n about the vertical (n = e_z, omega = sigma e_z), in
+!>    closed form from the Jacobian's two 2x2 coupling blocks;
 !>  - the fastest rate of the linearised motion at a state, which sets the
-!>    step a fixed-step method needs.
+!>    step a fixed-step method needs, or a cheap bound on it.
 module ellroll_linear
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use ellroll_kinds, only: wp, two_pi
   use ellroll_rolling_ball, only: rolling_ball_t, state_size
   implicit none
@@ -48,34 +49,70 @@ contains
 
   !> The two small-oscillation periods (longer first) about the bottom,
   !> spinning at sigma; NaN for a mode that does not oscillate.
+  !> Why 2x2: the cup's mirror x -> -x followed by time reversal maps
+  !> (n1, n2, w1, w2) to (-n1, n2, -w1, w2) and keeps the equilibrium, so the
+  !> Jacobian J anticommutes with that involution: (n1, w1)' depends on
+  !> (n2, w2) alone (block B) and (n2, w2)' on (n1, w1) alone (block C), while
+  !> n3 and w3 stay constant to first order. Then J^2 = diag(BC, CB), and the
+  !> eigenvalues are the square roots of the eigenvalues mu of the 2x2 BC.
   function oscillation_periods(ball, sigma) result(periods)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: sigma
     real(wp) :: periods(2)
-    real(wp) :: re(state_size), im(state_size), frequencies(state_size), scale
-    integer :: n_modes, k
-    call eigenvalues(jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma]), re, im)
-    scale = maxval(abs(im))
-    n_modes = 0
-    do k = 1, state_size
-      if (im(k) > 1.0e-9_wp * scale) then
-        n_modes = n_modes + 1
-        frequencies(n_modes) = im(k)
-      end if
-    end do
+    integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]   ! (n1, w1) and (n2, w2)
+    real(wp) :: jac(state_size, state_size), squared(2, 2), half_trace, discriminant, frequencies(2)
+    complex(wp) :: mu(2)
+    jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma])
+    squared = matmul(jac(odd, even), jac(even, odd))
+    half_trace = (squared(1, 1) + squared(2, 2)) / 2
+    discriminant = half_trace**2 - (squared(1, 1) * squared(2, 2) - squared(1, 2) * squared(2, 1))
+    mu = half_trace + [1, -1] * sqrt(cmplx(discriminant, 0.0_wp, wp))
+    ! an eigenvalue sqrt(mu) oscillates at |Im sqrt(mu)|: a real mu < 0 is a
+    ! pure oscillation; a complex pair (flutter) grows while it oscillates
+    frequencies = abs(aimag(sqrt(mu)))
     periods = ieee_value(0.0_wp, ieee_quiet_nan)
-    do k = 1, min(2, n_modes)
-      periods(k) = two_pi / frequencies(k)
-    end do
-    if (n_modes >= 2 .and. periods(2) > periods(1)) periods = periods([2, 1])
+    where (frequencies > 1.0e-9_wp * maxval(frequencies)) periods = two_pi / frequencies
+    if (periods(2) > periods(1) .or. ieee_is_nan(periods(1))) periods = periods([2, 1])
   end function oscillation_periods
 
-  !> Largest |eigenvalue| of the Jacobian at y (1/s).
-  real(wp) function fastest_rate(ball, y)
+  !> The fastest rate of the motion linearised at y (1/s): the largest
+  !> |eigenvalue| of the Jacobian. Where a bound on it (balanced_norm) is
+  !> already at most `enough`, that bound instead: a caller asking only
+  !> whether the rate passes `enough` is spared the eigenvalue solve.
+  real(wp) function fastest_rate(ball, y, enough)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(state_size)
-    real(wp) :: re(state_size), im(state_size)
-    call eigenvalues(jacobian(ball, y), re, im)
+    real(wp), intent(in), optional :: enough
+    real(wp) :: jac(state_size, state_size), re(state_size), im(state_size)
+    jac = jacobian(ball, y)
+    fastest_rate = balanced_norm(jac)
+    if (present(enough)) then
+      if (fastest_rate <= enough) return
+    end if
+    call eigenvalues(jac, re, im)
     fastest_rate = maxval(hypot(re, im))
   end function fastest_rate
+
+  !> A bound on every |eigenvalue| of a matrix: a norm of a similar matrix
+  !> (Osborne's balancing, a few sweeps: each row's and column's off-diagonal
+  !> sums made equal by a diagonal similarity). Unbalanced, a state Jacobian's
+  !> entries span orders of magnitude and its plain norm is a loose bound.
+  pure real(wp) function balanced_norm(matrix) result(bound)
+    real(wp), intent(in) :: matrix(:, :)
+    integer, parameter :: sweeps = 4
+    real(wp) :: m(size(matrix, 1), size(matrix, 2)), row, column, factor
+    integer :: sweep, i
+    m = abs(matrix)
+    do sweep = 1, sweeps
+      do i = 1, size(m, 1)
+        column = sum(m(:, i)) - m(i, i)
+        row = sum(m(i, :)) - m(i, i)
+        if (.not. (column > 0 .and. row > 0)) cycle
+        factor = sqrt(row / column)
+        m(:, i) = m(:, i) * factor
+        m(i, :) = m(i, :) / factor
+      end do
+    end do
+    bound = min(maxval(sum(m, dim=1)), maxval(sum(m, dim=2)))
+  end function balanced_norm
 end module ellroll_linear

@@ -142,7 +142,8 @@ contains
         format_real(cs%dt) // ' s, 1/rate = ' // format_real(1 / worst_rate) // &
         ' s); suggested dt <= ' // format_real(suggestion) // ' s, or method = ''dop853'''
   contains
-    !> Case `index`'s fastest rate at the start and its step.
+    !> Case `index`'s fastest rate at the start and its step; where a bound on
+    !> the rate is within the limit, the bound (the rate is only compared with it).
     subroutine start_rate(index, rate, dt)
       integer(i8), intent(in) :: index
       real(wp), intent(out) :: rate, dt
@@ -150,8 +151,8 @@ contains
       type(rolling_ball_t) :: ball
       one = inp%campaign%case_at(index)
       ball = make_ball(one)
-      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0))
       dt = one%dt
+      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0), enough=warn_above / dt)
     end subroutine start_rate
 
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval.

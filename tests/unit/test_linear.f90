@@ -2,11 +2,15 @@
 !> classical 2 pi sqrt(7 (rho - R) / (5 g)) in both principal planes; with
 !> spin, the two gyroscopic mode periods against the frequencies found in a
 !> simulated small oscillation (peaks of a windowed Fourier transform).
+!> The periods' closed form against the full eigenvalue problem over random
+!> cups and spins. The fastest rate's cheap bound: never below the
+!> eigenvalues' rate, and within 5x of it about the paper's case.
 program test_linear
   use ellroll_kinds, only: wp, pi, two_pi
   use ellroll_cases, only: case_t, make_ball, field_contact
+  use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
   use ellroll_results, only: case_result_t
-  use ellroll_linear, only: oscillation_periods
+  use ellroll_linear, only: oscillation_periods, fastest_rate, jacobian, eigenvalues
   use fixtures, only: paper_case, run_case
   use testing
   implicit none
@@ -32,9 +36,98 @@ program test_linear
               two_pi / peak_frequency(res%fields(field_contact)%values(1, :), 0.01_wp, two_pi / periods(2))]
   call check_close(measured(1), periods(1), 1.0e-4_wp, 'spin 40 rad/s: slow mode period, simulated vs linear (s)')
   call check_close(measured(2), periods(2), 1.0e-4_wp, 'spin 40 rad/s: fast mode period, simulated vs linear (s)')
+  call check_periods_against_eigenvalues()
+  call check_rate_bound()
   call finish('test_linear')
 
 contains
+
+  !> A cup with random axes (a = 1), a random ball below its least radius of
+  !> curvature (c^2 / a), both from draw(1:3).
+  function random_cup(draw) result(cup)
+    real(wp), intent(in) :: draw(3)
+    type(case_t) :: cup
+    cup = paper_case(1.0e-3_wp, 1.0_wp)
+    cup%b = 0.2_wp + 0.8_wp * draw(1)
+    cup%c = 0.05_wp + 0.15_wp * draw(2)
+    cup%radius = (0.02_wp + 0.9_wp * draw(3)) * cup%c**2 / cup%a
+  end function random_cup
+
+  subroutine seed_random()
+    integer :: n, k
+    call random_seed(size=n)
+    call random_seed(put=[(12345 + 7 * k, k = 1, n)])
+  end subroutine seed_random
+
+  !> oscillation_periods' 2x2 closed form against the periods of the whole
+  !> 6x6 Jacobian's eigenvalues (LAPACK), and the symmetry the closed form
+  !> rests on: (n1, w1)' does not depend on (n1, w1), nor (n2, w2)' on (n2, w2).
+  subroutine check_periods_against_eigenvalues()
+    integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]
+    type(case_t) :: cup
+    type(rolling_ball_t) :: ball
+    real(wp) :: draw(4), sigma, jac(state_size, state_size), re(state_size), im(state_size)
+    real(wp) :: closed(2), full(2), worst_difference, worst_coupling
+    integer :: k
+    call seed_random()
+    worst_difference = 0
+    worst_coupling = 0
+    do k = 1, 500
+      call random_number(draw)
+      cup = random_cup(draw(1:3))
+      ball = make_ball(cup)
+      sigma = 300 * (2 * draw(4) - 1)
+      jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma])
+      worst_coupling = max(worst_coupling, maxval(abs([jac(odd, odd), jac(even, even)])) / maxval(abs(jac)))
+      call eigenvalues(jac, re, im)
+      full = two_pi / pack(im, im > 1.0e-9_wp * maxval(abs(im)))   ! two oscillating modes here
+      full = [maxval(full), minval(full)]
+      closed = oscillation_periods(ball, sigma)
+      worst_difference = max(worst_difference, maxval(abs(closed - full) / full))
+    end do
+    call check_below(worst_coupling, 1.0e-9_wp, 'bottom equilibrium: Jacobian entries the mirror symmetry makes zero')
+    call check_below(worst_difference, 1.0e-10_wp, 'periods: 2x2 closed form against the 6x6 eigenvalues (500 cups)')
+  end subroutine check_periods_against_eigenvalues
+
+  !> Over random cups, balls from small to nearly the cup's least radius of
+  !> curvature, positions out to near the rim and spins from 0 to about
+  !> 1000 rad/s: the bound that fastest_rate returns when it is at most
+  !> `enough` is never below the eigenvalues' rate (it is a similar matrix's
+  !> norm), and above `enough` the eigenvalues' rate itself comes back.
+  subroutine check_rate_bound()
+    type(case_t) :: cup
+    type(rolling_ball_t) :: ball
+    real(wp) :: y(state_size), exact, bound, worst_ratio, draw(6)
+    integer :: k, low_count, exact_missed
+    call seed_random()
+    low_count = 0
+    exact_missed = 0
+    do k = 1, 2000
+      call random_number(draw)
+      cup = random_cup(draw(1:3))
+      ball = make_ball(cup)
+      y = initial_state(ball, 0.7_wp * (2 * draw(4) - 1) * (cup%a - cup%radius), &
+                        0.7_wp * (2 * draw(5) - 1) * (cup%b - cup%radius), &
+                        1000 * draw(6)**3 * [draw(1) - 0.5_wp, draw(2) - 0.5_wp, 1.0_wp])
+      exact = fastest_rate(ball, y)
+      bound = fastest_rate(ball, y, enough=huge(1.0_wp))
+      if (bound < exact * (1 - 1.0e-12_wp)) low_count = low_count + 1
+      if (fastest_rate(ball, y, enough=0.5_wp * bound) /= exact) exact_missed = exact_missed + 1
+    end do
+    call check(low_count == 0, 'fastest rate: the bound is never below the eigenvalues'' rate (2000 random states)')
+    call check(exact_missed == 0, 'fastest rate: above enough, the eigenvalues'' rate itself (2000 random states)')
+    ! tight enough to spare the eigenvalues in a sweep about the paper's case, its purpose
+    worst_ratio = 0
+    do k = 0, 99
+      cup = paper_case(1.0e-3_wp, 1.0_wp)
+      cup%radius = 0.02_wp + 0.18_wp * mod(k, 10) / 9
+      ball = make_ball(cup)
+      y = initial_state(ball, 0.0_wp, 0.0_wp, [-2.0_wp, 2.0_wp, 5 + 95 * (k / 10) / 9.0_wp])
+      worst_ratio = max(worst_ratio, fastest_rate(ball, y, enough=huge(1.0_wp)) / fastest_rate(ball, y))
+    end do
+    ! unbalanced, the plain norm is 12.5 times the rate here
+    call check_below(worst_ratio, 5.0_wp, 'fastest rate: worst bound / eigenvalues'' rate, paper''s cup swept')
+  end subroutine check_rate_bound
 
   !> The angular frequency of the largest peak of |DFT(hann * x)| within
   !> 10 % of guess, found by golden-section search on the continuous DFT.
