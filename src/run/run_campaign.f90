@@ -152,7 +152,9 @@ contains
       one = inp%campaign%case_at(index)
       ball = make_ball(one)
       dt = one%dt
-      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0), enough=warn_above / dt)
+      ! dt <= 0 (an invalid case, not yet set aside) is never large
+      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0), &
+                          enough=warn_above / max(dt, tiny(dt)))
     end subroutine start_rate
 
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval.

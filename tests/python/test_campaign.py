@@ -389,6 +389,17 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
         assert np.all(np.isnan(f["trajectory/nutation"][1])) and np.all(np.isfinite(f["trajectory/nutation"][0]))
 
 
+def test_a_sweep_with_an_invalid_step_is_advised_and_skipped_under_fp_traps(ellroll_debug, tmp_path):
+    """The step advice runs before invalid cases are set aside: a case with
+    dt = 0 must not be divided by (the Debug build traps floating-point errors)."""
+    name = write(tmp_path, "&campaign invalid = 'skip' /\n&sweep name = 'dt', values = 0, 0.001 /\n", t_end=0.5)
+    result = run(ellroll_debug, "run", name, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        names = f["summary/status"].attrs["flag_meanings"].split()
+        assert [names[s] for s in f["summary/status"][:]] == ["invalid", "completed"]
+
+
 @pytest.mark.parametrize("extra,words", [
     ("&sweep name = 'speed', values = 1, 2 /\n", "not an input that can vary"),
     ("&sweep name = 'radius' /\n", "give either values"),
