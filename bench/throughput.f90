@@ -1,13 +1,17 @@
 !> RK4 steps per second per core on the paper's case (30 s, dt = 1e-3),
 !> measured side by side in one run:
 !>   baseline         a straightforward scalar RK4 of the paper's equations (bench/baseline_rk4.f90)
-!>   integrate only   ellroll's RK4 on the ball model: steps, nothing observed
+!>   integrate only   ellroll's RK4 on the ball model (its fused step, limits
+!>                    checked at the stages): steps, nothing observed
 !>   summary only     a full ellroll case without trajectories (every summary figure, every step)
 !>   full output      a full ellroll case storing every field at 100 Hz
 !>   batch of 8       8 cases (the paper case with spins 20..27 rad/s) advanced
 !>                    together across SIMD lanes (simulate_batch), per case-step;
 !>                    integrate only, summary only and full output, and one case
 !>                    alone in a batch (it pays for all 8 lanes)
+!>   limit checks     the batch's integration with and without the model's
+!>                    limits checked at every stage of every step (the run
+!>                    always checks them): their cost
 !> Each figure is the best of several repetitions; ratios are to the baseline
 !> and, for the output cost, to summary only. Usage: build/bench_throughput [repeats]
 program throughput
@@ -20,16 +24,15 @@ program throughput
   use ellroll_simulate, only: simulate_case, simulate_batch, lanes
   use ellroll_system, only: tune_runtime
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
-  use ellroll_integrators, only: rk4_t
   use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative
-  use ellroll_ball_steppers, only: lanes_rk4_step
+  use ellroll_ball_steppers, only: lanes_rk4_step, rk4_ball_step
   use baseline_rk4, only: baseline_run
   implicit none
   real(wp), parameter :: dt = 1.0e-3_wp, t_end = 30.0_wp
   integer, parameter :: n_steps = 30000
   integer :: repeats, k
   character(len=16) :: arg
-  real(wp) :: best(8), seconds, check_baseline(6), check_ellroll(6)
+  real(wp) :: best(9), seconds, check_baseline(6), check_ellroll(6)
   type(case_t) :: cs, batch_cases(lanes)
   type(output_plan_t) :: summary_plan, full_plan
   type(case_result_t) :: res, batch_results(lanes)
@@ -44,11 +47,9 @@ program throughput
   cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
   cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
   summary_plan%interval = t_end
-  summary_plan%steps_per_sample = n_steps
   summary_plan%n_samples = 2
   summary_plan%fields = .false.
   full_plan%interval = 0.01_wp
-  full_plan%steps_per_sample = 10
   full_plan%n_samples = 3001
   full_plan%fields = .true.
 
@@ -73,8 +74,10 @@ program throughput
     best(6) = min(best(6), seconds / lanes)
     seconds = timed_batch(summary_plan, 1)
     best(7) = min(best(7), seconds)
-    seconds = timed_lanes_integration()
+    seconds = timed_lanes_integration(checked=.false.)
     best(8) = min(best(8), seconds / lanes)
+    seconds = timed_lanes_integration(checked=.true.)
+    best(9) = min(best(9), seconds / lanes)
   end do
 
   write (output_unit, '(a)') 'RK4 on the paper case, 30 s, dt = 1e-3 (30,000 steps), best of repeats, one core'
@@ -84,11 +87,15 @@ program throughput
   call report('ellroll, summary only', best(3))
   call report('ellroll, full output 100 Hz', best(4))
   call report('batch of 8, integrate only', best(8))
+  call report('  and limits at every stage', best(9))
   call report('batch of 8, summary only', best(5))
   call report('batch of 8, full output', best(6))
   call report('batch of 1, summary only', best(7))
   write (output_unit, '(a, f6.1, a, f6.1, a)') 'full output over summary only: +', 100 * (best(4) / best(3) - 1), &
       ' % (one case), +', 100 * (best(6) / best(5) - 1), ' % (batch of 8)'
+  write (output_unit, '(a, f6.1, a, f6.1, a)') 'limits checked at every stage: +', &
+      1.0e9_wp * (best(9) - best(8)) / n_steps, ' ns per case-step, +', 100 * (best(9) - best(8)) / best(5), &
+      ' % of a batch case-step with its summary'
   write (output_unit, '(a, es10.2)') 'baseline and ellroll agree at 30 s (max |omega| difference, rad/s):', &
       maxval(abs(check_baseline(4:6) - check_ellroll(4:6)))
 
@@ -111,17 +118,16 @@ contains
 
   real(wp) function timed_integration() result(seconds)
     type(rolling_ball_t) :: ball
-    type(rk4_t) :: rk4
     real(wp) :: y(state_size), f(state_size), y_new(state_size)
-    integer(i8) :: start, finish, rate, n_rhs
-    integer :: step
+    integer(i8) :: start, finish, rate
+    integer :: step, stage_limit
     ball = make_ball(cs)
     call system_clock(start, rate)
     y = initial_state(ball, 0.0_wp, 0.0_wp, cs%omega0)
-    n_rhs = 0
     do step = 1, n_steps
       call ball%rhs(0.0_wp, y, f)
-      call rk4%step(ball, 0.0_wp, y, f, dt, y_new, n_rhs)
+      call rk4_ball_step(ball, 0.0_wp, y, f, dt, y_new, stage_limit)
+      if (stage_limit /= 0) error stop 'integration left the model'
       call ball%project(y_new)
       y = y_new
     end do
@@ -139,8 +145,10 @@ contains
     seconds = real(finish - start, wp) / rate
   end function timed_case
 
-  real(wp) function timed_lanes_integration() result(seconds)
+  real(wp) function timed_lanes_integration(checked) result(seconds)
+    logical, intent(in) :: checked
     type(ball_lanes_t) :: balls
+    logical :: inside(lanes)
     real(wp), dimension(lanes, state_size) :: y, f, y_new, f_new
     real(wp) :: h(lanes)
     integer(i8) :: start, finish, rate
@@ -152,13 +160,19 @@ contains
     h = dt
     call system_clock(start, rate)
     call lanes_derivative(balls, y, f)
+    inside = .true.
     do step = 1, n_steps
-      call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+      if (checked) then
+        call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
+        if (.not. all(inside)) exit
+      else
+        call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+      end if
       y = y_new
       f = f_new
     end do
     call system_clock(finish)
-    if (.not. all(ieee_is_finite(y))) error stop 'batch integration failed'
+    if (.not. (all(ieee_is_finite(y)) .and. all(inside))) error stop 'batch integration failed'
     seconds = real(finish - start, wp) / rate
   end function timed_lanes_integration
 

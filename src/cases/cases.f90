@@ -12,7 +12,8 @@ module ellroll_cases
   implicit none
   private
 
-  public :: case_t, output_plan_t, case_record, make_ball, check_case, finalize_case, adaptive_method, is_multiple
+  public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, finalize_case, &
+            adaptive_method, is_multiple
   public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -86,7 +87,6 @@ module ellroll_cases
   type :: output_plan_t
     character(len=:), allocatable :: file
     real(wp) :: interval = 0
-    integer(i8) :: steps_per_sample = 1
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .true.
     integer :: compression = 0          !< deflate level of the trajectories, 0 (none) to 9
@@ -155,6 +155,14 @@ contains
     case default; cs%excitation%amplitude(id - 20) = value
     end select
   end subroutine set_param
+
+  !> A fixed-step case's steps between output samples: its own dt, which a
+  !> sweep may vary (check_case holds the interval to a whole number of them).
+  pure integer(i8) function steps_per_sample(cs, plan)
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    steps_per_sample = max(1_i8, nint(plan%interval / cs%dt, i8))
+  end function steps_per_sample
 
   !> Derive what follows from the given values (the mass from a weight).
   pure subroutine finalize_case(cs)

@@ -4,7 +4,7 @@ module ellroll_status
   private
 
   public :: status_pending, status_completed, status_rim, status_no_fit, status_slip, &
-            status_liftoff, status_nonfinite, status_constraint, status_invalid, status_name, status_count
+            status_liftoff, status_nonfinite, status_constraint, status_invalid, status_unstable, status_name, status_count
 
   integer, parameter :: status_pending = 0     !< not integrated (yet)
   integer, parameter :: status_completed = 1   !< reached t_end
@@ -15,10 +15,14 @@ module ellroll_status
   integer, parameter :: status_nonfinite = 6   !< state became NaN or infinite
   integer, parameter :: status_constraint = 7  !< contact point left the surface beyond tolerance
   integer, parameter :: status_invalid = 8     !< input invalid (&campaign invalid = 'skip'), not run
-  integer, parameter :: status_count = 9
+  !> a fixed-step method could not follow the model: its step was beyond the
+  !> method's stability at the start (what it met was its own growth), or
+  !> its implicit equations had no solution
+  integer, parameter :: status_unstable = 9
+  integer, parameter :: status_count = 10
 
   character(len=10), parameter :: names(0:status_count-1) = [character(len=10) :: &
-      'pending', 'completed', 'rim', 'no_fit', 'slip', 'liftoff', 'nonfinite', 'constraint', 'invalid']
+      'pending', 'completed', 'rim', 'no_fit', 'slip', 'liftoff', 'nonfinite', 'constraint', 'invalid', 'unstable']
 
 contains
 

@@ -399,7 +399,6 @@ contains
         call rd%fail_value(gi, variable, reason)
         return
       end if
-      plan%steps_per_sample = max(1_i8, nint(plan%interval / cs%dt, i8))
     end subroutine check_base
 
     subroutine add_sweep(gi)

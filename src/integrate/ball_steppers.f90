@@ -6,11 +6,12 @@
 !> (ellroll_ball_lanes), each lane with its own step size.
 module ellroll_ball_steppers
   use ellroll_kinds, only: wp
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_integrators, only: dop853_t, max_equations
   use ellroll_dop853_tableau, only: c853, end_stage, first_dense_stage, stages_dense, a_value, a_column, a_row, &
       e5, bhh
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lanes_derivative
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
+  use ellroll_status, only: status_completed
   implicit none
   private
 
@@ -22,19 +23,30 @@ module ellroll_ball_steppers
 
 contains
 
-  !> One classical RK4 step of the ball (generic: rk4_t%step).
-  pure subroutine rk4_ball_step(ball, t, y, f0, h, y_new)
+  !> One classical RK4 step of the ball (generic: rk4_t%step); stage_limit
+  !> is 0 when the model held at every stage, else the status of the first
+  !> limit met at one (stage_status).
+  pure subroutine rk4_ball_step(ball, t, y, f0, h, y_new, stage_limit)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, h
     real(wp), intent(in) :: y(state_size), f0(state_size)
     real(wp), intent(out) :: y_new(state_size)
+    integer, intent(out) :: stage_limit
     real(wp) :: k2(state_size), k3(state_size), k4(state_size), stage(state_size)
+    logical :: fits, reaction_limited
+    reaction_limited = ball%reaction_limited()
     stage = y + (h/2) * f0
-    call ball_derivative(ball, t + h/2, stage, k2)
+    call ball_derivative(ball, t + h/2, stage, k2, fits)
+    stage_limit = 0
+    if (.not. fits .or. reaction_limited) stage_limit = stage_status(ball, t + h/2, stage, k2, fits)
     stage = y + (h/2) * k2
-    call ball_derivative(ball, t + h/2, stage, k3)
+    call ball_derivative(ball, t + h/2, stage, k3, fits)
+    if (stage_limit == 0 .and. (.not. fits .or. reaction_limited)) &
+      stage_limit = stage_status(ball, t + h/2, stage, k3, fits)
     stage = y + h * k3
-    call ball_derivative(ball, t + h, stage, k4)
+    call ball_derivative(ball, t + h, stage, k4, fits)
+    if (stage_limit == 0 .and. (.not. fits .or. reaction_limited)) &
+      stage_limit = stage_status(ball, t + h, stage, k4, fits)
     y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
   end subroutine rk4_ball_step
 
@@ -83,26 +95,38 @@ contains
     y = stage(:state_size)
   end subroutine dop853_ball_dense
   !> One classical RK4 step of every lane (rk4_ball_step), the new normal
-  !> projected to unit length, and f there.
-  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new)
+  !> projected to unit length, and f there; inside, when asked for, tells
+  !> the lanes whose every stage lies where the equations hold (a lane
+  !> without is looked at with rk4_ball_step).
+  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new, inside)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
     real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
+    logical, intent(out), optional :: inside(lanes)
+    logical :: reaction_limited
     real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
     real(wp) :: length
     integer :: i, l
+    reaction_limited = .false.
+    if (present(inside)) then
+      inside = .true.
+      reaction_limited = any(p%mu > 0)
+    end if
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * f0(:, i)
     end do
-    call lanes_derivative(p, stage, k2)
+    call lanes_derivative(p, stage, k2, inside)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k2, inside)
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * k2(:, i)
     end do
-    call lanes_derivative(p, stage, k3)
+    call lanes_derivative(p, stage, k3, inside)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k3, inside)
     do i = 1, state_size
       stage(:, i) = y(:, i) + h * k3(:, i)
     end do
-    call lanes_derivative(p, stage, k4)
+    call lanes_derivative(p, stage, k4, inside)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k4, inside)
     do i = 1, state_size
       y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
     end do
@@ -112,6 +136,18 @@ contains
     end do
     call lanes_derivative(p, y_new, f_new)
   end subroutine lanes_rk4_step
+
+  !> A stage's friction limit in a batch (rk4_ball_step's stage_status): the
+  !> stage's whole limit status, as at a step's end; inside is cleared
+  !> where a limit is met.
+  pure subroutine lanes_check_reaction(p, state, rate, inside)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: state(lanes, state_size), rate(lanes, state_size)
+    logical, intent(inout) :: inside(lanes)
+    type(lane_outputs_t) :: out
+    call lanes_observe(p, state, rate, out)
+    inside = inside .and. out%status == status_completed
+  end subroutine lanes_check_reaction
 
   !> One DOP853 attempt of every lane, each with its own h (dop853_ball_step
 !> across lanes, the same sums in the same order): the stages

@@ -7,8 +7,8 @@ module ellroll_batch_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_excitation, only: excitation_none
-  use ellroll_status, only: status_completed
-  use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_center, field_omega, &
+  use ellroll_status, only: status_completed, status_no_fit
+  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
@@ -43,24 +43,21 @@ module ellroll_batch_run
     procedure :: store => store_summary
   end type lane_summary_t
 
-  !> Output samples of a batch's RK4 lanes, held a block at a time: a
-  !> sample step stores each value for every lane at once, and each case's
-  !> result takes its samples of the block in one pass (flush). Stored lane
-  !> by lane into the eight results, a sample cost about 90 ns per case,
-  !> 14 % of a batch storing every field at 100 Hz (bench/throughput); now
-  !> 6-9 %, mostly the results' memory filling. Long blocks give each of the
-  !> 40 streams a flush writes runs that the prefetcher follows (32 samples:
-  !> 6-10 %; 128: 6.5-8 %); the block is 139 kB.
+  !> Output samples of a batch's RK4 lanes, held a block at a time: each
+  !> lane's samples (every steps_per_sample of its own dt) go to its next
+  !> slot, and its result takes them from the block in one pass (flush).
+  !> Stored lane by lane into the eight results, a sample cost about 90 ns
+  !> per case; long blocks give each of the 40 streams a flush writes runs
+  !> that the prefetcher follows. The block is 139 kB.
   type :: lane_sample_block_t
-    integer :: count = 0                  !< samples held
-    integer(i8) :: first = 2              !< output sample index of the first one held
+    integer :: count(lanes) = 0           !< samples held per lane
+    integer(i8) :: first(lanes) = 2       !< output sample index of each lane's first one held
     logical :: fields(field_count) = .false.
     real(wp), dimension(lanes, 3, block_samples) :: contact, center, omega, normal, reaction
     real(wp), dimension(lanes, block_samples) :: lateral, energy
   contains
     procedure :: add => add_lane_samples
     procedure :: flush => flush_lane_samples
-    procedure :: next_block => next_sample_block
   end type lane_sample_block_t
 
 contains
@@ -134,53 +131,50 @@ contains
       type(lane_sample_block_t) :: samples
       real(wp), dimension(lanes, state_size) :: y_new, f_new
       real(wp) :: h(lanes), t
-      integer(i8) :: n_steps(lanes), step
-      logical :: accepted(lanes), sampled, sample_step
+      integer(i8) :: n_steps(lanes), every(lanes), step
+      logical :: accepted(lanes), inside(lanes), sample_now(lanes)
       integer :: i
       do l = 1, lanes
         i = merge(l, donor, active(l))
         h(l) = cases(i)%dt
         n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
+        every(l) = steps_per_sample(cases(i), plan)
         if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
       end do
       samples%fields = plan%fields
-      sampled = any(plan%fields)
       step = 0
       do while (any(active))
         step = step + 1
-        call lanes_rk4_step(balls, y, f, h, y_new, f_new)
+        call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
-        sample_step = sampled .and. mod(step, plan%steps_per_sample) == 0
-        if (sample_step) call samples%add(out, y_new, balls%radius)
-        accepted = active .and. out%status == status_completed
+        accepted = active .and. inside .and. out%status == status_completed
         call summary%add(out, accepted)
+        sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
+        if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, sample_now)
         do l = 1, n
           if (.not. active(l)) cycle
           results(l)%n_rhs = results(l)%n_rhs + 4
           results(l)%n_steps = step
-          if (.not. accepted(l)) then      ! this step's sample is past the limit: not the case's
-            call samples%flush(l, samples%count - merge(1, 0, sample_step), results(l))
+          if (.not. accepted(l)) then
+            call samples%flush(l, results(l))
             call summary%store(l, run(l), results(l))
-            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), out%status(l), &
-                              results(l))
+            ! the stages' own limit, which rk4_ball_step tells, is found in the approach
+            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), &
+                              merge(out%status(l), status_no_fit, out%status(l) /= status_completed), results(l))
             active(l) = .false.
             cycle
           end if
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
           if (step == n_steps(l)) then
-            call samples%flush(l, samples%count, results(l))
+            call samples%flush(l, results(l))
             results(l)%t_final = t
             call summary%store(l, run(l), results(l))
             active(l) = .false.
+          else if (samples%count(l) == block_samples) then
+            call samples%flush(l, results(l))
           end if
         end do
-        if (samples%count == block_samples) then
-          do l = 1, n
-            if (active(l)) call samples%flush(l, samples%count, results(l))
-          end do
-          call samples%next_block()
-        end if
         if (all(accepted)) then             ! the rule: whole vectors, no test per lane
           y = y_new
           f = f_new
@@ -397,51 +391,59 @@ contains
     res%constraint_error_max = self%constraint_error_max(l)
   end subroutine store_summary
 
-  !> Every lane's values at one output sample into the next slot of the block.
-  pure subroutine add_lane_samples(self, out, y, radius)
+  !> The values at one output sample of the lanes that take one (sampling)
+  !> into each one's next slot of the block.
+  pure subroutine add_lane_samples(self, out, y, radius, sampling)
     class(lane_sample_block_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
     real(wp), intent(in) :: y(lanes, state_size), radius(lanes)
-    integer :: i, j
-    self%count = self%count + 1
-    j = self%count
-    if (self%fields(field_contact)) self%contact(:, :, j) = out%contact
-    do i = 1, 3
-      if (self%fields(field_center)) self%center(:, i, j) = out%contact(:, i) + radius * out%normal(:, i)
+    logical, intent(in) :: sampling(lanes)
+    integer :: l, j
+    do l = 1, lanes
+      if (.not. sampling(l)) cycle
+      self%count(l) = self%count(l) + 1
+      j = self%count(l)
+      if (self%fields(field_contact)) self%contact(l, :, j) = out%contact(l, :)
+      if (self%fields(field_center)) self%center(l, :, j) = out%contact(l, :) + radius(l) * out%normal(l, :)
+      if (self%fields(field_omega)) self%omega(l, :, j) = y(l, 4:6)
+      if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(l, :, j) = out%normal(l, :)
+      if (self%fields(field_nutation)) self%lateral(l, j) = out%lateral(l)
+      if (self%fields(field_reaction)) self%reaction(l, :, j) = out%reaction(l, :)
+      if (self%fields(field_energy)) self%energy(l, j) = out%energy(l)
     end do
-    if (self%fields(field_omega)) self%omega(:, :, j) = y(:, 4:6)
-    if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(:, :, j) = out%normal
-    if (self%fields(field_nutation)) self%lateral(:, j) = out%lateral
-    if (self%fields(field_reaction)) self%reaction(:, :, j) = out%reaction
-    if (self%fields(field_energy)) self%energy(:, j) = out%energy
   end subroutine add_lane_samples
 
-  !> Lane l's first n samples of the block into its result (Theta from the
+  !> Lane l's samples held in the block into its result (Theta from the
   !> lateral and vertical parts of the normal, as store_sample; a batch's
-  !> cup does not move).
-  pure subroutine flush_lane_samples(self, l, n, res)
-    class(lane_sample_block_t), intent(in) :: self
-    integer, intent(in) :: l, n
+  !> cup does not move), and the lane's slots free for the next ones.
+  pure subroutine flush_lane_samples(self, l, res)
+    class(lane_sample_block_t), intent(inout) :: self
+    integer, intent(in) :: l
     type(case_result_t), intent(inout) :: res
-    integer(i8) :: last
+    integer(i8) :: first, last
+    integer :: n
+    n = self%count(l)
     if (n <= 0) return
-    last = self%first + n - 1
+    first = self%first(l)
+    last = first + n - 1
     call put(res, field_contact, self%contact)
     call put(res, field_center, self%center)
     call put(res, field_omega, self%omega)
     call put(res, field_normal, self%normal)
     call put(res, field_reaction, self%reaction)
-    if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, self%first:last))
-    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, self%first:last) = self%energy(l, :n)
+    if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, first:last))
+    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, first:last) = self%energy(l, :n)
     if (allocated(res%fields(field_base_acceleration)%values)) &
-      res%fields(field_base_acceleration)%values(:, self%first:last) = 0
+      res%fields(field_base_acceleration)%values(:, first:last) = 0
     res%n_recorded = last
+    self%first(l) = last + 1
+    self%count(l) = 0
   contains
     pure subroutine put(res, field, values)
       type(case_result_t), intent(inout) :: res
       integer, intent(in) :: field
       real(wp), intent(in) :: values(lanes, 3, block_samples)
-      if (allocated(res%fields(field)%values)) call copy_lane(values, res%fields(field)%values(:, self%first:last))
+      if (allocated(res%fields(field)%values)) call copy_lane(values, res%fields(field)%values(:, first:last))
     end subroutine put
     !> Theta of lane l's samples: a loop the compiler vectorizes, with the
     !> vector atan2 of the C library's libmvec where there is one (within a
@@ -473,10 +475,4 @@ contains
     end subroutine copy_lane
   end subroutine flush_lane_samples
 
-  !> Start the next block, after the one held was flushed.
-  pure subroutine next_sample_block(self)
-    class(lane_sample_block_t), intent(inout) :: self
-    self%first = self%first + self%count
-    self%count = 0
-  end subroutine next_sample_block
 end module ellroll_batch_run

@@ -68,6 +68,7 @@ module ellroll_case_run
   !> What one integration needs as it goes.
   type :: run_state_t
     type(rolling_ball_t) :: ball
+    real(wp) :: start(state_size) = 0     !< the state at t = 0
     real(wp) :: energy0 = 0
     type(maxima_t) :: maxima
     type(spectrum_t) :: spectrum
@@ -94,6 +95,7 @@ contains
     run%ball = make_ball(cs)
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
+    run%start = y
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
     call observe(run%ball, 0.0_wp, y, f, obs)

@@ -9,14 +9,14 @@
 !>           Newton, LAPACK LU): bounded energy error over long runs
 module ellroll_integrators
   use ellroll_kinds, only: wp, i8
-  use ellroll_ode, only: ode_system_t
+  use ellroll_ode, only: ode_system_t, no_step_solution
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_dop853_tableau, only: stages, stages_dense, end_stage, first_dense_stage, c853, a_value, a_column, a_row, &
       e5, bhh, d853
   implicit none
   private
 
-  public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names
+  public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names, stability_limit
 
   !> Largest system the integrators take: their work arrays are fixed-size
   !> (on the stack), so a step allocates nothing. DOP853 works on whole
@@ -27,6 +27,10 @@ module ellroll_integrators
   character(len=*), parameter :: method_names = 'rk4 dop853 gauss4'
 
   type, abstract :: integrator_t
+    !> fixed-step methods: 0 when the system's model held at every stage of
+    !> the last step (ode_system_t%stage_status), else the code of the first
+    !> stage where it did not
+    integer :: stage_limit = 0
   contains
     procedure(step_interface), deferred :: step
     procedure(text_interface), deferred, nopass :: name
@@ -141,10 +145,13 @@ contains
     n = size(y)
     stage(:n) = y + (h/2) * f0
     call sys%rhs(t + h/2, stage(:n), k2(:n))
+    self%stage_limit = sys%stage_status(t + h/2, stage(:n), k2(:n))
     stage(:n) = y + (h/2) * k2(:n)
     call sys%rhs(t + h/2, stage(:n), k3(:n))
+    if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + h/2, stage(:n), k3(:n))
     stage(:n) = y + h * k3(:n)
     call sys%rhs(t + h, stage(:n), k4(:n))
+    if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + h, stage(:n), k4(:n))
     y_new = y + (h/6) * (f0 + 2*(k2(:n) + k3(:n)) + k4(:n))
     n_rhs = n_rhs + 3
   end subroutine rk4_step
@@ -395,12 +402,17 @@ contains
       if (iteration == 6) self%steps_since_jacobian = huge(1) / 2      ! slow: new Jacobian next step
     end do
     ! y_new = y + h sum b_i f_i, with f_i from the converged stages
+    self%stage_limit = 0
     do i = 1, 2
       stage(:n) = y + z(:n, i)
       call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
+      if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + gl_c(i) * h, stage(:n), f(:n, i))
     end do
     n_rhs = n_rhs + 2
     y_new = y + (h / 2) * (f(:n, 1) + f(:n, 2))
+    ! the last correction still far above round-off (amplified by the
+    ! conditioning of the right-hand side): no solution near the start
+    if (size_now > sqrt(epsilon(1.0_wp)) * scale) self%stage_limit = no_step_solution
 
   contains
 
@@ -430,6 +442,19 @@ contains
       self%steps_since_jacobian = 0
     end subroutine refresh
   end subroutine gauss4_step
+
+  !> The largest |lambda h| on the imaginary axis for which the method is
+  !> stable (the rolling ball's linearised motion is oscillatory): RK4 2 sqrt(2);
+  !> the Gauss method is A-stable; DOP853 controls its steps.
+  pure real(wp) function stability_limit(integrator)
+    class(integrator_t), intent(in) :: integrator
+    select type (integrator)
+    type is (rk4_t)
+      stability_limit = 2 * sqrt(2.0_wp)
+    class default
+      stability_limit = huge(1.0_wp)
+    end select
+  end function stability_limit
 
   ! ===================================================== descriptions
 

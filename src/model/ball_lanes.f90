@@ -8,7 +8,7 @@
 !> lane or which batch it runs in.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance, fit_test
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -78,11 +78,14 @@ contains
     n3 = y(l, 3) * inv_length
   end subroutine unit_normal
 
-  !> dy/dt of every lane (ball_derivative on a fixed cup).
-  pure subroutine lanes_derivative(p, y, dydt)
+  !> dy/dt of every lane (ball_derivative on a fixed cup); inside, when
+  !> given, is cleared in the lanes whose y lies where the equations do not
+  !> hold (ball_derivative's fits).
+  pure subroutine lanes_derivative(p, y, dydt, inside)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
+    logical, intent(inout), optional :: inside(lanes)
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
     real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity
     integer :: l
@@ -101,6 +104,8 @@ contains
       r_sigma = r * sigma
       e = r_sigma * q - length * pq
       denominator = r_sigma * e + p%det_axes2(l) * (length2 * length2)
+      if (present(inside)) inside(l) = inside(l) .and. y(l, 3) > 0 .and. &
+        fit_test(p%fit_radius(l) * sigma, q, length, pq, p%det_axes2(l) * (length2 * length2))
       w1 = y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2)
       w2 = y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3)
       w3 = y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1)

@@ -23,7 +23,7 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle
+            nutation_angle, stage_status, fit_test
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -41,6 +41,8 @@ module ellroll_rolling_ball
   contains
     procedure :: rhs => ball_rhs
     procedure :: project => normalize_normal
+    procedure :: stage_status => ball_stage_status
+    procedure :: reaction_limited
   end type rolling_ball_t
 
   !> Everything derived from one state and its time derivative (observe sets
@@ -91,11 +93,15 @@ contains
   !> The two roots and the quotients by D and L^2 are the only long
   !> operations, and the longest chain (q, sigma, E, D, 1/D) is a fifth
   !> shorter than with 1/|y|, 1/q and 1/det L each in turn.
-  pure subroutine ball_derivative(ball, t, y, dydt)
+  !> fits, when asked for: whether y lies where the equations hold, the
+  !> rim not reached and the ball fitting the cup (fit_test), from the same
+  !> q, sigma and P.
+  pure subroutine ball_derivative(ball, t, y, dydt, fits)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
+    logical, intent(out), optional :: fits
     real(wp) :: r, length2, length, inv_length2, ay(3), q, sigma, r_sigma, pq, e, denominator, w(3), ay_w, m(3), x(3)
     real(wp) :: rate
     r = ball%radius
@@ -109,6 +115,8 @@ contains
     r_sigma = r * sigma
     e = r_sigma * q - length * pq
     denominator = r_sigma * e + ball%cup%det_axes2 * (length2 * length2)
+    if (present(fits)) fits = y(3) > 0 .and. &
+      fit_test(r * (1 + ball%fit_margin) * sigma, q, length, pq, ball%cup%det_axes2 * (length2 * length2))
     w = [y(5) * y(3) - y(6) * y(2), y(6) * y(1) - y(4) * y(3), y(4) * y(2) - y(5) * y(1)]
     ay_w = ay(1) * w(1) + ay(2) * w(2) + ay(3) * w(3)
     m = q * (ball%cup%axes2 * w) - ay_w * ay
@@ -131,6 +139,65 @@ contains
     real(wp), intent(inout) :: y(:)
     y(1:3) = y(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
   end subroutine normalize_normal
+
+  !> Whether the ball of fit radius R' = R (1 + fit_margin) fits the cup at
+  !> the normal y / |y|: R' below both principal radii r1 <= r2, i.e.
+  !> (R' - r1)(R' - r2) > 0 and 2 R' < r1 + r2. In ball_derivative's terms
+  !> (q = y . A y, sigma = sqrt(q), P = tr(A) q - |A y|^2, L = |y|):
+  !>   sigma^4 (R'^2 - R' tr K + det K) = R' sigma (R' sigma q - L P) + det(A) L^4,
+  !>   tr K > 2 R'  <=>  L P > 2 R' sigma q;
+  !> r_fit_sigma = R' sigma, det_length4 = det(A) L^4. False for NaN.
+  elemental logical function fit_test(r_fit_sigma, q, length, pq, det_length4) result(fits)
+    real(wp), intent(in) :: r_fit_sigma, q, length, pq, det_length4
+    real(wp) :: e_fit
+    e_fit = r_fit_sigma * q - length * pq
+    fits = r_fit_sigma * e_fit + det_length4 > 0 .and. e_fit + r_fit_sigma * q < 0
+  end function fit_test
+
+  !> The limits at a state that a step evaluates the model at (a stage),
+  !> with its derivative: 0 where the model holds there, else the status of
+  !> the limit (first match in limit_status's order). fits is
+  !> ball_derivative's; the reaction's limits (lift-off, slip) are looked
+  !> at only in the scenes that have them: a moving cup, a friction limit.
+  !> (On a fixed cup, N >= m g n_z > 0 wherever the ball fits, so lift-off
+  !> cannot come first.)
+  pure integer function stage_status(ball, t, y, dydt, fits) result(status)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, y(state_size), dydt(state_size)
+    logical, intent(in) :: fits
+    type(observation_t) :: obs
+    status = 0
+    if (.not. fits) then
+      if (.not. (all(ieee_is_finite(y)) .and. all(ieee_is_finite(dydt)))) then
+        status = status_nonfinite
+      else if (y(3) <= 0) then
+        status = status_rim
+      else
+        status = status_no_fit
+      end if
+    else if (ball%reaction_limited()) then
+      call observe(ball, t, y, dydt, obs)
+      status = limit_status(ball, y, obs)
+      if (status == status_completed) status = 0
+    end if
+  end function stage_status
+
+  !> Whether the reaction force can end the case: a cup that moves (lift-off)
+  !> or a friction limit (slip).
+  pure logical function reaction_limited(self)
+    class(rolling_ball_t), intent(in) :: self
+    reaction_limited = self%excitation%kind /= excitation_none .or. self%mu > 0
+  end function reaction_limited
+
+  !> stage_status behind the ODE interface (the generic steps).
+  pure integer function ball_stage_status(self, t, y, dydt) result(status)
+    class(rolling_ball_t), intent(in) :: self
+    real(wp), intent(in) :: t, y(:), dydt(:)
+    real(wp) :: scratch(state_size)
+    logical :: fits
+    call ball_derivative(self, t, y, scratch, fits)
+    status = stage_status(self, t, y, dydt, fits)
+  end function ball_stage_status
 
   !> State for a start at contact point (x, y) of the lower half.
   pure function initial_state(ball, x, y, omega) result(state)

@@ -30,7 +30,6 @@ contains
     type(case_t), intent(in) :: cs
     integer, intent(in) :: every
     type(output_plan_t) :: plan
-    plan%steps_per_sample = every
     plan%interval = every * cs%dt
     plan%n_samples = nint(cs%t_end / cs%dt, i8) / every + 1
     plan%fields = .true.

@@ -22,7 +22,6 @@ program test_batch
 
   ! output every 0.01 s of the longest case; shorter cases leave NaN after their end
   plan%interval = 0.01_wp
-  plan%steps_per_sample = 10
   plan%n_samples = 301
   plan%fields = .true.
 
@@ -32,11 +31,9 @@ program test_batch
   ! (its sample is past the limit, not the case's), and the batch's sample
   ! blocks fill and flush many times
   plan%interval = 1.0e-3_wp
-  plan%steps_per_sample = 1
   plan%n_samples = 3001
   call compare_paths(cases, 'rk4, a sample every step')
   plan%interval = 0.01_wp
-  plan%steps_per_sample = 10
   plan%n_samples = 301
   ! DOP853: each lane its own tolerances and largest step
   do l = 1, n_cases

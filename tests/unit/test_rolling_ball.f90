@@ -103,18 +103,21 @@ contains
     type(rk4_t) :: generic
     real(wp) :: y_fused(6), y_generic(6), f(6), y_next(6)
     integer(i8) :: n_rhs
-    integer :: step
+    integer :: step, stage_limit, limits_differ
     y_fused = initial_state(ball, 0.01_wp, -0.02_wp, [-2.0_wp, 2.0_wp, 20.0_wp])
     y_generic = y_fused
     n_rhs = 0
+    limits_differ = 0
     do step = 1, 5000
       call ball%rhs(0.0_wp, y_fused, f)
-      call rk4_ball_step(ball, 0.0_wp, y_fused, f, 1.0e-3_wp, y_next)
+      call rk4_ball_step(ball, 0.0_wp, y_fused, f, 1.0e-3_wp, y_next, stage_limit)
       y_fused = y_next
       call ball%rhs(0.0_wp, y_generic, f)
       call generic%step(ball, 0.0_wp, y_generic, f, 1.0e-3_wp, y_next, n_rhs)
       y_generic = y_next
+      if (stage_limit /= generic%stage_limit) limits_differ = limits_differ + 1
     end do
+    call check(limits_differ == 0, 'fused and generic RK4 steps see the same stage limits')
     call check_below(maxval(abs(y_fused - y_generic)) / maxval(abs(y_generic)), 1.0e-13_wp, &
                      'fused RK4 step vs generic RK4 step over 5000 steps (max rel. diff)')
   end subroutine fused_against_generic
