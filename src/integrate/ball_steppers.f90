@@ -104,29 +104,28 @@ contains
     real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
     logical, intent(out), optional :: inside(lanes)
     logical :: reaction_limited
+    real(wp) :: margin(lanes)
     real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
     real(wp) :: length
     integer :: i, l
     reaction_limited = .false.
-    if (present(inside)) then
-      inside = .true.
-      reaction_limited = any(p%mu > 0)
-    end if
+    if (present(inside)) reaction_limited = any(p%mu > 0)
+    margin = 1
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * f0(:, i)
     end do
-    call lanes_derivative(p, stage, k2, inside)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k2, inside)
+    call lanes_derivative(p, stage, k2, margin)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k2, margin)
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * k2(:, i)
     end do
-    call lanes_derivative(p, stage, k3, inside)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k3, inside)
+    call lanes_derivative(p, stage, k3, margin)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k3, margin)
     do i = 1, state_size
       stage(:, i) = y(:, i) + h * k3(:, i)
     end do
-    call lanes_derivative(p, stage, k4, inside)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k4, inside)
+    call lanes_derivative(p, stage, k4, margin)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k4, margin)
     do i = 1, state_size
       y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
     end do
@@ -135,18 +134,19 @@ contains
       y_new(l, 1:3) = y_new(l, 1:3) / length
     end do
     call lanes_derivative(p, y_new, f_new)
+    if (present(inside)) inside = margin > 0
   end subroutine lanes_rk4_step
 
   !> A stage's friction limit in a batch (rk4_ball_step's stage_status): the
-  !> stage's whole limit status, as at a step's end; inside is cleared
+  !> stage's whole limit status, as at a step's end; margin is set to -1
   !> where a limit is met.
-  pure subroutine lanes_check_reaction(p, state, rate, inside)
+  pure subroutine lanes_check_reaction(p, state, rate, margin)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: state(lanes, state_size), rate(lanes, state_size)
-    logical, intent(inout) :: inside(lanes)
+    real(wp), intent(inout) :: margin(lanes)
     type(lane_outputs_t) :: out
     call lanes_observe(p, state, rate, out)
-    inside = inside .and. out%status == status_completed
+    where (out%status /= status_completed) margin = -1
   end subroutine lanes_check_reaction
 
   !> One DOP853 attempt of every lane, each with its own h (dop853_ball_step

@@ -8,7 +8,7 @@
 !> lane or which batch it runs in.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance, fit_test
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance, fit_indicator
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -78,14 +78,16 @@ contains
     n3 = y(l, 3) * inv_length
   end subroutine unit_normal
 
-  !> dy/dt of every lane (ball_derivative on a fixed cup); inside, when
-  !> given, is cleared in the lanes whose y lies where the equations do not
-  !> hold (ball_derivative's fits).
-  pure subroutine lanes_derivative(p, y, dydt, inside)
+  !> dy/dt of every lane (ball_derivative on a fixed cup); margin, when
+  !> given, is lowered to the lane's n_z and fit_indicator where smaller:
+  !> it stays positive while every y it saw lies where the equations hold
+  !> (ball_derivative's fits).
+  pure subroutine lanes_derivative(p, y, dydt, margin)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
-    logical, intent(inout), optional :: inside(lanes)
+    real(wp), intent(inout), optional :: margin(lanes)
+    real(wp) :: fits(lanes)
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
     real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity
     integer :: l
@@ -104,8 +106,9 @@ contains
       r_sigma = r * sigma
       e = r_sigma * q - length * pq
       denominator = r_sigma * e + p%det_axes2(l) * (length2 * length2)
-      if (present(inside)) inside(l) = inside(l) .and. y(l, 3) > 0 .and. &
-        fit_test(p%fit_radius(l) * sigma, q, length, pq, p%det_axes2(l) * (length2 * length2))
+      ! computed in every lane, kept only when asked for: a test of present()
+      ! inside the loop stops it from vectorizing
+      fits(l) = min(y(l, 3), fit_indicator(p%fit_radius(l) * sigma, q, length, pq, p%det_axes2(l) * (length2 * length2)))
       w1 = y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2)
       w2 = y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3)
       w3 = y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1)
@@ -124,6 +127,7 @@ contains
       dydt(l, 5) = spin_rate * x2 + gravity * y(l, 1)
       dydt(l, 6) = spin_rate * x3 + gravity * 0.0_wp
     end do
+    if (present(margin)) margin = min(margin, fits)
   end subroutine lanes_derivative
 
   !> The summary's quantities and the limit status of every lane's state y

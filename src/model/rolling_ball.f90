@@ -23,7 +23,7 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_test
+            nutation_angle, stage_status, fit_indicator
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -94,8 +94,8 @@ contains
   !> operations, and the longest chain (q, sigma, E, D, 1/D) is a fifth
   !> shorter than with 1/|y|, 1/q and 1/det L each in turn.
   !> fits, when asked for: whether y lies where the equations hold, the
-  !> rim not reached and the ball fitting the cup (fit_test), from the same
-  !> q, sigma and P.
+  !> rim not reached and the ball fitting the cup, from the same
+  !> q, sigma and P (fit_indicator).
   pure subroutine ball_derivative(ball, t, y, dydt, fits)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
@@ -115,8 +115,8 @@ contains
     r_sigma = r * sigma
     e = r_sigma * q - length * pq
     denominator = r_sigma * e + ball%cup%det_axes2 * (length2 * length2)
-    if (present(fits)) fits = y(3) > 0 .and. &
-      fit_test(r * (1 + ball%fit_margin) * sigma, q, length, pq, ball%cup%det_axes2 * (length2 * length2))
+    if (present(fits)) fits = min(y(3), fit_indicator(r * (1 + ball%fit_margin) * sigma, q, length, pq, &
+                                                      ball%cup%det_axes2 * (length2 * length2))) > 0
     w = [y(5) * y(3) - y(6) * y(2), y(6) * y(1) - y(4) * y(3), y(4) * y(2) - y(5) * y(1)]
     ay_w = ay(1) * w(1) + ay(2) * w(2) + ay(3) * w(3)
     m = q * (ball%cup%axes2 * w) - ay_w * ay
@@ -146,13 +146,15 @@ contains
   !> (q = y . A y, sigma = sqrt(q), P = tr(A) q - |A y|^2, L = |y|):
   !>   sigma^4 (R'^2 - R' tr K + det K) = R' sigma (R' sigma q - L P) + det(A) L^4,
   !>   tr K > 2 R'  <=>  L P > 2 R' sigma q;
-  !> r_fit_sigma = R' sigma, det_length4 = det(A) L^4. False for NaN.
-  elemental logical function fit_test(r_fit_sigma, q, length, pq, det_length4) result(fits)
+  !> r_fit_sigma = R' sigma, det_length4 = det(A) L^4: fit_indicator is
+  !> positive exactly when the ball fits (the smaller of the two left-hand
+  !> sides), NaN for NaN; a min, so that a loop over lanes vectorizes.
+  elemental real(wp) function fit_indicator(r_fit_sigma, q, length, pq, det_length4)
     real(wp), intent(in) :: r_fit_sigma, q, length, pq, det_length4
     real(wp) :: e_fit
     e_fit = r_fit_sigma * q - length * pq
-    fits = r_fit_sigma * e_fit + det_length4 > 0 .and. e_fit + r_fit_sigma * q < 0
-  end function fit_test
+    fit_indicator = min(r_fit_sigma * e_fit + det_length4, -(e_fit + r_fit_sigma * q))
+  end function fit_indicator
 
   !> The limits at a state that a step evaluates the model at (a stage),
   !> with its derivative: 0 where the model holds there, else the status of
