@@ -1,17 +1,14 @@
 !> RK4 steps per second per core on the paper's case (30 s, dt = 1e-3),
 !> measured side by side in one run:
 !>   baseline         a straightforward scalar RK4 of the paper's equations (bench/baseline_rk4.f90)
-!>   integrate only   ellroll's RK4 on the ball model (its fused step, limits
-!>                    checked at the stages): steps, nothing observed
+!>   integrate only   ellroll's RK4 on the ball model (its fused step, the
+!>                    model's limits checked at every stage): steps, nothing observed
 !>   summary only     a full ellroll case without trajectories (every summary figure, every step)
 !>   full output      a full ellroll case storing every field at 100 Hz
 !>   batch of 8       8 cases (the paper case with spins 20..27 rad/s) advanced
 !>                    together across SIMD lanes (simulate_batch), per case-step;
 !>                    integrate only, summary only and full output, and one case
 !>                    alone in a batch (it pays for all 8 lanes)
-!>   limit checks     the batch's integration with and without the model's
-!>                    limits checked at every stage of every step (the run
-!>                    always checks them): their cost
 !> Each figure is the best of several repetitions; ratios are to the baseline
 !> and, for the output cost, to summary only. Usage: build/bench_throughput [repeats]
 program throughput
@@ -32,7 +29,7 @@ program throughput
   integer, parameter :: n_steps = 30000
   integer :: repeats, k
   character(len=16) :: arg
-  real(wp) :: best(9), seconds, check_baseline(6), check_ellroll(6)
+  real(wp) :: best(8), seconds, check_baseline(6), check_ellroll(6)
   type(case_t) :: cs, batch_cases(lanes)
   type(output_plan_t) :: summary_plan, full_plan
   type(case_result_t) :: res, batch_results(lanes)
@@ -74,10 +71,8 @@ program throughput
     best(6) = min(best(6), seconds / lanes)
     seconds = timed_batch(summary_plan, 1)
     best(7) = min(best(7), seconds)
-    seconds = timed_lanes_integration(checked=.false.)
+    seconds = timed_lanes_integration()
     best(8) = min(best(8), seconds / lanes)
-    seconds = timed_lanes_integration(checked=.true.)
-    best(9) = min(best(9), seconds / lanes)
   end do
 
   write (output_unit, '(a)') 'RK4 on the paper case, 30 s, dt = 1e-3 (30,000 steps), best of repeats, one core'
@@ -87,15 +82,11 @@ program throughput
   call report('ellroll, summary only', best(3))
   call report('ellroll, full output 100 Hz', best(4))
   call report('batch of 8, integrate only', best(8))
-  call report('  and limits at every stage', best(9))
   call report('batch of 8, summary only', best(5))
   call report('batch of 8, full output', best(6))
   call report('batch of 1, summary only', best(7))
   write (output_unit, '(a, f6.1, a, f6.1, a)') 'full output over summary only: +', 100 * (best(4) / best(3) - 1), &
       ' % (one case), +', 100 * (best(6) / best(5) - 1), ' % (batch of 8)'
-  write (output_unit, '(a, f6.1, a, f6.1, a)') 'limits checked at every stage: +', &
-      1.0e9_wp * (best(9) - best(8)) / n_steps, ' ns per case-step, +', 100 * (best(9) - best(8)) / best(5), &
-      ' % of a batch case-step with its summary'
   write (output_unit, '(a, es10.2)') 'baseline and ellroll agree at 30 s (max |omega| difference, rad/s):', &
       maxval(abs(check_baseline(4:6) - check_ellroll(4:6)))
 
@@ -145,8 +136,7 @@ contains
     seconds = real(finish - start, wp) / rate
   end function timed_case
 
-  real(wp) function timed_lanes_integration(checked) result(seconds)
-    logical, intent(in) :: checked
+  real(wp) function timed_lanes_integration() result(seconds)
     type(ball_lanes_t) :: balls
     logical :: inside(lanes)
     real(wp), dimension(lanes, state_size) :: y, f, y_new, f_new
@@ -160,14 +150,9 @@ contains
     h = dt
     call system_clock(start, rate)
     call lanes_derivative(balls, y, f)
-    inside = .true.
     do step = 1, n_steps
-      if (checked) then
-        call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
-        if (.not. all(inside)) exit
-      else
-        call lanes_rk4_step(balls, y, f, h, y_new, f_new)
-      end if
+      call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
+      if (.not. all(inside)) exit
       y = y_new
       f = f_new
     end do

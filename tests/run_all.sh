@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# Sets up, builds (Release, Debug, portable, MPI) and runs every test: ctest on
-# the Release, Debug and portable builds, then pytest (which also uses Debug and MPI).
+# Sets up, builds (Release, Debug, portable, MPI, sanitizer) and runs every
+# test: ctest on the Release, Debug and portable builds, then pytest (which
+# also uses Debug and MPI), then the tests of inputs and model limits again on
+# the sanitizer build (memory errors and undefined behaviour stop it).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash .ci/setup test
@@ -14,3 +16,7 @@ ctest --test-dir build-portable --output-on-failure -j 2
 echo "== pytest"
 ELLROLL_EXE="$PWD/build/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-debug/ellroll" \
   ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q tests/python
+echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, hard cases, limits, dt sweeps"
+ELLROLL_EXE="$PWD/build-sanitize/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-sanitize/ellroll" \
+  .venv/bin/python -m pytest -q tests/python/test_fuzz.py tests/python/test_extreme_inputs.py \
+  tests/python/test_hard_cases.py tests/python/test_limits_fixed_step.py

@@ -16,7 +16,8 @@ program ellroll
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_hdf5, only: provenance_t
   use ellroll_run_timings, only: wall_clock
-  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice
+  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
+      check_output_target
   use ellroll_integrators, only: integrator_t, new_integrator, method_names
   use ellroll_linear, only: oscillation_periods
   use ellroll_merge, only: merge_shards
@@ -30,7 +31,7 @@ program ellroll
   character(len=1024), allocatable :: paths(:)
   type(run_options_t) :: opts
   type(error_t) :: err
-  integer :: rank, n_ranks
+  integer :: rank, n_ranks, status
 
   call tune_runtime()
   call ranks_start(rank, n_ranks)
@@ -57,10 +58,16 @@ program ellroll
     end select
   end if
   call ranks_stop()
+  status = 0
   if (err%failed()) then
     write (error_unit, '(a)') 'ellroll: error: ' // err%message
-    call exit(exit_code(err))
+    status = exit_code(err)
   end if
+  ! freed before the exit, which would otherwise leave them to the system:
+  ! a sanitizer build's leak check then reports only real leaks
+  deallocate (command, output_path, paths)
+  err = error_t()
+  if (status /= 0) call exit(status)
 
 contains
 
@@ -250,9 +257,11 @@ contains
     character(len=:), allocatable :: messages
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
+    call check_output_target(inp%plan%file, err)
+    if (err%failed()) return
     call describe(inp)
     messages = step_size_advice(inp)
-    if (len(messages) > 0) write (error_unit, '(a)') 'ellroll: ' // messages
+    if (len(messages) > 0) write (error_unit, '(a)') messages
     call find_invalid_cases(inp, invalid, messages)
     if (any(invalid)) then
       if (inp%campaign%invalid == invalid_stop) then
@@ -271,10 +280,12 @@ contains
     character(len=:), allocatable :: advice
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
+    call check_output_target(inp%plan%file, err)
+    if (err%failed()) return
     opts%advice_seconds = wall_clock()
     advice = step_size_advice(inp)
     opts%advice_seconds = wall_clock() - opts%advice_seconds
-    if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') 'ellroll: ' // advice
+    if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') advice
     if (n_ranks > 1) then
       call run_ranks(inp, err)
     else

@@ -13,7 +13,7 @@ module ellroll_cases
   private
 
   public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, finalize_case, &
-            adaptive_method, is_multiple
+            adaptive_method, is_multiple, range_text, max_steps
   public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -55,6 +55,9 @@ module ellroll_cases
       'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '', '', '', &
       'Hz', 'rad', 'm/s^2', 'm/s^2', 'm/s^2']
   ! Bounds keep every derived quantity finite (squares, products, s^4).
+  ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
+  ! days at a million steps per second.
+  real(wp), parameter :: max_steps = 1.0e12_wp   !< also the most samples a case stores
   real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
   real(wp), parameter :: param_low(param_count) = [length_min, length_min, length_min, length_min, &
       tiny(1.0_wp), tiny(1.0_wp), 0.0_wp, tiny(1.0_wp), 0.0_wp, -length_max, -length_max, &
@@ -167,7 +170,12 @@ contains
   !> Derive what follows from the given values (the mass from a weight).
   pure subroutine finalize_case(cs)
     type(case_t), intent(inout) :: cs
-    if (cs%weight > 0 .and. cs%g > 0) cs%mass = cs%weight / cs%g
+    ! tested before it is used: NaN, or a quotient beyond any valid mass,
+    ! would trap here, before check_case names the input
+    if (.not. (ieee_is_finite(cs%weight) .and. ieee_is_finite(cs%g))) return
+    if (cs%weight <= 0) return
+    cs%mass = 0
+    if (cs%g > 0 .and. cs%weight / param_high(param_index('mass')) <= cs%g) cs%mass = cs%weight / cs%g
   end subroutine finalize_case
 
   !> The first problem of a case, as the parameter it concerns and why;
@@ -203,9 +211,19 @@ contains
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
       return
     end if
+    if (cs%weight > 0 .and. .not. cs%mass > 0) then
+      reason = 'gives a mass weight / g above ' // format_real(param_high(mass_id)) // ' kg with g = ' // &
+               format_real(cs%g) // ' m/s^2; give mass instead'
+      return
+    end if
     param = param_index('dt')
     if (cs%dt > cs%t_end) then
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
+      return
+    end if
+    if (cs%t_end > max_steps * cs%dt) then      ! (not t_end / dt: it may overflow)
+      reason = 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
+               format_real(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
       return
     end if
     if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%dt)) then

@@ -78,8 +78,8 @@ contains
       write (buf, '(f40.' // itoa(max(0, digits - 1 - exponent10)) // ')') x
       text = trim(adjustl(buf))
       if (text(len(text):len(text)) == '.') text = text(:len(text)-1)
-      if (text(1:1) == '.') text = '0' // text
-      if (text(1:2) == '-.') text = '-0' // text(2:)
+      if (index(text, '.') == 1) text = '0' // text
+      if (index(text, '-.') == 1) text = '-0' // text(2:)
     else
       text = trim(adjustl(buf))
       text = strip_mantissa(text(:index(text, 'E')-1)) // 'e' // exponent_text(exponent10)

@@ -6,7 +6,7 @@ module ellroll_system
   implicit none
   private
 
-  public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime
+  public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, system_error_text
 
   interface
@@ -61,6 +61,10 @@ module ellroll_system
       import :: c_int
       integer(c_int), value :: fd
     end function c_close_descriptor
+    integer(c_int) function c_folder_write_error(path) bind(c, name='ellroll_folder_write_error')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_folder_write_error
     subroutine c_error_text(code, text, size) bind(c, name='ellroll_error_text')
       import :: c_int, c_char, c_size_t
       integer(c_int), value :: code
@@ -76,6 +80,28 @@ contains
     character(len=*), intent(in) :: old, new
     rename_file = c_rename(old // c_null_char, new // c_null_char) == 0
   end function rename_file
+
+  !> 0 when files can be created in folder `path`, else the errno value
+  !> that says why (system_error_text words it).
+  integer function folder_write_error(path)
+    character(len=*), intent(in) :: path
+    folder_write_error = c_folder_write_error(path // c_null_char)
+  end function folder_write_error
+
+  !> The folder of a file's path: what precedes its last '/', or '.'.
+  pure function folder_of(path) result(folder)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: folder
+    integer :: slash
+    slash = index(path, '/', back=.true.)
+    if (slash == 0) then
+      folder = '.'
+    else if (slash == 1) then
+      folder = '/'
+    else
+      folder = path(:slash - 1)
+    end if
+  end function folder_of
 
   logical function file_exists(path)
     character(len=*), intent(in) :: path

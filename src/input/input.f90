@@ -3,13 +3,15 @@
 !> about input is written here; each names the file, line, group, variable
 !> and value.
 module ellroll_input
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan, &
+      ieee_set_halting_mode, ieee_usual
+  use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
-      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method, &
+      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method, range_text, max_steps, &
       field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
       invalid_stop, invalid_skip
@@ -138,6 +140,7 @@ contains
     namelist /sample/ name, low, high, spacing
     integer :: gi, k, ios
     character(len=512) :: msg
+    type(ieee_status_type) :: fp_state
     character(len=:), allocatable :: lines(:)
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: draws(:)
@@ -158,6 +161,10 @@ contains
         low = nan(); high = nan()
         do k = 1, size(grp%items)
           lines = assignment_lines(grp, k)
+          call ieee_get_status(fp_state)
+          ! text such as 1e309 reads as Inf, which the checks name; its
+          ! conversion must not stop a build that traps on overflow
+          call ieee_set_halting_mode(ieee_usual, .false.)
           select case (grp%name)
           case ('geometry'); read (lines, nml=geometry, iostat=ios, iomsg=msg)
           case ('ball'); read (lines, nml=ball, iostat=ios, iomsg=msg)
@@ -170,6 +177,7 @@ contains
           case ('sweep'); read (lines, nml=sweep, iostat=ios, iomsg=msg)
           case ('sample'); read (lines, nml=sample, iostat=ios, iomsg=msg)
           end select
+          call ieee_set_status(fp_state)
           if (ios /= 0) then
             associate (item => grp%items(k))
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
@@ -233,6 +241,10 @@ contains
         return
       else if (rd%given(gi, 'weight')) then
         if (.not. rd%require(gi, 'weight', weight)) return
+        if (ieee_is_finite(weight) .and. .not. weight > 0) then   ! case_t reads weight 0 as 'mass given'
+          call rd%fail_value(gi, 'weight', range_text(param_index('weight')))
+          return
+        end if
         cs%weight = weight
       else if (rd%given(gi, 'mass')) then
         if (.not. rd%require(gi, 'mass', mass)) return
@@ -333,6 +345,11 @@ contains
       if (.not. rd%require(gi, 'interval', interval)) return
       if (interval <= 0 .or. interval > cs%t_end) then
         call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
+        return
+      end if
+      if (cs%t_end > max_steps * interval) then       ! (not t_end / interval: it may overflow)
+        call rd%fail_value(gi, 'interval', 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
+                           format_real(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
         return
       end if
       if (.not. is_multiple(cs%t_end, interval)) then
@@ -758,6 +775,7 @@ contains
     character(len=4096) :: line
     real(wp) :: row(4)
     logical :: header_allowed
+    type(ieee_status_type) :: fp_state
     reason = ''
     allocate (times(0), values(3, 0))
     open (newunit=unit, file=path, status='old', action='read', iostat=ios)
@@ -790,7 +808,10 @@ contains
         exit
       end if
       row = 0
+      call ieee_get_status(fp_state)
+      call ieee_set_halting_mode(ieee_usual, .false.)   ! 1e309 reads as Inf, named below
       read (line, *, iostat=ios) row(:width)
+      call ieee_set_status(fp_state)
       if (ios /= 0) then
         if (header_allowed .and. n == 0) then
           header_allowed = .false.

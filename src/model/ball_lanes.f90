@@ -8,7 +8,7 @@
 !> lane or which batch it runs in.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance, fit_indicator
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -89,7 +89,7 @@ contains
     real(wp), intent(inout), optional :: margin(lanes)
     real(wp) :: fits(lanes)
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
-    real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity
+    real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity, r_fit_sigma, e_fit
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
@@ -108,7 +108,11 @@ contains
       denominator = r_sigma * e + p%det_axes2(l) * (length2 * length2)
       ! computed in every lane, kept only when asked for: a test of present()
       ! inside the loop stops it from vectorizing
-      fits(l) = min(y(l, 3), fit_indicator(p%fit_radius(l) * sigma, q, length, pq, p%det_axes2(l) * (length2 * length2)))
+      ! fit_indicator written out: a call to another module's function, even
+      ! an elemental one, stops the loop from vectorizing
+      r_fit_sigma = p%fit_radius(l) * sigma
+      e_fit = r_fit_sigma * q - length * pq
+      fits(l) = min(y(l, 3), min(r_fit_sigma * e_fit + p%det_axes2(l) * (length2 * length2), -(e_fit + r_fit_sigma * q)))
       w1 = y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2)
       w2 = y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3)
       w3 = y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1)

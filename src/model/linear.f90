@@ -6,7 +6,7 @@
 !>  - the fastest rate of the linearised motion at a state, which sets the
 !>    step a fixed-step method needs, or a cheap bound on it.
 module ellroll_linear
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, ieee_is_finite
   use ellroll_kinds, only: wp, two_pi
   use ellroll_rolling_ball, only: rolling_ball_t, state_size
   implicit none
@@ -71,8 +71,14 @@ contains
     ! pure oscillation; a complex pair (flutter) grows while it oscillates
     frequencies = abs(aimag(sqrt(mu)))
     periods = ieee_value(0.0_wp, ieee_quiet_nan)
+    if (.not. all(ieee_is_finite(frequencies))) return
     where (frequencies > 1.0e-9_wp * maxval(frequencies)) periods = two_pi / frequencies
-    if (periods(2) > periods(1) .or. ieee_is_nan(periods(1))) periods = periods([2, 1])
+    ! NaN is tested first: an ordered comparison with it traps where invalid traps
+    if (ieee_is_nan(periods(1))) then
+      periods = periods([2, 1])
+    else if (.not. ieee_is_nan(periods(2))) then
+      if (periods(2) > periods(1)) periods = periods([2, 1])
+    end if
   end function oscillation_periods
 
   !> The fastest rate of the motion linearised at y (1/s): the largest

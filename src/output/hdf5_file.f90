@@ -699,6 +699,8 @@ contains
     type(error_t), intent(inout) :: err
     integer(hid_t) :: dset
     integer(i8) :: n
+    integer(i8), allocatable :: ints(:)
+    character(len=len(rows%text)), allocatable :: texts(:)
     integer :: k, ncomp
     n = size(rows, 2, kind=i8)
     do k = 1, size(rows, 1)
@@ -711,10 +713,12 @@ contains
         else
           call write_real_slab(self, dset, reals_of(ncomp), [0_i8, offset], [int(ncomp, i8), n], err)
         end if
-      case (kind_int)
-        call write_int_slab(self, dset, rows(k, :)%int, [offset], [n], err)
+      case (kind_int)        ! (the components copied to contiguous arrays: the slab writers take a buffer)
+        ints = rows(k, :)%int
+        call write_int_slab(self, dset, ints, [offset], [n], err)
       case (kind_text)
-        call write_text_slab(self, dset, rows(k, :)%text, offset, err)
+        texts = rows(k, :)%text
+        call write_text_slab(self, dset, texts, offset, err)
       end select
     end do
   contains

@@ -29,7 +29,7 @@ module ellroll_journal
   implicit none
   private
 
-  public :: journal_t, journal_header_t
+  public :: journal_t, journal_header_t, journal_is_torn
 
   character(len=8), parameter :: magic = 'ELLROLL2'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
@@ -92,6 +92,19 @@ contains
     inquire (unit=self%unit, pos=self%next_position)
     call open_for_records(self, err)
   end subroutine create
+
+  !> Whether the journal at path ends before its header does: the run was
+  !> killed before it had written the header, so nothing it did is kept.
+  logical function journal_is_torn(path)
+    character(len=*), intent(in) :: path
+    type(journal_header_t) :: header
+    integer(i8) :: size_found
+    integer :: header_bytes
+    inquire (iolength=header_bytes) magic, header%campaign_id, header%n_slots, header%n_samples, header%shard, &
+        merge(1, 0, header%fields), merge(1, 0, header%in_place)
+    inquire (file=path, size=size_found)
+    journal_is_torn = size_found >= 0 .and. size_found < header_bytes
+  end function journal_is_torn
 
   subroutine open_for_records(self, err)
     type(journal_t), intent(inout) :: self

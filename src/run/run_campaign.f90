@@ -20,22 +20,24 @@ module ellroll_run_campaign
   use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
+  use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
   use ellroll_campaign, only: campaign_t, invalid_stop
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
-  use ellroll_hdf5, only: h5_output_t, provenance_t, window_list_t, table_row
+  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row
   use ellroll_trajectory_store, only: trajectory_store_t
   use ellroll_records, only: named_value_t
-  use ellroll_journal, only: journal_t, journal_header_t
+  use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: rename_file, remove_file, file_exists
+  use ellroll_system, only: rename_file, remove_file, file_exists, folder_write_error, folder_of, system_error_text
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
       writes_trajectories, writes_journal
   implicit none
   private
 
-  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id, step_size_advice
+  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id, step_size_advice, &
+            check_output_target
 
   type :: run_options_t
     integer :: threads = 0               !< 0: OMP_NUM_THREADS or all cores
@@ -55,6 +57,39 @@ contains
     character(len=16) :: id
     id = text_hash(inp%canonical)
   end function campaign_id
+
+  !> Checked before any case runs: files can be created in the output's
+  !> folder, and a file already at the output's path is an ellroll output,
+  !> so that neither --overwrite nor a resume ever replaces the input or any
+  !> other file.
+  subroutine check_output_target(path, err)
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    integer :: code
+    code = folder_write_error(folder_of(path))
+    if (code /= 0) then
+      call set_error(err, err_output, path // ': cannot create files in folder ' // folder_of(path) // ': ' // &
+                     system_error_text(code))
+    else if (file_exists(path) .and. len(output_campaign_id(path)) == 0) then
+      call set_error(err, err_output, path // ': exists and is not an ellroll output file (the input, or another ' // &
+                     'file); it is never replaced, even with --overwrite: choose another output name')
+    end if
+  end subroutine check_output_target
+
+  !> The campaign id of the ellroll output at path; '' when there is none
+  !> (no file, not HDF5, or an HDF5 file without the attribute).
+  function output_campaign_id(path) result(id)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable :: id
+    type(h5_input_t) :: existing
+    type(error_t) :: unreadable
+    id = ''
+    if (.not. file_exists(path)) return
+    call existing%open(path, unreadable)
+    if (unreadable%failed()) return
+    id = existing%text_attribute('campaign_id')
+    call existing%close()
+  end function output_campaign_id
 
   !> Global indices of shard I of N: I, I + N, I + 2N, ... (round robin, so
   !> that every shard gets a fair share of a sweep's cheap and dear cases).
@@ -105,42 +140,68 @@ contains
     end function case_is_invalid
   end subroutine find_invalid_cases
 
-  !> A warning (or '') for the cases whose fixed step dt is large against
-  !> the fastest rate of their linearised motion at the start: dt rate > 0.1.
+  !> Warnings (or ''), each line starting 'ellroll: warning:', for the
+  !> fixed-step cases whose dt is large against the fastest rate of their
+  !> linearised motion at the start (spin and curvature): beyond the method's
+  !> stability (dt rate above its limit; such a case ends 'unstable'), listed
+  !> case by case, the first few, each with a dt that would do; or coarse
+  !> (dt rate > 0.1), counted, the fastest named.
   function step_size_advice(inp) result(message)
     type(run_input_t), intent(in) :: inp
     character(len=:), allocatable :: message
     real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
-    real(wp) :: worst_rate, suggestion
+    integer, parameter :: listed = 5
+    real(wp) :: worst_rate, limit
     real(wp), allocatable :: rates(:), steps(:)
-    integer(i8) :: i, worst, n_large
-    type(case_t) :: cs
+    integer(i8) :: i, worst, n_coarse, n_unstable
+    character(len=:), allocatable :: unstable_cases, cases_of
+    class(integrator_t), allocatable :: integrator
+    type(error_t) :: err
     message = ''
     if (adaptive_method(inp%campaign%base%method)) return
+    call new_integrator(trim(inp%campaign%base%method), integrator, err)
+    if (err%failed()) return
+    limit = stability_limit(integrator)
     allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1))
     !$omp parallel do schedule(dynamic, 256)
     do i = 0, inp%campaign%n_cases() - 1
       call start_rate(i, rates(i), steps(i))
     end do
     !$omp end parallel do
-    n_large = 0
+    n_coarse = 0
+    n_unstable = 0
+    unstable_cases = ''
     worst_rate = 0
     worst = 0
     do i = 0, inp%campaign%n_cases() - 1
-      if (steps(i) * rates(i) <= warn_above) cycle
-      n_large = n_large + 1
-      if (rates(i) > worst_rate) then
-        worst_rate = rates(i)
-        worst = i
+      if (steps(i) * rates(i) > limit) then
+        n_unstable = n_unstable + 1
+        if (n_unstable <= listed) unstable_cases = unstable_cases // achar(10) // '  case ' // itoa(int(i)) // &
+            ': dt = ' // format_real(steps(i)) // ' s, dt * rate = ' // format_real(hundredths(steps(i) * rates(i))) // &
+            '; dt <= ' // format_real(nice_step(aim / rates(i), inp%plan%interval)) // ' s would do'
+      else if (steps(i) * rates(i) > warn_above) then
+        n_coarse = n_coarse + 1
+        if (rates(i) > worst_rate) then
+          worst_rate = rates(i)
+          worst = i
+        end if
       end if
     end do
-    if (n_large == 0) return
-    suggestion = nice_step(aim / worst_rate, inp%plan%interval)
-    cs = inp%campaign%case_at(worst)
-    message = 'warning: ' // itoa(int(n_large)) // ' of ' // itoa(int(inp%campaign%n_cases())) // &
-        ' cases: dt is large for their fastest time scale (case ' // itoa(int(worst)) // ': dt = ' // &
-        format_real(cs%dt) // ' s, 1/rate = ' // format_real(1 / worst_rate) // &
-        ' s); suggested dt <= ' // format_real(suggestion) // ' s, or method = ''dop853'''
+    cases_of = ' of ' // itoa(int(inp%campaign%n_cases())) // ' cases: '
+    if (n_unstable > 0) then
+      message = 'ellroll: warning: ' // itoa(int(n_unstable)) // cases_of // 'dt is beyond ' // &
+          trim(inp%campaign%base%method) // '''s stability for their spin and curvature (dt * rate > ' // &
+          format_real(hundredths(limit)) // ', rate the fastest of the motion at the start); they will end ''unstable'':' // &
+          unstable_cases
+      if (n_unstable > listed) message = message // achar(10) // '  ... and ' // itoa(int(n_unstable - listed)) // &
+          ' more'
+    end if
+    if (n_coarse == 0) return
+    if (len(message) > 0) message = message // achar(10)
+    message = message // 'ellroll: warning: ' // itoa(int(n_coarse)) // cases_of // &
+        'dt is large for their fastest time scale (case ' // itoa(int(worst)) // ': dt = ' // &
+        format_real(steps(worst)) // ' s, 1/rate = ' // format_real(1 / worst_rate) // ' s); suggested dt <= ' // &
+        format_real(nice_step(aim / worst_rate, inp%plan%interval)) // ' s, or method = ''dop853'''
   contains
     !> Case `index`'s fastest rate at the start and its step; where a bound on
     !> the rate is within the limit, the bound (the rate is only compared with it).
@@ -157,22 +218,32 @@ contains
                           enough=warn_above / max(dt, tiny(dt)))
     end subroutine start_rate
 
-    !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval.
+    !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
+    !> (a power below 1 divided by, so that 5e-6 is the double nearest 5e-6).
     real(wp) function nice_step(limit, interval) result(step)
       real(wp), intent(in) :: limit, interval
       real(wp), parameter :: mantissas(3) = [1.0_wp, 2.0_wp, 5.0_wp]
-      real(wp) :: decade
-      integer :: k, m
-      decade = 10.0_wp**floor(log10(limit))
+      integer :: k, m, exponent10
       do k = 0, 30
+        exponent10 = floor(log10(limit)) - k
         do m = 3, 1, -1
-          step = mantissas(m) * decade / 10.0_wp**k
+          if (exponent10 < 0) then
+            step = mantissas(m) / 10.0_wp**(-exponent10)
+          else
+            step = mantissas(m) * 10.0_wp**exponent10
+          end if
           if (step > limit) cycle
           if (is_multiple(interval, step)) return
         end do
       end do
       step = limit
     end function nice_step
+
+    !> x rounded to two decimals, for a message
+    pure real(wp) function hundredths(x)
+      real(wp), intent(in) :: x
+      hundredths = anint(100 * x) / 100
+    end function hundredths
   end function step_size_advice
 
   subroutine run_campaign(inp, opts, prov_in, err)
@@ -184,7 +255,7 @@ contains
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
     integer(i8) :: n_slots, slot, i, chunk
-    logical :: use_batches
+    logical :: use_batches, resume
     real(wp), allocatable :: times(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -212,17 +283,28 @@ contains
       return
     end if
 
-    ! existing outputs
-    if (opts%resume) then
-      if (.not. file_exists(journal_path)) then
-        if (file_exists(target)) then
-          call set_error(err, err_output, target // ': this run is already complete; nothing to resume')
-        else
-          call set_error(err, err_output, journal_path // ': no interrupted run to resume')
-        end if
-        return
+    ! existing outputs; a journal killed before its header was complete
+    ! holds nothing finished, and the run starts afresh
+    resume = opts%resume
+    if (file_exists(journal_path)) then
+      if (journal_is_torn(journal_path)) then
+        write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': the interrupted run finished no case ' // &
+            '(killed before the journal''s header was written); starting afresh'
+        call remove_file(journal_path)
+        call remove_file(partial)
+        resume = .false.
       end if
-    else if (.not. opts%overwrite) then
+    else if (resume .and. .not. file_exists(target)) then
+      resume = .false.          ! nothing begun: the resume is the first run (a requeued job's)
+    end if
+    if (resume .and. .not. file_exists(journal_path)) then          ! the output is there
+      if (output_campaign_id(target) == campaign_id(inp)) then
+        write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
+      else
+        call set_error(err, err_output, target // ': holds the output of another input; nothing to resume')
+      end if
+      return
+    else if (.not. resume .and. .not. opts%overwrite) then
       if (file_exists(journal_path)) then
         call set_error(err, err_output, target // ': an interrupted run of this output exists (' // &
             journal_path // '); pass --resume to finish it, or --overwrite to start over')
@@ -245,7 +327,7 @@ contains
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
     writing = partial
-    if (opts%resume) writing = resumed      ! moved over partial once the journaled cases are in it
+    if (resume) writing = resumed      ! moved over partial once the journaled cases are in it
     call out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
@@ -259,7 +341,7 @@ contains
     ! cases already done: from the journal of the interrupted run
     allocate (done(0:n_slots - 1))
     done = .false.
-    if (opts%resume) then
+    if (resume) then
       call resume_from_journal()
     else
       call journal%create(journal_path, header, err)

@@ -2,6 +2,8 @@
 model at is checked, and a step that meets a limit is followed to it on
 shorter steps. The truth: DOP853 at rtol 1e-13, and DOP853 continuing the
 fixed-step method's own last state inside the model."""
+import re
+
 import h5py
 import numpy as np
 import pytest
@@ -109,3 +111,23 @@ def test_a_swept_dt_that_does_not_divide_the_interval_is_rejected(ellroll, tmp_p
         assert result.returncode == 2
         assert "case 1 (dt = 0.003)" in result.stderr and "whole number of steps" in result.stderr
         assert not (tmp_path / "bad.h5").exists()
+
+
+def test_check_names_each_case_beyond_stability_and_those_end_unstable(ellroll, tmp_path):
+    """A spin sweep at RK4's dt = 1e-3: the fastest rate at the start grows in
+    proportion to the spin (3.4e3 1/s at omega_z = 1e5 rad/s), so dt x rate
+    passes 2 sqrt 2 from omega_z = 1e5 on; check lists exactly
+    those cases, with a dt that would do, and each of them ends 'unstable'
+    while the others do not."""
+    spins = [20.0, 150.0, 3000.0, 1e4, 1e5, 2e5, 5e5, 1e6]
+    text = case_text("rk4", 1e-3, (-2.0, 2.0, 20.0), t_end=0.5) + \
+        f"&sweep name = 'omega_z', values = {', '.join(map(repr, spins))} /\n"
+    (tmp_path / "sweep.nml").write_text(text)
+    result = run(ellroll, "check", "sweep.nml", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    listed = [int(i) for i in re.findall(r"^  case (\d+): dt = 0.001 s, dt \* rate = [0-9.]+; dt <= [0-9.e-]+ s would do$",
+                                          result.stderr, re.M)]
+    assert "4 of 8 cases: dt is beyond rk4's stability" in result.stderr, result.stderr
+    assert listed == [4, 5, 6, 7], result.stderr
+    out = run_case(ellroll, tmp_path, text, name="sweep.nml")
+    assert [i for i, s in enumerate(out["status"]) if s == "unstable"] == listed

@@ -146,11 +146,12 @@ def test_case_ended_at_rim_is_nan_filled(ellroll, tmp_path):
 def test_existing_output_needs_overwrite(ellroll, tmp_path):
     write_input(tmp_path)
     target = tmp_path / "legeza1990.h5"
-    target.write_bytes(b"a good file from yesterday")
+    assert run(ellroll, "run", "case.nml", "-q", cwd=tmp_path).returncode == 0
+    yesterday = target.read_bytes()
     result = run(ellroll, "run", "case.nml", cwd=tmp_path)
     assert result.returncode == 3
     assert "legeza1990.h5" in result.stderr and "--overwrite" in result.stderr
-    assert target.read_bytes() == b"a good file from yesterday"
+    assert target.read_bytes() == yesterday
     assert run(ellroll, "run", "case.nml", "--overwrite", cwd=tmp_path).returncode == 0
     assert h5py.is_hdf5(target)
 

@@ -1,0 +1,86 @@
+"""Where the output goes, decided before any case runs: a folder that cannot
+take the file is named by run and check alike; a file that is not an
+ellroll output (the input itself, say) is never replaced, even with
+--overwrite; a resume of a run that is already complete has nothing to do."""
+import hashlib
+
+import pytest
+
+from conftest import run
+from test_campaign import assert_same_datasets, write
+
+
+def digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_an_output_onto_the_input_is_refused_even_with_overwrite(ellroll, tmp_path):
+    name = write(tmp_path, "", t_end=0.1)
+    before = digest(tmp_path / name)
+    for command in (["run", name, "-o", name, "--overwrite"], ["check", name, "-o", name]):
+        result = run(ellroll, *command, cwd=tmp_path)
+        assert result.returncode == 3, result.stderr
+        assert f"{name}: exists and is not an ellroll output file" in result.stderr
+    assert digest(tmp_path / name) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
+def test_an_existing_file_of_another_kind_is_never_replaced(ellroll, tmp_path):
+    name = write(tmp_path, "", t_end=0.1)
+    (tmp_path / "out.h5").write_bytes(b"results of another program\n")
+    result = run(ellroll, "run", name, "--overwrite", cwd=tmp_path)
+    assert result.returncode == 3 and "out.h5: exists and is not an ellroll output file" in result.stderr
+    assert (tmp_path / "out.h5").read_bytes() == b"results of another program\n"
+
+
+def test_a_missing_output_folder_is_named_by_check_and_run(ellroll, tmp_path):
+    name = write(tmp_path, "", t_end=0.1)
+    for command in ("check", "run"):
+        result = run(ellroll, command, name, "-o", "no_such_folder/out.h5", cwd=tmp_path)
+        assert result.returncode == 3, result.stderr
+        assert ("no_such_folder/out.h5: cannot create files in folder no_such_folder: No such file or directory"
+                in result.stderr), result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
+def test_resuming_a_complete_run_has_nothing_to_do(ellroll, tmp_path):
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n", t_end=0.1)
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    before = digest(tmp_path / "out.h5")
+    result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "out.h5: this run is already complete; nothing to do" in result.stderr
+    assert digest(tmp_path / "out.h5") == before
+    # the same output name from another input is no run to resume
+    other = write(tmp_path, "&sweep name = 'omega_z', values = 5, 11 /\n", t_end=0.1, name="other.nml")
+    result = run(ellroll, "run", other, "--resume", cwd=tmp_path)
+    assert result.returncode == 3 and "holds the output of another input" in result.stderr
+    assert digest(tmp_path / "out.h5") == before
+
+
+def test_a_resume_with_nothing_begun_is_the_first_run(ellroll, tmp_path):
+    """What a requeued batch job meets on its first start: --resume runs the
+    whole campaign."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n", t_end=0.1)
+    result = run(ellroll, "run", name, "--resume", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    run(ellroll, "run", name, "-q", "-o", "alone.h5", cwd=tmp_path)
+    assert_same_datasets(tmp_path / "out.h5", tmp_path / "alone.h5")
+    assert not (tmp_path / "out.h5.journal").exists()
+
+
+@pytest.mark.parametrize("journal_bytes", [0, 20])
+@pytest.mark.parametrize("resume", [True, False])
+def test_a_journal_killed_before_its_header_starts_the_run_afresh(ellroll, tmp_path, journal_bytes, resume):
+    """A kill before the journal's header reached the disk leaves an empty or
+    torn journal: nothing was finished, so a resume (or a plain run) starts
+    afresh, says so, and exits 0, instead of asking for a resume forever."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n", t_end=0.1)
+    (tmp_path / "out.h5.journal").write_bytes((b"ELLROLL2" + bytes(64))[:journal_bytes])
+    (tmp_path / "out.h5.partial").write_bytes(bytes(100))
+    result = run(ellroll, "run", name, "-q", *(["--resume"] if resume else []), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "finished no case (killed before the journal's header was written); starting afresh" in result.stderr
+    run(ellroll, "run", name, "-q", "-o", "alone.h5", cwd=tmp_path)
+    assert_same_datasets(tmp_path / "out.h5", tmp_path / "alone.h5")
+    assert not (tmp_path / "out.h5.journal").exists() and not (tmp_path / "out.h5.partial").exists()
