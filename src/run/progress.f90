@@ -1,6 +1,7 @@
 !> Progress of a campaign on stderr: cases done/total, cases per second and
-!> the time left, at most a line a second; one refreshing line on a
-!> terminal, plain lines in a log.
+!> the time left. On a terminal one refreshing line, at most once a second;
+!> in a log (a batch job's stderr) a full line, flushed, every 10 s and at
+!> each tenth of the cases, the last one with the totals.
 module ellroll_progress
   use, intrinsic :: iso_fortran_env, only: error_unit
   use, intrinsic :: iso_c_binding, only: c_int
@@ -43,14 +44,22 @@ contains
     self%clock_last = self%clock_start
   end subroutine start
 
-  !> One more case done; print if a second has passed since the last line.
+  !> One more case done; print when a line is due (see above).
   subroutine advance(self)
     class(progress_t), intent(inout) :: self
+    integer(i8), parameter :: log_every_seconds = 10
     integer(i8) :: now
+    logical :: due
     self%done = self%done + 1
     if (self%quiet) return
     call system_clock(now)
-    if (now - self%clock_last < self%clock_rate .and. self%done < self%total) return
+    if (self%terminal) then
+      due = now - self%clock_last >= self%clock_rate
+    else
+      due = now - self%clock_last >= log_every_seconds * self%clock_rate .or. &
+            10 * self%done / max(1_i8, self%total) > 10 * (self%done - 1) / max(1_i8, self%total)   ! a tenth passed
+    end if
+    if (.not. (due .or. self%done == self%total)) return
     self%clock_last = now
     call print_line(self, now)
   end subroutine advance
@@ -80,6 +89,7 @@ contains
       flush (error_unit)
     else
       write (error_unit, '(a)') line
+      flush (error_unit)         ! a file's buffer would hold it until the run ends
     end if
     self%printed = .true.
   end subroutine print_line

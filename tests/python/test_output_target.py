@@ -1,8 +1,13 @@
 """Where the output goes, decided before any case runs: a folder that cannot
 take the file is named by run and check alike; a file that is not an
 ellroll output (the input itself, say) is never replaced, even with
---overwrite; a resume of a run that is already complete has nothing to do."""
+--overwrite; a resume of a run that is already complete has nothing to do,
+one of a run that never began runs it. And what a log file sees: progress
+as the run goes."""
 import hashlib
+import re
+import subprocess
+import time
 
 import pytest
 
@@ -84,3 +89,31 @@ def test_a_journal_killed_before_its_header_starts_the_run_afresh(ellroll, tmp_p
     run(ellroll, "run", name, "-q", "-o", "alone.h5", cwd=tmp_path)
     assert_same_datasets(tmp_path / "out.h5", tmp_path / "alone.h5")
     assert not (tmp_path / "out.h5.journal").exists() and not (tmp_path / "out.h5.partial").exists()
+
+
+def test_progress_reaches_a_log_file_while_the_run_goes(ellroll, tmp_path):
+    """stderr redirected to a file, as in a batch job: full lines, flushed at
+    each tenth of the cases, are there before the run ends; the last has the
+    totals; -q silences them."""
+    name = "log.nml"          # 40 cases of 300,000 steps, little output: a few seconds
+    (tmp_path / name).write_text(
+        "&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
+        "&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /\n&integration dt = 1.0e-3, t_end = 300.0 /\n"
+        "&output file = 'out.h5', interval = 10.0, fields = 'energy' /\n"
+        "&sweep name = 'omega_z', start = 1, stop = 40, count = 40 /\n")
+    with open(tmp_path / "log.txt", "w") as log:
+        process = subprocess.Popen([str(ellroll), "run", name, "--threads", "1"], cwd=tmp_path, stderr=log)
+        seen_while_running = ""
+        while process.poll() is None and not seen_while_running:
+            time.sleep(0.05)
+            seen_while_running = (tmp_path / "log.txt").read_text()
+        assert process.wait(timeout=300) == 0
+    assert re.match(r"ellroll: \d+/40 cases \(\d+%\)", seen_while_running), seen_while_running
+    lines = (tmp_path / "log.txt").read_text().splitlines()
+    assert "\r" not in "".join(lines)
+    progress = [line for line in lines if re.match(r"ellroll: \d+/40 cases", line)]
+    percents = [int(re.search(r"\((\d+)%\)", line).group(1)) for line in progress]
+    assert set(range(10, 101, 10)) <= set(percents) and percents == sorted(percents)   # (and one each 10 s)
+    assert progress[-1].startswith("ellroll: 40/40 cases (100%), ")
+    result = run(ellroll, "run", name, "-q", "-o", "quiet.h5", cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == ""
