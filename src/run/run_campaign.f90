@@ -70,9 +70,10 @@ contains
     if (code /= 0) then
       call set_error(err, err_output, path // ': cannot create files in folder ' // folder_of(path) // ': ' // &
                      system_error_text(code))
-    else if (file_exists(path) .and. len(output_campaign_id(path)) == 0) then
-      call set_error(err, err_output, path // ': exists and is not an ellroll output file (the input, or another ' // &
-                     'file); it is never replaced, even with --overwrite: choose another output name')
+    else if (file_exists(path)) then
+      if (len(output_campaign_id(path)) == 0) &
+        call set_error(err, err_output, path // ': exists and is not an ellroll output file (the input, or ' // &
+                       'another file); it is never replaced, even with --overwrite: choose another output name')
     end if
   end subroutine check_output_target
 
@@ -255,7 +256,7 @@ contains
     integer(i8), allocatable :: globals(:)
     logical, allocatable :: invalid(:), done(:)
     integer(i8) :: n_slots, slot, i, chunk
-    logical :: use_batches, resume
+    logical :: use_batches, resume, journal_exists
     real(wp), allocatable :: times(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -286,18 +287,20 @@ contains
     ! existing outputs; a journal killed before its header was complete
     ! holds nothing finished, and the run starts afresh
     resume = opts%resume
-    if (file_exists(journal_path)) then
+    journal_exists = file_exists(journal_path)
+    if (journal_exists) then
       if (journal_is_torn(journal_path)) then
         write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': the interrupted run finished no case ' // &
             '(killed before the journal''s header was written); starting afresh'
         call remove_file(journal_path)
         call remove_file(partial)
+        journal_exists = .false.
         resume = .false.
       end if
-    else if (resume .and. .not. file_exists(target)) then
-      resume = .false.          ! nothing begun: the resume is the first run (a requeued job's)
+    else if (.not. file_exists(target)) then
+      resume = .false.          ! nothing begun: a resume is the first run (a requeued job's)
     end if
-    if (resume .and. .not. file_exists(journal_path)) then          ! the output is there
+    if (resume .and. .not. journal_exists) then          ! the output is there
       if (output_campaign_id(target) == campaign_id(inp)) then
         write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
       else
