@@ -169,14 +169,14 @@ contains
   !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
   !> step's end is found once).
   pure logical function nutation_peak_inside(y, f, y_new, f_new)
-    real(wp), intent(in) :: y(state_size), f(state_size), y_new(state_size), f_new(state_size)
+    real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)     ! (assumed shape: a batch passes lanes' rows)
     nutation_peak_inside = nutation_trend(y, f) >= 0 .and. nutation_trend(y_new, f_new) < 0
   end function nutation_peak_inside
 
   !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
   !> of either: the part of y' along y cancels, so |n| need not be 1).
   pure real(wp) function nutation_trend(y, rate)
-    real(wp), intent(in) :: y(state_size), rate(state_size)
+    real(wp), intent(in) :: y(:), rate(:)
     nutation_trend = (y(1) * rate(1) + y(2) * rate(2)) * y(3) - (y(1)**2 + y(2)**2) * rate(3)
   end function nutation_trend
 

@@ -86,6 +86,8 @@ contains
     type(ball_lanes_t) :: balls
     type(lane_summary_t) :: summary
     real(wp), dimension(lanes, state_size) :: y, f
+    ! one lane's row, contiguous, for the one-case routines (explicit-shape arguments)
+    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
     integer(i8) :: clock_start, clock_end, clock_rate
     logical :: active(lanes)
     integer :: n, l, donor
@@ -94,7 +96,9 @@ contains
     if (n == 0) return
     call system_clock(clock_start, clock_rate)
     do l = 1, n
-      call start_case(cases(l), plan, run(l), results(l), y(l, :), f(l, :))
+      call start_case(cases(l), plan, run(l), results(l), y_lane, f_lane)
+      y(l, :) = y_lane
+      f(l, :) = f_lane
       call set_lane(balls, l, run(l)%ball)
       call summary%load(l, run(l), results(l))
       active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
@@ -159,7 +163,9 @@ contains
             call samples%flush(l, results(l))
             call summary%store(l, run(l), results(l))
             ! the stages' own limit, which rk4_ball_step tells, is found in the approach
-            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y(l, :), f(l, :), h(l), &
+            y_lane = y(l, :)
+            f_lane = f(l, :)
+            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y_lane, f_lane, h(l), &
                               merge(out%status(l), status_no_fit, out%status(l) /= status_completed), results(l))
             active(l) = .false.
             cycle
@@ -215,10 +221,12 @@ contains
         atol(l) = cases(i)%atol
         h_max(l) = cases(i)%dt
         t_end(l) = cases(i)%t_end
+        y_lane = y(l, :)
+        f_lane = f(l, :)
         if (active(l)) then
-          call dop(l)%initial_step(run(l)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), results(l)%n_rhs)
+          call dop(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
         else
-          call dop(l)%initial_step(run(i)%ball, t(l), y(l, :), f(l, :), h_max(l), h(l), idle_rhs)
+          call dop(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
         end if
       end do
       do while (any(active))
@@ -239,8 +247,11 @@ contains
         end do
         if (.not. any(accepted)) cycle
         do l = 1, lanes
-          y_new(l, :) = y_raw(l, :)
-          call project_with_rate(y_new(l, :), k(l, :, end_stage), f_new(l, :))
+          y_lane = y_raw(l, :)
+          rate_lane = k(l, :, end_stage)
+          call project_with_rate(y_lane, rate_lane, f_lane)
+          y_new(l, :) = y_lane
+          f_new(l, :) = f_lane
         end do
         call lanes_observe(balls, y_new, f_new, out)
         call summary%add(out, accepted .and. out%status == status_completed)
@@ -295,8 +306,11 @@ contains
     integer, intent(in) :: l
     real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, stages_dense)
     real(wp), intent(in) :: error_norm
+    real(wp) :: y_lane(state_size), y_raw_lane(state_size)
     dop%k(:state_size, :) = k(l, :, :)
-    call dop%hold_attempt(t, h, y(l, :), y_raw(l, :), error_norm, dense_stages_ready=.true.)
+    y_lane = y(l, :)                     ! contiguous for hold_attempt's explicit-shape arguments
+    y_raw_lane = y_raw(l, :)
+    call dop%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
   end subroutine load_attempt
 
   !> Lane l's end-of-step observation, what an output sample stores (no base
