@@ -308,7 +308,7 @@ contains
       end if
       return
     else if (.not. resume .and. .not. opts%overwrite) then
-      if (file_exists(journal_path)) then
+      if (journal_exists) then
         call set_error(err, err_output, target // ': an interrupted run of this output exists (' // &
             journal_path // '); pass --resume to finish it, or --overwrite to start over')
         return
