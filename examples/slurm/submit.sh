@@ -1,10 +1,31 @@
 #!/usr/bin/env bash
 # Runs a campaign as a Slurm job array of N shards and a dependent merge job.
-#   examples/slurm/submit.sh INPUT.nml OUT.h5 N [CPUS_PER_TASK]
-# Set ELLROLL to the ellroll executable if it is not on PATH. Prints the job ids.
+#   examples/slurm/submit.sh [--time T] [--mem M] INPUT.nml OUT.h5 N [CPUS_PER_TASK]
+# --time and --mem go to each array task (sbatch's formats: --time=2:00:00,
+# --mem=4G); a task that reaches its time limit requeues itself and resumes
+# (campaign.sbatch). Set ELLROLL to the ellroll executable if it is not on
+# PATH. Prints the job ids.
 set -euo pipefail
+usage="usage: $0 [--time T] [--mem M] INPUT.nml OUT.h5 N [CPUS_PER_TASK]"
+task_options=()
+while [ $# -gt 0 ]; do
+  case $1 in
+    --time | --mem)
+      [ $# -ge 2 ] || { echo "$usage" >&2; exit 2; }
+      task_options+=("$1=$2")
+      shift 2 ;;
+    --time=* | --mem=*)
+      task_options+=("$1")
+      shift ;;
+    -*)
+      echo "$usage" >&2
+      exit 2 ;;
+    *)
+      break ;;
+  esac
+done
 if [ $# -lt 3 ]; then
-  echo "usage: $0 INPUT.nml OUT.h5 N [CPUS_PER_TASK]" >&2
+  echo "$usage" >&2
   exit 2
 fi
 input=$(realpath "$1")
@@ -13,7 +34,7 @@ n=$3
 cpus=${4:-2}
 here=$(dirname "$(realpath "$0")")
 "${ELLROLL:-ellroll}" check "$input" -o "$out" > /dev/null     # refuse bad input before queueing
-array=$(sbatch --parsable --array="0-$((n - 1))" --cpus-per-task="$cpus" \
+array=$(sbatch --parsable --array="0-$((n - 1))" --cpus-per-task="$cpus" "${task_options[@]}" \
         "$here/campaign.sbatch" "$input" "$out")
 merge=$(sbatch --parsable --dependency="afterok:${array}" "$here/merge.sbatch" "$out" "$n")
 echo "array job $array, merge job $merge"

@@ -5,7 +5,7 @@ program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   !$ use omp_lib, only: omp_set_num_threads
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, err_output, exit_code
+  use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted, exit_code
   use ellroll_strings, only: itoa, format_real
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
@@ -22,7 +22,7 @@ program ellroll
   use ellroll_linear, only: oscillation_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
-  use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime
+  use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime, catch_stop_signals, exit_now
   use ellroll_ranks, only: ranks_start, ranks_all_ok, ranks_stop
   use ellroll_version, only: version_string
   implicit none
@@ -59,7 +59,10 @@ program ellroll
   end if
   call ranks_stop()
   status = 0
-  if (err%failed()) then
+  if (err%code > err_interrupted) then
+    write (error_unit, '(a)') 'ellroll: ' // err%message // '; ''' // resume_command() // ''' finishes the rest'
+    status = exit_code(err)
+  else if (err%failed()) then
     write (error_unit, '(a)') 'ellroll: error: ' // err%message
     status = exit_code(err)
   end if
@@ -67,9 +70,34 @@ program ellroll
   ! a sanitizer build's leak check then reports only real leaks
   deallocate (command, output_path, paths)
   err = error_t()
-  if (status /= 0) call exit(status)
+  if (status /= 0) then
+    ! what was finished is in the journal and the partial file; HDF5's own
+    ! exit handler would close files whose writes failed (a full disk)
+    flush (output_unit)
+    flush (error_unit)
+    call exit_now(status)
+  end if
 
 contains
+
+  !> This command line with --resume in place of --overwrite: it finishes
+  !> an interrupted run.
+  function resume_command() result(line)
+    character(len=:), allocatable :: line
+    character(len=4096) :: argument
+    integer :: k
+    line = 'ellroll'
+    do k = 1, command_argument_count()
+      call get_command_argument(k, argument)
+      if (argument == '--overwrite' .or. argument == '--resume') cycle
+      if (index(trim(argument), ' ') > 0) then
+        line = line // ' "' // trim(argument) // '"'
+      else
+        line = line // ' ' // trim(argument)
+      end if
+    end do
+    line = line // ' --resume'
+  end function resume_command
 
   subroutine parse_arguments()
     integer :: k, n, ios
@@ -203,7 +231,8 @@ contains
       '                        over cases, and each lock of the loop (held and waited for)', &
       '', &
       'exit codes: 0 ok (also when a case ended at a model limit), 1 internal error,', &
-      '            2 bad input, 3 output error', &
+      '            2 bad input, 3 output error, 143 (SIGTERM) or 130 (SIGINT): the run was', &
+      '            interrupted and kept its finished cases; run it again with --resume', &
       'The namelist reference and the HDF5 layout are in README.md.'
   end subroutine print_help
 
@@ -282,6 +311,7 @@ contains
     if (err%failed()) return
     call check_output_target(inp%plan%file, err)
     if (err%failed()) return
+    call catch_stop_signals()
     opts%advice_seconds = wall_clock()
     advice = step_size_advice(inp)
     opts%advice_seconds = wall_clock() - opts%advice_seconds
@@ -385,9 +415,9 @@ contains
 
     n_cases = inp%campaign%n_cases()
     n_local = size(shard_slots(n_cases, opts%shard), kind=i8)
-    write (output_unit, '(a)') 'campaign: ' // itoa(int(n_cases)) // ' cases'
+    write (output_unit, '(a)') 'campaign: ' // itoa(n_cases) // ' cases'
     if (opts%shard(2) > 1) write (output_unit, '(a)') '  this shard (' // itoa(opts%shard(1)) // '/' // &
-        itoa(opts%shard(2)) // '): ' // itoa(int(n_local)) // ' cases'
+        itoa(opts%shard(2)) // '): ' // itoa(n_local) // ' cases'
     do k = 1, size(inp%campaign%sweeps)
       write (output_unit, '(a)') '  sweep ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ': ' // &
           itoa(size(inp%campaign%sweeps(k)%values)) // ' values from ' // &
@@ -403,7 +433,7 @@ contains
     if (size(inp%campaign%sweeps) + size(inp%campaign%samples) > 0) then
       do i = 0, min(n_cases, 5_i8) - 1
         cs = inp%campaign%case_at(i)
-        line = '  case ' // itoa(int(i)) // ':'
+        line = '  case ' // itoa(i) // ':'
         do k = 1, size(inp%campaign%sweeps)
           line = line // ' ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ' = ' // &
                  format_real(get_param(cs, inp%campaign%sweeps(k)%param))
@@ -419,8 +449,8 @@ contains
 
     write (output_unit, '(a)') 'output:'
     write (output_unit, '(a)') '  file = ' // inp%plan%file
-    write (output_unit, '(a)') '  steps per case = ' // itoa(int(nint(inp%campaign%base%t_end / &
-        inp%campaign%base%dt, i8))) // ', samples = ' // itoa(int(inp%plan%n_samples)) // ' every ' // &
+    write (output_unit, '(a)') '  steps per case = ' // itoa(nint(inp%campaign%base%t_end / &
+        inp%campaign%base%dt, i8)) // ', samples = ' // itoa(inp%plan%n_samples) // ' every ' // &
         format_real(inp%plan%interval) // ' s'
     line = '  fields ='
     do k = 1, field_count
@@ -429,7 +459,7 @@ contains
     write (output_unit, '(a)') line
     bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
     write (output_unit, '(a)') '  trajectory data before compression = ' // size_text(bytes) // &
-        ' (' // itoa(int(n_local)) // ' cases)'
+        ' (' // itoa(n_local) // ' cases)'
   end subroutine describe
 
   function size_text(bytes) result(text)
@@ -458,7 +488,7 @@ contains
                  format_real(rec(k)%reals(3))
         end if
       case (kind_int)
-        text = itoa(int(rec(k)%int))
+        text = itoa(rec(k)%int)
       case (kind_text)
         text = "'" // trim(rec(k)%text) // "'"
       end select

@@ -40,9 +40,9 @@ contains
     end do
     if (all(status == 0)) return
     slowest = maxloc(wall, dim=1, mask=status /= 0)
-    write (output_unit, '(a)') '  steps, all cases: ' // itoa(int(sum(steps))) // '; integration time ' // &
+    write (output_unit, '(a)') '  steps, all cases: ' // itoa(sum(steps)) // '; integration time ' // &
         format_real(real(nint(1000 * sum(wall, mask=status /= 0)), wp) / 1000) // ' s (sum over cases)'
-    write (output_unit, '(a)') '  slowest case: ' // itoa(int(index(slowest))) // ' (' // &
+    write (output_unit, '(a)') '  slowest case: ' // itoa(index(slowest)) // ' (' // &
         format_real(real(nint(1.0e4_wp * wall(slowest)), wp) / 1.0e4_wp) // ' s, ' // &
         status_name(int(status(slowest))) // ')'
     if (size(status) == 1) write (output_unit, '(a)') '  theta_max: ' // format_real(theta_max(1)) // ' rad'

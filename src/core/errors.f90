@@ -5,12 +5,15 @@ module ellroll_errors
   private
 
   public :: error_t, set_error
-  public :: err_none, err_input, err_output, err_internal, exit_code
+  public :: err_none, err_input, err_output, err_internal, err_interrupted, exit_code
 
   integer, parameter :: err_none = 0
   integer, parameter :: err_input = 2      !< bad input: exit 2
   integer, parameter :: err_output = 3     !< cannot write output: exit 3
   integer, parameter :: err_internal = 1   !< a bug or an unexpected failure: exit 1
+  !> stopped by signal s (SIGTERM, SIGINT), the finished cases kept: exit 128 + s,
+  !> as a shell reports a process ended by that signal
+  integer, parameter :: err_interrupted = 128
 
   type :: error_t
     integer :: code = err_none

@@ -12,10 +12,17 @@
  * 4 % of a campaign (perf, when the writer's windows were still freed and
  * allocated; they are recycled now, src/output). Up to 256 MiB of freed
  * heap is kept for reuse and blocks up to 32 MiB come from the heap; peak
- * memory does not change. Other C libraries (no M_TRIM_THRESHOLD): nothing. */
+ * memory does not change. Other C libraries (no M_TRIM_THRESHOLD): nothing.
+ *
+ * Ignore SIGXFSZ: past a file-size limit (ulimit -f, as batch systems set
+ * it) a write then fails with EFBIG, which the program reports like any
+ * other write error; the signal's default action would end it with a core. */
 #ifdef __linux__
 #include <malloc.h>
 #endif
+#include <signal.h>
+
+void ellroll_crc32c_init(void);
 
 void ellroll_tune_runtime(void)
 {
@@ -25,4 +32,6 @@ void ellroll_tune_runtime(void)
 #ifdef M_MMAP_THRESHOLD
     mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
 #endif
+    signal(SIGXFSZ, SIG_IGN);
+    ellroll_crc32c_init(); /* before threads compute checksums */
 }

@@ -7,6 +7,11 @@ module ellroll_strings
 
   public :: lower, itoa, join, format_real, text_hash
 
+  !> An integer as text, without blanks.
+  interface itoa
+    module procedure itoa_default, itoa_long
+  end interface itoa
+
 contains
 
   !> A 64-bit hash of a text as 16 hex digits: two 32-bit FNV-1a lanes, in
@@ -35,13 +40,19 @@ contains
     end do
   end function lower
 
-  pure function itoa(i) result(s)
+  pure function itoa_default(i) result(s)
     integer, intent(in) :: i
     character(len=:), allocatable :: s
-    character(len=16) :: buf
+    s = itoa_long(int(i, i8))
+  end function itoa_default
+
+  pure function itoa_long(i) result(s)
+    integer(i8), intent(in) :: i
+    character(len=:), allocatable :: s
+    character(len=24) :: buf
     write (buf, '(i0)') i
     s = trim(buf)
-  end function itoa
+  end function itoa_long
   pure function join(words) result(text)
     character(len=*), intent(in) :: words(:)
     character(len=:), allocatable :: text

@@ -8,6 +8,7 @@ module ellroll_system
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, system_error_text
+  public :: catch_stop_signals, stop_signal, signal_name, exit_now
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -34,9 +35,24 @@ module ellroll_system
       type(c_ptr), value :: tm
     end function c_strftime
     !> Process-wide runtime settings, once at start (src/core/runtime.c):
-    !> the heap keeps freed memory for reuse.
+    !> the heap keeps freed memory for reuse; SIGXFSZ is ignored.
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
+    !> From here on SIGTERM and SIGINT only ask the run to stop (stop_signal);
+    !> a second one ends the process (src/core/signals.c).
+    subroutine catch_stop_signals() bind(c, name='ellroll_catch_stop_signals')
+    end subroutine catch_stop_signals
+    !> End the process at once with status, without the exit handlers: after
+    !> a failed write, HDF5's handler would close a file whose writes failed
+    !> and can crash doing so. The caller flushes its units first.
+    subroutine exit_now(status) bind(c, name='_exit')
+      import :: c_int
+      integer(c_int), value :: status
+    end subroutine exit_now
+    !> The signal that asked the run to stop, or 0.
+    integer(c_int) function stop_signal() bind(c, name='ellroll_stop_signal')
+      import :: c_int
+    end function stop_signal
     ! positioned writes and reads (src/core/positioned_io.c)
     integer(c_int) function c_open_descriptor(path, writing) bind(c, name='ellroll_open_descriptor')
       import :: c_int, c_char
@@ -74,6 +90,20 @@ module ellroll_system
   end interface
 
 contains
+
+  !> The name of a stop signal (POSIX numbers), for messages.
+  pure function signal_name(signal) result(name)
+    integer, intent(in) :: signal
+    character(len=:), allocatable :: name
+    select case (signal)
+    case (2)
+      name = 'SIGINT'
+    case (15)
+      name = 'SIGTERM'
+    case default
+      name = 'a signal'
+    end select
+  end function signal_name
 
   !> Atomically replace `new` by `old` (POSIX rename). True on success.
   logical function rename_file(old, new)

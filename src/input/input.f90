@@ -536,7 +536,7 @@ contains
           return
         end select
         if (samples < 0 .or. samples > max_cases) then
-          call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(int(max_cases)))
+          call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(max_cases))
           return
         end if
       end if
@@ -576,7 +576,7 @@ contains
       end do
       if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
         call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
-                        itoa(int(max_cases)) // ' cases')
+                        itoa(max_cases) // ' cases')
       end if
     end subroutine build_campaign
   end subroutine read_groups
@@ -596,7 +596,7 @@ contains
       if (k > 1) varied = varied // ', '
       varied = varied // setting(varied_param(k))
     end do
-    text = inp%path // ': case ' // itoa(int(cs%index))
+    text = inp%path // ': case ' // itoa(cs%index)
     if (len(varied) > 0) text = text // ' (' // varied // ')'
     text = text // ': ' // setting(param) // ': ' // reason
   contains

@@ -5,7 +5,7 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_completed
+  use ellroll_status, only: status_pending, status_completed
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
@@ -14,13 +14,14 @@ module ellroll_adaptive_run
   use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
       dop853_dense_calls
-  use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, track_step_end, note_nutation, &
+  use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
   implicit none
   private
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
+  public :: follow_flow_to_limit, reference_rtol, reference_atol
 
   !> Step-size control of DOP853: Hairer's safety factor, a rejected step
   !> shrunk at most 3-fold, and after an accepted step Gustafsson's PI
@@ -39,6 +40,11 @@ module ellroll_adaptive_run
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp
   real(wp), parameter :: integral_gain = 0.3_wp / 8, proportional_gain = 0.4_wp / 8
   real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
+
+  !> Tolerances of a reference solution: the run behind the error figures
+  !> (error_estimate), and the exact flow followed from a fixed-step
+  !> method's last state to the limit its step met.
+  real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   type, public :: step_control_t
     logical :: after_rejection = .false.
@@ -78,18 +84,13 @@ contains
     h_max = cs%dt
     call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     do while (t < cs%t_end)
-      h = last_step_clipped(t, h, cs%t_end)
-      call dop853_ball_step(integrator, run%ball, t, y, f, h, y_new)
-      res%n_rhs = res%n_rhs + dop853_attempt_calls
-      if (.not. ieee_is_finite(integrator%error_norm)) integrator%error_norm = huge(1.0_wp)
-      if (integrator%error_norm > 1) then
-        call control%reject(h, integrator%error_norm)
-        res%n_rejected = res%n_rejected + 1
-        cycle
+      if (stop_asked(res%n_steps + res%n_rejected)) then
+        res%status = status_pending
+        return
       end if
-      call project_with_rate(y_new, integrator%k(:state_size, end_stage), f_new)
-      call observe(run%ball, t + h, y_new, f_new, obs)
-      status = limit_status(run%ball, y_new, obs)
+      h = last_step_clipped(t, h, cs%t_end)
+      call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
+      if (integrator%error_norm > 1) cycle
       if (status /= status_completed) then
         call stop_in_step(integrator, run, plan, status, res)
         return
@@ -109,6 +110,34 @@ contains
     end do
     res%t_final = cs%t_end
   end subroutine adaptive_loop
+
+  !> One DOP853 attempt of size h from (t, y, f), counted in res. Rejected
+  !> (dop%error_norm > 1, a non-finite norm made huge): h is shrunk by the
+  !> step control. Accepted: the new state projected, f and the derived
+  !> outputs there, and the model's limit status.
+  subroutine attempt_step(dop, control, run, t, y, f, h, y_new, f_new, obs, status, res)
+    type(dop853_t), intent(inout) :: dop
+    type(step_control_t), intent(inout) :: control
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size)
+    real(wp), intent(inout) :: h
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
+    integer, intent(out) :: status
+    type(case_result_t), intent(inout) :: res
+    status = status_completed
+    call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + dop853_attempt_calls
+    if (.not. ieee_is_finite(dop%error_norm)) dop%error_norm = huge(1.0_wp)
+    if (dop%error_norm > 1) then
+      call control%reject(h, dop%error_norm)
+      res%n_rejected = res%n_rejected + 1
+      return
+    end if
+    call project_with_rate(y_new, dop%k(:state_size, end_stage), f_new)
+    call observe(run%ball, t + h, y_new, f_new, obs)
+    status = limit_status(run%ball, y_new, obs)
+  end subroutine attempt_step
 
   !> The step from t, shortened to end exactly at t_end when it would end
   !> at or within round-off of it.
@@ -255,20 +284,102 @@ contains
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
     type(limit_search_t) :: search
+    call locate_crossing(dop, run, status, search, res%n_rhs)
+    call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
+    call end_at_crossing(dop, run, search, res)
+    res%n_steps = res%n_steps + 1
+  end subroutine stop_in_step
+
+  !> Bisect the dense output of the last attempt (in dop), which crossed a
+  !> limit (status) at its end, for where the crossing lies.
+  subroutine locate_crossing(dop, run, status, search, n_rhs)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    integer, intent(in) :: status
+    type(limit_search_t), intent(out) :: search
+    integer(i8), intent(inout) :: n_rhs
     type(observation_t) :: obs
     real(wp) :: offset
-    call search%begin(dop%h, status)
+    call search%begin(dop%t_old, dop%h, status)
     do while (.not. search%done())
       offset = search%trial()
-      call dense_state(dop, run, offset / dop%h, .true., obs, res%n_rhs)
+      call dense_state(dop, run, offset / dop%h, .true., obs, n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
-    call record_samples_until(dop, run, plan, dop%t_old + search%valid, obs, res)
+  end subroutine locate_crossing
+
+  !> The case ends at the last valid point of a located crossing.
+  pure subroutine end_at_crossing(dop, run, search, res)
+    type(dop853_t), intent(in) :: dop
+    type(run_state_t), intent(inout) :: run
+    type(limit_search_t), intent(in) :: search
+    type(case_result_t), intent(inout) :: res
     res%status = search%crossed
     res%t_final = dop%t_old + search%valid
-    res%n_steps = res%n_steps + 1
     if (search%found_valid) call accumulate(run, res, search%last_valid)
-  end subroutine stop_in_step
+  end subroutine end_at_crossing
+
+  !> The exact flow from a fixed-step method's state y_from at t_from,
+  !> followed with DOP853 at reference_rtol, reference_atol up to t_until at
+  !> most, to where it first meets a model limit. met: a limit was met, the
+  !> case ends there (res%status, res%t_final), and the flow's step ends
+  !> after t_tracked (the method's last state) are added to the summary.
+  !> The flow can stay inside up to t_until, or its steps shrink to
+  !> round-off: met = .false., and nothing is added to the summary. Its
+  !> attempts count in the case's n_rhs and n_rejected.
+  subroutine follow_flow_to_limit(run, t_from, y_from, t_tracked, t_until, res, met)
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
+    type(case_result_t), intent(inout) :: res
+    logical, intent(out) :: met
+    type(dop853_t) :: dop
+    type(step_control_t) :: control
+    type(limit_search_t) :: search
+    type(observation_t) :: obs
+    type(observation_t), allocatable :: untracked(:)
+    real(wp), allocatable :: untracked_t(:)
+    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h
+    integer :: status, n_untracked, i
+    met = .false.
+    dop%rtol = reference_rtol
+    dop%atol = reference_atol
+    t_at = t_from
+    y_at = y_from
+    call ball_derivative(run%ball, t_at, y_at, f_at)
+    res%n_rhs = res%n_rhs + 1
+    call dop%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
+    allocate (untracked(64), untracked_t(64))
+    n_untracked = 0
+    do while (t_at < t_until)
+      h = last_step_clipped(t_at, h, t_until)
+      if (h <= 16 * spacing(t_until)) return
+      call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
+      if (dop%error_norm > 1) cycle
+      if (status /= status_completed) then
+        met = .true.
+        do i = 1, n_untracked
+          call track(run, res, untracked_t(i), untracked(i))
+        end do
+        call locate_crossing(dop, run, status, search, res%n_rhs)
+        call end_at_crossing(dop, run, search, res)
+        return
+      end if
+      t_at = t_at + h
+      y_at = y_new
+      f_at = f_new
+      ! the summary takes these only once the flow is known to meet a limit
+      if (t_at > t_tracked) then
+        if (n_untracked == size(untracked)) then
+          untracked = [untracked, untracked]
+          untracked_t = [untracked_t, untracked_t]
+        end if
+        n_untracked = n_untracked + 1
+        untracked(n_untracked) = obs
+        untracked_t(n_untracked) = t_at
+      end if
+      call control%accept(h, dop%error_norm, t_until - t_from)
+    end do
+  end subroutine follow_flow_to_limit
 
   !> Record every output sample in (t_old, t_until] of the last attempt (in
   !> dop), from its dense output; a sample at the step's end is obs_end. A

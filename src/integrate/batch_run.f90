@@ -7,7 +7,7 @@ module ellroll_batch_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_excitation, only: excitation_none
-  use ellroll_status, only: status_completed, status_no_fit
+  use ellroll_status, only: status_pending, status_completed, status_no_fit
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
@@ -16,8 +16,8 @@ module ellroll_batch_run
   use ellroll_dop853_tableau, only: end_stage, stages_dense
   use ellroll_ball_steppers, only: dop853_attempt_calls, lanes_rk4_step, lanes_dop853_attempt, lanes_dop853_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
-  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due
-  use ellroll_fixed_step_run, only: end_at_limit
+  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
+  use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
       nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
   implicit none
@@ -87,7 +87,7 @@ contains
     type(lane_summary_t) :: summary
     real(wp), dimension(lanes, state_size) :: y, f
     ! one lane's row, contiguous, for the one-case routines (explicit-shape arguments)
-    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
+    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane, checkpoint_lane
     integer(i8) :: clock_start, clock_end, clock_rate
     logical :: active(lanes)
     integer :: n, l, donor
@@ -118,6 +118,7 @@ contains
       else
         call fixed_step_lanes()
       end if
+      where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
     end if
 
     call system_clock(clock_end)
@@ -133,7 +134,7 @@ contains
       type(rk4_t) :: rk4
       type(lane_outputs_t) :: out
       type(lane_sample_block_t) :: samples
-      real(wp), dimension(lanes, state_size) :: y_new, f_new
+      real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
       real(wp) :: h(lanes), t
       integer(i8) :: n_steps(lanes), every(lanes), step
       logical :: accepted(lanes), inside(lanes), sample_now(lanes)
@@ -147,8 +148,11 @@ contains
       end do
       samples%fields = plan%fields
       step = 0
+      y_checkpoint = y
+      y_older_checkpoint = y
       do while (any(active))
         step = step + 1
+        if (stop_asked(step)) exit
         call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
@@ -165,7 +169,8 @@ contains
             ! the stages' own limit, which rk4_ball_step tells, is found in the approach
             y_lane = y(l, :)
             f_lane = f(l, :)
-            call end_at_limit(rk4, run(l), real(step - 1, wp) * h(l), y_lane, f_lane, h(l), &
+            checkpoint_lane = y_older_checkpoint(l, :)
+            call end_at_limit(rk4, run(l), checkpoint_lane, step - 1, y_lane, f_lane, h(l), every(l), &
                               merge(out%status(l), status_no_fit, out%status(l) /= status_completed), results(l))
             active(l) = .false.
             cycle
@@ -192,6 +197,10 @@ contains
             end where
           end do
         end if
+        if (mod(step, checkpoint_steps) == 0) then
+          y_older_checkpoint = y_checkpoint
+          y_checkpoint = y
+        end if
       end do
     end subroutine fixed_step_lanes
 
@@ -210,6 +219,7 @@ contains
       type(step_control_t) :: control(lanes)
       logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
       integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
+      integer(i8) :: attempt
       integer :: i
       idle_rhs = 0
       t = 0
@@ -229,7 +239,10 @@ contains
           call dop(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
         end if
       end do
+      attempt = 0
       do while (any(active))
+        attempt = attempt + 1
+        if (stop_asked(attempt)) exit
         do l = 1, lanes
           if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
         end do

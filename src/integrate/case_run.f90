@@ -16,14 +16,21 @@ module ellroll_case_run
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
   use ellroll_ellipsoid, only: contact_from_normal
+  use ellroll_system, only: stop_signal
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, event_time_tolerance, start_case, finish_case, sample_due
+  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked
   public :: track, track_step_end, note_nutation, accumulate, record_sample, record_geometry_sample
 
-  !> Model limits are located in time to this (s).
-  real(wp), parameter :: event_time_tolerance = 1.0e-12_wp
+  !> An integration looks whether the run was asked to stop (SIGTERM,
+  !> SIGINT) every this many steps: at most a few ms apart.
+  integer(i8), parameter :: stop_poll_steps = 4096
+
+  !> Model limits are located in time to this many units in the last place
+  !> of t: next to the fit limit's square-root singularity the state changes
+  !> by the fit margin itself within 1e-12 s.
+  real(wp), parameter :: event_time_ulps = 16
 
   !> Local maxima of a sampled signal, each refined by the parabola through
   !> the three samples around it (uneven spacing allowed).
@@ -58,6 +65,7 @@ module ellroll_case_run
   !> valid observation and the status of the limit met.
   type, extends(crossing_search_t) :: limit_search_t
     type(observation_t) :: last_valid
+    type(observation_t) :: last_trial     !< at the last offset tried
     logical :: found_valid = .false.
     integer :: crossed = status_completed
   contains
@@ -127,6 +135,14 @@ contains
     call fill_unrecorded(res)
   end subroutine finish_case
 
+  !> Whether the run was asked to stop, looked at once in stop_poll_steps
+  !> steps: the case is then dropped (its result is never written).
+  logical function stop_asked(step)
+    integer(i8), intent(in) :: step
+    stop_asked = .false.
+    if (mod(step, stop_poll_steps) == 0) stop_asked = stop_signal() /= 0
+  end function stop_asked
+
   !> Whether the next output sample falls at or before t_until (to round-off).
   pure logical function sample_due(run, plan, t_until)
     type(run_state_t), intent(in) :: run
@@ -136,11 +152,12 @@ contains
     if (sample_due) sample_due = real(run%next_sample - 1, wp) * plan%interval <= t_until * (1 + 1.0e-14_wp)
   end function sample_due
 
-  pure subroutine begin_limit_search(self, invalid, crossed)
+  !> A search over offsets (0, invalid] from t_start.
+  pure subroutine begin_limit_search(self, t_start, invalid, crossed)
     class(limit_search_t), intent(inout) :: self
-    real(wp), intent(in) :: invalid
+    real(wp), intent(in) :: t_start, invalid
     integer, intent(in) :: crossed
-    call self%start(invalid, event_time_tolerance)
+    call self%start(invalid, event_time_ulps * spacing(t_start + invalid))
     self%found_valid = .false.
     self%crossed = crossed
   end subroutine begin_limit_search
@@ -151,6 +168,7 @@ contains
     integer, intent(in) :: status
     type(observation_t), intent(in) :: obs
     call self%report(offset, status == status_completed)
+    self%last_trial = obs
     if (status == status_completed) then
       self%last_valid = obs
       self%found_valid = .true.

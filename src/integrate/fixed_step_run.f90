@@ -1,10 +1,10 @@
 !> One case with a fixed-step method: each step checked against the model's
 !> limits at every state it evaluates the model at (its stages) and at its
-!> end, the output samples taken at the steps; a step that meets a limit is
-!> followed to it on shorter steps (end_at_limit).
+!> end, the output samples taken at the steps; the case ends where the flow
+!> from the state before a step that meets a limit meets it (end_at_limit).
 module ellroll_fixed_step_run
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_completed, status_unstable
+  use ellroll_status, only: status_pending, status_completed, status_unstable
   use ellroll_ode, only: no_step_solution
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
@@ -12,18 +12,20 @@ module ellroll_fixed_step_run
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative
   use ellroll_integrators, only: integrator_t, rk4_t, stability_limit
   use ellroll_ball_steppers, only: rk4_ball_step
-  use ellroll_case_run, only: run_state_t, track, record_sample
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
+  use ellroll_adaptive_run, only: follow_flow_to_limit
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit
+  public :: fixed_step_loop, end_at_limit, older_checkpoint_step
 
-  !> Each step of the approach to a limit covers this part of what remains
-  !> to the nearest offset known to meet it. Near the fit limit the solution
-  !> has a square-root singularity; the end found lies within 5e-8 s of where
-  !> DOP853 continuing the method's last state meets the limit (paper cup,
-  !> dt = 1e-3; tested), and converges slowly with smaller parts.
+  !> Each step of the method's own approach to a limit covers this part of
+  !> what remains to the nearest offset known to meet it.
   real(wp), parameter :: approach_fraction = 0.125_wp
+
+  !> The state is kept every checkpoint_steps steps: a step that meets a
+  !> limit is followed to it from the older of the last two (end_at_limit).
+  integer(i8), parameter, public :: checkpoint_steps = 8
 
 
 contains
@@ -36,6 +38,7 @@ contains
     real(wp), intent(inout) :: y(:), f(:)
     type(case_result_t), intent(inout) :: res
     real(wp) :: y_new(state_size), f_new(state_size), t
+    real(wp) :: y_checkpoint(state_size), y_older_checkpoint(state_size)
     type(observation_t) :: obs
     integer(i8) :: k, n_steps, every, sample
     integer :: status
@@ -43,10 +46,16 @@ contains
     n_steps = nint(cs%t_end / cs%dt, i8)
     every = steps_per_sample(cs, plan)
     t = 0
+    y_checkpoint = y
+    y_older_checkpoint = y
     do k = 1, n_steps
+      if (stop_asked(k)) then
+        res%status = status_pending
+        return
+      end if
       call fixed_step(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, t, y, f, cs%dt, status, res)
+        call end_at_limit(integrator, run, y_older_checkpoint, k - 1, y, f, cs%dt, every, status, res)
         res%n_steps = k
         return
       end if
@@ -54,12 +63,23 @@ contains
       f = f_new
       t = k * cs%dt
       res%n_steps = k
+      if (mod(k, checkpoint_steps) == 0) then
+        y_older_checkpoint = y_checkpoint
+        y_checkpoint = y
+      end if
       call track(run, res, t, obs)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_sample(res, sample, obs)
     end do
     res%t_final = t
   end subroutine fixed_step_loop
+
+  !> The step at which the older of the two checkpoints lies after n_done
+  !> steps: checkpoint_steps to 2 checkpoint_steps - 1 steps back, or the start.
+  elemental integer(i8) function older_checkpoint_step(n_done)
+    integer(i8), intent(in) :: n_done
+    older_checkpoint_step = max(0_i8, (n_done / checkpoint_steps - 1) * checkpoint_steps)
+  end function older_checkpoint_step
 
   !> One step of a fixed-step method from (t, y, f): the new state projected,
   !> f and the derived outputs there, and the limits checked at the stages
@@ -96,19 +116,64 @@ contains
     end if
   end subroutine fixed_step
 
-  !> A step of size h from the valid state (t, y, f) met a limit (status):
-  !> the method's trajectory is continued from there on shorter steps, each
+  !> The step after n_done steps of size h, from the valid state (y, f),
+  !> met a limit (status). The case ends where the exact flow from the
+  !> method's state at the older checkpoint (y_checkpoint, at step
+  !> older_checkpoint_step(n_done)) first meets a model limit, within two
+  !> steps from the last state (follow_flow_to_limit), with that limit's
+  !> status. Near the fit limit the solution has a square-root singularity:
+  !> the method's last steps towards it err far more than its order says
+  !> (RK4 at dt = 1e-3 on the paper cup: its own trajectory meets the limit
+  !> up to 5e-6 s late, the flow from one step back 2e-7 s early, from 8
+  !> steps back within 1e-9 s of the true crossing). The end time then has
+  !> the method's error up to the checkpoint only. Where the flow leaves the
+  !> model before the last state, the samples after its end are dropped.
+  !> Where the flow stays inside (the step met a limit at its own stages),
+  !> or h was beyond the method's stability at the start ('unstable': the
+  !> linearised motion's fastest rate times h past stability_limit; the
+  !> limit was met by the method's own growth), the method's own trajectory
+  !> is followed instead (approach_on_own_steps).
+  subroutine end_at_limit(integrator, run, y_checkpoint, n_done, y, f, h, every, status, res)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: y_checkpoint(state_size), y(state_size), f(state_size), h
+    integer(i8), intent(in) :: n_done, every
+    integer, intent(in) :: status
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: t, t_checkpoint
+    logical :: met
+    t = n_done * h
+    if (beyond_stability(integrator, run, h)) then
+      call approach_on_own_steps(integrator, run, t, y, f, h, status, res)
+      res%status = status_unstable
+      return
+    end if
+    t_checkpoint = older_checkpoint_step(n_done) * h
+    call follow_flow_to_limit(run, t_checkpoint, y_checkpoint, t, t + 2 * h, res, met)
+    if (met) then
+      if (res%t_final < t) res%n_recorded = min(res%n_recorded, int(res%t_final / h, i8) / every + 1)
+    else
+      call approach_on_own_steps(integrator, run, t, y, f, h, status, res)
+    end if
+  end subroutine end_at_limit
+
+  !> Whether a step h is beyond the method's stability for the case's
+  !> linearised motion at the start.
+  logical function beyond_stability(integrator, run, h)
+    class(integrator_t), intent(in) :: integrator
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: h
+    beyond_stability = .false.
+    if (stability_limit(integrator) < huge(1.0_wp)) beyond_stability = &
+      h * fastest_rate(run%ball, run%start, enough=stability_limit(integrator) / h) > stability_limit(integrator)
+  end function beyond_stability
+
+  !> The method's trajectory continued from (t, y, f) on shorter steps, each
   !> approach_fraction of what remains to the nearest offset known to meet
-  !> a limit, until that remainder is a few units in the last place
-  !> of t: near the limit the state moves fast (the fit limit lies next to
-  !> a square-root singularity), and the last state inside is then on the
-  !> limit to round-off, Theta there to 1e-9 and better.
+  !> a limit, until that remainder is a few units in the last place of t.
   !> Every step taken adds to the summary; the case ends at the last state
-  !> inside the model, with the status of the limit met just after it, or
-  !> 'unstable' when h was beyond the method's stability at the start (the
-  !> limit was met by the method's own growth: the linearised motion's
-  !> fastest rate times h past stability_limit).
-  subroutine end_at_limit(integrator, run, t, y, f, h, status, res)
+  !> inside the model, with the status of the limit met just after it.
+  subroutine approach_on_own_steps(integrator, run, t, y, f, h, status, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size), h
@@ -139,9 +204,5 @@ contains
       end if
     end do
     res%t_final = t_at
-    if (stability_limit(integrator) < huge(1.0_wp)) then
-      if (h * fastest_rate(run%ball, run%start, enough=stability_limit(integrator) / h) > stability_limit(integrator)) &
-        res%status = status_unstable
-    end if
-  end subroutine end_at_limit
+  end subroutine approach_on_own_steps
 end module ellroll_fixed_step_run

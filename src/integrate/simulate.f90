@@ -13,17 +13,14 @@ module ellroll_simulate
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: state_size
   use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
-  use ellroll_case_run, only: run_state_t, event_time_tolerance, start_case, finish_case
+  use ellroll_case_run, only: run_state_t, start_case, finish_case
   use ellroll_fixed_step_run, only: fixed_step_loop
-  use ellroll_adaptive_run, only: adaptive_loop
+  use ellroll_adaptive_run, only: adaptive_loop, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
   implicit none
   private
 
-  public :: simulate_case, simulate_batch, batchable, lanes, event_time_tolerance, reference_rtol, reference_atol
-
-  !> Tolerances of the reference run behind error_estimate = 'reference'.
-  real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
+  public :: simulate_case, simulate_batch, batchable, lanes, reference_rtol, reference_atol
 
 contains
 

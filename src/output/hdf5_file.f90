@@ -156,7 +156,7 @@ contains
     type(provenance_t), intent(in) :: prov
     type(error_t), intent(inout) :: err
     integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
-    integer :: hdferr, f, k, deflate_level
+    integer :: hdferr, closed, f, k, deflate_level
     integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl, fcpl
     integer(i8) :: address(field_count)
     integer(i8) :: n_cases
@@ -185,8 +185,9 @@ contains
     call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
     if (any(in_place_fields)) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
     call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
-    call h5pclose_f(fapl, hdferr)
-    call h5pclose_f(fcpl, hdferr)
+    ! closes report into their own code: hdferr keeps the creation's
+    call h5pclose_f(fapl, closed)
+    call h5pclose_f(fcpl, closed)
     if (failed(hdferr, 'create the file')) return
 
     call put_text_attribute(self%file, 'program', prov%program)
@@ -407,8 +408,8 @@ contains
         end if
       end if
       call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
-      call h5pclose_f(dcpl, hdferr)
-      call h5sclose_f(space, hdferr)
+      call h5pclose_f(dcpl, closed)
+      call h5sclose_f(space, closed)
       if (failed(hdferr, 'create dataset ' // name)) return
       call describe(dset, units, description)
     end function new_real_dataset
@@ -426,8 +427,8 @@ contains
       if (present(fill)) call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), &
                                                   c_loc(fill), hdferr)
       call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
-      call h5pclose_f(dcpl, hdferr)
-      call h5sclose_f(space, hdferr)
+      call h5pclose_f(dcpl, closed)
+      call h5sclose_f(space, closed)
       if (failed(hdferr, 'create dataset ' // name)) return
       call describe(dset, units, description)
     end function new_int_dataset
@@ -442,8 +443,8 @@ contains
       call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
       text_type = fixed_text_type()
       call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
-      call h5tclose_f(text_type, hdferr)
-      call h5sclose_f(space, hdferr)
+      call h5tclose_f(text_type, closed)
+      call h5sclose_f(space, closed)
       if (failed(hdferr, 'create dataset ' // name)) return
       call describe(dset, '1', description)
     end function new_text_dataset
@@ -769,7 +770,7 @@ contains
     character(len=*), intent(in) :: name
     integer(hid_t), intent(out) :: dset
     type(error_t), intent(inout) :: err
-    integer :: hdferr, k
+    integer :: hdferr, closed, k
     integer(hid_t) :: dapl
     ok = .false.
     if (err%failed()) return
@@ -786,7 +787,7 @@ contains
     call h5pcreate_f(H5P_DATASET_ACCESS_F, dapl, hdferr)
     call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
     call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
-    call h5pclose_f(dapl, hdferr)
+    call h5pclose_f(dapl, closed)
     if (hdferr < 0) then
       call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
       return

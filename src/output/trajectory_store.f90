@@ -161,7 +161,7 @@ contains
       code = read_at(self%fd, c_loc(res%fields(f)%values), 8 * n, self%address(f) + 8 * n * slot)
       if (code == -1) then
         call set_error(err, err_output, self%path // ': ends before /trajectory/' // trim(field_names(f)) // &
-                       ' of slot ' // itoa(int(slot)))
+                       ' of slot ' // itoa(slot))
       else if (code /= 0) then
         call set_error(err, err_output, self%path // ': cannot read /trajectory/' // trim(field_names(f)) // &
                        ': ' // system_error_text(code))

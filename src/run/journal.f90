@@ -31,8 +31,14 @@ module ellroll_journal
 
   public :: journal_t, journal_header_t, journal_is_torn
 
-  character(len=8), parameter :: magic = 'ELLROLL2'
+  character(len=8), parameter :: magic = 'ELLROLL3'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
+  !> The header: magic, then these words (the campaign id's 64 bytes, n_slots,
+  !> n_samples, the shard's two numbers, a flag per field for the stored and
+  !> for the in-place fields), then their checksum.
+  integer, parameter :: id_words = 8
+  integer, parameter :: header_words = id_words + 4 + 2 * field_count
+  integer, parameter :: header_bytes = 8 + 8 * (header_words + 1)
 
   !> What a journal must agree on with the run that resumes it.
   type :: journal_header_t
@@ -52,6 +58,7 @@ module ellroll_journal
     type(journal_header_t) :: header
     integer(i8) :: record_words = 0
     integer(i8) :: next_position = 0     !< byte position (1-based) of the next record
+    integer(i8) :: n_damaged = 0          !< records read back that failed their checksum
   contains
     procedure :: create
     procedure :: open_existing
@@ -82,8 +89,9 @@ contains
       return
     end if
     self%is_open = .true.
-    write (self%unit, iostat=ios, iomsg=msg) magic, header%campaign_id, header%n_slots, header%n_samples, &
-        header%shard, merge(1, 0, header%fields), merge(1, 0, header%in_place)
+    associate (words => encode_header(header))
+      write (self%unit, iostat=ios, iomsg=msg) magic, words, checksum(words)
+    end associate
     if (ios == 0) flush (self%unit, iostat=ios)
     if (ios /= 0) then
       call set_error(err, err_output, path // ': cannot write the journal: ' // trim(msg))
@@ -97,14 +105,29 @@ contains
   !> killed before it had written the header, so nothing it did is kept.
   logical function journal_is_torn(path)
     character(len=*), intent(in) :: path
-    type(journal_header_t) :: header
     integer(i8) :: size_found
-    integer :: header_bytes
-    inquire (iolength=header_bytes) magic, header%campaign_id, header%n_slots, header%n_samples, header%shard, &
-        merge(1, 0, header%fields), merge(1, 0, header%in_place)
     inquire (file=path, size=size_found)
     journal_is_torn = size_found >= 0 .and. size_found < header_bytes
   end function journal_is_torn
+
+  function encode_header(header) result(words)
+    type(journal_header_t), intent(in) :: header
+    integer(i8) :: words(header_words)
+    words(:id_words) = transfer(header%campaign_id, 0_i8, id_words)
+    words(id_words + 1:id_words + 4) = [header%n_slots, header%n_samples, int(header%shard, i8)]
+    words(id_words + 5:) = [merge(1_i8, 0_i8, header%fields), merge(1_i8, 0_i8, header%in_place)]
+  end function encode_header
+
+  function decode_header(words) result(header)
+    integer(i8), intent(in) :: words(header_words)
+    type(journal_header_t) :: header
+    header%campaign_id = transfer(words(:id_words), header%campaign_id)
+    header%n_slots = words(id_words + 1)
+    header%n_samples = words(id_words + 2)
+    header%shard = int(words(id_words + 3:id_words + 4))
+    header%fields = words(id_words + 5:id_words + 4 + field_count) == 1
+    header%in_place = words(id_words + 5 + field_count:) == 1
+  end function decode_header
 
   subroutine open_for_records(self, err)
     type(journal_t), intent(inout) :: self
@@ -122,7 +145,8 @@ contains
     type(error_t), intent(inout) :: err
     character(len=8) :: found_magic
     type(journal_header_t) :: found
-    integer :: ios, flags(field_count), in_place_flags(field_count)
+    integer(i8) :: words(header_words), stored_checksum
+    integer :: ios
     character(len=256) :: msg
     self%path = path
     open (newunit=self%unit, file=path, access='stream', form='unformatted', status='old', &
@@ -132,15 +156,18 @@ contains
       return
     end if
     self%is_open = .true.
-    read (self%unit, iostat=ios) found_magic, found%campaign_id, found%n_slots, found%n_samples, &
-        found%shard, flags, in_place_flags
-    found%fields = flags == 1
-    found%in_place = in_place_flags == 1
+    read (self%unit, iostat=ios) found_magic, words, stored_checksum
     if (ios /= 0 .or. found_magic /= magic) then
-      call set_error(err, err_output, path // ': not a journal of this version of ellroll, or damaged ' // &
-                     'before its first case; start over with --overwrite')
+      call set_error(err, err_output, path // ': not a journal of this version of ellroll; start over ' // &
+                     'with --overwrite')
       return
     end if
+    if (stored_checksum /= checksum(words)) then
+      call set_error(err, err_output, path // ': the journal''s header is damaged (its checksum does not ' // &
+                     'match), so none of its cases can be trusted; start over with --overwrite')
+      return
+    end if
+    found = decode_header(words)
     if (found%campaign_id /= expected%campaign_id) then
       call set_error(err, err_input, path // ': the input differs from the one this run was started with; ' // &
           'resume with the same input, or start over with --overwrite')
@@ -160,7 +187,8 @@ contains
   end subroutine open_existing
 
   !> The next valid record, or found = .false. at the end. Places never
-  !> written and damaged records are skipped; a torn last record ends the
+  !> written and damaged records (counted in n_damaged: their cases run
+  !> again) are skipped; a torn last record ends the
   !> journal, and the next record reserved goes in its place. The
   !> trajectories written in place are not in res: `in_place` is their
   !> fingerprint, to compare with that of the ones read back.
@@ -181,6 +209,8 @@ contains
       self%next_position = self%next_position + 8 * (self%record_words + 1)
       found = words(1) == record_marker .and. stored_checksum == checksum(words) .and. &
               words(2) >= 0 .and. words(2) < self%header%n_slots
+      ! a place reserved but never written reads as zeros; anything else is damage
+      if (.not. found .and. (stored_checksum /= 0 .or. any(words /= 0))) self%n_damaged = self%n_damaged + 1
     end do
     call unpack_record(self%header, words, slot, res, in_place)
   end subroutine next_record

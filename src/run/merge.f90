@@ -103,7 +103,7 @@ contains
       slots = shard_slots(inp%campaign%n_cases(), [index, n_shards])
       if (size(slots, kind=i8) /= shards(shard_of(index))%n_cases .and. .not. err%failed()) &
         call set_error(err, err_input, trim(shard_paths(shard_of(index))) // ': holds ' // &
-            itoa(int(shards(shard_of(index))%n_cases)) // ' cases; shard ' // itoa(index) // ' should hold ' // &
+            itoa(shards(shard_of(index))%n_cases) // ' cases; shard ' // itoa(index) // ' should hold ' // &
             itoa(size(slots)))
       do slot = 0, size(slots, kind=i8) - 1
         if (err%failed()) exit

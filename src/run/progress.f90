@@ -77,8 +77,8 @@ contains
     character(len=:), allocatable :: line
     elapsed = real(now - self%clock_start, wp) / real(self%clock_rate, wp)
     rate = real(self%done - self%resumed, wp) / max(elapsed, 1.0e-9_wp)
-    line = 'ellroll: ' // itoa(int(self%done)) // '/' // itoa(int(self%total)) // ' cases (' // &
-           itoa(int(100 * self%done / max(1_i8, self%total))) // '%), ' // &
+    line = 'ellroll: ' // itoa(self%done) // '/' // itoa(self%total) // ' cases (' // &
+           itoa(100 * self%done / max(1_i8, self%total)) // '%), ' // &
            format_real(anint(10 * rate) / 10) // ' cases/s'
     if (rate > 0 .and. self%done < self%total) then
       left = real(self%total - self%done, wp) / rate

@@ -14,7 +14,7 @@ module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
   use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, err_output
+  use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid
   use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method, is_multiple
@@ -30,7 +30,8 @@ module ellroll_run_campaign
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: rename_file, remove_file, file_exists, folder_write_error, folder_of, system_error_text
+  use ellroll_system, only: rename_file, remove_file, file_exists, folder_write_error, folder_of, system_error_text, &
+      stop_signal, signal_name
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
       writes_trajectories, writes_journal
   implicit none
@@ -130,7 +131,7 @@ contains
       call check_case(cs, inp%plan%interval, param, reason)
       messages = messages // achar(10) // '  ' // describe_invalid(inp, cs, param, reason)
     end do
-    if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(int(n_bad - 5)) // ' more'
+    if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(n_bad - 5) // ' more'
   contains
     logical function case_is_invalid(index)
       integer(i8), intent(in) :: index
@@ -177,7 +178,7 @@ contains
     do i = 0, inp%campaign%n_cases() - 1
       if (steps(i) * rates(i) > limit) then
         n_unstable = n_unstable + 1
-        if (n_unstable <= listed) unstable_cases = unstable_cases // achar(10) // '  case ' // itoa(int(i)) // &
+        if (n_unstable <= listed) unstable_cases = unstable_cases // achar(10) // '  case ' // itoa(i) // &
             ': dt = ' // format_real(steps(i)) // ' s, dt * rate = ' // format_real(hundredths(steps(i) * rates(i))) // &
             '; dt <= ' // format_real(nice_step(aim / rates(i), inp%plan%interval)) // ' s would do'
       else if (steps(i) * rates(i) > warn_above) then
@@ -188,19 +189,19 @@ contains
         end if
       end if
     end do
-    cases_of = ' of ' // itoa(int(inp%campaign%n_cases())) // ' cases: '
+    cases_of = ' of ' // itoa(inp%campaign%n_cases()) // ' cases: '
     if (n_unstable > 0) then
-      message = 'ellroll: warning: ' // itoa(int(n_unstable)) // cases_of // 'dt is beyond ' // &
+      message = 'ellroll: warning: ' // itoa(n_unstable) // cases_of // 'dt is beyond ' // &
           trim(inp%campaign%base%method) // '''s stability for their spin and curvature (dt * rate > ' // &
           format_real(hundredths(limit)) // ', rate the fastest of the motion at the start); they will end ''unstable'':' // &
           unstable_cases
-      if (n_unstable > listed) message = message // achar(10) // '  ... and ' // itoa(int(n_unstable - listed)) // &
+      if (n_unstable > listed) message = message // achar(10) // '  ... and ' // itoa(n_unstable - listed) // &
           ' more'
     end if
     if (n_coarse == 0) return
     if (len(message) > 0) message = message // achar(10)
-    message = message // 'ellroll: warning: ' // itoa(int(n_coarse)) // cases_of // &
-        'dt is large for their fastest time scale (case ' // itoa(int(worst)) // ': dt = ' // &
+    message = message // 'ellroll: warning: ' // itoa(n_coarse) // cases_of // &
+        'dt is large for their fastest time scale (case ' // itoa(worst) // ': dt = ' // &
         format_real(steps(worst)) // ' s, 1/rate = ' // format_real(1 / worst_rate) // ' s); suggested dt <= ' // &
         format_real(nice_step(aim / worst_rate, inp%plan%interval)) // ' s, or method = ''dop853'''
   contains
@@ -375,7 +376,9 @@ contains
     timings%loop_started = wall_clock()
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
     do chunk = 0, (n_slots - 1) / lanes
-      if (.not. (shared_err%failed() .or. block_err%failed())) call run_block(chunk)
+      if (.not. (shared_err%failed() .or. block_err%failed())) then
+        if (stop_signal() == 0) call run_block(chunk)
+      end if
     end do
     !$omp end parallel do
     timings%loop_ended = wall_clock()
@@ -385,6 +388,12 @@ contains
     if (shared_err%failed()) then
       err = shared_err
       call abandon()
+      return
+    end if
+    if (progress%done < n_slots) then          ! asked to stop (SIGTERM, SIGINT)
+      call set_error(err, err_interrupted + stop_signal(), 'interrupted by ' // signal_name(stop_signal()) // &
+          ' after ' // itoa(progress%done) // ' of ' // itoa(n_slots) // ' cases')
+      call keep_finished()
       return
     end if
     call out%close(err)
@@ -436,6 +445,8 @@ contains
         done(slot) = .true.
       end do
       call killed_run%close(read_err)
+      if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': ' // &
+          itoa(journal%n_damaged) // ' damaged records (their checksum does not match); their cases run again'
       if (any(lost .and. .not. done)) then
         if (unreadable%failed()) then
           why = unreadable%message
@@ -499,6 +510,7 @@ contains
           exit
         end if
       end do
+      if (stop_signal() /= 0) return       ! cases cut short: the block runs again on --resume
       ! the trajectories go to their place in the file, one write per run of
       ! consecutive slots; records and table rows are built here: all outside the locks
       asked = wall_clock()
@@ -575,15 +587,20 @@ contains
       global_index = opts%shard(1) + slot * opts%shard(2)
     end function global_index
 
+    !> After a failure, keep what is finished, and say where it is.
+    subroutine abandon()
+      call keep_finished()
+      err%message = err%message // achar(10) // '  ' // partial // ' holds the cases finished so far and ' // &
+                    journal_path // ' keeps them; fix the cause and run again with --resume'
+    end subroutine abandon
+
     !> Keep what is finished: the journal holds every case done so far, and
     !> the partial file shows them; --resume takes it from there.
-    subroutine abandon()
+    subroutine keep_finished()
       type(error_t) :: ignored
       call out%close(ignored)
       if (out%path == resumed) call remove_file(resumed)    ! a resume that failed before its copy was complete
       call journal%close(delete=.false.)
-      err%message = err%message // achar(10) // '  ' // partial // ' holds the cases finished so far and ' // &
-                    journal_path // ' keeps them; fix the cause and run again with --resume'
-    end subroutine abandon
+    end subroutine keep_finished
   end subroutine run_campaign
 end module ellroll_run_campaign

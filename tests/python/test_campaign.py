@@ -171,7 +171,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 20, 4
-JOURNAL_HEADER = 8 + 64 + 8 + 8 + 4 * 2 + 2 * 4 * 8   # magic, id, slots, samples, shard, two flags per field
+JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8) + 8   # magic; id, slots, samples, shard, two flags per field; checksum
 RECORD_MARKER = 7310312871522813004
 
 
@@ -265,6 +265,55 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path, compress
             assert wall[slot] == seconds, "a case finished before the kill was computed again"
 
 
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT])
+def test_a_stop_signal_keeps_the_finished_cases_and_says_how_to_resume(ellroll, tmp_path, stop):
+    """SIGTERM (Slurm's time limit) or SIGINT half way: the run drops the
+    cases under way, keeps the journaled ones, exits within seconds with
+    128 + the signal's number, and prints the command that finishes it; that
+    command gives the uninterrupted run's file."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=40.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    args = [str(ellroll), "run", name, "-q", "--threads", "2"]
+    proc = subprocess.Popen(args, cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 3 * record_bytes()):
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.send_signal(stop)
+    sent = time.monotonic()
+    _, stderr = proc.communicate(timeout=30)
+    assert time.monotonic() - sent < 5
+    assert proc.returncode == 128 + stop, stderr
+    kept = journal_wall_times(journal)
+    name_of = {signal.SIGTERM: "SIGTERM", signal.SIGINT: "SIGINT"}[stop]
+    command = f"ellroll run {name} -q --threads 2 --resume"
+    assert f"ellroll: interrupted by {name_of} after {len(kept)} of 200 cases; '{command}' finishes the rest" \
+        in stderr, stderr
+    assert 0 < len(kept) < 200 and (tmp_path / "out.h5.partial").exists() and not (tmp_path / "out.h5").exists()
+    result = run(ellroll, *command.split()[1:], cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+        assert all(wall[slot] == seconds for slot, seconds in kept.items())
+
+
+def test_a_stop_signal_ends_a_long_case_within_milliseconds(ellroll, tmp_path):
+    """One case of 2e7 RK4 steps (several seconds): the integration looks for
+    the request every 4096 steps, so the run stops at once."""
+    (tmp_path / "long.nml").write_text(BASE.format(t_end=20000.0).replace("interval = 0.01", "interval = 1.0"))
+    proc = subprocess.Popen([str(ellroll), "run", "long.nml", "-q"], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    time.sleep(0.5)
+    assert proc.poll() is None
+    proc.send_signal(signal.SIGTERM)
+    sent = time.monotonic()
+    _, stderr = proc.communicate(timeout=30)
+    assert time.monotonic() - sent < 1.0
+    assert proc.returncode == 143
+    assert "interrupted by SIGTERM after 0 of 1 cases; 'ellroll run long.nml -q --resume'" in stderr
+
+
 def killed_run(ellroll, tmp_path, records=2):
     """A run of 20 cases killed -9 after `records` journal records (one
     thread); its journaled (slot -> wall_time), and the uninterrupted
@@ -305,6 +354,43 @@ def test_resume_skips_a_journal_place_never_written(ellroll, tmp_path):
     assert emptied not in kept and len(kept) == len(before) - 1
     wall, _ = resume_equals_the_whole_run(ellroll, tmp_path, name)
     assert all(wall[slot] == seconds for slot, seconds in kept.items()), "a journaled case was run again"
+
+
+def flip_bits(path, offset, bits):
+    """Flip the given bits (numbered from the byte at offset, lowest first)."""
+    with open(path, "r+b") as f:
+        for bit in bits:
+            f.seek(offset + bit // 8)
+            byte = f.read(1)[0]
+            f.seek(offset + bit // 8)
+            f.write(bytes([byte ^ (1 << bit % 8)]))
+
+
+@pytest.mark.parametrize("bits", [[3], [200, 271], [64 * 9 + 5, 64 * 10 + 12], [70, 1000, 2000]],
+                         ids=["1 bit", "2 bits", "bit i and i + 7 of the next word", "3 bits"])
+def test_resume_runs_again_the_case_of_a_damaged_record(ellroll, tmp_path, bits):
+    """Bits flipped in the summary of the journal's first record (its status
+    and figures, behind the marker): the CRC-32C catches it, the resume warns
+    and runs that case again, and the file equals the uninterrupted run's."""
+    name, before = killed_run(ellroll, tmp_path)
+    journal = tmp_path / "out.h5.journal"
+    first = struct.unpack("<3q", journal.read_bytes()[JOURNAL_HEADER:JOURNAL_HEADER + 24])[1]
+    flip_bits(journal, JOURNAL_HEADER + 16, bits)
+    wall, stderr = resume_equals_the_whole_run(ellroll, tmp_path, name)
+    assert "out.h5.journal: 1 damaged records (their checksum does not match); their cases run again" in stderr
+    assert wall[first] != before[first], "the case of a damaged record was kept"
+    assert all(wall[slot] == seconds for slot, seconds in before.items() if slot != first)
+
+
+@pytest.mark.parametrize("offset, bits", [(8, [3, 10]), (8 + 8 * 9, [0, 7 + 64])], ids=["campaign id", "case count"])
+def test_a_damaged_journal_header_refuses_the_resume(ellroll, tmp_path, offset, bits):
+    name, _ = killed_run(ellroll, tmp_path)
+    journal = tmp_path / "out.h5.journal"
+    flip_bits(journal, offset, bits)
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 3
+    assert "out.h5.journal: the journal's header is damaged (its checksum does not match)" in result.stderr
+    assert journal.exists() and (tmp_path / "out.h5.partial").exists() and not (tmp_path / "out.h5").exists()
 
 
 def trajectory_label(path):

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from conftest import run
-from test_campaign import assert_same_datasets, write
+from test_campaign import JOURNAL_HEADER, assert_same_datasets, write
 
 
 def digest(path):
@@ -117,3 +117,71 @@ def test_progress_reaches_a_log_file_while_the_run_goes(ellroll, tmp_path):
     assert progress[-1].startswith("ellroll: 40/40 cases (100%), ")
     result = run(ellroll, "run", name, "-q", "-o", "quiet.h5", cwd=tmp_path)
     assert result.returncode == 0 and result.stderr == ""
+
+
+@pytest.mark.parametrize("where", ["creation", "cases"])
+def test_a_file_size_limit_is_a_clean_write_error_and_the_resume_finishes(ellroll, tmp_path, where):
+    """A file-size limit (ulimit -f, as batch systems set it) makes the
+    writes fail with EFBIG, at the file's creation (64 KiB) or once some
+    cases are done (50 kB below the final size: the last cases' trajectories
+    lie beyond it): exit 3 naming the file and the system's reason, no
+    signal; the file --overwrite was to replace is untouched, and a resume
+    without the limit gives the uninterrupted run's file."""
+    import resource
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10, 20, 40, 80 /\n"
+                           "&sweep name = 'radius', start = 0.05, stop = 0.2, count = 4, spacing = 'linear' /\n",
+                 t_end=3.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", name, "-q", "-o", "out.h5", "--threads", "1", cwd=tmp_path).returncode == 0
+    before = digest(tmp_path / "out.h5")
+
+    limit = 64 * 1024 if where == "creation" else (tmp_path / "whole.h5").stat().st_size - 50_000
+
+    def limited():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    result = subprocess.run([str(ellroll), "run", name, "-q", "--overwrite", "--threads", "1"], cwd=tmp_path,
+                            capture_output=True, text=True, preexec_fn=limited, timeout=120)
+    assert result.returncode == 3, (result.returncode, result.stderr)
+    assert "out.h5.partial: cannot write" in result.stderr and "File too large" in result.stderr, result.stderr
+    assert "Program received signal" not in result.stderr
+    assert digest(tmp_path / "out.h5") == before
+    journaled = (tmp_path / "out.h5.journal").stat().st_size - JOURNAL_HEADER
+    assert (journaled > 0) == (where == "cases"), journaled
+    resumed = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 820 kB tmpfs (root, where mount is allowed), or skip."""
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=820k", "tmpfs", str(folder)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip("cannot mount a tmpfs here: " + mounted.stderr.strip())
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_a_full_disk_is_a_clean_write_error_and_the_resume_finishes(ellroll, tmp_path, small_disk):
+    """The output's disk fills up once some cases are done: exit 3 with the
+    system's reason, no signal; once the disk has room, the resume gives the
+    uninterrupted run's file."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10, 20, 40, 80 /\n"
+                           "&sweep name = 'radius', start = 0.05, stop = 0.2, count = 4, spacing = 'linear' /\n",
+                 t_end=3.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    (small_disk / name).write_text((tmp_path / name).read_text())
+    result = run(ellroll, "run", name, "-q", "--threads", "1", cwd=small_disk)
+    assert result.returncode == 3, (result.returncode, result.stderr)
+    assert "out.h5.partial: cannot" in result.stderr and "No space left on device" in result.stderr, result.stderr
+    assert "Program received signal" not in result.stderr
+    assert (small_disk / "out.h5.journal").stat().st_size > JOURNAL_HEADER
+    subprocess.run(["mount", "-o", "remount,size=4m", str(small_disk)], check=True)
+    resumed = run(ellroll, "run", name, "-q", "--resume", cwd=small_disk)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_datasets(tmp_path / "whole.h5", small_disk / "out.h5")

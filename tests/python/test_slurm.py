@@ -110,3 +110,40 @@ def test_job_array_and_merge_job(slurm, ellroll, tmp_path):
     assert not list(tmp_path.glob("campaign.shard_*"))
     assert "completed           20" in logs
     assert_same_datasets(tmp_path / "single.h5", tmp_path / "campaign.h5")
+
+
+def test_a_task_stopped_before_its_time_limit_requeues_and_resumes(slurm, ellroll, tmp_path):
+    """USR1 to the tasks' scripts, as --signal=B:USR1@120 sends it before the
+    time limit, once every shard has finished some cases: each task stops
+    ellroll (SIGTERM, exit 143), requeues itself and resumes; the merged file
+    equals a single run's, and each task's log (appended) tells the story."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=600.0)
+    text = (tmp_path / name).read_text().replace("interval = 0.01", "interval = 1.0")
+    (tmp_path / name).write_text(text)
+    assert run(ellroll, "run", name, "-q", "-o", "single.h5", cwd=tmp_path).returncode == 0
+    env = dict(slurm, ELLROLL=str(ellroll))
+    submit = subprocess.run([str(ROOT / "examples" / "slurm" / "submit.sh"), "--time", "10", name, "campaign.h5",
+                             "2", "1"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert submit.returncode == 0, submit.stderr
+    array = submit.stdout.split()[2].rstrip(",")
+    journals = [tmp_path / f"campaign.shard_{i}.h5.journal" for i in range(2)]
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not all(j.exists() and j.stat().st_size > 4096 for j in journals):
+        time.sleep(0.05)
+    assert all(j.exists() for j in journals), "the tasks did not start"
+    subprocess.run(["scancel", "--signal=USR1", "--batch", array], env=env, check=True)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        queue = subprocess.run(["squeue", "-h", "-o", "%i %r"], env=env, capture_output=True, text=True).stdout
+        if not queue.strip():
+            break
+        for line in queue.splitlines():      # Slurm holds a requeued task for two minutes; no need here
+            if line.endswith("BeginTime"):
+                subprocess.run(["scontrol", "update", f"JobId={line.split()[0]}", "StartTime=now"], env=env)
+        time.sleep(0.5)
+    logs = {p.name: p.read_text() for p in tmp_path.glob("ellroll-*_*.log")}
+    assert not queue.strip(), "jobs still queued:\n" + queue + "\n".join(logs.values())
+    assert len(logs) == 2
+    for log in logs.values():
+        assert "interrupted by SIGTERM after" in log and "requeued to resume" in log, log
+    assert_same_datasets(tmp_path / "single.h5", tmp_path / "campaign.h5")

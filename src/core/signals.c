@@ -1,0 +1,38 @@
+/* Signals that end a run early, turned into a request the program polls.
+ *
+ * SIGTERM (Slurm at the time limit, or earlier with --signal) and SIGINT
+ * (Ctrl-C) only set a flag: the campaign stops starting cases, drops the
+ * cases under way, and leaves with the journal and the partial file closed,
+ * so that --resume finishes the rest. A second such signal ends the process
+ * at once, as if it had not been caught. */
+#include <signal.h>
+#include <string.h>
+
+static volatile sig_atomic_t stop_signal = 0;
+
+static void on_stop_signal(int sig)
+{
+    if (stop_signal != 0) {
+        signal(sig, SIG_DFL);
+        raise(sig);
+        return;
+    }
+    stop_signal = sig;
+}
+
+void ellroll_catch_stop_signals(void)
+{
+    struct sigaction action;
+    memset(&action, 0, sizeof action);
+    action.sa_handler = on_stop_signal;
+    sigemptyset(&action.sa_mask);
+    action.sa_flags = SA_RESTART;
+    sigaction(SIGTERM, &action, NULL);
+    sigaction(SIGINT, &action, NULL);
+}
+
+/* The signal that asked the run to stop, or 0. */
+int ellroll_stop_signal(void)
+{
+    return stop_signal;
+}
