@@ -90,7 +90,10 @@ contains
       end if
       h = last_step_clipped(t, h, cs%t_end)
       call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
-      if (integrator%error_norm > 1) cycle
+      if (integrator%error_norm > 1) then
+        res%n_rejected = res%n_rejected + 1
+        cycle
+      end if
       if (status /= status_completed) then
         call stop_in_step(integrator, run, plan, status, res)
         return
@@ -111,9 +114,9 @@ contains
     res%t_final = cs%t_end
   end subroutine adaptive_loop
 
-  !> One DOP853 attempt of size h from (t, y, f), counted in res. Rejected
-  !> (dop%error_norm > 1, a non-finite norm made huge): h is shrunk by the
-  !> step control. Accepted: the new state projected, f and the derived
+  !> One DOP853 attempt of size h from (t, y, f), its RHS calls counted in
+  !> res. Rejected (dop%error_norm > 1, a non-finite norm made huge): h is
+  !> shrunk by the step control. Accepted: the new state projected, f and the derived
   !> outputs there, and the model's limit status.
   subroutine attempt_step(dop, control, run, t, y, f, h, y_new, f_new, obs, status, res)
     type(dop853_t), intent(inout) :: dop
@@ -131,7 +134,6 @@ contains
     if (.not. ieee_is_finite(dop%error_norm)) dop%error_norm = huge(1.0_wp)
     if (dop%error_norm > 1) then
       call control%reject(h, dop%error_norm)
-      res%n_rejected = res%n_rejected + 1
       return
     end if
     call project_with_rate(y_new, dop%k(:state_size, end_stage), f_new)
@@ -326,7 +328,8 @@ contains
   !> after t_tracked (the method's last state) are added to the summary.
   !> The flow can stay inside up to t_until, or its steps shrink to
   !> round-off: met = .false., and nothing is added to the summary. Its
-  !> attempts count in the case's n_rhs and n_rejected.
+  !> RHS calls count in the case's n_rhs (n_rejected is the adaptive
+  !> method's own).
   subroutine follow_flow_to_limit(run, t_from, y_from, t_tracked, t_until, res, met)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until

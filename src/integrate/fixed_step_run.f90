@@ -17,7 +17,7 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit, older_checkpoint_step
+  public :: fixed_step_loop, end_at_limit
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.

@@ -20,7 +20,7 @@ module ellroll_simulate
   implicit none
   private
 
-  public :: simulate_case, simulate_batch, batchable, lanes, reference_rtol, reference_atol
+  public :: simulate_case, simulate_batch, batchable, lanes
 
 contains
 

@@ -31,7 +31,7 @@ def run_case(ellroll, tmp_path, text, name="case.nml"):
     with h5py.File(tmp_path / "out.h5", "r") as f:
         meanings = f["summary/status"].attrs["flag_meanings"].split()
         out = {"status": [meanings[s] for s in f["summary/status"][:]], "t_final": f["summary/t_final"][:],
-               "time": f["time"][:], "energy_drift": f["summary/energy_drift"][:], "n_steps": f["summary/n_steps"][:]}
+               "time": f["time"][:], "energy_drift": f["summary/energy_drift"][:], "n_steps": f["summary/n_steps"][:], "n_rejected": f["summary/n_rejected"][:]}
         for field in ("contact", "omega", "nutation"):
             out[field] = f["trajectory/" + field][:]
     return out
@@ -48,6 +48,7 @@ def test_a_step_over_the_fit_limit_ends_the_case_there(ellroll, tmp_path, method
     out = run_case(ellroll, tmp_path, case_text(method, dt, (omega_x, 0.0, 0.0)))
     assert out["status"] == ["no_fit"]
     assert abs(out["t_final"][0] - T_NO_FIT[omega_x]) < 1e-9
+    assert out["n_rejected"][0] == 0      # the step control's count: adaptive methods only
     done = out["time"] <= out["t_final"][0]
     assert np.all(np.isfinite(out["nutation"][0][done])) and np.all(np.isnan(out["nutation"][0][~done]))
 
