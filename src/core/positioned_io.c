@@ -3,22 +3,23 @@
  * own regions at the same time, with no lock and no shared file position.
  * Errors come back as errno values (0: success); ellroll_error_text turns
  * them into words. */
-#define _DEFAULT_SOURCE    /* pwritev: BSD and glibc, not POSIX */
+#define _GNU_SOURCE        /* pwritev (BSD and glibc, not POSIX); fallocate (Linux) */
 #include <errno.h>
 #include <fcntl.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/uio.h>
 #include <unistd.h>
 
-/* A descriptor of an existing file, open for writing (writing != 0) or for
- * reading (>= 0), or -errno. */
+/* A descriptor of an existing file, open for writing and reading
+ * (writing != 0) or for reading only (>= 0), or -errno. */
 int ellroll_open_descriptor(const char *path, int writing)
 {
     int fd;
     do {
-        fd = open(path, (writing ? O_WRONLY : O_RDONLY) | O_CLOEXEC);
+        fd = open(path, (writing ? O_RDWR : O_RDONLY) | O_CLOEXEC);
     } while (fd < 0 && errno == EINTR);
     return fd < 0 ? -errno : fd;
 }
@@ -81,6 +82,34 @@ int ellroll_read_at(int fd, void *buffer, int64_t bytes, int64_t offset)
         bytes -= got;
     }
     return 0;
+}
+
+/* Give the file system back the blocks of bytes `from` .. `to` - 1 that
+ * are no longer needed (they read as zeros after), to the last whole block
+ * before `to` (or the file's end): a block shared with bytes still needed
+ * stays. The file keeps its size. Returns where the freed bytes end (`from` when no whole block
+ * lies in between), or -errno: EOPNOTSUPP where the file system cannot. */
+int64_t ellroll_release_range(int fd, int64_t from, int64_t to)
+{
+#ifdef FALLOC_FL_PUNCH_HOLE
+    struct stat info;
+    if (fstat(fd, &info) != 0)
+        return -errno;
+    int64_t block = info.st_blksize > 0 ? (int64_t)info.st_blksize : 4096;
+    if (to > (int64_t)info.st_size)
+        to = ((int64_t)info.st_size + block - 1) / block * block;
+    int64_t end = to / block * block;
+    if (end <= from)
+        return from;
+    int code;
+    do {
+        code = fallocate(fd, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, (off_t)from, (off_t)(end - from));
+    } while (code != 0 && errno == EINTR);
+    return code == 0 ? end : -errno;
+#else
+    (void)fd; (void)from; (void)to;
+    return -EOPNOTSUPP;
+#endif
 }
 
 /* 0, or the errno of a failed close (a delayed write error, say). */

@@ -7,7 +7,8 @@ module ellroll_system
   private
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
-  public :: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, system_error_text
+  public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
+      system_error_text
   public :: catch_stop_signals, stop_signal, signal_name, exit_now
 
   interface
@@ -73,6 +74,11 @@ module ellroll_system
       type(c_ptr), value :: buffer
       integer(c_int64_t), value :: bytes, offset
     end function c_read_at
+    integer(c_int64_t) function c_release_range(fd, from, to) bind(c, name='ellroll_release_range')
+      import :: c_int, c_int64_t
+      integer(c_int), value :: fd
+      integer(c_int64_t), value :: from, to
+    end function c_release_range
     integer(c_int) function c_close_descriptor(fd) bind(c, name='ellroll_close_descriptor')
       import :: c_int
       integer(c_int), value :: fd
@@ -144,8 +150,8 @@ contains
     rc = c_remove(path // c_null_char)
   end subroutine remove_file
 
-  !> A descriptor of existing file `path` open for writing (>= 0), or a
-  !> negative errno value.
+  !> A descriptor of existing file `path` open for writing, and reading
+  !> (>= 0), or a negative errno value.
   integer function open_for_writing(path) result(fd)
     character(len=*), intent(in) :: path
     fd = c_open_descriptor(path // c_null_char, 1_c_int)
@@ -175,6 +181,17 @@ contains
     integer(i8), intent(in) :: bytes, offset
     code = c_read_at(fd, buffer, bytes, offset)
   end function read_at
+
+  !> Free the storage of bytes `from` .. `to` - 1 of a file open for
+  !> writing, which then read as zeros, up to the last whole block of the
+  !> file system before `to` (or the file's end): where the freed bytes end (`from` when no
+  !> whole block lies in between), or a negative errno value (-EOPNOTSUPP
+  !> where the file system cannot).
+  integer(i8) function release_range(fd, from, to) result(freed_to)
+    integer, intent(in) :: fd
+    integer(i8), intent(in) :: from, to
+    freed_to = c_release_range(fd, from, to)
+  end function release_range
 
   !> Close a descriptor of open_for_writing or open_for_reading: 0, or an errno value.
   integer function close_descriptor(fd) result(code)

@@ -24,7 +24,7 @@ module ellroll_hdf5
   implicit none
   private
 
-  public :: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row
+  public :: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row, written_in_place
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
@@ -170,8 +170,8 @@ contains
     self%n_cases = n_cases
     self%n_samples = size(times, kind=i8)
     self%fields = fields
-    self%in_windows = fields .and. deflate_level > 0
-    in_place_fields = fields .and. .not. self%in_windows
+    in_place_fields = written_in_place(fields, deflate_level)
+    self%in_windows = fields .and. .not. in_place_fields
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
     call h5open_f(hdferr)
@@ -485,15 +485,22 @@ contains
     end function failed
   end subroutine create
 
-  !> Store one case's inputs, trajectories and summary at its slot icase (0-based).
-  subroutine write_case(self, icase, cs, res, err)
+  !> Store one case's inputs, trajectories and summary at its slot icase
+  !> (0-based). Trajectories read from another file's store (`moved_from`,
+  !> a resume's) are freed there as they are written.
+  subroutine write_case(self, icase, cs, res, err, moved_from)
     class(h5_output_t), intent(inout) :: self
     integer(i8), intent(in) :: icase
     type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
     type(error_t), intent(inout) :: err
+    type(trajectory_store_t), intent(inout), optional :: moved_from
     type(window_list_t) :: full
-    call self%put_trajectories(icase, [res], err)
+    if (present(moved_from)) then
+      call self%in_place%move_in(icase, res, moved_from, err)
+    else
+      call self%put_trajectories(icase, [res], err)
+    end if
     call self%keep_case(icase, table_row(cs, res), res, full)
     call self%write_windows(full, err)
     call self%recycle(full)
@@ -523,6 +530,15 @@ contains
     self%path = path
     self%in_place%path = path
   end subroutine move_to
+
+  !> The stored fields whose trajectories go in place, outside HDF5: all of
+  !> them, unless they are compressed (deflate level > 0).
+  pure function written_in_place(fields, deflate_level)
+    logical, intent(in) :: fields(field_count)
+    integer, intent(in) :: deflate_level
+    logical :: written_in_place(field_count)
+    written_in_place = fields .and. deflate_level <= 0
+  end function written_in_place
 
   !> A case's row of the case and summary tables: its inputs, its summary, its status.
   function table_row(cs, res) result(row)

@@ -17,14 +17,14 @@ module ellroll_trajectory_store
   use ellroll_cases, only: field_count, field_names, field_ncomp
   use ellroll_results, only: case_result_t
   use ellroll_checksum, only: checksum
-  use ellroll_strings, only: itoa
-  use ellroll_system, only: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, &
-      system_error_text
+  use ellroll_system, only: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, &
+      close_descriptor, system_error_text
   implicit none
   private
 
   public :: trajectory_store_t, label_bytes
 
+  integer(i8), parameter :: piece_words = 2_i8**17      !< a piece of move_in: 1 MiB
   integer, parameter :: label_bytes = 512        !< a power of two >= 512, as HDF5 asks of a user block
   integer(i8), parameter :: label_marker = transfer('ellroll:', 0_i8)     !< readable in a dump
   integer(i8), parameter :: label_version = 1
@@ -37,11 +37,18 @@ module ellroll_trajectory_store
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .false.       !< the fields stored here
     integer(i8) :: address(field_count) = -1       !< where each begins (-1: not here, or no cases)
+    integer(i8) :: freed_to(field_count) = -1      !< where the storage freed by move_in ends
   contains
     procedure :: start
     procedure :: open_existing
     procedure :: put
     procedure :: get
+    procedure :: move_in
+    procedure :: n_pieces
+    procedure :: piece
+    procedure :: take_piece
+    procedure :: release_to
+    procedure :: release_all_but_trajectories
     procedure :: close => close_store
   end type trajectory_store_t
 
@@ -74,19 +81,25 @@ contains
     if (code /= 0) call set_error(err, err_output, path // ': cannot write its label: ' // system_error_text(code))
   end subroutine start
 
-  !> Open an existing file to read its trajectories back; its label must say
+  !> Open an existing file to read its trajectories back, and with
+  !> `writable` to write them and free their storage too; its label must say
   !> it holds `fields` for n_cases cases of n_samples samples. A file missing,
   !> of another layout or never labelled fails with err.
-  subroutine open_existing(self, path, n_cases, n_samples, fields, err)
+  subroutine open_existing(self, path, n_cases, n_samples, fields, writable, err)
     class(trajectory_store_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer(i8), intent(in) :: n_cases, n_samples
     logical, intent(in) :: fields(field_count)
+    logical, intent(in) :: writable
     type(error_t), intent(inout) :: err
     integer(i8), target :: label(label_words)
     integer :: code
     call describe(self, path, n_cases, n_samples, fields)
-    self%fd = open_for_reading(path)
+    if (writable) then
+      self%fd = open_for_writing(path)
+    else
+      self%fd = open_for_reading(path)
+    end if
     if (self%fd < 0) then
       call set_error(err, err_output, path // ': cannot open: ' // system_error_text(-self%fd))
       return
@@ -101,6 +114,7 @@ contains
       call set_error(err, err_output, path // ': its trajectories are laid out for another run')
     else
       self%address = label(5:4 + field_count)
+      self%freed_to = self%address
     end if
   end subroutine open_existing
 
@@ -140,12 +154,13 @@ contains
         end if
       end do
       code = write_pieces_at(self%fd, pieces, spread(8 * n, 1, size(results)), self%address(f) + 8 * n * first)
-      if (code /= 0) call set_error(err, err_output, self%path // ': cannot write /trajectory/' // &
-          trim(field_names(f)) // ' (disk full?): ' // system_error_text(code))
+      call check_write(self, f, code, err)
     end do
   end subroutine put
 
   !> Read the trajectories of the case in `slot` into res (allocating them).
+  !> What lies beyond the file's end was never written and reads as zeros,
+  !> as in a file of full size.
   subroutine get(self, slot, res, err)
     class(trajectory_store_t), intent(in) :: self
     integer(i8), intent(in) :: slot
@@ -157,17 +172,132 @@ contains
       if (.not. self%fields(f) .or. err%failed()) cycle
       n = field_ncomp(f) * self%n_samples
       if (allocated(res%fields(f)%values)) deallocate (res%fields(f)%values)
-      allocate (res%fields(f)%values(field_ncomp(f), self%n_samples))
+      allocate (res%fields(f)%values(field_ncomp(f), self%n_samples), source=0.0_wp)
       code = read_at(self%fd, c_loc(res%fields(f)%values), 8 * n, self%address(f) + 8 * n * slot)
-      if (code == -1) then
-        call set_error(err, err_output, self%path // ': ends before /trajectory/' // trim(field_names(f)) // &
-                       ' of slot ' // itoa(slot))
-      else if (code /= 0) then
-        call set_error(err, err_output, self%path // ': cannot read /trajectory/' // trim(field_names(f)) // &
-                       ': ' // system_error_text(code))
-      end if
+      if (code > 0) call set_error(err, err_output, self%path // ': cannot read /trajectory/' // &
+                                   trim(field_names(f)) // ': ' // system_error_text(code))
     end do
   end subroutine get
+
+  !> Write the trajectories of the case in `slot`, read from `source`
+  !> (open writable), and free their storage there as they go: a move that
+  !> needs room for one piece (piece_words), not for the case.
+  !> Whatever lies in `source` before them (cases not needed) is freed too.
+  !> Where the file system cannot free parts of a file, nothing is freed
+  !> and nothing fails. A move cut short leaves the case's first pieces
+  !> here and the others in `source` (take_piece puts it together).
+  subroutine move_in(self, slot, res, source, err)
+    class(trajectory_store_t), intent(in) :: self
+    integer(i8), intent(in) :: slot
+    type(case_result_t), intent(in), target :: res
+    type(trajectory_store_t), intent(inout) :: source
+    type(error_t), intent(inout) :: err
+    real(wp), pointer :: values(:)
+    integer(i8) :: k, first, count, at
+    integer :: f, code
+    do k = 1, self%n_pieces()
+      call self%piece(k, f, first, count)
+      values(1:size(res%fields(f)%values, kind=i8)) => res%fields(f)%values
+      at = 8 * (size(values, kind=i8) * slot + first)     ! from the field's start
+      code = write_pieces_at(self%fd, [c_loc(values(first + 1))], [8 * count], self%address(f) + at)
+      call check_write(self, f, code, err)
+      if (err%failed()) return
+      call source%release_to(f, source%address(f) + at + 8 * count)
+    end do
+  end subroutine move_in
+
+  !> The number of pieces of a case's trajectories that move_in moves one
+  !> after the other.
+  pure integer(i8) function n_pieces(self)
+    class(trajectory_store_t), intent(in) :: self
+    n_pieces = sum(pieces_of_field(self), mask=self%fields)
+  end function n_pieces
+
+  pure function pieces_of_field(self) result(n)
+    type(trajectory_store_t), intent(in) :: self
+    integer(i8) :: n(field_count)
+    n = (field_ncomp * self%n_samples + piece_words - 1) / piece_words
+  end function pieces_of_field
+
+  !> Piece k (from 1) of a case: the values first + 1 .. first + count of
+  !> field f (in their order in memory).
+  pure subroutine piece(self, k, f, first, count)
+    class(trajectory_store_t), intent(in) :: self
+    integer(i8), intent(in) :: k
+    integer, intent(out) :: f
+    integer(i8), intent(out) :: first, count
+    integer(i8) :: n(field_count), before
+    n = pieces_of_field(self)
+    before = 0
+    do f = 1, field_count
+      if (.not. self%fields(f)) cycle
+      if (k <= before + n(f)) exit
+      before = before + n(f)
+    end do
+    first = (k - before - 1) * piece_words
+    count = min(piece_words, field_ncomp(f) * self%n_samples - first)
+  end subroutine piece
+
+  !> Piece k of a case from another read of it: to put a case together
+  !> after a move cut short, from the pieces moved and those left.
+  subroutine take_piece(self, res, moved, k)
+    class(trajectory_store_t), intent(in) :: self
+    type(case_result_t), intent(inout), target :: res
+    type(case_result_t), intent(in), target :: moved
+    integer(i8), intent(in) :: k
+    real(wp), pointer :: into(:), from(:)
+    integer(i8) :: first, count
+    integer :: f
+    call self%piece(k, f, first, count)
+    into(1:size(res%fields(f)%values, kind=i8)) => res%fields(f)%values
+    from(1:size(moved%fields(f)%values, kind=i8)) => moved%fields(f)%values
+    into(first + 1:first + count) = from(first + 1:first + count)
+  end subroutine take_piece
+
+  subroutine check_write(self, f, code, err)
+    type(trajectory_store_t), intent(in) :: self
+    integer, intent(in) :: f, code        !< the field, and write_pieces_at's answer
+    type(error_t), intent(inout) :: err
+    if (code /= 0) call set_error(err, err_output, self%path // ': cannot write /trajectory/' // &
+                                  trim(field_names(f)) // ' (disk full?): ' // system_error_text(code))
+  end subroutine check_write
+
+  !> Free the storage of field f's trajectories up to byte `to`, where
+  !> release_range can: the blocks up to the last whole one before it.
+  subroutine release_to(self, f, to)
+    class(trajectory_store_t), intent(inout) :: self
+    integer, intent(in) :: f
+    integer(i8), intent(in) :: to
+    if (self%freed_to(f) < 0) return          ! not here, or the file system cannot
+    self%freed_to(f) = release_range(self%fd, self%freed_to(f), to)
+  end subroutine release_to
+
+  !> Free the storage of everything in the file but its label and its
+  !> trajectories (HDF5's metadata and tables, which a resume rebuilds):
+  !> the file is no HDF5 file after, only a store of trajectories.
+  subroutine release_all_but_trajectories(self)
+    class(trajectory_store_t), intent(inout) :: self
+    integer(i8) :: gap_start, gap_end, ignored
+    integer :: f, next
+    gap_start = label_bytes
+    do
+      ! the gap ends where the next field's trajectories begin, or at the file's end
+      next = 0
+      do f = 1, field_count
+        if (self%address(f) < gap_start) cycle
+        if (next == 0) then
+          next = f
+        else if (self%address(f) < self%address(next)) then
+          next = f
+        end if
+      end do
+      gap_end = huge(0_i8)
+      if (next > 0) gap_end = self%address(next)
+      ignored = release_range(self%fd, gap_start, gap_end)
+      if (next == 0) exit
+      gap_start = self%address(next) + 8 * field_ncomp(next) * self%n_samples * self%n_cases
+    end do
+  end subroutine release_all_but_trajectories
 
   !> Close the file's descriptor; err reports a write the system could not
   !> finish (a delayed error), unless err holds an error already.

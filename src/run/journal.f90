@@ -62,7 +62,8 @@ module ellroll_journal
   contains
     procedure :: create
     procedure :: open_existing
-    procedure :: next_record
+    procedure :: index_records
+    procedure :: record_at
     procedure :: record => encode_record
     procedure :: fingerprint
     procedure :: reserve
@@ -186,34 +187,57 @@ contains
     call open_for_records(self, err)
   end subroutine open_existing
 
-  !> The next valid record, or found = .false. at the end. Places never
-  !> written and damaged records (counted in n_damaged: their cases run
-  !> again) are skipped; a torn last record ends the
-  !> journal, and the next record reserved goes in its place. The
-  !> trajectories written in place are not in res: `in_place` is their
-  !> fingerprint, to compare with that of the ones read back.
-  subroutine next_record(self, slot, res, in_place, found)
+  !> Where each slot's valid record lies (places(slot), -1 for none), to
+  !> read them back in slot order with record_at; the journal's records are
+  !> in the order the cases finished. Places never written and damaged
+  !> records (counted in n_damaged: their cases run again) are skipped; a
+  !> torn last record ends the journal, and the next record reserved goes
+  !> in its place. Of two records of one slot the first counts.
+  subroutine index_records(self, places)
     class(journal_t), intent(inout) :: self
-    integer(i8), intent(out) :: slot
+    integer(i8), intent(out) :: places(0:)
+    integer(i8), allocatable :: words(:)
+    integer :: ios
+    allocate (words(self%record_words + 1))
+    places = -1
+    do
+      read (self%unit, pos=self%next_position, iostat=ios) words
+      if (ios /= 0) exit
+      if (is_valid(self, words)) then
+        if (places(words(2)) < 0) places(words(2)) = self%next_position
+      else if (any(words /= 0)) then          ! a place reserved but never written reads as zeros
+        self%n_damaged = self%n_damaged + 1
+      end if
+      self%next_position = self%next_position + 8 * size(words)
+    end do
+  end subroutine index_records
+
+  !> The record at a place from index_records (found: it reads back valid
+  !> still). The trajectories written in place are not in res: `in_place`
+  !> is their fingerprint, to compare with that of the ones read back.
+  subroutine record_at(self, place, res, in_place, found)
+    class(journal_t), intent(in) :: self
+    integer(i8), intent(in) :: place
     type(case_result_t), intent(out) :: res
     integer(i8), intent(out) :: in_place
     logical, intent(out) :: found
     integer(i8), allocatable :: words(:)
-    integer(i8) :: stored_checksum
+    integer(i8) :: slot
     integer :: ios
-    allocate (words(self%record_words))
-    found = .false.
-    do while (.not. found)
-      read (self%unit, pos=self%next_position, iostat=ios) words, stored_checksum
-      if (ios /= 0) return
-      self%next_position = self%next_position + 8 * (self%record_words + 1)
-      found = words(1) == record_marker .and. stored_checksum == checksum(words) .and. &
-              words(2) >= 0 .and. words(2) < self%header%n_slots
-      ! a place reserved but never written reads as zeros; anything else is damage
-      if (.not. found .and. (stored_checksum /= 0 .or. any(words /= 0))) self%n_damaged = self%n_damaged + 1
-    end do
-    call unpack_record(self%header, words, slot, res, in_place)
-  end subroutine next_record
+    allocate (words(self%record_words + 1))
+    read (self%unit, pos=place, iostat=ios) words
+    found = ios == 0
+    if (found) found = is_valid(self, words)
+    if (found) call unpack_record(self%header, words, slot, res, in_place)
+  end subroutine record_at
+
+  logical function is_valid(self, words)
+    type(journal_t), intent(in) :: self
+    integer(i8), intent(in) :: words(:)      !< a record and its checksum
+    is_valid = .false.
+    if (words(1) /= record_marker .or. words(size(words)) /= checksum(words(:size(words) - 1))) return
+    is_valid = words(2) >= 0 .and. words(2) < self%header%n_slots
+  end function is_valid
 
   !> A case's record, checksum included: made by the thread that integrated
   !> the case, which also writes it (write_records).

@@ -8,8 +8,8 @@
 !> OUT when complete) and OUT.journal (every finished case, the durable
 !> record; deleted when OUT is in place). A resume builds OUT.partial.new
 !> from the journal and the killed run's OUT.partial, which holds the
-!> journaled cases' trajectories, and moves it over OUT.partial: at every
-!> moment OUT.partial holds the trajectories of every case in the journal.
+!> journaled cases' trajectories, and moves it over OUT.partial
+!> (ellroll_resume).
 module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
   use, intrinsic :: iso_fortran_env, only: error_unit
@@ -25,10 +25,10 @@ module ellroll_run_campaign
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
-  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row
-  use ellroll_trajectory_store, only: trajectory_store_t
+  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row, written_in_place
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
+  use ellroll_resume, only: open_for_resume, copy_journaled_cases
   use ellroll_progress, only: progress_t
   use ellroll_system, only: rename_file, remove_file, file_exists, folder_write_error, folder_of, system_error_text, &
       stop_signal, signal_name
@@ -254,7 +254,7 @@ contains
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
     character(len=:), allocatable :: target, partial, resumed, writing, journal_path, messages
-    integer(i8), allocatable :: globals(:)
+    integer(i8), allocatable :: globals(:), journal_places(:)
     logical, allocatable :: invalid(:), done(:)
     integer(i8) :: n_slots, slot, i, chunk
     logical :: use_batches, resume, journal_exists
@@ -295,6 +295,7 @@ contains
             '(killed before the journal''s header was written); starting afresh'
         call remove_file(journal_path)
         call remove_file(partial)
+        call remove_file(resumed)
         journal_exists = .false.
         resume = .false.
       end if
@@ -328,6 +329,13 @@ contains
     prov%campaign_id = campaign_id(inp)
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
+    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, n_samples=inp%plan%n_samples, &
+                              shard=opts%shard, fields=inp%plan%fields, &
+                              in_place=written_in_place(inp%plan%fields, inp%plan%compression))
+    if (resume) then
+      call open_for_resume(journal, journal_path, header, partial, resumed, journal_places, err)
+      if (err%failed()) return
+    end if
 
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
     writing = partial
@@ -339,14 +347,13 @@ contains
       call remove_file(out%path)
       return
     end if
-    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, n_samples=inp%plan%n_samples, &
-                              shard=opts%shard, fields=inp%plan%fields, in_place=out%in_place%fields)
 
     ! cases already done: from the journal of the interrupted run
     allocate (done(0:n_slots - 1))
     done = .false.
     if (resume) then
-      call resume_from_journal()
+      call copy_journaled_cases(journal, journal_places, inp%campaign, opts%shard, partial, out, done, err)
+      deallocate (journal_places)
     else
       call journal%create(journal_path, header, err)
     end if
@@ -410,54 +417,6 @@ contains
     if (opts%timings) call timings%report()
 
   contains
-
-    !> Copy the journaled cases into the new file, their trajectories read
-    !> back from the killed run's file, then move the new file over it. A
-    !> case whose trajectories are missing there or fail their check (the
-    !> system lost writes) runs again.
-    subroutine resume_from_journal()
-      type(trajectory_store_t) :: killed_run
-      type(error_t) :: unreadable, read_err
-      type(case_result_t) :: res
-      integer(i8) :: slot, in_place
-      logical :: found
-      logical, allocatable :: lost(:)
-      character(len=:), allocatable :: why
-      call journal%open_existing(journal_path, header, err)
-      if (err%failed()) return
-      if (any(header%in_place)) &
-        call killed_run%open_existing(partial, n_slots, inp%plan%n_samples, header%in_place, unreadable)
-      allocate (lost(0:n_slots - 1))
-      lost = .false.
-      do while (.not. err%failed())
-        call journal%next_record(slot, res, in_place, found)
-        if (.not. found) exit
-        if (done(slot)) cycle
-        if (any(header%in_place)) then
-          if (.not. unreadable%failed()) call killed_run%get(slot, res, read_err)
-          if (unreadable%failed() .or. read_err%failed() .or. journal%fingerprint(res) /= in_place) then
-            lost(slot) = .true.
-            read_err = error_t()
-            cycle
-          end if
-        end if
-        call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
-        done(slot) = .true.
-      end do
-      call killed_run%close(read_err)
-      if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': ' // &
-          itoa(journal%n_damaged) // ' damaged records (their checksum does not match); their cases run again'
-      if (any(lost .and. .not. done)) then
-        if (unreadable%failed()) then
-          why = unreadable%message
-        else
-          why = partial // ': their trajectories there are damaged'
-        end if
-        write (error_unit, '(a)') 'ellroll: warning: ' // itoa(count(lost .and. .not. done)) // &
-            ' finished cases run again: ' // why
-      end if
-      if (.not. err%failed()) call out%move_to(partial, err)
-    end subroutine resume_from_journal
 
     !> Integrate the slots of one block not done yet, write their trajectories
     !> and journal records, then hand their table rows to the writer: each
@@ -590,8 +549,8 @@ contains
     !> After a failure, keep what is finished, and say where it is.
     subroutine abandon()
       call keep_finished()
-      err%message = err%message // achar(10) // '  ' // partial // ' holds the cases finished so far and ' // &
-                    journal_path // ' keeps them; fix the cause and run again with --resume'
+      err%message = err%message // achar(10) // '  ' // journal_path // ' keeps the cases finished so far; ' // &
+                    'fix the cause and run again with --resume'
     end subroutine abandon
 
     !> Keep what is finished: the journal holds every case done so far, and
@@ -599,7 +558,8 @@ contains
     subroutine keep_finished()
       type(error_t) :: ignored
       call out%close(ignored)
-      if (out%path == resumed) call remove_file(resumed)    ! a resume that failed before its copy was complete
+      ! a resume that failed while copying: the next one takes back what it holds
+      if (out%path == resumed .and. .not. any(header%in_place)) call remove_file(resumed)
       call journal%close(delete=.false.)
     end subroutine keep_finished
   end subroutine run_campaign

@@ -12,7 +12,7 @@ import time
 import pytest
 
 from conftest import run
-from test_campaign import JOURNAL_HEADER, assert_same_datasets, write
+from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes, write
 
 
 def digest(path):
@@ -167,10 +167,20 @@ def small_disk(tmp_path):
         subprocess.run(["umount", str(folder)], check=True)
 
 
-def test_a_full_disk_is_a_clean_write_error_and_the_resume_finishes(ellroll, tmp_path, small_disk):
+def blocks(path, block=4096):
+    return -(-path.stat().st_size // block) * block
+
+
+def test_a_full_disk_is_a_clean_write_error_and_the_resume_finishes_in_the_final_files_room(ellroll, tmp_path,
+                                                                                           small_disk):
     """The output's disk fills up once some cases are done: exit 3 with the
-    system's reason, no signal; once the disk has room, the resume gives the
-    uninterrupted run's file."""
+    system's reason, no signal. The resume needs room for the final file and
+    the journal, and a few blocks: the disk grows 8 KiB at a time from just
+    above what the killed run left, and each resume that fills it again
+    (while it moves the cases to the new file) loses nothing, the next one
+    takes its cases back. The first to finish has at most the final file,
+    the final journal, the input and 2 blocks per stored field (64 KiB) of
+    room, and gives the uninterrupted run's file, no case run twice."""
     name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10, 20, 40, 80 /\n"
                            "&sweep name = 'radius', start = 0.05, stop = 0.2, count = 4, spacing = 'linear' /\n",
                  t_end=3.0)
@@ -181,7 +191,21 @@ def test_a_full_disk_is_a_clean_write_error_and_the_resume_finishes(ellroll, tmp
     assert "out.h5.partial: cannot" in result.stderr and "No space left on device" in result.stderr, result.stderr
     assert "Program received signal" not in result.stderr
     assert (small_disk / "out.h5.journal").stat().st_size > JOURNAL_HEADER
-    subprocess.run(["mount", "-o", "remount,size=4m", str(small_disk)], check=True)
-    resumed = run(ellroll, "run", name, "-q", "--resume", cwd=small_disk)
-    assert resumed.returncode == 0, resumed.stderr
+
+    final_journal = JOURNAL_HEADER + 20 * record_bytes()
+    room = blocks(tmp_path / "whole.h5") + blocks(tmp_path / name) + -(-final_journal // 4096) * 4096 + 64 * 1024
+    size = sum(blocks(p) for p in small_disk.iterdir()) + 8 * 1024
+    attempts = []
+    while size <= room:
+        subprocess.run(["mount", "-o", f"remount,size={size // 1024}k", str(small_disk)], check=True)
+        resumed = run(ellroll, "run", name, "-q", "--resume", cwd=small_disk)
+        attempts.append((size // 1024, resumed.returncode))
+        assert "cases run again" not in resumed.stderr, (attempts, resumed.stderr)
+        if resumed.returncode == 0:
+            break
+        assert resumed.returncode == 3 and "No space left on device" in resumed.stderr, resumed.stderr
+        size += 8 * 1024
+    assert attempts[-1][1] == 0, (attempts, room // 1024)
+    assert len(attempts) > 1, attempts         # at least one resume filled the disk while moving the cases
     assert_same_datasets(tmp_path / "whole.h5", small_disk / "out.h5")
+    assert sorted(p.name for p in small_disk.iterdir()) == [name, "out.h5"]

@@ -5,7 +5,9 @@
 !> so windows are written partly filled and later completed. Compressed
 !> trajectories go with their windows; uncompressed ones are written in
 !> place, case by case, and only the table rows are kept in windows; the
-!> file's label leads a reader (a resume) to them without HDF5.
+!> file's label leads a reader (a resume) to them without HDF5. A resume
+!> moves cases from one file's store to another's piece by piece (1 MiB),
+!> and puts a case cut in two by an interrupted move together again.
 program test_output
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -26,6 +28,7 @@ program test_output
   call write_in_any_order_and_read_back(compression=1, n_cases=100_i8, n_samples=30000_i8, rows=5_i8)
   ! in place: windows of 64 rows, 20 of them at once
   call write_in_any_order_and_read_back(compression=0, n_cases=1280_i8, n_samples=10_i8, rows=64_i8)
+  call move_between_stores()
   call finish('test_output')
 
 contains
@@ -82,7 +85,9 @@ contains
 
   !> The trajectories read back through the file's label, as a resume
   !> does; a file without a label (compressed), or labelled for another
-  !> layout, is refused.
+  !> layout, is refused. Freeing the storage of all but the trajectories,
+  !> then of the first half of the cases, as a resume does, leaves the
+  !> others intact.
   subroutine read_back_in_place(labelled, n_cases, n_samples, fields)
     logical, intent(in) :: labelled
     integer(i8), intent(in) :: n_cases, n_samples
@@ -91,25 +96,110 @@ contains
     type(case_result_t) :: res, expected
     type(error_t) :: err, refusal
     integer(i8) :: slot, n_wrong
-    call store%open_existing(path, n_cases, n_samples, fields, err)
+    call store%open_existing(path, n_cases, n_samples, fields, .true., err)
     if (.not. labelled) then
       call check(err%failed() .and. index(err%message, 'no trajectory label') > 0, &
                  'compressed: no label, refused: ' // err%message)
       call store%close(err)
       return
     end if
+    call store%release_all_but_trajectories()
     n_wrong = 0
     do slot = 0, n_cases - 1
       call store%get(slot, res, err)
       expected = result_of(slot, n_samples)
       if (.not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
     end do
-    call store%close(err)
     call check(.not. err%failed() .and. n_wrong == 0, 'in place: every trajectory read back through the label')
-    call other_layout%open_existing(path, n_cases, n_samples + 1, fields, refusal)
+    call store%release_to(contact, store%address(contact) + 8 * 3 * n_samples * (n_cases / 2))
+    n_wrong = 0
+    do slot = n_cases / 2, n_cases - 1
+      call store%get(slot, res, err)
+      expected = result_of(slot, n_samples)
+      if (.not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
+    end do
+    call store%close(err)
+    call check(.not. err%failed() .and. n_wrong == 0, 'in place: the cases after those freed intact')
+    call other_layout%open_existing(path, n_cases, n_samples + 1, fields, .false., refusal)
     call check(index(refusal%message, 'laid out for another run') > 0, 'in place: another layout refused')
     call other_layout%close(refusal)
   end subroutine read_back_in_place
+
+  !> Cases of 150,000 values (two pieces of a move: 131,072 and 18,928
+  !> values) moved from one store to another arrive whole, and leave the
+  !> other cases intact; a case put together from the first piece of one
+  !> read and the second of another takes each where it belongs.
+  subroutine move_between_stores()
+    integer(i8), parameter :: n_cases = 3, n_samples = 50000, piece_values = 131072
+    character(len=*), parameter :: from_path = 'test_output_from.bin', to_path = 'test_output_to.bin'
+    type(trajectory_store_t) :: from, to
+    type(case_result_t) :: res, expected, other
+    type(error_t) :: err
+    logical :: fields(field_count)
+    integer(i8) :: slot, first, count
+    integer :: f, n_wrong
+    real(wp), allocatable :: joined(:), unchanged(:)
+    fields = .false.
+    fields(contact) = .true.
+    call start_store(from, from_path, n_cases, n_samples, fields, err)
+    do slot = 0, n_cases - 1
+      call from%put(slot, [result_of(slot, n_samples)], err)
+    end do
+    call from%close(err)
+    call start_store(to, to_path, n_cases, n_samples, fields, err)
+    call from%open_existing(from_path, n_cases, n_samples, fields, .true., err)
+    call check(to%n_pieces() == 2, 'a case of 150,000 values moves in two pieces')
+    call to%piece(2_i8, f, first, count)
+    call check(f == contact .and. first == piece_values .and. count == 3 * n_samples - piece_values, &
+               'the second piece: the values after the first 1 MiB')
+    n_wrong = 0
+    do slot = 0, 1
+      call from%get(slot, res, err)
+      call to%move_in(slot, res, from, err)
+      call to%get(slot, res, err)
+      expected = result_of(slot, n_samples)
+      if (.not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
+    end do
+    call from%get(2_i8, res, err)
+    expected = result_of(2_i8, n_samples)
+    if (.not. all(same(res%fields(contact)%values, expected%fields(contact)%values))) n_wrong = n_wrong + 1
+    call check(.not. err%failed() .and. n_wrong == 0, 'moved cases whole in the new store, the others intact')
+    other = result_of(1_i8, n_samples)
+    expected = result_of(0_i8, n_samples)
+    call to%take_piece(other, expected, 1_i8)
+    joined = reshape(other%fields(contact)%values, [3 * n_samples])
+    res = result_of(1_i8, n_samples)
+    unchanged = reshape(res%fields(contact)%values, [3 * n_samples])
+    call check(all(same(joined(:piece_values), reshape(expected%fields(contact)%values, [piece_values]))) .and. &
+               all(same(joined(piece_values + 1:), unchanged(piece_values + 1:))), &
+               'a case put together: the first piece from one read, the rest from the other')
+    call from%close(err)
+    call to%close(err)
+    call remove(from_path)
+    call remove(to_path)
+  end subroutine move_between_stores
+
+  !> A labelled store of one field in a new file, just after the label.
+  subroutine start_store(store, store_path, n_cases, n_samples, fields, err)
+    type(trajectory_store_t), intent(inout) :: store
+    character(len=*), intent(in) :: store_path
+    integer(i8), intent(in) :: n_cases, n_samples
+    logical, intent(in) :: fields(field_count)
+    type(error_t), intent(inout) :: err
+    integer(i8) :: address(field_count)
+    integer :: unit
+    open (newunit=unit, file=store_path, status='replace')
+    close (unit)
+    address = merge(512_i8, -1_i8, fields)
+    call store%start(store_path, n_cases, n_samples, fields, address, err)
+  end subroutine start_store
+
+  subroutine remove(file)
+    character(len=*), intent(in) :: file
+    integer :: unit
+    open (newunit=unit, file=file)
+    close (unit, status='delete')
+  end subroutine remove
 
   !> A result that names its slot in every value.
   function result_of(slot, n_samples) result(r)

@@ -1,0 +1,156 @@
+!> Resuming an interrupted run from its journal, in no more room than the
+!> final file and the journal take.
+!>
+!> The killed run's file (OUT.partial) holds the trajectories of its
+!> journaled cases in place; the rest of it (HDF5's metadata and tables) is
+!> rebuilt from the journal, and its storage is freed first. A resume
+!> copies the journaled cases, in slot order, into a new file
+!> (OUT.partial.new) and frees the old file's storage behind the copy,
+!> piece by piece, where the file system can (Linux: ext4, XFS, Btrfs,
+!> tmpfs, ...); then the new file goes over the old one.
+!> A resume killed while copying leaves cases whose trajectories are only in
+!> the new file: the next resume first copies those back, freeing the new
+!> file's storage behind in the same way. At every moment each journaled
+!> case's trajectories are in one of the two files, checked against the
+!> fingerprint in its record; a case found in neither runs again.
+module ellroll_resume
+  use, intrinsic :: iso_fortran_env, only: error_unit
+  use ellroll_kinds, only: i8
+  use ellroll_errors, only: error_t
+  use ellroll_strings, only: itoa
+  use ellroll_campaign, only: campaign_t
+  use ellroll_results, only: case_result_t
+  use ellroll_hdf5, only: h5_output_t
+  use ellroll_trajectory_store, only: trajectory_store_t
+  use ellroll_journal, only: journal_t, journal_header_t
+  use ellroll_system, only: remove_file, file_exists
+  implicit none
+  private
+
+  public :: open_for_resume, copy_journaled_cases
+
+contains
+
+  !> Open the journal of the interrupted run and find its records (places:
+  !> where each slot's record lies, -1 for none). The killed run's file
+  !> keeps only its trajectories, and takes back the cases that a resume
+  !> killed while copying left in `resumed`; a file with nothing in place
+  !> (the records hold the trajectories whole) is not needed at all.
+  subroutine open_for_resume(journal, journal_path, header, partial, resumed, places, err)
+    type(journal_t), intent(inout) :: journal
+    character(len=*), intent(in) :: journal_path, partial, resumed
+    type(journal_header_t), intent(in) :: header
+    integer(i8), allocatable, intent(out) :: places(:)
+    type(error_t), intent(inout) :: err
+    type(trajectory_store_t) :: killed_run, copied
+    type(error_t) :: unreadable
+    call journal%open_existing(journal_path, header, err)
+    if (err%failed()) return
+    allocate (places(0:header%n_slots - 1))
+    call journal%index_records(places)
+    if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': ' // &
+        itoa(journal%n_damaged) // ' damaged records (their checksum does not match); their cases run again'
+    if (.not. any(header%in_place)) then
+      call remove_file(partial)
+    else
+      call open_trajectories(partial, header, killed_run, unreadable)
+      if (file_exists(resumed) .and. .not. unreadable%failed()) then
+        call open_trajectories(resumed, header, copied, unreadable)
+        if (.not. unreadable%failed()) call take_back_copied_cases(journal, places, copied, killed_run)
+        call copied%close(unreadable)
+      end if
+      call killed_run%close(unreadable)
+      ! unreadable: the cases not found in partial run again (copy_journaled_cases)
+    end if
+    call remove_file(resumed)
+  end subroutine open_for_resume
+
+  !> A file's trajectories, open to be moved out of it; the storage of the
+  !> rest of it (HDF5's metadata and tables, rebuilt from the journal) is
+  !> freed at once.
+  subroutine open_trajectories(path, header, store, err)
+    character(len=*), intent(in) :: path
+    type(journal_header_t), intent(in) :: header
+    type(trajectory_store_t), intent(inout) :: store
+    type(error_t), intent(inout) :: err
+    call store%open_existing(path, header%n_slots, header%n_samples, header%in_place, .true., err)
+    if (.not. err%failed()) call store%release_all_but_trajectories()
+  end subroutine open_trajectories
+
+  !> The cases that a killed copy had moved to `copied`, back into
+  !> `killed_run`: those it moved whole, and the one it was moving, put
+  !> together from its first pieces there and the others left behind.
+  subroutine take_back_copied_cases(journal, places, copied, killed_run)
+    type(journal_t), intent(in) :: journal
+    integer(i8), intent(in) :: places(0:)
+    type(trajectory_store_t), intent(inout) :: copied, killed_run
+    type(error_t) :: err
+    type(case_result_t) :: res, moved
+    integer(i8) :: slot, in_place, k
+    logical :: found
+    do slot = 0, size(places, kind=i8) - 1
+      if (err%failed()) exit
+      if (places(slot) < 0) cycle
+      call journal%record_at(places(slot), res, in_place, found)
+      if (.not. found) cycle
+      call killed_run%get(slot, res, err)
+      if (err%failed() .or. journal%fingerprint(res) == in_place) cycle       ! never moved
+      call copied%get(slot, moved, err)
+      do k = 1, copied%n_pieces()
+        if (err%failed()) exit
+        call copied%take_piece(res, moved, k)
+        if (journal%fingerprint(res) /= in_place) cycle
+        call killed_run%move_in(slot, res, copied, err)
+        exit
+      end do
+    end do
+    ! err (a full disk, say): the cases not taken back run again
+  end subroutine take_back_copied_cases
+
+  !> Copy the journaled cases into `out`, their trajectories moved from
+  !> `partial` (open_for_resume kept only them there), then move `out` over
+  !> it. A case whose trajectories are missing there or fail their check
+  !> (the system lost writes) runs again, with a warning.
+  subroutine copy_journaled_cases(journal, places, campaign, shard, partial, out, done, err)
+    type(journal_t), intent(in) :: journal
+    integer(i8), intent(in) :: places(0:)
+    type(campaign_t), intent(in) :: campaign
+    integer, intent(in) :: shard(2)              !< this run's cases: shard(1), shard(1) + shard(2), ...
+    character(len=*), intent(in) :: partial
+    type(h5_output_t), intent(inout) :: out
+    logical, intent(inout) :: done(0:)
+    type(error_t), intent(inout) :: err
+    type(trajectory_store_t) :: killed_run
+    type(error_t) :: unreadable, read_err
+    type(case_result_t) :: res
+    integer(i8) :: slot, in_place, n_lost
+    logical :: found, in_place_fields
+    in_place_fields = any(journal%header%in_place)
+    if (in_place_fields) call open_trajectories(partial, journal%header, killed_run, unreadable)
+    n_lost = 0
+    do slot = 0, size(places, kind=i8) - 1
+      if (err%failed()) exit
+      if (places(slot) < 0) cycle
+      call journal%record_at(places(slot), res, in_place, found)
+      if (.not. found) cycle
+      if (in_place_fields) then
+        if (.not. unreadable%failed()) call killed_run%get(slot, res, read_err)
+        if (unreadable%failed() .or. read_err%failed() .or. journal%fingerprint(res) /= in_place) then
+          n_lost = n_lost + 1
+          read_err = error_t()
+          cycle
+        end if
+      end if
+      call out%write_case(slot, campaign%case_at(shard(1) + slot * shard(2)), res, err, moved_from=killed_run)
+      if (err%failed()) exit
+      done(slot) = .true.
+    end do
+    call killed_run%close(read_err)
+    if (n_lost > 0) then
+      if (.not. unreadable%failed()) unreadable%message = partial // ': their trajectories there are damaged'
+      write (error_unit, '(a)') 'ellroll: warning: ' // itoa(n_lost) // ' finished cases run again: ' // &
+          unreadable%message
+    end if
+    if (.not. err%failed()) call out%move_to(partial, err)
+  end subroutine copy_journaled_cases
+end module ellroll_resume
