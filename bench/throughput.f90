@@ -20,7 +20,7 @@ program throughput
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case, simulate_batch, lanes
   use ellroll_system, only: tune_runtime
-  use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
+  use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size, normalize_normal
   use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative
   use ellroll_ball_steppers, only: lanes_rk4_step, rk4_ball_step
   use baseline_rk4, only: baseline_run
@@ -119,7 +119,7 @@ contains
       call ball%rhs(0.0_wp, y, f)
       call rk4_ball_step(ball, 0.0_wp, y, f, dt, y_new, stage_limit)
       if (stage_limit /= 0) error stop 'integration left the model'
-      call ball%project(y_new)
+      call normalize_normal(y_new)
       y = y_new
     end do
     call system_clock(finish)

@@ -9,8 +9,9 @@ program ellroll
   use ellroll_strings, only: itoa, format_real
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
-  use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, &
-      param_names, get_param
+  use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param, &
+      range_text
+  use ellroll_params, only: params
   use ellroll_campaign, only: invalid_stop
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
@@ -18,7 +19,7 @@ program ellroll
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
       check_output_target
-  use ellroll_integrators, only: integrator_t, new_integrator, method_names
+  use ellroll_integrators, only: methods
   use ellroll_linear, only: oscillation_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
@@ -53,6 +54,8 @@ program ellroll
       call print_summary(trim(paths(1)), err)
     case ('methods')
       call print_methods()
+    case ('inputs')
+      call print_inputs()
     case ('modes')
       call modes_command(err)
     end select
@@ -146,7 +149,7 @@ contains
         opts%quiet = .true.
       case ('--timings')
         opts%timings = .true.
-      case ('run', 'check', 'merge', 'summary', 'methods', 'modes')
+      case ('run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes')
         if (len(command) > 0) then
           call usage_error('more than one command given (' // command // ', ' // arg // ')')
           return
@@ -167,7 +170,7 @@ contains
     end do
     if (len(command) == 0) then
       call usage_error('no command given')
-    else if (command == 'methods') then
+    else if (command == 'methods' .or. command == 'inputs') then
       return
     else if (size(paths) == 0) then
       call usage_error(command // ' needs ' // merge('an output file and shard files', &
@@ -218,6 +221,7 @@ contains
       '  ellroll summary OUT.h5                       print the summary table of a file', &
       '  ellroll modes FILE.nml                       small-oscillation periods of every case', &
       '  ellroll methods                              the integration methods', &
+      '  ellroll inputs                               the inputs a sweep or sample can vary (Markdown)', &
       '  ellroll --version | --help', &
       '', &
       'options:', &
@@ -237,23 +241,34 @@ contains
   end subroutine print_help
 
   subroutine print_methods()
-    class(integrator_t), allocatable :: method
-    type(error_t) :: ignored
-    integer :: k, start
-    character(len=*), parameter :: names = method_names // ' '
+    integer :: k
     character(len=16) :: name, kind
-    start = 1
-    do k = 1, len(names)
-      if (names(k:k) /= ' ') cycle
-      if (k > start) then
-        call new_integrator(names(start:k-1), method, ignored)
-        name = method%name()
-        kind = method%kind()
-        write (output_unit, '(a)') name // kind // 'order ' // method%order()
-      end if
-      start = k + 1
+    do k = 1, size(methods)
+      name = methods(k)%name
+      kind = methods(k)%kind
+      write (output_unit, '(a)') name // kind // 'order ' // trim(methods(k)%order)
     end do
   end subroutine print_methods
+
+  !> The parameter table as a Markdown table (docs/inputs.md holds it).
+  subroutine print_inputs()
+    integer :: k
+    character(len=:), allocatable :: default, variable
+    write (output_unit, '(a)') '| name | group | variable | unit | valid range | default | varied | description |'
+    write (output_unit, '(a)') '| --- | --- | --- | --- | --- | --- | --- | --- |'
+    do k = 1, size(params)
+      associate (p => params(k))
+        default = format_real(p%default)
+        if (p%required) default = 'required'
+        variable = trim(p%variable)
+        if (count(params%variable == p%variable) > 1) &        ! a vector's component
+          variable = variable // '(' // itoa(k - findloc(params%variable, p%variable, dim=1) + 1) // ')'
+        write (output_unit, '(a)') '| `' // trim(p%name) // '` | `&' // trim(p%group) // '` | `' // variable // &
+            '` | ' // trim(p%unit) // ' | ' // range_text(k) // ' | ' // default // ' | ' // &
+            trim(merge('yes', 'no ', p%sweepable)) // ' | ' // trim(p%description) // ' |'
+      end associate
+    end do
+  end subroutine print_inputs
 
   !> The linearised small-oscillation periods about the bottom, spinning at
   !> sigma = omega0 . n0, beside the no-spin formula 2 pi sqrt((1+k)(rho-R)/g).
@@ -419,13 +434,13 @@ contains
     if (opts%shard(2) > 1) write (output_unit, '(a)') '  this shard (' // itoa(opts%shard(1)) // '/' // &
         itoa(opts%shard(2)) // '): ' // itoa(n_local) // ' cases'
     do k = 1, size(inp%campaign%sweeps)
-      write (output_unit, '(a)') '  sweep ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ': ' // &
+      write (output_unit, '(a)') '  sweep ' // trim(params(inp%campaign%sweeps(k)%param)%name) // ': ' // &
           itoa(size(inp%campaign%sweeps(k)%values)) // ' values from ' // &
           format_real(inp%campaign%sweeps(k)%values(1)) // ' to ' // &
           format_real(inp%campaign%sweeps(k)%values(size(inp%campaign%sweeps(k)%values)))
     end do
     do k = 1, size(inp%campaign%samples)
-      write (output_unit, '(a)') '  sample ' // trim(param_names(inp%campaign%samples(k)%param)) // &
+      write (output_unit, '(a)') '  sample ' // trim(params(inp%campaign%samples(k)%param)%name) // &
           ' in [' // format_real(inp%campaign%samples(k)%low) // ', ' // &
           format_real(inp%campaign%samples(k)%high) // '], ' // &
           merge('log   ', 'linear', inp%campaign%samples(k)%log_spacing) // ' spacing'
@@ -435,11 +450,11 @@ contains
         cs = inp%campaign%case_at(i)
         line = '  case ' // itoa(i) // ':'
         do k = 1, size(inp%campaign%sweeps)
-          line = line // ' ' // trim(param_names(inp%campaign%sweeps(k)%param)) // ' = ' // &
+          line = line // ' ' // trim(params(inp%campaign%sweeps(k)%param)%name) // ' = ' // &
                  format_real(get_param(cs, inp%campaign%sweeps(k)%param))
         end do
         do k = 1, size(inp%campaign%samples)
-          line = line // ' ' // trim(param_names(inp%campaign%samples(k)%param)) // ' = ' // &
+          line = line // ' ' // trim(params(inp%campaign%samples(k)%param)%name) // ' = ' // &
                  format_real(get_param(cs, inp%campaign%samples(k)%param))
         end do
         write (output_unit, '(a)') line

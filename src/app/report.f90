@@ -21,8 +21,6 @@ contains
     type(h5_input_t) :: file
     integer(i8), allocatable :: status(:), steps(:), index(:)
     real(wp), allocatable :: wall(:), theta_max(:)
-    integer :: s, slowest
-    character(len=12) :: label
     call file%open(path, err)
     if (err%failed()) return
     status = file%int_column('summary/status', err)
@@ -32,6 +30,15 @@ contains
     theta_max = file%real_column('summary/theta_max', err)
     call file%close()
     if (err%failed()) return
+    call print_table(path, status, steps, index, wall, theta_max)
+  end subroutine print_summary
+
+  subroutine print_table(path, status, steps, index, wall, theta_max)
+    character(len=*), intent(in) :: path
+    integer(i8), intent(in) :: status(:), steps(:), index(:)
+    real(wp), intent(in) :: wall(:), theta_max(:)
+    integer :: s, slowest
+    character(len=12) :: label
     write (output_unit, '(a)') path // ': ' // itoa(size(status)) // ' cases'
     do s = 0, status_count - 1
       if (count(status == s) == 0) cycle
@@ -46,5 +53,5 @@ contains
         format_real(real(nint(1.0e4_wp * wall(slowest)), wp) / 1.0e4_wp) // ' s, ' // &
         status_name(int(status(slowest))) // ')'
     if (size(status) == 1) write (output_unit, '(a)') '  theta_max: ' // format_real(theta_max(1)) // ' rad'
-  end subroutine print_summary
+  end subroutine print_table
 end module ellroll_report

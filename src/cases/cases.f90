@@ -4,69 +4,52 @@
 module ellroll_cases
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: is_zero
+  use ellroll_params, only: params, param_count, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
+      p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
+      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
   use ellroll_excitation, only: excitation_t, excitation_kind_names
+  use ellroll_integrators, only: method_info_t, method_info
   implicit none
   private
 
   public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, finalize_case, &
             adaptive_method, is_multiple, range_text, max_steps
-  public :: param_count, param_names, param_groups, param_units, param_index, get_param, set_param
+  public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
             field_reaction, field_energy, field_base_acceleration
 
+  !> The inputs of the parameter table (ellroll_params) with its defaults,
+  !> and the others.
   type :: case_t
     integer(i8) :: index = 0
-    real(wp) :: a = 0, b = 0, c = 0
-    real(wp) :: radius = 0
-    real(wp) :: weight = 0               !< N; 0 when the mass was given directly
-    real(wp) :: mass = 0                 !< kg; weight / g when the weight was given
-    real(wp) :: g = 9.81_wp
-    real(wp) :: inertia_factor = 0.4_wp
-    real(wp) :: mu = 0                   !< 0: no friction limit
-    real(wp) :: x0 = 0, y0 = 0
-    real(wp) :: omega0(3) = 0
+    real(wp) :: a = params(p_a)%default, b = params(p_b)%default, c = params(p_c)%default
+    real(wp) :: radius = params(p_radius)%default
+    real(wp) :: weight = params(p_weight)%default   !< N; 0 when the mass was given directly
+    real(wp) :: mass = params(p_mass)%default       !< kg; weight / g when the weight was given
+    real(wp) :: g = params(p_g)%default
+    real(wp) :: inertia_factor = params(p_inertia_factor)%default
+    real(wp) :: mu = params(p_mu)%default           !< 0: no friction limit
+    real(wp) :: x0 = params(p_x)%default, y0 = params(p_y)%default
+    real(wp) :: omega0(3) = params(p_omega_x:p_omega_z)%default
     character(len=32) :: method = 'rk4'
-    real(wp) :: dt = 0
+    real(wp) :: dt = params(p_dt)%default
     real(wp) :: t_end = 0
-    real(wp) :: fit_margin = 1.0e-6_wp
-    real(wp) :: rtol = 1.0e-9_wp          !< adaptive method: relative tolerance
-    real(wp) :: atol = 1.0e-12_wp         !< adaptive method: absolute tolerance
+    real(wp) :: fit_margin = params(p_fit_margin)%default
+    real(wp) :: rtol = params(p_rtol)%default       !< adaptive method: relative tolerance
+    real(wp) :: atol = params(p_atol)%default       !< adaptive method: absolute tolerance
     logical :: error_estimate = .false.   !< also run the reference and store error figures
     type(excitation_t) :: excitation      !< translation of the cup (none by default)
   end type case_t
 
-  ! The scalar parameters: what a sweep or a sample can vary.
-  integer, parameter :: param_count = 23
-  character(len=*), parameter :: param_names(param_count) = [character(len=22) :: &
-      'a', 'b', 'c', 'radius', 'weight', 'mass', 'mu', 'inertia_factor', 'g', &
-      'x', 'y', 'omega_x', 'omega_y', 'omega_z', 'dt', 'fit_margin', 'rtol', 'atol', &
-      'excitation_frequency', 'excitation_phase', 'excitation_amplitude_x', 'excitation_amplitude_y', &
-      'excitation_amplitude_z']
-  character(len=*), parameter :: param_groups(param_count) = [character(len=11) :: &
-      'geometry', 'geometry', 'geometry', 'ball', 'ball', 'ball', 'ball', 'ball', 'environment', &
-      'initial', 'initial', 'initial', 'initial', 'initial', 'integration', 'integration', &
-      'integration', 'integration', 'excitation', 'excitation', 'excitation', 'excitation', 'excitation']
-  character(len=*), parameter :: param_units(param_count) = [character(len=5) :: &
-      'm', 'm', 'm', 'm', 'N', 'kg', '', '', 'm/s^2', 'm', 'm', 'rad/s', 'rad/s', 'rad/s', 's', '', '', '', &
-      'Hz', 'rad', 'm/s^2', 'm/s^2', 'm/s^2']
-  ! Bounds keep every derived quantity finite (squares, products, s^4).
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
   real(wp), parameter :: max_steps = 1.0e12_wp   !< also the most samples a case stores
-  real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
-  real(wp), parameter :: param_low(param_count) = [length_min, length_min, length_min, length_min, &
-      tiny(1.0_wp), tiny(1.0_wp), 0.0_wp, tiny(1.0_wp), 0.0_wp, -length_max, -length_max, &
-      -1.0e6_wp, -1.0e6_wp, -1.0e6_wp, tiny(1.0_wp), 0.0_wp, 1.0e-14_wp, 0.0_wp, &
-      0.0_wp, -1.0e3_wp, -1.0e4_wp, -1.0e4_wp, -1.0e4_wp]
-  real(wp), parameter :: param_high(param_count) = [length_max, length_max, length_max, length_max, &
-      1.0e12_wp, 1.0e12_wp, 1.0e6_wp, 2.0_wp / 3, 1.0e4_wp, length_max, length_max, &
-      1.0e6_wp, 1.0e6_wp, 1.0e6_wp, 1.0e9_wp, 0.5_wp, 0.1_wp, 1.0_wp, &
-      1.0e6_wp, 1.0e3_wp, 1.0e4_wp, 1.0e4_wp, 1.0e4_wp]
 
   integer, parameter :: field_count = 8
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
@@ -97,65 +80,59 @@ module ellroll_cases
 
 contains
 
-  pure integer function param_index(name)
-    character(len=*), intent(in) :: name
-    integer :: k
-    param_index = 0
-    do k = 1, param_count
-      if (param_names(k) == name) param_index = k
-    end do
-  end function param_index
-
-  pure real(wp) function get_param(cs, id) result(value)
+  pure real(wp) function get_param(cs, p) result(value)
     type(case_t), intent(in) :: cs
-    integer, intent(in) :: id
-    select case (id)
-    case (1); value = cs%a
-    case (2); value = cs%b
-    case (3); value = cs%c
-    case (4); value = cs%radius
-    case (5); value = cs%weight
-    case (6); value = cs%mass
-    case (7); value = cs%mu
-    case (8); value = cs%inertia_factor
-    case (9); value = cs%g
-    case (10); value = cs%x0
-    case (11); value = cs%y0
-    case (12:14); value = cs%omega0(id - 11)
-    case (15); value = cs%dt
-    case (16); value = cs%fit_margin
-    case (17); value = cs%rtol
-    case (18); value = cs%atol
-    case (19); value = cs%excitation%frequency
-    case (20); value = cs%excitation%phase
-    case default; value = cs%excitation%amplitude(id - 20)
+    integer, intent(in) :: p                 !< a row of the parameter table
+    select case (p)
+    case (p_a); value = cs%a
+    case (p_b); value = cs%b
+    case (p_c); value = cs%c
+    case (p_radius); value = cs%radius
+    case (p_weight); value = cs%weight
+    case (p_mass); value = cs%mass
+    case (p_mu); value = cs%mu
+    case (p_inertia_factor); value = cs%inertia_factor
+    case (p_g); value = cs%g
+    case (p_x); value = cs%x0
+    case (p_y); value = cs%y0
+    case (p_omega_x:p_omega_z); value = cs%omega0(p - p_omega_x + 1)
+    case (p_dt); value = cs%dt
+    case (p_fit_margin); value = cs%fit_margin
+    case (p_rtol); value = cs%rtol
+    case (p_atol); value = cs%atol
+    case (p_excitation_frequency); value = cs%excitation%frequency
+    case (p_excitation_phase); value = cs%excitation%phase
+    case (p_excitation_amplitude_x:p_excitation_amplitude_z)
+      value = cs%excitation%amplitude(p - p_excitation_amplitude_x + 1)
+    case default; value = ieee_value(value, ieee_quiet_nan)
     end select
   end function get_param
 
-  pure subroutine set_param(cs, id, value)
+  pure subroutine set_param(cs, p, value)
     type(case_t), intent(inout) :: cs
-    integer, intent(in) :: id
+    integer, intent(in) :: p                 !< a row of the parameter table
     real(wp), intent(in) :: value
-    select case (id)
-    case (1); cs%a = value
-    case (2); cs%b = value
-    case (3); cs%c = value
-    case (4); cs%radius = value
-    case (5); cs%weight = value
-    case (6); cs%mass = value
-    case (7); cs%mu = value
-    case (8); cs%inertia_factor = value
-    case (9); cs%g = value
-    case (10); cs%x0 = value
-    case (11); cs%y0 = value
-    case (12:14); cs%omega0(id - 11) = value
-    case (15); cs%dt = value
-    case (16); cs%fit_margin = value
-    case (17); cs%rtol = value
-    case (18); cs%atol = value
-    case (19); cs%excitation%frequency = value
-    case (20); cs%excitation%phase = value
-    case default; cs%excitation%amplitude(id - 20) = value
+    select case (p)
+    case (p_a); cs%a = value
+    case (p_b); cs%b = value
+    case (p_c); cs%c = value
+    case (p_radius); cs%radius = value
+    case (p_weight); cs%weight = value
+    case (p_mass); cs%mass = value
+    case (p_mu); cs%mu = value
+    case (p_inertia_factor); cs%inertia_factor = value
+    case (p_g); cs%g = value
+    case (p_x); cs%x0 = value
+    case (p_y); cs%y0 = value
+    case (p_omega_x:p_omega_z); cs%omega0(p - p_omega_x + 1) = value
+    case (p_dt); cs%dt = value
+    case (p_fit_margin); cs%fit_margin = value
+    case (p_rtol); cs%rtol = value
+    case (p_atol); cs%atol = value
+    case (p_excitation_frequency); cs%excitation%frequency = value
+    case (p_excitation_phase); cs%excitation%phase = value
+    case (p_excitation_amplitude_x:p_excitation_amplitude_z)
+      cs%excitation%amplitude(p - p_excitation_amplitude_x + 1) = value
     end select
   end subroutine set_param
 
@@ -175,7 +152,7 @@ contains
     if (.not. (ieee_is_finite(cs%weight) .and. ieee_is_finite(cs%g))) return
     if (cs%weight <= 0) return
     cs%mass = 0
-    if (cs%g > 0 .and. cs%weight / param_high(param_index('mass')) <= cs%g) cs%mass = cs%weight / cs%g
+    if (cs%g > 0 .and. cs%weight / params(p_mass)%high <= cs%g) cs%mass = cs%weight / cs%g
   end subroutine finalize_case
 
   !> The first problem of a case, as the parameter it concerns and why;
@@ -188,10 +165,8 @@ contains
     integer, intent(out) :: param
     character(len=:), allocatable, intent(out) :: reason
     real(wp) :: value, level, radii(2)
-    integer :: k, weight_id, mass_id
+    integer :: k
     reason = ''
-    weight_id = param_index('weight')      ! looked up once: this runs for every case
-    mass_id = param_index('mass')
     do k = 1, param_count
       param = k
       value = get_param(cs, k)
@@ -199,24 +174,24 @@ contains
         reason = 'must be a finite number'
         return
       end if
-      if (k == weight_id .and. value == 0) cycle     ! mass given instead
-      if (k == mass_id .and. cs%weight > 0) cycle
-      if (value < param_low(k) .or. value > param_high(k)) then
+      if (k == p_weight .and. is_zero(value)) cycle     ! mass given instead
+      if (k == p_mass .and. cs%weight > 0) cycle
+      if (value < params(k)%low .or. value > params(k)%high) then
         reason = range_text(k)
         return
       end if
     end do
-    param = param_index('weight')
+    param = p_weight
     if (cs%weight > 0 .and. cs%g <= 0) then
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
       return
     end if
     if (cs%weight > 0 .and. .not. cs%mass > 0) then
-      reason = 'gives a mass weight / g above ' // format_real(param_high(mass_id)) // ' kg with g = ' // &
+      reason = 'gives a mass weight / g above ' // format_real(params(p_mass)%high) // ' kg with g = ' // &
                format_real(cs%g) // ' m/s^2; give mass instead'
       return
     end if
-    param = param_index('dt')
+    param = p_dt
     if (cs%dt > cs%t_end) then
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
       return
@@ -232,7 +207,7 @@ contains
     end if
     level = (cs%x0 / cs%a)**2 + (cs%y0 / cs%b)**2
     if (level >= 1) then
-      param = param_index(merge('x', 'y', cs%x0 /= 0))
+      param = merge(p_x, p_y, .not. is_zero(cs%x0))
       reason = 'the start (x, y) = (' // format_real(cs%x0) // ', ' // format_real(cs%y0) // &
                ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
       return
@@ -240,7 +215,7 @@ contains
     radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
                             normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x0, cs%y0))
     if (radii(1) / cs%radius - 1 <= cs%fit_margin) then
-      param = param_index('radius')
+      param = p_radius
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
                format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
                ' m, and radius must be below ' // format_real(radii(1)) // ' m'
@@ -254,18 +229,20 @@ contains
     character(len=:), allocatable :: text
     character(len=:), allocatable :: units
     units = ''
-    if (len_trim(param_units(k)) > 0) units = ' ' // trim(param_units(k))
-    if (param_low(k) == tiny(1.0_wp)) then
-      text = 'must be > 0 and <= ' // format_real(param_high(k)) // units
+    if (params(k)%unit /= '1') units = ' ' // trim(params(k)%unit)
+    if (params(k)%positive) then
+      text = 'must be > 0 and <= ' // format_real(params(k)%high) // units
     else
-      text = 'must be between ' // format_real(param_low(k)) // ' and ' // format_real(param_high(k)) // units
+      text = 'must be between ' // format_real(params(k)%low) // ' and ' // format_real(params(k)%high) // units
     end if
   end function range_text
 
   !> Methods whose step is chosen by error control (dt is then the largest step).
   logical pure function adaptive_method(method)
     character(len=*), intent(in) :: method
-    adaptive_method = trim(method) == 'dop853'
+    type(method_info_t) :: info
+    info = method_info(trim(method))
+    adaptive_method = info%adaptive
   end function adaptive_method
 
   !> whole is a whole number (>= 1) of parts, to 1e-9 relative.
@@ -298,31 +275,36 @@ contains
     if (mu <= 0) mu = ieee_value(mu, ieee_quiet_nan)
     rec = [ &
       int_value('index', '1', 'global case index', cs%index), &
-      real_value('a', 'm', 'semi-axis of the cup along x', cs%a), &
-      real_value('b', 'm', 'semi-axis of the cup along y', cs%b), &
-      real_value('c', 'm', 'semi-axis of the cup along z (cup depth)', cs%c), &
-      real_value('radius', 'm', 'ball radius R', cs%radius), &
-      real_value('mass', 'kg', 'ball mass m', cs%mass), &
-      real_value('weight', 'N', 'ball weight m g', cs%mass * cs%g), &
-      real_value('g', 'm/s^2', 'gravitational acceleration', cs%g), &
-      real_value('inertia_factor', '1', 'J / (m R^2); 0.4 for a homogeneous ball', cs%inertia_factor), &
-      real_value('mu', '1', 'friction coefficient (NaN: not limited)', mu), &
-      real_value('x0', 'm', 'initial contact point x', cs%x0), &
-      real_value('y0', 'm', 'initial contact point y', cs%y0), &
-      vector_value('omega0', 'rad/s', 'initial angular velocity', cs%omega0), &
+      row(p_a, cs%a), row(p_b, cs%b), row(p_c, cs%c), row(p_radius, cs%radius), row(p_mass, cs%mass), &
+      row(p_weight, cs%mass * cs%g), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
+      row(p_x, cs%x0, 'x0'), row(p_y, cs%y0, 'y0'), &
+      vector_value('omega0', params(p_omega_x)%unit, 'initial angular velocity', cs%omega0), &
       text_value('method', 'integration method', cs%method), &
-      real_value('dt', 's', 'integration step', cs%dt), &
+      row(p_dt, cs%dt), &
       real_value('t_end', 's', 'end time', cs%t_end), &
-      real_value('fit_margin', '1', 'case ends when r_min / R - 1 falls to this', cs%fit_margin), &
-      real_value('rtol', '1', 'relative tolerance (adaptive method)', cs%rtol), &
-      real_value('atol', '1', 'absolute tolerance (adaptive method)', cs%atol), &
+      row(p_fit_margin, cs%fit_margin), row(p_rtol, cs%rtol), row(p_atol, cs%atol), &
       int_value('error_estimate', '1', '1: error figures from a reference run are in /summary', &
                 merge(1_i8, 0_i8, cs%error_estimate)), &
       text_value('excitation_kind', 'motion of the cup: none, harmonic or record', &
                  excitation_kind_names(cs%excitation%kind)), &
-      vector_value('excitation_amplitude', 'm/s^2', 'harmonic: amplitude of the cup acceleration', &
-                   cs%excitation%amplitude), &
-      real_value('excitation_frequency', 'Hz', 'harmonic: frequency', cs%excitation%frequency), &
-      real_value('excitation_phase', 'rad', 'harmonic: phase', cs%excitation%phase) ]
+      vector_value('excitation_amplitude', params(p_excitation_amplitude_x)%unit, &
+                   'harmonic: amplitude of the cup acceleration', cs%excitation%amplitude), &
+      row(p_excitation_frequency, cs%excitation%frequency), row(p_excitation_phase, cs%excitation%phase)]
+
+  contains
+
+    !> A table row's value, with its unit and description; stored under its
+    !> name, or `stored_as`.
+    function row(p, value, stored_as) result(named)
+      integer, intent(in) :: p
+      real(wp), intent(in) :: value
+      character(len=*), intent(in), optional :: stored_as
+      type(named_value_t) :: named
+      if (present(stored_as)) then
+        named = real_value(stored_as, trim(params(p)%unit), trim(params(p)%description), value)
+      else
+        named = real_value(trim(params(p)%name), trim(params(p)%unit), trim(params(p)%description), value)
+      end if
+    end function row
   end function case_record
 end module ellroll_cases

@@ -2,6 +2,7 @@
 module ellroll_strings
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: is_zero, equals
   implicit none
   private
 
@@ -75,14 +76,14 @@ contains
       text = trim(adjustl(buf))
       return
     end if
-    if (x == 0) then
+    if (is_zero(x)) then
       text = '0'
       return
     end if
     do digits = 1, 17
       write (buf, '(es40.' // itoa(digits - 1) // 'e3)') x
       read (buf, *, iostat=ios) back
-      if (ios == 0 .and. back == x) exit
+      if (ios == 0 .and. equals(back, x)) exit
     end do
     exponent10 = floor(log10(abs(x)))
     if (exponent10 >= -4 .and. exponent10 < 10) then

@@ -11,12 +11,16 @@ module ellroll_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
-      field_ncomp, param_count, param_names, param_groups, param_index, get_param, adaptive_method, range_text, max_steps, &
+      field_ncomp, get_param, adaptive_method, range_text, max_steps, &
       field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
       invalid_stop, invalid_skip
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
   use ellroll_integrators, only: method_names
+  use ellroll_record_file, only: load_record
+  use ellroll_params, only: params, param_count, param_index, param_default, p_a, p_b, p_c, p_radius, p_weight, &
+      p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
+      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z
   implicit none
   private
 
@@ -48,6 +52,7 @@ module ellroll_input
     procedure :: fail_missing
     procedure :: given
     procedure :: require
+    procedure :: require_all
   end type reader_t
 
 contains
@@ -140,18 +145,20 @@ contains
     namelist /sample/ name, low, high, spacing
     integer :: gi, k, ios
     character(len=512) :: msg
-    type(ieee_status_type) :: fp_state
-    character(len=:), allocatable :: lines(:)
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: draws(:)
 
-    a = nan(); b = nan(); c = nan(); radius = nan(); weight = nan(); mass = nan(); mu = 0
-    inertia_factor = 0.4_wp; g = 9.81_wp; x = 0; y = 0; omega = nan()
-    method = 'rk4'; dt = nan(); t_end = nan(); fit_margin = 1.0e-6_wp
-    rtol = 1.0e-9_wp; atol = 1.0e-12_wp; error_estimate = 'none'
+    ! the parameter table's defaults (NaN: required)
+    a = param_default(p_a); b = param_default(p_b); c = param_default(p_c); radius = param_default(p_radius)
+    weight = param_default(p_weight); mass = param_default(p_mass); mu = param_default(p_mu)
+    inertia_factor = param_default(p_inertia_factor); g = param_default(p_g)
+    x = param_default(p_x); y = param_default(p_y); omega = [(param_default(k), k = p_omega_x, p_omega_z)]
+    method = 'rk4'; dt = param_default(p_dt); t_end = nan(); fit_margin = param_default(p_fit_margin)
+    rtol = param_default(p_rtol); atol = param_default(p_atol); error_estimate = 'none'
     file = ''; interval = nan(); fields = ''; compression = 0
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
-    kind = 'none'; amplitude = 0; frequency = 0; phase = 0; record_file = ''
+    kind = 'none'; amplitude = [(param_default(k), k = p_excitation_amplitude_x, p_excitation_amplitude_z)]
+    frequency = param_default(p_excitation_frequency); phase = param_default(p_excitation_phase); record_file = ''
     allocate (sweeps(0), draws(0))
 
     do gi = 1, size(rd%file%groups)
@@ -160,24 +167,7 @@ contains
         name = ''; values = nan(); start = nan(); stop = nan(); count = 0; spacing = 'linear'
         low = nan(); high = nan()
         do k = 1, size(grp%items)
-          lines = assignment_lines(grp, k)
-          call ieee_get_status(fp_state)
-          ! text such as 1e309 reads as Inf, which the checks name; its
-          ! conversion must not stop a build that traps on overflow
-          call ieee_set_halting_mode(ieee_usual, .false.)
-          select case (grp%name)
-          case ('geometry'); read (lines, nml=geometry, iostat=ios, iomsg=msg)
-          case ('ball'); read (lines, nml=ball, iostat=ios, iomsg=msg)
-          case ('environment'); read (lines, nml=environment, iostat=ios, iomsg=msg)
-          case ('initial'); read (lines, nml=initial, iostat=ios, iomsg=msg)
-          case ('integration'); read (lines, nml=integration, iostat=ios, iomsg=msg)
-          case ('output'); read (lines, nml=output, iostat=ios, iomsg=msg)
-          case ('excitation'); read (lines, nml=excitation, iostat=ios, iomsg=msg)
-          case ('campaign'); read (lines, nml=campaign, iostat=ios, iomsg=msg)
-          case ('sweep'); read (lines, nml=sweep, iostat=ios, iomsg=msg)
-          case ('sample'); read (lines, nml=sample, iostat=ios, iomsg=msg)
-          end select
-          call ieee_set_status(fp_state)
+          call read_assignment(grp, k, ios, msg)
           if (ios /= 0) then
             associate (item => grp%items(k))
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
@@ -204,6 +194,34 @@ contains
     call build_campaign(inp%campaign)
 
   contains
+
+    !> Read assignment k of a group alone, into the variables of its namelist.
+    subroutine read_assignment(grp, k, ios, msg)
+      type(nml_group_t), intent(in) :: grp
+      integer, intent(in) :: k
+      integer, intent(out) :: ios
+      character(len=*), intent(inout) :: msg
+      type(ieee_status_type) :: fp_state
+      character(len=:), allocatable :: record
+      record = assignment_record(grp, k)
+      call ieee_get_status(fp_state)
+      ! text such as 1e309 reads as Inf, which the checks name; its
+      ! conversion must not stop a build that traps on overflow
+      call ieee_set_halting_mode(ieee_usual, .false.)
+      select case (grp%name)
+      case ('geometry'); read (record, nml=geometry, iostat=ios, iomsg=msg)
+      case ('ball'); read (record, nml=ball, iostat=ios, iomsg=msg)
+      case ('environment'); read (record, nml=environment, iostat=ios, iomsg=msg)
+      case ('initial'); read (record, nml=initial, iostat=ios, iomsg=msg)
+      case ('integration'); read (record, nml=integration, iostat=ios, iomsg=msg)
+      case ('output'); read (record, nml=output, iostat=ios, iomsg=msg)
+      case ('excitation'); read (record, nml=excitation, iostat=ios, iomsg=msg)
+      case ('campaign'); read (record, nml=campaign, iostat=ios, iomsg=msg)
+      case ('sweep'); read (record, nml=sweep, iostat=ios, iomsg=msg)
+      case ('sample'); read (record, nml=sample, iostat=ios, iomsg=msg)
+      end select
+      call ieee_set_status(fp_state)
+    end subroutine read_assignment
 
     logical function names_known(gi) result(ok)
       integer, intent(in) :: gi
@@ -232,7 +250,7 @@ contains
       integer :: gi
       gi = rd%group('geometry', .true.)
       if (gi == 0) return
-      if (.not. (rd%require(gi, 'a', a) .and. rd%require(gi, 'b', b) .and. rd%require(gi, 'c', c))) return
+      if (.not. rd%require_all(gi, [character(len=6) :: 'a', 'b', 'c'], [a, b, c])) return
       gi = rd%group('ball', .true.)
       if (gi == 0) return
       if (.not. rd%require(gi, 'radius', radius)) return
@@ -242,7 +260,7 @@ contains
       else if (rd%given(gi, 'weight')) then
         if (.not. rd%require(gi, 'weight', weight)) return
         if (ieee_is_finite(weight) .and. .not. weight > 0) then   ! case_t reads weight 0 as 'mass given'
-          call rd%fail_value(gi, 'weight', range_text(param_index('weight')))
+          call rd%fail_value(gi, 'weight', range_text(p_weight))
           return
         end if
         cs%weight = weight
@@ -266,8 +284,8 @@ contains
       gi = rd%group('integration', .true.)
       if (gi == 0) return
       method = lower(adjustl(method))
-      if (index(' ' // method_names // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
-        call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names // ')')
+      if (index(' ' // method_names() // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
+        call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names() // ')')
         return
       end if
       if (.not. rd%require(gi, 't_end', t_end)) return
@@ -403,11 +421,8 @@ contains
       character(len=:), allocatable :: reason, variable
       call check_case(cs, plan%interval, param, reason)
       if (param /= 0) then
-        gi = rd%group(trim(param_groups(param)), .true.)
-        variable = trim(param_names(param))
-        if (variable(1:min(6, len(variable))) == 'omega_') variable = 'omega'
-        if (index(variable, 'excitation_') == 1) variable = variable(12:)
-        if (index(variable, 'amplitude_') == 1) variable = 'amplitude'
+        gi = rd%group(trim(params(param)%group), .true.)
+        variable = trim(params(param)%variable)
         if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
           gi = rd%group('output', .true.)
           variable = 'interval'
@@ -440,7 +455,7 @@ contains
         end if
         sw%values = values(:n)
       else
-        if (.not. (rd%require(gi, 'start', start) .and. rd%require(gi, 'stop', stop))) return
+        if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [start, stop])) return
         if (count < 1 .or. count > max_values * 1000) then
           call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
           return
@@ -469,7 +484,7 @@ contains
       s%line = rd%file%groups(gi)%line
       s%param = swept_param(gi)
       if (s%param == 0) return
-      if (.not. (rd%require(gi, 'low', low) .and. rd%require(gi, 'high', high))) return
+      if (.not. rd%require_all(gi, [character(len=6) :: 'low', 'high'], [low, high])) return
       if (.not. high > low) then
         call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(low))
         return
@@ -502,7 +517,7 @@ contains
       end if
       param = param_index(trim(lower(adjustl(name))))
       if (param == 0) then
-        call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(param_names) // ')')
+        call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
         return
       end if
       do k = 1, size(sweeps)
@@ -562,7 +577,7 @@ contains
           end if
         end do
       end if
-      bi = param_index('weight')
+      bi = p_weight
       do k = 1, size(sweeps) + size(draws)
         if (k <= size(sweeps)) then
           param = sweeps(k)%param; line = sweeps(k)%line
@@ -571,7 +586,7 @@ contains
         end if
         if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
             'weight is varied but &ball gives mass; vary mass instead')
-        if (param == param_index('mass') .and. camp%base%weight > 0) call rd%fail_at(line, &
+        if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
             'mass is varied but &ball gives weight; vary weight instead')
       end do
       if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
@@ -611,7 +626,7 @@ contains
     function setting(p) result(s)
       integer, intent(in) :: p
       character(len=:), allocatable :: s
-      s = trim(param_names(p)) // ' = ' // format_real(get_param(cs, p))
+      s = trim(params(p)%name) // ' = ' // format_real(get_param(cs, p))
     end function setting
   end function describe_invalid
 
@@ -709,30 +724,33 @@ contains
     end if
   end function require
 
-  !> The records of a one-assignment namelist: '&group', the assignment's lines, '/'.
-  function assignment_lines(grp, k) result(lines)
+  !> require for each name in turn, up to the first that fails.
+  logical function require_all(rd, gi, names, values) result(ok)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: names(:)
+    real(wp), intent(in) :: values(:)
+    integer :: k
+    ok = .true.
+    do k = 1, size(names)
+      ok = rd%require(gi, trim(names(k)), values(k))
+      if (.not. ok) return
+    end do
+  end function require_all
+
+  !> A one-assignment namelist in one record: '&group name = value /'.
+  !> The assignment's lines are joined by blanks (the scanner blanked its
+  !> comments, and no value spans a line break).
+  function assignment_record(grp, k) result(record)
     type(nml_group_t), intent(in) :: grp
     integer, intent(in) :: k
-    character(len=:), allocatable :: lines(:)
-    character(len=:), allocatable :: source
-    integer :: n_lines, width, start, pos, m
-    source = grp%items(k)%source
-    n_lines = count([(source(pos:pos) == achar(10), pos = 1, len(source))]) + 1
-    width = max(len(source), len(grp%name) + 1) + 2
-    allocate (character(len=width) :: lines(n_lines + 2))
-    lines(1) = '&' // grp%name
-    start = 1
-    m = 1
-    do pos = 1, len(source)
-      if (source(pos:pos) == achar(10)) then
-        m = m + 1
-        lines(m) = source(start:pos-1)
-        start = pos + 1
-      end if
+    character(len=:), allocatable :: record
+    integer :: pos
+    record = '&' // grp%name // ' ' // grp%items(k)%source // ' /'
+    do pos = 1, len(record)
+      if (record(pos:pos) == achar(10)) record(pos:pos) = ' '
     end do
-    lines(m + 1) = source(start:)
-    lines(n_lines + 2) = '/'
-  end function assignment_lines
+  end function assignment_record
 
   !> Groups and assignments in file order, without comments or layout: what
   !> decides whether two inputs describe the same campaign.
@@ -762,104 +780,6 @@ contains
       resolved = input_path(:slash) // path
     end if
   end function resolve_path
-
-  !> Read a ground-acceleration record: lines of 'time, ax, ay[, az]' (commas
-  !> or blanks; '#' comments and a header line allowed). reason = '' when it
-  !> is usable: finite values, strictly increasing times, covering [0, t_end].
-  subroutine load_record(path, t_end, times, values, reason)
-    character(len=*), intent(in) :: path
-    real(wp), intent(in) :: t_end
-    real(wp), allocatable, intent(out) :: times(:), values(:, :)
-    character(len=:), allocatable, intent(out) :: reason
-    integer :: unit, ios, line_number, n, columns, k, width
-    character(len=4096) :: line
-    real(wp) :: row(4)
-    logical :: header_allowed
-    type(ieee_status_type) :: fp_state
-    reason = ''
-    allocate (times(0), values(3, 0))
-    open (newunit=unit, file=path, status='old', action='read', iostat=ios)
-    if (ios /= 0) then
-      reason = 'cannot open ' // path
-      return
-    end if
-    line_number = 0
-    n = 0
-    columns = 0
-    header_allowed = .true.
-    do
-      read (unit, '(a)', iostat=ios) line
-      if (ios /= 0) exit
-      line_number = line_number + 1
-      if (index(line, '#') > 0) line = line(:index(line, '#') - 1)
-      do k = 1, len_trim(line)
-        if (line(k:k) == ',' .or. line(k:k) == ';' .or. iachar(line(k:k)) == 9 .or. iachar(line(k:k)) == 13) &
-          line(k:k) = ' '
-      end do
-      if (len_trim(line) == 0) cycle
-      width = count_words(line)
-      if (width < 3 .or. width > 4) then
-        if (header_allowed .and. n == 0) then
-          header_allowed = .false.
-          cycle
-        end if
-        reason = path // ':' // itoa(line_number) // ': expected 3 or 4 numbers (time, ax, ay[, az]), found ' // &
-                 itoa(width)
-        exit
-      end if
-      row = 0
-      call ieee_get_status(fp_state)
-      call ieee_set_halting_mode(ieee_usual, .false.)   ! 1e309 reads as Inf, named below
-      read (line, *, iostat=ios) row(:width)
-      call ieee_set_status(fp_state)
-      if (ios /= 0) then
-        if (header_allowed .and. n == 0) then
-          header_allowed = .false.
-          cycle
-        end if
-        reason = path // ':' // itoa(line_number) // ': not numbers: ' // trim(adjustl(line))
-        exit
-      end if
-      header_allowed = .false.
-      if (columns == 0) columns = width
-      if (width /= columns) then
-        reason = path // ':' // itoa(line_number) // ': ' // itoa(width) // ' columns where the first row has ' // &
-                 itoa(columns)
-        exit
-      end if
-      if (.not. all(ieee_is_finite(row(:width)))) then
-        reason = path // ':' // itoa(line_number) // ': a value is not finite'
-        exit
-      end if
-      if (n > 0) then
-        if (row(1) <= times(n)) then
-          reason = path // ':' // itoa(line_number) // ': time ' // format_real(row(1)) // &
-                   ' s does not increase (previous ' // format_real(times(n)) // ' s)'
-          exit
-        end if
-      end if
-      n = n + 1
-      times = [times, row(1)]
-      values = reshape([values, row(2:4)], [3, n])
-    end do
-    close (unit)
-    if (len(reason) > 0) return
-    if (n < 2) then
-      reason = path // ': fewer than two samples'
-    else if (times(1) > 0 .or. times(n) < t_end) then
-      reason = path // ': the record covers ' // format_real(times(1)) // ' to ' // format_real(times(n)) // &
-               ' s, not 0 to t_end = ' // format_real(t_end) // ' s'
-    end if
-  end subroutine load_record
-
-  pure integer function count_words(text)
-    character(len=*), intent(in) :: text
-    integer :: k
-    count_words = 0
-    do k = 1, len_trim(text)
-      if (text(k:k) /= ' ' .and. (k == 1 .or. text(max(1, k-1):max(1, k-1)) == ' ')) count_words = count_words + 1
-    end do
-  end function count_words
 
   !> Entries of a NaN-initialised list that were given.
   pure integer function count_given(list)

@@ -9,7 +9,7 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative
+      ball_derivative, normalize_normal
   use ellroll_integrators, only: dop853_t, max_equations
   use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
@@ -427,7 +427,7 @@ contains
     logical :: prepared
     call dop853_ball_dense(dop, run%ball, theta, y, prepared)
     if (prepared) n_rhs = n_rhs + dop853_dense_calls
-    call run%ball%project(y)
+    call normalize_normal(y)
   end subroutine dense_point
 
   !> Every derived output at t_old + theta h of the last attempt, from its

@@ -6,10 +6,11 @@
 !> (ellroll_ball_lanes), each lane with its own step size.
 module ellroll_ball_steppers
   use ellroll_kinds, only: wp
+  use ellroll_exact, only: is_zero
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_integrators, only: dop853_t, max_equations
   use ellroll_dop853_tableau, only: c853, end_stage, first_dense_stage, stages_dense, a_value, a_column, a_row, &
-      e5, bhh
+      e5, bhh, in_error_estimate
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
   use ellroll_status, only: status_completed
   implicit none
@@ -172,7 +173,7 @@ contains
     do i = 1, state_size
       err5 = 0
       do s = 1, end_stage
-        if (e5(s) /= 0) err5 = err5 + e5(s) * k(:, i, s)
+        if (in_error_estimate(s)) err5 = err5 + e5(s) * k(:, i, s)
       end do
       err3 = (y_new(:, i) - y(:, i)) / h - bhh(1) * k(:, i, 1) - bhh(2) * k(:, i, 9) - bhh(3) * k(:, i, 12)
       scale = atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol
@@ -180,7 +181,7 @@ contains
       e3_norm2 = e3_norm2 + (err3 / scale)**2
     end do
     do l = 1, lanes
-      if (e5_norm2(l) == 0 .and. e3_norm2(l) == 0) then
+      if (is_zero(e5_norm2(l)) .and. is_zero(e3_norm2(l))) then
         error_norm(l) = 0
       else
         error_norm(l) = abs(h(l)) * e5_norm2(l) / sqrt((e5_norm2(l) + 0.01_wp * e3_norm2(l)) * state_size)

@@ -6,6 +6,7 @@
 module ellroll_case_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8, two_pi
+  use ellroll_exact, only: is_zero
   use ellroll_excitation, only: excitation_harmonic
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
@@ -192,7 +193,7 @@ contains
     numerator = d1**2 * (self%v(2) - self%v(3)) - d3**2 * (self%v(2) - self%v(1))
     denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
     t_peak = self%t(2)
-    if (denominator /= 0) t_peak = self%t(2) - 0.5_wp * numerator / denominator
+    if (.not. is_zero(denominator)) t_peak = self%t(2) - 0.5_wp * numerator / denominator
     call self%add_peak(t_peak)
   end subroutine add_sample
 

@@ -9,7 +9,7 @@ module ellroll_fixed_step_run
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative
+  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
   use ellroll_integrators, only: integrator_t, rk4_t, stability_limit
   use ellroll_ball_steppers, only: rk4_ball_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
@@ -103,7 +103,7 @@ contains
       call integrator%step(run%ball, t, y, f, h, y_new, n_rhs)
       stage_limit = integrator%stage_limit
     end select
-    call run%ball%project(y_new)
+    call normalize_normal(y_new)
     call ball_derivative(run%ball, t + h, y_new, f_new)
     n_rhs = n_rhs + 1
     call observe(run%ball, t + h, y_new, f_new, obs)

@@ -8,6 +8,7 @@
 module ellroll_linear
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, ieee_is_finite
   use ellroll_kinds, only: wp, two_pi
+  use ellroll_lapack, only: dgeev
   use ellroll_rolling_ball, only: rolling_ball_t, state_size
   implicit none
   private

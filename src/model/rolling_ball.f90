@@ -13,7 +13,7 @@
 module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
-  use ellroll_ode, only: ode_system_t
+  use ellroll_ode, only: limited_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
@@ -23,13 +23,13 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator
+            nutation_angle, stage_status, fit_indicator, normalize_normal
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
   real(wp), parameter :: constraint_tolerance = 1.0e-10_wp
 
-  type, extends(ode_system_t) :: rolling_ball_t
+  type, extends(limited_system_t) :: rolling_ball_t
     type(ellipsoid_t) :: cup
     real(wp) :: radius = 1
     real(wp) :: mass = 1
@@ -40,7 +40,6 @@ module ellroll_rolling_ball
     type(excitation_t) :: excitation      !< translation of the cup
   contains
     procedure :: rhs => ball_rhs
-    procedure :: project => normalize_normal
     procedure :: stage_status => ball_stage_status
     procedure :: reaction_limited
   end type rolling_ball_t
@@ -134,8 +133,8 @@ contains
     end associate
   end subroutine ball_derivative
 
-  pure subroutine normalize_normal(self, y)
-    class(rolling_ball_t), intent(in) :: self
+  !> The state back on the model's manifold: the normal of unit length.
+  pure subroutine normalize_normal(y)
     real(wp), intent(inout) :: y(:)
     y(1:3) = y(1:3) / sqrt(dot_product(y(1:3), y(1:3)))
   end subroutine normalize_normal

@@ -17,7 +17,7 @@ module ellroll_run_campaign
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid
-  use ellroll_cases, only: case_t, check_case, param_names, make_ball, adaptive_method, is_multiple
+  use ellroll_cases, only: case_t, check_case, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit

@@ -6,6 +6,7 @@
 !> control); a case's result does not depend on its lane or on the
 !> other cases of its batch (bitwise).
 program test_batch
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip
@@ -167,7 +168,7 @@ contains
     x = [a%t_final, a%theta_max, a%reaction_normal_max, a%friction_needed_max, a%energy_drift + 1, &
          a%constraint_error_max + 1, a%nutation_period, a%linear_periods, a%displacement_max, &
          a%horizontal_force_max]
-    where (x /= x) x = 0
+    where (ieee_is_nan(x)) x = 0
   end function figures
 
   real(wp) function sample_difference(a, b)
@@ -177,11 +178,12 @@ contains
     do f = 1, field_count
       if (.not. allocated(a%fields(f)%values)) cycle
       associate (u => a%fields(f)%values, v => b%fields(f)%values)
-        if (any((u /= u) .neqv. (v /= v))) then
+        if (any(ieee_is_nan(u) .neqv. ieee_is_nan(v))) then
           sample_difference = huge(1.0_wp)       ! NaN in one only
         else
           sample_difference = max(sample_difference, &
-              maxval(abs(u - v), mask=u == u) / max(maxval(abs(v), mask=v == v), tiny(1.0_wp)))
+              maxval(abs(u - v), mask=.not. ieee_is_nan(u)) / &
+              max(maxval(abs(v), mask=.not. ieee_is_nan(v)), tiny(1.0_wp)))
         end if
       end associate
     end do

@@ -6,7 +6,7 @@
 !> syndrome of a pattern is the xor of those of its bits).
 program test_checksum
   use, intrinsic :: iso_c_binding, only: c_int32_t, c_size_t, c_char
-  use ellroll_kinds, only: i8
+  use ellroll_kinds, only: wp, i8
   use ellroll_checksum, only: checksum
   use ellroll_strings, only: itoa
   use testing
@@ -31,9 +31,9 @@ program test_checksum
   character(kind=c_char, len=9), parameter :: check_text = '123456789'
   character(kind=c_char, len=256) :: bytes
   integer(i8) :: words(record_words), damaged(record_words), syndrome(bits), sorted(bits), zero_crc
-  integer :: i, j, n, undetected_2, undetected_3, missed_direct
+  integer :: i, j, n, word, undetected_2, undetected_3, missed_direct
   logical :: same
-  real :: u
+  real(wp) :: u
 
   ! the check value of CRC-32C (RFC 3720, appendix B.4)
   call check(c_crc32c(0_c_int32_t, [check_text], 9_c_size_t) == int(z'E3069283', c_int32_t), &
@@ -46,8 +46,8 @@ program test_checksum
       call random_number(u)
       bytes(i:i) = achar(int(256 * u))
     end do
-    same = same .and. c_crc32c(7_c_int32_t, [bytes], int(n, c_size_t)) == &
-           c_crc32c_tables(7_c_int32_t, [bytes], int(n, c_size_t))
+    if (c_crc32c(7_c_int32_t, [bytes], int(n, c_size_t)) /= c_crc32c_tables(7_c_int32_t, [bytes], int(n, c_size_t))) &
+      same = .false.
   end do
   call check(same, 'instruction and tables agree on 257 lengths of random bytes')
 
@@ -56,7 +56,8 @@ program test_checksum
   zero_crc = checksum(words)
   do i = 1, bits
     damaged = 0
-    damaged((i - 1) / 64 + 1) = ibset(0_i8, mod(i - 1, 64))
+    word = (i - 1) / 64 + 1
+    damaged(word) = ibset(0_i8, mod(i - 1, 64))
     syndrome(i) = ieor(checksum(damaged), zero_crc)
   end do
   call check(all(syndrome /= 0), 'every 1-bit error is caught')
@@ -76,13 +77,14 @@ program test_checksum
   ! next word (what a rotate-by-7 xor checksum misses), for every i
   do i = 1, record_words
     call random_number(u)
-    words(i) = int(huge(1_i8) * u, i8)
+    words(i) = int(u * 9.0e18_wp, i8)
   end do
   missed_direct = 0
   do i = 0, 64 * (record_words - 1) - 1
     damaged = words
-    damaged(i / 64 + 1) = ieor(damaged(i / 64 + 1), ibset(0_i8, mod(i, 64)))
-    damaged(i / 64 + 2) = ieor(damaged(i / 64 + 2), ibset(0_i8, mod(i + 7, 64)))
+    word = i / 64 + 1
+    damaged(word) = ieor(damaged(word), ibset(0_i8, mod(i, 64)))
+    damaged(word + 1) = ieor(damaged(word + 1), ibset(0_i8, mod(i + 7, 64)))
     if (checksum(damaged) == checksum(words)) missed_direct = missed_direct + 1
   end do
   call check(missed_direct == 0, 'bit i and bit i + 7 of the next word: every pair caught')

@@ -3,6 +3,7 @@
 !> a^2/c and b^2/c, and quad-precision radii on a nearly spherical cup.
 program test_ellipsoid
   use ellroll_kinds, only: wp
+  use ellroll_lapack, only: dsyev
   use ellroll_ellipsoid
   use testing
   implicit none

@@ -4,6 +4,7 @@
 !> against the principal radii, and the reaction at rest.
 program test_rolling_ball
   use ellroll_kinds, only: wp
+  use ellroll_lapack, only: dgesv
   use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal, principal_radii
   use ellroll_rolling_ball
   use ellroll_integrators, only: rk4_t, dop853_t

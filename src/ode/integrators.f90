@@ -9,14 +9,17 @@
 !>           Newton, LAPACK LU): bounded energy error over long runs
 module ellroll_integrators
   use ellroll_kinds, only: wp, i8
-  use ellroll_ode, only: ode_system_t, no_step_solution
+  use ellroll_exact, only: is_zero, equals
+  use ellroll_lapack, only: dgetrf, dgetrs
+  use ellroll_ode, only: ode_system_t, stage_limit, no_step_solution
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_dop853_tableau, only: stages, stages_dense, end_stage, first_dense_stage, c853, a_value, a_column, a_row, &
-      e5, bhh, d853
+      e5, bhh, d853, in_error_estimate, in_dense_output
   implicit none
   private
 
   public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names, stability_limit
+  public :: method_info_t, methods, method_info
 
   !> Largest system the integrators take: their work arrays are fixed-size
   !> (on the stack), so a step allocates nothing. DOP853 works on whole
@@ -24,7 +27,19 @@ module ellroll_integrators
   !> loops have a length known at compile time (unrolled, vectorized) and
   !> the system's entries come out as if computed alone.
   integer, parameter, public :: max_equations = 8
-  character(len=*), parameter :: method_names = 'rk4 dop853 gauss4'
+
+  !> What a method is, for users and for the code that picks how to run it.
+  type :: method_info_t
+    character(len=8) :: name
+    character(len=10) :: kind          !< fixed, adaptive or symmetric
+    character(len=24) :: order         !< the order, as a user reads it
+    logical :: adaptive                !< the step is chosen by error control (dt is the largest step)
+  end type method_info_t
+
+  type(method_info_t), parameter :: methods(3) = [ &
+      method_info_t('rk4', 'fixed', '4', .false.), &
+      method_info_t('dop853', 'adaptive', '8(5,3), dense output 7', .true.), &
+      method_info_t('gauss4', 'symmetric', '4', .false.)]
 
   type, abstract :: integrator_t
     !> fixed-step methods: 0 when the system's model held at every stage of
@@ -33,10 +48,7 @@ module ellroll_integrators
     integer :: stage_limit = 0
   contains
     procedure(step_interface), deferred :: step
-    procedure(text_interface), deferred, nopass :: name
-    procedure(text_interface), deferred, nopass :: kind
-    procedure(text_interface), deferred, nopass :: order
-    procedure, nopass :: adaptive => not_adaptive
+    procedure(info_interface), deferred, nopass :: info
   end type integrator_t
 
   abstract interface
@@ -50,17 +62,16 @@ module ellroll_integrators
       real(wp), intent(out) :: y_new(:)
       integer(i8), intent(inout) :: n_rhs
     end subroutine step_interface
-    pure function text_interface() result(text)
-      character(len=:), allocatable :: text
-    end function text_interface
+    pure function info_interface() result(info)
+      import :: method_info_t
+      type(method_info_t) :: info
+    end function info_interface
   end interface
 
   type, extends(integrator_t) :: rk4_t
   contains
     procedure :: step => rk4_step
-    procedure, nopass :: name => rk4_name
-    procedure, nopass :: kind => fixed_kind
-    procedure, nopass :: order => order_4
+    procedure, nopass :: info => rk4_info
   end type rk4_t
 
   !> The step of an adaptive method is an attempt: it also returns the error
@@ -89,23 +100,22 @@ module ellroll_integrators
     procedure :: build_dense => dop853_build_dense
     procedure :: dense_value => dop853_dense_value
     procedure :: dense_rate => dop853_dense_rate
-    procedure, nopass :: name => dop853_name
-    procedure, nopass :: kind => adaptive_kind
-    procedure, nopass :: order => order_853
-    procedure, nopass :: adaptive => is_adaptive
+    procedure, nopass :: info => dop853_info
   end type dop853_t
+
+  !> Steps a Jacobian of the implicit method serves, unless Newton's
+  !> iteration slows down before.
+  integer, parameter :: jacobian_lifetime = 20
 
   type, extends(integrator_t) :: gauss4_t
     real(wp), allocatable :: jacobian(:, :), lu(:, :)
     integer, allocatable :: pivots(:)
     real(wp) :: lu_h = 0                      !< step the LU was made for
-    integer :: steps_since_jacobian = huge(1) / 2
+    integer :: steps_since_jacobian = jacobian_lifetime     !< a new Jacobian at the first step
     integer(i8) :: newton_iterations = 0
   contains
     procedure :: step => gauss4_step
-    procedure, nopass :: name => gauss4_name
-    procedure, nopass :: kind => symmetric_kind
-    procedure, nopass :: order => order_4
+    procedure, nopass :: info => gauss4_info
   end type gauss4_t
 
   ! ---- 2-stage Gauss-Legendre
@@ -127,7 +137,7 @@ contains
     case ('gauss4')
       allocate (gauss4_t :: integrator)
     case default
-      call set_error(err, err_input, "unknown integration method '" // name // "' (known: " // method_names // ")")
+      call set_error(err, err_input, "unknown integration method '" // name // "' (known: " // method_names() // ")")
     end select
   end subroutine new_integrator
 
@@ -145,13 +155,13 @@ contains
     n = size(y)
     stage(:n) = y + (h/2) * f0
     call sys%rhs(t + h/2, stage(:n), k2(:n))
-    self%stage_limit = sys%stage_status(t + h/2, stage(:n), k2(:n))
+    self%stage_limit = stage_limit(sys, t + h/2, stage(:n), k2(:n))
     stage(:n) = y + (h/2) * k2(:n)
     call sys%rhs(t + h/2, stage(:n), k3(:n))
-    if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + h/2, stage(:n), k3(:n))
+    if (self%stage_limit == 0) self%stage_limit = stage_limit(sys, t + h/2, stage(:n), k3(:n))
     stage(:n) = y + h * k3(:n)
     call sys%rhs(t + h, stage(:n), k4(:n))
-    if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + h, stage(:n), k4(:n))
+    if (self%stage_limit == 0) self%stage_limit = stage_limit(sys, t + h, stage(:n), k4(:n))
     y_new = y + (h/6) * (f0 + 2*(k2(:n) + k3(:n)) + k4(:n))
     n_rhs = n_rhs + 3
   end subroutine rk4_step
@@ -213,13 +223,13 @@ contains
     err5 = 0
     !GCC$ unroll 16
     do s = 1, end_stage                  ! unrolled, the tests on e5 fold away
-      if (e5(s) /= 0) err5 = err5 + e5(s) * self%k(:, s)
+      if (in_error_estimate(s)) err5 = err5 + e5(s) * self%k(:, s)
     end do
     err3 = (y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)
     scale(:n) = self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol
     e5_norm2 = sum((err5(:n) / scale(:n))**2)
     e3_norm2 = sum((err3(:n) / scale(:n))**2)
-    if (e5_norm2 == 0 .and. e3_norm2 == 0) then
+    if (is_zero(e5_norm2) .and. is_zero(e3_norm2)) then
       error_norm = 0
     else
       error_norm = abs(h) * e5_norm2 / sqrt((e5_norm2 + 0.01_wp * e3_norm2) * n)
@@ -282,7 +292,7 @@ contains
     rows(:, 2) = self%h * self%k(:, 1) - delta
     rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
     do s = 1, stages_dense
-      if (all(d853(:, s) == 0)) cycle
+      if (.not. in_dense_output(s)) cycle
       stage = self%k(:, s)
       do i = 1, 4
         rows(:, 3 + i) = rows(:, 3 + i) + (self%h * d853(i, s)) * stage
@@ -375,7 +385,7 @@ contains
     real(wp) :: z(max_equations, 2), f(max_equations, 2), residual(2 * max_equations, 1), stage(max_equations)
     real(wp) :: scale, size_now, size_before
     n = size(y)
-    if (self%steps_since_jacobian >= 20 .or. h /= self%lu_h) call refresh(self)
+    if (self%steps_since_jacobian >= jacobian_lifetime .or. .not. equals(h, self%lu_h)) call refresh(self)
     self%steps_since_jacobian = self%steps_since_jacobian + 1
     do i = 1, 2
       z(:n, i) = gl_c(i) * h * f0
@@ -399,14 +409,14 @@ contains
       size_now = maxval(abs(residual(:2 * n, 1)))
       if (size_now <= 4 * epsilon(1.0_wp) * scale .or. (size_now >= size_before .and. iteration > 3)) exit
       size_before = size_now
-      if (iteration == 6) self%steps_since_jacobian = huge(1) / 2      ! slow: new Jacobian next step
+      if (iteration == 6) self%steps_since_jacobian = jacobian_lifetime     ! slow: new Jacobian next step
     end do
     ! y_new = y + h sum b_i f_i, with f_i from the converged stages
     self%stage_limit = 0
     do i = 1, 2
       stage(:n) = y + z(:n, i)
       call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
-      if (self%stage_limit == 0) self%stage_limit = sys%stage_status(t + gl_c(i) * h, stage(:n), f(:n, i))
+      if (self%stage_limit == 0) self%stage_limit = stage_limit(sys, t + gl_c(i) * h, stage(:n), f(:n, i))
     end do
     n_rhs = n_rhs + 2
     y_new = y + (h / 2) * (f(:n, 1) + f(:n, 2))
@@ -458,51 +468,34 @@ contains
 
   ! ===================================================== descriptions
 
-  pure function rk4_name() result(text)
-    character(len=:), allocatable :: text
-    text = 'rk4'
-  end function rk4_name
+  pure type(method_info_t) function rk4_info() result(info)
+    info = methods(1)
+  end function rk4_info
 
-  pure function dop853_name() result(text)
-    character(len=:), allocatable :: text
-    text = 'dop853'
-  end function dop853_name
+  pure type(method_info_t) function dop853_info() result(info)
+    info = methods(2)
+  end function dop853_info
 
-  pure function gauss4_name() result(text)
-    character(len=:), allocatable :: text
-    text = 'gauss4'
-  end function gauss4_name
+  pure type(method_info_t) function gauss4_info() result(info)
+    info = methods(3)
+  end function gauss4_info
 
-  pure function fixed_kind() result(text)
-    character(len=:), allocatable :: text
-    text = 'fixed'
-  end function fixed_kind
+  !> The methods' names, for messages: 'rk4 dop853 gauss4'.
+  pure function method_names() result(names)
+    character(len=:), allocatable :: names
+    integer :: k
+    names = trim(methods(1)%name)
+    do k = 2, size(methods)
+      names = names // ' ' // trim(methods(k)%name)
+    end do
+  end function method_names
 
-  pure function adaptive_kind() result(text)
-    character(len=:), allocatable :: text
-    text = 'adaptive'
-  end function adaptive_kind
-
-  pure function symmetric_kind() result(text)
-    character(len=:), allocatable :: text
-    text = 'symmetric'
-  end function symmetric_kind
-
-  pure function order_4() result(text)
-    character(len=:), allocatable :: text
-    text = '4'
-  end function order_4
-
-  pure function order_853() result(text)
-    character(len=:), allocatable :: text
-    text = '8(5,3), dense output 7'
-  end function order_853
-
-  pure logical function not_adaptive()
-    not_adaptive = .false.
-  end function not_adaptive
-
-  pure logical function is_adaptive()
-    is_adaptive = .true.
-  end function is_adaptive
+  !> The row of methods named `name` (name blank where there is none).
+  pure type(method_info_t) function method_info(name) result(info)
+    character(len=*), intent(in) :: name
+    integer :: k
+    info = method_info_t('', '', '', .false.)
+    k = findloc(methods%name, name, dim=1)
+    if (k > 0) info = methods(k)
+  end function method_info
 end module ellroll_integrators

@@ -7,7 +7,8 @@ module ellroll_dop853_tableau
   private
   integer, private :: j, s              ! of the implied loops in the constants below
 
-  public :: stages, stages_dense, end_stage, first_dense_stage, c853, a853, a_value, a_column, a_row, e5, bhh, d853
+  public :: stages, stages_dense, end_stage, first_dense_stage, c853, a853, a_value, a_column, a_row, e5, bhh, d853, &
+      in_error_estimate, in_dense_output
 
   ! ---- Dormand-Prince 8(5,3): E. Hairer, S. P. Norsett, G. Wanner, Solving
   ! Ordinary Differential Equations I, 2nd ed., Springer 1993 (DOP853).
@@ -114,11 +115,11 @@ module ellroll_dop853_tableau
       [16, 15], order=[2, 1])
   !> The nonzero a(s, j), row by row (sum over them without a test per
   !> entry): a_value(m) = a853(s, a_column(m)) for m in a_row(s):a_row(s + 1) - 1.
-  integer, parameter, private :: a_count = count(a853 /= 0)
-  real(wp), parameter :: a_value(a_count) = pack(transpose(a853), transpose(a853) /= 0)
-  integer, parameter :: a_column(a_count) = pack(transpose(spread([(j, j = 1, 15)], 1, 16)), transpose(a853) /= 0)
+  integer, parameter, private :: a_count = count(abs(a853) > 0)
+  real(wp), parameter :: a_value(a_count) = pack(transpose(a853), abs(transpose(a853)) > 0)
+  integer, parameter :: a_column(a_count) = pack(transpose(spread([(j, j = 1, 15)], 1, 16)), abs(transpose(a853)) > 0)
   integer, parameter, private :: row_of(16, 15) = spread([(s, s = 1, 16)], 2, 15)
-  integer, parameter :: a_row(17) = [(1 + count(a853 /= 0 .and. row_of < s), s = 1, 17)]
+  integer, parameter :: a_row(17) = [(1 + count(abs(a853) > 0 .and. row_of < s), s = 1, 17)]
   !> DOP853 dense-output matrix D.
   real(wp), parameter :: d853(4, 16) = reshape([ &
       -0.84289382761090128651353491142e1_wp, 0.0_wp, 0.0_wp, &
@@ -144,4 +145,8 @@ module ellroll_dop853_tableau
       -0.43533456590011143754432175058e2_wp, 0.96324553959188282948394950600e2_wp, -0.39177261675615439165231486172e2_wp, &
       -0.14972683625798562581422125276e3_wp], &
       [4, 16], order=[2, 1])
+  !> The stages with a weight in the error estimate and in the dense output:
+  !> the loops over stages skip the others at compile time.
+  logical, parameter :: in_error_estimate(stages + 1) = abs(e5) > 0
+  logical, parameter :: in_dense_output(16) = any(abs(d853) > 0, dim=1)
 end module ellroll_dop853_tableau
