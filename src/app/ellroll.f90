@@ -15,7 +15,7 @@ program ellroll
   use ellroll_campaign, only: invalid_stop
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
-  use ellroll_hdf5, only: provenance_t
+  use ellroll_hdf5_writer, only: provenance_t
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
       check_output_target

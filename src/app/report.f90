@@ -7,7 +7,7 @@ module ellroll_report
   use ellroll_errors, only: error_t
   use ellroll_strings, only: itoa, format_real
   use ellroll_status, only: status_count, status_name
-  use ellroll_hdf5, only: h5_input_t
+  use ellroll_hdf5_reader, only: h5_input_t
   implicit none
   private
 

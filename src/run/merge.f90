@@ -8,7 +8,8 @@ module ellroll_merge
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_results, only: case_result_t
-  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t
+  use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_run_campaign, only: shard_slots, campaign_id
   use ellroll_system, only: rename_file, remove_file
   implicit none

@@ -20,7 +20,7 @@ module ellroll_resume
   use ellroll_strings, only: itoa
   use ellroll_campaign, only: campaign_t
   use ellroll_results, only: case_result_t
-  use ellroll_hdf5, only: h5_output_t
+  use ellroll_hdf5_writer, only: h5_output_t
   use ellroll_trajectory_store, only: trajectory_store_t
   use ellroll_journal, only: journal_t, journal_header_t
   use ellroll_system, only: remove_file, file_exists

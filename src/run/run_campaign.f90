@@ -25,7 +25,8 @@ module ellroll_run_campaign
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t, describe_invalid
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
-  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row, written_in_place
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, table_row, written_in_place
+  use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
   use ellroll_resume, only: open_for_resume, copy_journaled_cases

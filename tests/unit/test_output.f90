@@ -14,7 +14,8 @@ program test_output
   use ellroll_status, only: status_completed, status_rim
   use ellroll_cases, only: case_t, field_count, field_names
   use ellroll_results, only: case_result_t
-  use ellroll_hdf5, only: h5_output_t, h5_input_t, provenance_t
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t
+  use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: trajectory_store_t
   use fixtures, only: paper_case
   use testing, only: check, finish

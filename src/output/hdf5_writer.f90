@@ -1,30 +1,29 @@
-!> Every HDF5 call of ellroll lives here: a thin writer that lays out /time,
-!> /case, /trajectory and /summary for n cases and takes one case at a time,
-!> and a thin reader that gives back summaries, cases and attributes.
+!> Writing ellroll's HDF5 output: a thin writer that lays out /time, /case,
+!> /trajectory and /summary for n cases and takes one case at a time. Every
+!> HDF5 call that writes lives here (ellroll_hdf5_reader reads).
 !>
 !> HDF5 stores arrays in C order, so the Fortran dimensions below are the
 !> reverse of what h5py shows: Fortran (3, nt, ncase) is h5py (ncase, nt, 3).
-module ellroll_hdf5
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_size_t, c_associated, c_f_pointer, c_int, &
-      c_int64_t
+module ellroll_hdf5_writer
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int64_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use hdf5
   use h5lt
   use h5ds
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_output, err_input
+  use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text, int_value
   use ellroll_status, only: status_count, status_name, status_pending
-  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, &
-      field_ncomp, field_descriptions
-  use ellroll_results, only: case_result_t, summary_record, set_summary_value
+  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, &
+      field_descriptions
+  use ellroll_results, only: case_result_t, summary_record
   use ellroll_system, only: rename_file
-  use ellroll_strings, only: itoa
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
+  use ellroll_hdf5_common, only: select_slab, dim_index, new_text_type
   implicit none
   private
 
-  public :: h5_output_t, h5_input_t, provenance_t, window_list_t, table_row, written_in_place
+  public :: h5_output_t, provenance_t, window_list_t, table_row, written_in_place
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
@@ -36,14 +35,6 @@ module ellroll_hdf5
   !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
   integer, parameter :: max_chunk_bytes = 2**20
   interface
-    integer(c_size_t) function c_strlen(s) bind(c, name='strlen')
-      import :: c_size_t, c_ptr
-      type(c_ptr), value :: s
-    end function c_strlen
-    integer(c_int) function c_h5free_memory(mem) bind(c, name='H5free_memory')
-      import :: c_int, c_ptr
-      type(c_ptr), value :: mem
-    end function c_h5free_memory
     !> The file address of a contiguous dataset's data (HADDR_UNDEF, all
     !> bits set, when it has none); not in the 1.10 Fortran API.
     integer(c_int64_t) function h5d_address(dset) bind(c, name='H5Dget_offset')
@@ -95,24 +86,7 @@ module ellroll_hdf5
     integer :: n = 0
     type(row_window_t), allocatable :: items(:)
   end type window_list_t
-  !> H5T_VARIABLE of the C API: (size_t) -1.
-  integer(size_t), parameter :: variable_length = -1
 
-  type :: h5_input_t
-    integer(hid_t) :: file = -1
-    character(len=:), allocatable :: path
-    integer(i8) :: n_cases = 0
-  contains
-    procedure :: open => open_input
-    procedure :: close => close_input
-    procedure :: has
-    procedure :: dataset_length
-    procedure :: text_attribute
-    procedure :: real_column
-    procedure :: int_column
-    procedure :: read_case_result
-    procedure :: read_slab
-  end type h5_input_t
 
   type :: h5_output_t
     integer(hid_t) :: file = -1
@@ -813,32 +787,6 @@ contains
     ok = .true.
   end function open_dataset
 
-  !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
-  !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.
-  pure integer function dim_index(dim)
-    integer, intent(in) :: dim
-    dim_index = dim + 1
-  end function dim_index
-
-  subroutine select_slab(dset, offset, counts, file_space, mem_space)
-    integer(hid_t), intent(in) :: dset
-    integer(i8), intent(in) :: offset(:), counts(:)
-    integer(hid_t), intent(out) :: file_space, mem_space
-    integer :: hdferr
-    call h5dget_space_f(dset, file_space, hdferr)
-    call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, int(offset, hsize_t), &
-                               int(counts, hsize_t), hdferr)
-    call h5screate_simple_f(size(counts), int(counts, hsize_t), mem_space, hdferr)
-  end subroutine select_slab
-
-  !> UTF-8 variable-length strings: h5py reads them as str, not bytes.
-  integer(hid_t) function new_text_type() result(text_type)
-    integer :: hdferr
-    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
-    call h5tset_size_f(text_type, variable_length, hdferr)
-    call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
-    call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
-  end function new_text_type
 
   subroutine write_text_attribute(loc, name, value, hdferr)
     integer(hid_t), intent(in) :: loc
@@ -922,186 +870,4 @@ contains
     call h5sclose_f(mem_space, hdferr)
   end subroutine write_slab
 
-  ! --------------------------------------------------------------- reading
-
-  subroutine open_input(self, path, err)
-    class(h5_input_t), intent(inout) :: self
-    character(len=*), intent(in) :: path
-    type(error_t), intent(inout) :: err
-    integer :: hdferr
-    logical :: is_hdf5
-    self%path = path
-    call h5open_f(hdferr)
-    call h5eset_auto_f(0, hdferr)
-    call h5fis_hdf5_f(path, is_hdf5, hdferr)
-    if (hdferr < 0 .or. .not. is_hdf5) then
-      call set_error(err, err_input, path // ': not an HDF5 file (or cannot be read)')
-      return
-    end if
-    call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
-    if (hdferr < 0) then
-      call set_error(err, err_input, path // ': cannot open the HDF5 file')
-      return
-    end if
-    if (self%text_attribute('program') /= 'ellroll') then
-      call set_error(err, err_input, path // ': not an ellroll file')
-      return
-    end if
-    self%n_cases = self%dataset_length('summary/status')
-  end subroutine open_input
-
-  subroutine close_input(self)
-    class(h5_input_t), intent(inout) :: self
-    integer :: hdferr
-    if (self%file < 0) return
-    call h5fclose_f(self%file, hdferr)
-    self%file = -1
-    call h5close_f(hdferr)
-  end subroutine close_input
-
-  logical function has(self, name)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer :: hdferr
-    call h5lexists_f(self%file, name, has, hdferr)
-    if (hdferr < 0) has = .false.
-  end function has
-
-  integer(i8) function dataset_length(self, name) result(n)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer(hid_t) :: dset, space
-    integer(hsize_t) :: dims(3), max_dims(3)
-    integer :: hdferr, rank
-    n = 0
-    call h5dopen_f(self%file, name, dset, hdferr)
-    if (hdferr < 0) return
-    call h5dget_space_f(dset, space, hdferr)
-    call h5sget_simple_extent_ndims_f(space, rank, hdferr)
-    call h5sget_simple_extent_dims_f(space, dims(:rank), max_dims(:rank), hdferr)
-    n = dims(rank)                     ! the case (slowest, C order) dimension
-    call h5sclose_f(space, hdferr)
-    call h5dclose_f(dset, hdferr)
-  end function dataset_length
-
-  !> A root attribute written as a variable-length string ('' when absent).
-  function text_attribute(self, name) result(text)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    character(len=:), allocatable :: text
-    integer(hid_t) :: attr, text_type
-    type(c_ptr), target :: pointer(1)
-    type(c_ptr) :: address
-    character(kind=c_char), pointer :: chars(:)
-    integer :: hdferr, n, k
-    logical :: exists
-    text = ''
-    call h5aexists_f(self%file, name, exists, hdferr)
-    if (hdferr < 0 .or. .not. exists) return
-    call h5aopen_f(self%file, name, attr, hdferr)
-    text_type = new_text_type()
-    address = c_loc(pointer)
-    call h5aread_f(attr, text_type, address, hdferr)
-    if (hdferr >= 0 .and. c_associated(pointer(1))) then
-      n = int(c_strlen(pointer(1)))
-      call c_f_pointer(pointer(1), chars, [n])
-      text = repeat(' ', n)
-      do k = 1, n
-        text(k:k) = chars(k)
-      end do
-      hdferr = c_h5free_memory(pointer(1))     ! the string HDF5 allocated
-    end if
-    call h5tclose_f(text_type, hdferr)
-    call h5aclose_f(attr, hdferr)
-  end function text_attribute
-
-  !> A whole 1-D real dataset (e.g. one value per case).
-  function real_column(self, name, err) result(values)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    type(error_t), intent(inout) :: err
-    real(wp), allocatable, target :: values(:)
-    allocate (values(self%dataset_length(name)))
-    call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8], [size(values, kind=i8)], err)
-  end function real_column
-
-  function int_column(self, name, err) result(values)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    type(error_t), intent(inout) :: err
-    integer(i8), allocatable, target :: values(:)
-    allocate (values(self%dataset_length(name)))
-    call self%read_slab(name, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), [0_i8], &
-                        [size(values, kind=i8)], err)
-  end function int_column
-
-  !> Everything stored about the case in slot `slot` (0-based): its status,
-  !> summary and the trajectories present in the file.
-  subroutine read_case_result(self, slot, n_samples, res, err)
-    class(h5_input_t), intent(in) :: self
-    integer(i8), intent(in) :: slot, n_samples
-    type(case_result_t), intent(out), target :: res
-    type(error_t), intent(inout) :: err
-    type(named_value_t), allocatable :: rec(:)
-    integer(i8), target :: int_buffer(1)
-    real(wp), target :: real_buffer(3)
-    integer :: k, f
-    call self%read_slab('summary/status', h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(int_buffer), &
-                        [slot], [1_i8], err)
-    res%status = int(int_buffer(1))
-    rec = summary_record(res)
-    do k = 1, size(rec)
-      if (rec(k)%kind == kind_int) then
-        call self%read_slab('summary/' // trim(rec(k)%name), h5kind_to_type(i8, H5_INTEGER_KIND), &
-                            c_loc(int_buffer), [slot], [1_i8], err)
-        rec(k)%int = int_buffer(1)
-      else
-        if (rec(k)%ncomp == 1) then
-          call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
-                              [slot], [1_i8], err)
-        else
-          call self%read_slab('summary/' // trim(rec(k)%name), H5T_NATIVE_DOUBLE, c_loc(real_buffer), &
-                              [0_i8, slot], [int(rec(k)%ncomp, i8), 1_i8], err)
-        end if
-        rec(k)%reals = real_buffer
-      end if
-      call set_summary_value(res, rec(k))
-    end do
-    do f = 1, field_count
-      if (.not. self%has('trajectory/' // trim(field_names(f)))) cycle
-      allocate (res%fields(f)%values(field_ncomp(f), n_samples))
-      if (field_ncomp(f) == 1) then
-        call self%read_slab('trajectory/' // trim(field_names(f)), H5T_NATIVE_DOUBLE, &
-                            c_loc(res%fields(f)%values), [0_i8, slot], [n_samples, 1_i8], err)
-      else
-        call self%read_slab('trajectory/' // trim(field_names(f)), H5T_NATIVE_DOUBLE, &
-                            c_loc(res%fields(f)%values), [0_i8, 0_i8, slot], [3_i8, n_samples, 1_i8], err)
-      end if
-    end do
-  end subroutine read_case_result
-
-  subroutine read_slab(self, name, mem_type, buffer, offset, counts, err)
-    class(h5_input_t), intent(in) :: self
-    character(len=*), intent(in) :: name
-    integer(hid_t), intent(in) :: mem_type
-    type(c_ptr), intent(in) :: buffer
-    integer(i8), intent(in) :: offset(:), counts(:)
-    type(error_t), intent(inout) :: err
-    integer(hid_t) :: dset, file_space, mem_space
-    integer :: hdferr
-    type(c_ptr) :: target_buffer
-    if (err%failed()) return
-    call h5dopen_f(self%file, name, dset, hdferr)
-    if (hdferr < 0) then
-      call set_error(err, err_input, self%path // ': no dataset /' // name)
-      return
-    end if
-    call select_slab(dset, offset, counts, file_space, mem_space)
-    target_buffer = buffer
-    call h5dread_f(dset, mem_type, target_buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_input, self%path // ': cannot read /' // name)
-    call h5sclose_f(file_space, hdferr)
-    call h5sclose_f(mem_space, hdferr)
-    call h5dclose_f(dset, hdferr)
-  end subroutine read_slab
-end module ellroll_hdf5
+end module ellroll_hdf5_writer
