@@ -19,7 +19,8 @@ module ellroll_hdf5_writer
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_system, only: rename_file
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
-  use ellroll_hdf5_common, only: select_slab, dim_index, new_text_type
+  use ellroll_hdf5_common, only: select_slab, write_text_slab, write_real_slab, write_int_slab
+  use ellroll_hdf5_layout, only: layout_t
   implicit none
   private
 
@@ -43,8 +44,6 @@ module ellroll_hdf5_writer
     end function h5d_address
   end interface
 
-  !> Width of per-case text datasets (bytes, null-terminated).
-  integer, parameter :: text_width = 32
 
   !> Cases are kept per window of consecutive cases (their table rows: inputs,
   !> summary, status; and compressed trajectories) and written with one
@@ -130,334 +129,212 @@ contains
     type(provenance_t), intent(in) :: prov
     type(error_t), intent(inout) :: err
     integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
-    integer :: hdferr, closed, f, k, deflate_level
-    integer(hid_t) :: group, scale, time_scale, xyz_scale, mode_scale, fapl, fcpl
+    type(layout_t) :: lay
     integer(i8) :: address(field_count)
-    integer(i8) :: n_cases
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
+    integer :: hdferr
 
-    n_cases = size(indices, kind=i8)
-    address = -1
-    deflate_level = 0
-    if (present(compression)) deflate_level = compression
+    lay%path = path
+    if (present(compression)) lay%deflate_level = compression
     self%path = path
-    self%n_cases = n_cases
+    self%n_cases = size(indices, kind=i8)
     self%n_samples = size(times, kind=i8)
     self%fields = fields
-    in_place_fields = written_in_place(fields, deflate_level)
+    in_place_fields = written_in_place(fields, lay%deflate_level)
     self%in_windows = fields .and. .not. in_place_fields
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
+    call open_new_file(self, lay, any(in_place_fields), prov)
+    call shared_scales(lay, times)
+    call case_group(lay, 'case', indices, case_record(template))
+    call trajectory_group(self, lay, indices, address)
+    call case_group(lay, 'summary', indices, summary_record(case_result_t()), with_status=.true.)
+    self%row_groups = [spread('case    ', 1, size(case_record(template))), &
+                       spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
+    call h5dclose_f(lay%time_scale, hdferr)
+    call h5dclose_f(lay%xyz_scale, hdferr)
+    call h5dclose_f(lay%mode_scale, hdferr)
+    if (lay%err%failed()) then
+      if (.not. err%failed()) err = lay%err
+      return
+    end if
+    call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, err)
+  end subroutine create
+
+  !> Create the file, truncating any of that name, with its provenance.
+  subroutine open_new_file(self, lay, user_block, prov)
+    type(h5_output_t), intent(inout) :: self
+    type(layout_t), intent(inout) :: lay
+    logical, intent(in) :: user_block       !< room for the label of trajectories written in place
+    type(provenance_t), intent(in) :: prov
+    integer :: hdferr, closed
+    integer(hid_t) :: fapl, fcpl
     call h5open_f(hdferr)
-    if (failed(hdferr, 'initialise HDF5')) return
+    call lay%check(hdferr, 'initialise HDF5')
+    if (lay%err%failed()) return
     call h5eset_auto_f(0, hdferr)   ! errors are reported through err, not printed by HDF5
     ! the 1.10 format indexes each fixed-size chunked dataset with a compact
     ! fixed array instead of a B-tree: memory stays flat as cases are added
     call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
-    ! a user block for the label of the trajectories written in place
     call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
-    if (any(in_place_fields)) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
-    call h5fcreate_f(path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
+    if (user_block) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
+    call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
     ! closes report into their own code: hdferr keeps the creation's
     call h5pclose_f(fapl, closed)
     call h5pclose_f(fcpl, closed)
-    if (failed(hdferr, 'create the file')) return
-
-    call put_text_attribute(self%file, 'program', prov%program)
-    call put_text_attribute(self%file, 'version', prov%version)
-    call put_text_attribute(self%file, 'created', prov%created)
-    call put_text_attribute(self%file, 'input_file', prov%input_file)
-    call put_text_attribute(self%file, 'input_namelist', prov%input_namelist)
-    call put_text_attribute(self%file, 'command_line', prov%command_line)
-    call put_text_attribute(self%file, 'campaign_id', prov%campaign_id)
-    call put_text_attribute(self%file, 'shard', prov%shard)
+    call lay%check(hdferr, 'create the file')
+    if (lay%err%failed()) return
+    lay%file = self%file
+    call lay%text_attribute(self%file, 'program', prov%program)
+    call lay%text_attribute(self%file, 'version', prov%version)
+    call lay%text_attribute(self%file, 'created', prov%created)
+    call lay%text_attribute(self%file, 'input_file', prov%input_file)
+    call lay%text_attribute(self%file, 'input_namelist', prov%input_namelist)
+    call lay%text_attribute(self%file, 'command_line', prov%command_line)
+    call lay%text_attribute(self%file, 'campaign_id', prov%campaign_id)
+    call lay%text_attribute(self%file, 'shard', prov%shard)
+    if (lay%err%failed()) return
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
-    if (failed(hdferr, 'write attribute n_cases_total')) return
-    if (err%failed()) return
+    call lay%check(hdferr, 'write attribute n_cases_total')
+  end subroutine open_new_file
 
-    ! shared dimension scales
-    time_scale = new_real_dataset(self%file, 'time', [size(times, kind=i8)], 's', 'output times')
-    if (err%failed()) return
-    call write_real(time_scale, times, [0_i8], [size(times, kind=i8)])
-    call make_scale(time_scale, 'time')
-    xyz_scale = new_text_dataset(self%file, 'xyz', 3_i8, 'vector component')
-    if (err%failed()) return
-    call write_text(xyz_scale, ['x', 'y', 'z'], 0_i8)
-    call make_scale(xyz_scale, 'xyz')
-    mode_scale = new_int_dataset(self%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
-    if (err%failed()) return
-    call write_int(mode_scale, [1_i8, 2_i8], 0_i8)
-    call make_scale(mode_scale, 'mode')
-    if (err%failed()) return
+  !> The dimension scales every group shares: /time, /xyz, /mode.
+  subroutine shared_scales(lay, times)
+    type(layout_t), intent(inout) :: lay
+    real(wp), intent(in) :: times(:)
+    lay%time_scale = lay%real_dataset(lay%file, 'time', [size(times, kind=i8)], 's', 'output times')
+    call lay%write_reals(lay%time_scale, times, [0_i8], [size(times, kind=i8)])
+    call lay%make_scale(lay%time_scale, 'time')
+    lay%xyz_scale = lay%text_dataset(lay%file, 'xyz', 3_i8, 'vector component')
+    call lay%write_texts(lay%xyz_scale, ['x', 'y', 'z'], 0_i8)
+    call lay%make_scale(lay%xyz_scale, 'xyz')
+    lay%mode_scale = lay%int_dataset(lay%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
+    call lay%write_ints(lay%mode_scale, [1_i8, 2_i8], 0_i8)
+    call lay%make_scale(lay%mode_scale, 'mode')
+  end subroutine shared_scales
 
-    ! /case: resolved inputs
-    group = new_group('case')
-    if (err%failed()) return
-    scale = case_scale(group)
-    call create_table(group, case_record(template), scale)
-    call close_scale_and_group(scale, group)
-
-    ! /trajectory: the requested fields
-    group = new_group('trajectory')
-    if (err%failed()) return
-    scale = case_scale(group)
-    call create_trajectories(group, scale)
-    call close_scale_and_group(scale, group)
-
-    ! /summary: status and per-case figures
-    group = new_group('summary')
-    if (err%failed()) return
-    scale = case_scale(group)
-    call create_status(group, scale)
-    call create_table(group, summary_record(case_result_t()), scale)
-    call close_scale_and_group(scale, group)
-    self%row_groups = [spread('case    ', 1, size(case_record(template))), &
-                       spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
-    call h5dclose_f(time_scale, hdferr)
-    call h5dclose_f(xyz_scale, hdferr)
-    call h5dclose_f(mode_scale, hdferr)
-    if (err%failed()) return
-    call self%in_place%start(path, n_cases, self%n_samples, in_place_fields, address, err)
-
-  contains
-
-    integer(hid_t) function new_group(name) result(id)
-      character(len=*), intent(in) :: name
-      call h5gcreate_f(self%file, name, id, hdferr)
-      if (failed(hdferr, 'create group /' // name)) return
-    end function new_group
-
-    subroutine close_scale_and_group(scale, group)
-      integer(hid_t), intent(in) :: scale, group
-      call h5dclose_f(scale, hdferr)
-      call h5gclose_f(group, hdferr)
-    end subroutine close_scale_and_group
-
-    !> The group's own 'case' scale, holding the global case indices.
-    integer(hid_t) function case_scale(group) result(id)
-      integer(hid_t), intent(in) :: group
-      id = new_int_dataset(group, 'case', n_cases, '1', 'global case index')
-      if (err%failed()) return
-      call write_int(id, indices, 0_i8)
-      call make_scale(id, 'case')
-    end function case_scale
-
-    subroutine create_table(group, rec, scale)
-      integer(hid_t), intent(in) :: group, scale
-      type(named_value_t), intent(in) :: rec(:)
-      integer(hid_t) :: dset
-      do k = 1, size(rec)
-        if (err%failed()) return
-        select case (rec(k)%kind)
-        case (kind_real)
-          if (rec(k)%ncomp == 1) then
-            dset = new_real_dataset(group, rec(k)%name, [n_cases], rec(k)%units, rec(k)%description)
-            call attach(dset, scale, 0)
-          else
-            dset = new_real_dataset(group, rec(k)%name, [int(rec(k)%ncomp, i8), n_cases], rec(k)%units, &
-                                    rec(k)%description)
-            call attach(dset, scale, 0)
-            call attach(dset, merge(xyz_scale, mode_scale, rec(k)%ncomp == 3), 1)
-          end if
-        case (kind_int)
-          dset = new_int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
-          call attach(dset, scale, 0)
-        case (kind_text)
-          dset = new_text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
-          call attach(dset, scale, 0)
-        end select
-        call h5dclose_f(dset, hdferr)
-      end do
-    end subroutine create_table
-
-    subroutine create_status(group, scale)
-      integer(hid_t), intent(in) :: group, scale
-      integer(hid_t) :: dset
-      integer :: s
-      character(len=:), allocatable :: meanings
-      integer(i8), target :: pending
-      pending = status_pending
-      dset = new_int_dataset(group, 'status', n_cases, '1', 'how the case ended', &
-                             fill=pending)
-      if (err%failed()) return
-      meanings = status_name(0)
-      do s = 1, status_count - 1
-        meanings = meanings // ' ' // status_name(s)
-      end do
-      call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
-                                   int(status_count, size_t), hdferr)
-      call put_text_attribute(dset, 'flag_meanings', meanings)
-      call attach(dset, scale, 0)
+  !> A group of one value per case: a dataset per entry of `rec` (/case:
+  !> the resolved inputs; /summary: the case's figures, after its status).
+  subroutine case_group(lay, name, indices, rec, with_status)
+    type(layout_t), intent(inout) :: lay
+    character(len=*), intent(in) :: name
+    integer(i8), intent(in) :: indices(:)
+    type(named_value_t), intent(in) :: rec(:)
+    logical, intent(in), optional :: with_status
+    integer(hid_t) :: group, scale, dset
+    integer(i8) :: n_cases
+    integer :: k, hdferr
+    n_cases = size(indices, kind=i8)
+    group = lay%new_group(name)
+    scale = case_scale(lay, group, indices)
+    if (present(with_status)) then
+      if (with_status) call create_status(lay, group, scale, n_cases)
+    end if
+    do k = 1, size(rec)
+      if (lay%err%failed()) exit
+      select case (rec(k)%kind)
+      case (kind_real)
+        if (rec(k)%ncomp == 1) then
+          dset = lay%real_dataset(group, rec(k)%name, [n_cases], rec(k)%units, rec(k)%description)
+          call lay%attach(dset, scale, 0)
+        else
+          dset = lay%real_dataset(group, rec(k)%name, [int(rec(k)%ncomp, i8), n_cases], rec(k)%units, &
+                                  rec(k)%description)
+          call lay%attach(dset, scale, 0)
+          call lay%attach(dset, merge(lay%xyz_scale, lay%mode_scale, rec(k)%ncomp == 3), 1)
+        end if
+      case (kind_int)
+        dset = lay%int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
+        call lay%attach(dset, scale, 0)
+      case (kind_text)
+        dset = lay%text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
+        call lay%attach(dset, scale, 0)
+      end select
       call h5dclose_f(dset, hdferr)
-    end subroutine create_status
+    end do
+    call h5dclose_f(scale, hdferr)
+    call h5gclose_f(group, hdferr)
+  end subroutine case_group
 
-    !> Compressed: chunks of one case each, written through HDF5. Otherwise
-    !> contiguous, allocated now and never filled (each case is written once,
-    !> in place; a case not written yet reads as zeros, its status 'pending').
-    subroutine create_trajectories(group, scale)
-      integer(hid_t), intent(in) :: group, scale
-      integer(hid_t) :: dset
-      integer(i8) :: chunk_samples
-      integer(i8), allocatable :: dims(:)
-      do f = 1, field_count
-        if (.not. fields(f) .or. err%failed()) cycle
-        chunk_samples = min(self%n_samples, int(max_chunk_bytes / (8 * field_ncomp(f)), i8))
-        if (field_ncomp(f) == 1) then
-          dims = [self%n_samples, n_cases]
-        else
-          dims = [3_i8, self%n_samples, n_cases]
-        end if
-        if (self%in_windows(f)) then
-          dset = new_real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
-                                  trim(field_descriptions(f)), chunk=[dims(:size(dims) - 2), chunk_samples, 1_i8])
-        else
-          dset = new_real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
-                                  trim(field_descriptions(f)), in_place=.true.)
-          if (dset >= 0) then
-            address(f) = h5d_address(int(dset, c_int64_t))
-            if (address(f) < 0 .and. n_cases > 0) &   ! an empty shard has no data, no address
-              call set_error(err, err_output, path // ': no file address for /trajectory/' // trim(field_names(f)))
-          end if
-        end if
-        call attach(dset, scale, 0)
-        call attach(dset, time_scale, 1)
-        if (field_ncomp(f) == 3) call attach(dset, xyz_scale, 2)
-        call h5dclose_f(dset, hdferr)
-      end do
-    end subroutine create_trajectories
+  !> The group's own 'case' scale, holding the global case indices.
+  integer(hid_t) function case_scale(lay, group, indices) result(id)
+    type(layout_t), intent(inout) :: lay
+    integer(hid_t), intent(in) :: group
+    integer(i8), intent(in) :: indices(:)
+    id = lay%int_dataset(group, 'case', size(indices, kind=i8), '1', 'global case index')
+    call lay%write_ints(id, indices, 0_i8)
+    call lay%make_scale(id, 'case')
+  end function case_scale
 
-    !> Attach scale to the dataset's dimension `dim` as h5py counts them.
-    subroutine attach(dset, scale, dim)
-      integer(hid_t), intent(in) :: dset, scale
-      integer, intent(in) :: dim
-      if (err%failed()) return
-      call h5dsattach_scale_f(dset, scale, dim_index(dim), hdferr)
-      if (failed(hdferr, 'attach a dimension scale')) return
-    end subroutine attach
+  subroutine create_status(lay, group, scale, n_cases)
+    type(layout_t), intent(inout) :: lay
+    integer(hid_t), intent(in) :: group, scale
+    integer(i8), intent(in) :: n_cases
+    integer(hid_t) :: dset
+    integer :: s, hdferr
+    character(len=:), allocatable :: meanings
+    integer(i8), target :: pending
+    pending = status_pending
+    dset = lay%int_dataset(group, 'status', n_cases, '1', 'how the case ended', fill=pending)
+    if (lay%err%failed()) return
+    meanings = status_name(0)
+    do s = 1, status_count - 1
+      meanings = meanings // ' ' // status_name(s)
+    end do
+    call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
+                                 int(status_count, size_t), hdferr)
+    call lay%text_attribute(dset, 'flag_meanings', meanings)
+    call lay%attach(dset, scale, 0)
+    call h5dclose_f(dset, hdferr)
+  end subroutine create_status
 
-    subroutine make_scale(dset, name)
-      integer(hid_t), intent(in) :: dset
-      character(len=*), intent(in) :: name
-      if (err%failed()) return
-      call h5dsset_scale_f(dset, hdferr, name)
-      if (failed(hdferr, 'make ' // name // ' a dimension scale')) return
-    end subroutine make_scale
-
-    subroutine put_text_attribute(loc, name, value)
-      integer(hid_t), intent(in) :: loc
-      character(len=*), intent(in) :: name, value
-      if (err%failed()) return
-      call write_text_attribute(loc, name, value, hdferr)
-      if (failed(hdferr, 'write attribute ' // name)) return
-    end subroutine put_text_attribute
-
-    integer(hid_t) function new_real_dataset(loc, name, dims, units, description, chunk, in_place) result(dset)
-      integer(hid_t), intent(in) :: loc
-      character(len=*), intent(in) :: name, units, description
-      integer(i8), intent(in) :: dims(:)
-      integer(i8), intent(in), optional :: chunk(:)
-      logical, intent(in), optional :: in_place    !< contiguous, allocated now, never filled
-      integer(hid_t) :: space, dcpl
-      real(wp), target :: fill
-      fill = ieee_value(fill, ieee_quiet_nan)
-      dset = -1
-      if (err%failed()) return
-      call h5screate_simple_f(size(dims), int(dims, hsize_t), space, hdferr)
-      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
-      call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, c_loc(fill), hdferr)
-      if (present(chunk)) then
-        call h5pset_chunk_f(dcpl, size(chunk), int(chunk, hsize_t), hdferr)
-        ! off by default: trajectories shrink by some 15 % and deflating them
-        ! in the single writer took as long as integrating them
-        if (deflate_level > 0) then
-          call h5pset_shuffle_f(dcpl, hdferr)
-          call h5pset_deflate_f(dcpl, deflate_level, hdferr)
+  !> /trajectory: the stored fields. Compressed: chunks of one case each,
+  !> written through HDF5. Otherwise contiguous, allocated now and never
+  !> filled (each case is written once, in place, at `address`; a case not
+  !> written yet reads as zeros, its status 'pending').
+  subroutine trajectory_group(self, lay, indices, address)
+    type(h5_output_t), intent(in) :: self
+    type(layout_t), intent(inout) :: lay
+    integer(i8), intent(in) :: indices(:)
+    integer(i8), intent(out) :: address(field_count)
+    integer(hid_t) :: group, scale, dset
+    integer(i8) :: chunk_samples, n_cases
+    integer(i8), allocatable :: dims(:)
+    integer :: f, hdferr
+    address = -1
+    n_cases = size(indices, kind=i8)
+    group = lay%new_group('trajectory')
+    scale = case_scale(lay, group, indices)
+    do f = 1, field_count
+      if (.not. self%fields(f) .or. lay%err%failed()) cycle
+      chunk_samples = min(self%n_samples, int(max_chunk_bytes / (8 * field_ncomp(f)), i8))
+      if (field_ncomp(f) == 1) then
+        dims = [self%n_samples, n_cases]
+      else
+        dims = [3_i8, self%n_samples, n_cases]
+      end if
+      if (self%in_windows(f)) then
+        dset = lay%real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
+                                trim(field_descriptions(f)), chunk=[dims(:size(dims) - 2), chunk_samples, 1_i8])
+      else
+        dset = lay%real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
+                                trim(field_descriptions(f)), in_place=.true.)
+        if (dset >= 0) then
+          address(f) = h5d_address(int(dset, c_int64_t))
+          if (address(f) < 0 .and. n_cases > 0) &   ! an empty shard has no data, no address
+            call set_error(lay%err, err_output, lay%path // ': no file address for /trajectory/' // &
+                           trim(field_names(f)))
         end if
       end if
-      if (present(in_place)) then
-        if (in_place) then
-          call h5pset_alloc_time_f(dcpl, H5D_ALLOC_TIME_EARLY_F, hdferr)
-          call h5pset_fill_time_f(dcpl, H5D_FILL_TIME_NEVER_F, hdferr)
-        end if
-      end if
-      call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
-      call h5pclose_f(dcpl, closed)
-      call h5sclose_f(space, closed)
-      if (failed(hdferr, 'create dataset ' // name)) return
-      call describe(dset, units, description)
-    end function new_real_dataset
-
-    integer(hid_t) function new_int_dataset(loc, name, n, units, description, fill) result(dset)
-      integer(hid_t), intent(in) :: loc
-      character(len=*), intent(in) :: name, units, description
-      integer(i8), intent(in) :: n
-      integer(i8), intent(in), optional, target :: fill
-      integer(hid_t) :: space, dcpl
-      dset = -1
-      if (err%failed()) return
-      call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
-      call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
-      if (present(fill)) call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), &
-                                                  c_loc(fill), hdferr)
-      call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
-      call h5pclose_f(dcpl, closed)
-      call h5sclose_f(space, closed)
-      if (failed(hdferr, 'create dataset ' // name)) return
-      call describe(dset, units, description)
-    end function new_int_dataset
-
-    integer(hid_t) function new_text_dataset(loc, name, n, description) result(dset)
-      integer(hid_t), intent(in) :: loc
-      character(len=*), intent(in) :: name, description
-      integer(i8), intent(in) :: n
-      integer(hid_t) :: space, text_type
-      dset = -1
-      if (err%failed()) return
-      call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
-      text_type = fixed_text_type()
-      call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
-      call h5tclose_f(text_type, closed)
-      call h5sclose_f(space, closed)
-      if (failed(hdferr, 'create dataset ' // name)) return
-      call describe(dset, '1', description)
-    end function new_text_dataset
-
-    subroutine describe(dset, units, description)
-      integer(hid_t), intent(in) :: dset
-      character(len=*), intent(in) :: units, description
-      call put_text_attribute(dset, 'units', units)
-      call put_text_attribute(dset, 'long_name', description)
-    end subroutine describe
-
-    subroutine write_text(dset, values, offset)
-      integer(hid_t), intent(in) :: dset
-      character(len=*), intent(in) :: values(:)
-      integer(i8), intent(in) :: offset
-      call write_text_slab(self, dset, values, offset, err)
-    end subroutine write_text
-
-    subroutine write_int(dset, values, offset)
-      integer(hid_t), intent(in) :: dset
-      integer(i8), intent(in), target :: values(:)
-      integer(i8), intent(in) :: offset
-      call write_int_slab(self, dset, values, [offset], [size(values, kind=i8)], err)
-    end subroutine write_int
-
-    subroutine write_real(dset, values, offset, counts)
-      integer(hid_t), intent(in) :: dset
-      real(wp), intent(in), target :: values(*)
-      integer(i8), intent(in) :: offset(:), counts(:)
-      call write_real_slab(self, dset, values, offset, counts, err)
-    end subroutine write_real
-
-    logical function failed(code, what)
-      integer, intent(in) :: code
-      character(len=*), intent(in) :: what
-      failed = code < 0
-      if (failed) call set_error(err, err_output, path // ': cannot ' // what // ' (HDF5 error)')
-    end function failed
-  end subroutine create
+      call lay%attach(dset, scale, 0)
+      call lay%attach(dset, lay%time_scale, 1)
+      if (field_ncomp(f) == 3) call lay%attach(dset, lay%xyz_scale, 2)
+      call h5dclose_f(dset, hdferr)
+    end do
+    call h5dclose_f(scale, hdferr)
+    call h5gclose_f(group, hdferr)
+  end subroutine trajectory_group
 
   !> Store one case's inputs, trajectories and summary at its slot icase
   !> (0-based). Trajectories read from another file's store (`moved_from`,
@@ -672,10 +549,10 @@ contains
         if (.not. self%in_windows(f)) cycle
         if (.not. open_dataset(self, 'trajectory/' // trim(field_names(f)), dset, err)) exit
         if (field_ncomp(f) == 1) then
-          call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, offset], &
+          call write_real_slab(self%path, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, offset], &
                                [self%n_samples, n], err)
         else
-          call write_real_slab(self, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, 0_i8, offset], &
+          call write_real_slab(self%path, dset, win%samples(f)%values(:, first_row:last_row), [0_i8, 0_i8, offset], &
                                [3_i8, self%n_samples, n], err)
         end if
       end do
@@ -700,16 +577,16 @@ contains
       case (kind_real)
         ncomp = rows(k, 1)%ncomp
         if (ncomp == 1) then
-          call write_real_slab(self, dset, reals_of(1), [offset], [n], err)
+          call write_real_slab(self%path, dset, reals_of(1), [offset], [n], err)
         else
-          call write_real_slab(self, dset, reals_of(ncomp), [0_i8, offset], [int(ncomp, i8), n], err)
+          call write_real_slab(self%path, dset, reals_of(ncomp), [0_i8, offset], [int(ncomp, i8), n], err)
         end if
       case (kind_int)        ! (the components copied to contiguous arrays: the slab writers take a buffer)
         ints = rows(k, :)%int
-        call write_int_slab(self, dset, ints, [offset], [n], err)
+        call write_int_slab(self%path, dset, ints, [offset], [n], err)
       case (kind_text)
         texts = rows(k, :)%text
-        call write_text_slab(self, dset, texts, offset, err)
+        call write_text_slab(self%path, dset, texts, offset, err)
       end select
     end do
   contains
@@ -787,87 +664,5 @@ contains
     ok = .true.
   end function open_dataset
 
-
-  subroutine write_text_attribute(loc, name, value, hdferr)
-    integer(hid_t), intent(in) :: loc
-    character(len=*), intent(in) :: name, value
-    integer, intent(out) :: hdferr
-    integer(hid_t) :: text_type, space, attr
-    character(len=len(value)+1, kind=c_char), target :: text
-    type(c_ptr), target :: pointers(1)
-    text = value // c_null_char
-    pointers(1) = c_loc(text)
-    text_type = new_text_type()
-    call h5screate_f(H5S_SCALAR_F, space, hdferr)
-    call h5acreate_f(loc, name, text_type, space, attr, hdferr)
-    if (hdferr >= 0) then
-      call h5awrite_f(attr, text_type, c_loc(pointers), hdferr)
-      call h5aclose_f(attr, hdferr)
-    end if
-    call h5sclose_f(space, hdferr)
-    call h5tclose_f(text_type, hdferr)
-  end subroutine write_text_attribute
-
-  !> Per-case text (method, excitation kind) is fixed-length: variable-length
-  !> strings written case by case would fill HDF5's global heap, in memory
-  !> and in the file, in proportion to the number of cases.
-  integer(hid_t) function fixed_text_type() result(text_type)
-    integer :: hdferr
-    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
-    call h5tset_size_f(text_type, int(text_width, size_t), hdferr)
-    call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
-    call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
-  end function fixed_text_type
-
-  subroutine write_text_slab(self, dset, values, offset, err)
-    type(h5_output_t), intent(in) :: self
-    integer(hid_t), intent(in) :: dset
-    character(len=*), intent(in) :: values(:)
-    integer(i8), intent(in) :: offset
-    type(error_t), intent(inout) :: err
-    character(len=text_width, kind=c_char), target :: texts(size(values))
-    integer(hid_t) :: text_type
-    integer :: k, hdferr
-    do k = 1, size(values)
-      texts(k) = trim(values(k)) // c_null_char
-    end do
-    text_type = fixed_text_type()
-    call write_slab(self, dset, text_type, c_loc(texts), [offset], [size(values, kind=i8)], err)
-    call h5tclose_f(text_type, hdferr)
-  end subroutine write_text_slab
-
-  subroutine write_real_slab(self, dset, values, offset, counts, err)
-    type(h5_output_t), intent(in) :: self
-    integer(hid_t), intent(in) :: dset
-    real(wp), intent(in), target :: values(*)
-    integer(i8), intent(in) :: offset(:), counts(:)
-    type(error_t), intent(inout) :: err
-    call write_slab(self, dset, H5T_NATIVE_DOUBLE, c_loc(values), offset, counts, err)
-  end subroutine write_real_slab
-
-  subroutine write_int_slab(self, dset, values, offset, counts, err)
-    type(h5_output_t), intent(in) :: self
-    integer(hid_t), intent(in) :: dset
-    integer(i8), intent(in), target :: values(*)
-    integer(i8), intent(in) :: offset(:), counts(:)
-    type(error_t), intent(inout) :: err
-    call write_slab(self, dset, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), offset, counts, err)
-  end subroutine write_int_slab
-
-  subroutine write_slab(self, dset, mem_type, buffer, offset, counts, err)
-    type(h5_output_t), intent(in) :: self
-    integer(hid_t), intent(in) :: dset, mem_type
-    type(c_ptr), intent(in) :: buffer
-    integer(i8), intent(in) :: offset(:), counts(:)
-    type(error_t), intent(inout) :: err
-    integer(hid_t) :: file_space, mem_space
-    integer :: hdferr
-    if (err%failed()) return
-    call select_slab(dset, offset, counts, file_space, mem_space)
-    call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_output, self%path // ': cannot write data (disk full?)')
-    call h5sclose_f(file_space, hdferr)
-    call h5sclose_f(mem_space, hdferr)
-  end subroutine write_slab
 
 end module ellroll_hdf5_writer

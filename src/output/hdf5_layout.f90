@@ -1,0 +1,202 @@
+!> Laying out a new output file: groups, datasets with their units and long
+!> names, dimension scales and the values written once. A layout_t carries
+!> what every step shares (the file, its path, the deflate level, the
+!> shared scales) and the first error: after it every step does nothing, so
+!> a layout reads as a list of calls with one check at the end.
+module ellroll_hdf5_layout
+  use, intrinsic :: iso_c_binding, only: c_loc
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use hdf5
+  use h5ds, only: h5dsset_scale_f, h5dsattach_scale_f
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_hdf5_common, only: dim_index, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
+      write_int_slab
+  implicit none
+  private
+
+  public :: layout_t
+
+  type :: layout_t
+    integer(hid_t) :: file = -1
+    character(len=:), allocatable :: path
+    integer :: deflate_level = 0               !< of the chunked datasets: 0 none, 1..9
+    integer(hid_t) :: time_scale = -1, xyz_scale = -1, mode_scale = -1
+    type(error_t) :: err
+  contains
+    procedure :: check
+    procedure :: new_group
+    procedure :: text_attribute
+    procedure :: real_dataset
+    procedure :: int_dataset
+    procedure :: text_dataset
+    procedure :: attach
+    procedure :: make_scale
+    procedure :: write_reals
+    procedure :: write_ints
+    procedure :: write_texts
+  end type layout_t
+
+contains
+
+  !> Record a failed HDF5 call (code < 0) as the layout's error: "cannot what".
+  subroutine check(self, code, what)
+    class(layout_t), intent(inout) :: self
+    integer, intent(in) :: code
+    character(len=*), intent(in) :: what
+    if (code < 0 .and. .not. self%err%failed()) &
+      call set_error(self%err, err_output, self%path // ': cannot ' // what // ' (HDF5 error)')
+  end subroutine check
+
+  integer(hid_t) function new_group(self, name) result(id)
+    class(layout_t), intent(inout) :: self
+    character(len=*), intent(in) :: name
+    integer :: hdferr
+    id = -1
+    if (self%err%failed()) return
+    call h5gcreate_f(self%file, name, id, hdferr)
+    call self%check(hdferr, 'create group /' // name)
+  end function new_group
+
+  subroutine text_attribute(self, loc, name, value)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, value
+    integer :: hdferr
+    if (self%err%failed()) return
+    call write_text_attribute(loc, name, value, hdferr)
+    call self%check(hdferr, 'write attribute ' // name)
+  end subroutine text_attribute
+
+  !> A dataset of reals, NaN until written, with its units and long name:
+  !> chunked (and deflated at the layout's level) when `chunk` is given;
+  !> contiguous, allocated now and never filled when `in_place`.
+  integer(hid_t) function real_dataset(self, loc, name, dims, units, description, chunk, in_place) result(dset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, units, description
+    integer(i8), intent(in) :: dims(:)
+    integer(i8), intent(in), optional :: chunk(:)
+    logical, intent(in), optional :: in_place
+    integer(hid_t) :: space, dcpl
+    integer :: hdferr, closed
+    real(wp), target :: fill
+    fill = ieee_value(fill, ieee_quiet_nan)
+    dset = -1
+    if (self%err%failed()) return
+    call h5screate_simple_f(size(dims), int(dims, hsize_t), space, hdferr)
+    call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+    call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, c_loc(fill), hdferr)
+    if (present(chunk)) then
+      call h5pset_chunk_f(dcpl, size(chunk), int(chunk, hsize_t), hdferr)
+      ! off by default: trajectories shrink by some 15 % and deflating them
+      ! in the single writer took as long as integrating them
+      if (self%deflate_level > 0) then
+        call h5pset_shuffle_f(dcpl, hdferr)
+        call h5pset_deflate_f(dcpl, self%deflate_level, hdferr)
+      end if
+    end if
+    if (present(in_place)) then
+      if (in_place) then
+        call h5pset_alloc_time_f(dcpl, H5D_ALLOC_TIME_EARLY_F, hdferr)
+        call h5pset_fill_time_f(dcpl, H5D_FILL_TIME_NEVER_F, hdferr)
+      end if
+    end if
+    call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
+    call h5pclose_f(dcpl, closed)
+    call h5sclose_f(space, closed)
+    call self%check(hdferr, 'create dataset ' // name)
+    call describe(self, dset, units, description)
+  end function real_dataset
+
+  integer(hid_t) function int_dataset(self, loc, name, n, units, description, fill) result(dset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, units, description
+    integer(i8), intent(in) :: n
+    integer(i8), intent(in), optional, target :: fill
+    integer(hid_t) :: space, dcpl
+    integer :: hdferr, closed
+    dset = -1
+    if (self%err%failed()) return
+    call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+    call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+    if (present(fill)) call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(fill), hdferr)
+    call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
+    call h5pclose_f(dcpl, closed)
+    call h5sclose_f(space, closed)
+    call self%check(hdferr, 'create dataset ' // name)
+    call describe(self, dset, units, description)
+  end function int_dataset
+
+  integer(hid_t) function text_dataset(self, loc, name, n, description) result(dset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name, description
+    integer(i8), intent(in) :: n
+    integer(hid_t) :: space, text_type
+    integer :: hdferr, closed
+    dset = -1
+    if (self%err%failed()) return
+    call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+    text_type = fixed_text_type()
+    call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
+    call h5tclose_f(text_type, closed)
+    call h5sclose_f(space, closed)
+    call self%check(hdferr, 'create dataset ' // name)
+    call describe(self, dset, '1', description)
+  end function text_dataset
+
+  subroutine describe(self, dset, units, description)
+    type(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    character(len=*), intent(in) :: units, description
+    call self%text_attribute(dset, 'units', units)
+    call self%text_attribute(dset, 'long_name', description)
+  end subroutine describe
+
+  !> Attach scale to the dataset's dimension `dim` as h5py counts them.
+  subroutine attach(self, dset, scale, dim)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset, scale
+    integer, intent(in) :: dim
+    integer :: hdferr
+    if (self%err%failed()) return
+    call h5dsattach_scale_f(dset, scale, dim_index(dim), hdferr)
+    call self%check(hdferr, 'attach a dimension scale')
+  end subroutine attach
+
+  subroutine make_scale(self, dset, name)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    character(len=*), intent(in) :: name
+    integer :: hdferr
+    if (self%err%failed()) return
+    call h5dsset_scale_f(dset, hdferr, name)
+    call self%check(hdferr, 'make ' // name // ' a dimension scale')
+  end subroutine make_scale
+
+  subroutine write_reals(self, dset, values, offset, counts)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    real(wp), intent(in), target :: values(*)
+    integer(i8), intent(in) :: offset(:), counts(:)
+    call write_real_slab(self%path, dset, values, offset, counts, self%err)
+  end subroutine write_reals
+
+  subroutine write_ints(self, dset, values, offset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    integer(i8), intent(in), target :: values(:)
+    integer(i8), intent(in) :: offset
+    call write_int_slab(self%path, dset, values, [offset], [size(values, kind=i8)], self%err)
+  end subroutine write_ints
+
+  subroutine write_texts(self, dset, values, offset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    character(len=*), intent(in) :: values(:)
+    integer(i8), intent(in) :: offset
+    call write_text_slab(self%path, dset, values, offset, self%err)
+  end subroutine write_texts
+end module ellroll_hdf5_layout
