@@ -51,6 +51,30 @@ module ellroll_run_campaign
     integer :: shard(2) = [0, 1]         !< this shard's index I and the count N
   end type run_options_t
 
+  !> The files of a run writing `target`: the file being written, the new
+  !> file of a resume, and the journal.
+  type :: run_files_t
+    character(len=:), allocatable :: target, partial, resumed, journal
+  end type run_files_t
+
+  !> What the threads of a run share: the file and journal they write, the
+  !> slots done, progress, timings and the first errors (one from a block,
+  !> one from the writer).
+  type :: run_state_t
+    integer :: shard(2) = [0, 1]
+    integer(i8) :: n_slots = 0
+    logical :: use_batches = .false.
+    logical, allocatable :: done(:)
+    type(h5_output_t) :: out
+    type(journal_t) :: journal
+    type(progress_t) :: progress
+    type(run_timings_t) :: timings
+    type(error_t) :: shared_err, block_err
+  contains
+    procedure :: in_lanes
+    procedure :: global_index
+  end type run_state_t
+
 contains
 
   !> The id that ties a file, its journal and its shards to one campaign.
@@ -254,314 +278,367 @@ contains
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: target, partial, resumed, writing, journal_path, messages
-    integer(i8), allocatable :: globals(:), journal_places(:)
-    logical, allocatable :: invalid(:), done(:)
-    integer(i8) :: n_slots, slot, i, chunk
-    logical :: use_batches, resume, journal_exists
-    real(wp), allocatable :: times(:)
-    type(h5_output_t) :: out
-    type(journal_t) :: journal
-    type(journal_header_t) :: header
-    type(provenance_t) :: prov
-    type(progress_t) :: progress
-    type(case_result_t) :: res
-    type(error_t) :: shared_err, block_err
-    type(run_timings_t) :: timings
-    integer :: n_threads
+    character(len=:), allocatable :: messages
+    logical, allocatable :: invalid(:)
+    logical :: resume, nothing_to_do
+    type(run_files_t) :: files
+    type(run_state_t) :: run
 
-    timings%started = wall_clock()
-    target = inp%plan%file
-    partial = target // '.partial'
-    resumed = partial // '.new'
-    journal_path = target // '.journal'
+    run%timings%started = wall_clock()
+    files%target = inp%plan%file
+    files%partial = files%target // '.partial'
+    files%resumed = files%partial // '.new'
+    files%journal = files%target // '.journal'
 
     ! invalid cases: stop before any work, or skip them
     call find_invalid_cases(inp, invalid, messages)
-    timings%advice = opts%advice_seconds
-    timings%checked = wall_clock()
+    run%timings%advice = opts%advice_seconds
+    run%timings%checked = wall_clock()
     if (any(invalid) .and. inp%campaign%invalid == invalid_stop) then
       call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
           ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
       return
     end if
+    call decide_start(inp, opts, files, resume, nothing_to_do, err)
+    if (err%failed() .or. nothing_to_do) return
+    call open_outputs(inp, opts, prov_in, files, resume, run, err)
+    if (err%failed()) return
+    call record_invalid(inp, invalid, run, err)
+    if (err%failed()) then
+      call abandon(run, files, err)
+      return
+    end if
+    call run_blocks(inp, opts, run)
+    call finish(run, files, opts, err)
+  end subroutine run_campaign
 
-    ! existing outputs; a journal killed before its header was complete
-    ! holds nothing finished, and the run starts afresh
+  !> Whether the run starts afresh or resumes, from the files there and the
+  !> options; nothing_to_do for a resume of a complete run. A journal
+  !> killed before its header was complete holds nothing finished, and the
+  !> run starts afresh.
+  subroutine decide_start(inp, opts, files, resume, nothing_to_do, err)
+    type(run_input_t), intent(in) :: inp
+    type(run_options_t), intent(in) :: opts
+    type(run_files_t), intent(in) :: files
+    logical, intent(out) :: resume, nothing_to_do
+    type(error_t), intent(inout) :: err
+    logical :: journal_exists
+    nothing_to_do = .false.
     resume = opts%resume
-    journal_exists = file_exists(journal_path)
+    journal_exists = file_exists(files%journal)
     if (journal_exists) then
-      if (journal_is_torn(journal_path)) then
-        write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': the interrupted run finished no case ' // &
-            '(killed before the journal''s header was written); starting afresh'
-        call remove_file(journal_path)
-        call remove_file(partial)
-        call remove_file(resumed)
+      if (journal_is_torn(files%journal)) then
+        write (error_unit, '(a)') 'ellroll: warning: ' // files%journal // ': the interrupted run finished ' // &
+            'no case (killed before the journal''s header was written); starting afresh'
+        call remove_file(files%journal)
+        call remove_file(files%partial)
+        call remove_file(files%resumed)
         journal_exists = .false.
         resume = .false.
       end if
-    else if (.not. file_exists(target)) then
+    else if (.not. file_exists(files%target)) then
       resume = .false.          ! nothing begun: a resume is the first run (a requeued job's)
     end if
     if (resume .and. .not. journal_exists) then          ! the output is there
-      if (output_campaign_id(target) == campaign_id(inp)) then
-        write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
+      nothing_to_do = .true.
+      if (output_campaign_id(files%target) == campaign_id(inp)) then
+        write (error_unit, '(a)') 'ellroll: ' // files%target // ': this run is already complete; nothing to do'
       else
-        call set_error(err, err_output, target // ': holds the output of another input; nothing to resume')
+        call set_error(err, err_output, files%target // ': holds the output of another input; nothing to resume')
       end if
-      return
     else if (.not. resume .and. .not. opts%overwrite) then
       if (journal_exists) then
-        call set_error(err, err_output, target // ': an interrupted run of this output exists (' // &
-            journal_path // '); pass --resume to finish it, or --overwrite to start over')
-        return
-      end if
-      if (file_exists(target)) then
-        call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
-        return
+        call set_error(err, err_output, files%target // ': an interrupted run of this output exists (' // &
+            files%journal // '); pass --resume to finish it, or --overwrite to start over')
+      else if (file_exists(files%target)) then
+        call set_error(err, err_output, files%target // ': output file exists; pass --overwrite to replace it')
       end if
     end if
+    if (opts%overwrite) call remove_file(files%resumed)       ! left by a resume killed before its end
+  end subroutine decide_start
 
-    if (opts%overwrite) call remove_file(resumed)       ! left by a resume killed before its end
-
-    globals = shard_slots(inp%campaign%n_cases(), opts%shard)
-    n_slots = size(globals, kind=i8)
+  !> Create the output file and the journal, or on a resume the file into
+  !> which the journaled cases go (they are then done).
+  subroutine open_outputs(inp, opts, prov_in, files, resume, run, err)
+    type(run_input_t), intent(in) :: inp
+    type(run_options_t), intent(in) :: opts
+    type(provenance_t), intent(in) :: prov_in
+    type(run_files_t), intent(in) :: files
+    logical, intent(in) :: resume
+    type(run_state_t), intent(inout) :: run
+    type(error_t), intent(inout) :: err
+    integer(i8), allocatable :: globals(:), journal_places(:)
+    real(wp), allocatable :: times(:)
+    type(journal_header_t) :: header
+    type(provenance_t) :: prov
+    character(len=:), allocatable :: writing
+    integer(i8) :: i
+    allocate (globals, source=shard_slots(inp%campaign%n_cases(), opts%shard))
+    run%n_slots = size(globals, kind=i8)
+    run%shard = opts%shard
     prov = prov_in
     prov%campaign_id = campaign_id(inp)
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
-    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=n_slots, n_samples=inp%plan%n_samples, &
+    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=run%n_slots, n_samples=inp%plan%n_samples, &
                               shard=opts%shard, fields=inp%plan%fields, &
                               in_place=written_in_place(inp%plan%fields, inp%plan%compression))
     if (resume) then
-      call open_for_resume(journal, journal_path, header, partial, resumed, journal_places, err)
+      call open_for_resume(run%journal, files%journal, header, files%partial, files%resumed, journal_places, err)
       if (err%failed()) return
     end if
-
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
-    writing = partial
-    if (resume) writing = resumed      ! moved over partial once the journaled cases are in it
-    call out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    writing = files%partial
+    if (resume) writing = files%resumed      ! moved over partial once the journaled cases are in it
+    call run%out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
-      call out%close(err)
-      call remove_file(out%path)
+      call run%out%close(err)
+      call remove_file(run%out%path)
       return
     end if
-
-    ! cases already done: from the journal of the interrupted run
-    allocate (done(0:n_slots - 1))
-    done = .false.
+    allocate (run%done(0:run%n_slots - 1))
+    run%done = .false.
     if (resume) then
-      call copy_journaled_cases(journal, journal_places, inp%campaign, opts%shard, partial, out, done, err)
-      deallocate (journal_places)
+      call copy_journaled_cases(run%journal, journal_places, inp%campaign, opts%shard, files%partial, run%out, &
+                                run%done, err)
     else
-      call journal%create(journal_path, header, err)
+      call run%journal%create(files%journal, header, err)
     end if
-    ! invalid cases skipped: recorded, never integrated
-    do slot = 0, n_slots - 1
-      if (err%failed()) exit
-      if (done(slot) .or. .not. invalid(global_index(slot))) cycle
-      res = case_result_t(status=status_invalid)
-      call out%write_case(slot, inp%campaign%case_at(global_index(slot)), res, err)
-      done(slot) = .true.
-    end do
-    if (err%failed()) then
-      call abandon()
-      return
-    end if
+    if (err%failed()) call abandon(run, files, err)
+  end subroutine open_outputs
 
+  !> Invalid cases skipped: recorded, never integrated.
+  subroutine record_invalid(inp, invalid, run, err)
+    type(run_input_t), intent(in) :: inp
+    logical, intent(in) :: invalid(0:)
+    type(run_state_t), intent(inout) :: run
+    type(error_t), intent(inout) :: err
+    type(case_result_t) :: res
+    integer(i8) :: slot
+    do slot = 0, run%n_slots - 1
+      if (err%failed()) exit
+      if (run%done(slot) .or. .not. invalid(run%global_index(slot))) cycle
+      res = case_result_t(status=status_invalid)
+      call run%out%write_case(slot, inp%campaign%case_at(run%global_index(slot)), res, err)
+      run%done(slot) = .true.
+    end do
+  end subroutine record_invalid
+
+  !> Every block not done, over the threads, until all are done, one fails
+  !> or a stop signal comes.
+  subroutine run_blocks(inp, opts, run)
+    type(run_input_t), intent(in) :: inp
+    type(run_options_t), intent(in) :: opts
+    type(run_state_t), intent(inout) :: run
+    integer(i8) :: chunk
+    integer :: n_threads
     n_threads = 1
     !$ n_threads = omp_get_max_threads()
     if (opts%threads > 0) n_threads = opts%threads
-    call progress%start(n_slots, count(done, kind=i8), opts%quiet)
-
+    call run%progress%start(run%n_slots, count(run%done, kind=i8), opts%quiet)
     ! blocks of `lanes` slots: in a campaign of at least `lanes` cases the
     ! batchable cases of a block run together across SIMD lanes, the others
     ! one by one. The choice depends on the case and the campaign's size only,
     ! never on threads, shards or resumption, so results stay bitwise the same.
-    use_batches = inp%campaign%n_cases() >= lanes
-    timings%loop_started = wall_clock()
+    run%use_batches = inp%campaign%n_cases() >= lanes
+    run%timings%loop_started = wall_clock()
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
-    do chunk = 0, (n_slots - 1) / lanes
-      if (.not. (shared_err%failed() .or. block_err%failed())) then
-        if (stop_signal() == 0) call run_block(chunk)
+    do chunk = 0, (run%n_slots - 1) / lanes
+      if (.not. (run%shared_err%failed() .or. run%block_err%failed())) then
+        if (stop_signal() == 0) call run_block(run, inp, chunk)
       end if
     end do
     !$omp end parallel do
-    timings%loop_ended = wall_clock()
-    call progress%finish()
+    run%timings%loop_ended = wall_clock()
+    call run%progress%finish()
+  end subroutine run_blocks
 
-    if (block_err%failed() .and. .not. shared_err%failed()) shared_err = block_err
-    if (shared_err%failed()) then
-      err = shared_err
-      call abandon()
+  !> After the loop: the first error, an interruption, or the finished file
+  !> moved into place and its journal deleted.
+  subroutine finish(run, files, opts, err)
+    type(run_state_t), intent(inout) :: run
+    type(run_files_t), intent(in) :: files
+    type(run_options_t), intent(in) :: opts
+    type(error_t), intent(inout) :: err
+    if (run%block_err%failed() .and. .not. run%shared_err%failed()) run%shared_err = run%block_err
+    if (run%shared_err%failed()) then
+      err = run%shared_err
+      call abandon(run, files, err)
       return
     end if
-    if (progress%done < n_slots) then          ! asked to stop (SIGTERM, SIGINT)
+    if (run%progress%done < run%n_slots) then          ! asked to stop (SIGTERM, SIGINT)
       call set_error(err, err_interrupted + stop_signal(), 'interrupted by ' // signal_name(stop_signal()) // &
-          ' after ' // itoa(progress%done) // ' of ' // itoa(n_slots) // ' cases')
-      call keep_finished()
+          ' after ' // itoa(run%progress%done) // ' of ' // itoa(run%n_slots) // ' cases')
+      call keep_finished(run, files)
       return
     end if
-    call out%close(err)
+    call run%out%close(err)
     if (.not. err%failed()) then
-      if (.not. rename_file(partial, target)) &
-        call set_error(err, err_output, target // ': cannot move the finished file into place')
+      if (.not. rename_file(files%partial, files%target)) &
+        call set_error(err, err_output, files%target // ': cannot move the finished file into place')
     end if
     if (err%failed()) then
-      call journal%close(delete=.false.)
+      call run%journal%close(delete=.false.)
       return
     end if
-    call journal%close(delete=.true.)
-    timings%ended = wall_clock()
-    if (opts%timings) call timings%report()
+    call run%journal%close(delete=.true.)
+    run%timings%ended = wall_clock()
+    if (opts%timings) call run%timings%report()
+  end subroutine finish
 
-  contains
-
-    !> Integrate the slots of one block not done yet, write their trajectories
-    !> and journal records, then hand their table rows to the writer: each
-    !> lock taken once per block.
-    subroutine run_block(chunk)
-      integer(i8), intent(in) :: chunk
-      type(case_t) :: cases(lanes)
-      type(case_result_t) :: results(lanes), batch_results(lanes)
-      type(error_t) :: case_err, write_err
-      type(window_list_t) :: full
-      integer(i8) :: slots(lanes), slot
-      integer :: n, n_done, j, in_batch(lanes), n_batch, first, run_start
-      logical :: waiting(lanes)
-      integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
-      type(named_value_t), allocatable :: rows(:, :)
-      real(wp) :: asked, taken
-      integer(i8) :: place
-      n = 0
-      do slot = chunk * lanes, min(n_slots, (chunk + 1) * lanes) - 1
-        if (done(slot)) cycle
-        n = n + 1
-        slots(n) = slot
-        cases(n) = inp%campaign%case_at(global_index(slot))
+  !> Integrate the slots of one block not done yet, write their trajectories
+  !> and journal records, then hand their table rows to the writer: each
+  !> lock taken once per block.
+  subroutine run_block(run, inp, chunk)
+    type(run_state_t), intent(inout) :: run
+    type(run_input_t), intent(in) :: inp
+    integer(i8), intent(in) :: chunk
+    type(case_t) :: cases(lanes)
+    type(case_result_t) :: results(lanes), batch_results(lanes)
+    type(error_t) :: case_err, write_err
+    type(window_list_t) :: full
+    integer(i8) :: slots(lanes), slot
+    integer :: n, n_done, j, in_batch(lanes), n_batch, first, run_start
+    logical :: waiting(lanes)
+    integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
+    type(named_value_t), allocatable :: rows(:, :)
+    real(wp) :: asked, taken
+    integer(i8) :: place
+    n = 0
+    do slot = chunk * lanes, min(run%n_slots, (chunk + 1) * lanes) - 1
+      if (run%done(slot)) cycle
+      n = n + 1
+      slots(n) = slot
+      cases(n) = inp%campaign%case_at(run%global_index(slot))
+    end do
+    if (n == 0) return
+    ! one batch per method among the block's batchable cases
+    waiting(:n) = [(run%in_lanes(cases(j)), j = 1, n)]
+    do while (any(waiting(:n)))
+      first = findloc(waiting(:n), .true., dim=1)
+      n_batch = 0
+      do j = first, n
+        if (.not. waiting(j) .or. cases(j)%method /= cases(first)%method) cycle
+        n_batch = n_batch + 1
+        in_batch(n_batch) = j
+        waiting(j) = .false.
       end do
-      if (n == 0) return
-      ! one batch per method among the block's batchable cases
-      waiting(:n) = [(in_lanes(cases(j)), j = 1, n)]
-      do while (any(waiting(:n)))
-        first = findloc(waiting(:n), .true., dim=1)
-        n_batch = 0
-        do j = first, n
-          if (.not. waiting(j) .or. cases(j)%method /= cases(first)%method) cycle
-          n_batch = n_batch + 1
-          in_batch(n_batch) = j
-          waiting(j) = .false.
-        end do
-        if (n_batch == n) then           ! the whole block: no copy of the results
-          call simulate_batch(cases(:n), inp%plan, results(:n))
-        else
-          call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
-          results(in_batch(:n_batch)) = batch_results(:n_batch)
-        end if
-      end do
-      n_done = n
-      do j = 1, n
-        if (in_lanes(cases(j))) cycle
-        call simulate_case(cases(j), inp%plan, results(j), case_err)
-        if (case_err%failed()) then
-          n_done = j - 1
-          exit
-        end if
-      end do
-      if (stop_signal() /= 0) return       ! cases cut short: the block runs again on --resume
-      ! the trajectories go to their place in the file, one write per run of
-      ! consecutive slots; records and table rows are built here: all outside the locks
-      asked = wall_clock()
-      run_start = 1
-      do j = 1, n_done
-        if (j < n_done) then
-          if (slots(j + 1) == slots(j) + 1) cycle
-        end if
-        call out%put_trajectories(slots(run_start), results(run_start:j), write_err)
-        run_start = j + 1
-      end do
-      if (n_done > 0) call timings%add_write(writes_trajectories, asked)
-      do j = 1, n_done
-        associate (record => journal%record(slots(j), results(j)), row => table_row(cases(j), results(j)))
-          if (j == 1) allocate (records(size(record) * n_done), rows(size(row), n_done))
-          records((j - 1) * size(record) + 1:j * size(record)) = record
-          rows(:, j) = row
-        end associate
-      end do
-      ! the journal: places taken under its lock, the records written there
-      ! outside it, after the trajectories (a resume takes a journaled case's
-      ! trajectories from the file)
-      if (n_done > 0 .and. .not. write_err%failed()) then
-        asked = wall_clock()
-        !$omp critical (ellroll_journal)
-        taken = wall_clock()
-        place = journal%reserve(size(records, kind=i8))
-        call timings%tally(lock_journal, asked, taken)
-        !$omp end critical (ellroll_journal)
-        asked = wall_clock()
-        call journal%write_records(place, records, write_err)
-        call timings%add_write(writes_journal, asked)
+      if (n_batch == n) then           ! the whole block: no copy of the results
+        call simulate_batch(cases(:n), inp%plan, results(:n))
+      else
+        call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
+        results(in_batch(:n_batch)) = batch_results(:n_batch)
       end if
-      if (case_err%failed() .or. write_err%failed()) then
-        !$omp critical (ellroll_block_error)
-        if (.not. block_err%failed() .and. case_err%failed()) block_err = case_err
-        if (.not. block_err%failed()) block_err = write_err
-        !$omp end critical (ellroll_block_error)
+    end do
+    n_done = n
+    do j = 1, n
+      if (run%in_lanes(cases(j))) cycle
+      call simulate_case(cases(j), inp%plan, results(j), case_err)
+      if (case_err%failed()) then
+        n_done = j - 1
+        exit
       end if
-      if (n_done == 0) return
+    end do
+    if (stop_signal() /= 0) return       ! cases cut short: the block runs again on --resume
+    ! the trajectories go to their place in the file, one write per run of
+    ! consecutive slots; records and table rows are built here: all outside the locks
+    asked = wall_clock()
+    run_start = 1
+    do j = 1, n_done
+      if (j < n_done) then
+        if (slots(j + 1) == slots(j) + 1) cycle
+      end if
+      call run%out%put_trajectories(slots(run_start), results(run_start:j), write_err)
+      run_start = j + 1
+    end do
+    if (n_done > 0) call run%timings%add_write(writes_trajectories, asked)
+    do j = 1, n_done
+      associate (record => run%journal%record(slots(j), results(j)), row => table_row(cases(j), results(j)))
+        if (j == 1) allocate (records(size(record) * n_done), rows(size(row), n_done))
+        records((j - 1) * size(record) + 1:j * size(record)) = record
+        rows(:, j) = row
+      end associate
+    end do
+    ! the journal: places taken under its lock, the records written there
+    ! outside it, after the trajectories (a resume takes a journaled case's
+    ! trajectories from the file)
+    if (n_done > 0 .and. .not. write_err%failed()) then
       asked = wall_clock()
-      !$omp critical (ellroll_keep)
+      !$omp critical (ellroll_journal)
       taken = wall_clock()
-      do j = 1, n_done
-        call out%keep_case(slots(j), rows(:, j), results(j), full)
-        call progress%advance()
-      end do
-      call timings%tally(lock_keep, asked, taken)
-      !$omp end critical (ellroll_keep)
-      if (full%n == 0) return
+      place = run%journal%reserve(size(records, kind=i8))
+      call run%timings%tally(lock_journal, asked, taken)
+      !$omp end critical (ellroll_journal)
       asked = wall_clock()
-      !$omp critical (ellroll_writer)
-      taken = wall_clock()
-      if (.not. (shared_err%failed() .or. block_err%failed())) call out%write_windows(full, shared_err)
-      call timings%tally(lock_writer, asked, taken)
-      !$omp end critical (ellroll_writer)
-      asked = wall_clock()
-      !$omp critical (ellroll_keep)
-      taken = wall_clock()
-      call out%recycle(full)
-      call timings%tally(lock_keep, asked, taken)
-      !$omp end critical (ellroll_keep)
-    end subroutine run_block
+      call run%journal%write_records(place, records, write_err)
+      call run%timings%add_write(writes_journal, asked)
+    end if
+    if (case_err%failed() .or. write_err%failed()) then
+      !$omp critical (ellroll_block_error)
+      if (.not. run%block_err%failed() .and. case_err%failed()) run%block_err = case_err
+      if (.not. run%block_err%failed()) run%block_err = write_err
+      !$omp end critical (ellroll_block_error)
+    end if
+    if (n_done == 0) return
+    asked = wall_clock()
+    !$omp critical (ellroll_keep)
+    taken = wall_clock()
+    do j = 1, n_done
+      call run%out%keep_case(slots(j), rows(:, j), results(j), full)
+      call run%progress%advance()
+    end do
+    call run%timings%tally(lock_keep, asked, taken)
+    !$omp end critical (ellroll_keep)
+    if (full%n == 0) return
+    asked = wall_clock()
+    !$omp critical (ellroll_writer)
+    taken = wall_clock()
+    if (.not. (run%shared_err%failed() .or. run%block_err%failed())) call run%out%write_windows(full, run%shared_err)
+    call run%timings%tally(lock_writer, asked, taken)
+    !$omp end critical (ellroll_writer)
+    asked = wall_clock()
+    !$omp critical (ellroll_keep)
+    taken = wall_clock()
+    call run%out%recycle(full)
+    call run%timings%tally(lock_keep, asked, taken)
+    !$omp end critical (ellroll_keep)
+  end subroutine run_block
 
-    !> A case of a small campaign (the paper's single case, say) runs alone:
-    !> a batch costs all its lanes whether they are filled or not.
-    pure logical function in_lanes(cs)
-      type(case_t), intent(in) :: cs
-      in_lanes = use_batches .and. batchable(cs)
-    end function in_lanes
+  !> A case of a small campaign (the paper's single case, say) runs alone:
+  !> a batch costs all its lanes whether they are filled or not.
+  pure logical function in_lanes(self, cs)
+    class(run_state_t), intent(in) :: self
+    type(case_t), intent(in) :: cs
+    in_lanes = self%use_batches .and. batchable(cs)
+  end function in_lanes
 
-    pure integer(i8) function global_index(slot)
-      integer(i8), intent(in) :: slot
-      global_index = opts%shard(1) + slot * opts%shard(2)
-    end function global_index
+  !> The campaign's index of the case in this shard's `slot`.
+  pure integer(i8) function global_index(self, slot)
+    class(run_state_t), intent(in) :: self
+    integer(i8), intent(in) :: slot
+    global_index = self%shard(1) + slot * self%shard(2)
+  end function global_index
 
-    !> After a failure, keep what is finished, and say where it is.
-    subroutine abandon()
-      call keep_finished()
-      err%message = err%message // achar(10) // '  ' // journal_path // ' keeps the cases finished so far; ' // &
-                    'fix the cause and run again with --resume'
-    end subroutine abandon
+  !> After a failure, keep what is finished, and say where it is.
+  subroutine abandon(run, files, err)
+    type(run_state_t), intent(inout) :: run
+    type(run_files_t), intent(in) :: files
+    type(error_t), intent(inout) :: err
+    call keep_finished(run, files)
+    err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so far; ' // &
+                  'fix the cause and run again with --resume'
+  end subroutine abandon
 
-    !> Keep what is finished: the journal holds every case done so far, and
-    !> the partial file shows them; --resume takes it from there.
-    subroutine keep_finished()
-      type(error_t) :: ignored
-      call out%close(ignored)
-      ! a resume that failed while copying: the next one takes back what it holds
-      if (out%path == resumed .and. .not. any(header%in_place)) call remove_file(resumed)
-      call journal%close(delete=.false.)
-    end subroutine keep_finished
-  end subroutine run_campaign
+  !> Keep what is finished: the journal holds every case done so far, and
+  !> the partial file shows them; --resume takes it from there.
+  subroutine keep_finished(run, files)
+    type(run_state_t), intent(inout) :: run
+    type(run_files_t), intent(in) :: files
+    type(error_t) :: ignored
+    call run%out%close(ignored)
+    ! a resume that failed while copying: the next one takes back what it holds
+    if (run%out%path == files%resumed .and. .not. any(run%journal%header%in_place)) call remove_file(files%resumed)
+    call run%journal%close(delete=.false.)
+  end subroutine keep_finished
 end module ellroll_run_campaign
