@@ -55,6 +55,25 @@ module ellroll_input
     procedure :: require_all
   end type reader_t
 
+  !> Every namelist variable as read: the defaults of the parameter table
+  !> (NaN where required) where the input says nothing.
+  type :: namelist_values_t
+    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
+    character(len=32) :: method, error_estimate
+    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
+    character(len=1024) :: file
+    character(len=32) :: fields(max_fields)
+    integer :: compression
+    character(len=16) :: kind
+    real(wp) :: amplitude(3), frequency, phase
+    character(len=1024) :: record_file
+    character(len=16) :: combine, invalid, spacing
+    integer(i8) :: samples, seed
+    character(len=32) :: name
+    real(wp) :: values(max_values), start, stop, low, high
+    integer :: count
+  end type namelist_values_t
+
 contains
 
   subroutine read_input(path, output_override, inp, err)
@@ -147,6 +166,7 @@ contains
     character(len=512) :: msg
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: draws(:)
+    type(namelist_values_t) :: v
 
     ! the parameter table's defaults (NaN: required)
     a = param_default(p_a); b = param_default(p_b); c = param_default(p_c); radius = param_default(p_radius)
@@ -163,7 +183,7 @@ contains
 
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
-        if (.not. names_known(gi)) return
+        if (.not. names_known(rd, gi)) return
         name = ''; values = nan(); start = nan(); stop = nan(); count = 0; spacing = 'linear'
         low = nan(); high = nan()
         do k = 1, size(grp%items)
@@ -177,24 +197,24 @@ contains
             return
           end if
         end do
-        if (grp%name == 'sweep') call add_sweep(gi)
-        if (grp%name == 'sample') call add_sample(gi)
+        if (grp%name == 'sweep') call add_sweep(rd, current(), gi, sweeps, draws)
+        if (grp%name == 'sample') call add_sample(rd, current(), gi, sweeps, draws)
         if (rd%err%failed()) return
       end associate
     end do
 
-    call build_base(inp%campaign%base)
+    v = current()
+    call build_base(rd, v, inp%campaign%base)
     if (rd%err%failed()) return
-    call build_excitation(inp%campaign%base)
+    call build_excitation(rd, v, inp%campaign%base)
     if (rd%err%failed()) return
-    call build_plan(inp%campaign%base, inp%plan)
+    call build_plan(rd, v, output_override, inp%campaign%base, inp%plan)
     if (rd%err%failed()) return
-    call check_base(inp%campaign%base, inp%plan)
+    call check_base(rd, inp%campaign%base, inp%plan)
     if (rd%err%failed()) return
-    call build_campaign(inp%campaign)
+    call build_campaign(rd, v, sweeps, draws, inp%campaign)
 
   contains
-
     !> Read assignment k of a group alone, into the variables of its namelist.
     subroutine read_assignment(grp, k, ios, msg)
       type(nml_group_t), intent(in) :: grp
@@ -223,378 +243,456 @@ contains
       call ieee_set_status(fp_state)
     end subroutine read_assignment
 
-    logical function names_known(gi) result(ok)
-      integer, intent(in) :: gi
-      select case (rd%file%groups(gi)%name)
-      case ('geometry'); ok = check_names(rd, gi, [character(len=16) :: 'a', 'b', 'c'])
-      case ('ball'); ok = check_names(rd, gi, [character(len=16) :: 'radius', 'weight', 'mass', 'mu', &
-                                               'inertia_factor'])
-      case ('environment'); ok = check_names(rd, gi, [character(len=16) :: 'g'])
-      case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
-      case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
-                                                      'fit_margin', 'rtol', 'atol', 'error_estimate'])
-      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
-                                                 'compression'])
-      case ('excitation'); ok = check_names(rd, gi, [character(len=16) :: 'kind', 'amplitude', 'frequency', &
-                                                     'phase', 'record_file'])
-      case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
-                                                   'invalid'])
-      case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
-                                                'count', 'spacing'])
-      case default; ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
-      end select
-    end function names_known
 
-    subroutine build_base(cs)
-      type(case_t), intent(out) :: cs
-      integer :: gi
-      gi = rd%group('geometry', .true.)
-      if (gi == 0) return
-      if (.not. rd%require_all(gi, [character(len=6) :: 'a', 'b', 'c'], [a, b, c])) return
-      gi = rd%group('ball', .true.)
-      if (gi == 0) return
-      if (.not. rd%require(gi, 'radius', radius)) return
-      if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
-        call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
+    !> The namelist variables as they stand.
+    type(namelist_values_t) function current() result(now)
+      now%a = a
+      now%b = b
+      now%c = c
+      now%radius = radius
+      now%weight = weight
+      now%mass = mass
+      now%mu = mu
+      now%inertia_factor = inertia_factor
+      now%g = g
+      now%x = x
+      now%y = y
+      now%omega = omega
+      now%method = method
+      now%error_estimate = error_estimate
+      now%dt = dt
+      now%t_end = t_end
+      now%fit_margin = fit_margin
+      now%interval = interval
+      now%rtol = rtol
+      now%atol = atol
+      now%file = file
+      now%fields = fields
+      now%compression = compression
+      now%kind = kind
+      now%amplitude = amplitude
+      now%frequency = frequency
+      now%phase = phase
+      now%record_file = record_file
+      now%combine = combine
+      now%invalid = invalid
+      now%spacing = spacing
+      now%samples = samples
+      now%seed = seed
+      now%name = name
+      now%values = values
+      now%start = start
+      now%stop = stop
+      now%low = low
+      now%high = high
+      now%count = count
+    end function current
+  end subroutine read_groups
+
+  logical function names_known(rd, gi) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    select case (rd%file%groups(gi)%name)
+    case ('geometry'); ok = check_names(rd, gi, [character(len=16) :: 'a', 'b', 'c'])
+    case ('ball'); ok = check_names(rd, gi, [character(len=16) :: 'radius', 'weight', 'mass', 'mu', &
+                                             'inertia_factor'])
+    case ('environment'); ok = check_names(rd, gi, [character(len=16) :: 'g'])
+    case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
+    case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
+                                                    'fit_margin', 'rtol', 'atol', 'error_estimate'])
+    case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
+                                               'compression'])
+    case ('excitation'); ok = check_names(rd, gi, [character(len=16) :: 'kind', 'amplitude', 'frequency', &
+                                                   'phase', 'record_file'])
+    case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
+                                                 'invalid'])
+    case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
+                                              'count', 'spacing'])
+    case default; ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
+    end select
+  end function names_known
+
+
+  subroutine build_base(rd, v, cs)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(inout) :: v
+    type(case_t), intent(out) :: cs
+    integer :: gi
+    gi = rd%group('geometry', .true.)
+    if (gi == 0) return
+    if (.not. rd%require_all(gi, [character(len=6) :: 'a', 'b', 'c'], [v%a, v%b, v%c])) return
+    gi = rd%group('ball', .true.)
+    if (gi == 0) return
+    if (.not. rd%require(gi, 'radius', v%radius)) return
+    if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
+      call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
+      return
+    else if (rd%given(gi, 'weight')) then
+      if (.not. rd%require(gi, 'weight', v%weight)) return
+      if (ieee_is_finite(v%weight) .and. .not. v%weight > 0) then   ! case_t reads weight 0 as 'mass given'
+        call rd%fail_value(gi, 'weight', range_text(p_weight))
         return
-      else if (rd%given(gi, 'weight')) then
-        if (.not. rd%require(gi, 'weight', weight)) return
-        if (ieee_is_finite(weight) .and. .not. weight > 0) then   ! case_t reads weight 0 as 'mass given'
-          call rd%fail_value(gi, 'weight', range_text(p_weight))
+      end if
+      cs%weight = v%weight
+    else if (rd%given(gi, 'mass')) then
+      if (.not. rd%require(gi, 'mass', v%mass)) return
+      cs%mass = v%mass
+    else
+      call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
+      return
+    end if
+    gi = rd%group('initial', .true.)
+    if (gi == 0) return
+    if (.not. rd%given(gi, 'omega')) then
+      call rd%fail_missing(gi, 'omega', 'give the initial angular velocity, omega = wx, wy, wz (rad/s)')
+      return
+    end if
+    if (any(ieee_is_nan(v%omega))) then
+      call rd%fail_value(gi, 'omega', 'three finite numbers are needed (wx, wy, wz in rad/s)')
+      return
+    end if
+    gi = rd%group('integration', .true.)
+    if (gi == 0) return
+    v%method = lower(adjustl(v%method))
+    if (index(' ' // method_names() // ' ', ' ' // trim(v%method) // ' ') == 0 .or. len_trim(v%method) == 0) then
+      call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names() // ')')
+      return
+    end if
+    if (.not. rd%require(gi, 't_end', v%t_end)) return
+    ! an adaptive method chooses its steps; dt, if given, is the largest
+    if (.not. (adaptive_method(v%method) .and. .not. rd%given(gi, 'dt'))) then
+      if (.not. rd%require(gi, 'dt', v%dt)) return
+    end if
+    select case (lower(adjustl(v%error_estimate)))
+    case ('none'); cs%error_estimate = .false.
+    case ('reference'); cs%error_estimate = .true.
+    case default
+      call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
+      return
+    end select
+    if (v%t_end <= 0 .or. v%t_end > 1.0e9_wp) then
+      call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
+      return
+    end if
+    cs%a = v%a; cs%b = v%b; cs%c = v%c
+    cs%radius = v%radius; cs%mu = v%mu; cs%inertia_factor = v%inertia_factor; cs%g = v%g
+    cs%x0 = v%x; cs%y0 = v%y; cs%omega0 = v%omega
+    cs%method = v%method; cs%dt = v%dt; cs%t_end = v%t_end; cs%fit_margin = v%fit_margin
+    cs%rtol = v%rtol; cs%atol = v%atol
+    call finalize_case(cs)
+  end subroutine build_base
+
+
+  subroutine build_excitation(rd, v, cs)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(case_t), intent(inout) :: cs
+    integer :: gi
+    character(len=:), allocatable :: reason, path
+    gi = rd%group('excitation', .false.)
+    if (gi == 0) return
+    select case (lower(adjustl(v%kind)))
+    case ('none')
+      cs%excitation%kind = excitation_none
+    case ('harmonic')
+      cs%excitation%kind = excitation_harmonic
+      if (.not. all(ieee_is_finite(v%amplitude))) then
+        call rd%fail_value(gi, 'amplitude', 'three finite numbers are needed (ax, ay, az in m/s^2)')
+        return
+      end if
+      cs%excitation%amplitude = v%amplitude
+      cs%excitation%frequency = v%frequency
+      cs%excitation%phase = v%phase
+    case ('record')
+      cs%excitation%kind = excitation_record
+      if (len_trim(v%record_file) == 0) then
+        call rd%fail_missing(gi, 'record_file', 'name the ground-acceleration file (time, ax, ay[, az])')
+        return
+      end if
+      path = resolve_path(trim(adjustl(v%record_file)), rd%file%path)
+      call load_record(path, cs%t_end, cs%excitation%times, cs%excitation%values, reason)
+      if (len(reason) > 0) call rd%fail_value(gi, 'record_file', reason)
+    case default
+      call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
+    end select
+  end subroutine build_excitation
+
+
+  subroutine build_plan(rd, v, output_override, cs, plan)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    character(len=*), intent(in) :: output_override
+    type(case_t), intent(inout) :: cs
+    type(output_plan_t), intent(inout) :: plan
+    integer :: gi, k, f
+    real(wp) :: bytes_per_sample
+    character(len=32) :: field
+    gi = rd%group('output', .true.)
+    if (gi == 0) return
+    if (len_trim(output_override) > 0) then
+      plan%file = trim(output_override)
+    else if (len_trim(v%file) > 0) then
+      plan%file = trim(adjustl(v%file))
+    else
+      call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
+      return
+    end if
+    if (.not. rd%require(gi, 'interval', v%interval)) return
+    if (v%interval <= 0 .or. v%interval > cs%t_end) then
+      call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
+      return
+    end if
+    if (cs%t_end > max_steps * v%interval) then       ! (not t_end / interval: it may overflow)
+      call rd%fail_value(gi, 'interval', 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
+                         format_real(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
+      return
+    end if
+    if (.not. is_multiple(cs%t_end, v%interval)) then
+      call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
+                         ' s must be a whole number of output intervals')
+      return
+    end if
+    plan%interval = v%interval
+    plan%n_samples = nint(cs%t_end / v%interval, i8) + 1
+    if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
+
+    ! the cup's acceleration is stored only when the cup moves
+    plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
+    if (rd%given(gi, 'fields')) then
+      plan%fields = .false.
+      do k = 1, max_fields
+        field = lower(adjustl(v%fields(k)))
+        if (len_trim(field) == 0 .or. field == 'none') cycle
+        if (field == 'all') then
+          plan%fields = .true.
+          cycle
+        end if
+        f = findloc(field_names, trim(field), dim=1)
+        if (f == 0) then
+          call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "' (known: " // &
+                             join(field_names) // ', all, none)')
           return
         end if
-        cs%weight = weight
-      else if (rd%given(gi, 'mass')) then
-        if (.not. rd%require(gi, 'mass', mass)) return
-        cs%mass = mass
-      else
-        call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
-        return
-      end if
-      gi = rd%group('initial', .true.)
-      if (gi == 0) return
-      if (.not. rd%given(gi, 'omega')) then
-        call rd%fail_missing(gi, 'omega', 'give the initial angular velocity, omega = wx, wy, wz (rad/s)')
-        return
-      end if
-      if (any(ieee_is_nan(omega))) then
-        call rd%fail_value(gi, 'omega', 'three finite numbers are needed (wx, wy, wz in rad/s)')
-        return
-      end if
-      gi = rd%group('integration', .true.)
-      if (gi == 0) return
-      method = lower(adjustl(method))
-      if (index(' ' // method_names() // ' ', ' ' // trim(method) // ' ') == 0 .or. len_trim(method) == 0) then
-        call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names() // ')')
-        return
-      end if
-      if (.not. rd%require(gi, 't_end', t_end)) return
-      ! an adaptive method chooses its steps; dt, if given, is the largest
-      if (.not. (adaptive_method(method) .and. .not. rd%given(gi, 'dt'))) then
-        if (.not. rd%require(gi, 'dt', dt)) return
-      end if
-      select case (lower(adjustl(error_estimate)))
-      case ('none'); cs%error_estimate = .false.
-      case ('reference'); cs%error_estimate = .true.
-      case default
-        call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
-        return
-      end select
-      if (t_end <= 0 .or. t_end > 1.0e9_wp) then
-        call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
-        return
-      end if
-      cs%a = a; cs%b = b; cs%c = c
-      cs%radius = radius; cs%mu = mu; cs%inertia_factor = inertia_factor; cs%g = g
-      cs%x0 = x; cs%y0 = y; cs%omega0 = omega
-      cs%method = method; cs%dt = dt; cs%t_end = t_end; cs%fit_margin = fit_margin
-      cs%rtol = rtol; cs%atol = atol
-      call finalize_case(cs)
-    end subroutine build_base
+        plan%fields(f) = .true.
+      end do
+    end if
+    if (v%compression < 0 .or. v%compression > 9) then
+      call rd%fail_value(gi, 'compression', 'must be 0 (none) to 9 (deflate level, with shuffle)')
+      return
+    end if
+    plan%compression = v%compression
+    bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
+    if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
+      call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
+          format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
+          ' GiB; raise interval or select fewer fields')
+    end if
+  end subroutine build_plan
 
-    subroutine build_excitation(cs)
-      type(case_t), intent(inout) :: cs
-      integer :: gi
-      character(len=:), allocatable :: reason, path
-      gi = rd%group('excitation', .false.)
-      if (gi == 0) return
-      select case (lower(adjustl(kind)))
-      case ('none')
-        cs%excitation%kind = excitation_none
-      case ('harmonic')
-        cs%excitation%kind = excitation_harmonic
-        if (.not. all(ieee_is_finite(amplitude))) then
-          call rd%fail_value(gi, 'amplitude', 'three finite numbers are needed (ax, ay, az in m/s^2)')
-          return
-        end if
-        cs%excitation%amplitude = amplitude
-        cs%excitation%frequency = frequency
-        cs%excitation%phase = phase
-      case ('record')
-        cs%excitation%kind = excitation_record
-        if (len_trim(record_file) == 0) then
-          call rd%fail_missing(gi, 'record_file', 'name the ground-acceleration file (time, ax, ay[, az])')
-          return
-        end if
-        path = resolve_path(trim(adjustl(record_file)), rd%file%path)
-        call load_record(path, cs%t_end, cs%excitation%times, cs%excitation%values, reason)
-        if (len(reason) > 0) call rd%fail_value(gi, 'record_file', reason)
-      case default
-        call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
-      end select
-    end subroutine build_excitation
 
-    subroutine build_plan(cs, plan)
-      type(case_t), intent(inout) :: cs
-      type(output_plan_t), intent(inout) :: plan
-      integer :: gi, k, f
-      real(wp) :: bytes_per_sample
-      character(len=32) :: field
-      gi = rd%group('output', .true.)
-      if (gi == 0) return
-      if (len_trim(output_override) > 0) then
-        plan%file = trim(output_override)
-      else if (len_trim(file) > 0) then
-        plan%file = trim(adjustl(file))
-      else
-        call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
-        return
+  !> The base case must be valid whatever the sweeps do; its messages point
+  !> at the variable's line.
+  subroutine check_base(rd, cs, plan)
+    type(reader_t), intent(inout) :: rd
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(inout) :: plan
+    integer :: param, gi
+    character(len=:), allocatable :: reason, variable
+    call check_case(cs, plan%interval, param, reason)
+    if (param /= 0) then
+      gi = rd%group(trim(params(param)%group), .true.)
+      variable = trim(params(param)%variable)
+      if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
+        gi = rd%group('output', .true.)
+        variable = 'interval'
+        reason = 'must be a whole number of steps dt = ' // format_real(cs%dt) // ' s'
       end if
-      if (.not. rd%require(gi, 'interval', interval)) return
-      if (interval <= 0 .or. interval > cs%t_end) then
-        call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
-        return
-      end if
-      if (cs%t_end > max_steps * interval) then       ! (not t_end / interval: it may overflow)
-        call rd%fail_value(gi, 'interval', 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
-                           format_real(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
-        return
-      end if
-      if (.not. is_multiple(cs%t_end, interval)) then
-        call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
-                           ' s must be a whole number of output intervals')
-        return
-      end if
-      plan%interval = interval
-      plan%n_samples = nint(cs%t_end / interval, i8) + 1
-      if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
+      call rd%fail_value(gi, variable, reason)
+      return
+    end if
+  end subroutine check_base
 
-      ! the cup's acceleration is stored only when the cup moves
-      plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
-      if (rd%given(gi, 'fields')) then
-        plan%fields = .false.
-        do k = 1, max_fields
-          field = lower(adjustl(fields(k)))
-          if (len_trim(field) == 0 .or. field == 'none') cycle
-          if (field == 'all') then
-            plan%fields = .true.
-            cycle
-          end if
-          f = findloc(field_names, trim(field), dim=1)
-          if (f == 0) then
-            call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "' (known: " // &
-                               join(field_names) // ', all, none)')
-            return
-          end if
-          plan%fields(f) = .true.
-        end do
-      end if
-      if (compression < 0 .or. compression > 9) then
-        call rd%fail_value(gi, 'compression', 'must be 0 (none) to 9 (deflate level, with shuffle)')
-        return
-      end if
-      plan%compression = compression
-      bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
-      if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
-        call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
-            format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
-            ' GiB; raise interval or select fewer fields')
-      end if
-    end subroutine build_plan
 
-    !> The base case must be valid whatever the sweeps do; its messages point
-    !> at the variable's line.
-    subroutine check_base(cs, plan)
-      type(case_t), intent(in) :: cs
-      type(output_plan_t), intent(inout) :: plan
-      integer :: param, gi
-      character(len=:), allocatable :: reason, variable
-      call check_case(cs, plan%interval, param, reason)
-      if (param /= 0) then
-        gi = rd%group(trim(params(param)%group), .true.)
-        variable = trim(params(param)%variable)
-        if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
-          gi = rd%group('output', .true.)
-          variable = 'interval'
-          reason = 'must be a whole number of steps dt = ' // format_real(cs%dt) // ' s'
-        end if
-        call rd%fail_value(gi, variable, reason)
+  subroutine add_sweep(rd, v, gi, sweeps, draws)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), allocatable, intent(inout) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    integer, intent(in) :: gi
+    type(sweep_t) :: sw
+    integer :: n, k
+    logical :: listed, ranged
+    sw%line = rd%file%groups(gi)%line
+    sw%param = swept_param(rd, v, gi, sweeps, draws)
+    if (sw%param == 0) return
+    listed = rd%given(gi, 'values')
+    ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
+    if (listed .eqv. ranged) then
+      call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
+      return
+    end if
+    if (listed) then
+      n = count_given(v%values)
+      if (n == 0 .or. .not. all(ieee_is_finite(v%values(:n)))) then
+        call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
         return
       end if
-    end subroutine check_base
-
-    subroutine add_sweep(gi)
-      integer, intent(in) :: gi
-      type(sweep_t) :: sw
-      integer :: n, k
-      logical :: listed, ranged
-      sw%line = rd%file%groups(gi)%line
-      sw%param = swept_param(gi)
-      if (sw%param == 0) return
-      listed = rd%given(gi, 'values')
-      ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
-      if (listed .eqv. ranged) then
-        call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
+      sw%values = v%values(:n)
+    else
+      if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return
+      if (v%count < 1 .or. v%count > max_values * 1000) then
+        call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
         return
       end if
-      if (listed) then
-        n = count_given(values)
-        if (n == 0 .or. .not. all(ieee_is_finite(values(:n)))) then
-          call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
-          return
-        end if
-        sw%values = values(:n)
-      else
-        if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [start, stop])) return
-        if (count < 1 .or. count > max_values * 1000) then
-          call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
-          return
-        end if
-        select case (lower(spacing))
-        case ('linear')
-          sw%values = [(start + (stop - start) * real(k, wp) / max(1, count - 1), k = 0, count - 1)]
-        case ('log')
-          if (start <= 0 .or. stop <= 0) then
-            call rd%fail_value(gi, 'start', "spacing = 'log' needs start > 0 and stop > 0")
-            return
-          end if
-          sw%values = [(start * (stop / start)**(real(k, wp) / max(1, count - 1)), k = 0, count - 1)]
-        case default
-          call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
-          return
-        end select
-        if (count > 1) sw%values(count) = stop        ! exactly the end the user wrote
-      end if
-      sweeps = [sweeps, sw]
-    end subroutine add_sweep
-
-    subroutine add_sample(gi)
-      integer, intent(in) :: gi
-      type(sample_t) :: s
-      s%line = rd%file%groups(gi)%line
-      s%param = swept_param(gi)
-      if (s%param == 0) return
-      if (.not. rd%require_all(gi, [character(len=6) :: 'low', 'high'], [low, high])) return
-      if (.not. high > low) then
-        call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(low))
-        return
-      end if
-      select case (lower(spacing))
+      select case (lower(v%spacing))
       case ('linear')
-        s%log_spacing = .false.
+        sw%values = [(v%start + (v%stop - v%start) * real(k, wp) / max(1, v%count - 1), k = 0, v%count - 1)]
       case ('log')
-        if (low <= 0) then
-          call rd%fail_value(gi, 'low', "spacing = 'log' needs low > 0")
+        if (v%start <= 0 .or. v%stop <= 0) then
+          call rd%fail_value(gi, 'start', "spacing = 'log' needs start > 0 and stop > 0")
           return
         end if
-        s%log_spacing = .true.
+        sw%values = [(v%start * (v%stop / v%start)**(real(k, wp) / max(1, v%count - 1)), k = 0, v%count - 1)]
       case default
         call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
         return
       end select
-      s%low = low; s%high = high
-      draws = [draws, s]
-    end subroutine add_sample
+      if (v%count > 1) sw%values(v%count) = v%stop        ! exactly the end the user wrote
+    end if
+    sweeps = [sweeps, sw]
+  end subroutine add_sweep
 
-    !> The parameter named by a &sweep or &sample group.
-    integer function swept_param(gi) result(param)
-      integer, intent(in) :: gi
-      integer :: k
-      param = 0
-      if (.not. rd%given(gi, 'name')) then
-        call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
+
+  subroutine add_sample(rd, v, gi, sweeps, draws)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), allocatable, intent(inout) :: draws(:)
+    integer, intent(in) :: gi
+    type(sample_t) :: s
+    s%line = rd%file%groups(gi)%line
+    s%param = swept_param(rd, v, gi, sweeps, draws)
+    if (s%param == 0) return
+    if (.not. rd%require_all(gi, [character(len=6) :: 'low', 'high'], [v%low, v%high])) return
+    if (.not. v%high > v%low) then
+      call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(v%low))
+      return
+    end if
+    select case (lower(v%spacing))
+    case ('linear')
+      s%log_spacing = .false.
+    case ('log')
+      if (v%low <= 0) then
+        call rd%fail_value(gi, 'low', "spacing = 'log' needs low > 0")
         return
       end if
-      param = param_index(trim(lower(adjustl(name))))
-      if (param == 0) then
-        call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
+      s%log_spacing = .true.
+    case default
+      call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
+      return
+    end select
+    s%low = v%low; s%high = v%high
+    draws = [draws, s]
+  end subroutine add_sample
+
+
+  !> The parameter named by a &sweep or &sample group.
+  integer function swept_param(rd, v, gi, sweeps, draws) result(param)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    integer, intent(in) :: gi
+    integer :: k
+    param = 0
+    if (.not. rd%given(gi, 'name')) then
+      call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
+      return
+    end if
+    param = param_index(trim(lower(adjustl(v%name))))
+    if (param == 0) then
+      call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
+      return
+    end if
+    do k = 1, size(sweeps)
+      if (sweeps(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sweep at line ' // &
+                                                       itoa(sweeps(k)%line))
+    end do
+    do k = 1, size(draws)
+      if (draws(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sample at line ' // &
+                                                      itoa(draws(k)%line))
+    end do
+    if (rd%err%failed()) param = 0
+  end function swept_param
+
+
+  subroutine build_campaign(rd, v, sweeps, draws, camp)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    type(campaign_t), intent(inout) :: camp
+    integer :: gi, k, bi, param, line
+    gi = rd%group('campaign', .false.)
+    if (gi > 0) then
+      select case (lower(v%combine))
+      case ('grid'); camp%combine = combine_grid
+      case ('zip'); camp%combine = combine_zip
+      case default
+        call rd%fail_value(gi, 'combine', "must be 'grid' or 'zip'")
+        return
+      end select
+      select case (lower(v%invalid))
+      case ('stop'); camp%invalid = invalid_stop
+      case ('skip'); camp%invalid = invalid_skip
+      case default
+        call rd%fail_value(gi, 'invalid', "must be 'stop' or 'skip'")
+        return
+      end select
+      if (v%samples < 0 .or. v%samples > max_cases) then
+        call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(max_cases))
         return
       end if
-      do k = 1, size(sweeps)
-        if (sweeps(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sweep at line ' // &
-                                                         itoa(sweeps(k)%line))
-      end do
-      do k = 1, size(draws)
-        if (draws(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sample at line ' // &
-                                                        itoa(draws(k)%line))
-      end do
-      if (rd%err%failed()) param = 0
-    end function swept_param
-
-    subroutine build_campaign(camp)
-      type(campaign_t), intent(inout) :: camp
-      integer :: gi, k, bi, param, line
-      gi = rd%group('campaign', .false.)
-      if (gi > 0) then
-        select case (lower(combine))
-        case ('grid'); camp%combine = combine_grid
-        case ('zip'); camp%combine = combine_zip
-        case default
-          call rd%fail_value(gi, 'combine', "must be 'grid' or 'zip'")
-          return
-        end select
-        select case (lower(invalid))
-        case ('stop'); camp%invalid = invalid_stop
-        case ('skip'); camp%invalid = invalid_skip
-        case default
-          call rd%fail_value(gi, 'invalid', "must be 'stop' or 'skip'")
-          return
-        end select
-        if (samples < 0 .or. samples > max_cases) then
-          call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(max_cases))
+    end if
+    if (size(draws) > 0 .and. v%samples == 0) then
+      call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
+      return
+    end if
+    if (v%samples > 0 .and. size(draws) == 0) then
+      call rd%fail_value(gi, 'samples', 'no &sample group says what to draw')
+      return
+    end if
+    camp%n_draws = v%samples
+    camp%seed = v%seed
+    camp%sweeps = sweeps
+    camp%samples = draws
+    if (camp%combine == combine_zip) then
+      do k = 2, size(sweeps)
+        if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
+          call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
+              itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
+              ' at line ' // itoa(sweeps(1)%line) // ')')
           return
         end if
-      end if
-      if (size(draws) > 0 .and. samples == 0) then
-        call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
-        return
-      end if
-      if (samples > 0 .and. size(draws) == 0) then
-        call rd%fail_value(gi, 'samples', 'no &sample group says what to draw')
-        return
-      end if
-      camp%n_draws = samples
-      camp%seed = seed
-      camp%sweeps = sweeps
-      camp%samples = draws
-      if (camp%combine == combine_zip) then
-        do k = 2, size(sweeps)
-          if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
-            call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
-                itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
-                ' at line ' // itoa(sweeps(1)%line) // ')')
-            return
-          end if
-        end do
-      end if
-      bi = p_weight
-      do k = 1, size(sweeps) + size(draws)
-        if (k <= size(sweeps)) then
-          param = sweeps(k)%param; line = sweeps(k)%line
-        else
-          param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
-        end if
-        if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
-            'weight is varied but &ball gives mass; vary mass instead')
-        if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
-            'mass is varied but &ball gives weight; vary weight instead')
       end do
-      if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
-        call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
-                        itoa(max_cases) // ' cases')
+    end if
+    bi = p_weight
+    do k = 1, size(sweeps) + size(draws)
+      if (k <= size(sweeps)) then
+        param = sweeps(k)%param; line = sweeps(k)%line
+      else
+        param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
       end if
-    end subroutine build_campaign
-  end subroutine read_groups
+      if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
+          'weight is varied but &ball gives mass; vary mass instead')
+      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
+          'mass is varied but &ball gives weight; vary weight instead')
+    end do
+    if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
+      call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
+                      itoa(max_cases) // ' cases')
+    end if
+  end subroutine build_campaign
 
   !> The message for an invalid case of a campaign: its index, the values
   !> that were varied, and what is wrong.
