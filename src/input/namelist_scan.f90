@@ -83,7 +83,7 @@ contains
     type(error_t), intent(inout) :: err
     character(len=:), allocatable :: clean
     character :: ch, quote
-    integer :: i, n, line, group_line, name_start, eq_pos, item_count, j
+    integer :: i, n, line, group_line, name_start, eq_pos, item_count
     integer :: value_start
     logical :: in_group
     type(nml_assignment_t), allocatable :: items(:)
@@ -94,13 +94,11 @@ contains
     allocate (groups(0))
     if (n == 0) then
       call fail(1, 'the file is empty; expected namelist groups such as &geometry ... /')
-      return
-    end if
-    if (file%text(n:n) /= lf) then
-      call fail(count_lines(n), 'the last line does not end with a newline ' // &
+    else if (file%text(n:n) /= lf) then
+      call fail(count_lines(file%text, n), 'the last line does not end with a newline ' // &
                 '(gfortran cannot read a namelist group there); add a line break at the end')
-      return
     end if
+    if (err%failed()) return
 
     clean = file%text
     line = 1
@@ -128,22 +126,13 @@ contains
         cycle
       end if
       if (ch == '!') then
-        do while (i <= n)
-          if (clean(i:i) == lf) exit
-          clean(i:i) = ' '
-          i = i + 1
-        end do
+        call blank_comment(clean, i)
         cycle
       end if
 
       if (.not. in_group) then
         if (ch == '&' .or. ch == '$') then
-          j = i + 1
-          do while (j <= n)
-            if (.not. is_name_char(clean(j:j))) exit
-            j = j + 1
-          end do
-          group_name = lower(clean(i+1:j-1))
+          group_name = lower(name_after(clean, i))
           if (len(group_name) == 0) then
             call fail(line, "'" // ch // "' must be followed by a group name, e.g. &geometry")
             return
@@ -160,7 +149,7 @@ contains
           i = value_start
           cycle
         else if (ch /= ' ' .and. ch /= tab .and. ch /= cr) then
-          call fail(line, 'unexpected text outside a namelist group: "' // snippet(i) // &
+          call fail(line, 'unexpected text outside a namelist group: "' // snippet(clean, i) // &
                     '" (a group starts with &name and ends with /; comments start with !)')
           return
         end if
@@ -182,7 +171,7 @@ contains
         return
       else if (ch == '=') then
         eq_pos = i
-        name_start = find_name_start(eq_pos)
+        name_start = find_name_start(clean, eq_pos)
         if (name_start == 0) then
           call fail(line, "'=' without a variable name before it in &" // group_name)
           return
@@ -243,58 +232,8 @@ contains
       items(item_count)%source = items(item_count)%source // clean(value_start:last)
     end function close_value
 
-    integer function find_name_start(eq) result(start)
-      integer, intent(in) :: eq
-      integer :: k, depth
-      start = 0
-      k = eq - 1
-      do while (k >= 1)
-        if (clean(k:k) /= ' ' .and. clean(k:k) /= tab .and. clean(k:k) /= cr .and. clean(k:k) /= lf) exit
-        k = k - 1
-      end do
-      if (k < 1) return
-      if (clean(k:k) == ')') then
-        depth = 0
-        do while (k >= 1)
-          if (clean(k:k) == ')') depth = depth + 1
-          if (clean(k:k) == '(') depth = depth - 1
-          if (depth == 0) exit
-          if (clean(k:k) == lf) return
-          k = k - 1
-        end do
-        if (k <= 1) return
-        k = k - 1
-      end if
-      if (k < 1) return
-      if (.not. is_name_char(clean(k:k))) return
-      do while (k >= 1)
-        if (.not. is_name_char(clean(k:k))) exit
-        k = k - 1
-      end do
-      start = k + 1
-      if (.not. is_letter(clean(start:start))) start = 0
-    end function find_name_start
 
-    function snippet(pos) result(s)
-      integer, intent(in) :: pos
-      character(len=:), allocatable :: s
-      integer :: e
-      e = pos
-      do while (e < n .and. e < pos + 30)
-        if (clean(e+1:e+1) == lf) exit
-        e = e + 1
-      end do
-      s = trim(clean(pos:e))
-    end function snippet
 
-    integer function count_lines(upto)
-      integer, intent(in) :: upto
-      integer :: k
-      count_lines = 1
-      do k = 1, upto - 1
-        if (file%text(k:k) == lf) count_lines = count_lines + 1
-      end do
-    end function count_lines
 
     subroutine fail(at_line, message)
       integer, intent(in) :: at_line
@@ -302,6 +241,91 @@ contains
       call set_error(err, err_input, file%path // ':' // itoa(at_line) // ': ' // message)
     end subroutine fail
   end subroutine scan_namelist_text
+
+  !> Where the variable name before the '=' at `eq` starts (a subscript
+  !> included), or 0 where no name stands there.
+  pure integer function find_name_start(clean, eq) result(start)
+    character(len=*), intent(in) :: clean
+    integer, intent(in) :: eq
+    integer :: k, depth
+    start = 0
+    k = eq - 1
+    do while (k >= 1)
+      if (clean(k:k) /= ' ' .and. clean(k:k) /= tab .and. clean(k:k) /= cr .and. clean(k:k) /= lf) exit
+      k = k - 1
+    end do
+    if (k < 1) return
+    if (clean(k:k) == ')') then
+      depth = 0
+      do while (k >= 1)
+        if (clean(k:k) == ')') depth = depth + 1
+        if (clean(k:k) == '(') depth = depth - 1
+        if (depth == 0) exit
+        if (clean(k:k) == lf) return
+        k = k - 1
+      end do
+      if (k <= 1) return
+      k = k - 1
+    end if
+    if (k < 1) return
+    if (.not. is_name_char(clean(k:k))) return
+    do while (k >= 1)
+      if (.not. is_name_char(clean(k:k))) exit
+      k = k - 1
+    end do
+    start = k + 1
+    if (.not. is_letter(clean(start:start))) start = 0
+  end function find_name_start
+
+  !> Blank the comment that starts at i, up to its line's end (i ends there).
+  pure subroutine blank_comment(clean, i)
+    character(len=*), intent(inout) :: clean
+    integer, intent(inout) :: i
+    do while (i <= len(clean))
+      if (clean(i:i) == lf) exit
+      clean(i:i) = ' '
+      i = i + 1
+    end do
+  end subroutine blank_comment
+
+  !> The name that follows the character at i ('&' or '$'): name characters up to the first other.
+  pure function name_after(clean, i) result(name)
+    character(len=*), intent(in) :: clean
+    integer, intent(in) :: i
+    character(len=:), allocatable :: name
+    integer :: j
+    j = i + 1
+    do while (j <= len(clean))
+      if (.not. is_name_char(clean(j:j))) exit
+      j = j + 1
+    end do
+    name = clean(i+1:j-1)
+  end function name_after
+
+  !> Up to 31 characters of `clean` from `pos`, to the line's end.
+  pure function snippet(clean, pos) result(s)
+    character(len=*), intent(in) :: clean
+    integer, intent(in) :: pos
+    character(len=:), allocatable :: s
+    integer :: e
+    e = pos
+    do while (e < len(clean) .and. e < pos + 30)
+      if (clean(e+1:e+1) == lf) exit
+      e = e + 1
+    end do
+    s = trim(clean(pos:e))
+  end function snippet
+
+  !> The line of position `upto` of text.
+  pure integer function count_lines(text, upto)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: upto
+    integer :: k
+    count_lines = 1
+    do k = 1, upto - 1
+      if (text(k:k) == lf) count_lines = count_lines + 1
+    end do
+  end function count_lines
 
   !> Appends a group; the items move into it.
   pure subroutine append_group(groups, name, line, items)
