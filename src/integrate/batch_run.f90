@@ -60,6 +60,18 @@ module ellroll_batch_run
     procedure :: flush => flush_lane_samples
   end type lane_sample_block_t
 
+  !> A batch's lanes: each lane's case state, the lanes' model, summary,
+  !> state and derivative, which lanes still run, how many hold a case and
+  !> the case that idle lanes copy.
+  type :: batch_t
+    type(run_state_t) :: run(lanes)
+    type(ball_lanes_t) :: balls
+    type(lane_summary_t) :: summary
+    real(wp), dimension(lanes, state_size) :: y, f
+    logical :: active(lanes) = .false.
+    integer :: n = 0, donor = 0
+  end type batch_t
+
 contains
 
   !> Whether a case runs in a batch (simulate_batch): RK4 or DOP853 on a
@@ -82,63 +94,69 @@ contains
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(out) :: results(:)
-    type(run_state_t) :: run(lanes)
-    type(ball_lanes_t) :: balls
-    type(lane_summary_t) :: summary
-    real(wp), dimension(lanes, state_size) :: y, f
+    type(batch_t) :: b
     ! one lane's row, contiguous, for the one-case routines (explicit-shape arguments)
-    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane, checkpoint_lane
+    real(wp), dimension(state_size) :: y_lane, f_lane
     integer(i8) :: clock_start, clock_end, clock_rate
-    logical :: active(lanes)
-    integer :: n, l, donor
+    integer :: l
 
-    n = size(cases)
-    if (n == 0) return
-    call system_clock(clock_start, clock_rate)
-    do l = 1, n
-      call start_case(cases(l), plan, run(l), results(l), y_lane, f_lane)
-      y(l, :) = y_lane
-      f(l, :) = f_lane
-      call set_lane(balls, l, run(l)%ball)
-      call summary%load(l, run(l), results(l))
-      active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
-    end do
-    active(n + 1:) = .false.
-    ! idle lanes compute a valid case's steps alongside, never a state outside the model
-    donor = findloc(active, .true., dim=1)
-    if (donor > 0) then
-      do l = 1, lanes
-        if (active(l)) cycle
-        call set_lane(balls, l, run(donor)%ball)
-        y(l, :) = y(donor, :)
-        f(l, :) = f(donor, :)
+    b%n = size(cases)
+    if (b%n == 0) return
+    associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
+               n => b%n, donor => b%donor)
+      call system_clock(clock_start, clock_rate)
+      do l = 1, n
+        call start_case(cases(l), plan, run(l), results(l), y_lane, f_lane)
+        y(l, :) = y_lane
+        f(l, :) = f_lane
+        call set_lane(balls, l, run(l)%ball)
+        call summary%load(l, run(l), results(l))
+        active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
       end do
-      if (cases(1)%method == 'dop853') then
-        call adaptive_lanes()
-      else
-        call fixed_step_lanes()
+      active(n + 1:) = .false.
+      ! idle lanes compute a valid case's steps alongside, never a state outside the model
+      donor = findloc(active, .true., dim=1)
+      if (donor > 0) then
+        do l = 1, lanes
+          if (active(l)) cycle
+          call set_lane(balls, l, run(donor)%ball)
+          y(l, :) = y(donor, :)
+          f(l, :) = f(donor, :)
+        end do
+        if (cases(1)%method == 'dop853') then
+          call adaptive_lanes(b, cases, plan, results)
+        else
+          call fixed_step_lanes(b, cases, plan, results)
+        end if
+        where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
       end if
-      where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
-    end if
 
-    call system_clock(clock_end)
-    do l = 1, n
-      call finish_case(cases(l), run(l), results(l))
-      results(l)%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp) / n
-    end do
+      call system_clock(clock_end)
+      do l = 1, n
+        call finish_case(cases(l), run(l), results(l))
+        results(l)%wall_time = real(clock_end - clock_start, wp) / real(clock_rate, wp) / n
+      end do
+    end associate
+  end subroutine simulate_batch
 
-  contains
-
-    !> RK4 with each case's dt (fixed_step_loop across lanes).
-    subroutine fixed_step_lanes()
-      type(rk4_t) :: rk4
-      type(lane_outputs_t) :: out
-      type(lane_sample_block_t) :: samples
-      real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
-      real(wp) :: h(lanes), t
-      integer(i8) :: n_steps(lanes), every(lanes), step
-      logical :: accepted(lanes), inside(lanes), sample_now(lanes)
-      integer :: i
+  !> RK4 with each case's dt (fixed_step_loop across lanes).
+  subroutine fixed_step_lanes(b, cases, plan, results)
+    type(batch_t), intent(inout) :: b
+    type(case_t), intent(in) :: cases(:)
+    type(output_plan_t), intent(in) :: plan
+    type(case_result_t), intent(inout) :: results(:)
+    type(rk4_t) :: rk4
+    type(lane_outputs_t) :: out
+    type(lane_sample_block_t) :: samples
+    real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
+    real(wp) :: h(lanes), t
+    integer(i8) :: n_steps(lanes), every(lanes), step
+    logical :: accepted(lanes), inside(lanes), sample_now(lanes)
+    integer :: i
+    real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane
+    integer :: l
+    associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
+               n => b%n, donor => b%donor)
       do l = 1, lanes
         i = merge(l, donor, active(l))
         h(l) = cases(i)%dt
@@ -202,25 +220,34 @@ contains
           y_checkpoint = y
         end if
       end do
-    end subroutine fixed_step_lanes
+    end associate
+  end subroutine fixed_step_lanes
 
-    !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
-    !> attempts of all lanes together, the step control of each lane its
-    !> own. An attempt, with the dense-output stages computed for all lanes,
-    !> is copied into the lane's dop853_t only when its dense output is needed
-    !> (a sample or a maximum of Theta inside the step, a crossed limit).
-    subroutine adaptive_lanes()
-      type(dop853_t) :: dop(lanes)
-      type(lane_outputs_t) :: out
-      real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
-      real(wp) :: k(lanes, state_size, stages_dense)
-      real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
-      type(nutation_peak_t) :: peak
-      type(step_control_t) :: control(lanes)
-      logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
-      integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
-      integer(i8) :: attempt
-      integer :: i
+  !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
+  !> attempts of all lanes together, the step control of each lane its
+  !> own. An attempt, with the dense-output stages computed for all lanes,
+  !> is copied into the lane's dop853_t only when its dense output is needed
+  !> (a sample or a maximum of Theta inside the step, a crossed limit).
+  subroutine adaptive_lanes(b, cases, plan, results)
+    type(batch_t), intent(inout) :: b
+    type(case_t), intent(in) :: cases(:)
+    type(output_plan_t), intent(in) :: plan
+    type(case_result_t), intent(inout) :: results(:)
+    type(dop853_t) :: dop(lanes)
+    type(lane_outputs_t) :: out
+    real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
+    real(wp) :: k(lanes, state_size, stages_dense)
+    real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
+    type(nutation_peak_t) :: peak
+    type(step_control_t) :: control(lanes)
+    logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
+    integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
+    integer(i8) :: attempt
+    integer :: i
+    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
+    integer :: l
+    associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
+               n => b%n, donor => b%donor)
       idle_rhs = 0
       t = 0
       do l = 1, lanes
@@ -308,8 +335,8 @@ contains
           end if
         end do
       end do
-    end subroutine adaptive_lanes
-  end subroutine simulate_batch
+    end associate
+  end subroutine adaptive_lanes
 
   !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
   !> dense-output ones) into a dop853_t, as dop853_ball_step leaves it, for
