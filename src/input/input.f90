@@ -243,7 +243,6 @@ contains
       call ieee_set_status(fp_state)
     end subroutine read_assignment
 
-
     !> The namelist variables as they stand.
     type(namelist_values_t) function current() result(now)
       now%a = a
@@ -311,7 +310,6 @@ contains
     case default; ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
     end select
   end function names_known
-
 
   subroutine build_base(rd, v, cs)
     type(reader_t), intent(inout) :: rd
@@ -382,7 +380,6 @@ contains
     call finalize_case(cs)
   end subroutine build_base
 
-
   subroutine build_excitation(rd, v, cs)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
@@ -416,7 +413,6 @@ contains
       call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
     end select
   end subroutine build_excitation
-
 
   subroutine build_plan(rd, v, output_override, cs, plan)
     type(reader_t), intent(inout) :: rd
@@ -489,7 +485,6 @@ contains
     end if
   end subroutine build_plan
 
-
   !> The base case must be valid whatever the sweeps do; its messages point
   !> at the variable's line.
   subroutine check_base(rd, cs, plan)
@@ -511,7 +506,6 @@ contains
       return
     end if
   end subroutine check_base
-
 
   subroutine add_sweep(rd, v, gi, sweeps, draws)
     type(reader_t), intent(inout) :: rd
@@ -562,7 +556,6 @@ contains
     sweeps = [sweeps, sw]
   end subroutine add_sweep
 
-
   subroutine add_sample(rd, v, gi, sweeps, draws)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
@@ -595,7 +588,6 @@ contains
     draws = [draws, s]
   end subroutine add_sample
 
-
   !> The parameter named by a &sweep or &sample group.
   integer function swept_param(rd, v, gi, sweeps, draws) result(param)
     type(reader_t), intent(inout) :: rd
@@ -624,7 +616,6 @@ contains
     end do
     if (rd%err%failed()) param = 0
   end function swept_param
-
 
   subroutine build_campaign(rd, v, sweeps, draws, camp)
     type(reader_t), intent(inout) :: rd

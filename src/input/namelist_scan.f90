@@ -232,9 +232,6 @@ contains
       items(item_count)%source = items(item_count)%source // clean(value_start:last)
     end function close_value
 
-
-
-
     subroutine fail(at_line, message)
       integer, intent(in) :: at_line
       character(len=*), intent(in) :: message

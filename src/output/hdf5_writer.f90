@@ -44,7 +44,6 @@ module ellroll_hdf5_writer
     end function h5d_address
   end interface
 
-
   !> Cases are kept per window of consecutive cases (their table rows: inputs,
   !> summary, status; and compressed trajectories) and written with one
   !> hyperslab per dataset when the window is complete: case by case, the
@@ -85,7 +84,6 @@ module ellroll_hdf5_writer
     integer :: n = 0
     type(row_window_t), allocatable :: items(:)
   end type window_list_t
-
 
   type :: h5_output_t
     integer(hid_t) :: file = -1
@@ -663,6 +661,5 @@ contains
     self%open_ids = [self%open_ids, dset]
     ok = .true.
   end function open_dataset
-
 
 end module ellroll_hdf5_writer
