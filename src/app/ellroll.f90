@@ -13,14 +13,14 @@ program ellroll
       range_text
   use ellroll_params, only: params
   use ellroll_campaign, only: invalid_stop
-  use ellroll_ellipsoid, only: principal_radii, normal_from_contact, bottom_radii
+  use ellroll_ellipsoid, only: principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_hdf5_writer, only: provenance_t
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
       check_output_target
   use ellroll_integrators, only: methods
-  use ellroll_linear, only: oscillation_periods
+  use ellroll_linear, only: oscillation_periods, no_spin_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
   use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime, catch_stop_signals, exit_now
@@ -288,7 +288,7 @@ contains
       ball = make_ball(cs)
       n0 = normal_from_contact(ball%cup, cs%x0, cs%y0)
       periods = oscillation_periods(ball, dot_product(cs%omega0, n0))
-      no_spin = 2 * acos(-1.0_wp) * sqrt((1 + cs%inertia_factor) * (bottom_radii(ball%cup) - cs%radius) / cs%g)
+      no_spin = no_spin_periods(ball)
       write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega0, n0), periods, no_spin
       write (output_unit, '(a)') trim(line)
     end do
@@ -423,7 +423,7 @@ contains
     write (output_unit, '(a)') '  spin omega . n at the start = ' // format_real(dot_product(y(4:6), n0)) // ' rad/s'
     write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
     if (cs%g > 0) then
-      periods = 2 * acos(-1.0_wp) * sqrt((1 + cs%inertia_factor) * (bottom_radii(ball%cup) - cs%radius) / cs%g)
+      periods = no_spin_periods(ball)
       write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
           format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
     end if

@@ -1,25 +1,26 @@
 !> Reading and validating the input namelist file into a campaign (a base
 !> case, sweeps and samples) and an output plan. Every message a user sees
-!> about input is written here; each names the file, line, group, variable
-!> and value.
+!> about input is written here, in ellroll_input_reader or in
+!> ellroll_campaign_input; each names the file, line, group, variable and
+!> value.
 module ellroll_input
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan, &
       ieee_set_halting_mode, ieee_usual
   use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input
+  use ellroll_errors, only: error_t
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
-  use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_count, field_names, &
-      field_ncomp, get_param, adaptive_method, range_text, max_steps, &
-      field_base_acceleration, is_multiple
-  use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, &
-      invalid_stop, invalid_skip
+  use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
+      get_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
+  use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
   use ellroll_integrators, only: method_names
   use ellroll_record_file, only: load_record
-  use ellroll_params, only: params, param_count, param_index, param_default, p_a, p_b, p_c, p_radius, p_weight, &
-      p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
+  use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
+  use ellroll_params, only: params, param_default, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
+      p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
       p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z
   implicit none
   private
@@ -37,42 +38,10 @@ module ellroll_input
   character(len=*), parameter :: known_groups(10) = [character(len=12) :: &
       'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'excitation', 'campaign', &
       'sweep', 'sample']
-  integer, parameter :: max_values = 10000, max_fields = 32
   !> Largest memory one case's output buffers may take.
   real(wp), parameter :: max_case_buffer_bytes = 2.0_wp**31
-  integer(i8), parameter :: max_cases = 100000000_i8
 
-  type :: reader_t
-    type(nml_file_t) :: file
-    type(error_t) :: err
-  contains
-    procedure :: group => find_group
-    procedure :: fail_at
-    procedure :: fail_value
-    procedure :: fail_missing
-    procedure :: given
-    procedure :: require
-    procedure :: require_all
-  end type reader_t
 
-  !> Every namelist variable as read: the defaults of the parameter table
-  !> (NaN where required) where the input says nothing.
-  type :: namelist_values_t
-    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
-    character(len=32) :: method, error_estimate
-    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
-    character(len=1024) :: file
-    character(len=32) :: fields(max_fields)
-    integer :: compression
-    character(len=16) :: kind
-    real(wp) :: amplitude(3), frequency, phase
-    character(len=1024) :: record_file
-    character(len=16) :: combine, invalid, spacing
-    integer(i8) :: samples, seed
-    character(len=32) :: name
-    real(wp) :: values(max_values), start, stop, low, high
-    integer :: count
-  end type namelist_values_t
 
 contains
 
@@ -507,183 +476,6 @@ contains
     end if
   end subroutine check_base
 
-  subroutine add_sweep(rd, v, gi, sweeps, draws)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    type(sweep_t), allocatable, intent(inout) :: sweeps(:)
-    type(sample_t), intent(in) :: draws(:)
-    integer, intent(in) :: gi
-    type(sweep_t) :: sw
-    integer :: n, k
-    logical :: listed, ranged
-    sw%line = rd%file%groups(gi)%line
-    sw%param = swept_param(rd, v, gi, sweeps, draws)
-    if (sw%param == 0) return
-    listed = rd%given(gi, 'values')
-    ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
-    if (listed .eqv. ranged) then
-      call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
-      return
-    end if
-    if (listed) then
-      n = count_given(v%values)
-      if (n == 0 .or. .not. all(ieee_is_finite(v%values(:n)))) then
-        call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
-        return
-      end if
-      sw%values = v%values(:n)
-    else
-      if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return
-      if (v%count < 1 .or. v%count > max_values * 1000) then
-        call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
-        return
-      end if
-      select case (lower(v%spacing))
-      case ('linear')
-        sw%values = [(v%start + (v%stop - v%start) * real(k, wp) / max(1, v%count - 1), k = 0, v%count - 1)]
-      case ('log')
-        if (v%start <= 0 .or. v%stop <= 0) then
-          call rd%fail_value(gi, 'start', "spacing = 'log' needs start > 0 and stop > 0")
-          return
-        end if
-        sw%values = [(v%start * (v%stop / v%start)**(real(k, wp) / max(1, v%count - 1)), k = 0, v%count - 1)]
-      case default
-        call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
-        return
-      end select
-      if (v%count > 1) sw%values(v%count) = v%stop        ! exactly the end the user wrote
-    end if
-    sweeps = [sweeps, sw]
-  end subroutine add_sweep
-
-  subroutine add_sample(rd, v, gi, sweeps, draws)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    type(sweep_t), intent(in) :: sweeps(:)
-    type(sample_t), allocatable, intent(inout) :: draws(:)
-    integer, intent(in) :: gi
-    type(sample_t) :: s
-    s%line = rd%file%groups(gi)%line
-    s%param = swept_param(rd, v, gi, sweeps, draws)
-    if (s%param == 0) return
-    if (.not. rd%require_all(gi, [character(len=6) :: 'low', 'high'], [v%low, v%high])) return
-    if (.not. v%high > v%low) then
-      call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(v%low))
-      return
-    end if
-    select case (lower(v%spacing))
-    case ('linear')
-      s%log_spacing = .false.
-    case ('log')
-      if (v%low <= 0) then
-        call rd%fail_value(gi, 'low', "spacing = 'log' needs low > 0")
-        return
-      end if
-      s%log_spacing = .true.
-    case default
-      call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
-      return
-    end select
-    s%low = v%low; s%high = v%high
-    draws = [draws, s]
-  end subroutine add_sample
-
-  !> The parameter named by a &sweep or &sample group.
-  integer function swept_param(rd, v, gi, sweeps, draws) result(param)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    type(sweep_t), intent(in) :: sweeps(:)
-    type(sample_t), intent(in) :: draws(:)
-    integer, intent(in) :: gi
-    integer :: k
-    param = 0
-    if (.not. rd%given(gi, 'name')) then
-      call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
-      return
-    end if
-    param = param_index(trim(lower(adjustl(v%name))))
-    if (param == 0) then
-      call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
-      return
-    end if
-    do k = 1, size(sweeps)
-      if (sweeps(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sweep at line ' // &
-                                                       itoa(sweeps(k)%line))
-    end do
-    do k = 1, size(draws)
-      if (draws(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sample at line ' // &
-                                                      itoa(draws(k)%line))
-    end do
-    if (rd%err%failed()) param = 0
-  end function swept_param
-
-  subroutine build_campaign(rd, v, sweeps, draws, camp)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    type(sweep_t), intent(in) :: sweeps(:)
-    type(sample_t), intent(in) :: draws(:)
-    type(campaign_t), intent(inout) :: camp
-    integer :: gi, k, bi, param, line
-    gi = rd%group('campaign', .false.)
-    if (gi > 0) then
-      select case (lower(v%combine))
-      case ('grid'); camp%combine = combine_grid
-      case ('zip'); camp%combine = combine_zip
-      case default
-        call rd%fail_value(gi, 'combine', "must be 'grid' or 'zip'")
-        return
-      end select
-      select case (lower(v%invalid))
-      case ('stop'); camp%invalid = invalid_stop
-      case ('skip'); camp%invalid = invalid_skip
-      case default
-        call rd%fail_value(gi, 'invalid', "must be 'stop' or 'skip'")
-        return
-      end select
-      if (v%samples < 0 .or. v%samples > max_cases) then
-        call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(max_cases))
-        return
-      end if
-    end if
-    if (size(draws) > 0 .and. v%samples == 0) then
-      call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
-      return
-    end if
-    if (v%samples > 0 .and. size(draws) == 0) then
-      call rd%fail_value(gi, 'samples', 'no &sample group says what to draw')
-      return
-    end if
-    camp%n_draws = v%samples
-    camp%seed = v%seed
-    camp%sweeps = sweeps
-    camp%samples = draws
-    if (camp%combine == combine_zip) then
-      do k = 2, size(sweeps)
-        if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
-          call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
-              itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
-              ' at line ' // itoa(sweeps(1)%line) // ')')
-          return
-        end if
-      end do
-    end if
-    bi = p_weight
-    do k = 1, size(sweeps) + size(draws)
-      if (k <= size(sweeps)) then
-        param = sweeps(k)%param; line = sweeps(k)%line
-      else
-        param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
-      end if
-      if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
-          'weight is varied but &ball gives mass; vary mass instead')
-      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
-          'mass is varied but &ball gives weight; vary weight instead')
-    end do
-    if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
-      call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
-                      itoa(max_cases) // ' cases')
-    end if
-  end subroutine build_campaign
 
   !> The message for an invalid case of a campaign: its index, the values
   !> that were varied, and what is wrong.
@@ -719,113 +511,6 @@ contains
     end function setting
   end function describe_invalid
 
-  ! --------------------------------------------------------------- helpers
-
-  integer function find_group(rd, name, required) result(gi)
-    class(reader_t), intent(inout) :: rd
-    character(len=*), intent(in) :: name
-    logical, intent(in) :: required
-    gi = rd%file%group_index(name)
-    if (gi == 0 .and. required .and. .not. rd%err%failed()) then
-      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // ' is missing (it is required)')
-    end if
-  end function find_group
-
-  !> Unknown and repeated variable names in group gi.
-  logical function check_names(rd, gi, known) result(ok)
-    type(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: known(:)
-    integer :: k, j
-    ok = .false.
-    associate (grp => rd%file%groups(gi))
-      do k = 1, size(grp%items)
-        if (.not. any(known == grp%items(k)%base)) then
-          call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': unknown variable ' // grp%items(k)%name // &
-              ' = ' // grp%items(k)%value // ' (known in &' // grp%name // ': ' // join(known) // ')')
-          return
-        end if
-        do j = 1, k - 1
-          if (grp%items(j)%name == grp%items(k)%name) then
-            call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': ' // grp%items(k)%name // &
-                ' = ' // grp%items(k)%value // ': given twice (also at line ' // itoa(grp%items(j)%line) // ')')
-            return
-          end if
-        end do
-      end do
-    end associate
-    ok = .true.
-  end function check_names
-
-  subroutine fail_at(rd, line, message)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: line
-    character(len=*), intent(in) :: message
-    if (.not. rd%err%failed()) call set_error(rd%err, err_input, rd%file%path // ':' // itoa(line) // ': ' // message)
-  end subroutine fail_at
-
-  subroutine fail_value(rd, gi, name, reason)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: name, reason
-    integer :: k
-    k = rd%file%groups(gi)%find(name)
-    if (k == 0) then
-      call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
-                      ' (default): ' // reason)
-    else
-      associate (item => rd%file%groups(gi)%items(k))
-        call rd%fail_at(item%line, '&' // rd%file%groups(gi)%name // ': ' // item%name // ' = ' // &
-                        item%value // ': ' // reason)
-      end associate
-    end if
-  end subroutine fail_value
-
-  subroutine fail_missing(rd, gi, name, hint)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: name, hint
-    call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
-                    ' is required but not given: ' // hint)
-  end subroutine fail_missing
-
-  logical function given(rd, gi, name)
-    class(reader_t), intent(in) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: name
-    given = .false.
-    if (gi > 0) given = rd%file%groups(gi)%find(name) > 0
-  end function given
-
-  !> A required scalar: given and finite (the range is checked with the case).
-  logical function require(rd, gi, name, value) result(ok)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: name
-    real(wp), intent(in) :: value
-    ok = .false.
-    if (.not. rd%given(gi, name)) then
-      call rd%fail_missing(gi, name, 'add ' // name // ' = <value> to &' // rd%file%groups(gi)%name)
-    else if (.not. ieee_is_finite(value)) then
-      call rd%fail_value(gi, name, 'must be a finite number')
-    else
-      ok = .true.
-    end if
-  end function require
-
-  !> require for each name in turn, up to the first that fails.
-  logical function require_all(rd, gi, names, values) result(ok)
-    class(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: names(:)
-    real(wp), intent(in) :: values(:)
-    integer :: k
-    ok = .true.
-    do k = 1, size(names)
-      ok = rd%require(gi, trim(names(k)), values(k))
-      if (.not. ok) return
-    end do
-  end function require_all
 
   !> A one-assignment namelist in one record: '&group name = value /'.
   !> The assignment's lines are joined by blanks (the scanner blanked its
@@ -870,15 +555,6 @@ contains
     end if
   end function resolve_path
 
-  !> Entries of a NaN-initialised list that were given.
-  pure integer function count_given(list)
-    real(wp), intent(in) :: list(:)
-    integer :: k
-    count_given = 0
-    do k = 1, size(list)
-      if (.not. ieee_is_nan(list(k))) count_given = k
-    end do
-  end function count_given
 
   real(wp) function nan()
     nan = ieee_value(0.0_wp, ieee_quiet_nan)

@@ -10,10 +10,11 @@ module ellroll_linear
   use ellroll_kinds, only: wp, two_pi
   use ellroll_lapack, only: dgeev
   use ellroll_rolling_ball, only: rolling_ball_t, state_size
+  use ellroll_ellipsoid, only: bottom_radii
   implicit none
   private
 
-  public :: jacobian, eigenvalues, oscillation_periods, fastest_rate
+  public :: jacobian, eigenvalues, oscillation_periods, fastest_rate, no_spin_periods
 
 contains
 
@@ -47,6 +48,15 @@ contains
       imag_part = real_part
     end if
   end subroutine eigenvalues
+
+  !> The small-oscillation periods about the bottom without spin, in the
+  !> x-z and y-z planes: 2 pi sqrt((1 + k)(rho - R) / g), rho the cup's
+  !> principal radii of curvature there (g > 0).
+  pure function no_spin_periods(ball) result(periods)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp) :: periods(2)
+    periods = 2 * acos(-1.0_wp) * sqrt((1 + ball%inertia_factor) * (bottom_radii(ball%cup) - ball%radius) / ball%g)
+  end function no_spin_periods
 
   !> The two small-oscillation periods (longer first) about the bottom,
   !> spinning at sigma; NaN for a mode that does not oscillate.

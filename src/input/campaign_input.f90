@@ -1,0 +1,198 @@
+!> The campaign part of the input: &sweep and &sample groups (which
+!> inputs vary, over which values) and &campaign (how they combine, how
+!> many random cases, what to do with invalid ones).
+module ellroll_campaign_input
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp, i8
+  use ellroll_strings, only: lower, itoa, join, format_real
+  use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, invalid_stop, &
+      invalid_skip
+  use ellroll_params, only: params, param_index, p_weight, p_mass
+  use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, max_values
+  implicit none
+  private
+
+  public :: add_sweep, add_sample, build_campaign
+
+  integer(i8), parameter :: max_cases = 100000000_i8
+
+contains
+
+  subroutine add_sweep(rd, v, gi, sweeps, draws)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), allocatable, intent(inout) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    integer, intent(in) :: gi
+    type(sweep_t) :: sw
+    integer :: n, k
+    logical :: listed, ranged
+    sw%line = rd%file%groups(gi)%line
+    sw%param = swept_param(rd, v, gi, sweeps, draws)
+    if (sw%param == 0) return
+    listed = rd%given(gi, 'values')
+    ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
+    if (listed .eqv. ranged) then
+      call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
+      return
+    end if
+    if (listed) then
+      n = count_given(v%values)
+      if (n == 0 .or. .not. all(ieee_is_finite(v%values(:n)))) then
+        call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
+        return
+      end if
+      sw%values = v%values(:n)
+    else
+      if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return
+      if (v%count < 1 .or. v%count > max_values * 1000) then
+        call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
+        return
+      end if
+      select case (lower(v%spacing))
+      case ('linear')
+        sw%values = [(v%start + (v%stop - v%start) * real(k, wp) / max(1, v%count - 1), k = 0, v%count - 1)]
+      case ('log')
+        if (v%start <= 0 .or. v%stop <= 0) then
+          call rd%fail_value(gi, 'start', "spacing = 'log' needs start > 0 and stop > 0")
+          return
+        end if
+        sw%values = [(v%start * (v%stop / v%start)**(real(k, wp) / max(1, v%count - 1)), k = 0, v%count - 1)]
+      case default
+        call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
+        return
+      end select
+      if (v%count > 1) sw%values(v%count) = v%stop        ! exactly the end the user wrote
+    end if
+    sweeps = [sweeps, sw]
+  end subroutine add_sweep
+
+  subroutine add_sample(rd, v, gi, sweeps, draws)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), allocatable, intent(inout) :: draws(:)
+    integer, intent(in) :: gi
+    type(sample_t) :: s
+    s%line = rd%file%groups(gi)%line
+    s%param = swept_param(rd, v, gi, sweeps, draws)
+    if (s%param == 0) return
+    if (.not. rd%require_all(gi, [character(len=6) :: 'low', 'high'], [v%low, v%high])) return
+    if (.not. v%high > v%low) then
+      call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(v%low))
+      return
+    end if
+    select case (lower(v%spacing))
+    case ('linear')
+      s%log_spacing = .false.
+    case ('log')
+      if (v%low <= 0) then
+        call rd%fail_value(gi, 'low', "spacing = 'log' needs low > 0")
+        return
+      end if
+      s%log_spacing = .true.
+    case default
+      call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
+      return
+    end select
+    s%low = v%low; s%high = v%high
+    draws = [draws, s]
+  end subroutine add_sample
+
+  !> The parameter named by a &sweep or &sample group.
+  integer function swept_param(rd, v, gi, sweeps, draws) result(param)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    integer, intent(in) :: gi
+    integer :: k
+    param = 0
+    if (.not. rd%given(gi, 'name')) then
+      call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
+      return
+    end if
+    param = param_index(trim(lower(adjustl(v%name))))
+    if (param == 0) then
+      call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
+      return
+    end if
+    do k = 1, size(sweeps)
+      if (sweeps(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sweep at line ' // &
+                                                       itoa(sweeps(k)%line))
+    end do
+    do k = 1, size(draws)
+      if (draws(k)%param == param) call rd%fail_value(gi, 'name', 'already varied by the &sample at line ' // &
+                                                      itoa(draws(k)%line))
+    end do
+    if (rd%err%failed()) param = 0
+  end function swept_param
+
+  subroutine build_campaign(rd, v, sweeps, draws, camp)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(sweep_t), intent(in) :: sweeps(:)
+    type(sample_t), intent(in) :: draws(:)
+    type(campaign_t), intent(inout) :: camp
+    integer :: gi, k, bi, param, line
+    gi = rd%group('campaign', .false.)
+    if (gi > 0) then
+      select case (lower(v%combine))
+      case ('grid'); camp%combine = combine_grid
+      case ('zip'); camp%combine = combine_zip
+      case default
+        call rd%fail_value(gi, 'combine', "must be 'grid' or 'zip'")
+        return
+      end select
+      select case (lower(v%invalid))
+      case ('stop'); camp%invalid = invalid_stop
+      case ('skip'); camp%invalid = invalid_skip
+      case default
+        call rd%fail_value(gi, 'invalid', "must be 'stop' or 'skip'")
+        return
+      end select
+      if (v%samples < 0 .or. v%samples > max_cases) then
+        call rd%fail_value(gi, 'samples', 'must be between 0 and ' // itoa(max_cases))
+        return
+      end if
+    end if
+    if (size(draws) > 0 .and. v%samples == 0) then
+      call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
+      return
+    end if
+    if (v%samples > 0 .and. size(draws) == 0) then
+      call rd%fail_value(gi, 'samples', 'no &sample group says what to draw')
+      return
+    end if
+    camp%n_draws = v%samples
+    camp%seed = v%seed
+    camp%sweeps = sweeps
+    camp%samples = draws
+    if (camp%combine == combine_zip) then
+      do k = 2, size(sweeps)
+        if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
+          call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
+              itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
+              ' at line ' // itoa(sweeps(1)%line) // ')')
+          return
+        end if
+      end do
+    end if
+    bi = p_weight
+    do k = 1, size(sweeps) + size(draws)
+      if (k <= size(sweeps)) then
+        param = sweeps(k)%param; line = sweeps(k)%line
+      else
+        param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
+      end if
+      if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
+          'weight is varied but &ball gives mass; vary mass instead')
+      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
+          'mass is varied but &ball gives weight; vary weight instead')
+    end do
+    if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
+      call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
+                      itoa(max_cases) // ' cases')
+    end if
+  end subroutine build_campaign
+end module ellroll_campaign_input

@@ -1,0 +1,167 @@
+!> Reading namelist groups for ellroll's input: finding a group, checking
+!> its variable names, and every message about a value, which names the
+!> file, line, group, variable and value. Also the values read, as one
+!> record the builders of the case, plan and campaign take.
+module ellroll_input_reader
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+  use ellroll_kinds, only: wp, i8
+  use ellroll_errors, only: error_t, set_error, err_input
+  use ellroll_namelist_scan, only: nml_file_t
+  use ellroll_strings, only: itoa, join
+  implicit none
+  private
+
+  public :: reader_t, namelist_values_t, check_names, count_given, max_values, max_fields
+
+  integer, parameter :: max_values = 10000, max_fields = 32
+
+  type :: reader_t
+    type(nml_file_t) :: file
+    type(error_t) :: err
+  contains
+    procedure :: group => find_group
+    procedure :: fail_at
+    procedure :: fail_value
+    procedure :: fail_missing
+    procedure :: given
+    procedure :: require
+    procedure :: require_all
+  end type reader_t
+
+  !> Every namelist variable as read: the defaults of the parameter table
+  !> (NaN where required) where the input says nothing.
+  type :: namelist_values_t
+    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
+    character(len=32) :: method, error_estimate
+    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
+    character(len=1024) :: file
+    character(len=32) :: fields(max_fields)
+    integer :: compression
+    character(len=16) :: kind
+    real(wp) :: amplitude(3), frequency, phase
+    character(len=1024) :: record_file
+    character(len=16) :: combine, invalid, spacing
+    integer(i8) :: samples, seed
+    character(len=32) :: name
+    real(wp) :: values(max_values), start, stop, low, high
+    integer :: count
+  end type namelist_values_t
+
+contains
+
+  integer function find_group(rd, name, required) result(gi)
+    class(reader_t), intent(inout) :: rd
+    character(len=*), intent(in) :: name
+    logical, intent(in) :: required
+    gi = rd%file%group_index(name)
+    if (gi == 0 .and. required .and. .not. rd%err%failed()) then
+      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // ' is missing (it is required)')
+    end if
+  end function find_group
+
+  !> Unknown and repeated variable names in group gi.
+  logical function check_names(rd, gi, known) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: known(:)
+    integer :: k, j
+    ok = .false.
+    associate (grp => rd%file%groups(gi))
+      do k = 1, size(grp%items)
+        if (.not. any(known == grp%items(k)%base)) then
+          call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': unknown variable ' // grp%items(k)%name // &
+              ' = ' // grp%items(k)%value // ' (known in &' // grp%name // ': ' // join(known) // ')')
+          return
+        end if
+        do j = 1, k - 1
+          if (grp%items(j)%name == grp%items(k)%name) then
+            call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': ' // grp%items(k)%name // &
+                ' = ' // grp%items(k)%value // ': given twice (also at line ' // itoa(grp%items(j)%line) // ')')
+            return
+          end if
+        end do
+      end do
+    end associate
+    ok = .true.
+  end function check_names
+
+  subroutine fail_at(rd, line, message)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: line
+    character(len=*), intent(in) :: message
+    if (.not. rd%err%failed()) call set_error(rd%err, err_input, rd%file%path // ':' // itoa(line) // ': ' // message)
+  end subroutine fail_at
+
+  subroutine fail_value(rd, gi, name, reason)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: name, reason
+    integer :: k
+    k = rd%file%groups(gi)%find(name)
+    if (k == 0) then
+      call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
+                      ' (default): ' // reason)
+    else
+      associate (item => rd%file%groups(gi)%items(k))
+        call rd%fail_at(item%line, '&' // rd%file%groups(gi)%name // ': ' // item%name // ' = ' // &
+                        item%value // ': ' // reason)
+      end associate
+    end if
+  end subroutine fail_value
+
+  subroutine fail_missing(rd, gi, name, hint)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: name, hint
+    call rd%fail_at(rd%file%groups(gi)%line, '&' // rd%file%groups(gi)%name // ': ' // name // &
+                    ' is required but not given: ' // hint)
+  end subroutine fail_missing
+
+  logical function given(rd, gi, name)
+    class(reader_t), intent(in) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: name
+    given = .false.
+    if (gi > 0) given = rd%file%groups(gi)%find(name) > 0
+  end function given
+
+  !> A required scalar: given and finite (the range is checked with the case).
+  logical function require(rd, gi, name, value) result(ok)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: value
+    ok = .false.
+    if (.not. rd%given(gi, name)) then
+      call rd%fail_missing(gi, name, 'add ' // name // ' = <value> to &' // rd%file%groups(gi)%name)
+    else if (.not. ieee_is_finite(value)) then
+      call rd%fail_value(gi, name, 'must be a finite number')
+    else
+      ok = .true.
+    end if
+  end function require
+
+  !> require for each name in turn, up to the first that fails.
+  logical function require_all(rd, gi, names, values) result(ok)
+    class(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: names(:)
+    real(wp), intent(in) :: values(:)
+    integer :: k
+    ok = .true.
+    do k = 1, size(names)
+      ok = rd%require(gi, trim(names(k)), values(k))
+      if (.not. ok) return
+    end do
+  end function require_all
+
+  !> Entries of a NaN-initialised list that were given.
+  pure integer function count_given(list)
+    real(wp), intent(in) :: list(:)
+    integer :: k
+    count_given = 0
+    do k = 1, size(list)
+      if (.not. ieee_is_nan(list(k))) count_given = k
+    end do
+  end function count_given
+end module ellroll_input_reader
