@@ -6,7 +6,7 @@ module ellroll_input_reader
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_namelist_scan, only: nml_file_t
+  use ellroll_namelist_scan, only: nml_file_t, nml_assignment_t
   use ellroll_strings, only: itoa, join
   implicit none
   private
@@ -74,7 +74,7 @@ contains
           return
         end if
         do j = 1, k - 1
-          if (grp%items(j)%name == grp%items(k)%name) then
+          if (sets_same(grp%items(j), grp%items(k))) then
             call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': ' // grp%items(k)%name // &
                 ' = ' // grp%items(k)%value // ': given twice (also at line ' // itoa(grp%items(j)%line) // ')')
             return
@@ -84,6 +84,14 @@ contains
     end associate
     ok = .true.
   end function check_names
+
+  !> Two assignments that set the same variable, or the same element of
+  !> one: the same name, or a whole vector beside one of its elements.
+  pure logical function sets_same(first, second)
+    type(nml_assignment_t), intent(in) :: first, second
+    sets_same = first%name == second%name
+    if (first%base == second%base) sets_same = sets_same .or. first%name == first%base .or. second%name == second%base
+  end function sets_same
 
   subroutine fail_at(rd, line, message)
     class(reader_t), intent(inout) :: rd

@@ -26,6 +26,8 @@ CASES = [
     ("infinity", [("t_end = 30.0", "t_end = Inf")], ["&integration", "t_end = Inf", "finite"]),
     ("huge", [("a = 1.0", "a = 1e300")], ["&geometry", "a = 1e300", "must be between"]),
     ("given twice", [("a = 1.0", "a = 1.0, a = 2.0")], ["case.nml:4:", "&geometry", "given twice"]),
+    ("vector and its element", [("omega = -2.0, 2.0, 20.0", "omega(3) = 5.0, omega = -2.0, 2.0, 20.0")],
+     ["case.nml:7:", "&initial", "omega = -2.0, 2.0, 20.0", "given twice"]),
     ("group twice", [("&environment g = 9.81 /", "&environment g = 9.81 /\n&environment g = 9.8 /")],
      ["&environment appears twice"]),
     ("unknown method", [("'rk4'", "'euler'")], ["&integration", "method = 'euler'", "unknown method", "rk4"]),
