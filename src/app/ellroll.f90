@@ -11,7 +11,7 @@ program ellroll
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param, &
       range_text
-  use ellroll_params, only: params
+  use ellroll_params, only: params, param_component
   use ellroll_campaign, only: invalid_stop
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
@@ -261,8 +261,7 @@ contains
         default = format_real(p%default)
         if (p%required) default = 'required'
         variable = trim(p%variable)
-        if (count(params%variable == p%variable) > 1) &        ! a vector's component
-          variable = variable // '(' // itoa(k - findloc(params%variable, p%variable, dim=1) + 1) // ')'
+        if (param_component(k) > 0) variable = variable // '(' // itoa(param_component(k)) // ')'
         write (output_unit, '(a)') '| `' // trim(p%name) // '` | `&' // trim(p%group) // '` | `' // variable // &
             '` | ' // trim(p%unit) // ' | ' // range_text(k) // ' | ' // default // ' | ' // &
             trim(merge('yes', 'no ', p%sweepable)) // ' | ' // trim(p%description) // ' |'

@@ -11,7 +11,7 @@ module ellroll_params
   implicit none
   private
 
-  public :: param_t, params, param_count, param_index, param_default
+  public :: param_t, params, param_count, param_index, param_default, param_component
   public :: p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, &
             p_omega_x, p_omega_y, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
             p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, &
@@ -105,4 +105,13 @@ contains
     param_default = params(p)%default
     if (params(p)%required) param_default = ieee_value(1.0_wp, ieee_quiet_nan)
   end function param_default
+
+  !> Which component of its namelist variable row p is (1, 2, 3 for a
+  !> vector's, as omega_x, omega_y, omega_z), or 0 for a scalar.
+  pure integer function param_component(p)
+    integer, intent(in) :: p
+    param_component = 0
+    if (count(params%variable == params(p)%variable) > 1) &
+      param_component = p - findloc(params%variable, params(p)%variable, dim=1) + 1
+  end function param_component
 end module ellroll_params

@@ -108,8 +108,8 @@ contains
   end subroutine take_back_copied_cases
 
   !> Copy the journaled cases into `out`, their trajectories moved from
-  !> `partial` (open_for_resume kept only them there), then move `out` over
-  !> it. A case whose trajectories are missing there or fail their check
+  !> `partial` (open_for_resume kept only them there, so nothing else is
+  !> freed here), then move `out` over it. A case whose trajectories are missing there or fail their check
   !> (the system lost writes) runs again, with a warning.
   subroutine copy_journaled_cases(journal, places, campaign, shard, partial, out, done, err)
     type(journal_t), intent(in) :: journal
@@ -126,7 +126,8 @@ contains
     integer(i8) :: slot, in_place, n_lost
     logical :: found, in_place_fields
     in_place_fields = any(journal%header%in_place)
-    if (in_place_fields) call open_trajectories(partial, journal%header, killed_run, unreadable)
+    if (in_place_fields) call killed_run%open_existing(partial, journal%header%n_slots, journal%header%n_samples, &
+                                                       journal%header%in_place, .true., unreadable)
     n_lost = 0
     do slot = 0, size(places, kind=i8) - 1
       if (err%failed()) exit

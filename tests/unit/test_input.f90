@@ -8,7 +8,7 @@ program test_input
   use ellroll_exact, only: equals
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_cases, only: get_param, range_text
-  use ellroll_params, only: params, param_count, param_default, p_mass
+  use ellroll_params, only: params, param_count, param_default, param_component, p_mass
   use ellroll_strings, only: format_real
   use testing, only: check, finish
   implicit none
@@ -65,8 +65,8 @@ contains
     group = trim(params(p)%group)
     variable = trim(params(p)%variable)
     written = format_real(value)
-    if (count(params%variable == params(p)%variable) > 1) then      ! a vector's component
-      component = p - findloc(params%variable, params(p)%variable, dim=1) + 1
+    component = param_component(p)
+    if (component > 0) then
       vector = merge([-2.0_wp, 2.0_wp, 20.0_wp], [0.0_wp, 0.0_wp, 0.0_wp], variable == 'omega')
       vector(component) = value
       write (items, '(es24.16)') vector
