@@ -394,7 +394,9 @@ contains
     character(len=32) :: field
     gi = rd%group('output', .true.)
     if (gi == 0) return
-    if (len_trim(output_override) > 0) then
+    ! (len first: a caller's constant '' then removes the copy at link time,
+    ! which GCC's link-time optimiser would otherwise flag as an overread)
+    if (len(output_override) > 0 .and. len_trim(output_override) > 0) then
       plan%file = trim(output_override)
     else if (len_trim(v%file) > 0) then
       plan%file = trim(adjustl(v%file))
