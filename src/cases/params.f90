@@ -11,7 +11,7 @@ module ellroll_params
   implicit none
   private
 
-  public :: param_t, params, param_count, param_index, param_default, param_component
+  public :: param_t, params, param_count, param_index, param_default, param_component, param_width
   public :: p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, &
             p_omega_x, p_omega_y, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
             p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, &
@@ -111,7 +111,14 @@ contains
   pure integer function param_component(p)
     integer, intent(in) :: p
     param_component = 0
-    if (count(params%variable == params(p)%variable) > 1) &
+    if (param_width(p) > 1) &
       param_component = p - findloc(params%variable, params(p)%variable, dim=1) + 1
   end function param_component
+
+  !> How many rows row p's namelist variable sets: 1 for a scalar, 3 for a
+  !> vector.
+  pure integer function param_width(p)
+    integer, intent(in) :: p
+    param_width = count(params%variable == params(p)%variable)
+  end function param_width
 end module ellroll_params

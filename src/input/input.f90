@@ -9,19 +9,19 @@ module ellroll_input
   use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_namelist_scan, only: nml_file_t, nml_group_t, scan_namelist_file, scan_namelist_text
+  use ellroll_namelist_scan, only: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, &
+      scan_namelist_text
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      get_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
+      get_param, set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
   use ellroll_integrators, only: method_names
   use ellroll_record_file, only: load_record
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
-  use ellroll_params, only: params, param_default, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
-      p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
-      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z
+  use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
+      p_weight, p_mass, p_dt
   implicit none
   private
 
@@ -98,22 +98,22 @@ contains
     inp%canonical = canonical_text(rd%file)
   end subroutine interpret
 
-  !> All namelist groups are declared in this one scope, so that one loop
-  !> reads every assignment of every group; each assignment is read alone.
+  !> The namelist variables outside the parameter table are declared in
+  !> this one scope, so that one loop reads every assignment of every group;
+  !> each assignment is read alone.
   subroutine read_groups(rd, output_override, inp)
     type(reader_t), intent(inout) :: rd
     character(len=*), intent(in) :: output_override
     type(run_input_t), intent(inout) :: inp
-    ! &geometry, &ball, &environment, &initial, &integration, &output
-    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
+    real(wp) :: table_values(param_count)
+    ! &integration, &output
     character(len=32) :: method, error_estimate
-    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
+    real(wp) :: t_end, interval
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)
     integer :: compression
     ! &excitation
     character(len=16) :: kind
-    real(wp) :: amplitude(3), frequency, phase
     character(len=1024) :: record_file
     ! &campaign, &sweep, &sample
     character(len=16) :: combine, invalid, spacing
@@ -121,13 +121,9 @@ contains
     character(len=32) :: name
     real(wp) :: values(max_values), start, stop, low, high
     integer :: count
-    namelist /geometry/ a, b, c
-    namelist /ball/ radius, weight, mass, mu, inertia_factor
-    namelist /environment/ g
-    namelist /initial/ x, y, omega
-    namelist /integration/ method, dt, t_end, fit_margin, rtol, atol, error_estimate
+    namelist /integration/ method, t_end, error_estimate
     namelist /output/ file, interval, fields, compression
-    namelist /excitation/ kind, amplitude, frequency, phase, record_file
+    namelist /excitation/ kind, record_file
     namelist /campaign/ combine, samples, seed, invalid
     namelist /sweep/ name, values, start, stop, count, spacing
     namelist /sample/ name, low, high, spacing
@@ -137,17 +133,11 @@ contains
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
 
-    ! the parameter table's defaults (NaN: required)
-    a = param_default(p_a); b = param_default(p_b); c = param_default(p_c); radius = param_default(p_radius)
-    weight = param_default(p_weight); mass = param_default(p_mass); mu = param_default(p_mu)
-    inertia_factor = param_default(p_inertia_factor); g = param_default(p_g)
-    x = param_default(p_x); y = param_default(p_y); omega = [(param_default(k), k = p_omega_x, p_omega_z)]
-    method = 'rk4'; dt = param_default(p_dt); t_end = nan(); fit_margin = param_default(p_fit_margin)
-    rtol = param_default(p_rtol); atol = param_default(p_atol); error_estimate = 'none'
+    table_values = [(param_default(k), k = 1, param_count)]     ! NaN: required
+    method = 'rk4'; t_end = nan(); error_estimate = 'none'
     file = ''; interval = nan(); fields = ''; compression = 0
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
-    kind = 'none'; amplitude = [(param_default(k), k = p_excitation_amplitude_x, p_excitation_amplitude_z)]
-    frequency = param_default(p_excitation_frequency); phase = param_default(p_excitation_phase); record_file = ''
+    kind = 'none'; record_file = ''
     allocate (sweeps(0), draws(0))
 
     do gi = 1, size(rd%file%groups)
@@ -184,7 +174,8 @@ contains
     call build_campaign(rd, v, sweeps, draws, inp%campaign)
 
   contains
-    !> Read assignment k of a group alone, into the variables of its namelist.
+    !> Read assignment k of a group alone: into the parameter table's values,
+    !> or into the variables of its namelist.
     subroutine read_assignment(grp, k, ios, msg)
       type(nml_group_t), intent(in) :: grp
       integer, intent(in) :: k
@@ -192,55 +183,39 @@ contains
       character(len=*), intent(inout) :: msg
       type(ieee_status_type) :: fp_state
       character(len=:), allocatable :: record
+      integer :: row
       record = assignment_record(grp, k)
+      row = variable_row(grp%name, grp%items(k)%base)
       call ieee_get_status(fp_state)
       ! text such as 1e309 reads as Inf, which the checks name; its
       ! conversion must not stop a build that traps on overflow
       call ieee_set_halting_mode(ieee_usual, .false.)
-      select case (grp%name)
-      case ('geometry'); read (record, nml=geometry, iostat=ios, iomsg=msg)
-      case ('ball'); read (record, nml=ball, iostat=ios, iomsg=msg)
-      case ('environment'); read (record, nml=environment, iostat=ios, iomsg=msg)
-      case ('initial'); read (record, nml=initial, iostat=ios, iomsg=msg)
-      case ('integration'); read (record, nml=integration, iostat=ios, iomsg=msg)
-      case ('output'); read (record, nml=output, iostat=ios, iomsg=msg)
-      case ('excitation'); read (record, nml=excitation, iostat=ios, iomsg=msg)
-      case ('campaign'); read (record, nml=campaign, iostat=ios, iomsg=msg)
-      case ('sweep'); read (record, nml=sweep, iostat=ios, iomsg=msg)
-      case ('sample'); read (record, nml=sample, iostat=ios, iomsg=msg)
-      end select
+      if (row > 0) then
+        call read_table_value(grp%items(k), row, table_values, ios, msg)
+      else
+        select case (grp%name)
+        case ('integration'); read (record, nml=integration, iostat=ios, iomsg=msg)
+        case ('output'); read (record, nml=output, iostat=ios, iomsg=msg)
+        case ('excitation'); read (record, nml=excitation, iostat=ios, iomsg=msg)
+        case ('campaign'); read (record, nml=campaign, iostat=ios, iomsg=msg)
+        case ('sweep'); read (record, nml=sweep, iostat=ios, iomsg=msg)
+        case ('sample'); read (record, nml=sample, iostat=ios, iomsg=msg)
+        end select
+      end if
       call ieee_set_status(fp_state)
     end subroutine read_assignment
 
     !> The namelist variables as they stand.
     type(namelist_values_t) function current() result(now)
-      now%a = a
-      now%b = b
-      now%c = c
-      now%radius = radius
-      now%weight = weight
-      now%mass = mass
-      now%mu = mu
-      now%inertia_factor = inertia_factor
-      now%g = g
-      now%x = x
-      now%y = y
-      now%omega = omega
+      now%param = table_values
       now%method = method
       now%error_estimate = error_estimate
-      now%dt = dt
       now%t_end = t_end
-      now%fit_margin = fit_margin
       now%interval = interval
-      now%rtol = rtol
-      now%atol = atol
       now%file = file
       now%fields = fields
       now%compression = compression
       now%kind = kind
-      now%amplitude = amplitude
-      now%frequency = frequency
-      now%phase = phase
       now%record_file = record_file
       now%combine = combine
       now%invalid = invalid
@@ -257,67 +232,133 @@ contains
     end function current
   end subroutine read_groups
 
+  !> The first row of the parameter table that namelist variable `base` of
+  !> `group` sets, or 0.
+  pure integer function variable_row(group, base) result(row)
+    character(len=*), intent(in) :: group, base
+    do row = 1, param_count
+      if (params(row)%group == group .and. params(row)%variable == base) return
+    end do
+    row = 0
+  end function variable_row
+
+  !> An assignment to a variable of the parameter table, read as Fortran
+  !> reads a namelist: a scalar, a whole vector, or elements of one.
+  subroutine read_table_value(item, row, table_values, ios, msg)
+    type(nml_assignment_t), intent(in) :: item
+    integer, intent(in) :: row                       !< the variable's first row
+    real(wp), intent(inout) :: table_values(:)
+    integer, intent(out) :: ios
+    character(len=*), intent(inout) :: msg
+    real(wp) :: scalar, vector(3)
+    namelist /table_scalar/ scalar
+    namelist /table_vector/ vector
+    character(len=:), allocatable :: record, subscript_and_value
+    integer :: pos
+    ! the source is 'base[(subscript)] = value': read it under our own name
+    subscript_and_value = item%source(len(item%base) + 1:)
+    do pos = 1, len(subscript_and_value)
+      if (subscript_and_value(pos:pos) == achar(10)) subscript_and_value(pos:pos) = ' '
+    end do
+    if (param_width(row) == 1) then
+      record = '&table_scalar scalar' // subscript_and_value // ' /'
+      scalar = table_values(row)
+      read (record, nml=table_scalar, iostat=ios, iomsg=msg)
+      if (ios == 0) table_values(row) = scalar
+      call rename_in_message(msg, 'scalar', item%base)
+    else
+      record = '&table_vector vector' // subscript_and_value // ' /'
+      vector = table_values(row:row + 2)
+      read (record, nml=table_vector, iostat=ios, iomsg=msg)
+      if (ios == 0) table_values(row:row + 2) = vector
+      call rename_in_message(msg, 'vector', item%base)
+    end if
+  end subroutine read_table_value
+
+  !> gfortran's message about our stand-in variable, naming the user's.
+  subroutine rename_in_message(msg, stand_in, base)
+    character(len=*), intent(inout) :: msg
+    character(len=*), intent(in) :: stand_in, base
+    integer :: pos
+    pos = index(msg, ' ' // stand_in, back=.true.)
+    if (pos > 0) msg = msg(:pos) // base // msg(pos + 1 + len(stand_in):)
+  end subroutine rename_in_message
+
   logical function names_known(rd, gi) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
-    select case (rd%file%groups(gi)%name)
-    case ('geometry'); ok = check_names(rd, gi, [character(len=16) :: 'a', 'b', 'c'])
-    case ('ball'); ok = check_names(rd, gi, [character(len=16) :: 'radius', 'weight', 'mass', 'mu', &
-                                             'inertia_factor'])
-    case ('environment'); ok = check_names(rd, gi, [character(len=16) :: 'g'])
-    case ('initial'); ok = check_names(rd, gi, [character(len=16) :: 'x', 'y', 'omega'])
-    case ('integration'); ok = check_names(rd, gi, [character(len=16) :: 'method', 'dt', 't_end', &
-                                                    'fit_margin', 'rtol', 'atol', 'error_estimate'])
-    case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
-                                               'compression'])
-    case ('excitation'); ok = check_names(rd, gi, [character(len=16) :: 'kind', 'amplitude', 'frequency', &
-                                                   'phase', 'record_file'])
-    case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
-                                                 'invalid'])
-    case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
-                                              'count', 'spacing'])
-    case default; ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
-    end select
+    character(len=16), allocatable :: table_names(:)
+    integer :: p
+    associate (group => rd%file%groups(gi)%name)
+      allocate (table_names, source=pack(params%variable, params%group == group .and. &
+                                           [(param_component(p) <= 1, p = 1, param_count)]))
+      select case (group)
+      case ('integration'); ok = check_names(rd, gi, [table_names, [character(len=16) :: 'method', 't_end', &
+                                                      'error_estimate']])
+      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
+                                                 'compression'])
+      case ('excitation'); ok = check_names(rd, gi, [table_names, [character(len=16) :: 'kind', 'record_file']])
+      case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
+                                                   'invalid'])
+      case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
+                                                'count', 'spacing'])
+      case ('sample'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
+      case default; ok = check_names(rd, gi, table_names)
+      end select
+    end associate
   end function names_known
 
+  !> Row p's namelist variable holds finite numbers (a scalar, or a vector
+  !> from its first row), and is given if `needed`.
+  logical function check_variable(rd, gi, p, table_values, needed) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi, p
+    real(wp), intent(in) :: table_values(:)
+    logical, intent(in) :: needed
+    character(len=:), allocatable :: variable, units
+    integer :: width
+    variable = trim(params(p)%variable)
+    width = param_width(p)
+    ok = .false.
+    units = trim(params(p)%unit)
+    if (needed .and. .not. rd%given(gi, variable)) then
+      if (width == 1) then
+        call rd%fail_missing(gi, variable, 'add ' // variable // ' = <value> (' // units // ') to &' // &
+                             trim(params(p)%group))
+      else
+        call rd%fail_missing(gi, variable, 'add ' // variable // ' = <x>, <y>, <z> (' // units // ') to &' // &
+                             trim(params(p)%group))
+      end if
+    else if (.not. all(ieee_is_finite(table_values(p:p + width - 1)))) then
+      if (width == 1) then
+        call rd%fail_value(gi, variable, 'must be a finite number')
+      else
+        call rd%fail_value(gi, variable, 'three finite numbers are needed (x, y, z in ' // units // ')')
+      end if
+    else
+      ok = .true.
+    end if
+  end function check_variable
+
+  !> The rows of the parameter table given directly: every required one is
+  !> there (weight or mass, and dt unless the method is adaptive), all are
+  !> finite. The excitation's rows are taken with their kind.
   subroutine build_base(rd, v, cs)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(inout) :: v
     type(case_t), intent(out) :: cs
-    integer :: gi
-    gi = rd%group('geometry', .true.)
-    if (gi == 0) return
-    if (.not. rd%require_all(gi, [character(len=6) :: 'a', 'b', 'c'], [v%a, v%b, v%c])) return
-    gi = rd%group('ball', .true.)
-    if (gi == 0) return
-    if (.not. rd%require(gi, 'radius', v%radius)) return
-    if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
-      call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
-      return
-    else if (rd%given(gi, 'weight')) then
-      if (.not. rd%require(gi, 'weight', v%weight)) return
-      if (ieee_is_finite(v%weight) .and. .not. v%weight > 0) then   ! case_t reads weight 0 as 'mass given'
-        call rd%fail_value(gi, 'weight', range_text(p_weight))
-        return
+    integer :: gi, p
+    do p = 1, param_count
+      if (param_component(p) > 1 .or. params(p)%group == 'excitation') cycle
+      if (any(p == [p_weight, p_mass, p_dt])) cycle
+      gi = rd%group(trim(params(p)%group), params(p)%required)
+      if (gi == 0 .and. params(p)%required) return
+      if (gi == 0) cycle
+      if (.not. check_variable(rd, gi, p, v%param, params(p)%required)) return
+      if (p == p_radius) then           ! the ball's size, then its weight or mass
+        if (.not. weight_or_mass(rd, v%param, cs)) return
       end if
-      cs%weight = v%weight
-    else if (rd%given(gi, 'mass')) then
-      if (.not. rd%require(gi, 'mass', v%mass)) return
-      cs%mass = v%mass
-    else
-      call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
-      return
-    end if
-    gi = rd%group('initial', .true.)
-    if (gi == 0) return
-    if (.not. rd%given(gi, 'omega')) then
-      call rd%fail_missing(gi, 'omega', 'give the initial angular velocity, omega = wx, wy, wz (rad/s)')
-      return
-    end if
-    if (any(ieee_is_nan(v%omega))) then
-      call rd%fail_value(gi, 'omega', 'three finite numbers are needed (wx, wy, wz in rad/s)')
-      return
-    end if
+    end do
     gi = rd%group('integration', .true.)
     if (gi == 0) return
     v%method = lower(adjustl(v%method))
@@ -328,7 +369,7 @@ contains
     if (.not. rd%require(gi, 't_end', v%t_end)) return
     ! an adaptive method chooses its steps; dt, if given, is the largest
     if (.not. (adaptive_method(v%method) .and. .not. rd%given(gi, 'dt'))) then
-      if (.not. rd%require(gi, 'dt', v%dt)) return
+      if (.not. check_variable(rd, gi, p_dt, v%param, .true.)) return
     end if
     select case (lower(adjustl(v%error_estimate)))
     case ('none'); cs%error_estimate = .false.
@@ -341,19 +382,45 @@ contains
       call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
       return
     end if
-    cs%a = v%a; cs%b = v%b; cs%c = v%c
-    cs%radius = v%radius; cs%mu = v%mu; cs%inertia_factor = v%inertia_factor; cs%g = v%g
-    cs%x0 = v%x; cs%y0 = v%y; cs%omega0 = v%omega
-    cs%method = v%method; cs%dt = v%dt; cs%t_end = v%t_end; cs%fit_margin = v%fit_margin
-    cs%rtol = v%rtol; cs%atol = v%atol
+    do p = 1, param_count
+      if (params(p)%group /= 'excitation' .and. p /= p_weight .and. p /= p_mass) call set_param(cs, p, v%param(p))
+    end do
+    cs%method = v%method; cs%t_end = v%t_end
     call finalize_case(cs)
   end subroutine build_base
+
+  !> Exactly one of weight and mass, into the case.
+  logical function weight_or_mass(rd, table_values, cs) result(ok)
+    type(reader_t), intent(inout) :: rd
+    real(wp), intent(in) :: table_values(:)
+    type(case_t), intent(inout) :: cs
+    integer :: gi
+    ok = .false.
+    gi = rd%group('ball', .true.)
+    if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
+      call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
+    else if (rd%given(gi, 'weight')) then
+      if (.not. check_variable(rd, gi, p_weight, table_values, .true.)) return
+      if (.not. table_values(p_weight) > 0) then   ! case_t reads weight 0 as 'mass given'
+        call rd%fail_value(gi, 'weight', range_text(p_weight))
+        return
+      end if
+      cs%weight = table_values(p_weight)
+      ok = .true.
+    else if (rd%given(gi, 'mass')) then
+      if (.not. check_variable(rd, gi, p_mass, table_values, .true.)) return
+      cs%mass = table_values(p_mass)
+      ok = .true.
+    else
+      call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
+    end if
+  end function weight_or_mass
 
   subroutine build_excitation(rd, v, cs)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
     type(case_t), intent(inout) :: cs
-    integer :: gi
+    integer :: gi, p
     character(len=:), allocatable :: reason, path
     gi = rd%group('excitation', .false.)
     if (gi == 0) return
@@ -362,13 +429,13 @@ contains
       cs%excitation%kind = excitation_none
     case ('harmonic')
       cs%excitation%kind = excitation_harmonic
-      if (.not. all(ieee_is_finite(v%amplitude))) then
-        call rd%fail_value(gi, 'amplitude', 'three finite numbers are needed (ax, ay, az in m/s^2)')
-        return
-      end if
-      cs%excitation%amplitude = v%amplitude
-      cs%excitation%frequency = v%frequency
-      cs%excitation%phase = v%phase
+      do p = 1, param_count
+        if (params(p)%group /= 'excitation') cycle
+        if (param_component(p) <= 1) then
+          if (.not. check_variable(rd, gi, p, v%param, .false.)) return
+        end if
+        call set_param(cs, p, v%param(p))
+      end do
     case ('record')
       cs%excitation%kind = excitation_record
       if (len_trim(v%record_file) == 0) then

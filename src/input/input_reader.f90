@@ -8,6 +8,7 @@ module ellroll_input_reader
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_namelist_scan, only: nml_file_t, nml_assignment_t
   use ellroll_strings, only: itoa, join
+  use ellroll_params, only: param_count
   implicit none
   private
 
@@ -31,14 +32,13 @@ module ellroll_input_reader
   !> Every namelist variable as read: the defaults of the parameter table
   !> (NaN where required) where the input says nothing.
   type :: namelist_values_t
-    real(wp) :: a, b, c, radius, weight, mass, mu, inertia_factor, g, x, y, omega(3)
+    real(wp) :: param(param_count)         !< the rows of the parameter table
     character(len=32) :: method, error_estimate
-    real(wp) :: dt, t_end, fit_margin, interval, rtol, atol
+    real(wp) :: t_end, interval
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)
     integer :: compression
     character(len=16) :: kind
-    real(wp) :: amplitude(3), frequency, phase
     character(len=1024) :: record_file
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed

@@ -39,6 +39,22 @@ module ellroll_namelist_scan
 
   character, parameter :: lf = achar(10), cr = achar(13), tab = achar(9)
 
+  !> Where a scan stands and what it has found.
+  type :: scanner_t
+    character(len=:), allocatable :: path
+    character(len=:), allocatable :: clean         !< the text, its comments blanked as met
+    integer :: i = 1                               !< the next character
+    integer :: line = 1
+    character :: quote = ' '                       !< the open quote, or blank
+    logical :: in_group = .false.
+    character(len=:), allocatable :: group_name
+    integer :: group_line = 0
+    integer :: value_start = 0                     !< where the open value (or the group's text) starts
+    integer :: item_count = 0
+    type(nml_assignment_t), allocatable :: items(:)
+    type(nml_group_t), allocatable :: groups(:)
+  end type scanner_t
+
 contains
 
   subroutine scan_namelist_file(path, file, err)
@@ -81,163 +97,169 @@ contains
   subroutine scan_namelist_text(file, err)
     type(nml_file_t), intent(inout) :: file
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: clean
-    character :: ch, quote
-    integer :: i, n, line, group_line, name_start, eq_pos, item_count
-    integer :: value_start
-    logical :: in_group
-    type(nml_assignment_t), allocatable :: items(:)
-    type(nml_group_t), allocatable :: groups(:)
-    character(len=:), allocatable :: group_name
+    type(scanner_t) :: s
+    integer :: n
 
     n = len(file%text)
-    allocate (groups(0))
+    s%path = file%path
     if (n == 0) then
-      call fail(1, 'the file is empty; expected namelist groups such as &geometry ... /')
+      call fail(s, err, 1, 'the file is empty; expected namelist groups such as &geometry ... /')
     else if (file%text(n:n) /= lf) then
-      call fail(count_lines(file%text, n), 'the last line does not end with a newline ' // &
+      call fail(s, err, count_lines(file%text, n), 'the last line does not end with a newline ' // &
                 '(gfortran cannot read a namelist group there); add a line break at the end')
     end if
     if (err%failed()) return
 
-    clean = file%text
-    line = 1
-    in_group = .false.
-    i = 1
-    quote = ' '
-    do while (i <= n)
-      ch = clean(i:i)
-      if (ch == lf) then
-        if (quote /= ' ') then
-          call fail(line, 'a quoted string is not closed on its line')
-          return
-        end if
-        line = line + 1
-        i = i + 1
-        cycle
-      end if
-      if (iachar(ch) < 32 .and. ch /= tab .and. ch /= cr) then
-        call fail(line, 'unexpected control character (code ' // itoa(iachar(ch)) // ')')
+    s%clean = file%text
+    allocate (s%groups(0))
+    do while (s%i <= n)
+      call scan_character(s, err)
+      if (err%failed()) return
+    end do
+    if (s%in_group) then
+      call fail(s, err, s%group_line, '&' // s%group_name // ' is not closed with / before the end of the file')
+    else if (size(s%groups) == 0) then
+      call fail(s, err, 1, 'no namelist group found; expected groups such as &geometry ... /')
+    else
+      call move_alloc(s%groups, file%groups)
+    end if
+  end subroutine scan_namelist_text
+
+  !> The character at s%i: line breaks, quotes and comments anywhere, then
+  !> what it means outside or inside a group.
+  subroutine scan_character(s, err)
+    type(scanner_t), intent(inout) :: s
+    type(error_t), intent(inout) :: err
+    character :: ch
+    ch = s%clean(s%i:s%i)
+    if (ch == lf) then
+      if (s%quote /= ' ') then
+        call fail(s, err, s%line, 'a quoted string is not closed on its line')
         return
       end if
-      if (quote /= ' ') then
-        if (ch == quote) quote = ' '
-        i = i + 1
-        cycle
-      end if
-      if (ch == '!') then
-        call blank_comment(clean, i)
-        cycle
-      end if
+      s%line = s%line + 1
+      s%i = s%i + 1
+    else if (iachar(ch) < 32 .and. ch /= tab .and. ch /= cr) then
+      call fail(s, err, s%line, 'unexpected control character (code ' // itoa(iachar(ch)) // ')')
+    else if (s%quote /= ' ') then
+      if (ch == s%quote) s%quote = ' '
+      s%i = s%i + 1
+    else if (ch == '!') then
+      call blank_comment(s%clean, s%i)
+    else if (s%in_group) then
+      call scan_inside_group(s, ch, err)
+    else
+      call scan_outside_group(s, ch, err)
+    end if
+  end subroutine scan_character
 
-      if (.not. in_group) then
-        if (ch == '&' .or. ch == '$') then
-          group_name = lower(name_after(clean, i))
-          if (len(group_name) == 0) then
-            call fail(line, "'" // ch // "' must be followed by a group name, e.g. &geometry")
-            return
-          end if
-          if (group_name == 'end') then
-            call fail(line, "'" // ch // "end' without an open group")
-            return
-          end if
-          in_group = .true.
-          group_line = line
-          allocate (items(0))
-          item_count = 0
-          value_start = i + 1 + len(group_name)
-          i = value_start
-          cycle
-        else if (ch /= ' ' .and. ch /= tab .and. ch /= cr) then
-          call fail(line, 'unexpected text outside a namelist group: "' // snippet(clean, i) // &
-                    '" (a group starts with &name and ends with /; comments start with !)')
-          return
-        end if
-        i = i + 1
-        cycle
+  !> Outside a group only blanks and the start of a group (&name) may stand.
+  subroutine scan_outside_group(s, ch, err)
+    type(scanner_t), intent(inout) :: s
+    character, intent(in) :: ch
+    type(error_t), intent(inout) :: err
+    if (ch == '&' .or. ch == '$') then
+      s%group_name = lower(name_after(s%clean, s%i))
+      if (len(s%group_name) == 0) then
+        call fail(s, err, s%line, "'" // ch // "' must be followed by a group name, e.g. &geometry")
+      else if (s%group_name == 'end') then
+        call fail(s, err, s%line, "'" // ch // "end' without an open group")
+      else
+        s%in_group = .true.
+        s%group_line = s%line
+        allocate (s%items(0))
+        s%item_count = 0
+        s%value_start = s%i + 1 + len(s%group_name)
+        s%i = s%value_start
       end if
+    else if (ch /= ' ' .and. ch /= tab .and. ch /= cr) then
+      call fail(s, err, s%line, 'unexpected text outside a namelist group: "' // snippet(s%clean, s%i) // &
+                '" (a group starts with &name and ends with /; comments start with !)')
+    else
+      s%i = s%i + 1
+    end if
+  end subroutine scan_outside_group
 
-      ! inside a group
+  !> Inside a group: a quote opens, '/' or '&end' closes the group, '='
+  !> ends a name and opens its value.
+  subroutine scan_inside_group(s, ch, err)
+    type(scanner_t), intent(inout) :: s
+    character, intent(in) :: ch
+    type(error_t), intent(inout) :: err
+    integer :: name_start, eq_pos
+    associate (clean => s%clean, i => s%i)
       if (ch == "'" .or. ch == '"') then
-        quote = ch
-      else if (ch == '/' .or. ((ch == '&' .or. ch == '$') .and. lower(clean(i+1:min(n, i+3))) == 'end')) then
-        if (.not. close_value(i - 1)) return
-        call append_group(groups, group_name, group_line, items)
-        in_group = .false.
+        s%quote = ch
+      else if (ch == '/' .or. ((ch == '&' .or. ch == '$') .and. lower(clean(i+1:min(len(clean), i+3))) == 'end')) then
+        if (.not. close_value(s, err, i - 1)) return
+        call append_group(s%groups, s%group_name, s%group_line, s%items)
+        s%in_group = .false.
         if (ch /= '/') i = i + 3
       else if (ch == '&' .or. ch == '$') then
-        call fail(line, '&' // group_name // ' (line ' // itoa(group_line) // &
+        call fail(s, err, s%line, '&' // s%group_name // ' (line ' // itoa(s%group_line) // &
                   ') is not closed with / before the next group starts')
         return
       else if (ch == '=') then
         eq_pos = i
         name_start = find_name_start(clean, eq_pos)
         if (name_start == 0) then
-          call fail(line, "'=' without a variable name before it in &" // group_name)
+          call fail(s, err, s%line, "'=' without a variable name before it in &" // s%group_name)
           return
         end if
-        if (item_count == 0) then
-          if (len_trim(collapse(clean(value_start:name_start-1))) > 0) then
-            call fail(line, 'unexpected text "' // collapse(clean(value_start:name_start-1)) // &
-                      '" in &' // group_name // ' before the first variable')
-            return
-          end if
-        else
-          if (.not. close_value(name_start - 1)) return
+        if (s%item_count == 0 .and. len_trim(collapse(clean(s%value_start:name_start-1))) > 0) then
+          call fail(s, err, s%line, 'unexpected text "' // collapse(clean(s%value_start:name_start-1)) // &
+                    '" in &' // s%group_name // ' before the first variable')
+          return
         end if
-        item_count = item_count + 1
-        call append_item(items, lower(collapse(clean(name_start:eq_pos-1))), line)
-        items(item_count)%source = clean(name_start:eq_pos)    ! value appended by close_value
-        value_start = eq_pos + 1
+        if (.not. close_value(s, err, name_start - 1)) return
+        s%item_count = s%item_count + 1
+        call append_item(s%items, lower(collapse(clean(name_start:eq_pos-1))), s%line)
+        s%items(s%item_count)%source = clean(name_start:eq_pos)    ! value appended by close_value
+        s%value_start = eq_pos + 1
       end if
       i = i + 1
-    end do
+    end associate
+  end subroutine scan_inside_group
 
-    if (in_group) then
-      call fail(group_line, '&' // group_name // ' is not closed with / before the end of the file')
-      return
-    end if
-    if (size(groups) == 0) then
-      call fail(1, 'no namelist group found; expected groups such as &geometry ... /')
-      return
-    end if
-    file%groups = groups
-
-  contains
-
-    !> The value of the open assignment ends at position last.
-    logical function close_value(last)
-      integer, intent(in) :: last
-      character(len=:), allocatable :: value
-      close_value = .true.
-      value = collapse(clean(value_start:last))
-      if (item_count == 0) then
-        if (len(value) > 0) then
-          call fail(line, 'unexpected text "' // value // '" in &' // group_name // &
-                    '; expected name = value')
-          close_value = .false.
-        end if
-        return
-      end if
+  !> The value of the open assignment ends at position last (a group
+  !> without assignments holds only blanks).
+  logical function close_value(s, err, last)
+    type(scanner_t), intent(inout) :: s
+    type(error_t), intent(inout) :: err
+    integer, intent(in) :: last
+    character(len=:), allocatable :: value
+    close_value = .true.
+    value = collapse(s%clean(s%value_start:last))
+    if (s%item_count == 0) then
       if (len(value) > 0) then
-        if (value(len(value):len(value)) == ',') value = trim(value(:len(value)-1))
+        call fail(s, err, s%line, 'unexpected text "' // value // '" in &' // s%group_name // &
+                  '; expected name = value')
+        close_value = .false.
       end if
+      return
+    end if
+    if (len(value) > 0) then
+      if (value(len(value):len(value)) == ',') value = trim(value(:len(value)-1))
+    end if
+    associate (item => s%items(s%item_count))
       if (len(value) == 0) then
-        call fail(items(item_count)%line, '&' // group_name // ': ' // items(item_count)%name // &
+        call fail(s, err, item%line, '&' // s%group_name // ': ' // item%name // &
                   ' = (nothing): a value is required after =')
         close_value = .false.
         return
       end if
-      items(item_count)%value = value
-      items(item_count)%source = items(item_count)%source // clean(value_start:last)
-    end function close_value
+      item%value = value
+      item%source = item%source // s%clean(s%value_start:last)
+    end associate
+  end function close_value
 
-    subroutine fail(at_line, message)
-      integer, intent(in) :: at_line
-      character(len=*), intent(in) :: message
-      call set_error(err, err_input, file%path // ':' // itoa(at_line) // ': ' // message)
-    end subroutine fail
-  end subroutine scan_namelist_text
+  subroutine fail(s, err, at_line, message)
+    type(scanner_t), intent(in) :: s
+    type(error_t), intent(inout) :: err
+    integer, intent(in) :: at_line
+    character(len=*), intent(in) :: message
+    call set_error(err, err_input, s%path // ':' // itoa(at_line) // ': ' // message)
+  end subroutine fail
 
   !> Where the variable name before the '=' at `eq` starts (a subscript
   !> included), or 0 where no name stands there.
