@@ -7,7 +7,7 @@ module ellroll_cases
   use ellroll_exact, only: is_zero
   use ellroll_params, only: params, param_count, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
       p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
-      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z
+      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
@@ -104,6 +104,7 @@ contains
     case (p_excitation_phase); value = cs%excitation%phase
     case (p_excitation_amplitude_x:p_excitation_amplitude_z)
       value = cs%excitation%amplitude(p - p_excitation_amplitude_x + 1)
+    case (p_scale); value = cs%excitation%scale
     case default; value = ieee_value(value, ieee_quiet_nan)
     end select
   end function get_param
@@ -133,6 +134,7 @@ contains
     case (p_excitation_phase); cs%excitation%phase = value
     case (p_excitation_amplitude_x:p_excitation_amplitude_z)
       cs%excitation%amplitude(p - p_excitation_amplitude_x + 1) = value
+    case (p_scale); cs%excitation%scale = value
     end select
   end subroutine set_param
 
@@ -289,7 +291,8 @@ contains
                  excitation_kind_names(cs%excitation%kind)), &
       vector_value('excitation_amplitude', params(p_excitation_amplitude_x)%unit, &
                    'harmonic: amplitude of the cup acceleration', cs%excitation%amplitude), &
-      row(p_excitation_frequency, cs%excitation%frequency), row(p_excitation_phase, cs%excitation%phase)]
+      row(p_excitation_frequency, cs%excitation%frequency), row(p_excitation_phase, cs%excitation%phase), &
+      row(p_scale, cs%excitation%scale)]
 
   contains
 

@@ -38,7 +38,11 @@ module ellroll_results
     integer(i8) :: n_rhs_reference = 0
     real(wp) :: linear_periods(2) = nan_value  !< small-oscillation periods about the bottom, s
     real(wp) :: displacement_max = 0           !< largest |C - (0, 0, R)|, m (cup frame)
+    real(wp) :: displacement_max_time = 0
+    real(wp) :: residual_displacement = 0      !< |C horizontal| at t_final, m
     real(wp) :: horizontal_force_max = 0       !< largest horizontal force on the ball, N
+    real(wp) :: absolute_acceleration_max = 0  !< horizontal_force_max / m, m/s^2
+    real(wp) :: absolute_acceleration_max_time = 0
     real(wp) :: transmissibility = nan_value   !< harmonic: |a_C,abs| / |a_base| at the forcing frequency
     type(field_buffer_t) :: fields(field_count)
     integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)
@@ -77,7 +81,7 @@ contains
   !> The per-case summary as stored under /summary/ (status is written apart).
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
-    type(named_value_t) :: rec(20)
+    type(named_value_t) :: rec(24)
     rec = [ &
       real_value('t_final', 's', 'time at which the case ended', res%t_final), &
       int_value('n_steps', '1', 'integration steps taken', res%n_steps), &
@@ -104,10 +108,20 @@ contains
       vector_value('linear_periods', 's', &
                    'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', &
                    res%linear_periods), &
-      real_value('displacement_max', 'm', 'largest distance of the centre from its rest position (cup frame)', &
+      real_value('displacement_max', 'm', &
+                 "largest horizontal distance of the centre from the cup's lowest point (cup frame, step ends)", &
                  res%displacement_max), &
-      real_value('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball', &
+      real_value('displacement_max_time', 's', 'time of displacement_max', res%displacement_max_time), &
+      real_value('residual_displacement', 'm', &
+                 "horizontal distance of the centre from the cup's lowest point at t_final", &
+                 res%residual_displacement), &
+      real_value('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball (step ends)', &
                  res%horizontal_force_max), &
+      real_value('absolute_acceleration_max', 'm/s^2', &
+                 'largest horizontal absolute acceleration of the centre, |horizontal reaction| / m', &
+                 res%absolute_acceleration_max), &
+      real_value('absolute_acceleration_max_time', 's', 'time of absolute_acceleration_max', &
+                 res%absolute_acceleration_max_time), &
       real_value('transmissibility', '1', &
                  'harmonic: horizontal |a_C,absolute| / |a_base| at the forcing frequency, last whole periods (NaN: n/a)', &
                  res%transmissibility) ]
@@ -136,7 +150,11 @@ contains
     case ('n_rhs_reference'); res%n_rhs_reference = value%int
     case ('linear_periods'); res%linear_periods = value%reals(1:2)
     case ('displacement_max'); res%displacement_max = value%reals(1)
+    case ('displacement_max_time'); res%displacement_max_time = value%reals(1)
+    case ('residual_displacement'); res%residual_displacement = value%reals(1)
     case ('horizontal_force_max'); res%horizontal_force_max = value%reals(1)
+    case ('absolute_acceleration_max'); res%absolute_acceleration_max = value%reals(1)
+    case ('absolute_acceleration_max_time'); res%absolute_acceleration_max_time = value%reals(1)
     case ('transmissibility'); res%transmissibility = value%reals(1)
     end select
   end subroutine set_summary_value

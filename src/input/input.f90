@@ -15,13 +15,13 @@ module ellroll_input
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
       get_param, set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record
+  use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names
-  use ellroll_record_file, only: load_record
+  use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
   use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
-      p_weight, p_mass, p_dt
+      p_weight, p_mass, p_dt, p_scale
   implicit none
   private
 
@@ -114,7 +114,7 @@ contains
     integer :: compression
     ! &excitation
     character(len=16) :: kind
-    character(len=1024) :: record_file
+    character(len=1024) :: record_file(3)
     ! &campaign, &sweep, &sample
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
@@ -308,15 +308,15 @@ contains
     end associate
   end function names_known
 
-  !> Row p's namelist variable holds finite numbers (a scalar, or a vector
-  !> from its first row), and is given if `needed`.
+  !> Row p's namelist variable holds finite numbers in their rows' ranges
+  !> (a scalar, or a vector from its first row), and is given if `needed`.
   logical function check_variable(rd, gi, p, table_values, needed) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi, p
     real(wp), intent(in) :: table_values(:)
     logical, intent(in) :: needed
     character(len=:), allocatable :: variable, units
-    integer :: width
+    integer :: width, k
     variable = trim(params(p)%variable)
     width = param_width(p)
     ok = .false.
@@ -336,6 +336,12 @@ contains
         call rd%fail_value(gi, variable, 'three finite numbers are needed (x, y, z in ' // units // ')')
       end if
     else
+      do k = p, p + width - 1
+        if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
+          call rd%fail_value(gi, variable, range_text(k))
+          return
+        end if
+      end do
       ok = .true.
     end if
   end function check_variable
@@ -401,10 +407,6 @@ contains
       call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
     else if (rd%given(gi, 'weight')) then
       if (.not. check_variable(rd, gi, p_weight, table_values, .true.)) return
-      if (.not. table_values(p_weight) > 0) then   ! case_t reads weight 0 as 'mass given'
-        call rd%fail_value(gi, 'weight', range_text(p_weight))
-        return
-      end if
       cs%weight = table_values(p_weight)
       ok = .true.
     else if (rd%given(gi, 'mass')) then
@@ -416,21 +418,27 @@ contains
     end if
   end function weight_or_mass
 
+  !> The cup's motion: its kind, and the inputs of that kind (a harmonic's
+  !> amplitude, frequency and phase; a record's files and scale).
   subroutine build_excitation(rd, v, cs)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
     type(case_t), intent(inout) :: cs
-    integer :: gi, p
-    character(len=:), allocatable :: reason, path
+    integer :: gi, p, k, n_files
+    character(len=:), allocatable :: reason
+    character(len=1024), allocatable :: paths(:)
+    real(wp), allocatable :: times(:), values(:, :)
     gi = rd%group('excitation', .false.)
     if (gi == 0) return
     select case (lower(adjustl(v%kind)))
     case ('none')
       cs%excitation%kind = excitation_none
+      if (.not. only_for_kind(rd, gi, 'none')) return
     case ('harmonic')
       cs%excitation%kind = excitation_harmonic
+      if (.not. only_for_kind(rd, gi, 'harmonic')) return
       do p = 1, param_count
-        if (params(p)%group /= 'excitation') cycle
+        if (params(p)%group /= 'excitation' .or. p == p_scale) cycle
         if (param_component(p) <= 1) then
           if (.not. check_variable(rd, gi, p, v%param, .false.)) return
         end if
@@ -438,17 +446,57 @@ contains
       end do
     case ('record')
       cs%excitation%kind = excitation_record
-      if (len_trim(v%record_file) == 0) then
-        call rd%fail_missing(gi, 'record_file', 'name the ground-acceleration file (time, ax, ay[, az])')
+      if (.not. only_for_kind(rd, gi, 'record')) return
+      n_files = count(len_trim(v%record_file) > 0)
+      if (n_files == 0) then
+        call rd%fail_missing(gi, 'record_file', "name the ground-acceleration file: a CSV (time, ax, ay[, az]) " // &
+                             "or one PEER .AT2 file per axis, 'x.AT2', 'y.AT2'[, 'z.AT2']")
         return
       end if
-      path = resolve_path(trim(adjustl(v%record_file)), rd%file%path)
-      call load_record(path, cs%t_end, cs%excitation%times, cs%excitation%values, reason)
-      if (len(reason) > 0) call rd%fail_value(gi, 'record_file', reason)
+      if (any(len_trim(v%record_file(:n_files)) == 0)) then
+        call rd%fail_value(gi, 'record_file', 'an empty name among the files')
+        return
+      end if
+      if (.not. check_variable(rd, gi, p_scale, v%param, .false.)) return
+      cs%excitation%scale = v%param(p_scale)
+      allocate (paths(n_files))
+      do k = 1, n_files
+        paths(k) = resolve_path(trim(adjustl(v%record_file(k))), rd%file%path)
+      end do
+      call load_ground_motion(paths, cs%t_end, times, values, reason)
+      if (len(reason) > 0) then
+        call rd%fail_value(gi, 'record_file', reason)
+        return
+      end if
+      call set_record(cs%excitation, times, values)
     case default
       call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
     end select
   end subroutine build_excitation
+
+  !> The inputs of &excitation that belong to another kind are refused.
+  logical function only_for_kind(rd, gi, kind) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: kind
+    character(len=*), parameter :: harmonic_inputs(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
+    character(len=*), parameter :: record_inputs(2) = [character(len=11) :: 'record_file', 'scale']
+    integer :: k
+    ok = .false.
+    do k = 1, size(harmonic_inputs)
+      if (kind /= 'harmonic' .and. rd%given(gi, trim(harmonic_inputs(k)))) then
+        call rd%fail_value(gi, trim(harmonic_inputs(k)), "applies to kind = 'harmonic' only")
+        return
+      end if
+    end do
+    do k = 1, size(record_inputs)
+      if (kind /= 'record' .and. rd%given(gi, trim(record_inputs(k)))) then
+        call rd%fail_value(gi, trim(record_inputs(k)), "applies to kind = 'record' only")
+        return
+      end if
+    end do
+    ok = .true.
+  end function only_for_kind
 
   subroutine build_plan(rd, v, output_override, cs, plan)
     type(reader_t), intent(inout) :: rd

@@ -39,7 +39,7 @@ module ellroll_input_reader
     character(len=32) :: fields(max_fields)
     integer :: compression
     character(len=16) :: kind
-    character(len=1024) :: record_file
+    character(len=1024) :: record_file(3)
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
     character(len=32) :: name

@@ -318,7 +318,7 @@ contains
     type(case_result_t), intent(inout) :: res
     res%status = search%crossed
     res%t_final = dop%t_old + search%valid
-    if (search%found_valid) call accumulate(run, res, search%last_valid)
+    if (search%found_valid) call accumulate(run, res, res%t_final, search%last_valid)
   end subroutine end_at_crossing
 
   !> The exact flow from a fixed-step method's state y_from at t_from,

@@ -35,6 +35,8 @@ module ellroll_batch_run
     real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
     real(wp), dimension(lanes) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, reaction_normal_max = 0, &
                                   friction_needed_max = 0, energy_deviation_max = 0, constraint_error_max = 0
+    real(wp), dimension(lanes) :: displacement_sq_max_time = 0, horizontal_force_sq_max_time = 0, &
+                                  displacement_sq_last = 0
     logical :: theta_moved(lanes) = .false.
   contains
     procedure :: load => load_summary
@@ -174,7 +176,7 @@ contains
         call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
-        call summary%add(out, accepted)
+        call summary%add(out, step * h, accepted)
         sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
         if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, sample_now)
         do l = 1, n
@@ -294,7 +296,7 @@ contains
           f_new(l, :) = f_lane
         end do
         call lanes_observe(balls, y_new, f_new, out)
-        call summary%add(out, accepted .and. out%status == status_completed)
+        call summary%add(out, t + h, accepted .and. out%status == status_completed)
         ! a step with a sample, a maximum of Theta or a crossed limit inside
         ! needs its dense output: the stages for all lanes at once
         sample_inside = .false.
@@ -380,17 +382,21 @@ contains
     self%tan_max(l) = run%tan_theta_max
     self%displacement_sq_max(l) = run%displacement_sq_max
     self%horizontal_force_sq_max(l) = run%horizontal_force_sq_max
+    self%displacement_sq_max_time(l) = run%displacement_sq_max_time
+    self%horizontal_force_sq_max_time(l) = run%horizontal_force_sq_max_time
+    self%displacement_sq_last(l) = run%displacement_sq_last
     self%reaction_normal_max(l) = res%reaction_normal_max
     self%friction_needed_max(l) = res%friction_needed_max
     self%energy_deviation_max(l) = run%energy_deviation_max
     self%constraint_error_max(l) = res%constraint_error_max
   end subroutine load_summary
 
-  !> What the accepted lanes' new states add to the summary (accumulate);
-  !> branch-free (merge), so that the loop vectorizes.
-  pure subroutine add_to_summary(self, out, accepted)
+  !> What the accepted lanes' new states (at times t) add to the summary
+  !> (accumulate); branch-free (merge), so that the loop vectorizes.
+  pure subroutine add_to_summary(self, out, t, accepted)
     class(lane_summary_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: t(lanes)
     logical, intent(in) :: accepted(lanes)
     logical :: higher
     integer :: l
@@ -400,10 +406,13 @@ contains
       self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
       self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
       self%theta_moved(l) = self%theta_moved(l) .or. higher
-      self%displacement_sq_max(l) = merge(max(self%displacement_sq_max(l), out%displacement_sq(l)), &
-                                          self%displacement_sq_max(l), accepted(l))
-      self%horizontal_force_sq_max(l) = merge(max(self%horizontal_force_sq_max(l), out%horizontal_force_sq(l)), &
-                                              self%horizontal_force_sq_max(l), accepted(l))
+      self%displacement_sq_last(l) = merge(out%displacement_sq(l), self%displacement_sq_last(l), accepted(l))
+      higher = accepted(l) .and. out%displacement_sq(l) > self%displacement_sq_max(l)
+      self%displacement_sq_max(l) = merge(out%displacement_sq(l), self%displacement_sq_max(l), higher)
+      self%displacement_sq_max_time(l) = merge(t(l), self%displacement_sq_max_time(l), higher)
+      higher = accepted(l) .and. out%horizontal_force_sq(l) > self%horizontal_force_sq_max(l)
+      self%horizontal_force_sq_max(l) = merge(out%horizontal_force_sq(l), self%horizontal_force_sq_max(l), higher)
+      self%horizontal_force_sq_max_time(l) = merge(t(l), self%horizontal_force_sq_max_time(l), higher)
       self%reaction_normal_max(l) = merge(max(self%reaction_normal_max(l), out%reaction_normal(l)), &
                                           self%reaction_normal_max(l), accepted(l))
       self%friction_needed_max(l) = merge(max(self%friction_needed_max(l), out%friction_needed(l)), &
@@ -439,6 +448,9 @@ contains
     if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
     run%displacement_sq_max = self%displacement_sq_max(l)
     run%horizontal_force_sq_max = self%horizontal_force_sq_max(l)
+    run%displacement_sq_max_time = self%displacement_sq_max_time(l)
+    run%horizontal_force_sq_max_time = self%horizontal_force_sq_max_time(l)
+    run%displacement_sq_last = self%displacement_sq_last(l)
     res%reaction_normal_max = self%reaction_normal_max(l)
     res%friction_needed_max = self%friction_needed_max(l)
     run%energy_deviation_max = self%energy_deviation_max(l)

@@ -87,6 +87,8 @@ module ellroll_case_run
     !> finish_case: both are correctly rounded and monotonic, so the result
     !> is the same number (the batch's lanes keep the same)
     real(wp) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, energy_deviation_max = 0
+    real(wp) :: displacement_sq_max_time = 0, horizontal_force_sq_max_time = 0   !< when they were reached
+    real(wp) :: displacement_sq_last = 0  !< at the last step end (the residual)
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
 
@@ -130,7 +132,11 @@ contains
     if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
       res%transmissibility = run%spectrum%ratio()
     res%displacement_max = sqrt(run%displacement_sq_max)
+    res%displacement_max_time = run%displacement_sq_max_time
+    res%residual_displacement = sqrt(run%displacement_sq_last)
     res%horizontal_force_max = sqrt(run%horizontal_force_sq_max)
+    res%absolute_acceleration_max = res%horizontal_force_max / run%ball%mass
+    res%absolute_acceleration_max_time = run%horizontal_force_sq_max_time
     res%energy_drift = run%energy_deviation_max / abs(run%energy0)
     res%linear_periods = oscillation_periods(run%ball, run%spin0)
     call fill_unrecorded(res)
@@ -234,7 +240,7 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    call accumulate(run, res, obs)
+    call accumulate(run, res, t, obs)
   end subroutine track_step_end
 
   pure subroutine add_spectrum(self, t, ball, base)
@@ -276,15 +282,25 @@ contains
     end if
   end subroutine note_nutation
 
-  pure subroutine accumulate(run, res, obs)
+  pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    real(wp) :: horizontal_force_sq
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
-    ! the norms written out, as the batch path (ellroll_ball_lanes) computes them
-    run%displacement_sq_max = max(run%displacement_sq_max, &
-        obs%center(1)**2 + obs%center(2)**2 + (obs%center(3) - run%ball%radius)**2)
-    run%horizontal_force_sq_max = max(run%horizontal_force_sq_max, obs%reaction(1)**2 + obs%reaction(2)**2)
+    ! the norms written out, as the batch path (ellroll_ball_lanes) computes
+    ! them; displacement: of the centre from the vertical through the lowest point
+    run%displacement_sq_last = obs%center(1)**2 + obs%center(2)**2
+    if (run%displacement_sq_last > run%displacement_sq_max) then
+      run%displacement_sq_max = run%displacement_sq_last
+      run%displacement_sq_max_time = t
+    end if
+    horizontal_force_sq = obs%reaction(1)**2 + obs%reaction(2)**2
+    if (horizontal_force_sq > run%horizontal_force_sq_max) then
+      run%horizontal_force_sq_max = horizontal_force_sq
+      run%horizontal_force_sq_max_time = t
+    end if
     res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
     res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
     run%energy_deviation_max = max(run%energy_deviation_max, abs(obs%energy - run%energy0))

@@ -176,7 +176,7 @@ contains
       out%lateral(l) = lateral
       out%normal(l, :) = [n1, n2, n3]
       out%contact(l, :) = [p1, p2, p3]
-      out%displacement_sq(l) = (p1 + r * n1)**2 + (p2 + r * n2)**2 + ((p3 + r * n3) - r)**2
+      out%displacement_sq(l) = (p1 + r * n1)**2 + (p2 + r * n2)**2
       ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
       nd1 = f(l, 1) * inv_length
       nd2 = f(l, 2) * inv_length

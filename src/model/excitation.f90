@@ -2,10 +2,11 @@
 !> cup's frame this replaces g_vec by g_vec - a_base(t) (docs/model.md).
 module ellroll_excitation
   use ellroll_kinds, only: wp, two_pi
+  use ellroll_exact, only: equals
   implicit none
   private
 
-  public :: excitation_t, base_acceleration
+  public :: excitation_t, base_acceleration, set_record
   public :: excitation_none, excitation_harmonic, excitation_record, excitation_kind_names
 
   integer, parameter :: excitation_none = 0, excitation_harmonic = 1, excitation_record = 2
@@ -16,13 +17,29 @@ module ellroll_excitation
     real(wp) :: amplitude(3) = 0        !< harmonic: m/s^2
     real(wp) :: frequency = 0           !< harmonic: Hz
     real(wp) :: phase = 0               !< harmonic: rad
+    real(wp) :: scale = 1               !< record: factor on its values
     real(wp), allocatable :: times(:)   !< record: s, strictly increasing
     real(wp), allocatable :: values(:, :)  !< record: (3, n) m/s^2
+    real(wp) :: step = 0                !< record: times(k) = (k - 1) step exactly, or 0
   end type excitation_t
 
 contains
 
-  !> a_base(t): amplitude sin(2 pi f t + phase), or the record interpolated linearly.
+  !> A record's samples; a grid of equal steps is found by its index.
+  pure subroutine set_record(exc, times, values)
+    type(excitation_t), intent(inout) :: exc
+    real(wp), intent(in) :: times(:), values(:, :)
+    integer :: k
+    exc%times = times
+    exc%values = values
+    exc%step = times(2)
+    do k = 1, size(times)
+      if (.not. equals(times(k), real(k - 1, wp) * exc%step)) exc%step = 0
+    end do
+  end subroutine set_record
+
+  !> a_base(t): amplitude sin(2 pi f t + phase), or scale times the record
+  !> interpolated linearly.
   pure function base_acceleration(exc, t) result(a)
     type(excitation_t), intent(in) :: exc
     real(wp), intent(in) :: t
@@ -36,11 +53,17 @@ contains
       low = 1
       high = size(exc%times)
       if (t <= exc%times(low)) then
-        a = exc%values(:, low)
+        a = exc%scale * exc%values(:, low)
         return
       else if (t >= exc%times(high)) then
-        a = exc%values(:, high)
+        a = exc%scale * exc%values(:, high)
         return
+      end if
+      if (exc%step > 0) then           ! the sample at or before t, by index
+        low = min(max(int(t / exc%step) + 1, 1), high - 1)
+        if (exc%times(low) > t) low = low - 1
+        if (exc%times(low + 1) <= t) low = low + 1
+        high = low + 1
       end if
       do while (high - low > 1)
         mid = (low + high) / 2
@@ -51,7 +74,7 @@ contains
         end if
       end do
       weight = (t - exc%times(low)) / (exc%times(high) - exc%times(low))
-      a = (1 - weight) * exc%values(:, low) + weight * exc%values(:, high)
+      a = exc%scale * ((1 - weight) * exc%values(:, low) + weight * exc%values(:, high))
     case default
       a = 0
     end select

@@ -170,7 +170,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # (src/cases/results.f90: wall_time is the 5th), the checksum of the
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
-SUMMARY_ENTRIES, WALL_TIME_ENTRY = 20, 4
+SUMMARY_ENTRIES, WALL_TIME_ENTRY = 24, 4
 JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8) + 8   # magic; id, slots, samples, shard, two flags per field; checksum
 RECORD_MARKER = 7310312871522813004
 

@@ -42,8 +42,9 @@ def rows(ellroll):
 def namelist(group, variable, value):
     groups = {g: list(items) for g, items in BASE.items()}
     groups.setdefault(group, [])
-    if group == "excitation":
-        groups[group].append("kind = 'harmonic'")
+    if group == "excitation":         # the kind the input belongs to (its file is read after the checks)
+        groups[group].append("kind = 'record', record_file = 'absent.AT2'" if variable == "scale"
+                             else "kind = 'harmonic'")
     base = variable.split("(")[0]
     if base == "mass":
         groups["ball"].remove("weight = 2620.0")
@@ -73,4 +74,4 @@ def test_every_row_s_range_is_enforced(ellroll, tmp_path, beyond):
             (name, result.stderr)
         assert valid in result.stderr, (name, valid, result.stderr)
         checked += 1
-    assert checked == (23 if beyond == "above" else 4)     # weight, mass, inertia_factor, dt
+    assert checked == (24 if beyond == "above" else 4)     # weight, mass, inertia_factor, dt

@@ -157,6 +157,10 @@ def test_bad_record_files(ellroll, tmp_path, content, words):
     ("kind = 'record', record_file = 'missing.csv'", "cannot open"),
     ("kind = 'harmonic', amplitude = 1.0, nan, 0.0, frequency = 1", "three finite numbers"),
     ("kind = 'harmonic', amplitude = 1.0, 0.0, 0.0, frequency = -1", "frequency = -1: must be between"),
+    ("kind = 'harmonic', amplitude = 1.0, 0.0, 0.0, frequency = 1, scale = 2", "scale = 2: applies to kind = 'record'"),
+    ("kind = 'record', record_file = 'x.csv', frequency = 1", "frequency = 1: applies to kind = 'harmonic'"),
+    ("kind = 'none', amplitude = 1, 0, 0", "amplitude = 1, 0, 0: applies to kind = 'harmonic'"),
+    ("kind = 'record', record_file = 'x.csv', scale = -1", "scale = -1: must be between 0 and 1000"),
 ])
 def test_bad_excitation_input(ellroll, tmp_path, excitation, words):
     name = write(tmp_path, excitation=excitation)

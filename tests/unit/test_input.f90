@@ -81,7 +81,9 @@ contains
     text = text // line('output', 'file = ''out.h5'', interval = 0.01', group, variable, written)
     if (index(text, '&' // group // ' ') == 0) then
       text = text // '&' // group // ' ' // variable // ' = ' // written
-      if (group == 'excitation') text = text // ', kind = ''harmonic'''
+      if (group == 'excitation') text = text // merge(', kind = ''record'', record_file = ''absent.csv''', &
+                                                      ', kind = ''harmonic''                          ', &
+                                                      variable == 'scale')
       text = text // ' /' // nl
     end if
   end function with_value

@@ -1,0 +1,176 @@
+"""Ground-motion records: PEER NGA .AT2 files, one per axis, equal bitwise to
+the same record as a CSV in m/s^2 for every header style and layout; scale;
+the ground at rest past a record's end; bad files named by file and line."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+
+STANDARD_GRAVITY = 9.80665
+NPTS, DT = 1999, 0.01
+
+CUP = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = {t_end} /
+&excitation kind = 'record', record_file = {files}{extra} /
+&output file = 'out.h5', interval = 0.01 /
+"""
+
+
+def ground(seed, n=NPTS, dt=DT):
+    """A synthetic record in g, with seven significant digits as PEER prints them."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    acc = 0.05 * np.sin(2 * np.pi * 0.5 * t) * np.exp(-0.05 * t) + 0.005 * rng.standard_normal(n)
+    return np.array([float(f"{v:.6E}") for v in acc])
+
+
+def write_at2(path, acc, dt, style="new", per_line=5, crlf=False, lower=False, pad=True):
+    """The PEER layout: four header lines, then E15.7 fields (the last line padded)."""
+    series = "TIME SERIES" if style == "new" else "TIME HISTORY"
+    header = ["PEER NGA STRONG MOTION DATABASE RECORD",
+              "SYNTHETIC RECORD FOR ELLROLL TESTS, NOT A RECORDED GROUND MOTION",
+              f"ACCELERATION {series} IN UNITS OF G"]
+    if style == "new":
+        header.append(f"NPTS={len(acc):7d}, DT={dt:9.4f} SEC,   0 POLE @ 30.00000 HZ ...")
+    else:
+        header.append(f"{len(acc)} {dt:.5f} NPTS, DT")
+    values = list(acc) + ([0.0] * (-len(acc) % per_line) if pad else [])
+    lines = header + ["".join(f"{v:15.7E}" for v in values[i:i + per_line])
+                      for i in range(0, len(values), per_line)]
+    end = "\r\n" if crlf else "\n"
+    text = end.join(lines) + end
+    path.write_bytes((text.lower() if lower else text).encode())
+
+
+def write_csv(path, components, dt):
+    """The same record in m/s^2, with the sample one step past the end at rest."""
+    n = max(len(c) for c in components)
+    rows = [[k * dt] + [float(c[k] * STANDARD_GRAVITY) if k < len(c) else 0.0 for c in components]
+            for k in range(n + 1)]
+    path.write_text("t, ax, ay\n" + "".join(", ".join(repr(v) for v in row) + "\n" for row in rows))
+
+
+def run_case(ellroll, folder, files, name, t_end=19.0, extra=""):
+    (folder / f"{name}.nml").write_text(CUP.format(files=files, t_end=t_end, extra=extra))
+    result = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    return folder / f"{name}.h5"
+
+
+def trajectories(path):
+    with h5py.File(path, "r") as f:
+        return {name: f["trajectory"][name][()] for name in f["trajectory"] if name != "case"}
+
+
+def assert_same_trajectories(a, b):
+    ta, tb = trajectories(a), trajectories(b)
+    assert sorted(ta) == sorted(tb)
+    for name in ta:
+        assert ta[name].tobytes() == tb[name].tobytes(), name
+
+
+@pytest.mark.parametrize("layout", [
+    dict(style="new"),
+    dict(style="old", per_line=8),
+    dict(style="new", crlf=True, lower=True),
+    dict(style="old", crlf=True, pad=False),
+])
+def test_at2_equals_the_csv_bitwise(ellroll, tmp_path, layout):
+    x, y = ground(1), ground(2)
+    write_at2(tmp_path / "H1.AT2", x, DT, **layout)
+    write_at2(tmp_path / "H2.AT2", y, DT, **layout)
+    write_csv(tmp_path / "rec.csv", [x, y], DT)
+    at2 = run_case(ellroll, tmp_path, "'H1.AT2', 'H2.AT2'", "at2")
+    csv = run_case(ellroll, tmp_path, "'rec.csv'", "csv")
+    assert_same_trajectories(at2, csv)
+    with h5py.File(at2, "r") as f:
+        base = f["trajectory/base_acceleration"][0]
+        assert np.abs(base[:, 0]).max() > 0.3 and np.all(base[:, 2] == 0)
+
+
+def test_scale_two_equals_the_doubled_csv(ellroll, tmp_path):
+    x, y = ground(3), ground(4)
+    write_at2(tmp_path / "H1.AT2", x, DT)
+    write_at2(tmp_path / "H2.AT2", y, DT)
+    write_csv(tmp_path / "rec.csv", [2 * x, 2 * y], DT)
+    scaled = run_case(ellroll, tmp_path, "'H1.AT2', 'H2.AT2'", "scaled", extra=", scale = 2.0")
+    doubled = run_case(ellroll, tmp_path, "'rec.csv'", "doubled")
+    assert_same_trajectories(scaled, doubled)
+    with h5py.File(scaled, "r") as f:
+        assert f["case/scale"][0] == 2.0
+
+
+def test_axes_of_different_length_and_step_and_the_ground_at_rest_after(ellroll, tmp_path):
+    x = ground(5, n=1000, dt=0.01)                  # ends at 9.99 s
+    y = ground(6, n=1200, dt=0.005)                 # ends at 5.995 s
+    z = ground(7, n=300, dt=0.02)
+    for name, acc, dt in (("H1.AT2", x, 0.01), ("H2.AT2", y, 0.005), ("UP.AT2", 0.1 * z, 0.02)):
+        write_at2(tmp_path / name, acc, dt)
+    path = run_case(ellroll, tmp_path, "'H1.AT2', 'H2.AT2', 'UP.AT2'", "mixed", t_end=15.0)
+    with h5py.File(path, "r") as f:
+        t, base = f["time"][()], f["trajectory/base_acceleration"][0]
+        status = f["summary/status"]
+        assert status.attrs["flag_meanings"].split()[status[0]] == "completed"
+    g = STANDARD_GRAVITY
+    for axis, (acc, dt) in enumerate(((x, 0.01), (y, 0.005), (0.1 * z, 0.02))):
+        grid = np.arange(len(acc) + 1) * dt
+        expected = np.interp(t, grid, np.r_[acc, 0] * g, right=0.0)
+        assert np.abs(base[:, axis] - expected).max() < 1e-12, axis
+    assert np.all(base[t >= 10.0] == 0)                        # every record has ended: at rest
+
+
+BAD = [
+    ("truncated", lambda: header(10) + "  .1E-01  .2E-01\n", "H1.AT2:5: the file ends after 2 of NPTS = 10"),
+    ("values beyond", lambda: header(4) + "  .1E-01  .2E-01  .3E-01  .4E-01\n  .5E-01\n",
+     "H1.AT2:6: values beyond NPTS = 4"),
+    ("non-numeric", lambda: header(4) + "  .1E-01  abc  .3E-01  .4E-01\n", "H1.AT2:5: 'abc' is not a number"),
+    ("missing DT", lambda: "a\nb\nc\nNPTS=   4\n .1 .2 .3 .4\n", "H1.AT2:4: no DT on the fourth line"),
+    ("DT not a number", lambda: "a\nb\nc\nNPTS=   4, DT= fast\n .1 .2 .3 .4\n", "H1.AT2:4: DT is missing or not a number"),
+    ("no NPTS", lambda: "a\nb\nc\nDT= .01 SEC\n .1 .2 .3 .4\n", "H1.AT2:4: no NPTS"),
+    ("short header", lambda: "a\nb\n", "H1.AT2:3: the file ends in its header"),
+    ("zero DT", lambda: "a\nb\nc\nNPTS=   4, DT= 0.0 SEC\n .1 .2 .3 .4\n", "DT = 0 s must be between"),
+]
+
+
+def header(npts):
+    return f"PEER\nSYNTHETIC\nACCELERATION TIME SERIES IN UNITS OF G\nNPTS= {npts:6d}, DT=   .0100 SEC\n"
+
+
+@pytest.mark.parametrize("label,content,words", BAD, ids=[b[0] for b in BAD])
+def test_bad_at2_files(ellroll, tmp_path, label, content, words):
+    (tmp_path / "H1.AT2").write_text(content())
+    (tmp_path / "cup.nml").write_text(CUP.format(files="'H1.AT2'", t_end=1.0, extra=""))
+    result = run(ellroll, "run", "cup.nml", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "cup.nml:5: &excitation: record_file = 'H1.AT2'" in result.stderr and words in result.stderr, \
+        result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["H1.AT2", "cup.nml"]
+
+
+def test_mutated_at2_files_end_cleanly_in_the_debug_build(ellroll_debug, tmp_path):
+    """Deleted, doubled and changed characters anywhere: a clean result or a
+    clean error (exit 2), never a signal, under -fcheck=all and traps."""
+    write_at2(tmp_path / "good.AT2", ground(8, n=40), DT)
+    text = (tmp_path / "good.AT2").read_text()
+    rng = np.random.default_rng(9)
+    (tmp_path / "cup.nml").write_text(CUP.format(files="'H1.AT2'", t_end=0.3, extra=""))
+    codes = set()
+    for _ in range(60):
+        chars = list(text)
+        for _ in range(rng.integers(1, 4)):
+            k = int(rng.integers(len(chars)))
+            op = rng.integers(3)
+            if op == 0:
+                del chars[k]
+            elif op == 1:
+                chars.insert(k, chars[k])
+            else:
+                chars[k] = str(rng.choice(list("0159.-+E ,=\nxN")))
+        (tmp_path / "H1.AT2").write_text("".join(chars))
+        result = run(ellroll_debug, "check", "cup.nml", cwd=tmp_path)
+        assert result.returncode in (0, 2), result.stderr
+        codes.add(result.returncode)
+    assert codes == {0, 2}
