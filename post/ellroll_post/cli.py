@@ -10,7 +10,7 @@ from .report import build_report
 from .summary import format_summary
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
-              "transmissibility": "transmissibility"}
+              "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
 
 
 def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
@@ -24,14 +24,18 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
         if name == "reaction":
             fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="constrained")
             plots.plot_reaction(axes, run, case)
+        elif name == "suite":
+            fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
+            plots.plot_suite(axes, run)
         else:
-            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4), "transmissibility": (8, 5)}[name]
+            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4), "transmissibility": (8, 5),
+                    "spectrum": (8, 4.5)}[name]
             fig, ax = plt.subplots(figsize=size, layout="constrained")
             if name == "transmissibility":
                 plots.plot_transmissibility(ax, run)
             else:
                 getattr(plots, f"plot_{name}")(ax, run, case)
-        stem = FILE_STEMS[name] + (f"_case{case}" if case else "")
+        stem = FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else "")
     path = pathlib.Path(out) / f"{stem}.{fmt}"
     fig.savefig(path, dpi=150)
     plt.close(fig)
@@ -68,7 +72,8 @@ def main(argv=None):
     common.add_argument("--format", default="png", choices=["png", "pdf", "svg"])
     for name, text in [("trace", "Fig. 2: XY trace of the contact point"), ("nutation", "Fig. 3: Theta against t"),
                        ("reaction", "normal force, friction and the friction coefficient needed"),
-                       ("energy", "energy and constraint errors")]:
+                       ("energy", "energy and constraint errors"),
+                       ("spectrum", "spectrum of the transmitted acceleration against the ground's")]:
         p = sub.add_parser(name, parents=[common], help=text)
         p.add_argument("file")
         p.add_argument("--case", type=int, default=0, help="case index (default 0)")
@@ -78,6 +83,9 @@ def main(argv=None):
     p.add_argument("--y", default="theta_max", help="summary quantities, e.g. theta_max,nutation_period")
     p = sub.add_parser("transmissibility", parents=[common],
                        help="transmissibility against an excitation_frequency sweep, linear resonances marked")
+    p.add_argument("file")
+    p = sub.add_parser("suite", parents=[common],
+                       help="a record suite: peak displacement and acceleration per scale, median and 84th percentile")
     p.add_argument("file")
     p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
@@ -116,6 +124,10 @@ def main(argv=None):
                         raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
                                                "(&sweep name = 'excitation_frequency')")
                     written = [draw("transmissibility", run, out)]
+                elif args.command == "suite":
+                    if len(set(run.record_names()) - {""}) < 2:
+                        raise NotAnEllrollFile(f"{args.file}: not a record suite (give two or more &record groups)")
+                    written = [draw("suite", run, out, 0, args.format)]
                 elif args.command == "sweep":
                     x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]
                     if not x_names:
@@ -132,6 +144,9 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names)]
                 else:
                     run.check_case(args.case)
+                    if args.command == "spectrum" and not {"reaction", "base_acceleration"} <= set(run.fields):
+                        raise NotAnEllrollFile(f"{args.file}: the spectrum needs the fields reaction and "
+                                               "base_acceleration (a moving cup)")
                     written = [draw(args.command, run, out, args.case, args.format)]
     except (NotAnEllrollFile, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)

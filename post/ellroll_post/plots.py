@@ -219,3 +219,83 @@ def plot_transmissibility(ax, run):
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small")
     return ax
+
+
+SUITE_QUANTITIES = ("displacement_max", "absolute_acceleration_max")
+
+
+def suite_statistics(run, quantity):
+    """Per design point of a record suite (the swept inputs other than the
+    record, e.g. scale): the records, each one's value of the summary
+    `quantity`, and their median and 84th percentile (numpy's, linear)."""
+    records = np.array(run.record_names())
+    values = run.summary(quantity).astype(float)
+    others = run.swept_inputs()
+    keys = np.stack([run.input_column(n) for n in others], axis=1) if others else np.zeros((run.n_cases, 0))
+    points = []
+    for key in np.unique(keys, axis=0):
+        mask = np.all(keys == key, axis=1)
+        chosen = values[mask]
+        points.append(dict(inputs=dict(zip(others, key)), records=list(records[mask]), values=chosen,
+                           median=float(np.median(chosen)), p84=float(np.percentile(chosen, 84))))
+    return points
+
+
+def plot_suite(axes, run):
+    """Peak displacement and peak absolute acceleration over a record suite
+    against the scale (or the first other swept input): every record's
+    value faint, the median and the 84th percentile over the records."""
+    records = sorted(set(run.record_names()))
+    for ax, quantity in zip(axes, SUITE_QUANTITIES):
+        points = suite_statistics(run, quantity)
+        x_name = "scale" if "scale" in run.swept_inputs() else (run.swept_inputs() or [None])[0]
+        x = np.array([p["inputs"].get(x_name, 1.0) for p in points]) if x_name else np.ones(len(points))
+        order = np.argsort(x)
+        for p, xi in zip(points, x):
+            ax.plot(np.full(len(p["values"]), xi), p["values"], "o", ms=3, color="0.55", alpha=0.35)
+        ax.plot([], [], "o", ms=3, color="0.55", alpha=0.5, label=f"each record ({len(records)})")
+        ax.plot(x[order], np.array([p["median"] for p in points])[order], "o-", color="C0", lw=1.5,
+                label="median")
+        ax.plot(x[order], np.array([p["p84"] for p in points])[order], "s--", color="C3", lw=1.2,
+                label="84th percentile")
+        ax.set_xlabel(f"{x_name}, {run.units(_input_dataset(x_name))}" if x_name else "")
+        ax.set_ylabel(f"{quantity}, {run.units(f'summary/{quantity}')}")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="small", loc="upper left")
+    axes[0].set_title(f"Record suite: {len(records)} records, {run.n_cases} cases")
+    return axes
+
+
+def acceleration_spectra(run, case=0):
+    """Amplitude spectra of the horizontal ground acceleration (the cup's)
+    and of the transmitted one (|horizontal reaction| / m, the ball's
+    absolute acceleration), from the stored samples: frequency (Hz) and the
+    two one-sided amplitude spectra of the horizontal components (Hann window)."""
+    t = run.time
+    valid = np.isfinite(run.trajectory("reaction", case)[:, 0])
+    dt = t[1] - t[0]
+    ground = run.trajectory("base_acceleration", case)[valid, :2]
+    transmitted = run.trajectory("reaction", case)[valid, :2] / run.case_input("mass", case)
+    frequency = np.fft.rfftfreq(int(valid.sum()), dt)
+
+    window = np.hanning(int(valid.sum()))[:, None]     # leakage of the resonance peak kept low
+
+    def amplitude(signal):
+        return np.sqrt(np.sum(np.abs(np.fft.rfft(signal * window, axis=0))**2, axis=1)) * 2 / window.sum()
+    return frequency, amplitude(ground), amplitude(transmitted)
+
+
+def plot_spectrum(ax, run, case=0):
+    """The transmitted acceleration's spectrum against the ground's (log)."""
+    frequency, ground, transmitted = acceleration_spectra(run, case)
+    ax.loglog(frequency[1:], ground[1:], lw=0.8, color="0.4", label="ground (cup) acceleration")
+    ax.loglog(frequency[1:], transmitted[1:], lw=0.8, color="C0", label="transmitted (ball, absolute)")
+    for mode, period in enumerate(run.summary("linear_periods", case)):
+        if np.isfinite(period):
+            ax.axvline(1 / period, color=f"C{mode + 1}", ls="--", lw=0.8, label=f"linear mode {mode + 1}")
+    ax.set_xlabel("frequency, Hz")
+    ax.set_ylabel("horizontal amplitude, m/s^2")
+    ax.set_title(f"Acceleration spectra ({_case_label(run, case)})")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small", loc="lower left")
+    return ax

@@ -16,7 +16,7 @@ INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radi
           "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None),
           "excitation_frequency": ("excitation_frequency", None), "excitation_phase": ("excitation_phase", None),
           "excitation_amplitude_x": ("excitation_amplitude", 0), "excitation_amplitude_y": ("excitation_amplitude", 1),
-          "excitation_amplitude_z": ("excitation_amplitude", 2)}
+          "excitation_amplitude_z": ("excitation_amplitude", 2), "scale": ("scale", None)}
 
 
 class EllrollFile:
@@ -108,6 +108,12 @@ class EllrollFile:
         if "weight" in swept and "mass" in swept:
             swept.remove("mass" if np.unique(self.input_column("g")).size == 1 else "weight")
         return swept
+
+    def record_names(self):
+        """Each case's record of a suite (&record name), or blanks."""
+        if "case/record" not in self._h5:
+            return [""] * self.n_cases
+        return [n.decode().strip() if isinstance(n, bytes) else str(n).strip() for n in self._h5["case/record"][:]]
 
     def summary(self, name, case=None):
         ds = self._dataset(f"summary/{name}")

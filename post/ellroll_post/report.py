@@ -24,6 +24,10 @@ def build_report(run, out, draw, case=0, fmt="png"):
             made.append(draw("sweep", run, out, case, fmt, x_names=swept, y_names=y_names[:1]))
     if "excitation_frequency" in swept:
         made.append(draw("transmissibility", run, out, case, fmt))
+    if len(set(run.record_names()) - {""}) > 1:
+        made.append(draw("suite", run, out, case, fmt))
+    if {"reaction", "base_acceleration"} <= set(run.fields):
+        made.append(draw("spectrum", run, out, case, fmt))
     for name, needs in CASE_FIGURES.items():
         if needs <= set(run.fields):
             made.append(draw(name, run, out, case, fmt))

@@ -5,10 +5,11 @@
 module ellroll_campaign
   use ellroll_kinds, only: wp, i8
   use ellroll_cases, only: case_t, set_param, finalize_case
+  use ellroll_excitation, only: excitation_record
   implicit none
   private
 
-  public :: campaign_t, sweep_t, sample_t, uniform_hash
+  public :: campaign_t, sweep_t, sample_t, suite_record_t, use_record, uniform_hash
   public :: combine_grid, combine_zip, invalid_stop, invalid_skip
 
   integer, parameter :: combine_grid = 1, combine_zip = 2
@@ -28,8 +29,18 @@ module ellroll_campaign
     integer :: line = 0
   end type sample_t
 
+  !> A ground-motion record of a suite (&record): its name, its factor and
+  !> its samples (the factor applied) on one grid.
+  type :: suite_record_t
+    character(len=32) :: name = ''
+    real(wp) :: factor = 1
+    real(wp), allocatable :: times(:), values(:, :)
+    real(wp) :: step = 0                 !< as excitation_t%step
+  end type suite_record_t
+
   type :: campaign_t
     type(case_t) :: base
+    type(suite_record_t), allocatable :: records(:)   !< a suite: one more dimension, the slowest
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: samples(:)
     integer :: combine = combine_grid
@@ -57,22 +68,31 @@ contains
     end if
   end function n_sweep_points
 
+  pure integer function n_records(self)
+    class(campaign_t), intent(in) :: self
+    n_records = 0
+    if (allocated(self%records)) n_records = size(self%records)
+  end function n_records
+
   pure integer(i8) function n_cases(self)
     class(campaign_t), intent(in) :: self
-    n_cases = n_sweep_points(self) * max(1_i8, self%n_draws)
+    n_cases = n_sweep_points(self) * max(1_i8, self%n_draws) * max(1, n_records(self))
   end function n_cases
 
-  !> Case `index` (0-based). Samples vary fastest, then the last sweep.
+  !> Case `index` (0-based). Samples vary fastest, then the last sweep, ...,
+  !> then the first sweep, then the record of a suite.
   pure function case_at(self, index) result(cs)
     class(campaign_t), intent(in) :: self
     integer(i8), intent(in) :: index
     type(case_t) :: cs
-    integer(i8) :: point, rest, n
+    integer(i8) :: point, rest, n, per_record
     integer :: k
     real(wp) :: u
     cs = self%base
     cs%index = index
-    point = index / max(1_i8, self%n_draws)
+    per_record = n_sweep_points(self) * max(1_i8, self%n_draws)
+    if (n_records(self) > 0) call use_record(cs, self%records(index / per_record + 1))
+    point = mod(index, per_record) / max(1_i8, self%n_draws)
     if (self%combine == combine_zip) then
       do k = 1, size(self%sweeps)
         call set_param(cs, self%sweeps(k)%param, self%sweeps(k)%values(point + 1))
@@ -97,6 +117,18 @@ contains
     end do
     call finalize_case(cs)
   end function case_at
+
+  !> The case shaken by record `rec` of the suite.
+  pure subroutine use_record(cs, rec)
+    type(case_t), intent(inout) :: cs
+    type(suite_record_t), intent(in) :: rec
+    cs%excitation%kind = excitation_record
+    cs%excitation%times = rec%times
+    cs%excitation%values = rec%values
+    cs%excitation%step = rec%step
+    cs%record_name = rec%name
+    cs%record_factor = rec%factor
+  end subroutine use_record
 
   !> A uniform number in [0, 1) from (seed, index, stream): a counter-based
   !> generator built on a 32-bit integer hash, in exact integer arithmetic

@@ -7,7 +7,8 @@ module ellroll_cases
   use ellroll_exact, only: is_zero
   use ellroll_params, only: params, param_count, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
       p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
-      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale
+      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, &
+      p_rolling_resistance
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
@@ -35,6 +36,7 @@ module ellroll_cases
     real(wp) :: g = params(p_g)%default
     real(wp) :: inertia_factor = params(p_inertia_factor)%default
     real(wp) :: mu = params(p_mu)%default           !< 0: no friction limit
+    real(wp) :: rolling_resistance = params(p_rolling_resistance)%default   !< delta, m
     real(wp) :: x0 = params(p_x)%default, y0 = params(p_y)%default
     real(wp) :: omega0(3) = params(p_omega_x:p_omega_z)%default
     character(len=32) :: method = 'rk4'
@@ -45,6 +47,8 @@ module ellroll_cases
     real(wp) :: atol = params(p_atol)%default       !< adaptive method: absolute tolerance
     logical :: error_estimate = .false.   !< also run the reference and store error figures
     type(excitation_t) :: excitation      !< translation of the cup (none by default)
+    character(len=32) :: record_name = '' !< a suite's record (&record name)
+    real(wp) :: record_factor = 1         !< its factor (in excitation%values)
   end type case_t
 
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
@@ -105,6 +109,7 @@ contains
     case (p_excitation_amplitude_x:p_excitation_amplitude_z)
       value = cs%excitation%amplitude(p - p_excitation_amplitude_x + 1)
     case (p_scale); value = cs%excitation%scale
+    case (p_rolling_resistance); value = cs%rolling_resistance
     case default; value = ieee_value(value, ieee_quiet_nan)
     end select
   end function get_param
@@ -135,6 +140,7 @@ contains
     case (p_excitation_amplitude_x:p_excitation_amplitude_z)
       cs%excitation%amplitude(p - p_excitation_amplitude_x + 1) = value
     case (p_scale); cs%excitation%scale = value
+    case (p_rolling_resistance); cs%rolling_resistance = value
     end select
   end subroutine set_param
 
@@ -266,6 +272,7 @@ contains
     ball%mu = cs%mu
     ball%fit_margin = cs%fit_margin
     ball%excitation = cs%excitation
+    ball%rolling_resistance = cs%rolling_resistance
   end function make_ball
 
   !> Every resolved input of a case, as stored under /case/.
@@ -279,6 +286,7 @@ contains
       int_value('index', '1', 'global case index', cs%index), &
       row(p_a, cs%a), row(p_b, cs%b), row(p_c, cs%c), row(p_radius, cs%radius), row(p_mass, cs%mass), &
       row(p_weight, cs%mass * cs%g), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
+      row(p_rolling_resistance, cs%rolling_resistance), &
       row(p_x, cs%x0, 'x0'), row(p_y, cs%y0, 'y0'), &
       vector_value('omega0', params(p_omega_x)%unit, 'initial angular velocity', cs%omega0), &
       text_value('method', 'integration method', cs%method), &
@@ -292,7 +300,9 @@ contains
       vector_value('excitation_amplitude', params(p_excitation_amplitude_x)%unit, &
                    'harmonic: amplitude of the cup acceleration', cs%excitation%amplitude), &
       row(p_excitation_frequency, cs%excitation%frequency), row(p_excitation_phase, cs%excitation%phase), &
-      row(p_scale, cs%excitation%scale)]
+      row(p_scale, cs%excitation%scale), &
+      text_value('record', 'record of a suite (&record name; blank: none)', cs%record_name), &
+      real_value('record_factor', '1', 'factor of that record (&record factor)', cs%record_factor)]
 
   contains
 

@@ -15,12 +15,12 @@ module ellroll_params
   public :: p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, &
             p_omega_x, p_omega_y, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
             p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, &
-            p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale
+            p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale, p_rolling_resistance
 
   type :: param_t
     character(len=22) :: name            !< as a sweep or a sample names it
     character(len=11) :: group           !< its namelist group
-    character(len=16) :: variable        !< its namelist variable (a vector's, for a component)
+    character(len=20) :: variable        !< its namelist variable (a vector's, for a component)
     character(len=5) :: unit             !< '1': dimensionless
     real(wp) :: low, high                !< valid range
     logical :: positive                  !< low is the least positive number: the range is (0, high]
@@ -38,8 +38,8 @@ module ellroll_params
       p_inertia_factor = 8, p_g = 9, p_x = 10, p_y = 11, p_omega_x = 12, p_omega_y = 13, p_omega_z = 14, &
       p_dt = 15, p_fit_margin = 16, p_rtol = 17, p_atol = 18, p_excitation_frequency = 19, &
       p_excitation_phase = 20, p_excitation_amplitude_x = 21, p_excitation_amplitude_y = 22, &
-      p_excitation_amplitude_z = 23, p_scale = 24
-  integer, parameter :: param_count = 24
+      p_excitation_amplitude_z = 23, p_scale = 24, p_rolling_resistance = 25
+  integer, parameter :: param_count = 25
 
   type(param_t), parameter :: params(param_count) = [ &
       param_t('a', 'geometry', 'a', 'm', length_min, length_max, .false., .true., 0.0_wp, .true., &
@@ -89,7 +89,9 @@ module ellroll_params
       param_t('excitation_amplitude_z', 'excitation', 'amplitude', 'm/s^2', -1.0e4_wp, 1.0e4_wp, .false., .false., &
               0.0_wp, .true., 'harmonic: amplitude of the cup acceleration, z'), &
       param_t('scale', 'excitation', 'scale', '1', 0.0_wp, 1.0e3_wp, .false., .false., 1.0_wp, .true., &
-              'record: factor on the ground acceleration')]
+              'record: factor on the ground acceleration'), &
+      param_t('rolling_resistance', 'ball', 'rolling_resistance', 'm', 0.0_wp, 0.1_wp, .false., .false., 0.0_wp, &
+              .true., 'delta: a couple delta N opposes the rolling')]
 
 contains
 

@@ -18,8 +18,9 @@ module ellroll_input
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names
   use ellroll_record_file, only: load_ground_motion
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, resolve_path, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
+  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite
   use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
       p_weight, p_mass, p_dt, p_scale
   implicit none
@@ -35,9 +36,9 @@ module ellroll_input
     character(len=:), allocatable :: canonical  !< groups and assignments without comments or layout
   end type run_input_t
 
-  character(len=*), parameter :: known_groups(10) = [character(len=12) :: &
+  character(len=*), parameter :: known_groups(11) = [character(len=12) :: &
       'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'excitation', 'campaign', &
-      'sweep', 'sample']
+      'sweep', 'sample', 'record']
   !> Largest memory one case's output buffers may take.
   real(wp), parameter :: max_case_buffer_bytes = 2.0_wp**31
 
@@ -79,7 +80,7 @@ contains
           if (.not. any(known_groups == grp%name)) then
             call rd%fail_at(grp%line, 'unknown group &' // grp%name // ' (known groups: ' // &
                             join(known_groups) // ')')
-          else if (grp%name /= 'sweep' .and. grp%name /= 'sample') then
+          else if (all(grp%name /= [character(len=6) :: 'sweep', 'sample', 'record'])) then
             first = rd%file%group_index(grp%name)
             if (first /= k) call rd%fail_at(grp%line, '&' // grp%name // ' appears twice (first at line ' // &
                                             itoa(rd%file%groups(first)%line) // '); give each group once')
@@ -114,7 +115,8 @@ contains
     integer :: compression
     ! &excitation
     character(len=16) :: kind
-    character(len=1024) :: record_file(3)
+    character(len=1024) :: record_file(3), excitation_files(3)
+    real(wp) :: factor
     ! &campaign, &sweep, &sample
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
@@ -127,24 +129,31 @@ contains
     namelist /campaign/ combine, samples, seed, invalid
     namelist /sweep/ name, values, start, stop, count, spacing
     namelist /sample/ name, low, high, spacing
+    namelist /record/ name, record_file, factor
     integer :: gi, k, ios
     character(len=512) :: msg
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
+    type(record_spec_t), allocatable :: suite(:)
 
     table_values = [(param_default(k), k = 1, param_count)]     ! NaN: required
     method = 'rk4'; t_end = nan(); error_estimate = 'none'
     file = ''; interval = nan(); fields = ''; compression = 0
     combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
-    kind = 'none'; record_file = ''
-    allocate (sweeps(0), draws(0))
+    kind = 'none'; record_file = ''; factor = 1
+    allocate (sweeps(0), draws(0), suite(0))
 
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
         if (.not. names_known(rd, gi)) return
         name = ''; values = nan(); start = nan(); stop = nan(); count = 0; spacing = 'linear'
         low = nan(); high = nan()
+        if (grp%name == 'record') then       ! (its record_file is not &excitation's)
+          excitation_files = record_file
+          record_file = ''
+          factor = 1
+        end if
         do k = 1, size(grp%items)
           call read_assignment(grp, k, ios, msg)
           if (ios /= 0) then
@@ -158,6 +167,10 @@ contains
         end do
         if (grp%name == 'sweep') call add_sweep(rd, current(), gi, sweeps, draws)
         if (grp%name == 'sample') call add_sample(rd, current(), gi, sweeps, draws)
+        if (grp%name == 'record') then
+          call add_record_group(rd, current(), gi, suite)
+          record_file = excitation_files
+        end if
         if (rd%err%failed()) return
       end associate
     end do
@@ -165,7 +178,9 @@ contains
     v = current()
     call build_base(rd, v, inp%campaign%base)
     if (rd%err%failed()) return
-    call build_excitation(rd, v, inp%campaign%base)
+    call build_excitation(rd, v, size(suite) > 0, inp%campaign%base)
+    if (rd%err%failed()) return
+    call load_suite(rd, suite, inp%campaign%base, inp%campaign%records)
     if (rd%err%failed()) return
     call build_plan(rd, v, output_override, inp%campaign%base, inp%plan)
     if (rd%err%failed()) return
@@ -182,9 +197,9 @@ contains
       integer, intent(out) :: ios
       character(len=*), intent(inout) :: msg
       type(ieee_status_type) :: fp_state
-      character(len=:), allocatable :: record
+      character(len=:), allocatable :: one_assignment
       integer :: row
-      record = assignment_record(grp, k)
+      one_assignment = assignment_record(grp, k)
       row = variable_row(grp%name, grp%items(k)%base)
       call ieee_get_status(fp_state)
       ! text such as 1e309 reads as Inf, which the checks name; its
@@ -194,12 +209,13 @@ contains
         call read_table_value(grp%items(k), row, table_values, ios, msg)
       else
         select case (grp%name)
-        case ('integration'); read (record, nml=integration, iostat=ios, iomsg=msg)
-        case ('output'); read (record, nml=output, iostat=ios, iomsg=msg)
-        case ('excitation'); read (record, nml=excitation, iostat=ios, iomsg=msg)
-        case ('campaign'); read (record, nml=campaign, iostat=ios, iomsg=msg)
-        case ('sweep'); read (record, nml=sweep, iostat=ios, iomsg=msg)
-        case ('sample'); read (record, nml=sample, iostat=ios, iomsg=msg)
+        case ('integration'); read (one_assignment, nml=integration, iostat=ios, iomsg=msg)
+        case ('output'); read (one_assignment, nml=output, iostat=ios, iomsg=msg)
+        case ('excitation'); read (one_assignment, nml=excitation, iostat=ios, iomsg=msg)
+        case ('campaign'); read (one_assignment, nml=campaign, iostat=ios, iomsg=msg)
+        case ('sweep'); read (one_assignment, nml=sweep, iostat=ios, iomsg=msg)
+        case ('sample'); read (one_assignment, nml=sample, iostat=ios, iomsg=msg)
+        case ('record'); read (one_assignment, nml=record, iostat=ios, iomsg=msg)
         end select
       end if
       call ieee_set_status(fp_state)
@@ -217,6 +233,7 @@ contains
       now%compression = compression
       now%kind = kind
       now%record_file = record_file
+      now%factor = factor
       now%combine = combine
       now%invalid = invalid
       now%spacing = spacing
@@ -287,22 +304,23 @@ contains
   logical function names_known(rd, gi) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
-    character(len=16), allocatable :: table_names(:)
+    character(len=20), allocatable :: table_names(:)
     integer :: p
     associate (group => rd%file%groups(gi)%name)
       allocate (table_names, source=pack(params%variable, params%group == group .and. &
                                            [(param_component(p) <= 1, p = 1, param_count)]))
       select case (group)
-      case ('integration'); ok = check_names(rd, gi, [table_names, [character(len=16) :: 'method', 't_end', &
+      case ('integration'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'method', 't_end', &
                                                       'error_estimate']])
-      case ('output'); ok = check_names(rd, gi, [character(len=16) :: 'file', 'interval', 'fields', &
+      case ('output'); ok = check_names(rd, gi, [character(len=20) :: 'file', 'interval', 'fields', &
                                                  'compression'])
-      case ('excitation'); ok = check_names(rd, gi, [table_names, [character(len=16) :: 'kind', 'record_file']])
-      case ('campaign'); ok = check_names(rd, gi, [character(len=16) :: 'combine', 'samples', 'seed', &
+      case ('excitation'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'kind', 'record_file']])
+      case ('campaign'); ok = check_names(rd, gi, [character(len=20) :: 'combine', 'samples', 'seed', &
                                                    'invalid'])
-      case ('sweep'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'values', 'start', 'stop', &
+      case ('sweep'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'values', 'start', 'stop', &
                                                 'count', 'spacing'])
-      case ('sample'); ok = check_names(rd, gi, [character(len=16) :: 'name', 'low', 'high', 'spacing'])
+      case ('sample'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'low', 'high', 'spacing'])
+      case ('record'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'record_file', 'factor'])
       case default; ok = check_names(rd, gi, table_names)
       end select
     end associate
@@ -419,17 +437,26 @@ contains
   end function weight_or_mass
 
   !> The cup's motion: its kind, and the inputs of that kind (a harmonic's
-  !> amplitude, frequency and phase; a record's files and scale).
-  subroutine build_excitation(rd, v, cs)
+  !> amplitude, frequency and phase; a record's files, or a suite's &record
+  !> groups, and scale).
+  subroutine build_excitation(rd, v, suite, cs)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
+    logical, intent(in) :: suite            !< &record groups give the records
     type(case_t), intent(inout) :: cs
     integer :: gi, p, k, n_files
     character(len=:), allocatable :: reason
     character(len=1024), allocatable :: paths(:)
     real(wp), allocatable :: times(:), values(:, :)
     gi = rd%group('excitation', .false.)
-    if (gi == 0) return
+    if (gi == 0) then
+      if (suite) cs%excitation%kind = excitation_record
+      return
+    end if
+    if (suite .and. lower(adjustl(v%kind)) /= 'record') then
+      call rd%fail_value(gi, 'kind', "must be 'record' with &record groups (a suite of records)")
+      return
+    end if
     select case (lower(adjustl(v%kind)))
     case ('none')
       cs%excitation%kind = excitation_none
@@ -447,6 +474,13 @@ contains
     case ('record')
       cs%excitation%kind = excitation_record
       if (.not. only_for_kind(rd, gi, 'record')) return
+      if (.not. check_variable(rd, gi, p_scale, v%param, .false.)) return
+      cs%excitation%scale = v%param(p_scale)
+      if (suite) then
+        if (rd%given(gi, 'record_file')) call rd%fail_value(gi, 'record_file', &
+            'the &record groups give the records; record_file here is for a single record')
+        return
+      end if
       n_files = count(len_trim(v%record_file) > 0)
       if (n_files == 0) then
         call rd%fail_missing(gi, 'record_file', "name the ground-acceleration file: a CSV (time, ax, ay[, az]) " // &
@@ -457,8 +491,6 @@ contains
         call rd%fail_value(gi, 'record_file', 'an empty name among the files')
         return
       end if
-      if (.not. check_variable(rd, gi, p_scale, v%param, .false.)) return
-      cs%excitation%scale = v%param(p_scale)
       allocate (paths(n_files))
       do k = 1, n_files
         paths(k) = resolve_path(trim(adjustl(v%record_file(k))), rd%file%path)
@@ -659,18 +691,6 @@ contains
     end do
   end function canonical_text
 
-  !> A path relative to the input file's folder (absolute paths unchanged).
-  function resolve_path(path, input_path) result(resolved)
-    character(len=*), intent(in) :: path, input_path
-    character(len=:), allocatable :: resolved
-    integer :: slash
-    slash = index(input_path, '/', back=.true.)
-    if (path(1:1) == '/' .or. slash == 0) then
-      resolved = path
-    else
-      resolved = input_path(:slash) // path
-    end if
-  end function resolve_path
 
 
   real(wp) function nan()

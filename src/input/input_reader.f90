@@ -12,7 +12,7 @@ module ellroll_input_reader
   implicit none
   private
 
-  public :: reader_t, namelist_values_t, check_names, count_given, max_values, max_fields
+  public :: reader_t, namelist_values_t, check_names, count_given, resolve_path, max_values, max_fields
 
   integer, parameter :: max_values = 10000, max_fields = 32
 
@@ -40,6 +40,7 @@ module ellroll_input_reader
     integer :: compression
     character(len=16) :: kind
     character(len=1024) :: record_file(3)
+    real(wp) :: factor
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
     character(len=32) :: name
@@ -172,4 +173,16 @@ contains
       if (.not. ieee_is_nan(list(k))) count_given = k
     end do
   end function count_given
+  !> A path relative to the input file's folder (absolute paths unchanged).
+  function resolve_path(path, input_path) result(resolved)
+    character(len=*), intent(in) :: path, input_path
+    character(len=:), allocatable :: resolved
+    integer :: slash
+    slash = index(input_path, '/', back=.true.)
+    if (path(1:1) == '/' .or. slash == 0) then
+      resolved = path
+    else
+      resolved = input_path(:slash) // path
+    end if
+  end function resolve_path
 end module ellroll_input_reader

@@ -9,7 +9,8 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal
+      ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
+  use ellroll_events, only: root_search_t
   use ellroll_integrators, only: dop853_t, max_equations
   use ellroll_dop853_tableau, only: end_stage
   use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
@@ -45,6 +46,11 @@ module ellroll_adaptive_run
   !> (error_estimate), and the exact flow followed from a fixed-step
   !> method's last state to the limit its step met.
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
+
+  !> Where the rolling stops inside a step (rolling resistance) is located
+  !> to this part of the step, in at most max_rest_trials trial steps.
+  real(wp), parameter, public :: rest_tolerance = 1.0e-12_wp
+  integer, parameter, public :: max_rest_trials = 60
 
   type, public :: step_control_t
     logical :: after_rejection = .false.
@@ -89,6 +95,7 @@ contains
         return
       end if
       h = last_step_clipped(t, h, cs%t_end)
+      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
       call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (integrator%error_norm > 1) then
         res%n_rejected = res%n_rejected + 1
@@ -117,7 +124,10 @@ contains
   !> One DOP853 attempt of size h from (t, y, f), its RHS calls counted in
   !> res. Rejected (dop%error_norm > 1, a non-finite norm made huge): h is
   !> shrunk by the step control. Accepted: the new state projected, f and the derived
-  !> outputs there, and the model's limit status.
+  !> outputs there, and the model's limit status. An attempt in which the
+  !> rolling stops (rolling resistance) is cut there first (shorten_to_rest)
+  !> and, accepted, ends with the ball at rest: an event, not a discontinuity
+  !> inside a step for the step control to shrink around.
   subroutine attempt_step(dop, control, run, t, y, f, h, y_new, f_new, obs, status, res)
     type(dop853_t), intent(inout) :: dop
     type(step_control_t), intent(inout) :: control
@@ -128,18 +138,58 @@ contains
     type(observation_t), intent(out) :: obs
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
+    logical :: resting
     status = status_completed
     call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
     res%n_rhs = res%n_rhs + dop853_attempt_calls
+    resting = .false.
+    if (ieee_is_finite(dop%error_norm)) then
+      resting = rolling_stops(run%ball, y, y_new)
+      if (resting) call shorten_to_rest(dop, run, t, y, f, h, y_new, res)
+    end if
     if (.not. ieee_is_finite(dop%error_norm)) dop%error_norm = huge(1.0_wp)
     if (dop%error_norm > 1) then
       call control%reject(h, dop%error_norm)
       return
     end if
     call project_with_rate(y_new, dop%k(:state_size, end_stage), f_new)
+    if (resting) then
+      call come_to_rest(y_new)
+      call ball_derivative(run%ball, t + h, y_new, f_new)
+      res%n_rhs = res%n_rhs + 1
+    end if
     call observe(run%ball, t + h, y_new, f_new, obs)
     status = limit_status(run%ball, y_new, obs)
   end subroutine attempt_step
+
+  !> The attempt of size h from (t, y, f), which ended at y_new with the
+  !> rolling stopped inside (rolling_stops), cut to end where the rolling
+  !> part of omega turns against its direction at t (root_search_t on trial
+  !> attempts); dop holds the attempt of the shortened h.
+  subroutine shorten_to_rest(dop, run, t, y, f, h, y_new, res)
+    type(dop853_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size)
+    real(wp), intent(inout) :: h
+    real(wp), intent(inout) :: y_new(state_size)
+    type(case_result_t), intent(inout) :: res
+    type(root_search_t) :: search
+    real(wp) :: direction(3), offset
+    integer :: k
+    direction = rolling_part(y)
+    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_new), direction), &
+                      rest_tolerance * h)
+    do k = 1, max_rest_trials
+      if (search%done()) exit
+      offset = search%trial()
+      call dop853_ball_step(dop, run%ball, t, y, f, offset, y_new)
+      res%n_rhs = res%n_rhs + dop853_attempt_calls
+      call search%report(offset, dot_product(rolling_part(y_new), direction))
+    end do
+    h = search%high
+    call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + dop853_attempt_calls
+  end subroutine shorten_to_rest
 
   !> The step from t, shortened to end exactly at t_end when it would end
   !> at or within round-off of it.
@@ -356,6 +406,7 @@ contains
     do while (t_at < t_until)
       h = last_step_clipped(t_at, h, t_until)
       if (h <= 16 * spacing(t_until)) return
+      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
       call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (dop%error_norm > 1) cycle
       if (status /= status_completed) then

@@ -82,7 +82,7 @@ contains
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
     batchable = (cs%method == 'rk4' .or. cs%method == 'dop853') .and. cs%excitation%kind == excitation_none &
-                .and. .not. cs%error_estimate
+                .and. .not. cs%error_estimate .and. .not. cs%rolling_resistance > 0
   end function batchable
 
   !> Up to `lanes` batchable cases of one method advanced together, one per

@@ -6,14 +6,16 @@ module ellroll_fixed_step_run
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_pending, status_completed, status_unstable
   use ellroll_ode, only: no_step_solution
+  use ellroll_events, only: root_search_t
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
+  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
+      rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_integrators, only: integrator_t, rk4_t, stability_limit
   use ellroll_ball_steppers, only: rk4_ball_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
-  use ellroll_adaptive_run, only: follow_flow_to_limit
+  use ellroll_adaptive_run, only: follow_flow_to_limit, rest_tolerance, max_rest_trials
   implicit none
   private
 
@@ -26,6 +28,7 @@ module ellroll_fixed_step_run
   !> The state is kept every checkpoint_steps steps: a step that meets a
   !> limit is followed to it from the older of the last two (end_at_limit).
   integer(i8), parameter, public :: checkpoint_steps = 8
+
 
 
 contains
@@ -53,7 +56,10 @@ contains
         res%status = status_pending
         return
       end if
+      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
       call fixed_step(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
+      if (status == status_completed .and. rolling_stops(run%ball, y, y_new)) &
+        call step_through_rest(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, y_older_checkpoint, k - 1, y, f, cs%dt, every, status, res)
         res%n_steps = k
@@ -73,6 +79,46 @@ contains
     end do
     res%t_final = t
   end subroutine fixed_step_loop
+
+  !> A step of size h from (t, y, f) in which the rolling stops
+  !> (rolling_stops): it is cut where the rolling part of omega turns
+  !> against its direction at the start (root_search_t on the method's own
+  !> partial steps), the ball put at rest there (come_to_rest: the couple of
+  !> rolling resistance then holds it or lets it roll back), and the rest of
+  !> the step taken from there, so that the steps stay on the grid of dt.
+  subroutine step_through_rest(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
+    integer, intent(out) :: status
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: direction(3), y_rest(state_size), f_rest(state_size), offset, g
+    type(root_search_t) :: search
+    type(run_state_t) :: at_rest
+    integer :: k
+    direction = rolling_part(y)
+    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_new), direction), &
+                      rest_tolerance * h)
+    do k = 1, max_rest_trials
+      if (search%done()) exit
+      offset = search%trial()
+      call fixed_step(integrator, run, t, y, f, offset, y_rest, f_rest, obs, status, n_rhs)
+      g = -1
+      if (status == status_completed) g = dot_product(rolling_part(y_rest), direction)
+      call search%report(offset, g)
+    end do
+    call fixed_step(integrator, run, t, y, f, search%high, y_rest, f_rest, obs, status, n_rhs)
+    if (status /= status_completed) return
+    call come_to_rest(y_rest)
+    at_rest = run
+    call set_rolling_mode(at_rest%ball, y_rest)
+    call ball_derivative(at_rest%ball, t + search%high, y_rest, f_rest)
+    n_rhs = n_rhs + 1
+    call fixed_step(integrator, at_rest, t + search%high, y_rest, f_rest, h - search%high, y_new, f_new, obs, status, &
+                    n_rhs)
+  end subroutine step_through_rest
 
   !> The step at which the older of the two checkpoints lies after n_done
   !> steps: checkpoint_steps to 2 checkpoint_steps - 1 steps back, or the start.

@@ -18,19 +18,24 @@ module ellroll_linear
 
 contains
 
-  !> d f / d y at y, by central differences (error ~ delta^2).
+  !> d f / d y at y, by central differences (error ~ delta^2), of the
+  !> rolling without its resistance: that couple turns with the rolling and
+  !> has no derivative at rest; it takes energy, it sets no frequency.
   function jacobian(ball, y) result(jac)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(state_size)
     real(wp) :: jac(state_size, state_size)
     real(wp) :: plus(state_size), minus(state_size), step(state_size), delta
+    type(rolling_ball_t) :: smooth
     integer :: j
+    smooth = ball
+    smooth%rolling_resistance = 0
     do j = 1, state_size
       delta = epsilon(1.0_wp)**(1.0_wp / 3) * max(abs(y(j)), 1.0_wp)
       step = 0
       step(j) = delta
-      call ball%rhs(0.0_wp, y + step, plus)
-      call ball%rhs(0.0_wp, y - step, minus)
+      call smooth%rhs(0.0_wp, y + step, plus)
+      call smooth%rhs(0.0_wp, y - step, minus)
       jac(:, j) = (plus - minus) / (2 * delta)
     end do
   end function jacobian

@@ -23,7 +23,8 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal
+            nutation_angle, stage_status, fit_indicator, normalize_normal, rolling_stops, rolling_part, come_to_rest, &
+            set_rolling_mode
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -38,6 +39,11 @@ module ellroll_rolling_ball
     real(wp) :: mu = -1                   !< friction coefficient; <= 0: no slip check
     real(wp) :: fit_margin = 1.0e-6_wp    !< end when r_min / R - 1 falls to this
     type(excitation_t) :: excitation      !< translation of the cup
+    real(wp) :: rolling_resistance = 0    !< delta: a couple delta N against the rolling, m
+    !> the direction of the rolling where the step started (set_rolling_mode):
+    !> a stage past the stop keeps the couple against it, so that the flow up
+    !> to the stop stays smooth inside the step that is cut there
+    real(wp) :: rolling_mode(3) = 0
   contains
     procedure :: rhs => ball_rhs
     procedure :: stage_status => ball_stage_status
@@ -131,7 +137,102 @@ contains
         dydt(4:6) = dydt(4:6) - cross(y(1:3) * (length * inv_length2), base_acceleration(ball%excitation, t)) &
                     / (ball%radius * (1 + ball%inertia_factor))
     end associate
+    if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt)
   end subroutine ball_derivative
+
+  !> The couple of rolling resistance, delta N against the rolling part
+  !> omega_t = omega - (omega . n) n of the angular velocity (the spin about
+  !> n is free): omega' gains -delta N omega_t / |omega_t| / (m R^2 (1 + k)),
+  !> N = m (R omega . (n' x n) + (a_base - g_vec) . n) the normal force.
+  !> At rest (omega_t = 0, as come_to_rest leaves it) the couple holds the
+  !> ball up to delta N against the couple m R n x (g_vec - a_base) that
+  !> would start it rolling: within that, the state stays exactly as it is;
+  !> beyond it, the ball starts rolling that way, the couple against it.
+  pure subroutine resist_rolling(ball, t, y, length, dydt)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, y(state_size), length
+    real(wp), intent(inout) :: dydt(state_size)
+    real(wp) :: n(3), omega_t(3), gravity(3), drive(3), normal_force, resistance, rate, drive_size
+    n = y(1:3) / length
+    gravity = [0.0_wp, 0.0_wp, -ball%g]
+    if (ball%excitation%kind /= excitation_none) gravity = gravity - base_acceleration(ball%excitation, t)
+    normal_force = ball%mass * (ball%radius * dot_product(y(4:6), cross(dydt(1:3), n)) / length &
+                                - dot_product(gravity, n))
+    resistance = ball%rolling_resistance * max(normal_force, 0.0_wp)
+    omega_t = y(4:6) - dot_product(y(4:6), n) * n
+    rate = norm2(omega_t)
+    if (rate > rest_rate(ball, y)) then
+      if (dot_product(omega_t, ball%rolling_mode) < 0) then     ! past the stop, inside the step cut there
+        dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
+      else
+        dydt(4:6) = dydt(4:6) - (resistance / (rate * couple_inertia(ball))) * omega_t
+      end if
+      return
+    end if
+    drive = ball%mass * ball%radius * cross(n, gravity)
+    drive_size = norm2(drive)
+    if (drive_size <= resistance) then
+      dydt = 0                                   ! held: at rest
+    else
+      dydt(4:6) = dydt(4:6) - (resistance / (drive_size * couple_inertia(ball))) * drive
+    end if
+  end subroutine resist_rolling
+
+  !> m R^2 (1 + k): a couple over it is its angular acceleration.
+  pure real(wp) function couple_inertia(ball)
+    type(rolling_ball_t), intent(in) :: ball
+    couple_inertia = ball%mass * ball%radius**2 * (1 + ball%inertia_factor)
+  end function couple_inertia
+
+  !> Below this rolling rate the ball is at rest (come_to_rest leaves round-off only).
+  pure real(wp) function rest_rate(ball, y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(state_size)
+    rest_rate = 1.0e-12_wp * (sqrt(ball%g / ball%radius) + norm2(y(4:6)))
+  end function rest_rate
+
+  !> The rolling part of the angular velocity at state y.
+  pure function rolling_part(y) result(omega_t)
+    real(wp), intent(in) :: y(state_size)
+    real(wp) :: omega_t(3), n(3)
+    n = y(1:3) / norm2(y(1:3))
+    omega_t = y(4:6) - dot_product(y(4:6), n) * n
+  end function rolling_part
+
+  !> With rolling resistance, whether the rolling stops inside a step from
+  !> y_start to y_end: it rolled at the start, and its rolling part turned
+  !> by more than a right angle (where the couple turns against the motion,
+  !> an event: the step is cut there).
+  pure logical function rolling_stops(ball, y_start, y_end)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y_start(state_size), y_end(state_size)
+    real(wp) :: start(3)
+    rolling_stops = .false.
+    if (.not. ball%rolling_resistance > 0) return
+    start = rolling_part(y_start)
+    if (norm2(start) <= rest_rate(ball, y_start)) return
+    rolling_stops = dot_product(start, rolling_part(y_end)) <= 0
+  end function rolling_stops
+
+  !> The direction of the rolling at y (zero at rest) as the ball's mode for
+  !> a step from y.
+  pure subroutine set_rolling_mode(ball, y)
+    type(rolling_ball_t), intent(inout) :: ball
+    real(wp), intent(in) :: y(state_size)
+    real(wp) :: omega_t(3)
+    omega_t = rolling_part(y)
+    ball%rolling_mode = 0
+    if (norm2(omega_t) > rest_rate(ball, y)) ball%rolling_mode = omega_t / norm2(omega_t)
+  end subroutine set_rolling_mode
+
+  !> The rolling part of the angular velocity at y set to zero (the spin
+  !> about the normal kept): the ball at rest, where the couple decides.
+  pure subroutine come_to_rest(y)
+    real(wp), intent(inout) :: y(state_size)
+    real(wp) :: n(3)
+    n = y(1:3) / norm2(y(1:3))
+    y(4:6) = dot_product(y(4:6), n) * n
+  end subroutine come_to_rest
 
   !> The state back on the model's manifold: the normal of unit length.
   pure subroutine normalize_normal(y)

@@ -1,13 +1,13 @@
-!> Locating where inside a step a model limit is first crossed.
-!> Reverse communication: the caller asks for a trial offset, evaluates
-!> whether the state there is still valid, and reports back. The search
-!> knows nothing of what the limit means.
+!> Locating where inside a step a model limit is first crossed, or where a
+!> continuous event function changes sign. Reverse communication: the
+!> caller asks for a trial offset, evaluates the state there, and reports
+!> back. The searches know nothing of what the limit or event means.
 module ellroll_events
   use ellroll_kinds, only: wp
   implicit none
   private
 
-  public :: crossing_search_t
+  public :: crossing_search_t, root_search_t
 
   type :: crossing_search_t
     real(wp) :: valid = 0      !< largest offset known to be valid
@@ -19,6 +19,21 @@ module ellroll_events
     procedure :: report
     procedure :: done
   end type crossing_search_t
+
+  !> A sign change of g between offsets 0 (g > 0) and `high` (g <= 0), by
+  !> the Illinois variant of regula falsi (superlinear for a smooth g; a
+  !> step of bisection when a trial would not fall inside the bracket).
+  type :: root_search_t
+    real(wp) :: low = 0, high = 0        !< g(low) > 0 >= g(high)
+    real(wp) :: g_low = 1, g_high = -1
+    real(wp) :: tolerance = 0
+    integer :: last_side = 0             !< 1: low moved last, -1: high
+  contains
+    procedure :: start => start_root
+    procedure :: trial => trial_root
+    procedure :: report => report_root
+    procedure :: done => root_done
+  end type root_search_t
 
 contains
 
@@ -50,4 +65,42 @@ contains
     class(crossing_search_t), intent(in) :: self
     done = self%invalid - self%valid <= self%tolerance
   end function done
+
+  pure subroutine start_root(self, g_low, high, g_high, tolerance)
+    class(root_search_t), intent(inout) :: self
+    real(wp), intent(in) :: g_low, high, g_high, tolerance
+    self%low = 0
+    self%high = high
+    self%g_low = g_low
+    self%g_high = g_high
+    self%tolerance = tolerance
+    self%last_side = 0
+  end subroutine start_root
+
+  pure real(wp) function trial_root(self) result(offset)
+    class(root_search_t), intent(in) :: self
+    offset = self%high - self%g_high * (self%high - self%low) / (self%g_high - self%g_low)
+    if (.not. (offset > self%low .and. offset < self%high)) offset = self%low + (self%high - self%low) / 2
+  end function trial_root
+
+  pure subroutine report_root(self, offset, g)
+    class(root_search_t), intent(inout) :: self
+    real(wp), intent(in) :: offset, g
+    if (g > 0) then
+      self%low = offset
+      self%g_low = g
+      if (self%last_side == 1) self%g_high = self%g_high / 2
+      self%last_side = 1
+    else
+      self%high = offset
+      self%g_high = g
+      if (self%last_side == -1) self%g_low = self%g_low / 2
+      self%last_side = -1
+    end if
+  end subroutine report_root
+
+  pure logical function root_done(self)
+    class(root_search_t), intent(in) :: self
+    root_done = self%high - self%low <= self%tolerance
+  end function root_done
 end module ellroll_events

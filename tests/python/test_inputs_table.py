@@ -74,4 +74,4 @@ def test_every_row_s_range_is_enforced(ellroll, tmp_path, beyond):
             (name, result.stderr)
         assert valid in result.stderr, (name, valid, result.stderr)
         checked += 1
-    assert checked == (24 if beyond == "above" else 4)     # weight, mass, inertia_factor, dt
+    assert checked == (25 if beyond == "above" else 4)     # weight, mass, inertia_factor, dt

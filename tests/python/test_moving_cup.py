@@ -169,7 +169,7 @@ def test_bad_excitation_input(ellroll, tmp_path, excitation, words):
 
 
 def test_example_inputs_and_plot(ellroll, tmp_path):
-    for name in ("isolator_harmonic.nml", "isolator_record.nml"):
+    for name in ("isolator_harmonic.nml", "isolator_record.nml", "isolator_suite.nml"):
         result = run(ellroll, "check", ROOT / "input" / name, cwd=tmp_path)
         assert result.returncode == 0, result.stderr
     text = (ROOT / "input" / "isolator_harmonic.nml").read_text().replace("count = 81", "count = 9")

@@ -174,3 +174,69 @@ def test_mutated_at2_files_end_cleanly_in_the_debug_build(ellroll_debug, tmp_pat
         assert result.returncode in (0, 2), result.stderr
         codes.add(result.returncode)
     assert codes == {0, 2}
+
+
+SUITE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 12.0 /
+&excitation kind = 'record' /
+&record name = 'first', record_file = 'A1.AT2', 'A2.AT2' /
+&record name = 'second', record_file = 'B1.AT2', 'B2.AT2', factor = 0.5 /
+&record name = 'third', record_file = 'C.csv' /
+&sweep name = 'scale', values = 1.0, 2.0 /
+&output file = 'suite.h5', interval = 0.01 /
+"""
+
+
+def write_suite_records(folder):
+    for name, seed in (("A1", 21), ("A2", 22), ("B1", 23), ("B2", 24)):
+        write_at2(folder / f"{name}.AT2", ground(seed), DT)
+    write_csv(folder / "C.csv", [ground(25), ground(26)], DT)
+
+
+def test_a_suite_is_each_record_run_alone(ellroll, tmp_path):
+    """Records vary slowest, then the sweep; each case equals the same record
+    run alone at the same scale (a record's factor times the values)."""
+    write_suite_records(tmp_path)
+    (tmp_path / "suite.nml").write_text(SUITE)
+    result = run(ellroll, "run", "suite.nml", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "suite.h5", "r") as f:
+        assert [n.decode().strip() for n in f["case/record"][:]] == ["first"] * 2 + ["second"] * 2 + ["third"] * 2
+        assert list(f["case/record_factor"][:]) == [1, 1, 0.5, 0.5, 1, 1]
+        assert list(f["case/scale"][:]) == [1, 2] * 3
+        suite = {name: f["trajectory"][name][()] for name in f["trajectory"] if name != "case"}
+    alone = [("'A1.AT2', 'A2.AT2'", 1.0), ("'A1.AT2', 'A2.AT2'", 2.0), ("'B1.AT2', 'B2.AT2'", 0.5),
+             ("'B1.AT2', 'B2.AT2'", 1.0), ("'C.csv'", 1.0), ("'C.csv'", 2.0)]
+    for case, (files, scale) in enumerate(alone):
+        single = trajectories(run_case(ellroll, tmp_path, files, f"alone{case}", t_end=12.0,
+                                       extra=f", scale = {scale}"))
+        for name in single:
+            assert single[name][0].tobytes() == suite[name][case].tobytes(), (case, name)
+
+
+@pytest.mark.parametrize("change,words", [
+    (("name = 'second'", "name = 'first'"), "name = 'first': already names the &record at line 6"),
+    (("name = 'third', ", ""), "&record: name is required"),
+    (("&excitation kind = 'record' /", "&excitation kind = 'harmonic', frequency = 1 /"),
+     "kind = 'harmonic': must be 'record' with &record groups"),
+    (("&excitation kind = 'record' /", "&excitation kind = 'record', record_file = 'C.csv' /"),
+     "the &record groups give the records"),
+    (("factor = 0.5", "factor = -1"), "factor = -1: must be between 0 and 1000"),
+    (("'B1.AT2', 'B2.AT2'", "'B1.AT2', 'missing.AT2'"), "suite.nml:7: &record: record_file = 'B1.AT2', "
+                                                        "'missing.AT2': cannot open"),
+])
+def test_bad_suites(ellroll, tmp_path, change, words):
+    write_suite_records(tmp_path)
+    (tmp_path / "suite.nml").write_text(SUITE.replace(*change))
+    result = run(ellroll, "check", "suite.nml", cwd=tmp_path)
+    assert result.returncode == 2 and words in result.stderr, result.stderr
+
+
+def test_a_suite_without_excitation_group_is_a_record_campaign(ellroll, tmp_path):
+    write_suite_records(tmp_path)
+    (tmp_path / "suite.nml").write_text(SUITE.replace("&excitation kind = 'record' /\n", "")
+                                        .replace("&sweep name = 'scale', values = 1.0, 2.0 /\n", ""))
+    result = run(ellroll, "check", "suite.nml", cwd=tmp_path)
+    assert result.returncode == 0 and "campaign: 3 cases" in result.stdout, result.stderr

@@ -1,0 +1,99 @@
+!> Record suites: one &record group per ground motion (its name, its one to
+!> three files, its factor), read into the campaign as one more dimension.
+module ellroll_suite_input
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp
+  use ellroll_strings, only: itoa, format_real
+  use ellroll_cases, only: case_t
+  use ellroll_campaign, only: suite_record_t, use_record
+  use ellroll_excitation, only: excitation_t, set_record
+  use ellroll_record_file, only: load_ground_motion
+  use ellroll_input_reader, only: reader_t, namelist_values_t, resolve_path
+  implicit none
+  private
+
+  public :: record_spec_t, add_record_group, load_suite
+
+  !> A &record group as written (its files resolved against the input's folder).
+  type :: record_spec_t
+    integer :: group = 0
+    character(len=32) :: name = ''
+    real(wp) :: factor = 1
+    integer :: n_files = 0
+    character(len=1024) :: files(3) = ''
+  end type record_spec_t
+
+  !> Largest factor of a record (as the scale of &excitation).
+  real(wp), parameter :: max_factor = 1.0e3_wp
+
+contains
+
+  !> A &record group's name, files and factor, checked.
+  subroutine add_record_group(rd, v, gi, specs)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    integer, intent(in) :: gi
+    type(record_spec_t), allocatable, intent(inout) :: specs(:)
+    type(record_spec_t) :: spec
+    integer :: k
+    if (len_trim(v%name) == 0) then
+      call rd%fail_missing(gi, 'name', "name the record, e.g. name = 'RSN953' (it is stored with each case)")
+      return
+    end if
+    do k = 1, size(specs)
+      if (specs(k)%name == v%name) then
+        call rd%fail_value(gi, 'name', 'already names the &record at line ' // itoa(rd%file%groups(specs(k)%group)%line))
+        return
+      end if
+    end do
+    spec%n_files = count(len_trim(v%record_file) > 0)
+    if (spec%n_files == 0) then
+      call rd%fail_missing(gi, 'record_file', "a CSV (time, ax, ay[, az]) or one PEER .AT2 file per axis, " // &
+                           "'x.AT2', 'y.AT2'[, 'z.AT2']")
+      return
+    end if
+    if (any(len_trim(v%record_file(:spec%n_files)) == 0)) then
+      call rd%fail_value(gi, 'record_file', 'an empty name among the files')
+      return
+    end if
+    if (.not. (ieee_is_finite(v%factor) .and. v%factor >= 0 .and. v%factor <= max_factor)) then
+      call rd%fail_value(gi, 'factor', 'must be between 0 and ' // format_real(max_factor))
+      return
+    end if
+    spec%group = gi
+    spec%name = v%name
+    spec%factor = v%factor
+    do k = 1, spec%n_files
+      spec%files(k) = resolve_path(trim(adjustl(v%record_file(k))), rd%file%path)
+    end do
+    specs = [specs, spec]
+  end subroutine add_record_group
+
+  !> Every record of the suite read (the factor applied to its values), and
+  !> the base case given the first.
+  subroutine load_suite(rd, specs, base, records)
+    type(reader_t), intent(inout) :: rd
+    type(record_spec_t), intent(in) :: specs(:)
+    type(case_t), intent(inout) :: base
+    type(suite_record_t), allocatable, intent(out) :: records(:)
+    type(excitation_t) :: motion
+    real(wp), allocatable :: times(:), values(:, :)
+    character(len=:), allocatable :: reason
+    integer :: k
+    allocate (records(size(specs)))
+    do k = 1, size(specs)
+      call load_ground_motion(specs(k)%files(:specs(k)%n_files), base%t_end, times, values, reason)
+      if (len(reason) > 0) then
+        call rd%fail_value(specs(k)%group, 'record_file', reason)
+        return
+      end if
+      call set_record(motion, times, specs(k)%factor * values)
+      records(k)%name = specs(k)%name
+      records(k)%factor = specs(k)%factor
+      call move_alloc(motion%times, records(k)%times)
+      call move_alloc(motion%values, records(k)%values)
+      records(k)%step = motion%step
+    end do
+    if (size(records) > 0) call use_record(base, records(1))
+  end subroutine load_suite
+end module ellroll_suite_input

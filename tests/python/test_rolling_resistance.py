@@ -1,0 +1,92 @@
+"""Rolling resistance (&ball rolling_resistance = delta): the planar swing in
+the paper's cup is a Coulomb-damped oscillator (decrement 2 rho delta / R
+per half cycle, rest where |x| <= rho delta / R, period unchanged); in 3D
+the couple's work is the energy lost; the stick is an event (the state is
+then exactly constant, no rejected steps); a moving cup starts the ball
+only when its pull exceeds delta N / R; delta = 0 is the model without it."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+
+RHO, RADIUS, DELTA, G, K = 1.0**2 / 0.2, 0.2, 2.0e-4, 9.81, 0.4
+HALF_PERIOD = np.pi * np.sqrt((1 + K) * (RHO - RADIUS) / G)      # linearised x-z swing
+
+CUP = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0{resistance} /
+&initial x = {x}, y = {y}, omega = 0.0, 0.0, {spin} /
+&integration {integration}, t_end = {t_end} /
+{excitation}&output file = 'out.h5', interval = 1.0e-3 /
+"""
+RK4 = "method = 'rk4', dt = 1.0e-3"
+DOP853 = "method = 'dop853', rtol = 1.0e-10"
+
+
+def run_cup(ellroll, folder, delta=DELTA, x=0.052, y=0.0, spin=0.0, integration=RK4, t_end=30.0, excitation=""):
+    resistance = f", rolling_resistance = {delta!r}" if delta is not None else ""
+    (folder / "cup.nml").write_text(CUP.format(resistance=resistance, x=x, y=y, spin=spin, integration=integration,
+                                               t_end=t_end, excitation=excitation))
+    result = run(ellroll, "run", "cup.nml", "-q", "--overwrite", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    assert "warning" not in result.stderr, result.stderr
+    f = h5py.File(folder / "out.h5", "r")
+    return f
+
+
+def turning_points(t, x):
+    k = np.nonzero((np.diff(x[:-1]) * np.diff(x[1:]) < 0))[0] + 1
+    return t[k], x[k]
+
+
+@pytest.mark.parametrize("integration", [RK4, DOP853], ids=["rk4", "dop853"])
+def test_planar_swing_is_a_coulomb_damped_oscillator(ellroll, tmp_path, integration):
+    with run_cup(ellroll, tmp_path, integration=integration) as f:
+        t, x = f["time"][()], f["trajectory/contact"][0][:, 0]
+        y = f["trajectory/contact"][0][:, 1]
+        rejected = f["summary/n_rejected"][0]
+    times, points = turning_points(t, x)
+    assert np.allclose(points[:4], [-0.042, 0.032, -0.022, 0.012], atol=3e-4)
+    decrements = np.abs(np.r_[0.052, points[:4]])[:-1] - np.abs(points[:4])
+    assert np.allclose(decrements, 2 * RHO * DELTA / RADIUS, rtol=0.03)       # 0.010 m each half cycle
+    assert np.allclose(np.diff(np.r_[0.0, times[:4]]), HALF_PERIOD, rtol=0.01)  # the period unchanged
+    stop = np.nonzero(np.diff(x))[0][-1] + 1
+    assert abs(x[-1] - (-0.002)) < 5e-4 and abs(x[-1]) <= RHO * DELTA / RADIUS
+    assert t[stop] == pytest.approx(5 * HALF_PERIOD, rel=0.01)                # at rest from the fifth turn on
+    assert np.all(x[stop:] == x[-1]) and np.all(y == 0)                         # exactly: no chattering
+    assert rejected == 0                                                        # the stops are events
+
+
+def test_the_couples_work_is_the_energy_lost(ellroll, tmp_path):
+    """A 3D motion with spin: E(t) - E(0) equals the work of -delta N
+    omega_t / |omega_t| (trapezoid rule on the samples of every step)."""
+    with run_cup(ellroll, tmp_path, delta=1.0e-4, x=0.05, y=0.03, spin=0.5, t_end=20.0) as f:
+        t = f["time"][()]
+        force, normal = f["trajectory/reaction"][0], f["trajectory/normal"][0]
+        omega, energy = f["trajectory/omega"][0], f["trajectory/energy"][0]
+    normal_force = np.sum(force * normal, axis=1)
+    rolling = omega - np.sum(omega * normal, axis=1)[:, None] * normal
+    power = -1.0e-4 * normal_force * np.linalg.norm(rolling, axis=1)
+    work = np.r_[0.0, np.cumsum((power[1:] + power[:-1]) / 2 * np.diff(t))]
+    loss = energy - energy[0]
+    assert loss[-1] < -1.0                                                    # it does lose energy
+    assert np.abs(loss - work).max() < 1e-6 * abs(loss[-1])
+
+
+@pytest.mark.parametrize("amplitude,moves", [(0.0095, False), (0.0105, True)])
+def test_a_moving_cup_starts_the_ball_beyond_delta_g_over_r(ellroll, tmp_path, amplitude, moves):
+    """At rest at the bottom the couple holds the ball while m R |a_base| <=
+    delta m g: a base acceleration up to delta g / R = 0.00981 m/s^2."""
+    excitation = f"&excitation kind = 'harmonic', amplitude = {amplitude}, 0.0, 0.0, frequency = 0.5 /\n"
+    with run_cup(ellroll, tmp_path, x=0.0, integration=DOP853, t_end=10.0, excitation=excitation) as f:
+        x = f["trajectory/contact"][0][:, 0]
+    assert (np.ptp(x) > 1e-6) == moves and (moves or np.all(x == 0))
+
+
+def test_delta_zero_is_the_model_without_it(ellroll, tmp_path):
+    with run_cup(ellroll, tmp_path, delta=0.0, x=0.05, y=0.03, spin=0.5, t_end=5.0) as f:
+        zero = {name: f["trajectory"][name][()] for name in f["trajectory"]}
+        assert f["case/rolling_resistance"][0] == 0
+    with run_cup(ellroll, tmp_path, delta=None, x=0.05, y=0.03, spin=0.5, t_end=5.0) as f:
+        for name in f["trajectory"]:
+            assert f["trajectory"][name][()].tobytes() == zero[name].tobytes(), name
