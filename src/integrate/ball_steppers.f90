@@ -8,6 +8,7 @@ module ellroll_ball_steppers
   use ellroll_kinds, only: wp
   use ellroll_exact, only: is_zero
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
+  use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_integrators, only: dop853_t, max_equations
   use ellroll_dop853_tableau, only: c853, end_stage, first_dense_stage, stages_dense, a_value, a_column, a_row, &
       e5, bhh, in_error_estimate
@@ -33,21 +34,27 @@ contains
     real(wp), intent(in) :: y(state_size), f0(state_size)
     real(wp), intent(out) :: y_new(state_size)
     integer, intent(out) :: stage_limit
-    real(wp) :: k2(state_size), k3(state_size), k4(state_size), stage(state_size)
+    real(wp) :: k2(state_size), k3(state_size), k4(state_size), stage(state_size), base_half(3), base_end(3)
     logical :: fits, reaction_limited
     reaction_limited = ball%reaction_limited()
+    base_half = 0
+    base_end = 0
+    if (ball%excitation%kind /= excitation_none) then      ! the cup's acceleration, once per time
+      base_half = base_acceleration(ball%excitation, t + h/2)
+      base_end = base_acceleration(ball%excitation, t + h)
+    end if
     stage = y + (h/2) * f0
-    call ball_derivative(ball, t + h/2, stage, k2, fits)
+    call ball_derivative(ball, t + h/2, stage, k2, fits, base_half)
     stage_limit = 0
-    if (.not. fits .or. reaction_limited) stage_limit = stage_status(ball, t + h/2, stage, k2, fits)
+    if (.not. fits .or. reaction_limited) stage_limit = stage_status(ball, t + h/2, stage, k2, fits, base_half)
     stage = y + (h/2) * k2
-    call ball_derivative(ball, t + h/2, stage, k3, fits)
+    call ball_derivative(ball, t + h/2, stage, k3, fits, base_half)
     if (stage_limit == 0 .and. (.not. fits .or. reaction_limited)) &
-      stage_limit = stage_status(ball, t + h/2, stage, k3, fits)
+      stage_limit = stage_status(ball, t + h/2, stage, k3, fits, base_half)
     stage = y + h * k3
-    call ball_derivative(ball, t + h, stage, k4, fits)
+    call ball_derivative(ball, t + h, stage, k4, fits, base_end)
     if (stage_limit == 0 .and. (.not. fits .or. reaction_limited)) &
-      stage_limit = stage_status(ball, t + h, stage, k4, fits)
+      stage_limit = stage_status(ball, t + h, stage, k4, fits, base_end)
     y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
   end subroutine rk4_ball_step
 

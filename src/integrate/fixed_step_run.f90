@@ -6,6 +6,7 @@ module ellroll_fixed_step_run
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_pending, status_completed, status_unstable
   use ellroll_ode, only: no_step_solution
+  use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_events, only: root_search_t
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
@@ -141,6 +142,7 @@ contains
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
     integer :: stage_limit
+    real(wp) :: base(3)
     select type (integrator)
     type is (rk4_t)
       call rk4_ball_step(run%ball, t, y, f, h, y_new, stage_limit)
@@ -150,9 +152,11 @@ contains
       stage_limit = integrator%stage_limit
     end select
     call normalize_normal(y_new)
-    call ball_derivative(run%ball, t + h, y_new, f_new)
+    base = 0                                  ! the cup's acceleration, looked up once
+    if (run%ball%excitation%kind /= excitation_none) base = base_acceleration(run%ball%excitation, t + h)
+    call ball_derivative(run%ball, t + h, y_new, f_new, base=base)
     n_rhs = n_rhs + 1
-    call observe(run%ball, t + h, y_new, f_new, obs)
+    call observe(run%ball, t + h, y_new, f_new, obs, base)
     if (stage_limit == no_step_solution) then
       status = status_unstable
     else if (stage_limit /= 0) then

@@ -60,7 +60,7 @@ contains
         return
       end if
       if (exc%step > 0) then           ! the sample at or before t, by index
-        low = min(max(int(t / exc%step) + 1, 1), high - 1)
+        low = min(max(int(t * (1 / exc%step)) + 1, 1), high - 1)
         if (exc%times(low) > t) low = low - 1
         if (exc%times(low + 1) <= t) low = low + 1
         high = low + 1

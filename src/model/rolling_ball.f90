@@ -100,13 +100,16 @@ contains
   !> shorter than with 1/|y|, 1/q and 1/det L each in turn.
   !> fits, when asked for: whether y lies where the equations hold, the
   !> rim not reached and the ball fitting the cup, from the same
-  !> q, sigma and P (fit_indicator).
-  pure subroutine ball_derivative(ball, t, y, dydt, fits)
+  !> q, sigma and P (fit_indicator). base, when given: the cup's
+  !> acceleration at t (a step that evaluates two stages at one time looks
+  !> it up once).
+  pure subroutine ball_derivative(ball, t, y, dydt, fits, base)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
     logical, intent(out), optional :: fits
+    real(wp), intent(in), optional :: base(3)
     real(wp) :: r, length2, length, inv_length2, ay(3), q, sigma, r_sigma, pq, e, denominator, w(3), ay_w, m(3), x(3)
     real(wp) :: rate
     r = ball%radius
@@ -133,9 +136,14 @@ contains
                   + ((ball%g / r) * j_star * (length * inv_length2)) * [-y(2), y(1), 0.0_wp]
       ! a moving cup: g_vec - a_base in the cup's frame (only when it moves, so
       ! a fixed cup costs nothing)
-      if (ball%excitation%kind /= excitation_none) &
-        dydt(4:6) = dydt(4:6) - cross(y(1:3) * (length * inv_length2), base_acceleration(ball%excitation, t)) &
-                    / (ball%radius * (1 + ball%inertia_factor))
+      if (ball%excitation%kind /= excitation_none) then
+        if (present(base)) then
+          dydt(4:6) = dydt(4:6) - cross(y(1:3) * (length * inv_length2), base) / (ball%radius * (1 + ball%inertia_factor))
+        else
+          dydt(4:6) = dydt(4:6) - cross(y(1:3) * (length * inv_length2), base_acceleration(ball%excitation, t)) &
+                      / (ball%radius * (1 + ball%inertia_factor))
+        end if
+      end if
     end associate
     if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt)
   end subroutine ball_derivative
@@ -263,11 +271,12 @@ contains
   !> at only in the scenes that have them: a moving cup, a friction limit.
   !> (On a fixed cup, N >= m g n_z > 0 wherever the ball fits, so lift-off
   !> cannot come first.)
-  pure integer function stage_status(ball, t, y, dydt, fits) result(status)
+  pure integer function stage_status(ball, t, y, dydt, fits, base) result(status)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size), dydt(state_size)
     logical, intent(in) :: fits
-    type(observation_t) :: obs
+    real(wp), intent(in), optional :: base(3)      !< the cup's acceleration at t, when known
+    real(wp) :: n(3), force(3), normal_force, tangential(3)
     status = 0
     if (.not. fits) then
       if (.not. (all(ieee_is_finite(y)) .and. all(ieee_is_finite(dydt)))) then
@@ -278,11 +287,37 @@ contains
         status = status_no_fit
       end if
     else if (ball%reaction_limited()) then
-      call observe(ball, t, y, dydt, obs)
-      status = limit_status(ball, y, obs)
-      if (status == status_completed) status = 0
+      ! where the ball fits, only the reaction can end the case: the force of
+      ! the cup as observe computes it, and nothing else of observe's
+      n = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
+      force = reaction_force(ball, t, y(4:6), n, dydt(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2), dydt(4:6), base)
+      normal_force = force(1) * n(1) + force(2) * n(2) + force(3) * n(3)
+      tangential = force - normal_force * n
+      if (.not. all(ieee_is_finite(force))) then
+        status = status_nonfinite
+      else if (normal_force <= 0) then
+        status = status_liftoff
+      else if (ball%mu > 0) then
+        if (sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / normal_force > ball%mu) status = status_slip
+      end if
     end if
   end function stage_status
+
+  !> The force of the cup on the ball, m (a_C + a_base - g_vec) with
+  !> a_C = R (omega' x n + omega x n'), in the inertial frame.
+  pure function reaction_force(ball, t, omega, n, n_dot, omega_dot, base) result(force)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, omega(3), n(3), n_dot(3), omega_dot(3)
+    real(wp), intent(in), optional :: base(3)
+    real(wp) :: force(3)
+    force = ball%radius * (cross(omega_dot, n) + cross(omega, n_dot)) + [0.0_wp, 0.0_wp, ball%g]
+    if (present(base)) then
+      force = force + base
+    else if (ball%excitation%kind /= excitation_none) then
+      force = force + base_acceleration(ball%excitation, t)
+    end if
+    force = ball%mass * force
+  end function reaction_force
 
   !> Whether the reaction force can end the case: a cup that moves (lift-off)
   !> or a friction limit (slip).
@@ -314,11 +349,12 @@ contains
   !> written out flat: one 1/|y| serves every quantity, and the contact
   !> point's 1/s the fit test's tr K and det K. The batch's lanes_observe
   !> is the same arithmetic, expression by expression (tested bitwise).
-  pure subroutine observe(ball, t, y, dydt, obs)
+  pure subroutine observe(ball, t, y, dydt, obs, base)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:), dydt(:)
     type(observation_t), intent(out) :: obs
+    real(wp), intent(in), optional :: base(3)      !< the cup's acceleration at t, when known
     real(wp) :: r, m, inv_length, n(3), inv_s, inv_s2, p(3), n_dot(3), a_center(3)
     real(wp) :: tangential(3), v_center(3), height_above_rest, an(3), trace, det, fit_radius
     r = ball%radius
@@ -337,7 +373,11 @@ contains
     n_dot = dydt(1:3) * inv_length
     a_center = r * (cross(dydt(4:6), n) + cross(obs%omega, n_dot))
     obs%base_acceleration = 0
-    if (ball%excitation%kind /= excitation_none) obs%base_acceleration = base_acceleration(ball%excitation, t)
+    if (present(base)) then
+      obs%base_acceleration = base
+    else if (ball%excitation%kind /= excitation_none) then
+      obs%base_acceleration = base_acceleration(ball%excitation, t)
+    end if
     obs%center_acceleration = a_center + obs%base_acceleration
     obs%reaction = m * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
     obs%reaction_normal = obs%reaction(1) * n(1) + obs%reaction(2) * n(2) + obs%reaction(3) * n(3)

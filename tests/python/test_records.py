@@ -240,3 +240,18 @@ def test_a_suite_without_excitation_group_is_a_record_campaign(ellroll, tmp_path
                                         .replace("&sweep name = 'scale', values = 1.0, 2.0 /\n", ""))
     result = run(ellroll, "check", "suite.nml", cwd=tmp_path)
     assert result.returncode == 0 and "campaign: 3 cases" in result.stdout, result.stderr
+
+
+def test_a_suite_is_the_same_for_any_thread_count_and_sharding(ellroll, tmp_path):
+    from test_campaign import assert_same_datasets
+    write_suite_records(tmp_path)
+    (tmp_path / "suite.nml").write_text(SUITE.replace("t_end = 12.0", "t_end = 3.0")
+                                        .replace("weight = 2620.0 /", "weight = 2620.0, rolling_resistance = 1.0e-4 /"))
+    assert run(ellroll, "run", "suite.nml", "-q", "-o", "one.h5", "--threads", "1", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", "suite.nml", "-q", "-o", "two.h5", "--threads", "2", cwd=tmp_path).returncode == 0
+    for index in range(2):
+        assert run(ellroll, "run", "suite.nml", "-q", "--shard", f"{index}/2", "-o", f"s{index}.h5",
+                   cwd=tmp_path).returncode == 0
+    assert run(ellroll, "merge", "merged.h5", "s0.h5", "s1.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "one.h5", tmp_path / "two.h5")
+    assert_same_datasets(tmp_path / "one.h5", tmp_path / "merged.h5")
