@@ -39,7 +39,7 @@ program journal_checksum
     words(j) = ieor(shiftl(int(j, i8), 29), int(j, i8))     ! varied bits, no overflow
   end do
   cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
-  cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = 1.0e-3_wp; cs%t_end = 30
+  cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = 1.0e-3_wp; cs%t_end = 30
   plan%interval = 0.01_wp
   plan%n_samples = 3001
   plan%fields = .true.

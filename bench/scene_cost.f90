@@ -39,7 +39,7 @@ program scene_cost
   end if
   scenes(1)%a = 1; scenes(1)%b = 0.4_wp; scenes(1)%c = 0.2_wp; scenes(1)%radius = 0.2_wp
   scenes(1)%g = 9.81_wp; scenes(1)%mass = 2620 / 9.81_wp
-  scenes(1)%x0 = 0.05_wp; scenes(1)%y0 = 0.03_wp; scenes(1)%omega0 = [0.0_wp, 0.0_wp, 0.5_wp]
+  scenes(1)%x = 0.05_wp; scenes(1)%y = 0.03_wp; scenes(1)%omega = [0.0_wp, 0.0_wp, 0.5_wp]
   scenes(1)%dt = 1.0e-3_wp; scenes(1)%t_end = 30
   scenes(2:) = scenes(1)
   do k = 1, n_record

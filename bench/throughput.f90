@@ -42,7 +42,7 @@ program throughput
     read (arg, *) repeats
   end if
   cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
-  cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
+  cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
   summary_plan%interval = t_end
   summary_plan%n_samples = 2
   summary_plan%fields = .false.
@@ -52,7 +52,7 @@ program throughput
 
   batch_cases = cs
   do k = 1, lanes
-    batch_cases(k)%omega0(3) = 19 + k
+    batch_cases(k)%omega(3) = 19 + k
   end do
 
   best = huge(1.0_wp)
@@ -114,7 +114,7 @@ contains
     integer :: step, stage_limit
     ball = make_ball(cs)
     call system_clock(start, rate)
-    y = initial_state(ball, 0.0_wp, 0.0_wp, cs%omega0)
+    y = initial_state(ball, 0.0_wp, 0.0_wp, cs%omega)
     do step = 1, n_steps
       call ball%rhs(0.0_wp, y, f)
       call rk4_ball_step(ball, 0.0_wp, y, f, dt, y_new, stage_limit)
@@ -145,7 +145,7 @@ contains
     integer :: step, l
     do l = 1, lanes
       call set_lane(balls, l, make_ball(batch_cases(l)))
-      y(l, :) = initial_state(make_ball(batch_cases(l)), 0.0_wp, 0.0_wp, batch_cases(l)%omega0)
+      y(l, :) = initial_state(make_ball(batch_cases(l)), 0.0_wp, 0.0_wp, batch_cases(l)%omega)
     end do
     h = dt
     call system_clock(start, rate)

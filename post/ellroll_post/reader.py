@@ -11,12 +11,15 @@ class NotAnEllrollFile(Exception):
 # inputs as the namelist names them -> (/case dataset, component)
 INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radius", None),
           "weight": ("weight", None), "mass": ("mass", None), "mu": ("mu", None),
-          "inertia_factor": ("inertia_factor", None), "g": ("g", None), "x": ("x0", None), "y": ("y0", None),
-          "omega_x": ("omega0", 0), "omega_y": ("omega0", 1), "omega_z": ("omega0", 2), "dt": ("dt", None),
+          "inertia_factor": ("inertia_factor", None), "g": ("g", None), "x": ("x", None), "y": ("y", None),
+          "omega_x": ("omega", 0), "omega_y": ("omega", 1), "omega_z": ("omega", 2), "dt": ("dt", None),
           "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None),
           "excitation_frequency": ("excitation_frequency", None), "excitation_phase": ("excitation_phase", None),
           "excitation_amplitude_x": ("excitation_amplitude", 0), "excitation_amplitude_y": ("excitation_amplitude", 1),
-          "excitation_amplitude_z": ("excitation_amplitude", 2), "scale": ("scale", None)}
+          "excitation_amplitude_z": ("excitation_amplitude", 2), "scale": ("scale", None),
+          "rolling_resistance": ("rolling_resistance", None)}
+# /case names of files written before the inputs kept their namelist names
+FORMER_NAMES = {"case/x": "case/x0", "case/y": "case/y0", "case/omega": "case/omega0"}
 
 
 class EllrollFile:
@@ -61,6 +64,8 @@ class EllrollFile:
         return sorted(k for k in self._h5["summary"] if k != "case")
 
     def _dataset(self, name):
+        if name not in self._h5 and FORMER_NAMES.get(name) in self._h5:
+            name = FORMER_NAMES[name]
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
@@ -100,7 +105,7 @@ class EllrollFile:
         swept = []
         for name in INPUTS:
             dataset, _ = INPUTS[name]
-            if f"case/{dataset}" not in self._h5:
+            if f"case/{dataset}" not in self._h5 and FORMER_NAMES.get(f"case/{dataset}") not in self._h5:
                 continue
             column = self.input_column(name)
             if np.unique(column[np.isfinite(column)]).size > 1:

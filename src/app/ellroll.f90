@@ -285,10 +285,10 @@ contains
     do i = 0, inp%campaign%n_cases() - 1
       cs = inp%campaign%case_at(i)
       ball = make_ball(cs)
-      n0 = normal_from_contact(ball%cup, cs%x0, cs%y0)
-      periods = oscillation_periods(ball, dot_product(cs%omega0, n0))
+      n0 = normal_from_contact(ball%cup, cs%x, cs%y)
+      periods = oscillation_periods(ball, dot_product(cs%omega, n0))
       no_spin = no_spin_periods(ball)
-      write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega0, n0), periods, no_spin
+      write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega, n0), periods, no_spin
       write (output_unit, '(a)') trim(line)
     end do
   end subroutine modes_command
@@ -410,9 +410,9 @@ contains
     ball = make_ball(cs)
     write (output_unit, '(a)') 'base case (resolved input):'
     call print_values(case_record(cs))
-    n0 = normal_from_contact(ball%cup, cs%x0, cs%y0)
+    n0 = normal_from_contact(ball%cup, cs%x, cs%y)
     radii = principal_radii(ball%cup, n0)
-    y = initial_state(ball, cs%x0, cs%y0, cs%omega0)
+    y = initial_state(ball, cs%x, cs%y, cs%omega)
     call ball%rhs(0.0_wp, y, f)
     call observe(ball, 0.0_wp, y, f, obs)
     write (output_unit, '(a)') 'derived:'

@@ -37,8 +37,8 @@ module ellroll_cases
     real(wp) :: inertia_factor = params(p_inertia_factor)%default
     real(wp) :: mu = params(p_mu)%default           !< 0: no friction limit
     real(wp) :: rolling_resistance = params(p_rolling_resistance)%default   !< delta, m
-    real(wp) :: x0 = params(p_x)%default, y0 = params(p_y)%default
-    real(wp) :: omega0(3) = params(p_omega_x:p_omega_z)%default
+    real(wp) :: x = params(p_x)%default, y = params(p_y)%default     !< the contact point at t = 0
+    real(wp) :: omega(3) = params(p_omega_x:p_omega_z)%default     !< the angular velocity at t = 0
     character(len=32) :: method = 'rk4'
     real(wp) :: dt = params(p_dt)%default
     real(wp) :: t_end = 0
@@ -97,9 +97,9 @@ contains
     case (p_mu); value = cs%mu
     case (p_inertia_factor); value = cs%inertia_factor
     case (p_g); value = cs%g
-    case (p_x); value = cs%x0
-    case (p_y); value = cs%y0
-    case (p_omega_x:p_omega_z); value = cs%omega0(p - p_omega_x + 1)
+    case (p_x); value = cs%x
+    case (p_y); value = cs%y
+    case (p_omega_x:p_omega_z); value = cs%omega(p - p_omega_x + 1)
     case (p_dt); value = cs%dt
     case (p_fit_margin); value = cs%fit_margin
     case (p_rtol); value = cs%rtol
@@ -128,9 +128,9 @@ contains
     case (p_mu); cs%mu = value
     case (p_inertia_factor); cs%inertia_factor = value
     case (p_g); cs%g = value
-    case (p_x); cs%x0 = value
-    case (p_y); cs%y0 = value
-    case (p_omega_x:p_omega_z); cs%omega0(p - p_omega_x + 1) = value
+    case (p_x); cs%x = value
+    case (p_y); cs%y = value
+    case (p_omega_x:p_omega_z); cs%omega(p - p_omega_x + 1) = value
     case (p_dt); cs%dt = value
     case (p_fit_margin); cs%fit_margin = value
     case (p_rtol); cs%rtol = value
@@ -213,15 +213,15 @@ contains
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
       return
     end if
-    level = (cs%x0 / cs%a)**2 + (cs%y0 / cs%b)**2
+    level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
     if (level >= 1) then
-      param = merge(p_x, p_y, .not. is_zero(cs%x0))
-      reason = 'the start (x, y) = (' // format_real(cs%x0) // ', ' // format_real(cs%y0) // &
+      param = merge(p_x, p_y, .not. is_zero(cs%x))
+      reason = 'the start (x, y) = (' // format_real(cs%x) // ', ' // format_real(cs%y) // &
                ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
       return
     end if
     radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
-                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x0, cs%y0))
+                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
     if (radii(1) / cs%radius - 1 <= cs%fit_margin) then
       param = p_radius
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
@@ -287,8 +287,8 @@ contains
       row(p_a, cs%a), row(p_b, cs%b), row(p_c, cs%c), row(p_radius, cs%radius), row(p_mass, cs%mass), &
       row(p_weight, cs%mass * cs%g), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
       row(p_rolling_resistance, cs%rolling_resistance), &
-      row(p_x, cs%x0, 'x0'), row(p_y, cs%y0, 'y0'), &
-      vector_value('omega0', params(p_omega_x)%unit, 'initial angular velocity', cs%omega0), &
+      row(p_x, cs%x), row(p_y, cs%y), &
+      vector_value('omega', params(p_omega_x)%unit, 'initial angular velocity', cs%omega), &
       text_value('method', 'integration method', cs%method), &
       row(p_dt, cs%dt), &
       real_value('t_end', 's', 'end time', cs%t_end), &
@@ -306,18 +306,12 @@ contains
 
   contains
 
-    !> A table row's value, with its unit and description; stored under its
-    !> name, or `stored_as`.
-    function row(p, value, stored_as) result(named)
+    !> A table row's value under its name, with its unit and description.
+    function row(p, value) result(named)
       integer, intent(in) :: p
       real(wp), intent(in) :: value
-      character(len=*), intent(in), optional :: stored_as
       type(named_value_t) :: named
-      if (present(stored_as)) then
-        named = real_value(stored_as, trim(params(p)%unit), trim(params(p)%description), value)
-      else
-        named = real_value(trim(params(p)%name), trim(params(p)%unit), trim(params(p)%description), value)
-      end if
+      named = real_value(trim(params(p)%name), trim(params(p)%unit), trim(params(p)%description), value)
     end function row
   end function case_record
 end module ellroll_cases

@@ -20,7 +20,7 @@ module ellroll_adaptive_run
   implicit none
   private
 
-  public :: nutation_peak_t, adaptive_loop, last_step_clipped
+  public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
   public :: follow_flow_to_limit, reference_rtol, reference_atol
 
@@ -49,7 +49,7 @@ module ellroll_adaptive_run
 
   !> Where the rolling stops inside a step (rolling resistance) is located
   !> to this part of the step, in at most max_rest_trials trial steps.
-  real(wp), parameter, public :: rest_tolerance = 1.0e-12_wp
+  real(wp), parameter :: rest_tolerance = 1.0e-12_wp
   integer, parameter, public :: max_rest_trials = 60
 
   type, public :: step_control_t
@@ -176,9 +176,7 @@ contains
     type(root_search_t) :: search
     real(wp) :: direction(3), offset
     integer :: k
-    direction = rolling_part(y)
-    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_new), direction), &
-                      rest_tolerance * h)
+    call start_rest_search(search, y, y_new, h, direction)
     do k = 1, max_rest_trials
       if (search%done()) exit
       offset = search%trial()
@@ -190,6 +188,18 @@ contains
     call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
     res%n_rhs = res%n_rhs + dop853_attempt_calls
   end subroutine shorten_to_rest
+
+  !> The search for where the rolling stops in a step of size h from y to
+  !> y_end: its event function is the rolling part of omega along its
+  !> direction at y (returned), positive at 0 and not at h.
+  pure subroutine start_rest_search(search, y, y_end, h, direction)
+    type(root_search_t), intent(out) :: search
+    real(wp), intent(in) :: y(state_size), y_end(state_size), h
+    real(wp), intent(out) :: direction(3)
+    direction = rolling_part(y)
+    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_end), direction), &
+                      rest_tolerance * h)
+  end subroutine start_rest_search
 
   !> The step from t, shortened to end exactly at t_end when it would end
   !> at or within round-off of it.

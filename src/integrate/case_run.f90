@@ -105,13 +105,13 @@ contains
     type(observation_t) :: obs
     run%ball = make_ball(cs)
     call allocate_fields(res, plan%fields, plan%n_samples)
-    y = initial_state(run%ball, cs%x0, cs%y0, cs%omega0)
+    y = initial_state(run%ball, cs%x, cs%y, cs%omega)
     run%start = y
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
     call observe(run%ball, 0.0_wp, y, f, obs)
     run%energy0 = obs%energy
-    run%spin0 = dot_product(cs%omega0, obs%normal)
+    run%spin0 = dot_product(cs%omega, obs%normal)
     if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
       run%spectrum%omega = two_pi * cs%excitation%frequency
       if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &

@@ -16,7 +16,7 @@ module ellroll_fixed_step_run
   use ellroll_integrators, only: integrator_t, rk4_t, stability_limit
   use ellroll_ball_steppers, only: rk4_ball_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
-  use ellroll_adaptive_run, only: follow_flow_to_limit, rest_tolerance, max_rest_trials
+  use ellroll_adaptive_run, only: follow_flow_to_limit, start_rest_search, max_rest_trials
   implicit none
   private
 
@@ -99,9 +99,7 @@ contains
     type(root_search_t) :: search
     type(run_state_t) :: at_rest
     integer :: k
-    direction = rolling_part(y)
-    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_new), direction), &
-                      rest_tolerance * h)
+    call start_rest_search(search, y, y_new, h, direction)
     do k = 1, max_rest_trials
       if (search%done()) exit
       offset = search%trial()

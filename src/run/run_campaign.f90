@@ -241,7 +241,7 @@ contains
       ball = make_ball(one)
       dt = one%dt
       ! dt <= 0 (an invalid case, not yet set aside) is never large
-      rate = fastest_rate(ball, initial_state(ball, one%x0, one%y0, one%omega0), &
+      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), &
                           enough=warn_above / max(dt, tiny(dt)))
     end subroutine start_rate
 

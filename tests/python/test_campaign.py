@@ -59,7 +59,7 @@ def test_grid_expansion_order_and_spacing(ellroll, tmp_path):
     assert "campaign: 60 cases" in result.stdout
     assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
     with h5py.File(tmp_path / "out.h5", "r") as f:
-        spin, radius, weight = f["case/omega0"][:, 2], f["case/radius"][:], f["case/weight"][:]
+        spin, radius, weight = f["case/omega"][:, 2], f["case/radius"][:], f["case/weight"][:]
         assert list(f["case/index"][:]) == list(range(60))
         # the first sweep varies slowest, the last fastest
         np.testing.assert_array_equal(spin, np.repeat([5, 10, 20, 40, 80], 12))
@@ -74,8 +74,8 @@ def test_zip_pairs_sweeps(ellroll, tmp_path):
                  "&sweep name = 'x', values = 0.0, 0.1, 0.2 /\n")
     assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
     with h5py.File(tmp_path / "out.h5", "r") as f:
-        np.testing.assert_array_equal(f["case/omega0"][:, 2], [5, 10, 20])
-        np.testing.assert_array_equal(f["case/x0"][:], [0.0, 0.1, 0.2])
+        np.testing.assert_array_equal(f["case/omega"][:, 2], [5, 10, 20])
+        np.testing.assert_array_equal(f["case/x"][:], [0.0, 0.1, 0.2])
 
 
 def test_samples_are_reproducible_and_in_range(ellroll, tmp_path):
@@ -86,12 +86,12 @@ def test_samples_are_reproducible_and_in_range(ellroll, tmp_path):
         assert run(ellroll, "run", name, "-q", "-o", out, "--threads", "2" if out == "b.h5" else "1",
                    cwd=tmp_path).returncode == 0
     a, b, c = (h5py.File(tmp_path / n, "r") for n in ("a.h5", "b.h5", "c.h5"))
-    spin, radius = a["case/omega0"][:, 2], a["case/radius"][:]
+    spin, radius = a["case/omega"][:, 2], a["case/radius"][:]
     assert np.all((spin >= 5) & (spin < 100)) and np.all((radius >= 0.01) & (radius < 0.2))
     assert len(set(spin)) == 40
-    np.testing.assert_array_equal(spin, b["case/omega0"][:, 2])
+    np.testing.assert_array_equal(spin, b["case/omega"][:, 2])
     np.testing.assert_array_equal(radius, b["case/radius"][:])
-    assert not np.any(spin == c["case/omega0"][:, 2])
+    assert not np.any(spin == c["case/omega"][:, 2])
 
 
 def test_thread_count_does_not_change_any_dataset(ellroll, tmp_path):
@@ -123,7 +123,7 @@ def test_batched_cases_equal_the_same_cases_run_alone(ellroll, tmp_path, method)
     assert run(ellroll, "run", "camp.nml", "-q", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
     for index in (6, 19):
         with h5py.File(tmp_path / "campaign.h5", "r") as c:
-            spin, radius = float(c["case/omega0"][index][2]), float(c["case/radius"][index])
+            spin, radius = float(c["case/omega"][index][2]), float(c["case/radius"][index])
         alone = (base.format(t_end=1.0).replace("omega = -2.0, 2.0, 20.0", f"omega = -2.0, 2.0, {spin!r}")
                  .replace("radius = 0.2", f"radius = {radius!r}"))
         (tmp_path / "alone.nml").write_text(alone)

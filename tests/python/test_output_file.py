@@ -31,9 +31,9 @@ def test_layout_shapes_units_and_scales(paper_file):
             assert ds.chunks is None and ds.compression is None
         for name in SUMMARY:
             assert f["summary"][name].shape == (1,)
-        for name in ["a", "b", "c", "radius", "mass", "g", "x0", "y0", "dt", "t_end", "method"]:
+        for name in ["a", "b", "c", "radius", "mass", "g", "x", "y", "dt", "t_end", "method"]:
             assert f["case"][name].shape == (1,)
-        assert f["case/omega0"].shape == (1, 3)
+        assert f["case/omega"].shape == (1, 3)
 
         def every_dataset_has_units(name, obj):
             if isinstance(obj, h5py.Dataset):
@@ -46,7 +46,7 @@ def test_inputs_and_provenance(paper_file):
         case = f["case"]
         assert (case["a"][0], case["b"][0], case["c"][0], case["radius"][0]) == (1.0, 0.4, 0.2, 0.2)
         assert case["mass"][0] * case["g"][0] == pytest.approx(2620.0, rel=1e-15)
-        np.testing.assert_array_equal(case["omega0"][0], [-2.0, 2.0, 20.0])
+        np.testing.assert_array_equal(case["omega"][0], [-2.0, 2.0, 20.0])
         assert case["method"].asstr()[0] == "rk4"
         attrs = f.attrs
         assert attrs["program"] == "ellroll"
@@ -106,7 +106,7 @@ def test_xarray_reads_every_group(paper_file):
     summary = xr.open_dataset(paper_file, engine="h5netcdf", group="summary")
     assert summary["theta_max"].dims == ("case",)
     inputs = xr.open_dataset(paper_file, engine="h5netcdf", group="case")
-    assert inputs["omega0"].dims == ("case", "xyz")
+    assert inputs["omega"].dims == ("case", "xyz")
 
 
 def write_input(folder, edits=(), name="case.nml"):
@@ -168,7 +168,7 @@ def test_check_prints_the_resolved_case_and_writes_nothing(ellroll, tmp_path):
     write_input(tmp_path)
     result = run(ellroll, "check", "case.nml", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    for words in ["mass = 267.07", "omega0 = -2, 2, 20 rad/s", "principal radii of curvature at the start = 0.8, 5 m",
+    for words in ["mass = 267.07", "omega = -2, 2, 20 rad/s", "principal radii of curvature at the start = 0.8, 5 m",
                   "steps per case = 30000", "samples = 3001", "case.nml: ok"]:
         assert words in result.stdout
     assert list(tmp_path.iterdir()) == [tmp_path / "case.nml"]

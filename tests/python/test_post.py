@@ -237,3 +237,18 @@ def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
     assert result.returncode == 2 and "not a record suite" in result.stderr
     result = plot_cli("spectrum", paper_file, "--out", tmp_path)
     assert result.returncode == 2 and "base_acceleration" in result.stderr
+
+
+def test_files_with_the_former_case_names_still_read(sweep_file, tmp_path):
+    """/case/x0, y0 and omega0 (the names of files written before the inputs
+    kept their namelist names) read as x, y and omega."""
+    import shutil
+    old = tmp_path / "old.h5"
+    shutil.copy(sweep_file, old)
+    with h5py.File(old, "r+") as f:
+        for name in ("x", "y", "omega"):
+            f.move(f"case/{name}", f"case/{name}0")
+    with ellroll_post.open(old) as run_, ellroll_post.open(sweep_file) as new:
+        assert run_.swept_inputs() == new.swept_inputs() == ["radius", "omega_z"]
+        assert np.array_equal(run_.input_column("omega_z"), new.input_column("omega_z"))
+        assert run_.case_input("x", 1) == new.case_input("x", 1)

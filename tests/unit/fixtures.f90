@@ -19,8 +19,8 @@ contains
     cs%radius = 0.2_wp
     cs%g = 9.81_wp
     cs%mass = 2620 / cs%g
-    cs%x0 = 0; cs%y0 = 0
-    cs%omega0 = [-2.0_wp, 2.0_wp, 20.0_wp]
+    cs%x = 0; cs%y = 0
+    cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]
     cs%dt = dt
     cs%t_end = t_end
   end function paper_case

@@ -148,14 +148,14 @@ contains
   function make_cases() result(cs)
     type(case_t) :: cs(n_cases)
     cs = paper_case(1.0e-3_wp, 3.0_wp)
-    cs(2)%omega0 = [1.0_wp, -3.0_wp, 45.0_wp]                 ! faster spin
+    cs(2)%omega = [1.0_wp, -3.0_wp, 45.0_wp]                 ! faster spin
     cs(3)%a = 0.8_wp; cs(3)%b = 0.5_wp; cs(3)%c = 0.3_wp       ! another cup
-    cs(3)%x0 = 0.05_wp; cs(3)%y0 = -0.03_wp
+    cs(3)%x = 0.05_wp; cs(3)%y = -0.03_wp
     cs(4)%dt = 2.0e-3_wp; cs(4)%t_end = 2.0_wp                 ! another step and length
     cs(5)%radius = 0.05_wp; cs(5)%mass = 100 / 9.81_wp         ! reaches the rim
-    cs(5)%omega0 = [-29.05_wp, 0.0_wp, 0.0_wp]
+    cs(5)%omega = [-29.05_wp, 0.0_wp, 0.0_wp]
     cs(6)%radius = 0.7_wp; cs(6)%mass = 100 / 9.81_wp          ! stops fitting the cup
-    cs(6)%omega0 = [-1.0_wp, 0.0_wp, 0.0_wp]
+    cs(6)%omega = [-1.0_wp, 0.0_wp, 0.0_wp]
     cs(7)%mu = 0.085_wp                                        ! slips
     cs(8)%inertia_factor = 2.0_wp / 3; cs(8)%g = 3.71_wp       ! hollow ball on Mars
   end function make_cases

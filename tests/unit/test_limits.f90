@@ -17,8 +17,8 @@ program test_limits
   ! --- rim: a small ball flung up the short side of the cup
   cs = paper_case(1.0e-3_wp, 5.0_wp)
   cs%radius = 0.01_wp
-  cs%omega0 = [-40.0_wp, 0.0_wp, 0.0_wp]     ! V_C = R omega x n = (0, 0.4, 0) m/s
-  cs%omega0 = cs%omega0 * 10
+  cs%omega = [-40.0_wp, 0.0_wp, 0.0_wp]     ! V_C = R omega x n = (0, 0.4, 0) m/s
+  cs%omega = cs%omega * 10
   coarse = run_case(cs, 10)
   call check(coarse%status == status_rim, 'rim case ends at the rim: got ' // status_name(coarse%status))
   cs%dt = 2.5e-4_wp
@@ -39,7 +39,7 @@ program test_limits
   ! reached equals that angle, found here from the ellipse alone.
   cs = paper_case(1.0e-3_wp, 5.0_wp)
   cs%radius = 0.7_wp
-  cs%omega0 = [-1.0_wp, 0.0_wp, 0.0_wp]
+  cs%omega = [-1.0_wp, 0.0_wp, 0.0_wp]
   coarse = run_case(cs, 10)
   call check(coarse%status == status_no_fit, 'no-fit case ends with no_fit: got ' // status_name(coarse%status))
   call check_close(coarse%theta_max, no_fit_angle(cs), 1.0e-5_wp, 'no-fit: nutation at the end (rad)')

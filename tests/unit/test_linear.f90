@@ -29,9 +29,9 @@ program test_linear
   periods = oscillation_periods(make_ball(cs), sigma)
   call check(periods(1) > expected(1) .and. periods(2) < expected(2), 'spin splits the modes apart')
   cs = paper_case(0.01_wp, 400.0_wp)
-  cs%x0 = 1.0e-4_wp
-  cs%y0 = 0.5e-4_wp
-  cs%omega0 = [0.0_wp, 0.0_wp, sigma]
+  cs%x = 1.0e-4_wp
+  cs%y = 0.5e-4_wp
+  cs%omega = [0.0_wp, 0.0_wp, sigma]
   res = run_case(cs, 1)
   measured = [two_pi / peak_frequency(res%fields(field_contact)%values(1, :), 0.01_wp, two_pi / periods(1)), &
               two_pi / peak_frequency(res%fields(field_contact)%values(1, :), 0.01_wp, two_pi / periods(2))]

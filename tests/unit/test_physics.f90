@@ -34,7 +34,7 @@ program test_physics
   ! --- spherical cup: omega . n stays constant
   cs = paper_case(1.0e-3_wp, 20.0_wp)
   cs%a = 1; cs%b = 1; cs%c = 1; cs%radius = 0.3_wp
-  cs%x0 = 0.3_wp; cs%y0 = -0.2_wp; cs%omega0 = [1.0_wp, -2.0_wp, 5.0_wp]
+  cs%x = 0.3_wp; cs%y = -0.2_wp; cs%omega = [1.0_wp, -2.0_wp, 5.0_wp]
   res = run_case(cs, 1)
   call check(res%status == status_completed, 'spherical cup run completes')
   spin0 = dot_product(res%fields(field_omega)%values(:, 1), res%fields(field_normal)%values(:, 1))
@@ -48,9 +48,9 @@ program test_physics
   ! --- time reversal: 10 s forward, flip omega, 10 s forward again
   cs = paper_case(2.5e-4_wp, 10.0_wp)
   res = run_case(cs, 40000)
-  cs%x0 = res%fields(field_contact)%values(1, 2)
-  cs%y0 = res%fields(field_contact)%values(2, 2)
-  cs%omega0 = -res%fields(field_omega)%values(:, 2)
+  cs%x = res%fields(field_contact)%values(1, 2)
+  cs%y = res%fields(field_contact)%values(2, 2)
+  cs%omega = -res%fields(field_omega)%values(:, 2)
   back = run_case(cs, 40000)
   call check_below(maxval(abs(back%fields(field_contact)%values(:, 2))), 1.0e-8_wp, &
                    'time reversal: contact point back at the start (m)')
@@ -70,7 +70,7 @@ contains
     real(wp) :: expected, first, last, u0, u1, crossing
     integer :: j, crossings
     osc = paper_case(1.0e-3_wp, 40.0_wp)
-    osc%x0 = start(1); osc%y0 = start(2); osc%omega0 = 0
+    osc%x = start(1); osc%y = start(2); osc%omega = 0
     r = run_case(osc, 1)
     expected = 2 * pi * sqrt(7 * (rho - osc%radius) / (5 * osc%g))
     crossings = 0
