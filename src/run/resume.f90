@@ -56,13 +56,15 @@ contains
       call open_trajectories(partial, header, killed_run, unreadable)
       if (file_exists(resumed) .and. .not. unreadable%failed()) then
         call open_trajectories(resumed, header, copied, unreadable)
-        if (.not. unreadable%failed()) call take_back_copied_cases(journal, places, copied, killed_run)
+        if (.not. unreadable%failed()) call take_back_copied_cases(journal, places, copied, killed_run, err)
         call copied%close(unreadable)
       end if
       call killed_run%close(unreadable)
       ! unreadable: the cases not found in partial run again (copy_journaled_cases)
     end if
-    call remove_file(resumed)
+    ! a take-back the disk had no room for stops here: the cases left in
+    ! `resumed` are taken back by the next resume, with more room
+    if (.not. err%failed()) call remove_file(resumed)
   end subroutine open_for_resume
 
   !> A file's trajectories, open to be moved out of it; the storage of the
@@ -79,13 +81,17 @@ contains
 
   !> The cases that a killed copy had moved to `copied`, back into
   !> `killed_run`: those it moved whole, and the one it was moving, put
-  !> together from its first pieces there and the others left behind.
-  subroutine take_back_copied_cases(journal, places, copied, killed_run)
+  !> together from its first pieces there and the others left behind (or,
+  !> where a take-back was cut short, from its first pieces back here and
+  !> the others still there). err: a move the disk had no room for (the
+  !> cases stay where they are, for the next resume).
+  subroutine take_back_copied_cases(journal, places, copied, killed_run, err)
     type(journal_t), intent(in) :: journal
     integer(i8), intent(in) :: places(0:)
     type(trajectory_store_t), intent(inout) :: copied, killed_run
-    type(error_t) :: err
-    type(case_result_t) :: res, moved
+    type(error_t), intent(inout) :: err
+    type(error_t) :: read_err
+    type(case_result_t) :: res, moved, left, back
     integer(i8) :: slot, in_place, k
     logical :: found
     do slot = 0, size(places, kind=i8) - 1
@@ -93,18 +99,28 @@ contains
       if (places(slot) < 0) cycle
       call journal%record_at(places(slot), res, in_place, found)
       if (.not. found) cycle
-      call killed_run%get(slot, res, err)
-      if (err%failed() .or. journal%fingerprint(res) == in_place) cycle       ! never moved
-      call copied%get(slot, moved, err)
+      ! (a case that cannot be read in either file is left to run again; it
+      ! does not stop the others from being taken back)
+      read_err = error_t()
+      call killed_run%get(slot, res, read_err)
+      if (.not. read_err%failed() .and. journal%fingerprint(res) == in_place) cycle       ! never moved
+      read_err = error_t()
+      call copied%get(slot, moved, read_err)
+      if (read_err%failed()) cycle
+      left = res
+      back = moved
       do k = 1, copied%n_pieces()
-        if (err%failed()) exit
-        call copied%take_piece(res, moved, k)
-        if (journal%fingerprint(res) /= in_place) cycle
-        call killed_run%move_in(slot, res, copied, err)
-        exit
+        call copied%take_piece(res, moved, k)        ! its first k pieces from `copied`
+        call copied%take_piece(back, left, k)        ! its first k pieces from here
+        if (journal%fingerprint(res) == in_place) then
+          call killed_run%move_in(slot, res, copied, err)
+          exit
+        else if (journal%fingerprint(back) == in_place) then
+          call killed_run%move_in(slot, back, copied, err)
+          exit
+        end if
       end do
     end do
-    ! err (a full disk, say): the cases not taken back run again
   end subroutine take_back_copied_cases
 
   !> Copy the journaled cases into `out`, their trajectories moved from
