@@ -116,6 +116,9 @@ def plot_energy(ax, run, case=0):
     return ax
 
 
+MAX_LINES = 12          # lines in a sweep plot, one per value of the other inputs; more: points
+
+
 def plot_sweep(fig, run, x_names, y_names):
     """Summary quantities against one swept input (lines, one per value of
     any other swept input) or two (heat map); cases that ended early marked."""
@@ -133,11 +136,16 @@ def plot_sweep(fig, run, x_names, y_names):
             groups = {(): np.ones(len(x), bool)}
             if others:
                 keys = np.stack([run.input_column(n) for n in others], axis=1)
-                groups = {tuple(k): np.all(keys == k, axis=1) for k in np.unique(keys, axis=0)}
-            for key, mask in groups.items():
-                order = np.argsort(x[mask])
-                label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
-                ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
+                distinct = np.unique(keys, axis=0)
+                if len(distinct) <= MAX_LINES:
+                    groups = {tuple(k): np.all(keys == k, axis=1) for k in distinct}
+            if len(groups) == 1 and others:       # sampled, or too many lines: every case a point
+                ax.plot(x, y, "o", ms=2, alpha=0.5, label=f"{run.n_cases} cases ({', '.join(others)} vary too)")
+            else:
+                for key, mask in groups.items():
+                    order = np.argsort(x[mask])
+                    label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
+                    ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
             if np.any(early):
                 ax.plot(x[early], y[early], "x", color="C3", ms=7, label="ended early (status)")
                 for xi, yi, s in zip(x[early], y[early], status[early]):
@@ -149,9 +157,12 @@ def plot_sweep(fig, run, x_names, y_names):
         else:
             xa, xb = run.input_column(x_names[0]), run.input_column(x_names[1])
             ua, ub = np.unique(xa), np.unique(xb)
-            grid = np.full((len(ub), len(ua)), np.nan)
-            grid[np.searchsorted(ub, xb), np.searchsorted(ua, xa)] = y
-            mesh = ax.pcolormesh(ua, ub, grid, shading="nearest")
+            if len(ua) * len(ub) <= 4 * len(y):       # a grid of the two inputs: a heat map
+                grid = np.full((len(ub), len(ua)), np.nan)
+                grid[np.searchsorted(ub, xb), np.searchsorted(ua, xa)] = y
+                mesh = ax.pcolormesh(ua, ub, grid, shading="nearest")
+            else:                                      # sampled: each case a coloured point
+                mesh = ax.scatter(xa, xb, c=y, s=6)
             fig.colorbar(mesh, ax=ax, label=f"{y_name}, {units}")
             if np.any(early):
                 ax.plot(xa[early], xb[early], "x", color="w", ms=6, label="ended early")

@@ -6,7 +6,9 @@ import json
 import numpy as np
 
 COLUMNS = ["status", "t_final", "theta_max", "nutation_period", "reaction_normal_max", "friction_needed_max",
-           "energy_drift", "error_contact", "n_steps", "wall_time"]
+           "energy_drift", "error_contact", "displacement_max", "displacement_max_time", "residual_displacement",
+           "absolute_acceleration_max", "absolute_acceleration_max_time", "transmissibility", "n_steps",
+           "wall_time"]
 
 
 def summary_rows(run):
@@ -17,9 +19,12 @@ def summary_rows(run):
     present = [c for c in COLUMNS[1:] if c in run.summary_names]
     values = {c: run.summary(c) for c in present}
     index = run.summary("case")
+    records = run.record_names()
     rows = []
     for i in range(run.n_cases):
         row = {"case": int(index[i])}
+        if records[i]:
+            row["record"] = records[i]
         row.update({name: float(columns[name][i]) for name in swept})
         row["status"] = status[i]
         row.update({c: (int(values[c][i]) if np.issubdtype(values[c].dtype, np.integer) else float(values[c][i]))
@@ -30,8 +35,9 @@ def summary_rows(run):
 
 def format_summary(run, fmt="text"):
     rows = summary_rows(run)
-    if fmt == "json":
-        return json.dumps({"file": run.path, "cases": rows}, indent=1, allow_nan=True)
+    if fmt == "json":        # strict JSON: NaN (not applicable, not reached) is null
+        rows = [{k: (None if isinstance(v, float) and v != v else v) for k, v in row.items()} for row in rows]
+        return json.dumps({"file": run.path, "cases": rows}, indent=1, allow_nan=False)
     keys = list(rows[0].keys()) if rows else []
     if fmt == "csv":
         out = io.StringIO()

@@ -13,7 +13,7 @@ module ellroll_records
   type :: named_value_t
     character(len=32) :: name = ''
     character(len=16) :: units = ''
-    character(len=96) :: description = ''
+    character(len=160) :: description = ''
     integer :: kind = kind_real
     integer :: ncomp = 1                !< 1 (scalar), 2 (one value per mode) or 3 (vector)
     real(wp) :: reals(3) = 0

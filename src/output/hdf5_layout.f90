@@ -151,8 +151,8 @@ contains
     type(layout_t), intent(inout) :: self
     integer(hid_t), intent(in) :: dset
     character(len=*), intent(in) :: units, description
-    call self%text_attribute(dset, 'units', units)
-    call self%text_attribute(dset, 'long_name', description)
+    call self%text_attribute(dset, 'units', trim(units))
+    call self%text_attribute(dset, 'long_name', trim(description))
   end subroutine describe
 
   !> Attach scale to the dataset's dimension `dim` as h5py counts them.

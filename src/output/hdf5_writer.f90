@@ -184,6 +184,14 @@ contains
     call lay%check(hdferr, 'create the file')
     if (lay%err%failed()) return
     lay%file = self%file
+    ! CF-1.10 global attributes, then ellroll's own provenance
+    call lay%text_attribute(self%file, 'Conventions', 'CF-1.10')
+    call lay%text_attribute(self%file, 'title', 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
+                            'ellipsoidal cup')
+    call lay%text_attribute(self%file, 'source', prov%program // ' ' // prov%version)
+    call lay%text_attribute(self%file, 'history', prov%created // ' ' // prov%command_line)
+    call lay%text_attribute(self%file, 'references', 'V. P. Legeza (1990), Derivation of the equations of ' // &
+        'motion of a heavy ball in the cavity of a triaxial ellipsoid and their numerical analysis (in Russian)')
     call lay%text_attribute(self%file, 'program', prov%program)
     call lay%text_attribute(self%file, 'version', prov%version)
     call lay%text_attribute(self%file, 'created', prov%created)

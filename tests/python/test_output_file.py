@@ -181,3 +181,19 @@ def test_version_and_help(ellroll):
     assert help_text.returncode == 0 and "ellroll run FILE.nml" in help_text.stdout
     assert "exit codes" in help_text.stdout
     assert run(ellroll, "frobnicate", "x.nml").returncode == 2
+
+
+def test_cf_root_attributes_and_trimmed_attribute_text(paper_file):
+    """CF-1.10 global attributes; every text attribute as written (no blank
+    padding, no long_name cut short)."""
+    with h5py.File(paper_file, "r") as f:
+        assert f.attrs["Conventions"] == "CF-1.10"
+        assert f.attrs["title"].startswith("ellroll: ") and "Legeza (1990)" in f.attrs["references"]
+        assert f.attrs["source"] == f"{f.attrs['program']} {f.attrs['version']}"
+        assert f.attrs["history"] == f"{f.attrs['created']} {f.attrs['command_line']}"
+        padded = []
+        f.visititems(lambda name, obj: padded.extend(
+            f"{name}@{key}" for key, value in obj.attrs.items() if isinstance(value, str) and value != value.strip()))
+        assert padded == []
+        assert f["case/a"].attrs["units"] == "m" and f["case/mu"].attrs["units"] == "1"
+        assert f["summary/transmissibility"].attrs["long_name"].endswith("(NaN: n/a)")

@@ -126,9 +126,13 @@ def test_summary_formats(sweep_file):
     assert text.returncode == 0 and "no_fit" in text.stdout and "omega_z" in text.stdout.splitlines()[0]
     rows = list(csv.DictReader(io.StringIO(plot_cli("summary", sweep_file, "--format", "csv").stdout)))
     assert len(rows) == 6 and rows[2]["radius"] == "0.5" and rows[2]["status"] == "no_fit"
-    data = json.loads(plot_cli("summary", sweep_file, "--format", "json").stdout)
+    text = plot_cli("summary", sweep_file, "--format", "json").stdout
+    data = json.loads(text, parse_constant=lambda token: pytest.fail(f"not strict JSON: {token}"))
     with h5py.File(sweep_file, "r") as f:
         assert [c["theta_max"] for c in data["cases"]] == list(f["summary/theta_max"][:])
+        transmissibility = f["summary/transmissibility"][:]                  # NaN: no harmonic excitation
+    assert np.all(np.isnan(transmissibility)) and all(c["transmissibility"] is None for c in data["cases"])
+    assert {"displacement_max", "residual_displacement", "absolute_acceleration_max"} <= set(rows[0])
 
 
 def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
@@ -252,3 +256,25 @@ def test_files_with_the_former_case_names_still_read(sweep_file, tmp_path):
         assert run_.swept_inputs() == new.swept_inputs() == ["radius", "omega_z"]
         assert np.array_equal(run_.input_column("omega_z"), new.input_column("omega_z"))
         assert run_.case_input("x", 1) == new.case_input("x", 1)
+
+
+def test_sweep_plots_of_a_sampled_campaign_stay_small(ellroll, tmp_path):
+    """Sampled inputs form no grid: the two-input view is a scatter, not a
+    heat map of distinct-value pairs, and the one-input view draws points,
+    not a line per case."""
+    (tmp_path / "s.nml").write_text(BASE.format(t_end=0.01).replace("interval = 0.01", "interval = 0.01, "
+                                                                      "fields = 'none'")
+                                    + "&campaign samples = 400, seed = 3 /\n"
+                                    + "&sample name = 'omega_z', low = 5, high = 50 /\n"
+                                    + "&sample name = 'radius', low = 0.05, high = 0.2 /\n")
+    result = run(ellroll, "run", "s.nml", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with ellroll_post.open(tmp_path / "out.h5") as run_:
+        fig = plt.figure()
+        (ax,) = ellroll_post.plot_sweep(fig, run_, ["omega_z", "radius"], ["theta_max"])
+        assert len(ax.collections) == 1 and ax.collections[0].get_offsets().shape == (400, 2)
+        plt.close(fig)
+        fig = plt.figure()
+        (ax,) = ellroll_post.plot_sweep(fig, run_, ["omega_z"], ["theta_max"])
+        assert len(ax.get_lines()) == 1 and len(ax.get_lines()[0].get_xdata()) == 400
+        plt.close(fig)
