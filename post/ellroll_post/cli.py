@@ -22,7 +22,7 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
         stem = "sweep_" + "_".join(x_names)
     else:
         if name == "reaction":
-            fig, axes = plt.subplots(2, 1, figsize=(8, 6), sharex=True, layout="constrained")
+            fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, layout="constrained")
             plots.plot_reaction(axes, run, case)
         elif name == "suite":
             fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")

@@ -76,24 +76,26 @@ def reaction_parts(run, case=0):
 
 
 def plot_reaction(axes, run, case=0):
-    """Normal force, friction force and the friction coefficient needed
-    against time; the weight m g as a reference (two Axes)."""
+    """Normal force (the weight m g as a reference), friction force and the
+    friction coefficient needed against time, each on its own axis (three
+    Axes: the two forces differ by orders of magnitude); legends beside."""
     t = run.time
     n_force, tangential, mu = reaction_parts(run, case)
     weight = run.case_input("mass", case) * run.case_input("g", case)
     axes[0].plot(t, n_force, lw=0.8, label="normal force N")
-    axes[0].plot(t, tangential, lw=0.8, label="friction force |F_t|")
     axes[0].axhline(weight, color="0.5", ls="--", lw=0.8, label=f"weight m g = {weight:g} N")
-    axes[0].set_ylabel("force, N")
-    axes[0].legend(fontsize="small", loc="upper right")
+    axes[0].set_ylabel("N, N")
     axes[0].set_title(f"Force of the cup on the ball ({_case_label(run, case)})")
-    axes[1].plot(t, mu, lw=0.8, color="C2", label=r"friction coefficient needed $|F_t|/N$")
+    axes[1].plot(t, tangential, lw=0.8, color="C1", label="friction force |F_t|")
+    axes[1].set_ylabel("|F_t|, N")
+    axes[2].plot(t, mu, lw=0.8, color="C2", label=r"friction coefficient needed $|F_t|/N$")
     mu_limit = run.case_input("mu", case)
     if np.isfinite(mu_limit):
-        axes[1].axhline(mu_limit, color="C3", ls="--", lw=0.8, label=f"mu = {mu_limit:g}")
-    axes[1].set_ylabel(r"$|F_t| / N$")
-    axes[1].set_xlabel("t, s")
-    axes[1].legend(fontsize="small", loc="upper right")
+        axes[2].axhline(mu_limit, color="C3", ls="--", lw=0.8, label=f"mu = {mu_limit:g}")
+    axes[2].set_ylabel(r"$|F_t| / N$")
+    axes[2].set_xlabel("t, s")
+    for ax in axes:
+        ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return axes
 
 
@@ -107,12 +109,17 @@ def plot_energy(ax, run, case=0):
     if "contact" in run.fields:
         a, b, c = (run.case_input(n, case) for n in "abc")
         residual = surface_residual(a, b, c, run.trajectory("contact", case))
-        ax.semilogy(t, np.maximum(residual, tiny), lw=0.8,
-                    label=r"constraint error $|(x/a)^2+(y/b)^2+((z-c)/c)^2-1|$")
+        # round-off that changes sign every sample would fill the plot as a
+        # block: its running maximum is the line to read
+        valid = np.isfinite(residual)
+        envelope = np.full_like(residual, np.nan)
+        envelope[valid] = np.maximum.accumulate(np.maximum(residual[valid], tiny))
+        ax.semilogy(t, envelope, lw=0.8,
+                    label=r"constraint error $|(x/a)^2+(y/b)^2+((z-c)/c)^2-1|$, largest so far")
     ax.set_xlabel("t, s")
     ax.set_ylabel("error (zero shown as 1e-18)")
     ax.set_title(f"Energy and constraint errors ({_case_label(run, case)})")
-    ax.legend(fontsize="small")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(0.0, -0.15), frameon=False)
     return ax
 
 

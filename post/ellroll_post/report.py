@@ -8,6 +8,15 @@ from .summary import format_summary, summary_rows
 # figure name -> trajectory fields it needs
 CASE_FIGURES = {"trace": {"contact"}, "nutation": {"nutation"}, "reaction": {"reaction", "normal"},
                 "energy": {"energy"}}
+# file stem (its first part) -> caption
+CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, the cup's rim and the energy bound",
+            "fig3_nutation": "Fig. 3: the nutation angle against time",
+            "reaction": "The force of the cup on the ball: normal force, friction, friction coefficient needed",
+            "energy": "Energy error and constraint error against time",
+            "sweep": "Summary quantities against the varied inputs",
+            "transmissibility": "Transmissibility against the excitation frequency, linear resonances marked",
+            "suite": "Record suite: peak displacement and peak absolute acceleration per scale",
+            "spectrum": "Spectra of the transmitted and the ground acceleration"}
 
 
 def build_report(run, out, draw, case=0, fmt="png"):
@@ -41,12 +50,12 @@ def _index_html(run, figures, case):
     rows = summary_rows(run)
     shown = rows[:200]
     keys = list(rows[0].keys()) if rows else []
-    table = "<tr>" + "".join(f"<th>{html.escape(k)}</th>" for k in keys) + "</tr>\n"
+    table = "<tr>" + "".join(f"<th>{html.escape(_heading(run, k))}</th>" for k in keys) + "</tr>\n"
     for row in shown:
         table += "<tr>" + "".join(f"<td>{html.escape(_cell(row[k]))}</td>" for k in keys) + "</tr>\n"
     more = f"<p>{len(rows) - len(shown)} more cases in summary.csv</p>" if len(rows) > len(shown) else ""
-    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{p.stem}</figcaption></figure>'
-                       for p in figures)
+    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{html.escape(_caption(p.stem))}'
+                       f'</figcaption></figure>' for p in figures)
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>ellroll report: {html.escape(run.path)}</title>
 <style>body{{font-family:sans-serif;margin:2em}} img{{max-width:100%}} figure{{margin:1em 0}}
@@ -66,6 +75,23 @@ Per-case figures show case {case}.</p>
 <pre>{html.escape(str(attrs.get('input_namelist', '')))}</pre>
 </body></html>
 """
+
+
+def _caption(stem):
+    for key, text in CAPTIONS.items():
+        if stem.startswith(key):
+            return f"{text} ({stem})"
+    return stem
+
+
+def _heading(run, key):
+    """A column's name with its unit, from the file."""
+    from .reader import INPUTS
+    for name in (f"summary/{key}", f"case/{INPUTS.get(key, (key, None))[0]}"):
+        if name in run._h5:
+            units = run.units(name)
+            return f"{key}, {units}" if units and units != "1" else key
+    return key
 
 
 def _cell(value):

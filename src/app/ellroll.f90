@@ -29,6 +29,7 @@ program ellroll
   implicit none
 
   character(len=:), allocatable :: command, output_path
+  character(len=:), allocatable :: summary_format       !< ellroll summary --format: text, csv or json
   character(len=1024), allocatable :: paths(:)
   type(run_options_t) :: opts
   type(error_t) :: err
@@ -51,7 +52,7 @@ program ellroll
     case ('merge')
       call merge_shards(trim(paths(1)), paths(2:), provenance(''), err)
     case ('summary')
-      call print_summary(trim(paths(1)), err)
+      call print_summary(trim(paths(1)), summary_format, err)
     case ('methods')
       call print_methods()
     case ('inputs')
@@ -107,6 +108,7 @@ contains
     character(len=:), allocatable :: arg, value
     command = ''
     output_path = ''
+    summary_format = 'text'
     allocate (paths(0))
     n = command_argument_count()
     k = 1
@@ -119,7 +121,7 @@ contains
       case ('-V', '--version', 'version')
         command = 'version'
         return
-      case ('-o', '--output', '--threads', '--shard')
+      case ('-o', '--output', '--threads', '--shard', '--format')
         if (k == n) then
           call usage_error(arg // ' needs a value')
           return
@@ -135,6 +137,12 @@ contains
             call usage_error('--threads needs a positive number, not ' // value)
             return
           end if
+        case ('--format')
+          if (all(value /= [character(len=4) :: 'text', 'csv', 'json'])) then
+            call usage_error("--format needs text, csv or json, not '" // value // "'")
+            return
+          end if
+          summary_format = value
         case ('--shard')
           if (.not. parse_shard(value)) then
             call usage_error('--shard needs I/N with 0 <= I < N, not ' // value)
@@ -218,7 +226,8 @@ contains
       '  ellroll run FILE.nml [-o OUT.h5] [options]   integrate every case, write HDF5', &
       '  ellroll check FILE.nml [-o OUT.h5]           validate, print the cases, write nothing', &
       '  ellroll merge OUT.h5 SHARD.h5...             join the shard files of a campaign', &
-      '  ellroll summary OUT.h5                       print the summary table of a file', &
+      '  ellroll summary OUT.h5 [--format F]          the summary of a file: a table (text), or one row per', &
+      '                                               case as csv or json (NaN as null)', &
       '  ellroll modes FILE.nml                       small-oscillation periods of every case', &
       '  ellroll methods                              the integration methods', &
       '  ellroll inputs                               the inputs a sweep or sample can vary (Markdown)', &
@@ -336,7 +345,7 @@ contains
       call run_campaign(inp, opts, provenance(inp%text), err)
     end if
     if (err%failed() .or. rank /= 0) return
-    call print_summary(inp%plan%file, err)
+    call print_summary(inp%plan%file, 'text', err)
   end subroutine run_command
 
   !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has

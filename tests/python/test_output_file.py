@@ -197,3 +197,21 @@ def test_cf_root_attributes_and_trimmed_attribute_text(paper_file):
         assert padded == []
         assert f["case/a"].attrs["units"] == "m" and f["case/mu"].attrs["units"] == "1"
         assert f["summary/transmissibility"].attrs["long_name"].endswith("(NaN: n/a)")
+
+
+def test_summary_command_formats(ellroll, paper_file):
+    """`ellroll summary --format csv|json`: one row per case, the file's
+    numbers (round-trip exact), strict JSON with NaN as null."""
+    import csv
+    import io
+    import json
+    rows = list(csv.DictReader(io.StringIO(run(ellroll, "summary", paper_file, "--format", "csv").stdout)))
+    text = run(ellroll, "summary", paper_file, "--format", "json").stdout
+    data = json.loads(text, parse_constant=lambda token: pytest.fail(f"not strict JSON: {token}"))
+    with h5py.File(paper_file, "r") as f:
+        for name in ("theta_max", "displacement_max", "absolute_acceleration_max", "t_final"):
+            assert float(rows[0][name]) == f["summary"][name][0] == data["cases"][0][name]
+        assert np.isnan(f["summary/transmissibility"][0]) and data["cases"][0]["transmissibility"] is None
+    assert rows[0]["status"] == data["cases"][0]["status"] == "completed"
+    bad = run(ellroll, "summary", paper_file, "--format", "xml")
+    assert bad.returncode == 2 and "--format needs text, csv or json" in bad.stderr

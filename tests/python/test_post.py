@@ -72,20 +72,25 @@ def test_nutation_reaction_energy_carry_the_file_data(paper_file):
         np.testing.assert_array_equal(line.get_xdata(), f["time"][:])
         np.testing.assert_array_equal(line.get_ydata(), f["trajectory/nutation"][0])
         assert "nutation period" in ax.texts[0].get_text() and "rad" in ax.get_ylabel()
-        fig, axes = plt.subplots(2, 1)
+        fig, axes = plt.subplots(3, 1)
         ellroll_post.plot_reaction(axes, runfile)
         force, normal = f["trajectory/reaction"][0], f["trajectory/normal"][0]
         n_force = np.sum(force * normal, axis=1)
         lines = {line.get_label(): line for line in axes[0].get_lines()}
         np.testing.assert_allclose(lines["normal force N"].get_ydata(), n_force)
         assert lines["weight m g = 2620 N"].get_ydata()[0] == pytest.approx(2620)
-        mu = axes[1].get_lines()[0].get_ydata()
+        friction = np.linalg.norm(force - n_force[:, None] * normal, axis=1)
+        np.testing.assert_allclose(axes[1].get_lines()[0].get_ydata(), friction)    # on its own axis
+        mu = axes[2].get_lines()[0].get_ydata()
         np.testing.assert_allclose(mu.max(), f["summary/friction_needed_max"][0], rtol=1e-3)
         fig, ax = plt.subplots()
         ellroll_post.plot_energy(ax, runfile)
         energy = f["trajectory/energy"][0]
         np.testing.assert_allclose(ax.get_lines()[0].get_ydata(),
                                    np.maximum(np.abs(energy / energy[0] - 1), 1e-18))
+        residual = ellroll_post.geometry.surface_residual(1.0, 0.4, 0.2, f["trajectory/contact"][0])
+        constraint = ax.get_lines()[1].get_ydata()             # the running maximum: a line, not a block
+        assert np.all(np.diff(constraint) >= 0) and constraint[-1] == max(residual.max(), 1e-18)
         assert ax.get_yscale() == "log"
         plt.close("all")
 
@@ -157,6 +162,8 @@ def test_report_folder(paper_file, sweep_file, tmp_path):
         for name in expected:
             assert is_png(out / name) and f'src="{name}"' in index
         assert (out / "summary.csv").exists() and "<table>" in index
+        assert "<th>theta_max, rad</th>" in index and "<th>t_final, s</th>" in index   # units in the table
+        assert "<figcaption>Fig. 2: the contact point's trace" in index.replace("&#x27;", "'")
 
 
 def test_clear_errors(paper_file, sweep_file, tmp_path):
