@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Sets up, runs the paper's case (Legeza 1990) and draws its Fig. 2 and Fig. 3,
 # and a report folder with every figure and the summary table.
-# Output: results/legeza1990.h5, results/fig2_trace.png, results/fig3_nutation.png,
+# Output: results/legeza1990.h5, results/legeza1990_fig2_trace.png, results/legeza1990_fig3_nutation.png,
 #         results/report/index.html
 set -euo pipefail
 cd "$(dirname "$0")/.."

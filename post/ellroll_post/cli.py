@@ -14,12 +14,14 @@ FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "r
 
 
 def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
-    """Draw figure `name` of `run` into folder `out`; return the file written."""
+    """Draw figure `name` of `run` into folder `out`; return the file written,
+    named after the ellroll file and the figure (FILE_fig2_trace.png), so that
+    the figures of several files can share a folder."""
     import matplotlib.pyplot as plt
     if name == "sweep":
         fig = plt.figure(figsize=(7.5, 3.2 * len(y_names) + 0.6), layout="constrained")
         plots.plot_sweep(fig, run, x_names, y_names)
-        stem = "sweep_" + "_".join(x_names)
+        stem = figure_stem(run, "sweep_" + "_".join(x_names))
     else:
         if name == "reaction":
             fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, layout="constrained")
@@ -35,11 +37,15 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
                 plots.plot_transmissibility(ax, run)
             else:
                 getattr(plots, f"plot_{name}")(ax, run, case)
-        stem = FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else "")
+        stem = figure_stem(run, FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
     path = pathlib.Path(out) / f"{stem}.{fmt}"
     fig.savefig(path, dpi=150)
     plt.close(fig)
     return path
+
+
+def figure_stem(run, figure):
+    return f"{pathlib.Path(run.path).stem}_{figure}"
 
 
 def workprecision_points(paths):

@@ -54,8 +54,9 @@ def _index_html(run, figures, case):
     for row in shown:
         table += "<tr>" + "".join(f"<td>{html.escape(_cell(row[k]))}</td>" for k in keys) + "</tr>\n"
     more = f"<p>{len(rows) - len(shown)} more cases in summary.csv</p>" if len(rows) > len(shown) else ""
-    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{html.escape(_caption(p.stem))}'
-                       f'</figcaption></figure>' for p in figures)
+    prefix = pathlib.Path(run.path).stem + "_"
+    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>'
+                       f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>' for p in figures)
     return f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>ellroll report: {html.escape(run.path)}</title>
 <style>body{{font-family:sans-serif;margin:2em}} img{{max-width:100%}} figure{{margin:1em 0}}

@@ -29,7 +29,7 @@ program ellroll
   implicit none
 
   character(len=:), allocatable :: command, output_path
-  character(len=:), allocatable :: summary_format       !< ellroll summary --format: text, csv or json
+  character(len=4) :: summary_format = 'text'           !< ellroll summary --format: text, csv or json
   character(len=1024), allocatable :: paths(:)
   type(run_options_t) :: opts
   type(error_t) :: err
@@ -52,7 +52,7 @@ program ellroll
     case ('merge')
       call merge_shards(trim(paths(1)), paths(2:), provenance(''), err)
     case ('summary')
-      call print_summary(trim(paths(1)), summary_format, err)
+      call print_summary(trim(paths(1)), trim(summary_format), err)
     case ('methods')
       call print_methods()
     case ('inputs')
@@ -108,7 +108,6 @@ contains
     character(len=:), allocatable :: arg, value
     command = ''
     output_path = ''
-    summary_format = 'text'
     allocate (paths(0))
     n = command_argument_count()
     k = 1

@@ -145,6 +145,9 @@ contains
     call h5sclose_f(space, closed)
     call self%check(hdferr, 'create dataset ' // name)
     call describe(self, dset, '1', description)
+    ! netCDF's marker of UTF-8 text in a fixed-width character array: xarray
+    ! gives str (h5py gives bytes; .asstr() decodes them)
+    call self%text_attribute(dset, '_Encoding', 'utf-8')
   end function text_dataset
 
   subroutine describe(self, dset, units, description)

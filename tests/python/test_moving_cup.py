@@ -180,4 +180,4 @@ def test_example_inputs_and_plot(ellroll, tmp_path):
     result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "transmissibility", str(tmp_path / "iso.h5"),
                              "--out", str(tmp_path)], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "transmissibility.png").stat().st_size > 10000
+    assert (tmp_path / "iso_transmissibility.png").stat().st_size > 10000

@@ -107,6 +107,7 @@ def test_xarray_reads_every_group(paper_file):
     assert summary["theta_max"].dims == ("case",)
     inputs = xr.open_dataset(paper_file, engine="h5netcdf", group="case")
     assert inputs["omega"].dims == ("case", "xyz")
+    assert inputs["method"].values[0] == "rk4" and inputs["excitation_kind"].values[0] == "none"   # str
 
 
 def write_input(folder, edits=(), name="case.nml"):

@@ -100,15 +100,15 @@ def test_nutation_reaction_energy_carry_the_file_data(paper_file):
 def test_case_subcommands_write_images(paper_file, tmp_path, figure, stem):
     result = plot_cli(figure, paper_file, "--out", tmp_path)
     assert result.returncode == 0, result.stderr
-    assert is_png(tmp_path / f"{stem}.png")
+    assert is_png(tmp_path / f"legeza1990_{stem}.png")                # named after the file
     result = plot_cli(figure, paper_file, "--out", tmp_path, "--format", "svg")
-    assert result.returncode == 0 and (tmp_path / f"{stem}.svg").read_text().startswith("<?xml")
+    assert result.returncode == 0 and (tmp_path / f"legeza1990_{stem}.svg").read_text().startswith("<?xml")
 
 
 def test_sweep_line_and_heat_map(sweep_file, tmp_path):
     result = plot_cli("sweep", sweep_file, "--x", "omega_z", "--y", "theta_max,nutation_period", "--out", tmp_path)
     assert result.returncode == 0, result.stderr
-    assert is_png(tmp_path / "sweep_omega_z.png")
+    assert is_png(tmp_path / "out_sweep_omega_z.png")
     with ellroll_post.open(sweep_file) as runfile:
         assert runfile.swept_inputs() == ["radius", "omega_z"]
         fig = plt.figure()
@@ -123,7 +123,7 @@ def test_sweep_line_and_heat_map(sweep_file, tmp_path):
         assert len(early.get_xdata()) == 2 and all(r == 0.5 for r in radius[np.array(runfile.status_names()) != "completed"])
         plt.close(fig)
     result = plot_cli("sweep", sweep_file, "--x", "omega_z,radius", "--out", tmp_path)
-    assert result.returncode == 0 and is_png(tmp_path / "sweep_omega_z_radius.png")
+    assert result.returncode == 0 and is_png(tmp_path / "out_sweep_omega_z_radius.png")
 
 
 def test_summary_formats(sweep_file):
@@ -153,8 +153,10 @@ def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
 
 
 def test_report_folder(paper_file, sweep_file, tmp_path):
-    for source, expected in [(paper_file, ["fig2_trace.png", "fig3_nutation.png", "reaction.png", "energy.png"]),
-                             (sweep_file, ["sweep_radius.png", "sweep_omega_z.png", "sweep_radius_omega_z.png", "fig2_trace.png"])]:
+    for source, expected in [(paper_file, ["legeza1990_fig2_trace.png", "legeza1990_fig3_nutation.png",
+                                           "legeza1990_reaction.png", "legeza1990_energy.png"]),
+                             (sweep_file, ["out_sweep_radius.png", "out_sweep_omega_z.png", "out_sweep_radius_omega_z.png",
+                                           "out_fig2_trace.png"])]:
         out = tmp_path / source.stem
         result = plot_cli("report", source, "--out", out)
         assert result.returncode == 0, result.stderr
@@ -227,7 +229,7 @@ def test_suite_statistics_are_numpys_median_and_84th_percentile(suite_file):
 def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
     result = plot_cli("suite", suite_file, "--out", tmp_path)
     assert result.returncode == 0, result.stderr
-    assert is_png(tmp_path / "suite.png")
+    assert is_png(tmp_path / "suite_suite.png")
     fig, axes = plt.subplots(1, 2)
     with ellroll_post.open(suite_file) as run_:
         ellroll_post.plots.plot_suite(axes, run_)
@@ -236,7 +238,7 @@ def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
     assert np.array_equal(line.get_ydata(), [p["median"] for p in sorted(median, key=lambda p: p["inputs"]["scale"])])
     plt.close(fig)
     result = plot_cli("spectrum", suite_file, "--case", "4", "--out", tmp_path)
-    assert result.returncode == 0 and is_png(tmp_path / "spectrum_case4.png"), result.stderr
+    assert result.returncode == 0 and is_png(tmp_path / "suite_spectrum_case4.png"), result.stderr
     with ellroll_post.open(suite_file) as run_:
         frequency, ground, transmitted = ellroll_post.plots.acceleration_spectra(run_, 4)
     assert frequency[1] == pytest.approx(1 / 12.01, rel=1e-9)
