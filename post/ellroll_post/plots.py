@@ -171,9 +171,13 @@ def plot_sweep(fig, run, x_names, y_names):
             else:                                      # sampled: each case a coloured point
                 mesh = ax.scatter(xa, xb, c=y, s=6)
             fig.colorbar(mesh, ax=ax, label=f"{y_name}, {units}")
+            # each way a case ended early, its own marker and name
+            for marker, name in zip("xs^vDP*", sorted(set(status[early]))):
+                ended = status == name
+                ax.plot(xa[ended], xb[ended], marker, mfc="none", mec="w", mew=1.2, ms=6, ls="none",
+                        label=f"ended: {name}")
             if np.any(early):
-                ax.plot(xa[early], xb[early], "x", color="w", ms=6, label="ended early")
-                ax.legend(fontsize="x-small")
+                ax.legend(fontsize="x-small", title="status", title_fontsize="x-small")
             ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
             ax.set_ylabel(f"{x_names[1]}, {run.units(_input_dataset(x_names[1]))}")
         if len(x_names) == 1:

@@ -124,6 +124,13 @@ def test_sweep_line_and_heat_map(sweep_file, tmp_path):
         plt.close(fig)
     result = plot_cli("sweep", sweep_file, "--x", "omega_z,radius", "--out", tmp_path)
     assert result.returncode == 0 and is_png(tmp_path / "out_sweep_omega_z_radius.png")
+    with ellroll_post.open(sweep_file) as runfile:               # the heat map names how cases ended
+        fig = plt.figure()
+        (ax,) = ellroll_post.plot_sweep(fig, runfile, ["omega_z", "radius"], ["theta_max"])
+        marked = {line.get_label(): line for line in ax.get_lines()}
+        assert list(marked) == ["ended: no_fit"] and np.all(marked["ended: no_fit"].get_ydata() == 0.5)
+        assert ax.get_legend().get_title().get_text() == "status"
+        plt.close(fig)
 
 
 def test_summary_formats(sweep_file):
