@@ -18,7 +18,7 @@ program scene_cost
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case
   use ellroll_system, only: tune_runtime
-  use ellroll_excitation, only: excitation_record, excitation_harmonic, set_record
+  use ellroll_excitation, only: excitation_harmonic, set_record
   implicit none
   integer, parameter :: n_scenes = 5, n_record = 3001
   character(len=*), parameter :: names(n_scenes) = [character(len=24) :: 'fixed cup', 'record', &
@@ -46,9 +46,7 @@ program scene_cost
     times(k) = real(k - 1, wp) * 0.01_wp
     values(:, k) = 0.3_wp * [sin(two_pi * 0.7_wp * times(k)), cos(two_pi * 1.1_wp * times(k)), 0.0_wp]
   end do
-  scenes(2)%excitation%kind = excitation_record
   call set_record(scenes(2)%excitation, times, values)
-  scenes(3)%excitation%kind = excitation_record
   times(2:n_record - 1) = times(2:n_record - 1) + 1.0e-4_wp * sin(real([(k, k = 2, n_record - 1)], wp))
   call set_record(scenes(3)%excitation, times, values)
   scenes(4)%excitation%kind = excitation_harmonic

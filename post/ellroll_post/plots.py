@@ -294,10 +294,11 @@ def acceleration_spectra(run, case=0):
     absolute acceleration), from the stored samples: frequency (Hz) and the
     two one-sided amplitude spectra of the horizontal components (Hann window)."""
     t = run.time
-    valid = np.isfinite(run.trajectory("reaction", case)[:, 0])
+    reaction = run.trajectory("reaction", case)
+    valid = np.isfinite(reaction[:, 0])
     dt = t[1] - t[0]
     ground = run.trajectory("base_acceleration", case)[valid, :2]
-    transmitted = run.trajectory("reaction", case)[valid, :2] / run.case_input("mass", case)
+    transmitted = reaction[valid, :2] / run.case_input("mass", case)
     frequency = np.fft.rfftfreq(int(valid.sum()), dt)
 
     window = np.hanning(int(valid.sum()))[:, None]     # leakage of the resonance peak kept low

@@ -5,7 +5,7 @@
 module ellroll_campaign
   use ellroll_kinds, only: wp, i8
   use ellroll_cases, only: case_t, set_param, finalize_case
-  use ellroll_excitation, only: excitation_record
+  use ellroll_excitation, only: excitation_t
   implicit none
   private
 
@@ -30,12 +30,11 @@ module ellroll_campaign
   end type sample_t
 
   !> A ground-motion record of a suite (&record): its name, its factor and
-  !> its samples (the factor applied) on one grid.
+  !> the motion of the cup it gives (its samples, the factor applied).
   type :: suite_record_t
     character(len=32) :: name = ''
     real(wp) :: factor = 1
-    real(wp), allocatable :: times(:), values(:, :)
-    real(wp) :: step = 0                 !< as excitation_t%step
+    type(excitation_t) :: motion
   end type suite_record_t
 
   type :: campaign_t
@@ -118,14 +117,14 @@ contains
     call finalize_case(cs)
   end function case_at
 
-  !> The case shaken by record `rec` of the suite.
+  !> The case shaken by record `rec` of the suite (at the case's own scale).
   pure subroutine use_record(cs, rec)
     type(case_t), intent(inout) :: cs
     type(suite_record_t), intent(in) :: rec
-    cs%excitation%kind = excitation_record
-    cs%excitation%times = rec%times
-    cs%excitation%values = rec%values
-    cs%excitation%step = rec%step
+    cs%excitation%kind = rec%motion%kind
+    cs%excitation%times = rec%motion%times
+    cs%excitation%values = rec%motion%values
+    cs%excitation%step = rec%motion%step
     cs%record_name = rec%name
     cs%record_factor = rec%factor
   end subroutine use_record

@@ -18,9 +18,9 @@ module ellroll_input
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names
   use ellroll_record_file, only: load_ground_motion
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, resolve_path, max_values, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
-  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite
+  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite, record_files
   use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
       p_weight, p_mass, p_dt, p_scale
   implicit none
@@ -444,7 +444,7 @@ contains
     type(namelist_values_t), intent(in) :: v
     logical, intent(in) :: suite            !< &record groups give the records
     type(case_t), intent(inout) :: cs
-    integer :: gi, p, k, n_files
+    integer :: gi, p
     character(len=:), allocatable :: reason
     character(len=1024), allocatable :: paths(:)
     real(wp), allocatable :: times(:), values(:, :)
@@ -481,20 +481,7 @@ contains
             'the &record groups give the records; record_file here is for a single record')
         return
       end if
-      n_files = count(len_trim(v%record_file) > 0)
-      if (n_files == 0) then
-        call rd%fail_missing(gi, 'record_file', "name the ground-acceleration file: a CSV (time, ax, ay[, az]) " // &
-                             "or one PEER .AT2 file per axis, 'x.AT2', 'y.AT2'[, 'z.AT2']")
-        return
-      end if
-      if (any(len_trim(v%record_file(:n_files)) == 0)) then
-        call rd%fail_value(gi, 'record_file', 'an empty name among the files')
-        return
-      end if
-      allocate (paths(n_files))
-      do k = 1, n_files
-        paths(k) = resolve_path(trim(adjustl(v%record_file(k))), rd%file%path)
-      end do
+      if (.not. record_files(rd, gi, v%record_file, paths)) return
       call load_ground_motion(paths, cs%t_end, times, values, reason)
       if (len(reason) > 0) then
         call rd%fail_value(gi, 'record_file', reason)

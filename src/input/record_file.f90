@@ -65,7 +65,7 @@ contains
     real(wp), intent(in) :: t_end
     real(wp), allocatable, intent(out) :: times(:), values(:, :)
     character(len=:), allocatable, intent(out) :: reason
-    integer :: unit, ios, line_number, n, columns, k, width
+    integer :: unit, ios, line_number, n, columns, width
     character(len=4096) :: line
     real(wp) :: row(4)
     logical :: header_allowed
@@ -86,10 +86,7 @@ contains
       if (ios /= 0) exit
       line_number = line_number + 1
       if (index(line, '#') > 0) line = line(:index(line, '#') - 1)
-      do k = 1, len_trim(line)
-        if (line(k:k) == ',' .or. line(k:k) == ';' .or. iachar(line(k:k)) == 9 .or. iachar(line(k:k)) == 13) &
-          line(k:k) = ' '
-      end do
+      line = blanked(line, ',;')
       if (len_trim(line) == 0) cycle
       width = count_words(line)
       if (width < 3 .or. width > 4) then
@@ -193,7 +190,7 @@ contains
       end if
     end do
     line_number = 4
-    call header_counts(blank_controls(line), npts, dt, reason)
+    call header_counts(blanked(line, ''), npts, dt, reason)
     if (len(reason) > 0) then
       reason = path // ':4: ' // reason
       close (unit)
@@ -210,7 +207,7 @@ contains
         exit
       end if
       line_number = line_number + 1
-      call read_values(blank_controls(line), acc, got, reason)
+      call read_values(blanked(line, ''), acc, got, reason)
       if (len(reason) > 0) then
         reason = path // ':' // itoa(line_number) // ': ' // reason
         exit
@@ -220,7 +217,7 @@ contains
       read (unit, '(a)', iostat=ios) line
       if (ios /= 0) exit
       line_number = line_number + 1
-      if (len_trim(blank_controls(line)) > 0) reason = path // ':' // itoa(line_number) // &
+      if (len_trim(blanked(line, '')) > 0) reason = path // ':' // itoa(line_number) // &
           ': values beyond NPTS = ' // itoa(npts) // ' (NPTS disagrees with the values)'
     end do
     close (unit)
@@ -320,16 +317,16 @@ contains
     end do
   end subroutine read_values
 
-  !> Tabs and carriage returns (CRLF line ends) as blanks.
-  pure function blank_controls(line) result(text)
-    character(len=*), intent(in) :: line
+  !> Tabs, carriage returns (CRLF line ends) and the given separators as blanks.
+  pure function blanked(line, separators) result(text)
+    character(len=*), intent(in) :: line, separators
     character(len=len(line)) :: text
     integer :: k
     text = line
     do k = 1, len_trim(text)
-      if (iachar(text(k:k)) == 9 .or. iachar(text(k:k)) == 13) text(k:k) = ' '
+      if (iachar(text(k:k)) == 9 .or. iachar(text(k:k)) == 13 .or. index(separators, text(k:k)) > 0) text(k:k) = ' '
     end do
-  end function blank_controls
+  end function blanked
 
   !> The axes on one grid: the union of their sample times. Each axis is
   !> linear between its samples and, past its last, falls to zero over one

@@ -6,21 +6,20 @@ module ellroll_suite_input
   use ellroll_strings, only: itoa, format_real
   use ellroll_cases, only: case_t
   use ellroll_campaign, only: suite_record_t, use_record
-  use ellroll_excitation, only: excitation_t, set_record
+  use ellroll_excitation, only: set_record
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, resolve_path
   implicit none
   private
 
-  public :: record_spec_t, add_record_group, load_suite
+  public :: record_spec_t, add_record_group, load_suite, record_files
 
   !> A &record group as written (its files resolved against the input's folder).
   type :: record_spec_t
     integer :: group = 0
     character(len=32) :: name = ''
     real(wp) :: factor = 1
-    integer :: n_files = 0
-    character(len=1024) :: files(3) = ''
+    character(len=1024), allocatable :: files(:)
   end type record_spec_t
 
   !> Largest factor of a record (as the scale of &excitation).
@@ -46,16 +45,7 @@ contains
         return
       end if
     end do
-    spec%n_files = count(len_trim(v%record_file) > 0)
-    if (spec%n_files == 0) then
-      call rd%fail_missing(gi, 'record_file', "a CSV (time, ax, ay[, az]) or one PEER .AT2 file per axis, " // &
-                           "'x.AT2', 'y.AT2'[, 'z.AT2']")
-      return
-    end if
-    if (any(len_trim(v%record_file(:spec%n_files)) == 0)) then
-      call rd%fail_value(gi, 'record_file', 'an empty name among the files')
-      return
-    end if
+    if (.not. record_files(rd, gi, v%record_file, spec%files)) return
     if (.not. (ieee_is_finite(v%factor) .and. v%factor >= 0 .and. v%factor <= max_factor)) then
       call rd%fail_value(gi, 'factor', 'must be between 0 and ' // format_real(max_factor))
       return
@@ -63,11 +53,35 @@ contains
     spec%group = gi
     spec%name = v%name
     spec%factor = v%factor
-    do k = 1, spec%n_files
-      spec%files(k) = resolve_path(trim(adjustl(v%record_file(k))), rd%file%path)
-    end do
     specs = [specs, spec]
   end subroutine add_record_group
+
+  !> The files a record_file assignment of group gi names (a CSV, or one
+  !> PEER .AT2 file per axis): given, none blank, resolved against the
+  !> input file's folder.
+  logical function record_files(rd, gi, names, paths) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: names(:)
+    character(len=1024), allocatable, intent(out) :: paths(:)
+    integer :: n, k
+    ok = .false.
+    n = count(len_trim(names) > 0)
+    if (n == 0) then
+      call rd%fail_missing(gi, 'record_file', "name the ground-acceleration file: a CSV (time, ax, ay[, az]) " // &
+                           "or one PEER .AT2 file per axis, 'x.AT2', 'y.AT2'[, 'z.AT2']")
+      return
+    end if
+    if (any(len_trim(names(:n)) == 0)) then
+      call rd%fail_value(gi, 'record_file', 'an empty name among the files')
+      return
+    end if
+    allocate (paths(n))
+    do k = 1, n
+      paths(k) = resolve_path(trim(adjustl(names(k))), rd%file%path)
+    end do
+    ok = .true.
+  end function record_files
 
   !> Every record of the suite read (the factor applied to its values), and
   !> the base case given the first.
@@ -76,23 +90,19 @@ contains
     type(record_spec_t), intent(in) :: specs(:)
     type(case_t), intent(inout) :: base
     type(suite_record_t), allocatable, intent(out) :: records(:)
-    type(excitation_t) :: motion
     real(wp), allocatable :: times(:), values(:, :)
     character(len=:), allocatable :: reason
     integer :: k
     allocate (records(size(specs)))
     do k = 1, size(specs)
-      call load_ground_motion(specs(k)%files(:specs(k)%n_files), base%t_end, times, values, reason)
+      call load_ground_motion(specs(k)%files, base%t_end, times, values, reason)
       if (len(reason) > 0) then
         call rd%fail_value(specs(k)%group, 'record_file', reason)
         return
       end if
-      call set_record(motion, times, specs(k)%factor * values)
+      call set_record(records(k)%motion, times, specs(k)%factor * values)
       records(k)%name = specs(k)%name
       records(k)%factor = specs(k)%factor
-      call move_alloc(motion%times, records(k)%times)
-      call move_alloc(motion%values, records(k)%values)
-      records(k)%step = motion%step
     end do
     if (size(records) > 0) call use_record(base, records(1))
   end subroutine load_suite

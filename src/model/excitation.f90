@@ -25,11 +25,13 @@ module ellroll_excitation
 
 contains
 
-  !> A record's samples; a grid of equal steps is found by its index.
+  !> The cup moved by a record of these samples; a grid of equal steps is
+  !> found by its index.
   pure subroutine set_record(exc, times, values)
     type(excitation_t), intent(inout) :: exc
     real(wp), intent(in) :: times(:), values(:, :)
     integer :: k
+    exc%kind = excitation_record
     exc%times = times
     exc%values = values
     exc%step = times(2)
