@@ -18,8 +18,8 @@ INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radi
           "excitation_amplitude_x": ("excitation_amplitude", 0), "excitation_amplitude_y": ("excitation_amplitude", 1),
           "excitation_amplitude_z": ("excitation_amplitude", 2), "scale": ("scale", None),
           "rolling_resistance": ("rolling_resistance", None)}
-# /case names of files written before the inputs kept their namelist names
-FORMER_NAMES = {"case/x": "case/x0", "case/y": "case/y0", "case/omega": "case/omega0"}
+# the other /case names a file may give these inputs (ellroll 0.1.0 files), read as the same
+ALIASES = {"case/x": "case/x0", "case/y": "case/y0", "case/omega": "case/omega0"}
 
 
 class EllrollFile:
@@ -64,8 +64,8 @@ class EllrollFile:
         return sorted(k for k in self._h5["summary"] if k != "case")
 
     def _dataset(self, name):
-        if name not in self._h5 and FORMER_NAMES.get(name) in self._h5:
-            name = FORMER_NAMES[name]
+        if name not in self._h5 and ALIASES.get(name) in self._h5:
+            name = ALIASES[name]
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
@@ -105,7 +105,7 @@ class EllrollFile:
         swept = []
         for name in INPUTS:
             dataset, _ = INPUTS[name]
-            if f"case/{dataset}" not in self._h5 and FORMER_NAMES.get(f"case/{dataset}") not in self._h5:
+            if f"case/{dataset}" not in self._h5 and ALIASES.get(f"case/{dataset}") not in self._h5:
                 continue
             column = self.input_column(name)
             if np.unique(column[np.isfinite(column)]).size > 1:

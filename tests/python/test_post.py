@@ -259,9 +259,9 @@ def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
     assert result.returncode == 2 and "base_acceleration" in result.stderr
 
 
-def test_files_with_the_former_case_names_still_read(sweep_file, tmp_path):
-    """/case/x0, y0 and omega0 (the names of files written before the inputs
-    kept their namelist names) read as x, y and omega."""
+def test_files_with_the_aliases_x0_y0_omega0_read(sweep_file, tmp_path):
+    """A file whose /case names the start x0, y0 and omega0 reads as one
+    that names it x, y and omega."""
     import shutil
     old = tmp_path / "old.h5"
     shutil.copy(sweep_file, old)
