@@ -1,27 +1,31 @@
 """ellroll-plot: figures, reports and summaries of ellroll HDF5 files."""
 import argparse
 import csv
+import functools
 import pathlib
 import sys
 
 from .reader import NotAnEllrollFile, open as open_run
 from . import plots
-from .report import build_report
+from .report import OutputExists, build_report, refuse_existing
 from .summary import format_summary
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
 
 
-def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
+def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrite=False):
     """Draw figure `name` of `run` into folder `out`; return the file written,
     named after the ellroll file and the figure (FILE_fig2_trace.png), so that
     the figures of several files can share a folder."""
     import matplotlib.pyplot as plt
+    stem = figure_stem(run, "sweep_" + "_".join(x_names) if name == "sweep" else
+                       FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
+    path = pathlib.Path(out) / f"{stem}.{fmt}"
+    refuse_existing(path, overwrite)
     if name == "sweep":
         fig = plt.figure(figsize=(7.5, 3.2 * len(y_names) + 0.6), layout="constrained")
         plots.plot_sweep(fig, run, x_names, y_names)
-        stem = figure_stem(run, "sweep_" + "_".join(x_names))
     else:
         if name == "reaction":
             fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True, layout="constrained")
@@ -37,8 +41,6 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None):
                 plots.plot_transmissibility(ax, run)
             else:
                 getattr(plots, f"plot_{name}")(ax, run, case)
-        stem = figure_stem(run, FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
-    path = pathlib.Path(out) / f"{stem}.{fmt}"
     fig.savefig(path, dpi=150)
     plt.close(fig)
     return path
@@ -76,6 +78,7 @@ def main(argv=None):
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--out", default=".", help="output folder (default: current)")
     common.add_argument("--format", default="png", choices=["png", "pdf", "svg"])
+    common.add_argument("--overwrite", action="store_true", help="replace figures already in the output folder")
     for name, text in [("trace", "Fig. 2: XY trace of the contact point"), ("nutation", "Fig. 3: Theta against t"),
                        ("reaction", "normal force, friction and the friction coefficient needed"),
                        ("energy", "energy and constraint errors"),
@@ -100,7 +103,7 @@ def main(argv=None):
     p.add_argument("--case", type=int, default=0, help="case for the per-case figures (default 0)")
     p = sub.add_parser("summary", help="the summary table")
     p.add_argument("file")
-    p.add_argument("--format", default="text", choices=["text", "csv", "json"])
+    p.add_argument("--format", default="table", choices=["table", "csv", "json"])
     args = parser.parse_args(argv)
     if args.command == "report" and args.out == ".":
         args.out = str(pathlib.Path(args.file).with_suffix("")) + "_report"
@@ -118,22 +121,24 @@ def main(argv=None):
         out.mkdir(parents=True, exist_ok=True)
         if args.command == "workprecision":
             fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
+            written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
+            refuse_existing(written[0], args.overwrite)
             plots.plot_workprecision(axes, workprecision_points(args.files))
-            written = [out / f"workprecision.{args.format}"]
             fig.savefig(written[0], dpi=150)
         else:
             with open_run(args.file) as run:
                 if args.command == "report":
-                    written = build_report(run, out, draw, args.case, args.format) + [out / "index.html"]
+                    written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
+                                           args.format, args.overwrite) + [out / "index.html"]
                 elif args.command == "transmissibility":
                     if "excitation_frequency" not in run.swept_inputs():
                         raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
                                                "(&sweep name = 'excitation_frequency')")
-                    written = [draw("transmissibility", run, out)]
+                    written = [draw("transmissibility", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "suite":
                     if len(set(run.record_names()) - {""}) < 2:
                         raise NotAnEllrollFile(f"{args.file}: not a record suite (give two or more &record groups)")
-                    written = [draw("suite", run, out, 0, args.format)]
+                    written = [draw("suite", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "sweep":
                     x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]
                     if not x_names:
@@ -147,14 +152,14 @@ def main(argv=None):
                         if name not in run.summary_names:
                             raise NotAnEllrollFile(f"{args.file}: no summary quantity {name} "
                                                    f"(known: {', '.join(run.summary_names)})")
-                    written = [draw("sweep", run, out, 0, args.format, x_names, y_names)]
+                    written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     run.check_case(args.case)
                     if args.command == "spectrum" and not {"reaction", "base_acceleration"} <= set(run.fields):
                         raise NotAnEllrollFile(f"{args.file}: the spectrum needs the fields reaction and "
                                                "base_acceleration (a moving cup)")
-                    written = [draw(args.command, run, out, args.case, args.format)]
-    except (NotAnEllrollFile, OSError) as exc:
+                    written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
+    except (NotAnEllrollFile, OutputExists, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
     for path in written:

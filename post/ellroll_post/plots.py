@@ -147,20 +147,18 @@ def plot_sweep(fig, run, x_names, y_names):
                 if len(distinct) <= MAX_LINES:
                     groups = {tuple(k): np.all(keys == k, axis=1) for k in distinct}
             if len(groups) == 1 and others:       # sampled, or too many lines: every case a point
-                ax.plot(x, y, "o", ms=2, alpha=0.5, label=f"{run.n_cases} cases ({', '.join(others)} vary too)")
+                ax.plot(x, y, "o", ms=2, alpha=max(0.05, min(0.5, 1000 / len(x))), mew=0,
+                        label=f"{run.n_cases} cases ({', '.join(others)} vary too)")
+                _quantile_band(ax, x[~early], y[~early])
             else:
                 for key, mask in groups.items():
                     order = np.argsort(x[mask])
                     label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
                     ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
-            if np.any(early):
-                ax.plot(x[early], y[early], "x", color="C3", ms=7, label="ended early (status)")
-                for xi, yi, s in zip(x[early], y[early], status[early]):
-                    ax.annotate(s, (xi, yi), fontsize="x-small", color="C3", xytext=(3, 3),
-                                textcoords="offset points")
+            _mark_early(ax, x, y, status, color="C3")
             ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
             if len(groups) > 1 or np.any(early):
-                ax.legend(fontsize="x-small")
+                _legend_beside(ax)
         else:
             xa, xb = run.input_column(x_names[0]), run.input_column(x_names[1])
             ua, ub = np.unique(xa), np.unique(xb)
@@ -171,20 +169,48 @@ def plot_sweep(fig, run, x_names, y_names):
             else:                                      # sampled: each case a coloured point
                 mesh = ax.scatter(xa, xb, c=y, s=6)
             fig.colorbar(mesh, ax=ax, label=f"{y_name}, {units}")
-            # each way a case ended early, its own marker and name
-            for marker, name in zip("xs^vDP*", sorted(set(status[early]))):
-                ended = status == name
-                ax.plot(xa[ended], xb[ended], marker, mfc="none", mec="w", mew=1.2, ms=6, ls="none",
-                        label=f"ended: {name}")
+            _mark_early(ax, xa, xb, status, color="C3")
             if np.any(early):
-                ax.legend(fontsize="x-small", title="status", title_fontsize="x-small")
+                _legend_beside(ax, title="status")
             ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
             ax.set_ylabel(f"{x_names[1]}, {run.units(_input_dataset(x_names[1]))}")
         if len(x_names) == 1:
             ax.set_ylabel(f"{y_name}, {units}")
         ax.grid(alpha=0.3)
-    axes[0].set_title(f"{', '.join(y_names)} against {' and '.join(x_names)} ({run.n_cases} cases)")
+    axes[0].set_title(f"{', '.join(y_names)} ({run.n_cases} cases)", fontsize="medium")
     return axes
+
+
+def _quantile_band(ax, x, y, bins=30):
+    """Median and 10-90 % band of y in bins of x: the trend a cloud of many
+    sampled cases hides."""
+    finite = np.isfinite(x) & np.isfinite(y)
+    x, y = x[finite], y[finite]
+    if len(x) < 20 * bins:
+        return
+    edges = np.linspace(x.min(), x.max(), bins + 1)
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
+    centres = (edges[:-1] + edges[1:]) / 2
+    q = np.array([np.percentile(y[which == b], [10, 50, 90]) if np.any(which == b) else [np.nan] * 3
+                  for b in range(bins)])
+    ax.fill_between(centres, q[:, 0], q[:, 2], color="k", alpha=0.15, lw=0, label="10-90 % of completed cases")
+    ax.plot(centres, q[:, 1], color="k", lw=1.5, label="median of completed cases")
+
+
+def _mark_early(ax, x, y, status, color):
+    """Each way a case ended early, its own marker and legend entry (names
+    beside every point would bury a campaign's figure)."""
+    for marker, name in zip("xs^vDP*", sorted(set(status[status != "completed"]))):
+        ended = status == name
+        ax.plot(x[ended], y[ended], marker, mfc="none", mec=color, mew=1.2, ms=6, ls="none",
+                label=f"ended: {name}")
+
+
+def _legend_beside(ax, **options):
+    """A legend right of the axes: never over the data, and no search for a
+    free place among 10^5 points."""
+    ax.legend(fontsize="x-small", title_fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              frameon=False, **options)
 
 
 def _input_dataset(name):

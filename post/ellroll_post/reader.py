@@ -57,11 +57,19 @@ class EllrollFile:
 
     @property
     def fields(self):
-        return sorted(k for k in self._h5["trajectory"] if k != "case")
+        return sorted(set(self._h5["trajectory"]) - {"case"} - self._coordinates("trajectory"))
 
     @property
     def summary_names(self):
-        return sorted(k for k in self._h5["summary"] if k != "case")
+        return sorted(set(self._h5["summary"]) - {"case"} - self._coordinates("summary"))
+
+    def _coordinates(self, group):
+        """The varied inputs a group holds as coordinates of its cases (CF's
+        `coordinates` attribute, the same on each of its variables)."""
+        for item in self._h5[group].values():
+            if "coordinates" in item.attrs:
+                return set(item.attrs["coordinates"].split())
+        return set()
 
     def _dataset(self, name):
         if name not in self._h5 and ALIASES.get(name) in self._h5:
@@ -114,6 +122,14 @@ class EllrollFile:
             swept.remove("mass" if np.unique(self.input_column("g")).size == 1 else "weight")
         return swept
 
+    def varied_inputs(self):
+        """The inputs that vary between the cases, as the file names its
+        coordinates (sweeps, samples, then a suite's record); for a file
+        without them, the inputs that differ (swept_inputs) and the record."""
+        if self._coordinates("summary"):
+            return self._h5["summary/status"].attrs["coordinates"].split()
+        return self.swept_inputs() + (["record"] if any(self.record_names()) else [])
+
     def record_names(self):
         """Each case's record of a suite (&record name), or blanks."""
         if "case/record" not in self._h5:
@@ -128,14 +144,19 @@ class EllrollFile:
         return ds[case]
 
     def status_names(self):
-        ds = self._dataset("summary/status")
-        names = ds.attrs["flag_meanings"].split()
-        values = list(ds.attrs["flag_values"])
-        return [names[values.index(int(s))] for s in ds[:]]
+        """Each case's status by name (the flag_meanings of its flag_values)."""
+        return self._status_meanings(self._dataset("summary/status")[:]).tolist()
 
     def status_name(self, case=0):
         self.check_case(case)
-        return self.status_names()[case]
+        return str(self._status_meanings(self._dataset("summary/status")[case:case + 1])[0])
+
+    def _status_meanings(self, codes):
+        attrs = self._dataset("summary/status").attrs
+        values = np.asarray(attrs["flag_values"])
+        order = np.argsort(values)
+        names = np.array(attrs["flag_meanings"].split())[order]
+        return names[np.searchsorted(values[order], codes)]
 
 
 def open(path):  # noqa: A001 - mirrors h5py.File / xarray.open_dataset naming

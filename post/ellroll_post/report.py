@@ -3,7 +3,7 @@ that shows them beside the summary table."""
 import html
 import pathlib
 
-from .summary import format_summary, summary_rows
+from .summary import format_summary, summary_table
 
 # figure name -> trajectory fields it needs
 CASE_FIGURES = {"trace": {"contact"}, "nutation": {"nutation"}, "reaction": {"reaction", "normal"},
@@ -19,10 +19,22 @@ CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, th
             "spectrum": "Spectra of the transmitted and the ground acceleration"}
 
 
-def build_report(run, out, draw, case=0, fmt="png"):
+class OutputExists(Exception):
+    """A figure or page the command would write is already there."""
+
+
+def refuse_existing(path, overwrite):
+    """A figure, table or page already there is replaced only when asked."""
+    if path.exists() and not overwrite:
+        raise OutputExists(f"{path} exists; give --overwrite to replace it")
+
+
+def build_report(run, out, draw, case=0, fmt="png", overwrite=False):
     """Draw what applies into out/, write out/index.html; return the paths."""
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    for page in ("index.html", "summary.csv"):
+        refuse_existing(out / page, overwrite)
     made = []
     swept = run.swept_inputs()
     if swept:
@@ -45,15 +57,14 @@ def build_report(run, out, draw, case=0, fmt="png"):
     return made
 
 
-def _index_html(run, figures, case):
+def _index_html(run, figures, case, shown=200):
     attrs = run.attrs
-    rows = summary_rows(run)
-    shown = rows[:200]
-    keys = list(rows[0].keys()) if rows else []
-    table = "<tr>" + "".join(f"<th>{html.escape(_heading(run, k))}</th>" for k in keys) + "</tr>\n"
-    for row in shown:
-        table += "<tr>" + "".join(f"<td>{html.escape(_cell(row[k]))}</td>" for k in keys) + "</tr>\n"
-    more = f"<p>{len(rows) - len(shown)} more cases in summary.csv</p>" if len(rows) > len(shown) else ""
+    table = summary_table(run)
+    keys = list(table)
+    head = "<tr>" + "".join(f"<th>{html.escape(_heading(k, table[k][0]))}</th>" for k in keys) + "</tr>\n"
+    rows = zip(*(values[:shown] for _, values in table.values()))
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_cell(v))}</td>" for v in row) + "</tr>\n" for row in rows)
+    more = f"<p>{run.n_cases - shown} more cases in summary.csv</p>" if run.n_cases > shown else ""
     prefix = pathlib.Path(run.path).stem + "_"
     images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>'
                        f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>' for p in figures)
@@ -68,7 +79,7 @@ on {html.escape(str(attrs.get('created', '')))} from <code>{html.escape(str(attr
 Per-case figures show case {case}.</p>
 <h2>Summary</h2>
 <table>
-{table}</table>
+{head}{body}</table>
 {more}
 <h2>Figures</h2>
 {images}
@@ -85,14 +96,8 @@ def _caption(stem):
     return stem
 
 
-def _heading(run, key):
-    """A column's name with its unit, from the file."""
-    from .reader import INPUTS
-    for name in (f"summary/{key}", f"case/{INPUTS.get(key, (key, None))[0]}"):
-        if name in run._h5:
-            units = run.units(name)
-            return f"{key}, {units}" if units and units != "1" else key
-    return key
+def _heading(key, units):
+    return f"{key}, {units}" if units and units != "1" else key
 
 
 def _cell(value):

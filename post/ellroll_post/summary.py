@@ -1,53 +1,72 @@
-"""The summary table of an ellroll file as text, CSV or JSON."""
+"""The summary table of an ellroll file as text, CSV or JSON: the columns of
+`ellroll summary --format csv|json`."""
 import csv
 import io
 import json
 
 import numpy as np
 
-COLUMNS = ["status", "t_final", "theta_max", "nutation_period", "reaction_normal_max", "friction_needed_max",
-           "energy_drift", "error_contact", "displacement_max", "displacement_max_time", "residual_displacement",
-           "absolute_acceleration_max", "absolute_acceleration_max_time", "transmissibility", "n_steps",
-           "wall_time"]
+# /summary in the order of the file's layout (src/cases/results.f90)
+COLUMNS = ["t_final", "n_steps", "n_rejected", "n_rhs", "wall_time", "theta_max", "reaction_normal_max",
+           "friction_needed_max", "energy_drift", "constraint_error_max", "nutation_period", "nutation_maxima",
+           "error_contact", "error_theta", "error_energy", "n_rhs_reference", "linear_periods", "displacement_max",
+           "displacement_max_time", "residual_displacement", "horizontal_force_max", "absolute_acceleration_max",
+           "absolute_acceleration_max_time", "transmissibility"]
 
 
-def summary_rows(run):
-    """One dict per case: its index, swept inputs and summary values."""
-    swept = run.swept_inputs()
-    columns = {name: run.input_column(name) for name in swept}
-    status = run.status_names()
-    present = [c for c in COLUMNS[1:] if c in run.summary_names]
-    values = {c: run.summary(c) for c in present}
-    index = run.summary("case")
-    records = run.record_names()
-    rows = []
-    for i in range(run.n_cases):
-        row = {"case": int(index[i])}
-        if records[i]:
-            row["record"] = records[i]
-        row.update({name: float(columns[name][i]) for name in swept})
-        row["status"] = status[i]
-        row.update({c: (int(values[c][i]) if np.issubdtype(values[c].dtype, np.integer) else float(values[c][i]))
-                    for c in present})
-        rows.append(row)
-    return rows
+def summary_table(run):
+    """{column: (units, values)}: the case index, the varied inputs, the
+    status by name, then every figure of /summary (a value per mode: one
+    column per mode, NAME_1, NAME_2)."""
+    table = {"case": ("1", run.summary("case").tolist())}
+    for name in run.varied_inputs():
+        if name == "record":
+            table[name] = ("1", run.record_names())
+        else:
+            table[name] = (run.units(_input_dataset(name)), run.input_column(name).astype(float).tolist())
+    table["status"] = ("1", run.status_names())
+    names = [c for c in COLUMNS if c in run.summary_names]
+    names += sorted(set(run.summary_names) - set(names) - {"status"})
+    for name in names:
+        values, units = run.summary(name), run.units(f"summary/{name}")
+        if values.ndim == 1:
+            table[name] = (units, values.tolist())
+        else:
+            for m in range(values.shape[1]):
+                table[f"{name}_{m + 1}"] = (units, values[:, m].tolist())
+    return table
 
 
-def format_summary(run, fmt="text"):
-    rows = summary_rows(run)
+def summary_rows(run, first=None):
+    """One dict per case (the first `first` cases): summary_table's columns."""
+    columns = {name: values[:first] for name, (_, values) in summary_table(run).items()}
+    return [dict(zip(columns, row)) for row in zip(*columns.values())]
+
+
+def _input_dataset(name):
+    from .reader import INPUTS
+    return "case/" + INPUTS.get(name, (name, None))[0]
+
+
+def format_summary(run, fmt="table"):
+    table = summary_table(run)
+    keys = list(table)
+    columns = [values for _, values in table.values()]
     if fmt == "json":        # strict JSON: NaN (not applicable, not reached) is null
-        rows = [{k: (None if isinstance(v, float) and v != v else v) for k, v in row.items()} for row in rows]
-        return json.dumps({"file": run.path, "cases": rows}, indent=1, allow_nan=False)
-    keys = list(rows[0].keys()) if rows else []
+        rows = [{k: (None if isinstance(v, float) and v != v else v) for k, v in zip(keys, row)}
+                for row in zip(*columns)]
+        return json.dumps({"file": run.path, "units": {k: units for k, (units, _) in table.items()},
+                           "cases": rows}, indent=1, allow_nan=False)
     if fmt == "csv":
         out = io.StringIO()
-        writer = csv.DictWriter(out, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows(rows)
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(keys)
+        writer.writerows(zip(*columns))
         return out.getvalue()
-    widths = {k: max(len(k), *(len(_fmt(r[k])) for r in rows)) for k in keys}
-    lines = ["  ".join(k.rjust(widths[k]) for k in keys)]
-    lines += ["  ".join(_fmt(r[k]).rjust(widths[k]) for k in keys) for r in rows]
+    cells = [[_fmt(v) for v in values] for values in columns]
+    widths = [max(len(k), *(len(c) for c in column)) if column else len(k) for k, column in zip(keys, cells)]
+    lines = ["  ".join(k.rjust(w) for k, w in zip(keys, widths))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in zip(*cells)]
     return "\n".join(lines) + "\n"
 
 

@@ -29,7 +29,8 @@ program ellroll
   implicit none
 
   character(len=:), allocatable :: command, output_path
-  character(len=4) :: summary_format = 'text'           !< ellroll summary --format: text, csv or json
+  character(len=5) :: summary_format = 'table'          !< ellroll summary --format: table, csv or json
+  character(len=8) :: help_topic = ''                   !< ellroll COMMAND --help: that command's help
   character(len=1024), allocatable :: paths(:)
   type(run_options_t) :: opts
   type(error_t) :: err
@@ -42,7 +43,11 @@ program ellroll
   if (.not. err%failed()) then
     select case (command)
     case ('help')
-      call print_help()
+      if (help_topic == '') then
+        call print_help()
+      else
+        call print_command_help(trim(help_topic))
+      end if
     case ('version')
       write (output_unit, '(a)') 'ellroll ' // version_string
     case ('check')
@@ -115,6 +120,7 @@ contains
       arg = argument(k)
       select case (arg)
       case ('-h', '--help', 'help')
+        help_topic = command
         command = 'help'
         return
       case ('-V', '--version', 'version')
@@ -137,8 +143,8 @@ contains
             return
           end if
         case ('--format')
-          if (all(value /= [character(len=4) :: 'text', 'csv', 'json'])) then
-            call usage_error("--format needs text, csv or json, not '" // value // "'")
+          if (all(value /= [character(len=5) :: 'table', 'csv', 'json'])) then
+            call usage_error("--format needs table, csv or json, not '" // value // "'")
             return
           end if
           summary_format = value
@@ -225,12 +231,12 @@ contains
       '  ellroll run FILE.nml [-o OUT.h5] [options]   integrate every case, write HDF5', &
       '  ellroll check FILE.nml [-o OUT.h5]           validate, print the cases, write nothing', &
       '  ellroll merge OUT.h5 SHARD.h5...             join the shard files of a campaign', &
-      '  ellroll summary OUT.h5 [--format F]          the summary of a file: a table (text), or one row per', &
+      '  ellroll summary OUT.h5 [--format F]          the summary of a file: a table, or one row per', &
       '                                               case as csv or json (NaN as null)', &
       '  ellroll modes FILE.nml                       small-oscillation periods of every case', &
       '  ellroll methods                              the integration methods', &
       '  ellroll inputs                               the inputs a sweep or sample can vary (Markdown)', &
-      '  ellroll --version | --help', &
+      '  ellroll --version | --help | COMMAND --help', &
       '', &
       'options:', &
       '  -o, --output OUT.h5   write here instead of &output file', &
@@ -247,6 +253,65 @@ contains
       '            interrupted and kept its finished cases; run it again with --resume', &
       'The namelist reference and the HDF5 layout are in README.md.'
   end subroutine print_help
+
+  !> `ellroll COMMAND --help`: what the command does and the options it takes.
+  subroutine print_command_help(topic)
+    character(len=*), intent(in) :: topic
+    select case (topic)
+    case ('run')
+      write (output_unit, '(a)') &
+        'usage: ellroll run FILE.nml [-o OUT.h5] [--overwrite | --resume] [--threads N] [--shard I/N]', &
+        '                   [-q] [--timings]', &
+        '', &
+        'Integrates every case of FILE.nml (its sweeps, samples and record suites expand into cases) and', &
+        'writes one HDF5 file: /case (the inputs), /trajectory (the stored fields), /summary (status and', &
+        'figures per case). A case that reaches a model limit (rim, lift-off, slip) ends there with its', &
+        'status; the run still exits 0. The file appears under its name only when complete.', &
+        '', &
+        '  -o, --output OUT.h5   write here instead of &output file', &
+        '  --overwrite           replace an existing output file', &
+        '  --resume              finish an interrupted run (same input, same options)', &
+        '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
+        '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file (ellroll merge joins them)', &
+        '  -q, --quiet           no progress lines on stderr', &
+        '  --timings             print where the run''s time went'
+    case ('check')
+      write (output_unit, '(a)') &
+        'usage: ellroll check FILE.nml [-o OUT.h5]', &
+        '', &
+        'Reads and validates FILE.nml, prints the resolved cases and the campaign, writes nothing.', &
+        'Bad input: a message naming the file, line, namelist group, variable and value; exit 2.'
+    case ('merge')
+      write (output_unit, '(a)') &
+        'usage: ellroll merge OUT.h5 SHARD.h5... [--overwrite]', &
+        '', &
+        'Joins the files of ''ellroll run --shard I/N'' (all N shards of one input) into OUT.h5, equal', &
+        'to the file of the same run unsharded.'
+    case ('summary')
+      write (output_unit, '(a)') &
+        'usage: ellroll summary OUT.h5 [--format table|csv|json]', &
+        '', &
+        'table (the default): cases per status, steps, integration time, the slowest case.', &
+        'csv, json: one row per case: case, the varied inputs, status by name and every figure of', &
+        '/summary. The JSON is strict (NaN as null) and gives the units in its "units" object.'
+    case ('modes')
+      write (output_unit, '(a)') &
+        'usage: ellroll modes FILE.nml', &
+        '', &
+        'The small-oscillation periods of every case about the lowest point of its cup (docs/model.md).'
+    case ('methods')
+      write (output_unit, '(a)') &
+        'usage: ellroll methods', &
+        '', &
+        'The integration methods: name, kind (fixed step or adaptive) and order.'
+    case ('inputs')
+      write (output_unit, '(a)') &
+        'usage: ellroll inputs', &
+        '', &
+        'The real inputs (namelist group, variable, unit, range, default) as a Markdown table;', &
+        'each may be varied by &sweep or &sample under the name in its first column.'
+    end select
+  end subroutine print_command_help
 
   subroutine print_methods()
     integer :: k
@@ -344,7 +409,7 @@ contains
       call run_campaign(inp, opts, provenance(inp%text), err)
     end if
     if (err%failed() .or. rank /= 0) return
-    call print_summary(inp%plan%file, 'text', err)
+    call print_summary(inp%plan%file, 'table', err)
   end subroutine run_command
 
   !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has

@@ -9,114 +9,235 @@ module ellroll_report
   use ellroll_strings, only: itoa, format_real
   use ellroll_status, only: status_count, status_name
   use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_records, only: named_value_t, kind_int
+  use ellroll_results, only: case_result_t, summary_record
   implicit none
   private
 
   public :: print_summary
 
-  !> The figures of /summary in a row of `ellroll summary --format csv|json`.
-  character(len=*), parameter :: row_figures(9) = [character(len=30) :: 't_final', 'theta_max', &
-      'nutation_period', 'energy_drift', 'displacement_max', 'residual_displacement', &
-      'absolute_acceleration_max', 'transmissibility', 'wall_time']
+  !> A column of `ellroll summary --format csv|json`: one of its kinds of
+  !> values is allocated, one value per case.
+  type :: column_t
+    character(len=40) :: name = ''
+    character(len=:), allocatable :: units
+    real(wp), allocatable :: reals(:)
+    integer(i8), allocatable :: ints(:)
+    character(len=32), allocatable :: texts(:)
+  end type column_t
 
 contains
 
-  !> The summary of a file: the table (format 'text'), or one row per case
-  !> of its status and figures ('csv', or 'json' with NaN as null).
+  !> The summary of a file: the table (format 'table'), or one row per case
+  !> ('csv', or strict 'json' with NaN as null and units in a header): the
+  !> case index, the varied inputs, the status by name and every figure of
+  !> /summary.
   subroutine print_summary(path, format, err)
     character(len=*), intent(in) :: path, format
     type(error_t), intent(inout) :: err
     type(h5_input_t) :: file
+    type(column_t), allocatable :: columns(:)
     integer(i8), allocatable :: status(:), steps(:), index(:)
-    real(wp), allocatable :: wall(:), theta_max(:), figures(:, :)
-    integer :: k
+    real(wp), allocatable :: wall(:), theta_max(:)
     call file%open(path, err)
     if (err%failed()) return
-    status = file%int_column('summary/status', err)
-    steps = file%int_column('summary/n_steps', err)
-    index = file%int_column('summary/case', err)
-    wall = file%real_column('summary/wall_time', err)
-    theta_max = file%real_column('summary/theta_max', err)
-    if (format /= 'text' .and. .not. err%failed()) then
-      allocate (figures(size(status), size(row_figures)))
-      do k = 1, size(row_figures)
-        figures(:, k) = file%real_column('summary/' // trim(row_figures(k)), err)
-      end do
+    if (format == 'table') then
+      status = file%int_column('summary/status', err)
+      steps = file%int_column('summary/n_steps', err)
+      index = file%int_column('summary/case', err)
+      wall = file%real_column('summary/wall_time', err)
+      theta_max = file%real_column('summary/theta_max', err)
+    else
+      columns = summary_columns(file, err)
     end if
     call file%close()
     if (err%failed()) return
     select case (format)
     case ('csv')
-      call print_csv(index, status, steps, figures)
+      call print_csv(columns)
     case ('json')
-      call print_json(path, index, status, steps, figures)
+      call print_json(path, columns)
     case default
       call print_table(path, status, steps, index, wall, theta_max)
     end select
   end subroutine print_summary
 
-  !> One row per case: index, status, these figures of /summary, n_steps.
-  subroutine print_csv(index, status, steps, figures)
-    integer(i8), intent(in) :: index(:), status(:), steps(:)
-    real(wp), intent(in) :: figures(:, :)
+  !> The columns of a row: case, the coordinates of /summary (the varied
+  !> inputs, as named by its `coordinates` attribute), status, then every
+  !> dataset of /summary in the order of the file's layout (a value per mode:
+  !> one column per mode, NAME_1, NAME_2).
+  function summary_columns(file, err) result(columns)
+    type(h5_input_t), intent(in) :: file
+    type(error_t), intent(inout) :: err
+    type(column_t), allocatable :: columns(:)
+    type(named_value_t), allocatable :: figures(:)
+    character(len=:), allocatable :: coordinates
+    integer(i8), allocatable :: status(:)
+    character(len=12), allocatable :: status_names(:)
+    real(wp), allocatable :: rows(:, :)
+    integer :: k, m, first, last
+    allocate (columns(0))
+    call append(columns, 'case', units_of(file, 'case'), ints=file%int_column('summary/case', err))
+    coordinates = file%text_attribute('coordinates', 'summary/status')
+    first = 1
+    do while (first <= len(coordinates))
+      last = index(coordinates(first:) // ' ', ' ') + first - 2
+      associate (name => coordinates(first:last))
+        if (name == 'record') then
+          call append(columns, name, '1', texts=file%text_column('summary/' // name, err))
+        else
+          call append(columns, name, units_of(file, name), reals=file%real_column('summary/' // name, err))
+        end if
+      end associate
+      first = last + 2
+    end do
+    allocate (status, source=file%int_column('summary/status', err))
+    allocate (status_names(size(status)))
+    do k = 1, size(status)
+      status_names(k) = status_name(int(status(k)))
+    end do
+    call append(columns, 'status', '1', texts=status_names)
+    figures = summary_record(case_result_t())
+    do k = 1, size(figures)
+      associate (f => figures(k), name => 'summary/' // trim(figures(k)%name))
+        if (f%kind == kind_int) then
+          call append(columns, f%name, trim(f%units), ints=file%int_column(name, err))
+        else if (f%ncomp == 1) then
+          call append(columns, f%name, trim(f%units), reals=file%real_column(name, err))
+        else
+          allocate (rows, source=file%real_rows(name, f%ncomp, err))
+          do m = 1, f%ncomp
+            call append(columns, trim(f%name) // '_' // itoa(m), trim(f%units), reals=rows(m, :))
+          end do
+          deallocate (rows)
+        end if
+      end associate
+    end do
+  end function summary_columns
+
+  subroutine append(columns, name, units, reals, ints, texts)
+    type(column_t), allocatable, intent(inout) :: columns(:)
+    character(len=*), intent(in) :: name, units
+    real(wp), intent(in), optional :: reals(:)
+    integer(i8), intent(in), optional :: ints(:)
+    character(len=*), intent(in), optional :: texts(:)
+    type(column_t), allocatable :: longer(:)
+    integer :: n
+    n = size(columns)
+    allocate (longer(n + 1))
+    longer(:n) = columns
+    longer(n + 1)%name = name
+    longer(n + 1)%units = units
+    if (present(reals)) allocate (longer(n + 1)%reals, source=reals)
+    if (present(ints)) allocate (longer(n + 1)%ints, source=ints)
+    if (present(texts)) then
+      allocate (longer(n + 1)%texts(size(texts)))
+      longer(n + 1)%texts = texts
+    end if
+    call move_alloc(longer, columns)
+  end subroutine append
+
+  function units_of(file, name) result(units)
+    type(h5_input_t), intent(in) :: file
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable :: units
+    units = file%text_attribute('units', 'summary/' // name)
+  end function units_of
+
+  !> One row per case, a header of the column names.
+  subroutine print_csv(columns)
+    type(column_t), intent(in) :: columns(:)
     character(len=:), allocatable :: line
     integer :: i, k
-    line = 'case,status'
-    do k = 1, size(row_figures)
-      line = line // ',' // trim(row_figures(k))
+    line = trim(columns(1)%name)
+    do k = 2, size(columns)
+      line = line // ',' // trim(columns(k)%name)
     end do
-    write (output_unit, '(a)') line // ',n_steps'
-    do i = 1, size(index)
-      line = itoa(index(i)) // ',' // status_name(int(status(i)))
-      do k = 1, size(row_figures)
-        line = line // ',' // format_real(figures(i, k))
+    write (output_unit, '(a)') line
+    do i = 1, size(columns(1)%ints)
+      line = cell(columns(1), i, json=.false.)
+      do k = 2, size(columns)
+        line = line // ',' // cell(columns(k), i, json=.false.)
       end do
-      write (output_unit, '(a)') line // ',' // itoa(steps(i))
+      write (output_unit, '(a)') line
     end do
   end subroutine print_csv
 
-  !> The same as strict JSON: {"file": ..., "cases": [{...}, ...]}, NaN as null.
-  subroutine print_json(path, index, status, steps, figures)
+  !> The same as strict JSON, NaN as null:
+  !> {"file": ..., "units": {column: units, ...}, "cases": [{...}, ...]}.
+  subroutine print_json(path, columns)
     character(len=*), intent(in) :: path
-    integer(i8), intent(in) :: index(:), status(:), steps(:)
-    real(wp), intent(in) :: figures(:, :)
+    type(column_t), intent(in) :: columns(:)
     character(len=:), allocatable :: line
     integer :: i, k
-    write (output_unit, '(a)') '{"file": "' // json_text(path) // '", "cases": ['
-    do i = 1, size(index)
-      line = ' {"case": ' // itoa(index(i)) // ', "status": "' // status_name(int(status(i))) // '"'
-      do k = 1, size(row_figures)
-        line = line // ', "' // trim(row_figures(k)) // '": ' // json_number(figures(i, k))
+    line = '{"file": "' // json_text(path) // '", "units": {'
+    do k = 1, size(columns)
+      if (k > 1) line = line // ', '
+      line = line // '"' // trim(columns(k)%name) // '": "' // json_text(columns(k)%units) // '"'
+    end do
+    write (output_unit, '(a)') line // '}, "cases": ['
+    do i = 1, size(columns(1)%ints)
+      line = ' {'
+      do k = 1, size(columns)
+        if (k > 1) line = line // ', '
+        line = line // '"' // trim(columns(k)%name) // '": ' // cell(columns(k), i, json=.true.)
       end do
-      line = line // ', "n_steps": ' // itoa(steps(i)) // '}'
-      if (i < size(index)) line = line // ','
+      line = line // '}'
+      if (i < size(columns(1)%ints)) line = line // ','
       write (output_unit, '(a)') line
     end do
     write (output_unit, '(a)') ']}'
   end subroutine print_json
 
-  !> A finite number as JSON reads it (format_real's 1e-06 is valid JSON), else null.
-  function json_number(x) result(text)
-    real(wp), intent(in) :: x
+  !> A column's value for case i: a number (JSON: null when not finite), or
+  !> text (JSON: a string; CSV: quoted when it holds a comma or a quote).
+  function cell(column, i, json) result(text)
+    type(column_t), intent(in) :: column
+    integer, intent(in) :: i
+    logical, intent(in) :: json
     character(len=:), allocatable :: text
-    if (ieee_is_finite(x)) then
-      text = format_real(x)
+    if (allocated(column%ints)) then
+      text = itoa(column%ints(i))
+    else if (allocated(column%reals)) then
+      if (json .and. .not. ieee_is_finite(column%reals(i))) then
+        text = 'null'
+      else
+        text = format_real(column%reals(i))
+      end if
+    else if (json) then
+      text = '"' // json_text(trim(column%texts(i))) // '"'
+    else if (scan(column%texts(i), ',"') > 0) then
+      text = '"' // quoted_csv(trim(column%texts(i))) // '"'
     else
-      text = 'null'
+      text = trim(column%texts(i))
     end if
-  end function json_number
+  end function cell
 
-  !> Text inside a JSON string: backslashes and quotes escaped.
+  !> Text inside a CSV field in quotes (each quote doubled), or inside a
+  !> JSON string (backslashes and quotes escaped).
+  function quoted_csv(raw) result(text)
+    character(len=*), intent(in) :: raw
+    character(len=:), allocatable :: text
+    text = marked(raw, '"', '"')
+  end function quoted_csv
+
   function json_text(raw) result(text)
     character(len=*), intent(in) :: raw
+    character(len=:), allocatable :: text
+    text = marked(raw, '\"', '\')
+  end function json_text
+
+  !> raw with `mark` before each of its characters found in `special`.
+  function marked(raw, special, mark) result(text)
+    character(len=*), intent(in) :: raw, special, mark
     character(len=:), allocatable :: text
     integer :: k
     text = ''
     do k = 1, len(raw)
-      if (raw(k:k) == '\' .or. raw(k:k) == '"') text = text // '\'
+      if (index(special, raw(k:k)) > 0) text = text // mark
       text = text // raw(k:k)
     end do
-  end function json_text
+  end function marked
 
   subroutine print_table(path, status, steps, index, wall, theta_max)
     character(len=*), intent(in) :: path

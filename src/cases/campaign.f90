@@ -4,12 +4,13 @@
 !> without the others, identically on every machine and thread count.
 module ellroll_campaign
   use ellroll_kinds, only: wp, i8
-  use ellroll_cases, only: case_t, set_param, finalize_case
+  use ellroll_cases, only: case_t, set_param, get_param, finalize_case
+  use ellroll_params, only: params
   use ellroll_excitation, only: excitation_t
   implicit none
   private
 
-  public :: campaign_t, sweep_t, sample_t, suite_record_t, use_record, uniform_hash
+  public :: campaign_t, sweep_t, sample_t, suite_record_t, coordinate_t, use_record, uniform_hash
   public :: combine_grid, combine_zip, invalid_stop, invalid_skip
 
   integer, parameter :: combine_grid = 1, combine_zip = 2
@@ -37,6 +38,17 @@ module ellroll_campaign
     type(excitation_t) :: motion
   end type suite_record_t
 
+  !> An input that varies between the cases of a campaign (a swept or
+  !> sampled one, or a suite's record), with its value in each of some cases:
+  !> a coordinate of the case dimension in the output file.
+  type :: coordinate_t
+    character(len=32) :: name = ''
+    character(len=5) :: unit = ''
+    character(len=64) :: description = ''
+    real(wp), allocatable :: values(:)            !< a real input's
+    character(len=32), allocatable :: texts(:)    !< the record's name
+  end type coordinate_t
+
   type :: campaign_t
     type(case_t) :: base
     type(suite_record_t), allocatable :: records(:)   !< a suite: one more dimension, the slowest
@@ -49,6 +61,7 @@ module ellroll_campaign
   contains
     procedure :: n_cases
     procedure :: case_at
+    procedure :: coordinates
   end type campaign_t
 
 contains
@@ -116,6 +129,35 @@ contains
     end do
     call finalize_case(cs)
   end function case_at
+
+  !> The inputs that vary between the cases, in the order of the input
+  !> (sweeps, samples, then the record of a suite), at the cases `indices`.
+  function coordinates(self, indices) result(coords)
+    class(campaign_t), intent(in) :: self
+    integer(i8), intent(in) :: indices(:)
+    type(coordinate_t), allocatable :: coords(:)
+    type(case_t) :: cs
+    integer, allocatable :: varied(:)
+    integer :: k, n_real
+    integer(i8) :: slot
+    allocate (varied, source=[self%sweeps%param, self%samples%param])
+    n_real = size(varied)
+    allocate (coords(n_real + merge(1, 0, n_records(self) > 0)))
+    do k = 1, n_real
+      associate (p => params(varied(k)))
+        coords(k) = coordinate_t(p%name, p%unit, p%description, values=[(0.0_wp, slot = 1, size(indices))])
+      end associate
+    end do
+    if (size(coords) > n_real) coords(n_real + 1) = coordinate_t('record', '', &
+        'record of a suite (&record name)', texts=[(repeat(' ', 32), slot = 1, size(indices))])
+    do slot = 1, size(indices, kind=i8)
+      cs = self%case_at(indices(slot))
+      do k = 1, n_real
+        coords(k)%values(slot) = get_param(cs, varied(k))
+      end do
+      if (size(coords) > n_real) coords(n_real + 1)%texts(slot) = cs%record_name
+    end do
+  end function coordinates
 
   !> The case shaken by record `rec` of the suite (at the case's own scale).
   pure subroutine use_record(cs, rec)

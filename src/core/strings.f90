@@ -70,6 +70,7 @@ contains
     character(len=:), allocatable :: text
     character(len=40) :: buf
     real(wp) :: back
+    character(len=:), allocatable :: mantissa
     integer :: digits, exponent10, ios
     if (.not. ieee_is_finite(x)) then
       write (buf, '(es12.3)') x
@@ -80,11 +81,15 @@ contains
       text = '0'
       return
     end if
-    do digits = 1, 17
+    ! 15 significant digits that read back as x are the shortest such text
+    ! padded with zeros (x is within half an ulp of it); else 16 or 17
+    do digits = 15, 17
       write (buf, '(es40.' // itoa(digits - 1) // 'e3)') x
-      read (buf, *, iostat=ios) back
+      read (buf, '(es40.0)', iostat=ios) back
       if (ios == 0 .and. equals(back, x)) exit
     end do
+    mantissa = strip_mantissa(trim(adjustl(buf(:index(buf, 'E') - 1))))
+    digits = len(mantissa) - merge(1, 0, index(mantissa, '.') > 0) - merge(1, 0, mantissa(1:1) == '-')
     exponent10 = floor(log10(abs(x)))
     if (exponent10 >= -4 .and. exponent10 < 10) then
       write (buf, '(f40.' // itoa(max(0, digits - 1 - exponent10)) // ')') x
@@ -93,8 +98,7 @@ contains
       if (index(text, '.') == 1) text = '0' // text
       if (index(text, '-.') == 1) text = '-0' // text(2:)
     else
-      text = trim(adjustl(buf))
-      text = strip_mantissa(text(:index(text, 'E')-1)) // 'e' // exponent_text(exponent10)
+      text = mantissa // 'e' // exponent_text(exponent10)
     end if
   contains
     pure function strip_mantissa(m) result(out)

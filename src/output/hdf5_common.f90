@@ -9,7 +9,7 @@ module ellroll_hdf5_common
   private
 
   public :: select_slab, dim_index, new_text_type, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
-      write_int_slab
+      write_int_slab, text_width
 
   !> Width of per-case text datasets (bytes, null-terminated).
   integer, parameter :: text_width = 32

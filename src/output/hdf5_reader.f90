@@ -2,7 +2,7 @@
 !> reader that gives back columns, cases and attributes. Every HDF5 call
 !> that reads lives here.
 module ellroll_hdf5_reader
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_size_t, c_associated, c_f_pointer, c_int, c_int64_t
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_size_t, c_associated, c_f_pointer, c_int, c_int64_t
   use hdf5
   use h5lt
   use h5ds
@@ -11,7 +11,7 @@ module ellroll_hdf5_reader
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_hdf5_common, only: select_slab, new_text_type
+  use ellroll_hdf5_common, only: select_slab, new_text_type, fixed_text_type, text_width
   implicit none
   private
 
@@ -40,6 +40,8 @@ module ellroll_hdf5_reader
     procedure :: text_attribute
     procedure :: real_column
     procedure :: int_column
+    procedure :: text_column
+    procedure :: real_rows
     procedure :: read_case_result
     procedure :: read_slab
   end type h5_input_t
@@ -106,11 +108,14 @@ contains
     call h5dclose_f(dset, hdferr)
   end function dataset_length
 
-  !> A root attribute written as a variable-length string ('' when absent).
-  function text_attribute(self, name) result(text)
+  !> An attribute written as a variable-length string, of the root or of
+  !> the dataset `object` ('' when absent).
+  function text_attribute(self, name, object) result(text)
     class(h5_input_t), intent(in) :: self
     character(len=*), intent(in) :: name
+    character(len=*), intent(in), optional :: object
     character(len=:), allocatable :: text
+    character(len=:), allocatable :: owner
     integer(hid_t) :: attr, text_type
     type(c_ptr), target :: pointer(1)
     type(c_ptr) :: address
@@ -118,9 +123,12 @@ contains
     integer :: hdferr, n, k
     logical :: exists
     text = ''
-    call h5aexists_f(self%file, name, exists, hdferr)
+    owner = '.'
+    if (present(object)) owner = object
+    if (.not. self%has(owner) .and. owner /= '.') return
+    call h5aexists_by_name_f(self%file, owner, name, exists, hdferr)
     if (hdferr < 0 .or. .not. exists) return
-    call h5aopen_f(self%file, name, attr, hdferr)
+    call h5aopen_by_name_f(self%file, owner, name, attr, hdferr)
     text_type = new_text_type()
     address = c_loc(pointer)
     call h5aread_f(attr, text_type, address, hdferr)
@@ -146,6 +154,37 @@ contains
     allocate (values(self%dataset_length(name)))
     call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8], [size(values, kind=i8)], err)
   end function real_column
+
+  !> A whole dataset of `ncomp` values per case, as (ncomp, case).
+  function real_rows(self, name, ncomp, err) result(values)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: ncomp
+    type(error_t), intent(inout) :: err
+    real(wp), allocatable, target :: values(:, :)
+    allocate (values(ncomp, self%dataset_length(name)))
+    call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8, 0_i8], &
+                        [int(ncomp, i8), size(values, 2, kind=i8)], err)
+  end function real_rows
+
+  !> A whole 1-D dataset of per-case text (fixed width), trailing blanks as read.
+  function text_column(self, name, err) result(values)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    type(error_t), intent(inout) :: err
+    character(len=text_width), allocatable, target :: values(:)
+    integer(hid_t) :: text_type
+    integer :: hdferr, k, end
+    allocate (values(self%dataset_length(name)))
+    values = ''
+    text_type = fixed_text_type()
+    call self%read_slab(name, text_type, c_loc(values), [0_i8], [size(values, kind=i8)], err)
+    call h5tclose_f(text_type, hdferr)
+    do k = 1, size(values)            ! written null-terminated
+      end = index(values(k), c_null_char)
+      if (end > 0) values(k)(end:) = ''
+    end do
+  end function text_column
 
   function int_column(self, name, err) result(values)
     class(h5_input_t), intent(in) :: self

@@ -17,6 +17,7 @@ module ellroll_hdf5_writer
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, &
       field_descriptions
   use ellroll_results, only: case_result_t, summary_record
+  use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: rename_file
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
   use ellroll_hdf5_common, only: select_slab, write_text_slab, write_real_slab, write_int_slab
@@ -117,7 +118,7 @@ contains
 
   !> Create the file (truncating any file of that name) and every dataset,
   !> filled with NaN / status 'pending' until cases are written.
-  subroutine create(self, path, indices, times, fields, template, prov, err, compression)
+  subroutine create(self, path, indices, times, fields, template, prov, coords, err, compression)
     class(h5_output_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer(i8), intent(in) :: indices(:)      !< global index of each case slot
@@ -125,6 +126,7 @@ contains
     logical, intent(in) :: fields(field_count)
     type(case_t), intent(in) :: template         !< gives the /case/ layout
     type(provenance_t), intent(in) :: prov
+    type(coordinate_t), intent(in) :: coords(:)    !< the varied inputs, in /summary and /trajectory
     type(error_t), intent(inout) :: err
     integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
     type(layout_t) :: lay
@@ -144,9 +146,9 @@ contains
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
     call open_new_file(self, lay, any(in_place_fields), prov)
     call shared_scales(lay, times)
-    call case_group(lay, 'case', indices, case_record(template))
-    call trajectory_group(self, lay, indices, address)
-    call case_group(lay, 'summary', indices, summary_record(case_result_t()), with_status=.true.)
+    call case_group(lay, 'case', indices, case_record(template), coords(:0))
+    call trajectory_group(self, lay, indices, coords, address)
+    call case_group(lay, 'summary', indices, summary_record(case_result_t()), coords)
     self%row_groups = [spread('case    ', 1, size(case_record(template))), &
                        spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
     call h5dclose_f(lay%time_scale, hdferr)
@@ -221,22 +223,22 @@ contains
   end subroutine shared_scales
 
   !> A group of one value per case: a dataset per entry of `rec` (/case:
-  !> the resolved inputs; /summary: the case's figures, after its status).
-  subroutine case_group(lay, name, indices, rec, with_status)
+  !> the resolved inputs; /summary: the case's status and figures), with
+  !> the varied inputs `coords` as their coordinates.
+  subroutine case_group(lay, name, indices, rec, coords)
     type(layout_t), intent(inout) :: lay
     character(len=*), intent(in) :: name
     integer(i8), intent(in) :: indices(:)
     type(named_value_t), intent(in) :: rec(:)
-    logical, intent(in), optional :: with_status
+    type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: group, scale, dset
     integer(i8) :: n_cases
     integer :: k, hdferr
     n_cases = size(indices, kind=i8)
     group = lay%new_group(name)
     scale = case_scale(lay, group, indices)
-    if (present(with_status)) then
-      if (with_status) call create_status(lay, group, scale, n_cases)
-    end if
+    call coordinate_datasets(lay, group, scale, coords)
+    if (name == 'summary') call create_status(lay, group, scale, n_cases, coords)
     do k = 1, size(rec)
       if (lay%err%failed()) exit
       select case (rec(k)%kind)
@@ -257,6 +259,7 @@ contains
         dset = lay%text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
         call lay%attach(dset, scale, 0)
       end select
+      call name_coordinates(lay, dset, coords)
       call h5dclose_f(dset, hdferr)
     end do
     call h5dclose_f(scale, hdferr)
@@ -273,10 +276,11 @@ contains
     call lay%make_scale(id, 'case')
   end function case_scale
 
-  subroutine create_status(lay, group, scale, n_cases)
+  subroutine create_status(lay, group, scale, n_cases, coords)
     type(layout_t), intent(inout) :: lay
     integer(hid_t), intent(in) :: group, scale
     integer(i8), intent(in) :: n_cases
+    type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: dset
     integer :: s, hdferr
     character(len=:), allocatable :: meanings
@@ -292,17 +296,59 @@ contains
                                  int(status_count, size_t), hdferr)
     call lay%text_attribute(dset, 'flag_meanings', meanings)
     call lay%attach(dset, scale, 0)
+    call name_coordinates(lay, dset, coords)
     call h5dclose_f(dset, hdferr)
   end subroutine create_status
+
+  !> The varied inputs as datasets of the group, on its case dimension
+  !> (CF auxiliary coordinates: xarray gives them as coordinates of `case`).
+  subroutine coordinate_datasets(lay, group, scale, coords)
+    type(layout_t), intent(inout) :: lay
+    integer(hid_t), intent(in) :: group, scale
+    type(coordinate_t), intent(in) :: coords(:)
+    integer(hid_t) :: dset
+    integer(i8) :: n
+    integer :: k, hdferr
+    do k = 1, size(coords)
+      if (lay%err%failed()) return
+      if (allocated(coords(k)%values)) then
+        n = size(coords(k)%values, kind=i8)
+        dset = lay%real_dataset(group, trim(coords(k)%name), [n], coords(k)%unit, coords(k)%description)
+        call lay%write_reals(dset, coords(k)%values, [0_i8], [n])
+      else
+        n = size(coords(k)%texts, kind=i8)
+        dset = lay%text_dataset(group, trim(coords(k)%name), n, coords(k)%description)
+        call lay%write_texts(dset, coords(k)%texts, 0_i8)
+      end if
+      call lay%attach(dset, scale, 0)
+      call h5dclose_f(dset, hdferr)
+    end do
+  end subroutine coordinate_datasets
+
+  !> The CF `coordinates` attribute of a dataset on the case dimension.
+  subroutine name_coordinates(lay, dset, coords)
+    type(layout_t), intent(inout) :: lay
+    integer(hid_t), intent(in) :: dset
+    type(coordinate_t), intent(in) :: coords(:)
+    character(len=:), allocatable :: names
+    integer :: k
+    if (size(coords) == 0) return
+    names = trim(coords(1)%name)
+    do k = 2, size(coords)
+      names = names // ' ' // trim(coords(k)%name)
+    end do
+    call lay%text_attribute(dset, 'coordinates', names)
+  end subroutine name_coordinates
 
   !> /trajectory: the stored fields. Compressed: chunks of one case each,
   !> written through HDF5. Otherwise contiguous, allocated now and never
   !> filled (each case is written once, in place, at `address`; a case not
   !> written yet reads as zeros, its status 'pending').
-  subroutine trajectory_group(self, lay, indices, address)
+  subroutine trajectory_group(self, lay, indices, coords, address)
     type(h5_output_t), intent(in) :: self
     type(layout_t), intent(inout) :: lay
     integer(i8), intent(in) :: indices(:)
+    type(coordinate_t), intent(in) :: coords(:)
     integer(i8), intent(out) :: address(field_count)
     integer(hid_t) :: group, scale, dset
     integer(i8) :: chunk_samples, n_cases
@@ -312,6 +358,7 @@ contains
     n_cases = size(indices, kind=i8)
     group = lay%new_group('trajectory')
     scale = case_scale(lay, group, indices)
+    call coordinate_datasets(lay, group, scale, coords)
     do f = 1, field_count
       if (.not. self%fields(f) .or. lay%err%failed()) cycle
       chunk_samples = min(self%n_samples, int(max_chunk_bytes / (8 * field_ncomp(f)), i8))
@@ -336,6 +383,7 @@ contains
       call lay%attach(dset, scale, 0)
       call lay%attach(dset, lay%time_scale, 1)
       if (field_ncomp(f) == 3) call lay%attach(dset, lay%xyz_scale, 2)
+      call name_coordinates(lay, dset, coords)
       call h5dclose_f(dset, hdferr)
     end do
     call h5dclose_f(scale, hdferr)

@@ -32,7 +32,7 @@ contains
     type(h5_output_t) :: out
     type(provenance_t) :: prov
     type(case_result_t) :: res
-    integer(i8), allocatable :: slots(:), statuses(:)
+    integer(i8), allocatable :: slots(:), statuses(:), all_cases(:)
     integer(i8) :: slot, i
     character(len=:), allocatable :: partial
 
@@ -98,8 +98,9 @@ contains
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = '0/1'
     partial = target // '.partial'
-    call out%create(partial, [(i, i = 0, inp%campaign%n_cases() - 1)], shards(1)%real_column('time', err), &
-                    inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    all_cases = [(i, i = 0, inp%campaign%n_cases() - 1)]
+    call out%create(partial, all_cases, shards(1)%real_column('time', err), inp%plan%fields, inp%campaign%base, &
+                    prov, inp%campaign%coordinates(all_cases), err, inp%plan%compression)
     do index = 0, n_shards - 1
       slots = shard_slots(inp%campaign%n_cases(), [index, n_shards])
       if (size(slots, kind=i8) /= shards(shard_of(index))%n_cases .and. .not. err%failed()) &

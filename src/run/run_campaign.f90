@@ -390,7 +390,8 @@ contains
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
     writing = files%partial
     if (resume) writing = files%resumed      ! moved over partial once the journaled cases are in it
-    call run%out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, err, inp%plan%compression)
+    call run%out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, &
+                        inp%campaign%coordinates(globals), err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call run%out%close(err)

@@ -1,6 +1,10 @@
 """The HDF5 file as an h5py / xarray user sees it."""
 import datetime
+import pathlib
 import re
+import shutil
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -214,5 +218,100 @@ def test_summary_command_formats(ellroll, paper_file):
             assert float(rows[0][name]) == f["summary"][name][0] == data["cases"][0][name]
         assert np.isnan(f["summary/transmissibility"][0]) and data["cases"][0]["transmissibility"] is None
     assert rows[0]["status"] == data["cases"][0]["status"] == "completed"
+    assert set(data["units"]) == set(rows[0]) and data["units"]["theta_max"] == "rad"
     bad = run(ellroll, "summary", paper_file, "--format", "xml")
-    assert bad.returncode == 2 and "--format needs text, csv or json" in bad.stderr
+    assert bad.returncode == 2 and "--format needs table, csv or json" in bad.stderr
+
+
+SWEPT = """&sweep name = 'omega_z', start = 10, stop = 40, count = 2 /
+&sweep name = 'radius', values = 0.1, 0.2 /
+"""
+
+
+@pytest.fixture(scope="module")
+def swept_file(ellroll, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("swept")
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5").replace("interval = 0.01", "interval = 0.1")
+    (folder / "swept.nml").write_text(text + SWEPT)
+    result = run(ellroll, "run", "swept.nml", "-o", "swept.h5", "-q", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    return folder / "swept.h5"
+
+
+def test_varied_inputs_are_coordinates_of_the_cases(swept_file):
+    """open_datatree gives time and the swept inputs as coordinates of
+    /summary and /trajectory, with the values each case ran with."""
+    xr = pytest.importorskip("xarray")
+    tree = xr.open_datatree(swept_file, engine="h5netcdf")
+    with h5py.File(swept_file, "r") as f:
+        spin, radius = f["case/omega"][:, 2], f["case/radius"][:]
+    for group in ("summary", "trajectory"):
+        ds = tree[group].to_dataset()
+        assert {"omega_z", "radius", "case"} <= set(ds.coords) and "time" in tree[group].coords
+        np.testing.assert_array_equal(ds["omega_z"].values, spin)
+        np.testing.assert_array_equal(ds["radius"].values, radius)
+        assert ds["omega_z"].attrs["units"] == "rad/s"
+    assert list(spin) == [10, 10, 40, 40] and list(radius) == [0.1, 0.2, 0.1, 0.2]
+    theta = tree["summary"].to_dataset()["theta_max"]
+    assert theta.sel(case=theta.radius == 0.2).omega_z.values.tolist() == [10, 40]
+    assert tree["trajectory"].to_dataset()["nutation"].coords["radius"].dims == ("case",)
+
+
+def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_file):
+    import csv
+    import io
+    import json
+    fortran = list(csv.reader(io.StringIO(run(ellroll, "summary", swept_file, "--format", "csv").stdout)))
+    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(swept_file), "--format", "csv"],
+                            capture_output=True, text=True)
+    python = list(csv.reader(io.StringIO(python.stdout)))
+    assert fortran[0] == python[0] and fortran[0][:4] == ["case", "omega_z", "radius", "status"]
+    assert "linear_periods_2" in fortran[0] and len(fortran) == len(python) == 5
+    for row_f, row_p in zip(fortran[1:], python[1:]):
+        assert [float(v) for v in row_f[4:]] == pytest.approx([float(v) for v in row_p[4:]], rel=0, abs=0,
+                                                                nan_ok=True)
+        assert row_f[:4] == [row_p[0], *[str(float(v)).removesuffix(".0") for v in row_p[1:3]], row_p[3]]
+    data = json.loads(run(ellroll, "summary", swept_file, "--format", "json").stdout)
+    assert data["units"]["omega_z"] == "rad/s" and data["units"]["radius"] == "m"
+    assert [c["omega_z"] for c in data["cases"]] == [10, 10, 40, 40]
+
+
+def test_ncdump_reads_the_file(swept_file):
+    """The netCDF library reads the file as netCDF-4 (every group, the
+    coordinates attribute, text attributes as strings)."""
+    ncdump = shutil.which("ncdump")
+    if ncdump is None:
+        pytest.skip("ncdump (Debian netcdf-bin) is not installed; tests/run_all.sh installs it")
+    result = subprocess.run([ncdump, "-h", str(swept_file)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    for line in ("double theta_max(case) ;", 'theta_max:coordinates = "omega_z radius" ;',
+                 "double nutation(case, time) ;", 'string :Conventions = "CF-1.10" ;', "group: trajectory {"):
+        assert line in result.stdout, line
+
+
+def test_each_command_has_its_help(ellroll):
+    for command, words in [("run", "--resume"), ("check", "writes nothing"), ("merge", "--shard I/N"),
+                           ("summary", "table|csv|json"), ("modes", "small-oscillation"),
+                           ("methods", "order"), ("inputs", "Markdown")]:
+        result = run(ellroll, command, "--help")
+        assert result.returncode == 0 and result.stdout.startswith(f"usage: ellroll {command}"), command
+        assert words in result.stdout, command
+
+
+def test_bash_completion_beside_the_binary(ellroll, tmp_path):
+    """The script in the build folder completes commands, options and values."""
+    script = pathlib.Path(ellroll).parent / "ellroll-completion.bash"
+    (tmp_path / "case.nml").write_text("")
+    (tmp_path / "out.h5").write_text("")
+
+    def complete(*words):
+        line = " ".join(f"'{w}'" for w in words)
+        shell = (f"source '{script}'; COMP_WORDS=(ellroll {line}); COMP_CWORD={len(words)}; _ellroll; "
+                 'printf "%s\\n" "${COMPREPLY[@]}"')
+        result = subprocess.run(["bash", "-c", shell], cwd=tmp_path, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+        return sorted(result.stdout.split())
+    assert complete("su") == ["summary"]
+    assert complete("summary", "out.h5", "--format", "") == ["csv", "json", "table"]
+    assert "--resume" in complete("run", "--") and complete("run", "ca") == ["case.nml"]
+    assert complete("merge", "o") == ["out.h5"]

@@ -119,8 +119,11 @@ def test_sweep_line_and_heat_map(sweep_file, tmp_path):
         line = lines["radius = 0.2"]
         np.testing.assert_array_equal(line.get_xdata(), [10, 40])
         np.testing.assert_array_equal(line.get_ydata(), theta_max[radius == 0.2][np.argsort(spin[radius == 0.2])])
-        early = lines["ended early (status)"]
+        early = lines["ended: no_fit"]
         assert len(early.get_xdata()) == 2 and all(r == 0.5 for r in radius[np.array(runfile.status_names()) != "completed"])
+        legend = axes[0].get_legend()                           # beside the axes, not over the data
+        fig.canvas.draw()
+        assert legend.get_window_extent().x0 >= axes[0].get_window_extent().x1
         plt.close(fig)
     result = plot_cli("sweep", sweep_file, "--x", "omega_z,radius", "--out", tmp_path)
     assert result.returncode == 0 and is_png(tmp_path / "out_sweep_omega_z_radius.png")
@@ -150,11 +153,12 @@ def test_summary_formats(sweep_file):
 def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
     result = plot_cli("workprecision", sweep_file, "--out", tmp_path)
     assert result.returncode == 0, result.stderr
-    assert is_png(tmp_path / "workprecision.png")
+    assert is_png(tmp_path / "out_workprecision.png")
     table = tmp_path / "wp.csv"
     table.write_text("method,setting,error_m,time_s,rhs_evaluations\nrk4,dt=0.01,1e-6,1e-3,12001\n"
                      "rk4,dt=0.001,1e-10,1e-2,120001\n")
     assert plot_cli("workprecision", table, "--out", tmp_path).returncode == 0
+    assert is_png(tmp_path / "wp_workprecision.png")
     from ellroll_post.cli import workprecision_points
     assert workprecision_points([table]) == {"rk4": [(1e-6, 1e-3, 12001.0), (1e-10, 1e-2, 120001.0)]}
 
@@ -190,6 +194,23 @@ def test_clear_errors(paper_file, sweep_file, tmp_path):
     for args, words in cases:
         result = plot_cli(*args, "--out", tmp_path) if args[0] != "summary" else plot_cli(*args)
         assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr, (args, result.stderr)
+
+
+def test_a_figure_or_report_already_there_is_kept_unless_asked(paper_file, tmp_path):
+    figure = tmp_path / "legeza1990_fig2_trace.png"
+    assert plot_cli("trace", paper_file, "--out", tmp_path).returncode == 0
+    first = figure.read_bytes()
+    figure.write_bytes(b"kept")
+    result = plot_cli("trace", paper_file, "--out", tmp_path)
+    assert result.returncode == 2 and "exists; give --overwrite" in result.stderr and figure.read_bytes() == b"kept"
+    assert plot_cli("trace", paper_file, "--out", tmp_path, "--overwrite").returncode == 0
+    assert figure.read_bytes() == first
+    report = tmp_path / "report"
+    assert plot_cli("report", paper_file, "--out", report).returncode == 0
+    page = (report / "index.html").read_text()
+    result = plot_cli("report", paper_file, "--out", report)
+    assert result.returncode == 2 and "index.html exists" in result.stderr
+    assert (report / "index.html").read_text() == page
 
 
 def test_lazy_on_large_campaigns(sweep_file):

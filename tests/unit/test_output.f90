@@ -14,6 +14,7 @@ program test_output
   use ellroll_status, only: status_completed, status_rim
   use ellroll_cases, only: case_t, field_count, field_names
   use ellroll_results, only: case_result_t
+  use ellroll_campaign, only: coordinate_t
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: trajectory_store_t
@@ -59,7 +60,8 @@ contains
     prov = provenance_t(program='ellroll', version='0', created='now', input_file='-', input_namelist='-', &
                         command_line='-', campaign_id='0', n_cases_total=n_cases, shard='0/1')
     cs = paper_case(1.0e-3_wp, 1.0_wp)
-    call out%create(path, [(k, k = 0, n_cases - 1)], times, fields, cs, prov, err, compression)
+    call out%create(path, [(k, k = 0, n_cases - 1)], times, fields, cs, prov, [coordinate_t ::], err, &
+                    compression)
     do k = 1, n_cases
       slot = order(k)
       cs%index = slot
