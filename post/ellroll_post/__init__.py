@@ -4,6 +4,13 @@
 >>> run = ellroll_post.open("legeza1990.h5")
 >>> t, theta = run.time, run.trajectory("nutation", case=0)
 """
+from importlib.metadata import PackageNotFoundError, version as _version
+
+try:
+    __version__ = _version("ellroll-post")
+except PackageNotFoundError:        # run from the source folder, not installed
+    __version__ = "unknown"
+
 from .reader import EllrollFile, NotAnEllrollFile, open  # noqa: F401
 from .plots import (plot_trace, plot_nutation, plot_reaction, plot_energy, plot_sweep,  # noqa: F401
                     plot_workprecision, plot_transmissibility, linear_transmissibility, reaction_parts,
