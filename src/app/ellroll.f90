@@ -251,7 +251,7 @@ contains
       'exit codes: 0 ok (also when a case ended at a model limit), 1 internal error,', &
       '            2 bad input, 3 output error, 143 (SIGTERM) or 130 (SIGINT): the run was', &
       '            interrupted and kept its finished cases; run it again with --resume', &
-      'The namelist reference and the HDF5 layout are in README.md.'
+      'The namelist reference is in docs/inputs.md, the HDF5 layout in docs/output.md.'
   end subroutine print_help
 
   !> `ellroll COMMAND --help`: what the command does and the options it takes.

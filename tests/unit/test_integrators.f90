@@ -331,8 +331,8 @@ contains
   !> DOP853 locates the maxima of Theta on its dense output, wherever its
   !> (long) steps end: Theta_max and the nutation period converge with rtol
   !> and agree with fine RK4, whose step ends every 1e-4 s bound Theta_max
-  !> from below to Theta'' dt^2 / 8 ~ 2e-8 rad. (Taken at step ends, the
-  !> adaptive run's Theta_max was 3e-4 rad low.)
+  !> from below to Theta'' dt^2 / 8 ~ 2e-8 rad. (Taken at DOP853's step
+  !> ends, Theta_max would be some 3e-4 rad low.)
   subroutine adaptive_nutation_maxima()
     type(case_t) :: cs
     type(case_result_t) :: tight, loose, fine_rk4

@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""Reruns the benchmarks and rewrites docs/performance.md with their output:
+the machine, the date, the commit, and each table beside the command that
+printed it, so the figures in the docs are always today's.
+
+    python bench/report.py [--build build] [--quick]
+
+--quick runs each bench on a smaller scale (a smoke test; its figures are
+not for the docs, and it writes to stdout only).
+"""
+import argparse
+import datetime
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+INTRO = """# Performance
+
+Every table below is the output of the command above it, on the machine
+named here; `python bench/report.py` reruns them all and rewrites this file.
+Ratios are measured side by side in one run; absolute times depend on the
+machine and on its other load (the machines are shared), so compare ratios.
+What each bench measures is in the docstring at the top of its source file.
+"""
+
+
+def benches(build, quick):
+    python = sys.executable
+    exe = str(build / "ellroll")
+    return [
+        ("RK4 and DOP853 kernels: case-steps per second against a naive scalar RK4, one case and SIMD batches",
+         [str(build / "bench_throughput"), "3" if quick else "7"]),
+        ("What a scene costs: a record, a harmonic cup and rolling resistance against the fixed cup",
+         [str(build / "bench_scene_cost"), "2" if quick else "5"]),
+        ("The journal's checksum per record",
+         [str(build / "bench_journal_checksum")]),
+        ("Campaign throughput on 1 and 2 threads, and peak memory against the number of cases",
+         [python, "bench/campaign.py", "--exe", exe, "--cases", "1000" if quick else "10000",
+          "--repeat", "1" if quick else "3", "--rss-cases", "1000", *([] if quick else ["10000", "100000"])]),
+        ("Reading a file with h5py",
+         [python, "bench/post.py", "--exe", exe, "--cases", "1000" if quick else "10000"]),
+        ("ellroll-plot on a sampled campaign",
+         [python, "bench/plots.py", "--exe", exe, "--cases", "2000" if quick else "100000"]),
+        ("Work-precision of the paper's case (also in docs/accuracy.md)",
+         [python, "bench/workprecision.py", "--exe", exe, *(["--quick", "--out", "/tmp"] if quick else [])]),
+    ]
+
+
+def machine():
+    model = "unknown processor"
+    try:
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    commit = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                            text=True).stdout.strip()
+    return (f"Machine: {model}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}; "
+            f"commit {commit}; {datetime.date.today().isoformat()}.")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--build", default=str(ROOT / "build"))
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    sections = [INTRO, machine() + "\n"]
+    for title, command in benches(pathlib.Path(args.build), args.quick):
+        shown = " ".join(pathlib.Path(c).name if c == sys.executable else
+                         str(pathlib.Path(c).relative_to(ROOT)) if c.startswith(str(ROOT)) else c for c in command)
+        print(f"== {shown}", file=sys.stderr, flush=True)
+        result = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
+        if result.returncode != 0:
+            sys.exit(f"bench failed: {shown}\n{result.stderr}")
+        sections.append(f"## {title}\n\n```sh\n{shown.replace('python3', 'python').replace(sys.executable, 'python')}\n```\n\n"
+                        f"```\n{result.stdout.rstrip()}\n```\n")
+    text = "\n".join(sections)
+    if args.quick:
+        print(text)
+    else:
+        (ROOT / "docs" / "performance.md").write_text(text)
+        print("wrote docs/performance.md", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
