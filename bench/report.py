@@ -40,6 +40,8 @@ def benches(build, quick):
         ("Campaign throughput on 1 and 2 threads, and peak memory against the number of cases",
          [python, "bench/campaign.py", "--exe", exe, "--cases", "1000" if quick else "10000",
           "--repeat", "1" if quick else "3", "--rss-cases", "1000", *([] if quick else ["10000", "100000"])]),
+        ("Small campaigns on 1 and 2 threads: every thread gets work",
+         [python, "bench/small_campaigns.py", "--exe", exe, "--repeat", "1" if quick else "5"]),
         ("Reading a file with h5py",
          [python, "bench/post.py", "--exe", exe, "--cases", "1000" if quick else "10000"]),
         ("ellroll-plot on a sampled campaign",

@@ -64,6 +64,7 @@ module ellroll_run_campaign
     integer :: shard(2) = [0, 1]
     integer(i8) :: n_slots = 0
     logical :: use_batches = .false.
+    integer(i8) :: block_slots = 1             !< slots a block of the loop holds
     logical, allocatable :: done(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -438,14 +439,19 @@ contains
     !$ n_threads = omp_get_max_threads()
     if (opts%threads > 0) n_threads = opts%threads
     call run%progress%start(run%n_slots, count(run%done, kind=i8), opts%quiet)
-    ! blocks of `lanes` slots: in a campaign of at least `lanes` cases the
-    ! batchable cases of a block run together across SIMD lanes, the others
-    ! one by one. The choice depends on the case and the campaign's size only,
-    ! never on threads, shards or resumption, so results stay bitwise the same.
-    run%use_batches = inp%campaign%n_cases() >= lanes
+    ! In a campaign of at least `lanes` batchable cases, blocks of `lanes`
+    ! slots whose batchable cases run together across SIMD lanes (the others
+    ! one by one): whether cases share lanes depends on the campaign only,
+    ! never on threads, shards or resumption, so results stay bitwise the
+    ! same. Cases that run one by one may be grouped in any way: blocks of up
+    ! to `lanes` of them (the locks and writes taken once per block), fewer
+    ! where that gives every thread at least four blocks.
+    run%use_batches = inp%campaign%n_cases() >= lanes .and. batchable(inp%campaign%base)
+    run%block_slots = lanes
+    if (.not. run%use_batches) run%block_slots = max(1_i8, min(int(lanes, i8), run%n_slots / (4_i8 * n_threads)))
     run%timings%loop_started = wall_clock()
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
-    do chunk = 0, (run%n_slots - 1) / lanes
+    do chunk = 0, (run%n_slots - 1) / run%block_slots
       if (.not. (run%shared_err%failed() .or. run%block_err%failed())) then
         if (stop_signal() == 0) call run_block(run, inp, chunk)
       end if
@@ -507,7 +513,7 @@ contains
     real(wp) :: asked, taken
     integer(i8) :: place
     n = 0
-    do slot = chunk * lanes, min(run%n_slots, (chunk + 1) * lanes) - 1
+    do slot = chunk * run%block_slots, min(run%n_slots, (chunk + 1) * run%block_slots) - 1
       if (run%done(slot)) cycle
       n = n + 1
       slots(n) = slot

@@ -94,8 +94,12 @@ def test_samples_are_reproducible_and_in_range(ellroll, tmp_path):
     assert not np.any(spin == c["case/omega"][:, 2])
 
 
-def test_thread_count_does_not_change_any_dataset(ellroll, tmp_path):
-    name = write(tmp_path, SPIN_RADIUS)
+@pytest.mark.parametrize("extra", [SPIN_RADIUS,                                   # SIMD batches of 8
+                                   "&sweep name = 'omega_z', values = 5, 80 /\n",  # 2 cases, one a block
+                                   "&excitation kind = 'harmonic', amplitude = 0.05, 0.0, 0.0, frequency = 0.3 /\n"
+                                   + SPIN_RADIUS])                                  # 20 cases, one a block
+def test_thread_count_does_not_change_any_dataset(ellroll, tmp_path, extra):
+    name = write(tmp_path, extra)
     for threads, out in [("1", "t1.h5"), ("2", "t2.h5"), ("3", "t3.h5")]:
         assert run(ellroll, "run", name, "-q", "--threads", threads, "-o", out, cwd=tmp_path).returncode == 0
     assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t2.h5")
