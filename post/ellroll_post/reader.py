@@ -57,19 +57,19 @@ class EllrollFile:
 
     @property
     def fields(self):
-        return sorted(set(self._h5["trajectory"]) - {"case"} - self._coordinates("trajectory"))
+        return sorted(set(self._h5["trajectory"]) - {"case"} - set(self._coordinates("trajectory")))
 
     @property
     def summary_names(self):
-        return sorted(set(self._h5["summary"]) - {"case"} - self._coordinates("summary"))
+        return sorted(set(self._h5["summary"]) - {"case"} - set(self._coordinates("summary")))
 
     def _coordinates(self, group):
         """The varied inputs a group holds as coordinates of its cases (CF's
         `coordinates` attribute, the same on each of its variables)."""
         for item in self._h5[group].values():
             if "coordinates" in item.attrs:
-                return set(item.attrs["coordinates"].split())
-        return set()
+                return item.attrs["coordinates"].split()
+        return []
 
     def _dataset(self, name):
         if name not in self._h5 and ALIASES.get(name) in self._h5:
@@ -126,9 +126,7 @@ class EllrollFile:
         """The inputs that vary between the cases, as the file names its
         coordinates (sweeps, samples, then a suite's record); for a file
         without them, the inputs that differ (swept_inputs) and the record."""
-        if self._coordinates("summary"):
-            return self._h5["summary/status"].attrs["coordinates"].split()
-        return self.swept_inputs() + (["record"] if any(self.record_names()) else [])
+        return self._coordinates("summary") or self.swept_inputs() + (["record"] if any(self.record_names()) else [])
 
     def record_names(self):
         """Each case's record of a suite (&record name), or blanks."""
