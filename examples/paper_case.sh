@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 bash .ci/setup
 mkdir -p results
 build/ellroll run input/legeza1990.nml -o results/legeza1990.h5 --overwrite
-.venv/bin/ellroll-plot trace results/legeza1990.h5 --out results
-.venv/bin/ellroll-plot nutation results/legeza1990.h5 --out results
-.venv/bin/ellroll-plot report results/legeza1990.h5 --out results/report
+.venv/bin/ellroll-plot trace results/legeza1990.h5 --out results --overwrite
+.venv/bin/ellroll-plot nutation results/legeza1990.h5 --out results --overwrite
+.venv/bin/ellroll-plot report results/legeza1990.h5 --out results/report --overwrite
 echo "open results/report/index.html"
