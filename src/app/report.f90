@@ -65,7 +65,7 @@ contains
   !> The columns of a row: case, the coordinates of /summary (the varied
   !> inputs, as named by its `coordinates` attribute), status, then every
   !> dataset of /summary in the order of the file's layout (a value per mode:
-  !> one column per mode, NAME_1, NAME_2).
+  !> one column per mode, NAME_1, NAME_2) that the file holds.
   function summary_columns(file, err) result(columns)
     type(h5_input_t), intent(in) :: file
     type(error_t), intent(inout) :: err
@@ -100,6 +100,7 @@ contains
     figures = summary_record(case_result_t())
     do k = 1, size(figures)
       associate (f => figures(k), name => 'summary/' // trim(figures(k)%name))
+        if (.not. file%has(name)) cycle            ! a file written by another version may lack it
         if (f%kind == kind_int) then
           call append(columns, f%name, trim(f%units), ints=file%int_column(name, err))
         else if (f%ncomp == 1) then

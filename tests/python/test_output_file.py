@@ -276,6 +276,30 @@ def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_
     assert [c["omega_z"] for c in data["cases"]] == [10, 10, 40, 40]
 
 
+def test_summary_of_a_file_without_coordinates_or_a_figure(ellroll, swept_file, tmp_path):
+    """A file another version wrote, without the coordinate datasets and
+    without a summary figure, still gives its summary rows in both tools."""
+    import csv
+    import io
+    older = tmp_path / "older.h5"
+    shutil.copy(swept_file, older)
+    with h5py.File(older, "r+") as f:
+        for group in ("summary", "trajectory"):
+            for name in ("omega_z", "radius"):
+                del f[f"{group}/{name}"]
+            for item in f[group].values():
+                if "coordinates" in item.attrs:
+                    del item.attrs["coordinates"]
+        del f["summary/horizontal_force_max"]
+    fortran = list(csv.reader(io.StringIO(run(ellroll, "summary", older, "--format", "csv").stdout)))
+    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(older), "--format", "csv"],
+                            capture_output=True, text=True)
+    python = list(csv.reader(io.StringIO(python.stdout)))
+    assert len(fortran) == len(python) == 5
+    assert fortran[0][:2] == ["case", "status"] and "horizontal_force_max" not in fortran[0]
+    assert python[0][:4] == ["case", "radius", "omega_z", "status"] and "horizontal_force_max" not in python[0]
+
+
 def test_ncdump_reads_the_file(swept_file):
     """The netCDF library reads the file as netCDF-4 (every group, the
     coordinates attribute, text attributes as strings)."""
