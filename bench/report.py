@@ -73,13 +73,13 @@ def main():
     args = parser.parse_args()
     sections = [INTRO, machine() + "\n"]
     for title, command in benches(pathlib.Path(args.build), args.quick):
-        shown = " ".join(pathlib.Path(c).name if c == sys.executable else
+        shown = " ".join("python" if c == sys.executable else
                          str(pathlib.Path(c).relative_to(ROOT)) if c.startswith(str(ROOT)) else c for c in command)
         print(f"== {shown}", file=sys.stderr, flush=True)
         result = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
         if result.returncode != 0:
             sys.exit(f"bench failed: {shown}\n{result.stderr}")
-        sections.append(f"## {title}\n\n```sh\n{shown.replace('python3', 'python').replace(sys.executable, 'python')}\n```\n\n"
+        sections.append(f"## {title}\n\n```sh\n{shown}\n```\n\n"
                         f"```\n{result.stdout.rstrip()}\n```\n")
     text = "\n".join(sections)
     if args.quick:

@@ -156,7 +156,7 @@ def plot_sweep(fig, run, x_names, y_names):
                     label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
                     ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
             _mark_early(ax, x, y, status, color="C3")
-            ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
+            ax.set_xlabel(f"{x_names[0]}, {run.input_units(x_names[0])}")
             if len(groups) > 1 or np.any(early):
                 _legend_beside(ax)
         else:
@@ -172,8 +172,8 @@ def plot_sweep(fig, run, x_names, y_names):
             _mark_early(ax, xa, xb, status, color="C3")
             if np.any(early):
                 _legend_beside(ax, title="status")
-            ax.set_xlabel(f"{x_names[0]}, {run.units(_input_dataset(x_names[0]))}")
-            ax.set_ylabel(f"{x_names[1]}, {run.units(_input_dataset(x_names[1]))}")
+            ax.set_xlabel(f"{x_names[0]}, {run.input_units(x_names[0])}")
+            ax.set_ylabel(f"{x_names[1]}, {run.input_units(x_names[1])}")
         if len(x_names) == 1:
             ax.set_ylabel(f"{y_name}, {units}")
         ax.grid(alpha=0.3)
@@ -211,11 +211,6 @@ def _legend_beside(ax, **options):
     free place among 10^5 points."""
     ax.legend(fontsize="x-small", title_fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0),
               frameon=False, **options)
-
-
-def _input_dataset(name):
-    from .reader import INPUTS
-    return "case/" + INPUTS.get(name, (name, None))[0]
 
 
 def plot_workprecision(axes, points):
@@ -306,7 +301,7 @@ def plot_suite(axes, run):
                 label="median")
         ax.plot(x[order], np.array([p["p84"] for p in points])[order], "s--", color="C3", lw=1.2,
                 label="84th percentile")
-        ax.set_xlabel(f"{x_name}, {run.units(_input_dataset(x_name))}" if x_name else "")
+        ax.set_xlabel(f"{x_name}, {run.input_units(x_name)}" if x_name else "")
         ax.set_ylabel(f"{quantity}, {run.units(f'summary/{quantity}')}")
         ax.grid(alpha=0.3)
         ax.legend(fontsize="small", loc="upper left")

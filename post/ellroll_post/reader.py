@@ -100,6 +100,10 @@ class EllrollFile:
             value = value[component]
         return value.decode() if isinstance(value, bytes) else value
 
+    def input_units(self, name):
+        """The units of an input, by its namelist name (omega_z) or /case name."""
+        return self.units("case/" + INPUTS.get(name, (name, None))[0])
+
     def input_column(self, name):
         """An input over all cases (for sweeps)."""
         dataset, component = INPUTS.get(name, (name, None))

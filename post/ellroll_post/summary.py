@@ -23,7 +23,7 @@ def summary_table(run):
         if name == "record":
             table[name] = ("1", run.record_names())
         else:
-            table[name] = (run.units(_input_dataset(name)), run.input_column(name).astype(float).tolist())
+            table[name] = (run.input_units(name), run.input_column(name).astype(float).tolist())
     table["status"] = ("1", run.status_names())
     names = [c for c in COLUMNS if c in run.summary_names]
     names += sorted(set(run.summary_names) - set(names) - {"status"})
@@ -41,11 +41,6 @@ def summary_rows(run, first=None):
     """One dict per case (the first `first` cases): summary_table's columns."""
     columns = {name: values[:first] for name, (_, values) in summary_table(run).items()}
     return [dict(zip(columns, row)) for row in zip(*columns.values())]
-
-
-def _input_dataset(name):
-    from .reader import INPUTS
-    return "case/" + INPUTS.get(name, (name, None))[0]
 
 
 def format_summary(run, fmt="table"):

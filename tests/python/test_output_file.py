@@ -257,14 +257,19 @@ def test_varied_inputs_are_coordinates_of_the_cases(swept_file):
     assert tree["trajectory"].to_dataset()["nutation"].coords["radius"].dims == ("case",)
 
 
-def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_file):
+def summary_csv(ellroll, path):
+    """The CSV summary rows of a file from `ellroll summary` and from `ellroll-plot summary`."""
     import csv
     import io
+    fortran = run(ellroll, "summary", path, "--format", "csv").stdout
+    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(path), "--format", "csv"],
+                            capture_output=True, text=True).stdout
+    return list(csv.reader(io.StringIO(fortran))), list(csv.reader(io.StringIO(python)))
+
+
+def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_file):
     import json
-    fortran = list(csv.reader(io.StringIO(run(ellroll, "summary", swept_file, "--format", "csv").stdout)))
-    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(swept_file), "--format", "csv"],
-                            capture_output=True, text=True)
-    python = list(csv.reader(io.StringIO(python.stdout)))
+    fortran, python = summary_csv(ellroll, swept_file)
     assert fortran[0] == python[0] and fortran[0][:4] == ["case", "omega_z", "radius", "status"]
     assert "linear_periods_2" in fortran[0] and len(fortran) == len(python) == 5
     for row_f, row_p in zip(fortran[1:], python[1:]):
@@ -279,8 +284,6 @@ def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_
 def test_summary_of_a_file_without_coordinates_or_a_figure(ellroll, swept_file, tmp_path):
     """A file another version wrote, without the coordinate datasets and
     without a summary figure, still gives its summary rows in both tools."""
-    import csv
-    import io
     older = tmp_path / "older.h5"
     shutil.copy(swept_file, older)
     with h5py.File(older, "r+") as f:
@@ -291,10 +294,7 @@ def test_summary_of_a_file_without_coordinates_or_a_figure(ellroll, swept_file, 
                 if "coordinates" in item.attrs:
                     del item.attrs["coordinates"]
         del f["summary/horizontal_force_max"]
-    fortran = list(csv.reader(io.StringIO(run(ellroll, "summary", older, "--format", "csv").stdout)))
-    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(older), "--format", "csv"],
-                            capture_output=True, text=True)
-    python = list(csv.reader(io.StringIO(python.stdout)))
+    fortran, python = summary_csv(ellroll, older)
     assert len(fortran) == len(python) == 5
     assert fortran[0][:2] == ["case", "status"] and "horizontal_force_max" not in fortran[0]
     assert python[0][:4] == ["case", "radius", "omega_z", "status"] and "horizontal_force_max" not in python[0]
