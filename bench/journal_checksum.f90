@@ -9,6 +9,7 @@
 !> Each figure is the best of several repetitions. Usage: build/bench_journal_checksum [repeats]
 program journal_checksum
   use, intrinsic :: iso_fortran_env, only: output_unit
+  use bench_args, only: repeats_argument
   use ellroll_kinds, only: wp, i8
   use ellroll_checksum, only: checksum
   use ellroll_errors, only: error_t
@@ -19,7 +20,6 @@ program journal_checksum
   implicit none
   integer, parameter :: summary_words = 64, full_words = summary_words + 3001 * 17
   integer :: repeats, k, j, inner
-  character(len=16) :: arg
   integer(i8), allocatable :: words(:)
   integer(i8) :: sink, start, finish, rate
   real(wp) :: best_summary, best_full, best_case, seconds
@@ -29,11 +29,7 @@ program journal_checksum
   type(error_t) :: err
 
   call tune_runtime()
-  repeats = 7
-  if (command_argument_count() > 0) then
-    call get_command_argument(1, arg)
-    read (arg, *) repeats
-  end if
+  repeats = repeats_argument(default=7)
   allocate (words(full_words))
   do j = 1, full_words
     words(j) = ieor(shiftl(int(j, i8), 29), int(j, i8))     ! varied bits, no overflow

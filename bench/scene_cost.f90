@@ -12,6 +12,7 @@
 !> Ratios are to the fixed cup. Usage: build/bench_scene_cost [repeats]
 program scene_cost
   use, intrinsic :: iso_fortran_env, only: output_unit
+  use bench_args, only: repeats_argument
   use ellroll_kinds, only: wp, i8, two_pi
   use ellroll_errors, only: error_t
   use ellroll_cases, only: case_t, output_plan_t
@@ -29,14 +30,9 @@ program scene_cost
   type(error_t) :: err
   real(wp) :: best(n_scenes), seconds, times(n_record), values(3, n_record)
   integer :: repeats, k, s
-  character(len=16) :: arg
 
   call tune_runtime()
-  repeats = 5
-  if (command_argument_count() > 0) then
-    call get_command_argument(1, arg)
-    read (arg, *) repeats
-  end if
+  repeats = repeats_argument(default=5)
   scenes(1)%a = 1; scenes(1)%b = 0.4_wp; scenes(1)%c = 0.2_wp; scenes(1)%radius = 0.2_wp
   scenes(1)%g = 9.81_wp; scenes(1)%mass = 2620 / 9.81_wp
   scenes(1)%x = 0.05_wp; scenes(1)%y = 0.03_wp; scenes(1)%omega = [0.0_wp, 0.0_wp, 0.5_wp]

@@ -14,6 +14,7 @@
 program throughput
   use, intrinsic :: iso_fortran_env, only: output_unit
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use bench_args, only: repeats_argument
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_cases, only: case_t, output_plan_t, make_ball
@@ -28,7 +29,6 @@ program throughput
   real(wp), parameter :: dt = 1.0e-3_wp, t_end = 30.0_wp
   integer, parameter :: n_steps = 30000
   integer :: repeats, k
-  character(len=16) :: arg
   real(wp) :: best(8), seconds, check_baseline(6), check_ellroll(6)
   type(case_t) :: cs, batch_cases(lanes)
   type(output_plan_t) :: summary_plan, full_plan
@@ -36,11 +36,7 @@ program throughput
   type(error_t) :: err
 
   call tune_runtime()               ! as the ellroll program does
-  repeats = 7
-  if (command_argument_count() > 0) then
-    call get_command_argument(1, arg)
-    read (arg, *) repeats
-  end if
+  repeats = repeats_argument(default=7)
   cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
   cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
   summary_plan%interval = t_end
