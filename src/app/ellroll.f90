@@ -303,7 +303,7 @@ contains
       write (output_unit, '(a)') &
         'usage: ellroll methods', &
         '', &
-        'The integration methods: name, kind (fixed step or adaptive) and order.'
+        'The integration methods: name, kind (fixed step, adaptive or symmetric), order and when to pick it.'
     case ('inputs')
       write (output_unit, '(a)') &
         'usage: ellroll inputs', &
@@ -315,11 +315,14 @@ contains
 
   subroutine print_methods()
     integer :: k
-    character(len=16) :: name, kind
+    character(len=10) :: name, kind
+    character(len=30) :: order
+    write (output_unit, '(a)') 'method    kind      order                         use for'
     do k = 1, size(methods)
       name = methods(k)%name
       kind = methods(k)%kind
-      write (output_unit, '(a)') name // kind // 'order ' // trim(methods(k)%order)
+      order = methods(k)%order
+      write (output_unit, '(a)') name // kind // order // trim(methods(k)%use_for)
     end do
   end subroutine print_methods
 

@@ -1,7 +1,8 @@
-!> One case with the adaptive DOP853: step-size control, and everything
-!> taken from the 7th-order dense output inside a step (output samples, the
-!> maxima of Theta, where a model limit is crossed), so that no result
-!> depends on where the steps fall. The batches use the same pieces per lane.
+!> One case with an adaptive embedded pair (dop853, vern9): step-size
+!> control, and everything taken from the pair's dense output inside a step
+!> (output samples, the maxima of Theta, where a model limit is crossed), so
+!> that no result depends on where the steps fall. The batches use the same
+!> pieces per lane.
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -11,10 +12,8 @@ module ellroll_adaptive_run
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_events, only: root_search_t
-  use ellroll_integrators, only: dop853_t, max_equations
-  use ellroll_dop853_tableau, only: end_stage
-  use ellroll_ball_steppers, only: dop853_ball_step, dop853_ball_dense, dop853_attempt_calls, &
-      dop853_dense_calls
+  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations
+  use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
   implicit none
@@ -22,11 +21,12 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: follow_flow_to_limit, reference_rtol, reference_atol
+  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method
 
-  !> Step-size control of DOP853: Hairer's safety factor, a rejected step
-  !> shrunk at most 3-fold, and after an accepted step Gustafsson's PI
-  !> controller for explicit Runge-Kutta methods (k_I = 0.3/k, k_P = 0.4/k, k = 8):
+  !> Step-size control of an embedded pair: Hairer's safety factor, a
+  !> rejected step shrunk at most 3-fold, and after an accepted step
+  !> Gustafsson's PI controller for explicit Runge-Kutta methods (k_I = 0.3/k,
+  !> k_P = 0.4/k, k the pair's control_order: 8 for DOP853, 9 for Verner's):
   !>   h_new = h 0.9 err^-(k_I + k_P) err_prev^k_P.
   !> Where stability, not accuracy, limits the step (loose tolerances on the
   !> paper's case), the plain controller (h 0.9 err^(-1/8)) overshoots and
@@ -37,14 +37,17 @@ module ellroll_adaptive_run
   !> err_prev >= 1e-4 (Hairer's floor), so that two evaluations of a step
   !> differing by round-off (a case alone and in a SIMD batch) choose the
   !> same next step. With the floors (and err <= 1, err_prev in [1e-4, 1]) the
-  !> ratio after an accepted step lies in [0.57, 3.4]: no clamp is needed.
+  !> ratio after an accepted step lies in [0.57, 3.4] for k = 8 ([0.61, 3.0]
+  !> for k = 9): no clamp is needed.
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp
-  real(wp), parameter :: integral_gain = 0.3_wp / 8, proportional_gain = 0.4_wp / 8
   real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
 
-  !> Tolerances of a reference solution: the run behind the error figures
-  !> (error_estimate), and the exact flow followed from a fixed-step
-  !> method's last state to the limit its step met.
+  !> Method and tolerances of a reference solution: the run behind the error
+  !> figures (error_estimate), and the exact flow followed from a fixed-step
+  !> method's last state to the limit its step met. Verner's pair reaches
+  !> these tolerances in fewer RHS calls and less time than DOP853, with a
+  !> smaller error (bench/pairs.py).
+  character(len=*), parameter :: reference_method = 'vern9'
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   !> Where the rolling stops inside a step (rolling resistance) is located
@@ -53,6 +56,7 @@ module ellroll_adaptive_run
   integer, parameter, public :: max_rest_trials = 60
 
   type, public :: step_control_t
+    integer :: order = 8                    !< the pair's control_order
     logical :: after_rejection = .false.
     real(wp) :: log_previous_norm = log_previous_floor    !< log err of the last accepted step
   contains
@@ -68,13 +72,14 @@ module ellroll_adaptive_run
 
 contains
 
-  !> DOP853 with its step-size control (step_control_t): accept when the
-  !> error norm <= 1, never a step above dt (the largest step allowed). Output samples, limit crossings and the maxima
-  !> of Theta come from the 7th-order dense output, so that they do not
-  !> depend on where the steps fall; a sample computes only what the stored
-  !> fields need. The steps are the fused ones of the ball (ellroll_ball_steppers).
+  !> An embedded pair with its step-size control (step_control_t): accept
+  !> when the error norm <= 1, never a step above dt (the largest step
+  !> allowed). Output samples, limit crossings and the maxima of Theta come
+  !> from the dense output, so that they do not depend on where the steps
+  !> fall; a sample computes only what the stored fields need. The steps are
+  !> the fused ones of the ball (ellroll_ball_steppers).
   subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
-    type(dop853_t), intent(inout) :: integrator
+    class(embedded_pair_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
@@ -88,6 +93,7 @@ contains
 
     t = 0
     h_max = cs%dt
+    control%order = integrator%control_order()
     call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     do while (t < cs%t_end)
       if (stop_asked(res%n_steps + res%n_rejected)) then
@@ -121,7 +127,7 @@ contains
     res%t_final = cs%t_end
   end subroutine adaptive_loop
 
-  !> One DOP853 attempt of size h from (t, y, f), its RHS calls counted in
+  !> One attempt of size h from (t, y, f), its RHS calls counted in
   !> res. Rejected (dop%error_norm > 1, a non-finite norm made huge): h is
   !> shrunk by the step control. Accepted: the new state projected, f and the derived
   !> outputs there, and the model's limit status. An attempt in which the
@@ -129,7 +135,7 @@ contains
   !> and, accepted, ends with the ball at rest: an event, not a discontinuity
   !> inside a step for the step control to shrink around.
   subroutine attempt_step(dop, control, run, t, y, f, h, y_new, f_new, obs, status, res)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(step_control_t), intent(inout) :: control
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size)
@@ -140,8 +146,8 @@ contains
     type(case_result_t), intent(inout) :: res
     logical :: resting
     status = status_completed
-    call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
-    res%n_rhs = res%n_rhs + dop853_attempt_calls
+    call pair_ball_step(dop, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + dop%attempt_calls()
     resting = .false.
     if (ieee_is_finite(dop%error_norm)) then
       resting = rolling_stops(run%ball, y, y_new)
@@ -152,7 +158,7 @@ contains
       call control%reject(h, dop%error_norm)
       return
     end if
-    call project_with_rate(y_new, dop%k(:state_size, end_stage), f_new)
+    call project_with_rate(y_new, dop%k(:state_size, dop%end_stage()), f_new)
     if (resting) then
       call come_to_rest(y_new)
       call ball_derivative(run%ball, t + h, y_new, f_new)
@@ -167,7 +173,7 @@ contains
   !> part of omega turns against its direction at t (root_search_t on trial
   !> attempts); dop holds the attempt of the shortened h.
   subroutine shorten_to_rest(dop, run, t, y, f, h, y_new, res)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size)
     real(wp), intent(inout) :: h
@@ -180,13 +186,13 @@ contains
     do k = 1, max_rest_trials
       if (search%done()) exit
       offset = search%trial()
-      call dop853_ball_step(dop, run%ball, t, y, f, offset, y_new)
-      res%n_rhs = res%n_rhs + dop853_attempt_calls
+      call pair_ball_step(dop, run%ball, t, y, f, offset, y_new)
+      res%n_rhs = res%n_rhs + dop%attempt_calls()
       call search%report(offset, dot_product(rolling_part(y_new), direction))
     end do
     h = search%high
-    call dop853_ball_step(dop, run%ball, t, y, f, h, y_new)
-    res%n_rhs = res%n_rhs + dop853_attempt_calls
+    call pair_ball_step(dop, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + dop%attempt_calls()
   end subroutine shorten_to_rest
 
   !> The search for where the rolling stops in a step of size h from y to
@@ -215,7 +221,7 @@ contains
     class(step_control_t), intent(inout) :: self
     real(wp), intent(inout) :: h
     real(wp), intent(in) :: error_norm
-    h = h * max(adaptive_min_factor, adaptive_safety / eighth_root(error_norm))
+    h = h * max(adaptive_min_factor, adaptive_safety / error_root(error_norm, self%order))
     self%after_rejection = .true.
   end subroutine step_control_reject
 
@@ -226,6 +232,9 @@ contains
     real(wp), intent(inout) :: h
     real(wp), intent(in) :: error_norm, h_max
     real(wp) :: log_norm, factor
+    real(wp) :: integral_gain, proportional_gain
+    integral_gain = 0.3_wp / self%order
+    proportional_gain = 0.4_wp / self%order
     log_norm = log(max(error_norm, error_norm_floor))
     factor = adaptive_safety * exp(proportional_gain * self%log_previous_norm &
                                    - (integral_gain + proportional_gain) * log_norm)
@@ -235,11 +244,17 @@ contains
     self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
-  !> x^(1/8) by three square roots (a fraction of the cost of x**0.125).
-  pure real(wp) function eighth_root(x)
+  !> x^(1/order); for order 8 by three square roots (a fraction of the cost
+  !> of x**0.125).
+  pure real(wp) function error_root(x, order)
     real(wp), intent(in) :: x
-    eighth_root = sqrt(sqrt(sqrt(x)))
-  end function eighth_root
+    integer, intent(in) :: order
+    if (order == 8) then
+      error_root = sqrt(sqrt(sqrt(x)))
+    else
+      error_root = x**(1.0_wp / order)
+    end if
+  end function error_root
 
   !> The end point of an accepted attempt (raw: y, its f: f_raw) projected
   !> onto the unit normal, and f there: n' is homogeneous of degree one in
@@ -278,7 +293,7 @@ contains
   !> 4 units of round-off in theta: about 10 evaluations where bisection
   !> takes 52.
   subroutine locate_nutation_peak(dop, ball, peak, n_rhs)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(rolling_ball_t), intent(in) :: ball
     type(nutation_peak_t), intent(out) :: peak
     integer(i8), intent(inout) :: n_rhs
@@ -287,8 +302,8 @@ contains
     real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
     integer :: i, kept_side
     logical :: prepared
-    call dop853_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
-    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    call pair_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
+    if (prepared) n_rhs = n_rhs + dop%dense_calls()
     low = 0
     high = 1
     trend_low = trend_at(low)
@@ -302,8 +317,13 @@ contains
     kept_side = 0
     do i = 1, max_iterations
       if (high - low <= resolution) exit
-      middle = (low * trend_high - high * trend_low) / (trend_high - trend_low)
-      ! round-off may put the secant's root on an end: halve instead
+      ! round-off may put the secant's root on an end, and the Illinois
+      ! halving may take both ends' trends to zero (a motion of 1e-9 m): halve instead
+      if (trend_low > trend_high) then
+        middle = (low * trend_high - high * trend_low) / (trend_high - trend_low)
+      else
+        middle = low
+      end if
       if (.not. (middle > low .and. middle < high)) middle = 0.5_wp * (low + high)
       trend = trend_at(middle)
       if (trend >= 0) then
@@ -319,7 +339,7 @@ contains
       end if
     end do
     middle = 0.5_wp * (low + high)
-    call dop853_ball_dense(dop, ball, middle, y, prepared)
+    call pair_ball_dense(dop, ball, middle, y, prepared)
     y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
     lateral = sqrt(y(1)**2 + y(2)**2)
     peak%t = dop%t_old + middle * dop%h
@@ -330,7 +350,7 @@ contains
     real(wp) function trend_at(theta)
       real(wp), intent(in) :: theta
       real(wp) :: state(state_size), rate(max_equations)
-      call dop853_ball_dense(dop, ball, theta, state, prepared)
+      call pair_ball_dense(dop, ball, theta, state, prepared)
       call dop%dense_rate(theta, rate)
       trend_at = nutation_trend(state, rate(:state_size))
     end function trend_at
@@ -340,7 +360,7 @@ contains
   !> output, record the output samples before the crossing, and end the
   !> case at the last valid point.
   subroutine stop_in_step(dop, run, plan, status, res)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     integer, intent(in) :: status
@@ -355,7 +375,7 @@ contains
   !> Bisect the dense output of the last attempt (in dop), which crossed a
   !> limit (status) at its end, for where the crossing lies.
   subroutine locate_crossing(dop, run, status, search, n_rhs)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: status
     type(limit_search_t), intent(out) :: search
@@ -372,7 +392,7 @@ contains
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(dop, run, search, res)
-    type(dop853_t), intent(in) :: dop
+    class(embedded_pair_t), intent(in) :: dop
     type(run_state_t), intent(inout) :: run
     type(limit_search_t), intent(in) :: search
     type(case_result_t), intent(inout) :: res
@@ -382,7 +402,7 @@ contains
   end subroutine end_at_crossing
 
   !> The exact flow from a fixed-step method's state y_from at t_from,
-  !> followed with DOP853 at reference_rtol, reference_atol up to t_until at
+  !> followed with reference_method at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
   !> case ends there (res%status, res%t_final), and the flow's step ends
   !> after t_tracked (the method's last state) are added to the summary.
@@ -395,7 +415,7 @@ contains
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
-    type(dop853_t) :: dop
+    type(vern9_t) :: dop                      ! reference_method
     type(step_control_t) :: control
     type(limit_search_t) :: search
     type(observation_t) :: obs
@@ -410,6 +430,7 @@ contains
     y_at = y_from
     call ball_derivative(run%ball, t_at, y_at, f_at)
     res%n_rhs = res%n_rhs + 1
+    control%order = dop%control_order()
     call dop%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
@@ -450,7 +471,7 @@ contains
   !> sample computes only what the stored fields need: the geometry of the
   !> state, or every derived output (with f there when the reaction is stored).
   subroutine record_samples_until(dop, run, plan, t_until, obs_end, res)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     real(wp), intent(in) :: t_until
@@ -469,8 +490,8 @@ contains
         call dense_state(dop, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
         call record_sample(res, run%next_sample, obs)
       else
-        call dop853_ball_dense(dop, run%ball, theta, y, prepared)
-        if (prepared) res%n_rhs = res%n_rhs + dop853_dense_calls
+        call pair_ball_dense(dop, run%ball, theta, y, prepared)
+        if (prepared) res%n_rhs = res%n_rhs + dop%dense_calls()
         call record_geometry_sample(res, run%next_sample, run%ball, y)
       end if
       run%next_sample = run%next_sample + 1
@@ -480,14 +501,14 @@ contains
   !> The state at t_old + theta h of the last attempt, from its dense
   !> output, the normal projected to unit length.
   subroutine dense_point(dop, run, theta, y, n_rhs)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(state_size)
     integer(i8), intent(inout) :: n_rhs
     logical :: prepared
-    call dop853_ball_dense(dop, run%ball, theta, y, prepared)
-    if (prepared) n_rhs = n_rhs + dop853_dense_calls
+    call pair_ball_dense(dop, run%ball, theta, y, prepared)
+    if (prepared) n_rhs = n_rhs + dop%dense_calls()
     call normalize_normal(y)
   end subroutine dense_point
 
@@ -495,7 +516,7 @@ contains
   !> dense output, with f there (one more RHS call) when with_rate (the
   !> limits and the stored reaction need it).
   subroutine dense_state(dop, run, theta, with_rate, obs, n_rhs)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: theta
     logical, intent(in) :: with_rate

@@ -9,19 +9,16 @@ module ellroll_ball_steppers
   use ellroll_exact, only: is_zero
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_excitation, only: excitation_none, base_acceleration
-  use ellroll_integrators, only: dop853_t, max_equations
-  use ellroll_dop853_tableau, only: c853, end_stage, first_dense_stage, stages_dense, a_value, a_column, a_row, &
-      e5, bhh, in_error_estimate
+  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_equations, max_pair_stages, estimate_round_off
+  use ellroll_dop853_tableau, only: c853, end_stage, a_value, a_column, a_row, e5, bhh, in_error_estimate
+  use ellroll_vern9_tableau, only: vern9_end_stage => end_stage, v9_value => a_value, v9_column => a_column, &
+      v9_row => a_row, e8, v9_in_error_estimate => in_error_estimate
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
   use ellroll_status, only: status_completed
   implicit none
   private
 
-  public :: rk4_ball_step, dop853_ball_step, dop853_ball_dense, lanes_rk4_step, lanes_dop853_attempt, &
-            lanes_dop853_dense_stages
-
-  !> Right-hand-side calls of one DOP853 attempt and of its dense output.
-  integer, parameter, public :: dop853_attempt_calls = end_stage - 1, dop853_dense_calls = 3
+  public :: rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
 
 contains
 
@@ -58,8 +55,26 @@ contains
     y_new = y + (h/6) * (f0 + 2*(k2 + k3) + k4)
   end subroutine rk4_ball_step
 
-  !> One DOP853 attempt of the ball (generic: dop853_t%step); afterwards
-  !> dop%error_norm and dop%k(:, end_stage) = f(t + h, y_new) are set.
+  !> One attempt of an embedded pair on the ball (generic: pair%step);
+  !> afterwards pair%error_norm and pair%k(:, pair%end_stage()) =
+  !> f(t + h, y_new) are set. Each pair's loop is its own, so that its stage
+  !> arithmetic is bound at compile time.
+  pure subroutine pair_ball_step(pair, ball, t, y, f0, h, y_new)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, h
+    real(wp), intent(in) :: y(state_size), f0(state_size)
+    real(wp), intent(out) :: y_new(state_size)
+    select type (pair)
+    type is (dop853_t)
+      call dop853_ball_step(pair, ball, t, y, f0, h, y_new)
+    type is (vern9_t)
+      call vern9_ball_step(pair, ball, t, y, f0, h, y_new)
+    class default
+      error stop 'pair_ball_step: a pair without a fused step'
+    end select
+  end subroutine pair_ball_step
+
   pure subroutine dop853_ball_step(dop, ball, t, y, f0, h, y_new)
     type(dop853_t), intent(inout) :: dop
     type(rolling_ball_t), intent(in) :: ball
@@ -79,29 +94,48 @@ contains
     call dop%finish_attempt(state_size, t, start, h, stage)
   end subroutine dop853_ball_step
 
-  !> The state at t_old + theta h of the last attempt (generic: dop853_t%dense);
+  pure subroutine vern9_ball_step(pair, ball, t, y, f0, h, y_new)
+    type(vern9_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, h
+    real(wp), intent(in) :: y(state_size), f0(state_size)
+    real(wp), intent(out) :: y_new(state_size)
+    real(wp) :: start(max_equations), stage(max_equations)
+    integer :: s
+    start = 0
+    start(:state_size) = y
+    pair%k(:state_size, 1) = f0
+    do s = 2, vern9_end_stage
+      call pair%stage_input(s, start, h, stage)
+      call ball_derivative(ball, t + pair%node(s) * h, stage(:state_size), pair%k(:state_size, s))
+    end do
+    y_new = stage(:state_size)
+    call pair%finish_attempt(state_size, t, start, h, stage)
+  end subroutine vern9_ball_step
+
+  !> The state at t_old + theta h of the last attempt (generic: pair%dense);
   !> prepared tells whether the dense-output stages were computed now.
-  pure subroutine dop853_ball_dense(dop, ball, theta, y, prepared)
-    type(dop853_t), intent(inout) :: dop
+  pure subroutine pair_ball_dense(pair, ball, theta, y, prepared)
+    class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(state_size)
     logical, intent(out) :: prepared
     real(wp) :: stage(max_equations)
     integer :: s
-    prepared = .not. dop%dense_ready
+    prepared = .not. pair%dense_ready
     if (prepared) then
-      if (.not. dop%dense_stages_ready) then
-        do s = first_dense_stage, stages_dense
-          call dop%stage_input(s, dop%y_old, dop%h, stage)
-          call ball_derivative(ball, dop%t_old + c853(s) * dop%h, stage(:state_size), dop%k(:state_size, s))
+      if (.not. pair%dense_stages_ready) then
+        do s = pair%end_stage() + 1, pair%end_stage() + pair%dense_calls()
+          call pair%stage_input(s, pair%y_old, pair%h, stage)
+          call ball_derivative(ball, pair%t_old + pair%node(s) * pair%h, stage(:state_size), pair%k(:state_size, s))
         end do
       end if
-      call dop%build_dense()
+      call pair%build_dense()
     end if
-    call dop%dense_value(theta, stage)
+    call pair%dense_value(theta, stage)
     y = stage(:state_size)
-  end subroutine dop853_ball_dense
+  end subroutine pair_ball_dense
   !> One classical RK4 step of every lane (rk4_ball_step), the new normal
   !> projected to unit length, and f there; inside, when asked for, tells
   !> the lanes whose every stage lies where the equations hold (a lane
@@ -157,21 +191,37 @@ contains
     where (out%status /= status_completed) margin = -1
   end subroutine lanes_check_reaction
 
-  !> One DOP853 attempt of every lane, each with its own h (dop853_ball_step
-!> across lanes, the same sums in the same order): the stages
-  !> k(:, :, 1:end_stage) (the last one f at the new point), the new point
-  !> (not projected) and the error norm of dop853_t%finish_attempt.
+  !> One attempt of the pair of every lane, each lane with its own h
+  !> (pair_ball_step across lanes, the same sums in the same order): the
+  !> stages k(:, :, 1:end_stage) (the last one f at the new point), the new
+  !> point (not projected) and the error norm of the pair's finish_attempt.
+  pure subroutine lanes_pair_attempt(pair, p, y, f0, h, rtol, atol, k, y_new, error_norm)
+    class(embedded_pair_t), intent(in) :: pair
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), dimension(lanes, state_size), intent(in) :: y, f0
+    real(wp), dimension(lanes), intent(in) :: h, rtol, atol
+    real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
+    select type (pair)
+    type is (dop853_t)
+      call lanes_dop853_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
+    type is (vern9_t)
+      call lanes_vern9_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
+    class default
+      error stop 'lanes_pair_attempt: a pair without a fused step'
+    end select
+  end subroutine lanes_pair_attempt
+
   pure subroutine lanes_dop853_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
     type(ball_lanes_t), intent(in) :: p
     real(wp), dimension(lanes, state_size), intent(in) :: y, f0
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
-    real(wp), intent(out) :: k(lanes, state_size, stages_dense), y_new(lanes, state_size), error_norm(lanes)
+    real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
     real(wp), dimension(lanes) :: err5, err3, scale, e5_norm2, e3_norm2
     real(wp) :: stage(lanes, state_size)
     integer :: s, i, l
     k(:, :, 1) = f0
     do s = 2, end_stage                       ! the last stage input is y_new
-      call lanes_stage_input(s, y, h, k, stage)
+      call lanes_stage_input(s, a_value, a_column, a_row, y, h, k, stage)
       call lanes_derivative(p, stage, k(:, :, s))
     end do
     y_new = stage
@@ -196,33 +246,72 @@ contains
     end do
   end subroutine lanes_dop853_attempt
 
-  !> The dense-output stages k(:, :, first_dense_stage:) of every lane's
-  !> last attempt from y with step h (dop853_ball_dense across lanes).
-  pure subroutine lanes_dop853_dense_stages(p, y, h, k)
+  pure subroutine lanes_vern9_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
     type(ball_lanes_t), intent(in) :: p
-    real(wp), intent(in) :: y(lanes, state_size), h(lanes)
-    real(wp), intent(inout) :: k(lanes, state_size, stages_dense)
+    real(wp), dimension(lanes, state_size), intent(in) :: y, f0
+    real(wp), dimension(lanes), intent(in) :: h, rtol, atol
+    real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
+    real(wp), dimension(lanes) :: err, noise, scale, norm2
     real(wp) :: stage(lanes, state_size)
-    integer :: s
-    do s = first_dense_stage, stages_dense
-      call lanes_stage_input(s, y, h, k, stage)
+    integer :: s, i
+    k(:, :, 1) = f0
+    do s = 2, vern9_end_stage                 ! the last stage input is y_new
+      call lanes_stage_input(s, v9_value, v9_column, v9_row, y, h, k, stage)
       call lanes_derivative(p, stage, k(:, :, s))
     end do
-  end subroutine lanes_dop853_dense_stages
+    y_new = stage
+    norm2 = 0
+    do i = 1, state_size
+      err = 0
+      noise = 0
+      do s = 1, size(e8)
+        if (v9_in_error_estimate(s)) then
+          err = err + e8(s) * k(:, i, s)
+          noise = noise + abs(e8(s) * k(:, i, s))
+        end if
+      end do
+      err = max(abs(err), estimate_round_off * noise)
+      scale = atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol
+      norm2 = norm2 + (err / scale)**2
+    end do
+    error_norm = abs(h) * sqrt(norm2 / state_size)
+  end subroutine lanes_vern9_attempt
+
+  !> The dense-output stages k(:, :, first_dense_stage:) of every lane's
+  !> last attempt from y with step h (pair_ball_dense across lanes).
+  pure subroutine lanes_pair_dense_stages(pair, p, y, h, k)
+    class(embedded_pair_t), intent(in) :: pair
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), h(lanes)
+    real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
+    real(wp) :: stage(lanes, state_size)
+    integer :: s
+    do s = pair%end_stage() + 1, pair%end_stage() + pair%dense_calls()
+      select type (pair)
+      type is (dop853_t)
+        call lanes_stage_input(s, a_value, a_column, a_row, y, h, k, stage)
+      type is (vern9_t)
+        call lanes_stage_input(s, v9_value, v9_column, v9_row, y, h, k, stage)
+      end select
+      call lanes_derivative(p, stage, k(:, :, s))
+    end do
+  end subroutine lanes_pair_dense_stages
 
   !> The input of stage s of every lane: y + h sum_j a(s, j) k_j, over the
-  !> nonzero a(s, j) in the order of dop853_t%stage_input.
-  pure subroutine lanes_stage_input(s, y, h, k, stage)
-    integer, intent(in) :: s
-    real(wp), intent(in) :: y(lanes, state_size), h(lanes), k(lanes, state_size, stages_dense)
+  !> nonzero a(s, j) of a pair's tableau (packed by rows: values, columns,
+  !> rows) in the order of its stage_input.
+  pure subroutine lanes_stage_input(s, values, columns, rows, y, h, k, stage)
+    integer, intent(in) :: s, columns(*), rows(*)
+    real(wp), intent(in) :: values(*)
+    real(wp), intent(in) :: y(lanes, state_size), h(lanes), k(lanes, state_size, max_pair_stages)
     real(wp), intent(out) :: stage(lanes, state_size)
     real(wp) :: total(lanes)
     integer :: i, m
     do i = 1, state_size
-      m = a_row(s)
-      total = y(:, i) + (h * a_value(m)) * k(:, i, a_column(m))
-      do m = a_row(s) + 1, a_row(s + 1) - 1
-        total = total + (h * a_value(m)) * k(:, i, a_column(m))
+      m = rows(s)
+      total = y(:, i) + (h * values(m)) * k(:, i, columns(m))
+      do m = rows(s) + 1, rows(s + 1) - 1
+        total = total + (h * values(m)) * k(:, i, columns(m))
       end do
       stage(:, i) = total
     end do

@@ -1,6 +1,6 @@
 !> Batches of up to `lanes` cases on fixed cups, one per SIMD lane
 !> (ellroll_ball_lanes): the steps, the observations, the summary and
-!> DOP853's dense-output stages of all lanes at once; what happens to one
+!> the embedded pairs' dense-output stages of all lanes at once; what happens to one
 !> lane alone (its interpolant, a crossed limit, a maximum of Theta) is the
 !> one-case code on that lane.
 module ellroll_batch_run
@@ -12,9 +12,8 @@ module ellroll_batch_run
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
-  use ellroll_integrators, only: dop853_t, rk4_t
-  use ellroll_dop853_tableau, only: end_stage, stages_dense
-  use ellroll_ball_steppers, only: dop853_attempt_calls, lanes_rk4_step, lanes_dop853_attempt, lanes_dop853_dense_stages
+  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, rk4_t, max_pair_stages
+  use ellroll_ball_steppers, only: lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
@@ -76,12 +75,13 @@ module ellroll_batch_run
 
 contains
 
-  !> Whether a case runs in a batch (simulate_batch): RK4 or DOP853 on a
+  !> Whether a case runs in a batch (simulate_batch): RK4 or a pair on a
   !> fixed cup, without the reference run; a property of the case alone, so
   !> that every run and every shard takes the same path for it.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
-    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853') .and. cs%excitation%kind == excitation_none &
+    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853' .or. cs%method == 'vern9') &
+                .and. cs%excitation%kind == excitation_none &
                 .and. .not. cs%error_estimate .and. .not. cs%rolling_resistance > 0
   end function batchable
 
@@ -125,11 +125,20 @@ contains
           y(l, :) = y(donor, :)
           f(l, :) = f(donor, :)
         end do
-        if (cases(1)%method == 'dop853') then
-          call adaptive_lanes(b, cases, plan, results)
-        else
+        select case (cases(1)%method)
+        case ('dop853')
+          block
+            type(dop853_t) :: pairs(lanes)
+            call adaptive_lanes(b, pairs, cases, plan, results)
+          end block
+        case ('vern9')
+          block
+            type(vern9_t) :: pairs(lanes)
+            call adaptive_lanes(b, pairs, cases, plan, results)
+          end block
+        case default
           call fixed_step_lanes(b, cases, plan, results)
-        end if
+        end select
         where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
       end if
 
@@ -225,20 +234,21 @@ contains
     end associate
   end subroutine fixed_step_lanes
 
-  !> DOP853 with each case's tolerances (adaptive_loop across lanes): the
-  !> attempts of all lanes together, the step control of each lane its
-  !> own. An attempt, with the dense-output stages computed for all lanes,
-  !> is copied into the lane's dop853_t only when its dense output is needed
-  !> (a sample or a maximum of Theta inside the step, a crossed limit).
-  subroutine adaptive_lanes(b, cases, plan, results)
+  !> An embedded pair with each case's tolerances (adaptive_loop across
+  !> lanes): the attempts of all lanes together, the step control of each
+  !> lane its own. An attempt, with the dense-output stages computed for all
+  !> lanes, is copied into the lane's pair (dop, one per lane, all of one
+  !> type) only when its dense output is needed (a sample or a maximum of
+  !> Theta inside the step, a crossed limit).
+  subroutine adaptive_lanes(b, dop, cases, plan, results)
     type(batch_t), intent(inout) :: b
+    class(embedded_pair_t), intent(inout) :: dop(lanes)
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
-    type(dop853_t) :: dop(lanes)
     type(lane_outputs_t) :: out
     real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
-    real(wp) :: k(lanes, state_size, stages_dense)
+    real(wp) :: k(lanes, state_size, max_pair_stages)
     real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control(lanes)
@@ -256,6 +266,7 @@ contains
         i = merge(l, donor, active(l))
         dop(l)%rtol = cases(i)%rtol
         dop(l)%atol = cases(i)%atol
+        control(l)%order = dop(l)%control_order()
         rtol(l) = cases(i)%rtol
         atol(l) = cases(i)%atol
         h_max(l) = cases(i)%dt
@@ -275,11 +286,11 @@ contains
         do l = 1, lanes
           if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
         end do
-        call lanes_dop853_attempt(balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
-          results(l)%n_rhs = results(l)%n_rhs + dop853_attempt_calls
+          results(l)%n_rhs = results(l)%n_rhs + dop(l)%attempt_calls()
           if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
           accepted(l) = error_norm(l) <= 1
           if (.not. accepted(l)) then
@@ -290,7 +301,7 @@ contains
         if (.not. any(accepted)) cycle
         do l = 1, lanes
           y_lane = y_raw(l, :)
-          rate_lane = k(l, :, end_stage)
+          rate_lane = k(l, :, dop(l)%end_stage())
           call project_with_rate(y_lane, rate_lane, f_lane)
           y_new(l, :) = y_lane
           f_new(l, :) = f_lane
@@ -307,7 +318,7 @@ contains
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
         dense = sample_inside .or. peak_inside .or. (accepted .and. out%status /= status_completed)
-        if (any(dense)) call lanes_dop853_dense_stages(balls, y, h, k)
+        if (any(dense)) call lanes_pair_dense_stages(dop(1), balls, y, h, k)
         do l = 1, n
           if (.not. accepted(l)) cycle
           if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
@@ -341,12 +352,12 @@ contains
   end subroutine adaptive_lanes
 
   !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
-  !> dense-output ones) into a dop853_t, as dop853_ball_step leaves it, for
-  !> its dense output.
+  !> dense-output ones) into its pair, as pair_ball_step leaves it, for its
+  !> dense output.
   pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
-    type(dop853_t), intent(inout) :: dop
+    class(embedded_pair_t), intent(inout) :: dop
     integer, intent(in) :: l
-    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, stages_dense)
+    real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, max_pair_stages)
     real(wp), intent(in) :: error_norm
     real(wp) :: y_lane(state_size), y_raw_lane(state_size)
     dop%k(:state_size, :) = k(l, :, :)

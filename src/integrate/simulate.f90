@@ -1,8 +1,8 @@
 !> Integrate one case from t = 0 to t_end (or to the model limit it meets),
 !> sampling the requested fields every output interval: fixed-step methods
 !> sample their own steps; the adaptive method samples its dense output.
-!> With error_estimate, the case is run again with the adaptive method at a
-!> tight tolerance and the differences are its error figures. The one entry
+!> With error_estimate, the case is run again with the reference method
+!> (vern9) at a tight tolerance and the differences are its error figures. The one entry
 !> point of the integration room: it passes on the batches (ellroll_batch_run).
 module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -12,10 +12,10 @@ module ellroll_simulate
   use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_nutation, field_energy
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: state_size
-  use ellroll_integrators, only: integrator_t, dop853_t, new_integrator
+  use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator
   use ellroll_case_run, only: run_state_t, start_case, finish_case
   use ellroll_fixed_step_run, only: fixed_step_loop
-  use ellroll_adaptive_run, only: adaptive_loop, reference_rtol, reference_atol
+  use ellroll_adaptive_run, only: adaptive_loop, reference_method, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
   implicit none
   private
@@ -43,7 +43,7 @@ contains
     own_plan%fields([field_contact, field_nutation, field_energy]) = .true.
     call integrate(cs, own_plan, res, err)
     reference_case = cs
-    reference_case%method = 'dop853'
+    reference_case%method = reference_method
     reference_case%rtol = reference_rtol
     reference_case%atol = reference_atol
     reference_case%dt = cs%t_end
@@ -86,7 +86,7 @@ contains
     call start_case(cs, plan, run, res, y, f)
     if (res%status == status_completed) then
       select type (integrator)
-      type is (dop853_t)
+      class is (embedded_pair_t)
         integrator%rtol = cs%rtol
         integrator%atol = cs%atol
         call adaptive_loop(integrator, cs, plan, run, y, f, res)

@@ -5,6 +5,7 @@
 !>
 !>   rk4     classical Runge-Kutta, fixed step, order 4 (the source paper's method)
 !>   dop853  Dormand-Prince 8(5,3), adaptive, with 7th-order dense output
+!>   vern9   Verner's 9(8) pair, adaptive, with 8th-order dense output
 !>   gauss4  2-stage Gauss-Legendre, implicit, symmetric, order 4 (simplified
 !>           Newton, LAPACK LU): bounded energy error over long runs
 module ellroll_integrators
@@ -13,20 +14,34 @@ module ellroll_integrators
   use ellroll_lapack, only: dgetrf, dgetrs
   use ellroll_ode, only: ode_system_t, stage_limit, no_step_solution
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_dop853_tableau, only: stages, stages_dense, end_stage, first_dense_stage, c853, a_value, a_column, a_row, &
-      e5, bhh, d853, in_error_estimate, in_dense_output
+  use ellroll_dop853_tableau, only: dop853_end_stage => end_stage, dop853_stages_dense => stages_dense, c853, &
+      a_value, a_column, a_row, e5, bhh, d853, in_error_estimate, in_dense_output
+  use ellroll_vern9_tableau, only: vern9_end_stage => end_stage, vern9_stages_dense => stages_dense, c9, e8, q98, &
+      v9_value => a_value, v9_column => a_column, v9_row => a_row, v9_in_error_estimate => in_error_estimate, &
+      v9_in_dense_output => in_dense_output
   implicit none
   private
 
-  public :: integrator_t, rk4_t, dop853_t, gauss4_t, new_integrator, method_names, stability_limit
+  public :: integrator_t, rk4_t, embedded_pair_t, dop853_t, vern9_t, gauss4_t, new_integrator, method_names, &
+            stability_limit
   public :: method_info_t, methods, method_info
 
   !> Largest system the integrators take: their work arrays are fixed-size
-  !> (on the stack), so a step allocates nothing. DOP853 works on whole
+  !> (on the stack), so a step allocates nothing. The embedded pairs work on whole
   !> columns of this length, entries past the system's size kept zero: the
   !> loops have a length known at compile time (unrolled, vectorized) and
   !> the system's entries come out as if computed alone.
   integer, parameter, public :: max_equations = 8
+
+  !> Stages of the largest embedded pair with its dense-output stages (vern9).
+  integer, parameter, public :: max_pair_stages = vern9_stages_dense
+
+  !> Verner's error estimate sum_s e8(s) k_s is taken no smaller than this
+  !> times its round-off, eps sum_s |e8(s) k_s|: below, it is noise (e8
+  !> cancels k_8 against k_12), and a step chosen from it would be the
+  !> noise's (a case alone and in a SIMD batch, whose stages differ by
+  !> round-off, would part ways).
+  real(wp), parameter, public :: estimate_round_off = 16 * epsilon(1.0_wp)
 
   !> What a method is, for users and for the code that picks how to run it.
   type :: method_info_t
@@ -34,12 +49,18 @@ module ellroll_integrators
     character(len=10) :: kind          !< fixed, adaptive or symmetric
     character(len=24) :: order         !< the order, as a user reads it
     logical :: adaptive                !< the step is chosen by error control (dt is the largest step)
+    character(len=80) :: use_for       !< when to pick it (bench/workprecision.py, bench/pairs.py)
   end type method_info_t
 
-  type(method_info_t), parameter :: methods(3) = [ &
-      method_info_t('rk4', 'fixed', '4', .false.), &
-      method_info_t('dop853', 'adaptive', '8(5,3), dense output 7', .true.), &
-      method_info_t('gauss4', 'symmetric', '4', .false.)]
+  type(method_info_t), parameter :: methods(4) = [ &
+      method_info_t('rk4', 'fixed', '4', .false., &
+                    "the paper's; large campaigns at errors above about 1e-6 m (SIMD batches)"), &
+      method_info_t('dop853', 'adaptive', '8(5,3), dense output 7', .true., &
+                    'accurate runs, rtol 1e-3 to 1e-9; outputs at any interval'), &
+      method_info_t('vern9', 'adaptive', '9(8), dense output 8', .true., &
+                    'tight tolerances, rtol 1e-10 and below: fewer RHS calls than dop853'), &
+      method_info_t('gauss4', 'symmetric', '4', .false., &
+                    'long runs of a conservative case: energy error bounded, not drifting')]
 
   type, abstract :: integrator_t
     !> fixed-step methods: 0 when the system's model held at every stage of
@@ -74,34 +95,116 @@ module ellroll_integrators
     procedure, nopass :: info => rk4_info
   end type rk4_t
 
-  !> The step of an adaptive method is an attempt: it also returns the error
-  !> norm (<= 1: accept) and keeps f at the new point as its last stage
-  !> (k(:, end_stage)). Dense output covers the last attempted step. The
-  !> stage arithmetic is public (stage_input, finish_attempt, build_dense,
-  !> dense_value) so that a fused step of one system shares it.
-  type, extends(integrator_t) :: dop853_t
+  !> What the run loops need to know of an embedded pair beyond its
+  !> arithmetic: stage end_stage is f(t + h, y_new), the dense-output stages
+  !> follow it up to stages_dense; the error estimate is O(h^control_order),
+  !> the exponent of the step control.
+  type :: pair_shape_t
+    integer :: end_stage, stages_dense, control_order
+  end type pair_shape_t
+
+  !> An explicit embedded Runge-Kutta pair. Its step is an attempt: it also
+  !> returns the error norm (<= 1: accept) and keeps f at the new point as
+  !> stage end_stage() of k. Dense output covers the last attempted
+  !> step. The stage arithmetic is public (stage_input, finish_attempt,
+  !> build_dense, dense_value) so that a fused step of one system shares it.
+  type, abstract, extends(integrator_t) :: embedded_pair_t
     real(wp) :: rtol = 1.0e-9_wp, atol = 1.0e-12_wp
     real(wp) :: error_norm = 0
-    real(wp) :: k(max_equations, 16) = 0      !< stages of the last attempt
+    real(wp) :: k(max_equations, max_pair_stages) = 0      !< stages of the last attempt
     real(wp) :: y_old(max_equations) = 0, y_new(max_equations) = 0
-    !> the interpolant y_old + sum_i c(:, i - 1) theta^i, theta = (t - t_old) / h
-    real(wp) :: dense_coefficients(max_equations, 0:6) = 0
+    !> the interpolant's coefficients (dop853: y_old + sum_i c(:, i - 1)
+    !> theta^i; vern9: y_old + sum_i c(:, i) (2 theta - 1)^i), theta = (t - t_old) / h
+    real(wp) :: dense_coefficients(max_equations, 0:8) = 0
     real(wp) :: t_old = 0, h = 0
     logical :: dense_ready = .false.
     !> the dense-output stages are in k already (computed with other lanes of a batch)
     logical :: dense_stages_ready = .false.
   contains
-    procedure :: step => dop853_step
-    procedure :: dense => dop853_dense
-    procedure :: initial_step => dop853_initial_step
+    procedure :: step => pair_step
+    procedure :: dense => pair_dense
+    procedure :: initial_step => pair_initial_step
+    procedure :: hold_attempt => pair_hold_attempt
+    procedure :: end_stage => pair_end_stage
+    procedure :: attempt_calls => pair_attempt_calls
+    procedure :: dense_calls => pair_dense_calls
+    procedure :: control_order => pair_control_order
+    procedure(stage_input_interface), deferred :: stage_input
+    procedure(finish_attempt_interface), deferred :: finish_attempt
+    procedure(build_dense_interface), deferred :: build_dense
+    procedure(dense_value_interface), deferred :: dense_value
+    procedure(dense_rate_interface), deferred :: dense_rate
+    procedure(node_interface), deferred, nopass :: node
+    procedure(shape_interface), deferred, nopass :: shape
+  end type embedded_pair_t
+
+  abstract interface
+    !> The input of stage s: y + h sum_j a(s, j) k_j.
+    pure subroutine stage_input_interface(self, s, y, h, point)
+      import :: embedded_pair_t, wp, max_equations
+      class(embedded_pair_t), intent(in) :: self
+      integer, intent(in) :: s
+      real(wp), intent(in) :: y(max_equations), h
+      real(wp), intent(out) :: point(max_equations)
+    end subroutine stage_input_interface
+    !> The error norm of the attempt y -> y_new of an n-equation system.
+    pure subroutine finish_attempt_interface(self, n, t, y, h, y_new)
+      import :: embedded_pair_t, wp, max_equations
+      class(embedded_pair_t), intent(inout) :: self
+      integer, intent(in) :: n
+      real(wp), intent(in) :: t, y(max_equations), h, y_new(max_equations)
+    end subroutine finish_attempt_interface
+    pure subroutine build_dense_interface(self)
+      import :: embedded_pair_t
+      class(embedded_pair_t), intent(inout) :: self
+    end subroutine build_dense_interface
+    !> The interpolant's value at theta.
+    pure subroutine dense_value_interface(self, theta, y)
+      import :: embedded_pair_t, wp, max_equations
+      class(embedded_pair_t), intent(in) :: self
+      real(wp), intent(in) :: theta
+      real(wp), intent(out) :: y(max_equations)
+    end subroutine dense_value_interface
+    !> The interpolant's rate dy/dtheta at theta.
+    pure subroutine dense_rate_interface(self, theta, rate)
+      import :: embedded_pair_t, wp, max_equations
+      class(embedded_pair_t), intent(in) :: self
+      real(wp), intent(in) :: theta
+      real(wp), intent(out) :: rate(max_equations)
+    end subroutine dense_rate_interface
+    !> c(s): stage s is at t + c(s) h.
+    pure real(wp) function node_interface(s)
+      import :: wp
+      integer, intent(in) :: s
+    end function node_interface
+    pure type(pair_shape_t) function shape_interface()
+      import :: pair_shape_t
+    end function shape_interface
+  end interface
+
+  type, extends(embedded_pair_t) :: dop853_t
+  contains
     procedure :: stage_input => dop853_stage_input
     procedure :: finish_attempt => dop853_finish_attempt
-    procedure :: hold_attempt => dop853_hold_attempt
     procedure :: build_dense => dop853_build_dense
     procedure :: dense_value => dop853_dense_value
     procedure :: dense_rate => dop853_dense_rate
+    procedure, nopass :: node => dop853_node
+    procedure, nopass :: shape => dop853_shape
     procedure, nopass :: info => dop853_info
   end type dop853_t
+
+  type, extends(embedded_pair_t) :: vern9_t
+  contains
+    procedure :: stage_input => vern9_stage_input
+    procedure :: finish_attempt => vern9_finish_attempt
+    procedure :: build_dense => vern9_build_dense
+    procedure :: dense_value => vern9_dense_value
+    procedure :: dense_rate => vern9_dense_rate
+    procedure, nopass :: node => vern9_node
+    procedure, nopass :: shape => vern9_shape
+    procedure, nopass :: info => vern9_info
+  end type vern9_t
 
   !> Steps a Jacobian of the implicit method serves, unless Newton's
   !> iteration slows down before.
@@ -134,6 +237,8 @@ contains
       allocate (rk4_t :: integrator)
     case ('dop853')
       allocate (dop853_t :: integrator)
+    case ('vern9')
+      allocate (vern9_t :: integrator)
     case ('gauss4')
       allocate (gauss4_t :: integrator)
     case default
@@ -166,12 +271,12 @@ contains
     n_rhs = n_rhs + 3
   end subroutine rk4_step
 
-  ! =========================================================== DOP853
+  ! ==================================================== embedded pairs
 
   !> One attempt of size h; sets self%error_norm (accept when <= 1) and
   !> self%k(:, end_stage) = f(t + h, y_new); dense output is prepared lazily.
-  subroutine dop853_step(self, sys, t, y, f0, h, y_new, n_rhs)
-    class(dop853_t), intent(inout) :: self
+  subroutine pair_step(self, sys, t, y, f0, h, y_new, n_rhs)
+    class(embedded_pair_t), intent(inout) :: self
     class(ode_system_t), intent(in) :: sys
     real(wp), intent(in) :: t, h
     real(wp), intent(in) :: y(:), f0(:)
@@ -183,14 +288,124 @@ contains
     start = 0
     start(:n) = y
     self%k(:n, 1) = f0
-    do s = 2, end_stage                       ! the last stage input is y_new
+    do s = 2, self%end_stage()                ! the last stage input is y_new
       call self%stage_input(s, start, h, stage)
-      call sys%rhs(t + c853(s) * h, stage(:n), self%k(:n, s))
+      call sys%rhs(t + self%node(s) * h, stage(:n), self%k(:n, s))
     end do
     y_new = stage(:n)
-    n_rhs = n_rhs + stages
+    n_rhs = n_rhs + self%attempt_calls()
     call self%finish_attempt(n, t, start, h, stage)
-  end subroutine dop853_step
+  end subroutine pair_step
+
+  !> y(t_old + theta h), theta in [0, 1], for the last attempted step.
+  subroutine pair_dense(self, sys, theta, y, n_rhs)
+    class(embedded_pair_t), intent(inout) :: self
+    class(ode_system_t), intent(in) :: sys
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(:)
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: stage(max_equations)
+    integer :: s, n
+    n = size(y)
+    if (.not. self%dense_ready) then
+      if (.not. self%dense_stages_ready) then
+        do s = self%end_stage() + 1, self%end_stage() + self%dense_calls()
+          call self%stage_input(s, self%y_old, self%h, stage)
+          call sys%rhs(self%t_old + self%node(s) * self%h, stage(:n), self%k(:n, s))
+        end do
+      end if
+      n_rhs = n_rhs + self%dense_calls()
+      call self%build_dense()
+    end if
+    call self%dense_value(theta, stage)
+    y = stage(:n)
+  end subroutine pair_dense
+
+  !> Keep the attempt y -> y_new from t with step h and its error norm as
+  !> the last one, whose dense output is prepared on demand;
+  !> dense_stages_ready: its dense-output stages are in k already.
+  pure subroutine pair_hold_attempt(self, t, h, y, y_new, error_norm, dense_stages_ready)
+    class(embedded_pair_t), intent(inout) :: self
+    real(wp), intent(in) :: t, h, y(:), y_new(:), error_norm
+    logical, intent(in) :: dense_stages_ready
+    self%y_old(:size(y)) = y
+    self%y_new(:size(y_new)) = y_new
+    self%t_old = t
+    self%h = h
+    self%error_norm = error_norm
+    self%dense_ready = .false.
+    self%dense_stages_ready = dense_stages_ready
+  end subroutine pair_hold_attempt
+
+  !> Hairer's starting step: first guess from |y|/|f|, refined with one Euler step.
+  subroutine pair_initial_step(self, sys, t, y, f0, h_max, h, n_rhs)
+    class(embedded_pair_t), intent(inout) :: self
+    class(ode_system_t), intent(in) :: sys
+    real(wp), intent(in) :: t, h_max
+    real(wp), intent(in) :: y(:), f0(:)
+    real(wp), intent(out) :: h
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: scale(size(y)), f1(size(y)), d0, d1, d2, h0, h1
+    scale = self%atol + abs(y) * self%rtol
+    d0 = sqrt(sum((y / scale)**2) / size(y))
+    d1 = sqrt(sum((f0 / scale)**2) / size(y))
+    if (d0 < 1.0e-5_wp .or. d1 < 1.0e-5_wp) then
+      h0 = 1.0e-6_wp
+    else
+      h0 = 0.01_wp * d0 / d1
+    end if
+    h0 = min(h0, h_max)
+    call sys%rhs(t + h0, y + h0 * f0, f1)
+    n_rhs = n_rhs + 1
+    d2 = sqrt(sum(((f1 - f0) / scale)**2) / size(y)) / h0
+    if (max(d1, d2) <= 1.0e-15_wp) then
+      h1 = max(1.0e-6_wp, h0 * 1.0e-3_wp)
+    else
+      h1 = (0.01_wp / max(d1, d2))**(1.0_wp / self%control_order())
+    end if
+    h = min(100 * h0, h1, h_max)
+  end subroutine pair_initial_step
+
+  !> The stage that is f(t + h, y_new).
+  pure integer function pair_end_stage(self)
+    class(embedded_pair_t), intent(in) :: self
+    associate (shape => self%shape())
+      pair_end_stage = shape%end_stage
+    end associate
+  end function pair_end_stage
+
+  !> RHS calls of an attempt (its stages after the first, which is f0).
+  pure integer function pair_attempt_calls(self)
+    class(embedded_pair_t), intent(in) :: self
+    pair_attempt_calls = self%end_stage() - 1
+  end function pair_attempt_calls
+
+  !> RHS calls of the dense output (its stages after end_stage).
+  pure integer function pair_dense_calls(self)
+    class(embedded_pair_t), intent(in) :: self
+    associate (shape => self%shape())
+      pair_dense_calls = shape%stages_dense - shape%end_stage
+    end associate
+  end function pair_dense_calls
+
+  !> The exponent of the step control: the error estimate is O(h^control_order).
+  pure integer function pair_control_order(self)
+    class(embedded_pair_t), intent(in) :: self
+    associate (shape => self%shape())
+      pair_control_order = shape%control_order
+    end associate
+  end function pair_control_order
+
+  ! =========================================================== DOP853
+
+  pure type(pair_shape_t) function dop853_shape() result(shape)
+    shape = pair_shape_t(end_stage=dop853_end_stage, stages_dense=dop853_stages_dense, control_order=8)
+  end function dop853_shape
+
+  pure real(wp) function dop853_node(s)
+    integer, intent(in) :: s
+    dop853_node = c853(s)
+  end function dop853_node
 
   !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
   !> (s = end_stage: the new solution; s > end_stage: dense-output stages,
@@ -222,7 +437,7 @@ contains
     integer :: s
     err5 = 0
     !GCC$ unroll 16
-    do s = 1, end_stage                  ! unrolled, the tests on e5 fold away
+    do s = 1, dop853_end_stage           ! unrolled, the tests on e5 fold away
       if (in_error_estimate(s)) err5 = err5 + e5(s) * self%k(:, s)
     end do
     err3 = (y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)
@@ -237,46 +452,6 @@ contains
     call self%hold_attempt(t, h, y, y_new, error_norm, dense_stages_ready=.false.)
   end subroutine dop853_finish_attempt
 
-  !> Keep the attempt y -> y_new from t with step h and its error norm as
-  !> the last one, whose dense output is prepared on demand;
-  !> dense_stages_ready: its dense-output stages are in k already.
-  pure subroutine dop853_hold_attempt(self, t, h, y, y_new, error_norm, dense_stages_ready)
-    class(dop853_t), intent(inout) :: self
-    real(wp), intent(in) :: t, h, y(:), y_new(:), error_norm
-    logical, intent(in) :: dense_stages_ready
-    self%y_old(:size(y)) = y
-    self%y_new(:size(y_new)) = y_new
-    self%t_old = t
-    self%h = h
-    self%error_norm = error_norm
-    self%dense_ready = .false.
-    self%dense_stages_ready = dense_stages_ready
-  end subroutine dop853_hold_attempt
-
-  !> y(t_old + theta h), theta in [0, 1], for the last attempted step.
-  subroutine dop853_dense(self, sys, theta, y, n_rhs)
-    class(dop853_t), intent(inout) :: self
-    class(ode_system_t), intent(in) :: sys
-    real(wp), intent(in) :: theta
-    real(wp), intent(out) :: y(:)
-    integer(i8), intent(inout) :: n_rhs
-    real(wp) :: stage(max_equations)
-    integer :: s, n
-    n = size(y)
-    if (.not. self%dense_ready) then
-      if (.not. self%dense_stages_ready) then
-        do s = first_dense_stage, stages_dense
-          call self%stage_input(s, self%y_old, self%h, stage)
-          call sys%rhs(self%t_old + c853(s) * self%h, stage(:n), self%k(:n, s))
-        end do
-      end if
-      n_rhs = n_rhs + (stages_dense - end_stage)
-      call self%build_dense()
-    end if
-    call self%dense_value(theta, stage)
-    y = stage(:n)
-  end subroutine dop853_dense
-
   !> The interpolant's coefficients, once the dense-output stages are in
   !> self%k: Hairer's form y_old + theta (r1 + theta1 (r2 + theta (r3 + ...
   !> r7))), theta1 = 1 - theta, rewritten in powers of theta, y_old + sum_i
@@ -290,8 +465,8 @@ contains
     rows = 0                   ! local, fixed-size: kept in registers
     rows(:, 1) = delta
     rows(:, 2) = self%h * self%k(:, 1) - delta
-    rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
-    do s = 1, stages_dense
+    rows(:, 3) = 2 * delta - self%h * (self%k(:, dop853_end_stage) + self%k(:, 1))
+    do s = 1, dop853_stages_dense
       if (.not. in_dense_output(s)) cycle
       stage = self%k(:, s)
       do i = 1, 4
@@ -339,34 +514,107 @@ contains
     end associate
   end subroutine dop853_dense_rate
 
-  !> Hairer's starting step: first guess from |y|/|f|, refined with one Euler step.
-  subroutine dop853_initial_step(self, sys, t, y, f0, h_max, h, n_rhs)
-    class(dop853_t), intent(inout) :: self
-    class(ode_system_t), intent(in) :: sys
-    real(wp), intent(in) :: t, h_max
-    real(wp), intent(in) :: y(:), f0(:)
-    real(wp), intent(out) :: h
-    integer(i8), intent(inout) :: n_rhs
-    real(wp) :: scale(size(y)), f1(size(y)), d0, d1, d2, h0, h1
-    scale = self%atol + abs(y) * self%rtol
-    d0 = sqrt(sum((y / scale)**2) / size(y))
-    d1 = sqrt(sum((f0 / scale)**2) / size(y))
-    if (d0 < 1.0e-5_wp .or. d1 < 1.0e-5_wp) then
-      h0 = 1.0e-6_wp
-    else
-      h0 = 0.01_wp * d0 / d1
-    end if
-    h0 = min(h0, h_max)
-    call sys%rhs(t + h0, y + h0 * f0, f1)
-    n_rhs = n_rhs + 1
-    d2 = sqrt(sum(((f1 - f0) / scale)**2) / size(y)) / h0
-    if (max(d1, d2) <= 1.0e-15_wp) then
-      h1 = max(1.0e-6_wp, h0 * 1.0e-3_wp)
-    else
-      h1 = (0.01_wp / max(d1, d2))**(1.0_wp / 8)
-    end if
-    h = min(100 * h0, h1, h_max)
-  end subroutine dop853_initial_step
+  ! ============================================================ Vern9
+
+  pure type(pair_shape_t) function vern9_shape() result(shape)
+    shape = pair_shape_t(end_stage=vern9_end_stage, stages_dense=vern9_stages_dense, control_order=9)
+  end function vern9_shape
+
+  pure real(wp) function vern9_node(s)
+    integer, intent(in) :: s
+    vern9_node = c9(s)
+  end function vern9_node
+
+  !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
+  !> (dop853_stage_input with Verner's tableau).
+  pure subroutine vern9_stage_input(self, s, y, h, point)
+    class(vern9_t), intent(in) :: self
+    integer, intent(in) :: s
+    real(wp), intent(in) :: y(max_equations), h
+    real(wp), intent(out) :: point(max_equations)
+    real(wp) :: total(max_equations)
+    integer :: m
+    m = v9_row(s)
+    total = y + (h * v9_value(m)) * self%k(:, v9_column(m))
+    do m = v9_row(s) + 1, v9_row(s + 1) - 1
+      total = total + (h * v9_value(m)) * self%k(:, v9_column(m))
+    end do
+    point = total
+  end subroutine vern9_stage_input
+
+  !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
+  !> to 16 in self%k): the root mean square of h sum_s e8(s) k_s, the
+  !> difference of the 8th- and 9th-order solutions (no smaller than
+  !> estimate_round_off sum_s |e8(s) k_s|), scaled by atol + rtol |y|.
+  pure subroutine vern9_finish_attempt(self, n, t, y, h, y_new)
+    class(vern9_t), intent(inout) :: self
+    integer, intent(in) :: n
+    real(wp), intent(in) :: t, y(max_equations), h, y_new(max_equations)
+    real(wp) :: err(max_equations), noise(max_equations), scale(max_equations), norm2
+    integer :: s
+    err = 0
+    noise = 0
+    !GCC$ unroll 16
+    do s = 1, size(e8)                   ! unrolled, the tests on e8 fold away
+      if (v9_in_error_estimate(s)) then
+        err = err + e8(s) * self%k(:, s)
+        noise = noise + abs(e8(s) * self%k(:, s))
+      end if
+    end do
+    err = max(abs(err), estimate_round_off * noise)
+    scale(:n) = self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol
+    norm2 = sum((err(:n) / scale(:n))**2)
+    call self%hold_attempt(t, h, y, y_new, abs(h) * sqrt(norm2 / n), dense_stages_ready=.false.)
+  end subroutine vern9_finish_attempt
+
+  !> The interpolant's coefficients, once the dense-output stages are in
+  !> self%k: c_j = h sum_s q98(j, s) k_s, the coefficient of x^j, x = 2 theta - 1.
+  pure subroutine vern9_build_dense(self)
+    class(vern9_t), intent(inout) :: self
+    real(wp) :: c(max_equations, 0:8), stage(max_equations)
+    integer :: s, j
+    c = 0                      ! local, fixed-size: kept in registers
+    do s = 1, vern9_stages_dense
+      if (.not. v9_in_dense_output(s)) cycle
+      stage = self%k(:, s)
+      do j = 0, 8
+        c(:, j) = c(:, j) + (self%h * q98(j, s)) * stage
+      end do
+    end do
+    self%dense_coefficients = c
+    self%dense_ready = .true.
+  end subroutine vern9_build_dense
+
+  !> y(t_old + theta h), theta in [0, 1], of the last attempt's interpolant
+  !> (Estrin's scheme in x = 2 theta - 1).
+  pure subroutine vern9_dense_value(self, theta, y)
+    class(vern9_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(max_equations)
+    real(wp) :: x, x2, x4
+    x = 2 * theta - 1
+    x2 = x * x
+    x4 = x2 * x2
+    associate (c => self%dense_coefficients)
+      y = self%y_old + ((((c(:, 0) + x * c(:, 1)) + x2 * (c(:, 2) + x * c(:, 3))) &
+                         + x4 * ((c(:, 4) + x * c(:, 5)) + x2 * (c(:, 6) + x * c(:, 7)))) + (x4 * x4) * c(:, 8))
+    end associate
+  end subroutine vern9_dense_value
+
+  !> dy/dtheta = h dy/dt of the interpolant at t_old + theta h (dy/dx 2).
+  pure subroutine vern9_dense_rate(self, theta, rate)
+    class(vern9_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: rate(max_equations)
+    real(wp) :: x, x2, x4
+    x = 2 * theta - 1
+    x2 = x * x
+    x4 = x2 * x2
+    associate (c => self%dense_coefficients)
+      rate = 2 * (((c(:, 1) + (2 * x) * c(:, 2)) + x2 * (3 * c(:, 3) + (4 * x) * c(:, 4))) &
+                  + x4 * ((5 * c(:, 5) + (6 * x) * c(:, 6)) + x2 * (7 * c(:, 7) + (8 * x) * c(:, 8))))
+    end associate
+  end subroutine vern9_dense_rate
 
   ! ========================================================== Gauss4
 
@@ -455,7 +703,7 @@ contains
 
   !> The largest |lambda h| on the imaginary axis for which the method is
   !> stable (the rolling ball's linearised motion is oscillatory): RK4 2 sqrt(2);
-  !> the Gauss method is A-stable; DOP853 controls its steps.
+  !> the Gauss method is A-stable; the embedded pairs control their steps.
   pure real(wp) function stability_limit(integrator)
     class(integrator_t), intent(in) :: integrator
     select type (integrator)
@@ -476,8 +724,12 @@ contains
     info = methods(2)
   end function dop853_info
 
-  pure type(method_info_t) function gauss4_info() result(info)
+  pure type(method_info_t) function vern9_info() result(info)
     info = methods(3)
+  end function vern9_info
+
+  pure type(method_info_t) function gauss4_info() result(info)
+    info = methods(4)
   end function gauss4_info
 
   !> The methods' names, for messages: 'rk4 dop853 gauss4'.
@@ -494,7 +746,7 @@ contains
   pure type(method_info_t) function method_info(name) result(info)
     character(len=*), intent(in) :: name
     integer :: k
-    info = method_info_t('', '', '', .false.)
+    info = method_info_t('', '', '', .false., '')
     k = findloc(methods%name, name, dim=1)
     if (k > 0) info = methods(k)
   end function method_info

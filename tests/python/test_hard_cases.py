@@ -1,5 +1,6 @@
 """The hard cases of input/hard/: each input states what it must do; these
 tests hold it to that."""
+import re
 import shutil
 
 import h5py
@@ -70,12 +71,13 @@ def test_energy_just_below_the_rim_stays_in(ellroll, tmp_path):
     assert 0.199 < np.nanmax(f["trajectory/contact"][0, :, 2]) < 0.2
 
 
-def test_energy_just_above_the_rim_stops_at_the_right_time(ellroll, tmp_path):
+@pytest.mark.parametrize("pair", ["dop853", "vern9"])
+def test_energy_just_above_the_rim_stops_at_the_right_time(ellroll, tmp_path, pair):
     f, _ = run_hard(ellroll, tmp_path, "rim_above.nml")
     t_rk4 = f["summary/t_final"][0]
     assert status(f) == "rim"
     f, _ = run_hard(ellroll, tmp_path, "rim_above.nml",
-                    edits=[("method = 'rk4', dt = 1.0e-4", "method = 'dop853', rtol = 1.0e-12, atol = 1.0e-14")])
+                    edits=[("method = 'rk4', dt = 1.0e-4", f"method = '{pair}', rtol = 1.0e-12, atol = 1.0e-14")])
     assert status(f) == "rim"
     assert abs(f["summary/t_final"][0] - t_rk4) < 1e-9
     assert t_rk4 == pytest.approx(0.39725374360, abs=1e-9)
@@ -135,3 +137,30 @@ def test_slip(ellroll, tmp_path):
     assert f["summary/friction_needed_max"][0] <= 0.085
     f, _ = run_hard(ellroll, tmp_path, "slip.nml", edits=[("dt = 1.0e-3", "dt = 2.5e-4")])
     assert f["summary/t_final"][0] == pytest.approx(1.43560110, abs=1e-8)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in HARD.glob("*.nml") if p.name != "long_run.nml"))
+def test_both_pairs_end_each_hard_case_as_it_states(ellroll, ellroll_debug, tmp_path, name):
+    """dop853 and vern9 on every hard input, at the loosest and the tightest
+    tolerance, on the Debug build (runtime checks, floating-point traps): no
+    crash at either. At rtol 1e-14 both end each case with the input's own
+    status (its rk4 or gauss4 run on the Release build), and where that is a
+    model limit, at the same time to 1e-9 s."""
+    text = (HARD / name).read_text()
+    method = re.search(r"method = '(\w+)', dt = [^,]+,", text)
+    f, _ = run_hard(ellroll, tmp_path, name)
+    own = [status(f, case) for case in range(len(f["summary/status"]))]
+    f.close()
+    ends = {}
+    for pair in ("dop853", "vern9"):
+        for rtol in ("1.0e-3", "1.0e-14"):
+            f, result = run_hard(ellroll_debug, tmp_path, name,
+                                 edits=[(method.group(0), f"method = '{pair}', rtol = {rtol}, atol = {rtol}, ")])
+            assert not result.stderr.strip() or "warning" in result.stderr, result.stderr
+            if rtol == "1.0e-14":
+                assert [status(f, case) for case in range(len(own))] == own, (pair, own)
+                ends[pair] = f["summary/t_final"][:]
+            f.close()
+    for case, outcome in enumerate(own):
+        if outcome != "completed":
+            assert abs(ends["dop853"][case] - ends["vern9"][case]) < 1e-9, (outcome, ends)

@@ -21,6 +21,7 @@ CUP = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 """
 RK4 = "method = 'rk4', dt = 1.0e-3"
 DOP853 = "method = 'dop853', rtol = 1.0e-10"
+VERN9 = "method = 'vern9', rtol = 1.0e-10"
 
 
 def run_cup(ellroll, folder, delta=DELTA, x=0.052, y=0.0, spin=0.0, integration=RK4, t_end=30.0, excitation=""):
@@ -39,7 +40,7 @@ def turning_points(t, x):
     return t[k], x[k]
 
 
-@pytest.mark.parametrize("integration", [RK4, DOP853], ids=["rk4", "dop853"])
+@pytest.mark.parametrize("integration", [RK4, DOP853, VERN9], ids=["rk4", "dop853", "vern9"])
 def test_planar_swing_is_a_coulomb_damped_oscillator(ellroll, tmp_path, integration):
     with run_cup(ellroll, tmp_path, integration=integration) as f:
         t, x = f["time"][()], f["trajectory/contact"][0][:, 0]

@@ -36,11 +36,144 @@ contains
   end function oscillator_exact
 end module oscillator
 
+!> Verner's 9(8) coefficients against the order conditions of Runge-Kutta
+!> methods (Butcher's rooted trees), in the precision they are stored in.
+module vern9_conditions
+  use ellroll_kinds, only: wp
+  use ellroll_vern9_tableau, only: a98, c9, b9, e8, p98, q98, stages, stages_dense
+  use testing
+  implicit none
+  private
+  public :: vern9_order_conditions
+
+  integer, parameter :: max_order = 9, n_trees = 2056     ! sum of Catalan(n - 1), n = 1..9
+  !> Phi(t) of each tree, the same in absolute values, gamma(t); the trees
+  !> of order n are first(n):first(n + 1) - 1.
+  real(wp) :: phi(stages_dense, n_trees), phi_abs(stages_dense, n_trees), gamma(n_trees)
+  integer :: first(max_order + 1)
+
+contains
+
+  !> Verner's coefficients as stored (in double precision) satisfy the
+  !> order conditions to rounding: for every rooted tree t of order |t| <=
+  !> 9, sum_s b_s Phi_s(t) = 1 / gamma(t); for the embedded weights b + e8
+  !> and for the interpolant's weights b_s(theta) = sum_j q98(j, s) (2 theta
+  !> - 1)^j (theta^|t| / gamma(t) for these), the trees up to order 8; and
+  !> these weights are Verner's, sum_j p98(j, s) theta^j. The trees
+  !> are the Butcher products t1 o t2 (t2 grafted onto t1's root) of smaller
+  !> ones: every tree of order >= 2 is one, some several times (1430
+  !> products of order 9 for its 286 trees), which only repeats conditions.
+  !> Phi(t1 o t2) = Phi(t1) (A Phi(t2)), gamma(t1 o t2) = gamma(t1)
+  !> gamma(t2) |t| / |t1|. Rounding: a residual is held to 64 eps times the
+  !> same sum taken in absolute values. The order-9 conditions of the
+  !> embedded weights and of the interpolant fail: the test can fail.
+  subroutine vern9_order_conditions()
+    real(wp), parameter :: thetas(3) = [0.3_wp, 0.77_wp, 1.0_wp]
+    real(wp) :: a(stages_dense, stages_dense), weights(stages_dense), size_of_terms(stages_dense), x
+    integer :: n, k, i, j, m, q
+    a = 0
+    a(:, :stages_dense - 1) = a98
+    call check(all(abs(a(1, :)) <= 0) .and. abs(c9(1)) <= 0, 'vern9: the first stage is at t, from y')
+    call check_below(maxval(abs(sum(a(2:, :), dim=2) - c9(2:)) / (4 * epsilon(1.0_wp) * sum(abs(a(2:, :)), dim=2))), &
+                     1.0_wp, 'vern9: c_s = sum_j a(s, j) (residual / 4 eps sum_j |a(s, j)|, max)')
+    phi(:, 1) = 1
+    phi_abs(:, 1) = 1
+    gamma(1) = 1
+    first(1:2) = [1, 2]
+    m = 1
+    do n = 2, max_order
+      do k = 1, n - 1
+        do i = first(k), first(k + 1) - 1
+          do j = first(n - k), first(n - k + 1) - 1
+            m = m + 1
+            phi(:, m) = phi(:, i) * matmul(a, phi(:, j))
+            phi_abs(:, m) = phi_abs(:, i) * matmul(abs(a), phi_abs(:, j))
+            gamma(m) = gamma(i) * gamma(j) * n / k
+          end do
+        end do
+      end do
+      first(n + 1) = m + 1
+    end do
+    call check(m == n_trees, 'vern9: 2056 Butcher products up to order 9')
+    weights = 0
+    weights(:stages) = b9
+    call check_below(rounding_residual(weights, abs(weights), 1.0_wp, 9), 1.0_wp, &
+                     'vern9 weights: order conditions to 9 (residual / 64 eps |sum|, max)')
+    weights(:stages) = b9 + e8
+    call check_below(rounding_residual(weights, abs(weights), 1.0_wp, 8), 1.0_wp, &
+                     'vern9 embedded weights: order conditions to 8 (residual / 64 eps |sum|, max)')
+    call check(relative_residual(weights, 1.0_wp, 9) > 1.0e-3_wp, 'vern9 embedded weights: not of order 9 (contrast)')
+    do q = 1, size(thetas)
+      x = 2 * thetas(q) - 1
+      call check_below(rounding_residual(interpolant_weights(q98, x), interpolant_weights(abs(q98), abs(x)), &
+                                         thetas(q), 8), 1.0_wp, &
+                       'vern9 interpolant: order conditions to 8 (residual / 64 eps |sum|, max)')
+      size_of_terms = 64 * epsilon(1.0_wp) * published_weights(abs(p98), thetas(q))
+      call check_below(maxval(abs(interpolant_weights(q98, x) - published_weights(p98, thetas(q))) &
+                              / size_of_terms, mask=size_of_terms > 0), 1.0_wp, &
+                       'vern9 interpolant: the weights of Verner''s table (difference / 64 eps |sum|, max)')
+    end do
+    call check(relative_residual(interpolant_weights(q98, 2 * 0.3_wp - 1), 0.3_wp, 9) > 1.0e-3_wp, &
+               'vern9 interpolant: not of order 9 (contrast)')
+  end subroutine vern9_order_conditions
+
+  !> b_s(theta) = sum_j q(j, s) x^j at x = 2 theta - 1 (q: q98; or its
+  !> absolute values, with |x|).
+  function interpolant_weights(q, x) result(w)
+    real(wp), intent(in) :: q(0:8, stages_dense), x
+    real(wp) :: w(stages_dense)
+    integer :: power
+    w = 0
+    do power = 0, 8
+      w = w + q(power, :) * x**power
+    end do
+  end function interpolant_weights
+
+  !> b_s(theta) = sum_j p(j, s) theta^j, Verner's form (p: p98, or its absolute values).
+  function published_weights(p, theta) result(w)
+    real(wp), intent(in) :: p(8, stages_dense), theta
+    real(wp) :: w(stages_dense)
+    integer :: power
+    w = 0
+    do power = 1, 8
+      w = w + p(power, :) * theta**power
+    end do
+  end function published_weights
+
+  !> The largest residual of the conditions of the trees up to order top
+  !> (weights w, theta^|t| / gamma(t) the target), over 64 eps times its
+  !> sum in absolute values (the weights' own: w_abs).
+  real(wp) function rounding_residual(w, w_abs, theta, top)
+    real(wp), intent(in) :: w(stages_dense), w_abs(stages_dense), theta
+    integer, intent(in) :: top
+    integer :: order, tree
+    rounding_residual = 0
+    do order = 1, top
+      do tree = first(order), first(order + 1) - 1
+        rounding_residual = max(rounding_residual, abs(dot_product(w, phi(:, tree)) - theta**order / gamma(tree)) &
+                                / (64 * epsilon(1.0_wp) * dot_product(w_abs, phi_abs(:, tree))))
+      end do
+    end do
+  end function rounding_residual
+
+  !> The largest relative residual of the conditions of the trees of one order.
+  real(wp) function relative_residual(w, theta, order)
+    real(wp), intent(in) :: w(stages_dense), theta
+    integer, intent(in) :: order
+    integer :: tree
+    relative_residual = 0
+    do tree = first(order), first(order + 1) - 1
+      relative_residual = max(relative_residual, abs(dot_product(w, phi(:, tree)) * gamma(tree) / theta**order - 1))
+    end do
+  end function relative_residual
+end module vern9_conditions
+
 !> Every method's order, measured: on the harmonic oscillator (exact
 !> solution) and on the paper's case (against a much finer run); gauss4's
 !> exact conservation of the oscillator's quadratic invariant (it is
-!> symplectic); DOP853's dense-output order; the adaptive method's achieved
-!> error against rtol.
+!> symplectic); DOP853's dense-output order; the adaptive methods' achieved
+!> error against rtol; Verner's coefficients against the order conditions
+!> (its measured orders are in test_rolling_ball).
 program test_integrators
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -53,6 +186,7 @@ program test_integrators
   use fixtures, only: paper_case, run_case
   use ellroll_simulate, only: simulate_case
   use ellroll_adaptive_run, only: step_control_t
+  use vern9_conditions, only: vern9_order_conditions
   use testing
   implicit none
 
@@ -62,8 +196,8 @@ program test_integrators
   real(wp) :: errors(4), dts(4), reference(6), drift, tolerances(4), slope
   type(case_result_t) :: res
   type(case_t) :: cs
-  integer :: k
-  character(len=6), parameter :: fixed_methods(2) = ['rk4   ', 'gauss4']
+  integer :: k, pair
+  character(len=6), parameter :: fixed_methods(2) = ['rk4   ', 'gauss4'], pairs(2) = ['dop853', 'vern9 ']
 
   do k = 1, 2
     call new_integrator(trim(fixed_methods(k)), method, err)
@@ -84,31 +218,39 @@ program test_integrators
   info = method%info()
   call check(info%adaptive .and. info%kind == 'adaptive', 'dop853 is adaptive')
   call orders_on_oscillator(method, [1.0_wp, 0.5_wp, 0.25_wp, 0.125_wp], 'dop853', 8.0_wp)
+  call new_integrator('vern9', method, err)
+  info = method%info()
+  call check(.not. err%failed() .and. info%adaptive .and. info%order(1:4) == '9(8)', 'vern9 is adaptive, order 9(8)')
+  call vern9_order_conditions()
   call dense_order()
   call adaptive_nutation_maxima()
   call step_control_floors()
   call stability_limited_steps()
   call geometry_samples()
 
-  ! the adaptive method's error tracks rtol (paper case, contact point at 2 s)
-  cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
-  cs%method = 'dop853'
-  cs%rtol = 1.0e-13_wp
-  cs%atol = 1.0e-15_wp
-  res = run_case(cs, 1)
-  reference(1:3) = res%fields(field_contact)%values(:, 2)
-  tolerances = [1.0e-5_wp, 1.0e-7_wp, 1.0e-9_wp, 1.0e-11_wp]
-  do k = 1, 4
-    cs%rtol = tolerances(k)
-    cs%atol = tolerances(k) * 1.0e-3_wp
+  ! each adaptive method's error tracks rtol (paper case, contact point at
+  ! 2 s), against the other method at a tight tolerance
+  do pair = 1, 2
+    cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
+    cs%method = pairs(3 - pair)
+    cs%rtol = 1.0e-13_wp
+    cs%atol = 1.0e-15_wp
     res = run_case(cs, 1)
-    errors(k) = norm2(res%fields(field_contact)%values(:, 2) - reference(1:3))
-    print '(a, es8.1, a, es9.2, a, i0)', 'dop853 rtol ', tolerances(k), ': contact error ', errors(k), &
-          ' m, RHS evaluations ', res%n_rhs
-    call check(errors(k) < 100 * tolerances(k), 'dop853 error within 100 rtol')
+    reference(1:3) = res%fields(field_contact)%values(:, 2)
+    cs%method = pairs(pair)
+    tolerances = [1.0e-5_wp, 1.0e-7_wp, 1.0e-9_wp, 1.0e-11_wp]
+    do k = 1, 4
+      cs%rtol = tolerances(k)
+      cs%atol = tolerances(k) * 1.0e-3_wp
+      res = run_case(cs, 1)
+      errors(k) = norm2(res%fields(field_contact)%values(:, 2) - reference(1:3))
+      print '(a, es8.1, a, es9.2, a, i0)', trim(pairs(pair)) // ' rtol ', tolerances(k), ': contact error ', &
+            errors(k), ' m, RHS evaluations ', res%n_rhs
+      call check(errors(k) < 100 * tolerances(k), trim(pairs(pair)) // ' error within 100 rtol')
+    end do
+    slope = log10(errors(1) / errors(4)) / 6
+    call check_close(slope, 1.0_wp, 0.3_wp, trim(pairs(pair)) // ': d log(error) / d log(rtol)')
   end do
-  slope = log10(errors(1) / errors(4)) / 6
-  call check_close(slope, 1.0_wp, 0.3_wp, 'dop853: d log(error) / d log(rtol)')
   call finish('test_integrators')
 
 contains
@@ -327,6 +469,7 @@ contains
     end do
     call check_below(worst_ends, 1.0e-15_wp, 'dop853 dense rate at both ends of the step is h f there')
   end subroutine dense_order
+
 
   !> DOP853 locates the maxima of Theta on its dense output, wherever its
   !> (long) steps end: Theta_max and the nutation period converge with rtol

@@ -7,8 +7,9 @@ program test_rolling_ball
   use ellroll_lapack, only: dgesv
   use ellroll_ellipsoid, only: new_ellipsoid, contact_from_normal, principal_radii
   use ellroll_rolling_ball
-  use ellroll_integrators, only: rk4_t, dop853_t
-  use ellroll_ball_steppers, only: rk4_ball_step, dop853_ball_step, dop853_ball_dense
+  use ellroll_integrators, only: rk4_t, embedded_pair_t, dop853_t, vern9_t
+  use ellroll_vern9_tableau, only: q98
+  use ellroll_ball_steppers, only: rk4_ball_step, pair_ball_step, pair_ball_dense
   use ellroll_kinds, only: i8
   use testing
   implicit none
@@ -19,7 +20,7 @@ program test_rolling_ball
   type(rolling_ball_t), allocatable :: ball
   real(wp) :: y(6), f(6), reference(6), u(6), worst, n(3), radii(2), kappa
   type(observation_t) :: obs
-  integer :: trial, size_seed, fit_count, misfit_count, wrong
+  integer :: trial, size_seed, fit_count, misfit_count, wrong, k
 
   allocate (ball)
   ball%cup = new_ellipsoid(1.0_wp, 0.4_wp, 0.2_wp)
@@ -87,7 +88,17 @@ program test_rolling_ball
   ! The fused steps of the ball equal the generic steps on its RHS
   ! (same arithmetic; 1e-13 allows for different instruction scheduling).
   call fused_against_generic()
-  call fused_dop853_against_generic()
+  block
+    type(dop853_t) :: dop853_fused, dop853_generic
+    type(vern9_t) :: vern9_fused, vern9_generic
+    call fused_pair_against_generic(dop853_fused, dop853_generic, 'DOP853')
+    call fused_pair_against_generic(vern9_fused, vern9_generic, 'Verner 9(8)')
+    call order_on_ball(dop853_generic, 'DOP853', 8, 7, 1.0e-15_wp)
+    ! the rate of Verner's interpolant sums terms up to 2 sum_j j |q98(j, s)|
+    ! times h k_s: round-off in proportion
+    call order_on_ball(vern9_generic, 'Verner 9(8)', 9, 8, &
+                       2 * epsilon(1.0_wp) * maxval(matmul(real([(k, k = 0, 8)], wp), abs(q98))))
+  end block
 
   ! At rest at the bottom the cup carries the weight, with no friction.
   y = [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp]
@@ -123,10 +134,11 @@ contains
                      'fused RK4 step vs generic RK4 step over 5000 steps (max rel. diff)')
   end subroutine fused_against_generic
 
-  !> 300 DOP853 attempts of growing size (accepted or not, the fused and the
-  !> generic path take the same ones) and the dense output of each.
-  subroutine fused_dop853_against_generic()
-    type(dop853_t) :: fused, generic
+  !> 300 attempts of an embedded pair of growing size (accepted or not, the
+  !> fused and the generic path take the same ones) and the dense output of each.
+  subroutine fused_pair_against_generic(fused, generic, name)
+    class(embedded_pair_t), intent(inout) :: fused, generic
+    character(len=*), intent(in) :: name
     real(wp) :: y_fused(6), y_generic(6), f(6), next_fused(6), next_generic(6), mid_fused(6), mid_generic(6)
     real(wp) :: h, worst_state, worst_norm, worst_dense
     integer(i8) :: n_rhs
@@ -141,8 +153,8 @@ contains
     do attempt = 1, 300
       h = 1.0e-3_wp * (1 + mod(attempt, 40))
       call ball%rhs(0.0_wp, y_fused, f)
-      call dop853_ball_step(fused, ball, 0.0_wp, y_fused, f, h, next_fused)
-      call dop853_ball_dense(fused, ball, 0.3_wp, mid_fused, prepared)
+      call pair_ball_step(fused, ball, 0.0_wp, y_fused, f, h, next_fused)
+      call pair_ball_dense(fused, ball, 0.3_wp, mid_fused, prepared)
       call ball%rhs(0.0_wp, y_generic, f)
       call generic%step(ball, 0.0_wp, y_generic, f, h, next_generic, n_rhs)
       call generic%dense(ball, 0.3_wp, mid_generic, n_rhs)
@@ -152,10 +164,80 @@ contains
       y_fused = next_fused / [spread(norm2(next_fused(1:3)), 1, 3), [1, 1, 1] * 1.0_wp]
       y_generic = next_generic / [spread(norm2(next_generic(1:3)), 1, 3), [1, 1, 1] * 1.0_wp]
     end do
-    call check_below(worst_state, 1.0e-13_wp, 'fused DOP853 attempt vs generic over 300 attempts (max rel. diff)')
-    call check_below(worst_norm, 1.0e-12_wp, 'fused DOP853 error norm vs generic (max rel. diff)')
-    call check_below(worst_dense, 1.0e-13_wp, 'fused DOP853 dense output vs generic (max rel. diff)')
-  end subroutine fused_dop853_against_generic
+    call check_below(worst_state, 1.0e-13_wp, 'fused ' // name // ' attempt vs generic over 300 attempts (max rel. diff)')
+    call check_below(worst_norm, 1.0e-12_wp, 'fused ' // name // ' error norm vs generic (max rel. diff)')
+    call check_below(worst_dense, 1.0e-13_wp, 'fused ' // name // ' dense output vs generic (max rel. diff)')
+  end subroutine fused_pair_against_generic
+
+  !> The pair's order, measured on the ball's equations (nonlinear: every
+  !> elementary differential enters) with fixed steps: the state after 1 s
+  !> at h = 1/6, 1/9, 1/12 s against h = 1/400 s (the next term of the
+  !> error is large on this problem: the slopes approach the order from
+  !> above, and are held to within half an order); and its interpolant's:
+  !> the dense output at 0.37 h of one step of h = 1/4, 1/6, 1/8 s against
+  !> 100 steps to there, a local error of order interpolant_order + 1 at
+  !> least (Verner's is of order 10 here, as the step's own: its order-9
+  !> defect carries theta^9), its rate at the step's ends h f there to
+  !> ends_bound (scaled).
+  subroutine order_on_ball(pair, name, order, interpolant_order, ends_bound)
+    class(embedded_pair_t), intent(inout) :: pair
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: order, interpolant_order
+    real(wp), intent(in) :: ends_bound
+    integer, parameter :: steps(3) = [6, 9, 12], dense_steps(3) = [4, 6, 8]
+    real(wp), parameter :: scale(6) = [1, 1, 1, 20, 20, 20]     ! |omega| ~ 20 rad/s
+    real(wp) :: reference(6), errors(3), y(6), f(6), y_next(6), mid(6), rate(8), h, ends, slope
+    character(len=8) :: text
+    integer(i8) :: n_rhs
+    integer :: k
+    reference = state_after(pair, 400, 1.0_wp)
+    do k = 1, 3
+      errors(k) = maxval(abs(state_after(pair, steps(k), 1.0_wp) - reference) / scale)
+    end do
+    do k = 1, 2
+      call check_close(log(errors(k) / errors(k + 1)) / log(real(steps(k + 1), wp) / steps(k)), real(order, wp), &
+                       0.5_wp / order, name // ' order on the ball, fixed steps')
+    end do
+    n_rhs = 0
+    ends = 0
+    do k = 1, 3
+      h = 1.0_wp / dense_steps(k)
+      y = initial_state(ball, 0.01_wp, -0.02_wp, [-2.0_wp, 2.0_wp, 20.0_wp])
+      call ball%rhs(0.0_wp, y, f)
+      call pair%step(ball, 0.0_wp, y, f, h, y_next, n_rhs)
+      call pair%dense(ball, 0.37_wp, mid, n_rhs)
+      errors(k) = maxval(abs(mid - state_after(pair, 100, 0.37_wp * h)) / scale)
+      call pair%dense_rate(0.0_wp, rate)
+      ends = max(ends, maxval(abs(rate(:6) - h * f) / scale))
+      call ball%rhs(h, y_next, f)
+      call pair%dense_rate(1.0_wp, rate)
+      ends = max(ends, maxval(abs(rate(:6) - h * f) / scale))
+    end do
+    do k = 1, 2
+      slope = log(errors(k) / errors(k + 1)) / log(real(dense_steps(k + 1), wp) / dense_steps(k))
+      write (text, '(f6.2)') slope
+      call check(slope > interpolant_order + 0.5_wp, name // ' dense output on the ball: local error order ' // &
+                 trim(adjustl(text)) // ', at least interpolant order + 1')
+    end do
+    call check_below(ends, ends_bound, name // ' dense rate at the step''s ends vs h f there (scaled)')
+  end subroutine order_on_ball
+
+  !> The state at t_end after n fixed steps of the pair.
+  function state_after(pair, n, t_end) result(y)
+    class(embedded_pair_t), intent(inout) :: pair
+    integer, intent(in) :: n
+    real(wp), intent(in) :: t_end
+    real(wp) :: y(6), f(6), y_next(6)
+    integer(i8) :: n_rhs
+    integer :: step
+    y = initial_state(ball, 0.01_wp, -0.02_wp, [-2.0_wp, 2.0_wp, 20.0_wp])
+    n_rhs = 0
+    do step = 1, n
+      call ball%rhs(0.0_wp, y, f)
+      call pair%step(ball, 0.0_wp, y, f, t_end / n, y_next, n_rhs)
+      y = y_next
+    end do
+  end function state_after
 
   function rhs_from_physics_md(ball, y) result(dydt)
     type(rolling_ball_t), intent(in) :: ball
