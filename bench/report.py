@@ -48,6 +48,8 @@ def benches(build, quick):
          [python, "bench/plots.py", "--exe", exe, "--cases", "2000" if quick else "100000"]),
         ("Work-precision of the paper's case (also in docs/accuracy.md)",
          [python, "bench/workprecision.py", "--exe", exe, *(["--quick", "--out", "/tmp"] if quick else [])]),
+        ("vern9 against dop853 on 16 cases: one case and batches, rtol 1e-6 to 1e-13",
+         [python, "bench/pairs.py", "--exe", exe, *(["--quick"] if quick else [])]),
     ]
 
 

@@ -12,9 +12,10 @@ run seven times in one file (a sweep over one repeated value), in three
 processes (its runs are short, and a burst of the host's other load can
 cover all seven in one), so neither side pays for a cold start (ellroll's first case in a process takes about
 0.2 ms more: page faults and first calls into the libraries). Seven cases
-are below the batch size: these are one-case figures. "rk4 batch" and
-"dop853 batch" are the method in a campaign of 16 copies of the case (SIMD
-batches of 8), per case: the cost of one case when many are run.
+are below the batch size: these are one-case figures. "rk4 batch",
+"dop853 batch" and "vern9 batch" are the method in a campaign of 16 copies
+of the case (SIMD batches of 8), per case: the cost of one case when many
+are run. (bench/pairs.py sets vern9 against dop853 on 16 different cases.)
 
     python bench/workprecision.py [--exe build/ellroll] [--out docs]
 writes a table on stdout, workprecision.png and workprecision.csv in --out.
@@ -123,12 +124,13 @@ def main():
         for dt in gauss_steps:
             rows.append(("ellroll gauss4", f"dt={dt:g}",
                          *ellroll_run(args.exe, folder, f"method = 'gauss4', dt = {dt!r}")))
-        for rtol in tolerances:
-            rows.append(("ellroll dop853", f"rtol={rtol:.3g}", *ellroll_run(
-                args.exe, folder, f"method = 'dop853', rtol = {rtol!r}, atol = {rtol * 1e-3!r}")))
-        for rtol in tolerances:
-            rows.append(("ellroll dop853 batch", f"rtol={rtol:.3g}", *ellroll_run(
-                args.exe, folder, f"method = 'dop853', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", repeats=16)))
+        for pair in ("dop853", "vern9"):
+            for rtol in tolerances:
+                rows.append((f"ellroll {pair}", f"rtol={rtol:.3g}", *ellroll_run(
+                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}")))
+            for rtol in tolerances:
+                rows.append((f"ellroll {pair} batch", f"rtol={rtol:.3g}", *ellroll_run(
+                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", repeats=16)))
         for rtol in tolerances:
             rows.append(("scipy DOP853", f"rtol={rtol:.3g}", *scipy_run(rtol)))
 
@@ -145,19 +147,21 @@ def main():
     def cheapest(family, level, column):
         costs = [row[column] for row in table if row[0] == family and row[2] <= level]
         return min(costs) if costs else np.nan
-    print("\none case: the fastest ellroll method against SciPy; in a campaign: RK4 and DOP853 in batches,")
-    print("per case, and the speed-up of the fastest")
+    print("\none case: the fastest ellroll method against SciPy; in a campaign: RK4, DOP853 and vern9 in")
+    print("batches, per case, and the speed-up of the fastest")
     print(f"{'error level':>11} {'best ellroll':>14} {'time s':>10} {'scipy s':>10} {'speed-up':>9} "
-          f"{'rk4 s':>9} {'dop853 s':>9} {'rk4 batch':>9} {'853 batch':>9} {'campaign':>9}")
-    for level in [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]:
-        ours = {f: cheapest(f, level, 3) for f in ("ellroll rk4", "ellroll gauss4", "ellroll dop853")}
+          f"{'rk4 s':>9} {'dop853 s':>9} {'vern9 s':>9} {'rk4 batch':>9} {'853 batch':>9} {'v9 batch':>9} "
+          f"{'campaign':>9}")
+    for level in [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11]:
+        ours = {f: cheapest(f, level, 3) for f in ("ellroll rk4", "ellroll gauss4", "ellroll dop853", "ellroll vern9")}
         best_family = min(ours, key=lambda f: np.inf if np.isnan(ours[f]) else ours[f])
         peer = cheapest("scipy DOP853", level, 3)
-        batches = [cheapest(f"ellroll {m} batch", level, 3) for m in ("rk4", "dop853")]
+        batches = [cheapest(f"ellroll {m} batch", level, 3) for m in ("rk4", "dop853", "vern9")]
         in_campaign = np.nanmin([*batches, ours[best_family]])
         print(f"{level:11.0e} {best_family[8:]:>14} {ours[best_family]:10.2e} {peer:10.2e} "
               f"{peer / ours[best_family]:9.0f} {ours['ellroll rk4']:9.2e} {ours['ellroll dop853']:9.2e} "
-              f"{batches[0]:9.2e} {batches[1]:9.2e} {peer / in_campaign:9.0f}")
+              f"{ours['ellroll vern9']:9.2e} {batches[0]:9.2e} {batches[1]:9.2e} {batches[2]:9.2e} "
+              f"{peer / in_campaign:9.0f}")
     # endpoint efficiency: output at t_end only, so every RHS call integrates;
     # beside it SciPy's DOP853 on the same equations (no dense output): what
     # the method itself needs on this problem
@@ -186,7 +190,8 @@ def main():
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
     for family, marker in [("ellroll rk4", "o"), ("ellroll rk4 batch", "v"), ("ellroll gauss4", "s"),
-                           ("ellroll dop853", "^"), ("ellroll dop853 batch", "<"), ("scipy DOP853", "x")]:
+                           ("ellroll dop853", "^"), ("ellroll dop853 batch", "<"), ("ellroll vern9", "D"),
+                           ("ellroll vern9 batch", "d"), ("scipy DOP853", "x")]:
         points = np.array([(r[2], r[3], r[4]) for r in table if r[0] == family])
         for ax, column in zip(axes, (1, 2)):
             ax.loglog(points[:, column], points[:, 0], marker=marker, label=family)

@@ -1,7 +1,8 @@
 !> Steps of the integrators on the ball, fused: the same arithmetic as the
 !> generic steps (tested against them), but calling the ball's right-hand
 !> side directly on fixed-size arrays the compiler keeps in registers: no
-!> dynamic dispatch, no array descriptors, sizes known at compile time.
+!> dynamic dispatch of the right-hand side, no array descriptors, sizes
+!> known at compile time.
 !> The lanes_ steps advance several balls at once, one per SIMD lane
 !> (ellroll_ball_lanes), each lane with its own step size.
 module ellroll_ball_steppers
@@ -10,7 +11,7 @@ module ellroll_ball_steppers
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_equations, max_pair_stages, estimate_round_off
-  use ellroll_dop853_tableau, only: c853, end_stage, a_value, a_column, a_row, e5, bhh, in_error_estimate
+  use ellroll_dop853_tableau, only: end_stage, a_value, a_column, a_row, e5, bhh, in_error_estimate
   use ellroll_vern9_tableau, only: vern9_end_stage => end_stage, v9_value => a_value, v9_column => a_column, &
       v9_row => a_row, e8, v9_in_error_estimate => in_error_estimate
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
@@ -56,46 +57,10 @@ contains
   end subroutine rk4_ball_step
 
   !> One attempt of an embedded pair on the ball (generic: pair%step);
-  !> afterwards pair%error_norm and pair%k(:, pair%end_stage()) =
-  !> f(t + h, y_new) are set. Each pair's loop is its own, so that its stage
-  !> arithmetic is bound at compile time.
+  !> afterwards pair%error_norm and pair%k(:, pair%end_stage()) = f(t + h,
+  !> y_new) are set.
   pure subroutine pair_ball_step(pair, ball, t, y, f0, h, y_new)
     class(embedded_pair_t), intent(inout) :: pair
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, h
-    real(wp), intent(in) :: y(state_size), f0(state_size)
-    real(wp), intent(out) :: y_new(state_size)
-    select type (pair)
-    type is (dop853_t)
-      call dop853_ball_step(pair, ball, t, y, f0, h, y_new)
-    type is (vern9_t)
-      call vern9_ball_step(pair, ball, t, y, f0, h, y_new)
-    class default
-      error stop 'pair_ball_step: a pair without a fused step'
-    end select
-  end subroutine pair_ball_step
-
-  pure subroutine dop853_ball_step(dop, ball, t, y, f0, h, y_new)
-    type(dop853_t), intent(inout) :: dop
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, h
-    real(wp), intent(in) :: y(state_size), f0(state_size)
-    real(wp), intent(out) :: y_new(state_size)
-    real(wp) :: start(max_equations), stage(max_equations)
-    integer :: s
-    start = 0
-    start(:state_size) = y
-    dop%k(:state_size, 1) = f0
-    do s = 2, end_stage
-      call dop%stage_input(s, start, h, stage)
-      call ball_derivative(ball, t + c853(s) * h, stage(:state_size), dop%k(:state_size, s))
-    end do
-    y_new = stage(:state_size)
-    call dop%finish_attempt(state_size, t, start, h, stage)
-  end subroutine dop853_ball_step
-
-  pure subroutine vern9_ball_step(pair, ball, t, y, f0, h, y_new)
-    type(vern9_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, h
     real(wp), intent(in) :: y(state_size), f0(state_size)
@@ -105,13 +70,13 @@ contains
     start = 0
     start(:state_size) = y
     pair%k(:state_size, 1) = f0
-    do s = 2, vern9_end_stage
+    do s = 2, pair%end_stage()                ! the last stage input is y_new
       call pair%stage_input(s, start, h, stage)
       call ball_derivative(ball, t + pair%node(s) * h, stage(:state_size), pair%k(:state_size, s))
     end do
     y_new = stage(:state_size)
     call pair%finish_attempt(state_size, t, start, h, stage)
-  end subroutine vern9_ball_step
+  end subroutine pair_ball_step
 
   !> The state at t_old + theta h of the last attempt (generic: pair%dense);
   !> prepared tells whether the dense-output stages were computed now.

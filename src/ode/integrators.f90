@@ -396,6 +396,26 @@ contains
     end associate
   end function pair_control_order
 
+  !> The input of stage s of a pair whose tableau a(s, j) is packed by rows
+  !> (its nonzero values, their columns, where each row starts): y + h sum_j
+  !> a(s, j) k_j (s = end_stage: the new solution; s > end_stage:
+  !> dense-output stages, from y = y_old). The sum runs in a local, so that
+  !> it stays in registers and its first term loads y directly: a copy of y
+  !> into point first cost a stalled store-to-load forward per stage.
+  pure subroutine packed_stage_input(k, s, values, columns, rows, y, h, point)
+    real(wp), intent(in) :: k(max_equations, max_pair_stages), values(*), y(max_equations), h
+    integer, intent(in) :: s, columns(*), rows(*)
+    real(wp), intent(out) :: point(max_equations)
+    real(wp) :: total(max_equations)
+    integer :: m
+    m = rows(s)
+    total = y + (h * values(m)) * k(:, columns(m))
+    do m = rows(s) + 1, rows(s + 1) - 1
+      total = total + (h * values(m)) * k(:, columns(m))
+    end do
+    point = total
+  end subroutine packed_stage_input
+
   ! =========================================================== DOP853
 
   pure type(pair_shape_t) function dop853_shape() result(shape)
@@ -407,24 +427,12 @@ contains
     dop853_node = c853(s)
   end function dop853_node
 
-  !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
-  !> (s = end_stage: the new solution; s > end_stage: dense-output stages,
-  !> from y = y_old). The sum runs in a local, so that it stays in registers
-  !> and its first term loads y directly: a copy of y into point first cost
-  !> a stalled store-to-load forward per stage.
   pure subroutine dop853_stage_input(self, s, y, h, point)
     class(dop853_t), intent(in) :: self
     integer, intent(in) :: s
     real(wp), intent(in) :: y(max_equations), h
     real(wp), intent(out) :: point(max_equations)
-    real(wp) :: total(max_equations)
-    integer :: m
-    m = a_row(s)
-    total = y + (h * a_value(m)) * self%k(:, a_column(m))
-    do m = a_row(s) + 1, a_row(s + 1) - 1
-      total = total + (h * a_value(m)) * self%k(:, a_column(m))
-    end do
-    point = total
+    call packed_stage_input(self%k, s, a_value, a_column, a_row, y, h, point)
   end subroutine dop853_stage_input
 
   !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
@@ -525,21 +533,12 @@ contains
     vern9_node = c9(s)
   end function vern9_node
 
-  !> The input of stage s: y + h sum_j a(s, j) k_j over the nonzero a(s, j)
-  !> (dop853_stage_input with Verner's tableau).
   pure subroutine vern9_stage_input(self, s, y, h, point)
     class(vern9_t), intent(in) :: self
     integer, intent(in) :: s
     real(wp), intent(in) :: y(max_equations), h
     real(wp), intent(out) :: point(max_equations)
-    real(wp) :: total(max_equations)
-    integer :: m
-    m = v9_row(s)
-    total = y + (h * v9_value(m)) * self%k(:, v9_column(m))
-    do m = v9_row(s) + 1, v9_row(s + 1) - 1
-      total = total + (h * v9_value(m)) * self%k(:, v9_column(m))
-    end do
-    point = total
+    call packed_stage_input(self%k, s, v9_value, v9_column, v9_row, y, h, point)
   end subroutine vern9_stage_input
 
   !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
@@ -568,20 +567,22 @@ contains
   end subroutine vern9_finish_attempt
 
   !> The interpolant's coefficients, once the dense-output stages are in
-  !> self%k: c_j = h sum_s q98(j, s) k_s, the coefficient of x^j, x = 2 theta - 1.
+  !> self%k: c_j = h sum_s q98(j, s) k_s, the coefficient of x^j, x = 2
+  !> theta - 1. One coefficient at a time, its sum in registers; the loops
+  !> unrolled: the weights are constants, the stages without one fold away.
   pure subroutine vern9_build_dense(self)
     class(vern9_t), intent(inout) :: self
-    real(wp) :: c(max_equations, 0:8), stage(max_equations)
+    real(wp) :: total(max_equations)
     integer :: s, j
-    c = 0                      ! local, fixed-size: kept in registers
-    do s = 1, vern9_stages_dense
-      if (.not. v9_in_dense_output(s)) cycle
-      stage = self%k(:, s)
-      do j = 0, 8
-        c(:, j) = c(:, j) + (self%h * q98(j, s)) * stage
+    !GCC$ unroll 9
+    do j = 0, 8
+      total = 0
+      !GCC$ unroll 21
+      do s = 1, vern9_stages_dense
+        if (v9_in_dense_output(s)) total = total + q98(j, s) * self%k(:, s)
       end do
+      self%dense_coefficients(:, j) = self%h * total
     end do
-    self%dense_coefficients = c
     self%dense_ready = .true.
   end subroutine vern9_build_dense
 

@@ -70,7 +70,11 @@ contains
   subroutine vern9_order_conditions()
     real(wp), parameter :: thetas(3) = [0.3_wp, 0.77_wp, 1.0_wp]
     real(wp) :: a(stages_dense, stages_dense), weights(stages_dense), size_of_terms(stages_dense), x
+    real(wp) :: verner(0:8, stages_dense), verner_abs(0:8, stages_dense)     ! p98 from the power 0
     integer :: n, k, i, j, m, q
+    verner = 0
+    verner(1:, :) = p98
+    verner_abs = abs(verner)
     a = 0
     a(:, :stages_dense - 1) = a98
     call check(all(abs(a(1, :)) <= 0) .and. abs(c9(1)) <= 0, 'vern9: the first stage is at t, from y')
@@ -108,8 +112,8 @@ contains
       call check_below(rounding_residual(interpolant_weights(q98, x), interpolant_weights(abs(q98), abs(x)), &
                                          thetas(q), 8), 1.0_wp, &
                        'vern9 interpolant: order conditions to 8 (residual / 64 eps |sum|, max)')
-      size_of_terms = 64 * epsilon(1.0_wp) * published_weights(abs(p98), thetas(q))
-      call check_below(maxval(abs(interpolant_weights(q98, x) - published_weights(p98, thetas(q))) &
+      size_of_terms = 64 * epsilon(1.0_wp) * interpolant_weights(verner_abs, thetas(q))
+      call check_below(maxval(abs(interpolant_weights(q98, x) - interpolant_weights(verner, thetas(q))) &
                               / size_of_terms, mask=size_of_terms > 0), 1.0_wp, &
                        'vern9 interpolant: the weights of Verner''s table (difference / 64 eps |sum|, max)')
     end do
@@ -117,28 +121,17 @@ contains
                'vern9 interpolant: not of order 9 (contrast)')
   end subroutine vern9_order_conditions
 
-  !> b_s(theta) = sum_j q(j, s) x^j at x = 2 theta - 1 (q: q98; or its
-  !> absolute values, with |x|).
-  function interpolant_weights(q, x) result(w)
-    real(wp), intent(in) :: q(0:8, stages_dense), x
-    real(wp) :: w(stages_dense)
+  !> The interpolant's weights sum_j c(j, s) x^j: q98 at x = 2 theta - 1,
+  !> or Verner's p98 at x = theta (or their absolute values, with |x|).
+  function interpolant_weights(c, x) result(w)
+    real(wp), intent(in) :: c(0:, :), x
+    real(wp) :: w(size(c, 2))
     integer :: power
     w = 0
-    do power = 0, 8
-      w = w + q(power, :) * x**power
+    do power = lbound(c, 1), ubound(c, 1)
+      w = w + c(power, :) * x**power
     end do
   end function interpolant_weights
-
-  !> b_s(theta) = sum_j p(j, s) theta^j, Verner's form (p: p98, or its absolute values).
-  function published_weights(p, theta) result(w)
-    real(wp), intent(in) :: p(8, stages_dense), theta
-    real(wp) :: w(stages_dense)
-    integer :: power
-    w = 0
-    do power = 1, 8
-      w = w + p(power, :) * theta**power
-    end do
-  end function published_weights
 
   !> The largest residual of the conditions of the trees up to order top
   !> (weights w, theta^|t| / gamma(t) the target), over 64 eps times its
