@@ -733,7 +733,7 @@ contains
     info = methods(4)
   end function gauss4_info
 
-  !> The methods' names, for messages: 'rk4 dop853 gauss4'.
+  !> The methods' names, for messages: 'rk4 dop853 vern9 gauss4'.
   pure function method_names() result(names)
     character(len=:), allocatable :: names
     integer :: k
