@@ -56,9 +56,9 @@ module ellroll_integrators
       method_info_t('rk4', 'fixed', '4', .false., &
                     "the paper's; large campaigns at errors above about 1e-6 m (SIMD batches)"), &
       method_info_t('dop853', 'adaptive', '8(5,3), dense output 7', .true., &
-                    'accurate runs, rtol 1e-3 to 1e-9; outputs at any interval'), &
+                    'accurate runs, rtol 1e-3 to 1e-7; outputs at any interval'), &
       method_info_t('vern9', 'adaptive', '9(8), dense output 8', .true., &
-                    'tight tolerances, rtol 1e-10 and below: fewer RHS calls than dop853'), &
+                    'rtol 1e-8 and below: fewer RHS calls and a smaller error than dop853'), &
       method_info_t('gauss4', 'symmetric', '4', .false., &
                     'long runs of a conservative case: energy error bounded, not drifting')]
 
