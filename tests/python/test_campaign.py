@@ -530,3 +530,25 @@ def test_progress_lines_in_a_log_and_quiet(ellroll, tmp_path):
     result = run(ellroll, "run", name, "-q", "--overwrite", cwd=tmp_path)
     assert result.returncode == 0 and result.stderr == ""
     assert run(ellroll, "summary", "out.h5", cwd=tmp_path).stdout == result.stdout
+
+
+def test_error_figures_are_the_distance_to_a_vern9_run(ellroll, tmp_path):
+    """error_estimate = 'reference' runs the case again with vern9 at rtol
+    1e-12, atol 1e-14 (dt: the whole run): its figures are the largest
+    distances to that run over the output times, and n_rhs_reference is that
+    run's count."""
+    fields = "fields = 'contact', 'nutation', 'energy'"
+    estimated = (BASE.format(t_end=2.0).replace("dt = 1.0e-3", "dt = 1.0e-3, error_estimate = 'reference'")
+                 .replace("interval = 0.01", f"interval = 0.01, {fields}"))
+    reference = (BASE.format(t_end=2.0).replace("dt = 1.0e-3", "method = 'vern9', rtol = 1e-12, atol = 1e-14")
+                 .replace("interval = 0.01", f"interval = 0.01, {fields}"))
+    for name, text in [("estimated.nml", estimated), ("reference.nml", reference)]:
+        (tmp_path / name).write_text(text)
+        assert run(ellroll, "run", name, "-q", "-o", name.replace(".nml", ".h5"), cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "estimated.h5", "r") as e, h5py.File(tmp_path / "reference.h5", "r") as r:
+        assert e["summary/n_rhs_reference"][0] == r["summary/n_rhs"][0] > 0
+        distance = np.linalg.norm(e["trajectory/contact"][0] - r["trajectory/contact"][0], axis=1).max()
+        assert e["summary/error_contact"][0] == pytest.approx(distance, rel=1e-12, abs=1e-17)
+        theta = np.abs(e["trajectory/nutation"][0] - r["trajectory/nutation"][0]).max()
+        assert e["summary/error_theta"][0] == pytest.approx(theta, rel=1e-12, abs=1e-17)
+        assert 1e-13 < distance < 1e-10         # RK4 at dt = 1e-3 over 2 s: 1.6e-12 m
