@@ -47,7 +47,7 @@ module ellroll_adaptive_run
   !> method's last state to the limit its step met. Verner's pair reaches
   !> these tolerances in fewer RHS calls and less time than DOP853, with a
   !> smaller error (bench/pairs.py).
-  character(len=*), parameter :: reference_method = 'vern9'
+  type(vern9_t), parameter :: reference_pair = vern9_t()
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   !> Where the rolling stops inside a step (rolling resistance) is located
@@ -244,6 +244,14 @@ contains
     self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
+  !> The name of the reference method (reference_pair's).
+  pure function reference_method() result(name)
+    character(len=:), allocatable :: name
+    associate (info => reference_pair%info())
+      name = trim(info%name)
+    end associate
+  end function reference_method
+
   !> x^(1/order); for order 8 by three square roots (a fraction of the cost
   !> of x**0.125).
   pure real(wp) function error_root(x, order)
@@ -402,7 +410,7 @@ contains
   end subroutine end_at_crossing
 
   !> The exact flow from a fixed-step method's state y_from at t_from,
-  !> followed with reference_method at reference_rtol, reference_atol up to t_until at
+  !> followed with reference_pair at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
   !> case ends there (res%status, res%t_final), and the flow's step ends
   !> after t_tracked (the method's last state) are added to the summary.
@@ -415,7 +423,7 @@ contains
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
-    type(vern9_t) :: dop                      ! reference_method
+    class(embedded_pair_t), allocatable :: dop
     type(step_control_t) :: control
     type(limit_search_t) :: search
     type(observation_t) :: obs
@@ -424,6 +432,7 @@ contains
     real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h
     integer :: status, n_untracked, i
     met = .false.
+    allocate (dop, source=reference_pair)
     dop%rtol = reference_rtol
     dop%atol = reference_atol
     t_at = t_from
