@@ -23,10 +23,14 @@ itself can be trusted.
 import argparse
 import pathlib
 import subprocess
+import sys
 import tempfile
 
 import h5py
 import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from workprecision import calls_at  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SPINS = [5.0 + 3.0 * k for k in range(16)]
@@ -71,13 +75,6 @@ def measure(exe, folder, rtol, atol, repeat, batch):
     return best
 
 
-def at_error(level, points):
-    """A cost at an error level, log-log interpolated between (error, cost) points."""
-    errors, costs = np.array(points).T
-    order = np.argsort(errors)
-    return float(np.exp(np.interp(np.log(level), np.log(errors[order]), np.log(costs[order]))))
-
-
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
@@ -113,7 +110,7 @@ def main():
     for batch in (False, True):
         d, v = results[batch, 1e-12]["dop853"], results[batch, 1e-12]["vern9"]
         points = [results[batch, rtol]["vern9"] for rtol in tolerances]
-        v_rhs, v_time = (at_error(d[2], [(p[2], p[column]) for p in points]) for column in (0, 1))
+        v_rhs, v_time = (calls_at(d[2], [(p[2], p[column]) for p in points]) for column in (0, 1))
         print(f"  {'batch' if batch else 'one case':8}: endpoint error {v[2]:.2e} m against {d[2]:.2e} m "
               f"({'at most' if v[2] <= d[2] else 'ABOVE'} dop853's); the same tolerance: {d[1] / v[1]:.2f}x faster, "
               f"{d[0] / v[0]:.2f}x fewer RHS evaluations; the same error: {d[1] / v_time:.2f}x faster, "

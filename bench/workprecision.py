@@ -83,7 +83,7 @@ def scipy_endpoint(rtol):
 
 
 def calls_at(level, points):
-    """RHS evaluations at an error level, log-log interpolated between (error, calls) points."""
+    """A cost (RHS evaluations, seconds) at an error level, log-log interpolated between (error, cost) points."""
     errors, calls = np.array(points).T
     order = np.argsort(errors)
     return float(np.exp(np.interp(np.log(level), np.log(errors[order]), np.log(calls[order]))))

@@ -182,14 +182,9 @@ contains
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
     real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
     real(wp), dimension(lanes) :: err5, err3, scale, e5_norm2, e3_norm2
-    real(wp) :: stage(lanes, state_size)
     integer :: s, i, l
     k(:, :, 1) = f0
-    do s = 2, end_stage                       ! the last stage input is y_new
-      call lanes_stage_input(s, a_value, a_column, a_row, y, h, k, stage)
-      call lanes_derivative(p, stage, k(:, :, s))
-    end do
-    y_new = stage
+    call lanes_stages(p, a_value, a_column, a_row, 2, end_stage, y, h, k, y_new)   ! the last stage input is y_new
     e5_norm2 = 0
     e3_norm2 = 0
     do i = 1, state_size
@@ -217,14 +212,9 @@ contains
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
     real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
     real(wp), dimension(lanes) :: err, noise, scale, norm2
-    real(wp) :: stage(lanes, state_size)
     integer :: s, i
     k(:, :, 1) = f0
-    do s = 2, vern9_end_stage                 ! the last stage input is y_new
-      call lanes_stage_input(s, v9_value, v9_column, v9_row, y, h, k, stage)
-      call lanes_derivative(p, stage, k(:, :, s))
-    end do
-    y_new = stage
+    call lanes_stages(p, v9_value, v9_column, v9_row, 2, vern9_end_stage, y, h, k, y_new)   ! the last input is y_new
     norm2 = 0
     do i = 1, state_size
       err = 0
@@ -250,17 +240,32 @@ contains
     real(wp), intent(in) :: y(lanes, state_size), h(lanes)
     real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
     real(wp) :: stage(lanes, state_size)
+    integer :: first, last
+    first = pair%end_stage() + 1
+    last = pair%end_stage() + pair%dense_calls()
+    select type (pair)
+    type is (dop853_t)
+      call lanes_stages(p, a_value, a_column, a_row, first, last, y, h, k, stage)
+    type is (vern9_t)
+      call lanes_stages(p, v9_value, v9_column, v9_row, first, last, y, h, k, stage)
+    end select
+  end subroutine lanes_pair_dense_stages
+
+  !> Stages first to last of every lane, from y with step h, of a pair's
+  !> tableau (packed by rows: values, columns, rows): f at each stage's input
+  !> into k; stage: the last stage's input.
+  pure subroutine lanes_stages(p, values, columns, rows, first, last, y, h, k, stage)
+    type(ball_lanes_t), intent(in) :: p
+    integer, intent(in) :: columns(*), rows(*), first, last
+    real(wp), intent(in) :: values(*), y(lanes, state_size), h(lanes)
+    real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
+    real(wp), intent(out) :: stage(lanes, state_size)
     integer :: s
-    do s = pair%end_stage() + 1, pair%end_stage() + pair%dense_calls()
-      select type (pair)
-      type is (dop853_t)
-        call lanes_stage_input(s, a_value, a_column, a_row, y, h, k, stage)
-      type is (vern9_t)
-        call lanes_stage_input(s, v9_value, v9_column, v9_row, y, h, k, stage)
-      end select
+    do s = first, last
+      call lanes_stage_input(s, values, columns, rows, y, h, k, stage)
       call lanes_derivative(p, stage, k(:, :, s))
     end do
-  end subroutine lanes_pair_dense_stages
+  end subroutine lanes_stages
 
   !> The input of stage s of every lane: y + h sum_j a(s, j) k_j, over the
   !> nonzero a(s, j) of a pair's tableau (packed by rows: values, columns,

@@ -257,16 +257,18 @@ contains
     integer(i8) :: attempt
     integer :: i
     real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
-    integer :: l
+    integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
+      attempt_calls = dop(1)%attempt_calls()      ! the lanes' pairs are of one type
+      end_stage = dop(1)%end_stage()
       idle_rhs = 0
       t = 0
       do l = 1, lanes
         i = merge(l, donor, active(l))
         dop(l)%rtol = cases(i)%rtol
         dop(l)%atol = cases(i)%atol
-        control(l)%order = dop(l)%control_order()
+        control(l)%order = dop(1)%control_order()
         rtol(l) = cases(i)%rtol
         atol(l) = cases(i)%atol
         h_max(l) = cases(i)%dt
@@ -290,7 +292,7 @@ contains
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
-          results(l)%n_rhs = results(l)%n_rhs + dop(l)%attempt_calls()
+          results(l)%n_rhs = results(l)%n_rhs + attempt_calls
           if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
           accepted(l) = error_norm(l) <= 1
           if (.not. accepted(l)) then
@@ -301,7 +303,7 @@ contains
         if (.not. any(accepted)) cycle
         do l = 1, lanes
           y_lane = y_raw(l, :)
-          rate_lane = k(l, :, dop(l)%end_stage())
+          rate_lane = k(l, :, end_stage)
           call project_with_rate(y_lane, rate_lane, f_lane)
           y_new(l, :) = y_lane
           f_new(l, :) = f_lane
