@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sets up, builds (Release, Debug, portable, MPI, sanitizer) and runs every
+# Sets up, builds (Release, Debug, portable, MPI, sanitizers) and runs every
 # test: ctest on the Release, Debug and portable builds, then pytest (which
 # also uses Debug and MPI), then the tests of inputs and model limits again on
 # the sanitizer build (memory errors and undefined behaviour stop it).

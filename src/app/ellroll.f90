@@ -18,17 +18,19 @@ program ellroll
   use ellroll_hdf5_writer, only: provenance_t
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
-      check_output_target
+      check_output_target, holds_this_run
+  use ellroll_output_files, only: output_files_t, work_target
+  use ellroll_files, only: path_kind, kind_regular, kind_missing
   use ellroll_integrators, only: methods
   use ellroll_linear, only: oscillation_periods, no_spin_periods
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
-  use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime, catch_stop_signals, exit_now
+  use ellroll_system, only: utc_timestamp, tune_runtime, catch_stop_signals, exit_now
   use ellroll_ranks, only: ranks_start, ranks_all_ok, ranks_stop
   use ellroll_version, only: version_string
   implicit none
 
-  character(len=:), allocatable :: command, output_path
+  character(len=:), allocatable :: command, output_path, line
   character(len=5) :: summary_format = 'table'          !< ellroll summary --format: table, csv or json
   character(len=8) :: help_topic = ''                   !< ellroll COMMAND --help: that command's help
   character(len=1024), allocatable :: paths(:)
@@ -55,7 +57,7 @@ program ellroll
     case ('run')
       call run_command(err)
     case ('merge')
-      call merge_shards(trim(paths(1)), paths(2:), provenance(''), err)
+      call merge_shards(trim(paths(1)), paths(2:), opts%overwrite, provenance(''), err)
     case ('summary')
       call print_summary(trim(paths(1)), trim(summary_format), err)
     case ('methods')
@@ -69,7 +71,8 @@ program ellroll
   call ranks_stop()
   status = 0
   if (err%code > err_interrupted) then
-    write (error_unit, '(a)') 'ellroll: ' // err%message // '; ''' // resume_command() // ''' finishes the rest'
+    call resume_command(line)
+    write (error_unit, '(a)') 'ellroll: ' // err%message // '; ''' // line // ''' finishes the rest'
     status = exit_code(err)
   else if (err%failed()) then
     write (error_unit, '(a)') 'ellroll: error: ' // err%message
@@ -90,12 +93,13 @@ program ellroll
 contains
 
   !> This command line with --resume in place of --overwrite: it finishes
-  !> an interrupted run.
-  function resume_command() result(line)
-    character(len=:), allocatable :: line
+  !> an interrupted run (under MPI, on as many ranks).
+  subroutine resume_command(line)
+    character(len=:), allocatable, intent(out) :: line
     character(len=4096) :: argument
     integer :: k
     line = 'ellroll'
+    if (n_ranks > 1) line = 'mpirun -n ' // itoa(n_ranks) // ' ellroll'
     do k = 1, command_argument_count()
       call get_command_argument(k, argument)
       if (argument == '--overwrite' .or. argument == '--resume') cycle
@@ -106,7 +110,7 @@ contains
       end if
     end do
     line = line // ' --resume'
-  end function resume_command
+  end subroutine resume_command
 
   subroutine parse_arguments()
     integer :: k, n, ios
@@ -117,7 +121,7 @@ contains
     n = command_argument_count()
     k = 1
     do while (k <= n)
-      arg = argument(k)
+      call get_argument(k, arg)
       select case (arg)
       case ('-h', '--help', 'help')
         help_topic = command
@@ -132,7 +136,7 @@ contains
           return
         end if
         k = k + 1
-        value = argument(k)
+        call get_argument(k, value)
         select case (arg)
         case ('-o', '--output')
           output_path = value
@@ -214,14 +218,14 @@ contains
     call set_error(err, err_input, message // " (see 'ellroll --help')")
   end subroutine usage_error
 
-  function argument(k) result(arg)
+  subroutine get_argument(k, arg)
     integer, intent(in) :: k
-    character(len=:), allocatable :: arg
+    character(len=:), allocatable, intent(out) :: arg
     integer :: length
     call get_command_argument(k, length=length)
     allocate (character(len=length) :: arg)
     if (length > 0) call get_command_argument(k, arg)
-  end function argument
+  end subroutine get_argument
 
   subroutine print_help()
     write (output_unit, '(a)') &
@@ -376,10 +380,10 @@ contains
     character(len=:), allocatable :: messages
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    call check_output_target(inp%plan%file, err)
+    call check_output_target(inp%plan%file, inp%path, err)
     if (err%failed()) return
     call describe(inp)
-    messages = step_size_advice(inp)
+    call step_size_advice(inp, messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages
     call find_invalid_cases(inp, invalid, messages)
     if (any(invalid)) then
@@ -399,11 +403,11 @@ contains
     character(len=:), allocatable :: advice
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    call check_output_target(inp%plan%file, err)
+    call check_output_target(inp%plan%file, inp%path, err)
     if (err%failed()) return
     call catch_stop_signals()
     opts%advice_seconds = wall_clock()
-    advice = step_size_advice(inp)
+    call step_size_advice(inp, advice)
     opts%advice_seconds = wall_clock() - opts%advice_seconds
     if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') advice
     if (n_ranks > 1) then
@@ -420,41 +424,83 @@ contains
   subroutine run_ranks(inp, err)
     type(run_input_t), intent(inout) :: inp
     type(error_t), intent(inout) :: err
+    type(output_files_t) :: files
     character(len=:), allocatable :: target
     character(len=1024), allocatable :: shard_files(:)
     integer :: r
-    logical :: shard_done
+    logical :: shard_done, complete, all_ok, to_run
     if (opts%shard(2) > 1) then
       call set_error(err, err_input, '--shard cannot be combined with MPI ranks (each rank is a shard)')
       return
     end if
     target = inp%plan%file
     shard_files = [character(len=1024) :: (target // '.rank' // itoa(r) // '.h5', r = 0, n_ranks - 1)]
-    if (file_exists(target) .and. .not. opts%overwrite) &
-      call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
-    if (.not. ranks_all_ok(.not. err%failed())) return
+    ! rank 0 holds the output's lock until the shards are merged into it
+    complete = .false.
+    if (rank == 0) then
+      call files%name(target, inp%path)
+      call files%acquire('mpirun -n ' // itoa(n_ranks) // ' ellroll run ' // inp%path, err)
+      call files%check(target, work_target, err)
+      call check_rank_files(target, n_ranks, err)
+      if (.not. err%failed()) then
+        if (path_kind(target) == kind_regular) then
+          if (opts%resume) complete = holds_this_run(target, inp, [0, 1])
+          if (.not. (opts%overwrite .or. complete)) &
+            call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+        end if
+      end if
+    end if
+    ! (every rank takes part in both collectives, whatever they answer)
+    all_ok = ranks_all_ok(.not. err%failed())
+    to_run = ranks_all_ok(.not. complete)
+    if (.not. all_ok .or. .not. to_run) then
+      if (all_ok .and. rank == 0) &
+        write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
+      call files%release(err)
+      return
+    end if
     opts%shard = [rank, n_ranks]
     opts%quiet = opts%quiet .or. rank /= 0
     inp%plan%file = trim(shard_files(rank + 1))
     ! a rank whose shard finished before an interruption has nothing to resume
     shard_done = .false.
-    if (opts%resume) then
-      if (file_exists(inp%plan%file)) shard_done = .not. file_exists(inp%plan%file // '.journal')
-    end if
+    if (opts%resume) shard_done = holds_this_run(inp%plan%file, inp, opts%shard)
     if (.not. shard_done) call run_campaign(inp, opts, provenance(inp%text), err)
+    inp%plan%file = target
     if (.not. ranks_all_ok(.not. err%failed())) then
       if (.not. err%failed()) call set_error(err, err_output, 'another rank failed; see its message')
+      call files%release(err)
       return
     end if
-    inp%plan%file = target
-    if (rank /= 0) return
-    call merge_shards(target, shard_files, provenance(inp%text), err)
-    if (err%failed()) return
-    do r = 1, n_ranks
-      call remove_file(trim(shard_files(r)))
-    end do
+    if (rank == 0) then
+      call merge_shards(target, shard_files, .true., provenance(inp%text), err, locked=files)
+      do r = 1, n_ranks
+        if (.not. err%failed()) call files%discard(trim(shard_files(r)), work_target, err)
+      end do
+      call files%release(err)
+    end if
   end subroutine run_ranks
 
+
+  !> Files of an earlier run of this output on more ranks than now (rank
+  !> n_ranks's, at least) are refused: this run could not finish them.
+  subroutine check_rank_files(target, n_ranks, err)
+    character(len=*), intent(in) :: target
+    integer, intent(in) :: n_ranks
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: stray
+    integer :: k
+    character(len=*), parameter :: suffixes(3) = [character(len=13) :: '', '.partial', '.journal']
+    if (err%failed()) return
+    do k = 1, size(suffixes)
+      stray = target // '.rank' // itoa(n_ranks) // '.h5' // trim(suffixes(k))
+      if (path_kind(stray) == kind_missing) cycle
+      call set_error(err, err_output, stray // ': the files of a run of this output on more than ' // &
+          itoa(n_ranks) // ' MPI ranks are here; finish it on as many ranks as it was started on ' // &
+          '(--resume), or start over with --overwrite after removing its .rank files')
+      return
+    end do
+  end subroutine check_rank_files
 
   function provenance(input_text) result(prov)
     character(len=*), intent(in) :: input_text
@@ -466,7 +512,7 @@ contains
     call get_command(line)
     prov%program = 'ellroll'
     prov%version = version_string
-    prov%created = utc_timestamp()
+    call utc_timestamp(prov%created)
     prov%input_file = trim(paths(1))
     prov%input_namelist = input_text
     prov%command_line = line
@@ -548,13 +594,14 @@ contains
     end do
     write (output_unit, '(a)') line
     bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
-    write (output_unit, '(a)') '  trajectory data before compression = ' // size_text(bytes) // &
-        ' (' // itoa(n_local) // ' cases)'
+    call size_text(bytes, line)
+    write (output_unit, '(a)') '  trajectory data before compression = ' // line // ' (' // itoa(n_local) // ' cases)'
   end subroutine describe
 
-  function size_text(bytes) result(text)
+  !> bytes in KiB (whole), MiB or GiB (one decimal).
+  subroutine size_text(bytes, text)
     real(wp), intent(in) :: bytes
-    character(len=:), allocatable :: text
+    character(len=:), allocatable, intent(out) :: text
     if (bytes < 2.0_wp**20) then
       text = format_real(real(nint(bytes / 1024), wp)) // ' KiB'
     else if (bytes < 2.0_wp**30) then
@@ -562,7 +609,7 @@ contains
     else
       text = format_real(real(nint(10 * bytes / 2.0_wp**30), wp) / 10) // ' GiB'
     end if
-  end function size_text
+  end subroutine size_text
 
   subroutine print_values(rec)
     type(named_value_t), intent(in) :: rec(:)

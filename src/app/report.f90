@@ -6,8 +6,8 @@ module ellroll_report
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_strings, only: itoa, format_real
-  use ellroll_status, only: status_count, status_name
+  use ellroll_strings, only: itoa, format_real, real_text
+  use ellroll_status, only: status_count, status_name, status_pending, status_invalid
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_results, only: case_result_t, summary_record
@@ -71,14 +71,15 @@ contains
     type(error_t), intent(inout) :: err
     type(column_t), allocatable :: columns(:)
     type(named_value_t), allocatable :: figures(:)
-    character(len=:), allocatable :: coordinates
+    character(len=:), allocatable :: coordinates, units
     integer(i8), allocatable :: status(:)
     character(len=12), allocatable :: status_names(:)
     real(wp), allocatable :: rows(:, :)
     integer :: k, m, first, last
     allocate (columns(0))
-    call append(columns, 'case', units_of(file, 'case'), ints=file%int_column('summary/case', err))
-    coordinates = file%text_attribute('coordinates', 'summary/status')
+    call file%text_attribute('units', units, 'summary/case')
+    call append(columns, 'case', units, ints=file%int_column('summary/case', err))
+    call file%text_attribute('coordinates', coordinates, 'summary/status')
     first = 1
     do while (first <= len(coordinates))
       last = index(coordinates(first:) // ' ', ' ') + first - 2
@@ -86,7 +87,8 @@ contains
         if (name == 'record') then
           call append(columns, name, '1', texts=file%text_column('summary/' // name, err))
         else
-          call append(columns, name, units_of(file, name), reals=file%real_column('summary/' // name, err))
+          call file%text_attribute('units', units, 'summary/' // name)
+          call append(columns, name, units, reals=file%real_column('summary/' // name, err))
         end if
       end associate
       first = last + 2
@@ -138,13 +140,6 @@ contains
     call move_alloc(longer, columns)
   end subroutine append
 
-  function units_of(file, name) result(units)
-    type(h5_input_t), intent(in) :: file
-    character(len=*), intent(in) :: name
-    character(len=:), allocatable :: units
-    units = file%text_attribute('units', 'summary/' // name)
-  end function units_of
-
   !> One row per case, a header of the column names.
   subroutine print_csv(columns)
     type(column_t), intent(in) :: columns(:)
@@ -156,9 +151,10 @@ contains
     end do
     write (output_unit, '(a)') line
     do i = 1, size(columns(1)%ints)
-      line = cell(columns(1), i, json=.false.)
-      do k = 2, size(columns)
-        line = line // ',' // cell(columns(k), i, json=.false.)
+      line = ''
+      do k = 1, size(columns)
+        if (k > 1) line = line // ','
+        call append_cell(line, columns(k), i, json=.false.)
       end do
       write (output_unit, '(a)') line
     end do
@@ -181,7 +177,8 @@ contains
       line = ' {'
       do k = 1, size(columns)
         if (k > 1) line = line // ', '
-        line = line // '"' // trim(columns(k)%name) // '": ' // cell(columns(k), i, json=.true.)
+        line = line // '"' // trim(columns(k)%name) // '": '
+        call append_cell(line, columns(k), i, json=.true.)
       end do
       line = line // '}'
       if (i < size(columns(1)%ints)) line = line // ','
@@ -190,55 +187,66 @@ contains
     write (output_unit, '(a)') ']}'
   end subroutine print_json
 
-  !> A column's value for case i: a number (JSON: null when not finite), or
-  !> text (JSON: a string; CSV: quoted when it holds a comma or a quote).
-  function cell(column, i, json) result(text)
+  !> A column's value for case i after line: a number (JSON: null when not
+  !> finite), or text (JSON: a string; CSV: quoted when it holds a comma or a
+  !> quote).
+  subroutine append_cell(line, column, i, json)
+    character(len=:), allocatable, intent(inout) :: line
     type(column_t), intent(in) :: column
     integer, intent(in) :: i
     logical, intent(in) :: json
-    character(len=:), allocatable :: text
+    character(len=40) :: number
+    integer :: n
     if (allocated(column%ints)) then
-      text = itoa(column%ints(i))
+      line = line // itoa(column%ints(i))
     else if (allocated(column%reals)) then
       if (json .and. .not. ieee_is_finite(column%reals(i))) then
-        text = 'null'
+        line = line // 'null'
       else
-        text = format_real(column%reals(i))
+        call real_text(column%reals(i), number, n)
+        line = line // number(:n)
       end if
     else if (json) then
-      text = '"' // json_text(trim(column%texts(i))) // '"'
+      line = line // '"' // json_text(trim(column%texts(i))) // '"'
     else if (scan(column%texts(i), ',"') > 0) then
-      text = '"' // quoted_csv(trim(column%texts(i))) // '"'
+      line = line // '"' // marked(trim(column%texts(i)), '"', '"') // '"'
     else
-      text = trim(column%texts(i))
+      line = line // trim(column%texts(i))
     end if
-  end function cell
+  end subroutine append_cell
 
-  !> Text inside a CSV field in quotes (each quote doubled), or inside a
-  !> JSON string (backslashes and quotes escaped).
-  function quoted_csv(raw) result(text)
-    character(len=*), intent(in) :: raw
-    character(len=:), allocatable :: text
-    text = marked(raw, '"', '"')
-  end function quoted_csv
-
-  function json_text(raw) result(text)
-    character(len=*), intent(in) :: raw
-    character(len=:), allocatable :: text
-    text = marked(raw, '\"', '\')
-  end function json_text
-
-  !> raw with `mark` before each of its characters found in `special`.
-  function marked(raw, special, mark) result(text)
+  pure integer function count_marks(raw, special, mark)
     character(len=*), intent(in) :: raw, special, mark
-    character(len=:), allocatable :: text
     integer :: k
-    text = ''
+    count_marks = 0
     do k = 1, len(raw)
-      if (index(special, raw(k:k)) > 0) text = text // mark
-      text = text // raw(k:k)
+      if (index(special, raw(k:k)) > 0) count_marks = count_marks + len(mark)
+    end do
+  end function count_marks
+
+  !> raw with `mark` before each of its characters found in `special` (a CSV
+  !> field in quotes doubles each quote).
+  pure function marked(raw, special, mark) result(text)
+    character(len=*), intent(in) :: raw, special, mark
+    character(len=len(raw) + count_marks(raw, special, mark)) :: text
+    integer :: k, at
+    at = 0
+    do k = 1, len(raw)
+      if (index(special, raw(k:k)) > 0) then
+        text(at + 1:at + len(mark)) = mark
+        at = at + len(mark)
+      end if
+      text(at + 1:at + 1) = raw(k:k)
+      at = at + 1
     end do
   end function marked
+
+  !> Text inside a JSON string (backslashes and quotes escaped).
+  pure function json_text(raw) result(text)
+    character(len=*), intent(in) :: raw
+    character(len=len(raw) + count_marks(raw, '\"', '\')) :: text
+    text = marked(raw, '\"', '\')
+  end function json_text
 
   subroutine print_table(path, status, steps, index, wall, theta_max)
     character(len=*), intent(in) :: path
@@ -246,16 +254,18 @@ contains
     real(wp), intent(in) :: wall(:), theta_max(:)
     integer :: s, slowest
     character(len=12) :: label
+    logical :: ran(size(status))
     write (output_unit, '(a)') path // ': ' // itoa(size(status)) // ' cases'
     do s = 0, status_count - 1
       if (count(status == s) == 0) cycle
       label = status_name(s)
       write (output_unit, '(a, i10)') '  ' // label, count(status == s)
     end do
-    if (all(status == 0)) return
-    slowest = maxloc(wall, dim=1, mask=status /= 0)
+    ran = status /= status_pending .and. status /= status_invalid
+    if (.not. any(ran)) return
+    slowest = maxloc(wall, dim=1, mask=ran)
     write (output_unit, '(a)') '  steps, all cases: ' // itoa(sum(steps)) // '; integration time ' // &
-        format_real(real(nint(1000 * sum(wall, mask=status /= 0)), wp) / 1000) // ' s (sum over cases)'
+        format_real(real(nint(1000 * sum(wall, mask=ran)), wp) / 1000) // ' s (sum over cases)'
     write (output_unit, '(a)') '  slowest case: ' // itoa(index(slowest)) // ' (' // &
         format_real(real(nint(1.0e4_wp * wall(slowest)), wp) / 1.0e4_wp) // ' s, ' // &
         status_name(int(status(slowest))) // ')'

@@ -232,17 +232,29 @@ contains
     param = 0
   end subroutine check_case
 
-  function range_text(k) result(text)
+  pure function range_opening(k) result(text)
     integer, intent(in) :: k
-    character(len=:), allocatable :: text
-    character(len=:), allocatable :: units
-    units = ''
-    if (params(k)%unit /= '1') units = ' ' // trim(params(k)%unit)
+    character(len=merge(19, 21 + len(format_real(params(k)%low)), params(k)%positive)) :: text
     if (params(k)%positive) then
-      text = 'must be > 0 and <= ' // format_real(params(k)%high) // units
+      text = 'must be > 0 and <= '
     else
-      text = 'must be between ' // format_real(params(k)%low) // ' and ' // format_real(params(k)%high) // units
+      text = 'must be between ' // format_real(params(k)%low) // ' and '
     end if
+  end function range_opening
+
+  !> ' ' and the unit of row k, or nothing for a dimensionless one.
+  pure function unit_suffix(k) result(text)
+    integer, intent(in) :: k
+    character(len=len(params(k)%unit) + 1) :: text
+    text = ''
+    if (params(k)%unit /= '1') text = ' ' // params(k)%unit
+  end function unit_suffix
+
+  !> What row k's valid range is, for a message: 'must be between 0 and 0.5 m'.
+  pure function range_text(k) result(text)
+    integer, intent(in) :: k
+    character(len=len(range_opening(k)) + len(format_real(params(k)%high)) + len_trim(unit_suffix(k))) :: text
+    text = range_opening(k) // format_real(params(k)%high) // unit_suffix(k)
   end function range_text
 
   !> Methods whose step is chosen by error control (dt is then the largest step).

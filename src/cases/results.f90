@@ -18,31 +18,34 @@ module ellroll_results
     real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
   end type field_buffer_t
 
+  !> A case's result. Every figure is NaN until the integration sets it: a
+  !> case never run (invalid, or pending) holds no number that could pass
+  !> for data.
   type :: case_result_t
     integer :: status = status_pending
-    real(wp) :: t_final = 0
+    real(wp) :: t_final = nan_value
     integer(i8) :: n_steps = 0
     integer(i8) :: n_rejected = 0
     integer(i8) :: n_rhs = 0
-    real(wp) :: wall_time = 0
-    real(wp) :: theta_max = 0
-    real(wp) :: reaction_normal_max = 0
-    real(wp) :: friction_needed_max = 0
-    real(wp) :: energy_drift = 0
-    real(wp) :: constraint_error_max = 0
-    real(wp) :: nutation_period = 0      !< mean interval between maxima of Theta; NaN if < 3 maxima
+    real(wp) :: wall_time = nan_value
+    real(wp) :: theta_max = nan_value
+    real(wp) :: reaction_normal_max = nan_value
+    real(wp) :: friction_needed_max = nan_value
+    real(wp) :: energy_drift = nan_value
+    real(wp) :: constraint_error_max = nan_value
+    real(wp) :: nutation_period = nan_value      !< mean interval between maxima of Theta; NaN if < 3 maxima
     integer(i8) :: nutation_maxima = 0
     real(wp) :: error_contact = nan_value    !< with error_estimate: max |contact - reference|, m
     real(wp) :: error_theta = nan_value      !< max |Theta - reference|, rad
     real(wp) :: error_energy = nan_value     !< max |E - E_reference| / |E0|
     integer(i8) :: n_rhs_reference = 0
     real(wp) :: linear_periods(2) = nan_value  !< small-oscillation periods about the bottom, s
-    real(wp) :: displacement_max = 0           !< largest |C - (0, 0, R)|, m (cup frame)
-    real(wp) :: displacement_max_time = 0
-    real(wp) :: residual_displacement = 0      !< |C horizontal| at t_final, m
-    real(wp) :: horizontal_force_max = 0       !< largest horizontal force on the ball, N
-    real(wp) :: absolute_acceleration_max = 0  !< horizontal_force_max / m, m/s^2
-    real(wp) :: absolute_acceleration_max_time = 0
+    real(wp) :: displacement_max = nan_value           !< largest |C - (0, 0, R)|, m (cup frame)
+    real(wp) :: displacement_max_time = nan_value
+    real(wp) :: residual_displacement = nan_value      !< |C horizontal| at t_final, m
+    real(wp) :: horizontal_force_max = nan_value       !< largest horizontal force on the ball, N
+    real(wp) :: absolute_acceleration_max = nan_value  !< horizontal_force_max / m, m/s^2
+    real(wp) :: absolute_acceleration_max_time = nan_value
     real(wp) :: transmissibility = nan_value   !< harmonic: |a_C,abs| / |a_base| at the forcing frequency
     type(field_buffer_t) :: fields(field_count)
     integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)

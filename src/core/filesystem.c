@@ -1,5 +1,14 @@
-/* Questions to the file system that Fortran's inquire cannot ask. */
+/* Questions to the file system that Fortran's inquire cannot ask, and the
+ * ways ellroll makes, opens, removes and locks files so that it never
+ * follows a link or replaces a file it did not make: new files are created
+ * with O_EXCL | O_NOFOLLOW, existing ones opened with O_NOFOLLOW, and what
+ * is at a name is looked at with lstat. Errors come back as errno values. */
+#define _GNU_SOURCE
 #include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* 0 when files can be created in folder `path` (it exists, is a folder, and
@@ -7,4 +16,222 @@
 int ellroll_folder_write_error(const char *path)
 {
     return access(path, W_OK | X_OK) == 0 ? 0 : errno;
+}
+
+/* What is at path, the link itself if it is one: 0 nothing, 1 a regular
+ * file, 2 a symbolic link, 3 a folder, 4 something else (a FIFO, a device,
+ * a socket); -errno where it cannot be told. */
+int ellroll_path_kind(const char *path)
+{
+    struct stat info;
+    if (lstat(path, &info) != 0)
+        return errno == ENOENT || errno == ENOTDIR ? 0 : -errno;
+    if (S_ISREG(info.st_mode))
+        return 1;
+    if (S_ISLNK(info.st_mode))
+        return 2;
+    if (S_ISDIR(info.st_mode))
+        return 3;
+    return 4;
+}
+
+/* Bytes of the regular file at path (a link not followed), or -errno. */
+long long ellroll_file_size(const char *path)
+{
+    struct stat info;
+    if (lstat(path, &info) != 0)
+        return -errno;
+    return (long long)info.st_size;
+}
+
+/* A new file at path, open for reading and writing; never a file that was
+ * there, never through a link (O_EXCL | O_NOFOLLOW): a descriptor or -errno
+ * (-EEXIST when anything is at path). */
+int ellroll_create_new(const char *path)
+{
+    int fd;
+    do {
+        fd = open(path, O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    } while (fd < 0 && errno == EINTR);
+    return fd < 0 ? -errno : fd;
+}
+
+/* 1 when a and b are the same file (device and inode, links followed), 0
+ * when they are not or either is missing. */
+int ellroll_same_file(const char *a, const char *b)
+{
+    struct stat first, second;
+    if (stat(a, &first) != 0 || stat(b, &second) != 0)
+        return 0;
+    return first.st_dev == second.st_dev && first.st_ino == second.st_ino;
+}
+
+/* 1 when descriptor fd is the regular file at path (not a link to it). */
+int ellroll_descriptor_is_at(int fd, const char *path)
+{
+    struct stat open_file, named;
+    if (fstat(fd, &open_file) != 0 || lstat(path, &named) != 0)
+        return 0;
+    return S_ISREG(named.st_mode) && open_file.st_dev == named.st_dev && open_file.st_ino == named.st_ino;
+}
+
+/* Remove the file at path (a link itself, never its target): 0 or errno. */
+int ellroll_remove_path(const char *path)
+{
+    return unlink(path) == 0 ? 0 : errno;
+}
+
+/* Move old over new atomically (rename): 0 or errno. */
+int ellroll_rename_path(const char *old, const char *new_path)
+{
+    return rename(old, new_path) == 0 ? 0 : errno;
+}
+
+/* Write what the file at path holds to the disk, and then the folder's
+ * entry of it: 0 or errno. */
+int ellroll_sync_path(const char *path)
+{
+    int fd, code = 0;
+    do {
+        fd = open(path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    } while (fd < 0 && errno == EINTR);
+    if (fd < 0)
+        return errno;
+    if (fsync(fd) != 0 && errno != EINVAL)
+        code = errno;
+    if (close(fd) != 0 && code == 0)
+        code = errno;
+    return code;
+}
+
+/* The folder's entries (after a rename or an unlink) to the disk: 0 or errno
+ * (a file system that cannot sync a folder is not an error). */
+int ellroll_sync_folder(const char *folder)
+{
+    int fd, code = 0;
+    do {
+        fd = open(folder, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    } while (fd < 0 && errno == EINTR);
+    if (fd < 0)
+        return errno;
+    if (fsync(fd) != 0 && errno != EINVAL && errno != EBADF)
+        code = errno;
+    close(fd);
+    return code;
+}
+
+/* The first bytes of the regular file at path (a link not followed), for a
+ * look at what it is: how many were read, or -errno. */
+int ellroll_read_head(const char *path, char *buffer, int size)
+{
+    int fd, got;
+    do {
+        fd = open(path, O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+    } while (fd < 0 && errno == EINTR);
+    if (fd < 0)
+        return -errno;
+    do {
+        got = (int)pread(fd, buffer, (size_t)size, 0);
+    } while (got < 0 && errno == EINTR);
+    int code = got < 0 ? -errno : got;
+    close(fd);
+    return code;
+}
+
+/* The lock of one output: an exclusive fcntl lock on the lock file at path,
+ * which then holds `me` (who holds it). A descriptor (>= 0) while it is
+ * held; -EAGAIN when another process holds it, its `me` copied into holder
+ * (null-terminated); -EEXIST when path is not a lock file (a link, a
+ * folder, or a file that holds something else); other -errno. A process
+ * that releases its lock removes the file first, so one that locked the
+ * removed file looks again. */
+int ellroll_lock_output(const char *path, const char *me, char *holder, int size)
+{
+    static const char mark[] = "ellroll lock";
+    holder[0] = '\0';
+    for (int attempt = 0; attempt < 16; ++attempt) {
+        int fd, created = 1;
+        do {
+            fd = open(path, O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+        } while (fd < 0 && errno == EINTR);
+        if (fd < 0 && errno == EEXIST) {
+            created = 0;
+            do {
+                fd = open(path, O_RDWR | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+            } while (fd < 0 && errno == EINTR);
+            if (fd < 0 && errno == ENOENT)
+                continue;                     /* removed meanwhile: look again */
+            if (fd < 0)
+                return errno == ELOOP || errno == EISDIR ? -EEXIST : -errno;
+        } else if (fd < 0) {
+            return -errno;
+        }
+        struct stat info;
+        if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+            close(fd);
+            return -EEXIST;
+        }
+        if (!created && info.st_size > 0) {   /* someone's file: only a lock file of ours */
+            char head[sizeof mark];
+            ssize_t got = pread(fd, head, sizeof mark - 1, 0);
+            if (got != (ssize_t)(sizeof mark - 1) || memcmp(head, mark, sizeof mark - 1) != 0) {
+                close(fd);
+                return -EEXIST;
+            }
+        }
+        struct flock lock;
+        memset(&lock, 0, sizeof lock);
+        lock.l_type = F_WRLCK;
+        lock.l_whence = SEEK_SET;
+        if (fcntl(fd, F_SETLK, &lock) != 0) {
+            int code = errno;
+            if (code == EACCES || code == EAGAIN) {
+                ssize_t got = pread(fd, holder, (size_t)(size - 1), 0);
+                holder[got > 0 ? got : 0] = '\0';
+                close(fd);
+                return -EAGAIN;
+            }
+            close(fd);
+            return -code;
+        }
+        if (!ellroll_descriptor_is_at(fd, path)) {   /* its holder removed it as we opened it */
+            close(fd);
+            continue;
+        }
+        size_t length = strlen(me);
+        if (ftruncate(fd, 0) != 0 || pwrite(fd, me, length, 0) != (ssize_t)length) {
+            int code = errno;
+            close(fd);
+            unlink(path);
+            return -code;
+        }
+        return fd;
+    }
+    return -EAGAIN;
+}
+
+/* Release a lock of ellroll_lock_output: the file removed, then the lock
+ * (closing the descriptor releases it). 0 or errno. */
+int ellroll_unlock_output(int fd, const char *path)
+{
+    int code = 0;
+    if (ellroll_descriptor_is_at(fd, path) && unlink(path) != 0)
+        code = errno;
+    if (close(fd) != 0 && code == 0)
+        code = errno;
+    return code;
+}
+
+/* This host's name, for the lock's note of its holder. */
+void ellroll_host_name(char *name, int size)
+{
+    if (gethostname(name, (size_t)size) != 0)
+        snprintf(name, (size_t)size, "?");
+    name[size - 1] = '\0';
+}
+
+/* This process's id. */
+long ellroll_process_id(void)
+{
+    return (long)getpid();
 }

@@ -19,7 +19,7 @@ int ellroll_open_descriptor(const char *path, int writing)
 {
     int fd;
     do {
-        fd = open(path, (writing ? O_RDWR : O_RDONLY) | O_CLOEXEC);
+        fd = open(path, (writing ? O_RDWR : O_RDONLY) | O_NOFOLLOW | O_CLOEXEC);
     } while (fd < 0 && errno == EINTR);
     return fd < 0 ? -errno : fd;
 }
@@ -118,8 +118,10 @@ int ellroll_close_descriptor(int fd)
     return close(fd) == 0 ? 0 : errno;
 }
 
-/* The system's words for errno value `code`, null-terminated in `text`. */
+/* The system's words for errno value `code`, null-terminated in `text`
+ * (strerror_r: threads may ask at the same time). */
 void ellroll_error_text(int code, char *text, size_t size)
 {
-    snprintf(text, size, "%s", strerror(code));
+    char work[256];
+    snprintf(text, size, "%s", strerror_r(code, work, sizeof work));
 }

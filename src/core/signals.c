@@ -3,8 +3,10 @@
  * SIGTERM (Slurm at the time limit, or earlier with --signal) and SIGINT
  * (Ctrl-C) only set a flag: the campaign stops starting cases, drops the
  * cases under way, and leaves with the journal and the partial file closed,
- * so that --resume finishes the rest. A second such signal ends the process
- * at once, as if it had not been caught. */
+ * so that --resume finishes the rest. A second SIGINT (Ctrl-C pressed
+ * again) ends the process at once, as if it had not been caught; more
+ * SIGTERMs change nothing (scancel and a job script's trap may both send
+ * one; the batch system's SIGKILL follows if the run does not end). */
 #include <signal.h>
 #include <string.h>
 
@@ -12,12 +14,13 @@ static volatile sig_atomic_t stop_signal = 0;
 
 static void on_stop_signal(int sig)
 {
-    if (stop_signal != 0) {
+    if (stop_signal != 0 && sig == SIGINT) {
         signal(sig, SIG_DFL);
         raise(sig);
         return;
     }
-    stop_signal = sig;
+    if (stop_signal == 0)
+        stop_signal = sig;
 }
 
 void ellroll_catch_stop_signals(void)

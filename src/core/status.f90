@@ -26,13 +26,17 @@ module ellroll_status
 
 contains
 
+  pure function padded_name(status) result(name)
+    integer, intent(in) :: status
+    character(len=10) :: name
+    name = 'unknown'
+    if (status >= 0 .and. status < status_count) name = names(status)
+  end function padded_name
+
   pure function status_name(status) result(name)
     integer, intent(in) :: status
-    character(len=:), allocatable :: name
-    if (status >= 0 .and. status < status_count) then
-      name = trim(names(status))
-    else
-      name = 'unknown'
-    end if
+    character(len=len_trim(padded_name(status))) :: name
+    name = padded_name(status)
   end function status_name
+
 end module ellroll_status

@@ -1,4 +1,11 @@
 !> Small text helpers shared by the input checks, the messages and the writer.
+!>
+!> No function in ellroll returns a `character(len=:), allocatable` result:
+!> gfortran 12 keeps the length of such a result in a static variable of the
+!> caller, so two threads calling it at once corrupt each other's text (a
+!> format string, a message). Results here have their length given by a
+!> pure function of the arguments instead (tests/python/test_source_rules.py
+!> checks the rule).
 module ellroll_strings
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -6,12 +13,16 @@ module ellroll_strings
   implicit none
   private
 
-  public :: lower, itoa, join, format_real, text_hash
+  public :: lower, itoa, join, format_real, real_text, text_hash
 
   !> An integer as text, without blanks.
   interface itoa
     module procedure itoa_default, itoa_long
   end interface itoa
+
+  !> The longest text real_text writes ('-1.2345678901234567e-308' and
+  !> fixed-point forms up to 10 integer digits and 20 decimals).
+  integer, parameter :: real_text_max = 40
 
 contains
 
@@ -41,84 +52,125 @@ contains
     end do
   end function lower
 
+  !> The number of characters of i in decimal (a sign included).
+  pure integer function decimal_width(i)
+    integer(i8), intent(in) :: i
+    integer(i8) :: rest
+    if (i == -huge(i) - 1) then
+      decimal_width = 20
+      return
+    end if
+    decimal_width = merge(2, 1, i < 0)
+    rest = abs(i)
+    do while (rest >= 10)
+      rest = rest / 10
+      decimal_width = decimal_width + 1
+    end do
+  end function decimal_width
+
   pure function itoa_default(i) result(s)
     integer, intent(in) :: i
-    character(len=:), allocatable :: s
-    s = itoa_long(int(i, i8))
+    character(len=decimal_width(int(i, i8))) :: s
+    write (s, '(i0)') i
   end function itoa_default
 
   pure function itoa_long(i) result(s)
     integer(i8), intent(in) :: i
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write (buf, '(i0)') i
-    s = trim(buf)
+    character(len=decimal_width(i)) :: s
+    write (s, '(i0)') i
   end function itoa_long
+
+  !> The words, trimmed, joined by ', '.
   pure function join(words) result(text)
     character(len=*), intent(in) :: words(:)
-    character(len=:), allocatable :: text
-    integer :: k
-    text = trim(words(1))
+    character(len=max(0, sum(len_trim(words)) + 2 * (size(words) - 1))) :: text
+    integer :: k, at
+    if (size(words) == 0) return
+    text(:len_trim(words(1))) = words(1)
+    at = len_trim(words(1))
     do k = 2, size(words)
-      text = text // ', ' // trim(words(k))
+      text(at + 1:at + 2 + len_trim(words(k))) = ', ' // words(k)(:len_trim(words(k)))
+      at = at + 2 + len_trim(words(k))
     end do
   end function join
 
-  !> The shortest text that reads back as x: 0.2, 30, 1e-06, 2620.
-  function format_real(x) result(text)
+  pure integer function real_text_length(x) result(n)
     real(wp), intent(in) :: x
-    character(len=:), allocatable :: text
-    character(len=40) :: buf
+    character(len=real_text_max) :: buffer
+    call real_text(x, buffer, n)
+  end function real_text_length
+
+  !> The shortest text that reads back as x: 0.2, 30, 1e-06, 2620.
+  pure function format_real(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=real_text_length(x)) :: text
+    character(len=real_text_max) :: buffer
+    integer :: n
+    call real_text(x, buffer, n)
+    text = buffer(:n)
+  end function format_real
+
+  !> format_real's text of x in buffer(:n) (for a caller that writes many,
+  !> such as a table of numbers, without building each twice).
+  pure subroutine real_text(x, buffer, n)
+    real(wp), intent(in) :: x
+    character(len=real_text_max), intent(out) :: buffer
+    integer, intent(out) :: n
+    character(len=*), parameter :: scientific(15:17) = [character(len=12) :: &
+        '(es40.14e3)', '(es40.15e3)', '(es40.16e3)']
+    character(len=40) :: work
+    character(len=16) :: fixed
     real(wp) :: back
-    character(len=:), allocatable :: mantissa
-    integer :: digits, exponent10, ios
+    integer :: digits, exponent10, ios, mark, last
+    buffer = ''
     if (.not. ieee_is_finite(x)) then
-      write (buf, '(es12.3)') x
-      text = trim(adjustl(buf))
+      write (work, '(es12.3)') x
+      buffer = adjustl(work)
+      n = len_trim(buffer)
       return
     end if
     if (is_zero(x)) then
-      text = '0'
+      buffer = '0'
+      n = 1
       return
     end if
     ! 15 significant digits that read back as x are the shortest such text
     ! padded with zeros (x is within half an ulp of it); else 16 or 17
     do digits = 15, 17
-      write (buf, '(es40.' // itoa(digits - 1) // 'e3)') x
-      read (buf, '(es40.0)', iostat=ios) back
+      write (work, scientific(digits)) x
+      read (work, '(es40.0)', iostat=ios) back
       if (ios == 0 .and. equals(back, x)) exit
     end do
-    mantissa = strip_mantissa(trim(adjustl(buf(:index(buf, 'E') - 1))))
-    digits = len(mantissa) - merge(1, 0, index(mantissa, '.') > 0) - merge(1, 0, mantissa(1:1) == '-')
+    digits = min(digits, 17)
+    ! the mantissa without its trailing zeros (and without a bare '.')
+    work = adjustl(work)
+    mark = index(work, 'E') - 1
+    last = mark
+    do while (work(last:last) == '0')
+      last = last - 1
+    end do
+    if (work(last:last) == '.') last = last - 1
+    digits = last - merge(1, 0, index(work(:last), '.') > 0) - merge(1, 0, work(1:1) == '-')
     exponent10 = floor(log10(abs(x)))
     if (exponent10 >= -4 .and. exponent10 < 10) then
-      write (buf, '(f40.' // itoa(max(0, digits - 1 - exponent10)) // ')') x
-      text = trim(adjustl(buf))
-      if (text(len(text):len(text)) == '.') text = text(:len(text)-1)
-      if (index(text, '.') == 1) text = '0' // text
-      if (index(text, '-.') == 1) text = '-0' // text(2:)
-    else
-      text = mantissa // 'e' // exponent_text(exponent10)
-    end if
-  contains
-    pure function strip_mantissa(m) result(out)
-      character(len=*), intent(in) :: m
-      character(len=:), allocatable :: out
-      out = m
-      if (index(out, '.') > 0) then
-        do while (out(len(out):len(out)) == '0')
-          out = out(:len(out)-1)
-        end do
-        if (out(len(out):len(out)) == '.') out = out(:len(out)-1)
+      write (fixed, '(a, i0, a)') '(f40.', max(0, digits - 1 - exponent10), ')'
+      write (buffer, fixed) x
+      buffer = adjustl(buffer)
+      n = len_trim(buffer)
+      if (buffer(n:n) == '.') n = n - 1
+      if (buffer(1:1) == '.') then
+        buffer = '0' // buffer(:n)
+        n = n + 1
+      else if (buffer(1:2) == '-.') then
+        buffer = '-0' // buffer(2:n)
+        n = n + 1
       end if
-    end function strip_mantissa
-    pure function exponent_text(e) result(out)
-      integer, intent(in) :: e
-      character(len=:), allocatable :: out
-      out = itoa(abs(e))
-      if (len(out) < 2) out = '0' // out
-      out = merge('-', '+', e < 0) // out
-    end function exponent_text
-  end function format_real
+    else
+      write (fixed, '(i2.2)') abs(exponent10)
+      if (abs(exponent10) >= 100) write (fixed, '(i3)') abs(exponent10)
+      buffer = work(:last) // 'e' // merge('-', '+', exponent10 < 0) // trim(fixed)
+      n = len_trim(buffer)
+    end if
+  end subroutine real_text
 
 end module ellroll_strings

@@ -87,7 +87,7 @@ module ellroll_system
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
     end function c_folder_write_error
-    subroutine c_error_text(code, text, size) bind(c, name='ellroll_error_text')
+    pure subroutine c_error_text(code, text, size) bind(c, name='ellroll_error_text')
       import :: c_int, c_char, c_size_t
       integer(c_int), value :: code
       character(kind=c_char), intent(out) :: text(*)
@@ -97,10 +97,9 @@ module ellroll_system
 
 contains
 
-  !> The name of a stop signal (POSIX numbers), for messages.
-  pure function signal_name(signal) result(name)
+  pure function padded_signal_name(signal) result(name)
     integer, intent(in) :: signal
-    character(len=:), allocatable :: name
+    character(len=8) :: name
     select case (signal)
     case (2)
       name = 'SIGINT'
@@ -109,6 +108,13 @@ contains
     case default
       name = 'a signal'
     end select
+  end function padded_signal_name
+
+  !> The name of a stop signal (POSIX numbers), for messages.
+  pure function signal_name(signal) result(name)
+    integer, intent(in) :: signal
+    character(len=len_trim(padded_signal_name(signal))) :: name
+    name = padded_signal_name(signal)
   end function signal_name
 
   !> Atomically replace `new` by `old` (POSIX rename). True on success.
@@ -124,18 +130,19 @@ contains
     folder_write_error = c_folder_write_error(path // c_null_char)
   end function folder_write_error
 
+  pure integer function folder_length(path)
+    character(len=*), intent(in) :: path
+    folder_length = max(1, index(path, '/', back=.true.) - 1)
+  end function folder_length
+
   !> The folder of a file's path: what precedes its last '/', or '.'.
   pure function folder_of(path) result(folder)
     character(len=*), intent(in) :: path
-    character(len=:), allocatable :: folder
-    integer :: slash
-    slash = index(path, '/', back=.true.)
-    if (slash == 0) then
+    character(len=folder_length(path)) :: folder
+    if (index(path, '/', back=.true.) == 0) then
       folder = '.'
-    else if (slash == 1) then
-      folder = '/'
     else
-      folder = path(:slash - 1)
+      folder = path(:len(folder))
     end if
   end function folder_of
 
@@ -199,22 +206,33 @@ contains
     code = c_close_descriptor(fd)
   end function close_descriptor
 
+  pure integer function error_text_length(code) result(n)
+    integer, intent(in) :: code
+    character(kind=c_char) :: buffer(200)
+    call error_words(code, buffer)
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+  end function error_text_length
+
   !> The system's words for errno value `code`.
   function system_error_text(code) result(text)
     integer, intent(in) :: code
-    character(len=:), allocatable :: text
+    character(len=error_text_length(code)) :: text
     character(kind=c_char) :: buffer(200)
-    integer :: n
-    call c_error_text(code, buffer, size(buffer, kind=c_size_t))
-    n = findloc(buffer, c_null_char, dim=1) - 1
-    if (n < 0) n = size(buffer)
-    allocate (character(len=n) :: text)
-    text = transfer(buffer(:n), text)
+    call error_words(code, buffer)
+    text = transfer(buffer(:len(text)), text)
   end function system_error_text
 
-  !> Current time as ISO 8601 UTC, e.g. 2026-11-23T03:22:15Z.
-  function utc_timestamp() result(stamp)
-    character(len=:), allocatable :: stamp
+  pure subroutine error_words(code, buffer)
+    integer, intent(in) :: code
+    character(kind=c_char), intent(out) :: buffer(200)
+    call c_error_text(code, buffer, size(buffer, kind=c_size_t))
+  end subroutine error_words
+
+  !> Current time as ISO 8601 UTC, e.g. 2026-11-23T03:22:15Z ('' if the
+  !> system cannot tell).
+  subroutine utc_timestamp(stamp)
+    character(len=:), allocatable, intent(out) :: stamp
     character(kind=c_char) :: buf(32)
     integer(c_long) :: now
     integer(c_size_t) :: n
@@ -225,9 +243,10 @@ contains
     stamp = ''
     if (.not. c_associated(tm)) return
     n = c_strftime(buf, size(buf, kind=c_size_t), '%Y-%m-%dT%H:%M:%SZ' // c_null_char, tm)
+    stamp = repeat(' ', int(n))
     do i = 1, int(n)
-      stamp = stamp // buf(i)
+      stamp(i:i) = buf(i)
     end do
-  end function utc_timestamp
+  end subroutine utc_timestamp
 
 end module ellroll_system

@@ -96,7 +96,7 @@ contains
     end if
     inp%path = path
     inp%text = rd%file%text
-    inp%canonical = canonical_text(rd%file)
+    call canonical_text(rd%file, inp%canonical)
   end subroutine interpret
 
   !> The namelist variables outside the parameter table are declared in
@@ -199,7 +199,7 @@ contains
       type(ieee_status_type) :: fp_state
       character(len=:), allocatable :: one_assignment
       integer :: row
-      one_assignment = assignment_record(grp, k)
+      call assignment_record(grp, k, one_assignment)
       row = variable_row(grp%name, grp%items(k)%base)
       call ieee_get_status(fp_state)
       ! text such as 1e309 reads as Inf, which the checks name; its
@@ -615,12 +615,12 @@ contains
 
   !> The message for an invalid case of a campaign: its index, the values
   !> that were varied, and what is wrong.
-  function describe_invalid(inp, cs, param, reason) result(text)
+  subroutine describe_invalid(inp, cs, param, reason, text)
     type(run_input_t), intent(in) :: inp
     type(case_t), intent(in) :: cs
     integer, intent(in) :: param
     character(len=*), intent(in) :: reason
-    character(len=:), allocatable :: text
+    character(len=:), allocatable, intent(out) :: text
     character(len=:), allocatable :: varied
     integer :: k
     varied = ''
@@ -640,33 +640,34 @@ contains
         varied_param = inp%campaign%samples(k - size(inp%campaign%sweeps))%param
       end if
     end function varied_param
-    function setting(p) result(s)
+    !> 'name = value' of row p in this case.
+    pure function setting(p) result(s)
       integer, intent(in) :: p
-      character(len=:), allocatable :: s
+      character(len=len_trim(params(p)%name) + 3 + len(format_real(get_param(cs, p)))) :: s
       s = trim(params(p)%name) // ' = ' // format_real(get_param(cs, p))
     end function setting
-  end function describe_invalid
+  end subroutine describe_invalid
 
 
   !> A one-assignment namelist in one record: '&group name = value /'.
   !> The assignment's lines are joined by blanks (the scanner blanked its
   !> comments, and no value spans a line break).
-  function assignment_record(grp, k) result(record)
+  pure subroutine assignment_record(grp, k, record)
     type(nml_group_t), intent(in) :: grp
     integer, intent(in) :: k
-    character(len=:), allocatable :: record
+    character(len=:), allocatable, intent(out) :: record
     integer :: pos
     record = '&' // grp%name // ' ' // grp%items(k)%source // ' /'
     do pos = 1, len(record)
       if (record(pos:pos) == achar(10)) record(pos:pos) = ' '
     end do
-  end function assignment_record
+  end subroutine assignment_record
 
   !> Groups and assignments in file order, without comments or layout: what
   !> decides whether two inputs describe the same campaign.
-  function canonical_text(file) result(text)
+  pure subroutine canonical_text(file, text)
     type(nml_file_t), intent(in) :: file
-    character(len=:), allocatable :: text
+    character(len=:), allocatable, intent(out) :: text
     integer :: gi, k
     text = ''
     do gi = 1, size(file%groups)
@@ -676,7 +677,7 @@ contains
       end do
       text = text // ' /' // achar(10)
     end do
-  end function canonical_text
+  end subroutine canonical_text
 
 
 

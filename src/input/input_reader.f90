@@ -173,16 +173,21 @@ contains
       if (.not. ieee_is_nan(list(k))) count_given = k
     end do
   end function count_given
-  !> A path relative to the input file's folder (absolute paths unchanged).
-  function resolve_path(path, input_path) result(resolved)
+  !> How much of input_path (its folder, with the '/') goes before path: none
+  !> for an absolute path or an input in the current folder.
+  pure integer function folder_prefix_length(path, input_path) result(n)
     character(len=*), intent(in) :: path, input_path
-    character(len=:), allocatable :: resolved
-    integer :: slash
-    slash = index(input_path, '/', back=.true.)
-    if (path(1:1) == '/' .or. slash == 0) then
-      resolved = path
-    else
-      resolved = input_path(:slash) // path
+    n = index(input_path, '/', back=.true.)
+    if (len(path) > 0) then
+      if (path(1:1) == '/') n = 0
     end if
+  end function folder_prefix_length
+
+  !> A path relative to the input file's folder (absolute paths unchanged).
+  pure function resolve_path(path, input_path) result(resolved)
+    character(len=*), intent(in) :: path, input_path
+    character(len=len(path) + folder_prefix_length(path, input_path)) :: resolved
+    resolved = input_path(:folder_prefix_length(path, input_path)) // path
   end function resolve_path
+
 end module ellroll_input_reader

@@ -307,32 +307,42 @@ contains
     end do
   end subroutine blank_comment
 
-  !> The name that follows the character at i ('&' or '$'): name characters up to the first other.
-  pure function name_after(clean, i) result(name)
+  !> Where the name starting after position i of clean ends.
+  pure integer function name_end(clean, i) result(j)
     character(len=*), intent(in) :: clean
     integer, intent(in) :: i
-    character(len=:), allocatable :: name
-    integer :: j
     j = i + 1
     do while (j <= len(clean))
       if (.not. is_name_char(clean(j:j))) exit
       j = j + 1
     end do
-    name = clean(i+1:j-1)
+    j = j - 1
+  end function name_end
+
+  !> The name that follows the character at i ('&' or '$'): name characters up to the first other.
+  pure function name_after(clean, i) result(name)
+    character(len=*), intent(in) :: clean
+    integer, intent(in) :: i
+    character(len=name_end(clean, i) - i) :: name
+    name = clean(i+1:name_end(clean, i))
   end function name_after
 
-  !> Up to 31 characters of `clean` from `pos`, to the line's end.
-  pure function snippet(clean, pos) result(s)
+  pure integer function snippet_end(clean, pos) result(e)
     character(len=*), intent(in) :: clean
     integer, intent(in) :: pos
-    character(len=:), allocatable :: s
-    integer :: e
     e = pos
     do while (e < len(clean) .and. e < pos + 30)
       if (clean(e+1:e+1) == lf) exit
       e = e + 1
     end do
-    s = trim(clean(pos:e))
+  end function snippet_end
+
+  !> Up to 31 characters of `clean` from `pos`, to the line's end.
+  pure function snippet(clean, pos) result(s)
+    character(len=*), intent(in) :: clean
+    integer, intent(in) :: pos
+    character(len=len_trim(clean(pos:snippet_end(clean, pos)))) :: s
+    s = clean(pos:snippet_end(clean, pos))
   end function snippet
 
   !> The line of position `upto` of text.
@@ -431,24 +441,39 @@ contains
     is_name_char = is_letter(ch) .or. (ch >= '0' .and. ch <= '9') .or. ch == '_'
   end function is_name_char
 
+  pure integer function base_end(name)
+    character(len=*), intent(in) :: name
+    base_end = index(name, '(') - 1
+    if (base_end < 0) base_end = len(name)
+  end function base_end
+
   pure function base_name(name) result(base)
     character(len=*), intent(in) :: name
-    character(len=:), allocatable :: base
-    integer :: p
-    p = index(name, '(')
-    if (p > 0) then
-      base = trim(name(:p-1))
-    else
-      base = trim(name)
-    end if
+    character(len=len_trim(name(:base_end(name)))) :: base
+    base = name(:base_end(name))
   end function base_name
+
+  pure integer function collapsed_length(text) result(m)
+    character(len=*), intent(in) :: text
+    character(len=len(text)) :: buf
+    call collapse_into(text, buf, m)
+  end function collapsed_length
 
   !> Blanks, tabs and line breaks collapsed to single blanks, ends trimmed.
   pure function collapse(text) result(out)
     character(len=*), intent(in) :: text
-    character(len=:), allocatable :: out
+    character(len=collapsed_length(text)) :: out
     character(len=len(text)) :: buf
-    integer :: k, m
+    integer :: m
+    call collapse_into(text, buf, m)
+    out = buf(:m)
+  end function collapse
+
+  pure subroutine collapse_into(text, buf, m)
+    character(len=*), intent(in) :: text
+    character(len=len(text)), intent(out) :: buf
+    integer, intent(out) :: m
+    integer :: k
     logical :: blank_pending
     m = 0
     blank_pending = .false.
@@ -466,7 +491,6 @@ contains
         buf(m:m) = text(k:k)
       end select
     end do
-    out = buf(:m)
-  end function collapse
+  end subroutine collapse_into
 
 end module ellroll_namelist_scan

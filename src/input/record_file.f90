@@ -243,7 +243,7 @@ contains
       return
     end if
     if (index(adjustl(line(at + 4:)), '=') == 1) then           ! NPTS= n, DT= dt SEC
-      number = number_after(line, at + 4)
+      call number_after(line, at + 4, number)
       read (number, *, iostat=ios, iomsg=msg) npts
       if (ios /= 0) then
         reason = 'NPTS is not a whole number: ' // trim(line)
@@ -254,7 +254,7 @@ contains
         reason = "no DT on the fourth line (expected 'NPTS= n, DT= dt SEC')"
         return
       end if
-      number = number_after(line, at + 2)
+      call number_after(line, at + 2, number)
       read (number, *, iostat=ios, iomsg=msg) dt
     else                                                        ! n dt NPTS, DT
       read (line(:at - 1), *, iostat=ios, iomsg=msg) npts, dt
@@ -269,10 +269,10 @@ contains
   end subroutine header_counts
 
   !> The text of the number after position `from` and an optional '='.
-  function number_after(line, from) result(number)
+  pure subroutine number_after(line, from, number)
     character(len=*), intent(in) :: line
     integer, intent(in) :: from
-    character(len=:), allocatable :: number
+    character(len=:), allocatable, intent(out) :: number
     integer :: last
     number = adjustl(line(from:))
     if (number(1:1) == '=') number = adjustl(number(2:))
@@ -280,7 +280,7 @@ contains
     if (last > 1) number = number(:last - 1)
     number = trim(number)
     if (len(number) == 0) number = '?'
-  end function number_after
+  end subroutine number_after
 
   !> The values of one data line, into acc(got + 1:); what follows NPTS on
   !> the line is padding.

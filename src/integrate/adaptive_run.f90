@@ -244,12 +244,17 @@ contains
     self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
+  pure function reference_info_name() result(name)
+    character(len=8) :: name
+    associate (info => reference_pair%info())
+      name = info%name
+    end associate
+  end function reference_info_name
+
   !> The name of the reference method (reference_pair's).
   pure function reference_method() result(name)
-    character(len=:), allocatable :: name
-    associate (info => reference_pair%info())
-      name = trim(info%name)
-    end associate
+    character(len=len_trim(reference_info_name())) :: name
+    name = reference_info_name()
   end function reference_method
 
   !> x^(1/order); for order 8 by three square roots (a fraction of the cost

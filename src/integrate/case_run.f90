@@ -104,6 +104,13 @@ contains
     real(wp), intent(out) :: y(state_size), f(state_size)
     type(observation_t) :: obs
     run%ball = make_ball(cs)
+    ! where the running figures start (every other one is set at the end)
+    res%t_final = 0
+    res%wall_time = 0
+    res%theta_max = 0
+    res%reaction_normal_max = 0
+    res%friction_needed_max = 0
+    res%constraint_error_max = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%x, cs%y, cs%omega)
     run%start = y

@@ -735,11 +735,13 @@ contains
 
   !> The methods' names, for messages: 'rk4 dop853 vern9 gauss4'.
   pure function method_names() result(names)
-    character(len=:), allocatable :: names
-    integer :: k
-    names = trim(methods(1)%name)
+    character(len=sum(len_trim(methods%name)) + size(methods) - 1) :: names
+    integer :: k, at
+    names = methods(1)%name
+    at = len_trim(methods(1)%name)
     do k = 2, size(methods)
-      names = names // ' ' // trim(methods(k)%name)
+      names(at + 1:) = ' ' // methods(k)%name
+      at = at + 1 + len_trim(methods(k)%name)
     end do
   end function method_names
 

@@ -54,6 +54,7 @@ contains
     type(error_t), intent(inout) :: err
     integer :: hdferr
     logical :: is_hdf5
+    character(len=:), allocatable :: program
     self%path = path
     call h5open_f(hdferr)
     call h5eset_auto_f(0, hdferr)
@@ -67,7 +68,8 @@ contains
       call set_error(err, err_input, path // ': cannot open the HDF5 file')
       return
     end if
-    if (self%text_attribute('program') /= 'ellroll') then
+    call self%text_attribute('program', program)
+    if (program /= 'ellroll') then
       call set_error(err, err_input, path // ': not an ellroll file')
       return
     end if
@@ -80,7 +82,6 @@ contains
     if (self%file < 0) return
     call h5fclose_f(self%file, hdferr)
     self%file = -1
-    call h5close_f(hdferr)
   end subroutine close_input
 
   logical function has(self, name)
@@ -110,11 +111,11 @@ contains
 
   !> An attribute written as a variable-length string, of the root or of
   !> the dataset `object` ('' when absent).
-  function text_attribute(self, name, object) result(text)
+  subroutine text_attribute(self, name, text, object)
     class(h5_input_t), intent(in) :: self
     character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: text
     character(len=*), intent(in), optional :: object
-    character(len=:), allocatable :: text
     character(len=:), allocatable :: owner
     integer(hid_t) :: attr, text_type
     type(c_ptr), target :: pointer(1)
@@ -143,7 +144,7 @@ contains
     end if
     call h5tclose_f(text_type, hdferr)
     call h5aclose_f(attr, hdferr)
-  end function text_attribute
+  end subroutine text_attribute
 
   !> A whole 1-D real dataset (e.g. one value per case).
   function real_column(self, name, err) result(values)

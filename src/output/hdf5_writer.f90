@@ -18,7 +18,8 @@ module ellroll_hdf5_writer
       field_descriptions
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_campaign, only: coordinate_t
-  use ellroll_system, only: rename_file
+  use ellroll_system, only: close_descriptor, system_error_text
+  use ellroll_files, only: create_new_file, descriptor_is_at, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
   use ellroll_hdf5_common, only: select_slab, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
@@ -167,7 +168,7 @@ contains
     type(layout_t), intent(inout) :: lay
     logical, intent(in) :: user_block       !< room for the label of trajectories written in place
     type(provenance_t), intent(in) :: prov
-    integer :: hdferr, closed
+    integer :: hdferr, closed, own
     integer(hid_t) :: fapl, fcpl
     call h5open_f(hdferr)
     call lay%check(hdferr, 'initialise HDF5')
@@ -179,11 +180,23 @@ contains
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
     call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
     if (user_block) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
+    ! the file is made where nothing is, never through a link (HDF5 would
+    ! truncate whatever is there); HDF5 then lays out that very file
+    own = create_new_file(lay%path)
+    if (own < 0) then
+      call set_error(lay%err, err_output, lay%path // ': cannot create the file: ' // system_error_text(-own))
+      return
+    end if
     call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
     ! closes report into their own code: hdferr keeps the creation's
     call h5pclose_f(fapl, closed)
     call h5pclose_f(fcpl, closed)
     call lay%check(hdferr, 'create the file')
+    if (.not. lay%err%failed()) then
+      if (.not. descriptor_is_at(own, lay%path)) &
+        call set_error(lay%err, err_output, lay%path // ': was replaced while it was being created')
+    end if
+    closed = close_descriptor(own)
     if (lay%err%failed()) return
     lay%file = self%file
     ! CF-1.10 global attributes, then ellroll's own provenance
@@ -428,8 +441,10 @@ contains
     class(h5_output_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(error_t), intent(inout) :: err
-    if (.not. rename_file(self%path, path)) then
-      call set_error(err, err_output, path // ': cannot move ' // self%path // ' there')
+    integer :: code
+    code = rename_path(self%path, path)
+    if (code /= 0) then
+      call set_error(err, err_output, path // ': cannot move ' // self%path // ' there: ' // system_error_text(code))
       return
     end if
     self%path = path
@@ -625,6 +640,7 @@ contains
     character(len=len(rows%text)), allocatable :: texts(:)
     integer :: k, ncomp
     n = size(rows, 2, kind=i8)
+    allocate (ints(n), texts(n))
     do k = 1, size(rows, 1)
       if (.not. open_dataset(self, trim(self%row_groups(k)) // '/' // trim(rows(k, 1)%name), dset, err)) return
       select case (rows(k, 1)%kind)
@@ -636,10 +652,10 @@ contains
           call write_real_slab(self%path, dset, reals_of(ncomp), [0_i8, offset], [int(ncomp, i8), n], err)
         end if
       case (kind_int)        ! (the components copied to contiguous arrays: the slab writers take a buffer)
-        ints = rows(k, :)%int
+        ints(:) = rows(k, :)%int
         call write_int_slab(self%path, dset, ints, [offset], [n], err)
       case (kind_text)
-        texts = rows(k, :)%text
+        texts(:) = rows(k, :)%text
         call write_text_slab(self%path, dset, texts, offset, err)
       end select
     end do
@@ -680,7 +696,6 @@ contains
     if (hdferr < 0 .and. .not. err%failed()) &
       call set_error(err, err_output, self%path // ': cannot close the file (disk full?)')
     self%file = -1
-    call h5close_f(hdferr)
   end subroutine close_file
 
   ! ------------------------------------------------------------ low level

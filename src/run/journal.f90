@@ -25,7 +25,8 @@ module ellroll_journal
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_checksum, only: checksum, checksum_start, fold_reals
-  use ellroll_system, only: open_for_writing, write_pieces_at, close_descriptor, system_error_text
+  use ellroll_system, only: open_for_writing, write_pieces_at, read_at, close_descriptor, system_error_text
+  use ellroll_files, only: create_new_file, file_size
   implicit none
   private
 
@@ -51,9 +52,7 @@ module ellroll_journal
   end type journal_header_t
 
   type :: journal_t
-    integer :: unit = 0                   !< the header, and reading records back
-    integer :: fd = -1                    !< writing records
-    logical :: is_open = .false.          !< newunit= numbers are negative: no sentinel
+    integer :: fd = -1
     character(len=:), allocatable :: path
     type(journal_header_t) :: header
     integer(i8) :: record_words = 0
@@ -73,42 +72,43 @@ module ellroll_journal
 
 contains
 
+  !> Create the journal (where nothing is: the caller has removed a stale
+  !> one) and write its header.
   subroutine create(self, path, header, err)
     class(journal_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(journal_header_t), intent(in) :: header
     type(error_t), intent(inout) :: err
-    integer :: ios
-    character(len=256) :: msg
+    integer(i8), target :: start(header_bytes / 8)
+    character(len=8), target :: magic_text
+    integer :: code
     self%path = path
     self%header = header
     self%record_words = words_per_record(header)
-    open (newunit=self%unit, file=path, access='stream', form='unformatted', status='replace', &
-          action='readwrite', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(err, err_output, path // ': cannot create the journal: ' // trim(msg))
+    self%fd = create_new_file(path)
+    if (self%fd < 0) then
+      call set_error(err, err_output, path // ': cannot create the journal: ' // system_error_text(-self%fd))
       return
     end if
-    self%is_open = .true.
-    associate (words => encode_header(header))
-      write (self%unit, iostat=ios, iomsg=msg) magic, words, checksum(words)
-    end associate
-    if (ios == 0) flush (self%unit, iostat=ios)
-    if (ios /= 0) then
-      call set_error(err, err_output, path // ': cannot write the journal: ' // trim(msg))
+    magic_text = magic
+    start(1) = transfer(magic_text, 0_i8)
+    start(2:header_words + 1) = encode_header(header)
+    start(header_words + 2) = checksum(start(2:header_words + 1))
+    code = write_pieces_at(self%fd, [c_loc(start)], [int(header_bytes, i8)], 0_i8)
+    if (code /= 0) then
+      call set_error(err, err_output, path // ': cannot write the journal: ' // system_error_text(code))
       return
     end if
-    inquire (unit=self%unit, pos=self%next_position)
-    call open_for_records(self, err)
+    self%next_position = header_bytes + 1
   end subroutine create
 
   !> Whether the journal at path ends before its header does: the run was
   !> killed before it had written the header, so nothing it did is kept.
   logical function journal_is_torn(path)
     character(len=*), intent(in) :: path
-    integer(i8) :: size_found
-    inquire (file=path, size=size_found)
-    journal_is_torn = size_found >= 0 .and. size_found < header_bytes
+    integer(i8) :: bytes
+    bytes = file_size(path)
+    journal_is_torn = bytes >= 0 .and. bytes < header_bytes
   end function journal_is_torn
 
   function encode_header(header) result(words)
@@ -130,45 +130,35 @@ contains
     header%in_place = words(id_words + 5 + field_count:) == 1
   end function decode_header
 
-  subroutine open_for_records(self, err)
-    type(journal_t), intent(inout) :: self
-    type(error_t), intent(inout) :: err
-    self%fd = open_for_writing(self%path)
-    if (self%fd < 0) call set_error(err, err_output, self%path // ': cannot open the journal for writing: ' // &
-                                    system_error_text(-self%fd))
-  end subroutine open_for_records
-
   !> Open a journal to resume it; refuse one written for another campaign.
   subroutine open_existing(self, path, expected, err)
     class(journal_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(journal_header_t), intent(in) :: expected
     type(error_t), intent(inout) :: err
+    integer(i8), target :: start(header_bytes / 8)
     character(len=8) :: found_magic
     type(journal_header_t) :: found
-    integer(i8) :: words(header_words), stored_checksum
-    integer :: ios
-    character(len=256) :: msg
+    integer :: code
     self%path = path
-    open (newunit=self%unit, file=path, access='stream', form='unformatted', status='old', &
-          action='readwrite', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(err, err_output, path // ': cannot open the journal: ' // trim(msg))
+    self%fd = open_for_writing(path)
+    if (self%fd < 0) then
+      call set_error(err, err_output, path // ': cannot open the journal: ' // system_error_text(-self%fd))
       return
     end if
-    self%is_open = .true.
-    read (self%unit, iostat=ios) found_magic, words, stored_checksum
-    if (ios /= 0 .or. found_magic /= magic) then
+    code = read_at(self%fd, c_loc(start), int(header_bytes, i8), 0_i8)
+    found_magic = transfer(start(1), found_magic)
+    if (code /= 0 .or. found_magic /= magic) then
       call set_error(err, err_output, path // ': not a journal of this version of ellroll; start over ' // &
                      'with --overwrite')
       return
     end if
-    if (stored_checksum /= checksum(words)) then
+    if (start(header_words + 2) /= checksum(start(2:header_words + 1))) then
       call set_error(err, err_output, path // ': the journal''s header is damaged (its checksum does not ' // &
                      'match), so none of its cases can be trusted; start over with --overwrite')
       return
     end if
-    found = decode_header(words)
+    found = decode_header(start(2:header_words + 1))
     if (found%campaign_id /= expected%campaign_id) then
       call set_error(err, err_input, path // ': the input differs from the one this run was started with; ' // &
           'resume with the same input, or start over with --overwrite')
@@ -183,8 +173,7 @@ contains
     end if
     self%header = found
     self%record_words = words_per_record(found)
-    inquire (unit=self%unit, pos=self%next_position)
-    call open_for_records(self, err)
+    self%next_position = header_bytes + 1
   end subroutine open_existing
 
   !> Where each slot's valid record lies (places(slot), -1 for none), to
@@ -196,13 +185,13 @@ contains
   subroutine index_records(self, places)
     class(journal_t), intent(inout) :: self
     integer(i8), intent(out) :: places(0:)
-    integer(i8), allocatable :: words(:)
-    integer :: ios
+    integer(i8), allocatable, target :: words(:)
+    integer :: code
     allocate (words(self%record_words + 1))
     places = -1
     do
-      read (self%unit, pos=self%next_position, iostat=ios) words
-      if (ios /= 0) exit
+      code = read_at(self%fd, c_loc(words), 8 * size(words, kind=i8), self%next_position - 1)
+      if (code /= 0) exit
       if (is_valid(self, words)) then
         if (places(words(2)) < 0) places(words(2)) = self%next_position
       else if (any(words /= 0)) then          ! a place reserved but never written reads as zeros
@@ -221,12 +210,10 @@ contains
     type(case_result_t), intent(out) :: res
     integer(i8), intent(out) :: in_place
     logical, intent(out) :: found
-    integer(i8), allocatable :: words(:)
+    integer(i8), allocatable, target :: words(:)
     integer(i8) :: slot
-    integer :: ios
     allocate (words(self%record_words + 1))
-    read (self%unit, pos=place, iostat=ios) words
-    found = ios == 0
+    found = read_at(self%fd, c_loc(words), 8 * size(words, kind=i8), place - 1) == 0
     if (found) found = is_valid(self, words)
     if (found) call unpack_record(self%header, words, slot, res, in_place)
   end subroutine record_at
@@ -282,23 +269,22 @@ contains
     type(error_t), intent(inout) :: err
     integer :: code
     code = write_pieces_at(self%fd, [c_loc(words)], [storage_size(words, kind=i8) / 8 * size(words, kind=i8)], offset)
-    if (code /= 0) call set_error(err, err_output, self%path // ': cannot write the journal (disk full?): ' // &
+    if (code /= 0) call set_error(err, err_output, self%path // ': cannot write the journal: ' // &
                                   system_error_text(code))
   end subroutine write_records
 
-  subroutine close_journal(self, delete)
+  !> Close the journal (it stays: ellroll_output_files removes it when the
+  !> output is in place); err reports a failed close (a delayed write error)
+  !> unless it holds an error already.
+  subroutine close_journal(self, err)
     class(journal_t), intent(inout) :: self
-    logical, intent(in) :: delete
-    integer :: ignored
-    if (self%fd >= 0) ignored = close_descriptor(self%fd)
+    type(error_t), intent(inout) :: err
+    integer :: code
+    if (self%fd < 0) return
+    code = close_descriptor(self%fd)
     self%fd = -1
-    if (.not. self%is_open) return
-    if (delete) then
-      close (self%unit, status='delete')
-    else
-      close (self%unit)
-    end if
-    self%is_open = .false.
+    if (code /= 0 .and. .not. err%failed()) &
+      call set_error(err, err_output, self%path // ': cannot write the journal: ' // system_error_text(code))
   end subroutine close_journal
 
   ! ------------------------------------------------------------ layout

@@ -11,7 +11,8 @@ module ellroll_merge
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_run_campaign, only: shard_slots, campaign_id
-  use ellroll_system, only: rename_file, remove_file
+  use ellroll_files, only: same_file, path_kind, kind_missing
+  use ellroll_output_files, only: output_files_t, work_partial, work_target
   implicit none
   private
 
@@ -19,30 +20,72 @@ module ellroll_merge
 
 contains
 
-  subroutine merge_shards(target, shard_paths, prov_in, err)
+  !> Merge the shards into target: under the output's lock, into its
+  !> partial file, moved into place when complete. An existing target is
+  !> replaced only with `overwrite`, and only if it is an ellroll output
+  !> (never a shard being merged, an input or any other file).
+  !> `locked`: the caller holds the output's lock (MPI's rank 0) and keeps it.
+  subroutine merge_shards(target, shard_paths, overwrite, prov_in, err, locked)
     character(len=*), intent(in) :: target
+    character(len=*), intent(in) :: shard_paths(:)
+    logical, intent(in) :: overwrite
+    type(provenance_t), intent(in) :: prov_in
+    type(error_t), intent(inout) :: err
+    type(output_files_t), intent(in), optional :: locked
+    type(output_files_t) :: files
+    integer :: k
+    call files%name(target, '')
+    do k = 1, size(shard_paths)
+      if (target == trim(shard_paths(k))) then
+        call set_error(err, err_input, target // ': is also given as a shard to merge; choose another output')
+        return
+      end if
+      if (same_file(target, trim(shard_paths(k)))) then
+        call set_error(err, err_input, target // ': is also given as a shard to merge; choose another output')
+        return
+      end if
+    end do
+    if (.not. present(locked)) call files%acquire('ellroll merge', err)
+    call files%check(files%target, work_target, err)
+    if (.not. (err%failed() .or. overwrite)) then
+      if (path_kind(files%target) /= kind_missing) &
+        call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+    end if
+    call files%discard(files%partial, work_partial, err)
+    if (.not. err%failed()) then
+      call merge_into(files%partial, shard_paths, prov_in, err)
+      if (err%failed()) then
+        call files%discard(files%partial, work_partial, err)
+      else
+        call files%commit(files%partial, err)
+      end if
+    end if
+    if (.not. present(locked)) call files%release(err)
+  end subroutine merge_shards
+
+  subroutine merge_into(partial, shard_paths, prov_in, err)
+    character(len=*), intent(in) :: partial
     character(len=*), intent(in) :: shard_paths(:)
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
     type(h5_input_t), allocatable :: shards(:)
     integer, allocatable :: shard_of(:)           ! shard file for each shard index
     integer :: k, index, count, n_shards
-    character(len=:), allocatable :: id, spec
+    character(len=:), allocatable :: id, spec, other_id, stored_file, stored_namelist
     type(run_input_t) :: inp
     type(h5_output_t) :: out
     type(provenance_t) :: prov
     type(case_result_t) :: res
     integer(i8), allocatable :: slots(:), statuses(:), all_cases(:)
     integer(i8) :: slot, i
-    character(len=:), allocatable :: partial
 
     allocate (shards(size(shard_paths)))
     do k = 1, size(shard_paths)
       call shards(k)%open(trim(shard_paths(k)), err)
       if (err%failed()) return
     end do
-    id = shards(1)%text_attribute('campaign_id')
-    spec = shards(1)%text_attribute('shard')
+    call shards(1)%text_attribute('campaign_id', id)
+    call shards(1)%text_attribute('shard', spec)
     n_shards = shard_count(spec)
     if (n_shards < 1) then
       call set_error(err, err_input, trim(shard_paths(1)) // ': not a shard file (shard = ''' // spec // ''')')
@@ -51,8 +94,9 @@ contains
     allocate (shard_of(0:n_shards - 1))
     shard_of = 0
     do k = 1, size(shards)
-      spec = shards(k)%text_attribute('shard')
-      if (shards(k)%text_attribute('campaign_id') /= id) then
+      call shards(k)%text_attribute('shard', spec)
+      call shards(k)%text_attribute('campaign_id', other_id)
+      if (other_id /= id) then
         call set_error(err, err_input, trim(shard_paths(k)) // ': belongs to another campaign than ' // &
                        trim(shard_paths(1)))
         return
@@ -79,25 +123,28 @@ contains
       end if
     end do
     if (any(shard_of == 0)) then
-      call set_error(err, err_input, 'shards missing: ' // missing_list(shard_of) // ' of ' // itoa(n_shards))
+      call missing_list(shard_of, spec)
+      call set_error(err, err_input, 'shards missing: ' // spec // ' of ' // itoa(n_shards))
       return
     end if
 
-    call read_input_text(shards(1)%text_attribute('input_file'), shards(1)%text_attribute('input_namelist'), &
-                         target, inp, err)
+    call shards(1)%text_attribute('input_file', prov%input_file)
+    call shards(1)%text_attribute('input_namelist', prov%input_namelist)
+    call read_input_text(prov%input_file, prov%input_namelist, partial, inp, err)
     if (err%failed()) return
     if (campaign_id(inp) /= id) then
       call set_error(err, err_input, trim(shard_paths(1)) // ': the stored input does not match its campaign id')
       return
     end if
 
+    call move_alloc(prov%input_file, stored_file)
+    call move_alloc(prov%input_namelist, stored_namelist)
     prov = prov_in
-    prov%input_file = shards(1)%text_attribute('input_file')
-    prov%input_namelist = shards(1)%text_attribute('input_namelist')
+    call move_alloc(stored_file, prov%input_file)
+    call move_alloc(stored_namelist, prov%input_namelist)
     prov%campaign_id = id
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = '0/1'
-    partial = target // '.partial'
     all_cases = [(i, i = 0, inp%campaign%n_cases() - 1)]
     call out%create(partial, all_cases, shards(1)%real_column('time', err), inp%plan%fields, inp%campaign%base, &
                     prov, inp%campaign%coordinates(all_cases), err, inp%plan%compression)
@@ -117,12 +164,7 @@ contains
     do k = 1, size(shards)
       call shards(k)%close()
     end do
-    if (.not. err%failed()) then
-      if (.not. rename_file(partial, target)) &
-        call set_error(err, err_output, target // ': cannot move the merged file into place')
-    end if
-    if (err%failed()) call remove_file(partial)
-  end subroutine merge_shards
+  end subroutine merge_into
 
   integer function shard_index(spec)
     character(len=*), intent(in) :: spec
@@ -145,9 +187,9 @@ contains
     count_pending = count(statuses == status_pending)
   end function count_pending
 
-  function missing_list(shard_of) result(text)
+  pure subroutine missing_list(shard_of, text)
     integer, intent(in) :: shard_of(0:)
-    character(len=:), allocatable :: text
+    character(len=:), allocatable, intent(out) :: text
     integer :: k
     text = ''
     do k = 0, size(shard_of) - 1
@@ -155,5 +197,5 @@ contains
       if (len(text) > 0) text = text // ', '
       text = text // itoa(k)
     end do
-  end function missing_list
+  end subroutine missing_list
 end module ellroll_merge

@@ -94,13 +94,19 @@ contains
     self%printed = .true.
   end subroutine print_line
 
-  function clock_text(seconds) result(text)
+  pure function clock_digits(seconds) result(text)
     real(wp), intent(in) :: seconds
-    character(len=:), allocatable :: text
-    integer :: s
-    character(len=16) :: buf
-    s = nint(seconds)
-    write (buf, '(i0, ":", i2.2, ":", i2.2)') s / 3600, mod(s / 60, 60), mod(s, 60)
-    text = trim(buf)
+    character(len=24) :: text
+    integer(i8) :: s
+    s = nint(min(max(seconds, 0.0_wp), 1.0e15_wp), i8)
+    write (text, '(i0, ":", i2.2, ":", i2.2)') s / 3600, mod(s / 60, 60_i8), mod(s, 60_i8)
+  end function clock_digits
+
+  !> h:mm:ss
+  pure function clock_text(seconds) result(text)
+    real(wp), intent(in) :: seconds
+    character(len=len_trim(clock_digits(seconds))) :: text
+    text = clock_digits(seconds)
   end function clock_text
+
 end module ellroll_progress

@@ -23,7 +23,8 @@ module ellroll_resume
   use ellroll_hdf5_writer, only: h5_output_t
   use ellroll_trajectory_store, only: trajectory_store_t
   use ellroll_journal, only: journal_t, journal_header_t
-  use ellroll_system, only: remove_file, file_exists
+  use ellroll_files, only: path_kind, kind_regular
+  use ellroll_output_files, only: output_files_t, work_partial
   implicit none
   private
 
@@ -36,26 +37,27 @@ contains
   !> keeps only its trajectories, and takes back the cases that a resume
   !> killed while copying left in `resumed`; a file with nothing in place
   !> (the records hold the trajectories whole) is not needed at all.
-  subroutine open_for_resume(journal, journal_path, header, partial, resumed, places, err)
+  subroutine open_for_resume(journal, files, header, places, err)
     type(journal_t), intent(inout) :: journal
-    character(len=*), intent(in) :: journal_path, partial, resumed
+    type(output_files_t), intent(in) :: files
     type(journal_header_t), intent(in) :: header
     integer(i8), allocatable, intent(out) :: places(:)
     type(error_t), intent(inout) :: err
     type(trajectory_store_t) :: killed_run, copied
     type(error_t) :: unreadable
-    call journal%open_existing(journal_path, header, err)
+    call journal%open_existing(files%journal, header, err)
     if (err%failed()) return
     allocate (places(0:header%n_slots - 1))
     call journal%index_records(places)
-    if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // journal_path // ': ' // &
-        itoa(journal%n_damaged) // ' damaged records (their checksum does not match); their cases run again'
+    if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // files%journal // ': ' // &
+        itoa(journal%n_damaged) // ' damaged records skipped (their checksum does not match); ' // &
+        itoa(count(places < 0)) // ' of ' // itoa(size(places)) // ' cases have no valid record and run'
     if (.not. any(header%in_place)) then
-      call remove_file(partial)
+      call files%discard(files%partial, work_partial, err)
     else
-      call open_trajectories(partial, header, killed_run, unreadable)
-      if (file_exists(resumed) .and. .not. unreadable%failed()) then
-        call open_trajectories(resumed, header, copied, unreadable)
+      call open_trajectories(files%partial, header, killed_run, unreadable)
+      if (path_kind(files%resumed) == kind_regular .and. .not. unreadable%failed()) then
+        call open_trajectories(files%resumed, header, copied, unreadable)
         if (.not. unreadable%failed()) call take_back_copied_cases(journal, places, copied, killed_run, err)
         call copied%close(unreadable)
       end if
@@ -64,7 +66,7 @@ contains
     end if
     ! a take-back the disk had no room for stops here: the cases left in
     ! `resumed` are taken back by the next resume, with more room
-    if (.not. err%failed()) call remove_file(resumed)
+    call files%discard(files%resumed, work_partial, err)
   end subroutine open_for_resume
 
   !> A file's trajectories, open to be moved out of it; the storage of the
@@ -127,12 +129,12 @@ contains
   !> `partial` (open_for_resume kept only them there, so nothing else is
   !> freed here), then move `out` over it. A case whose trajectories are missing there or fail their check
   !> (the system lost writes) runs again, with a warning.
-  subroutine copy_journaled_cases(journal, places, campaign, shard, partial, out, done, err)
+  subroutine copy_journaled_cases(journal, places, campaign, shard, files, out, done, err)
     type(journal_t), intent(in) :: journal
     integer(i8), intent(in) :: places(0:)
     type(campaign_t), intent(in) :: campaign
     integer, intent(in) :: shard(2)              !< this run's cases: shard(1), shard(1) + shard(2), ...
-    character(len=*), intent(in) :: partial
+    type(output_files_t), intent(in) :: files
     type(h5_output_t), intent(inout) :: out
     logical, intent(inout) :: done(0:)
     type(error_t), intent(inout) :: err
@@ -142,8 +144,9 @@ contains
     integer(i8) :: slot, in_place, n_lost
     logical :: found, in_place_fields
     in_place_fields = any(journal%header%in_place)
-    if (in_place_fields) call killed_run%open_existing(partial, journal%header%n_slots, journal%header%n_samples, &
-                                                       journal%header%in_place, .true., unreadable)
+    if (in_place_fields) call killed_run%open_existing(files%partial, journal%header%n_slots, &
+                                                       journal%header%n_samples, journal%header%in_place, .true., &
+                                                       unreadable)
     n_lost = 0
     do slot = 0, size(places, kind=i8) - 1
       if (err%failed()) exit
@@ -164,10 +167,11 @@ contains
     end do
     call killed_run%close(read_err)
     if (n_lost > 0) then
-      if (.not. unreadable%failed()) unreadable%message = partial // ': their trajectories there are damaged'
+      if (.not. unreadable%failed()) unreadable%message = files%partial // ': their trajectories there are damaged'
       write (error_unit, '(a)') 'ellroll: warning: ' // itoa(n_lost) // ' finished cases run again: ' // &
           unreadable%message
     end if
-    if (.not. err%failed()) call out%move_to(partial, err)
+    if (.not. err%failed()) call files%check(files%partial, work_partial, err)
+    if (.not. err%failed()) call out%move_to(files%partial, err)
   end subroutine copy_journaled_cases
 end module ellroll_resume

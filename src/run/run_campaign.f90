@@ -16,7 +16,7 @@ module ellroll_run_campaign
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_strings, only: itoa, text_hash, format_real
-  use ellroll_status, only: status_invalid
+  use ellroll_status, only: status_invalid, status_pending
   use ellroll_cases, only: case_t, check_case, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
@@ -31,15 +31,16 @@ module ellroll_run_campaign
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
   use ellroll_resume, only: open_for_resume, copy_journaled_cases
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: rename_file, remove_file, file_exists, folder_write_error, folder_of, system_error_text, &
-      stop_signal, signal_name
+  use ellroll_system, only: folder_write_error, folder_of, system_error_text, stop_signal, signal_name
+  use ellroll_files, only: path_kind, kind_regular
+  use ellroll_output_files, only: output_files_t, work_partial, work_journal, work_target
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
       writes_trajectories, writes_journal
   implicit none
   private
 
   public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id, step_size_advice, &
-            check_output_target
+            check_output_target, holds_this_run
 
   type :: run_options_t
     integer :: threads = 0               !< 0: OMP_NUM_THREADS or all cores
@@ -50,12 +51,6 @@ module ellroll_run_campaign
     real(wp) :: advice_seconds = 0       !< time of step_size_advice before the run (parallel), for the timings
     integer :: shard(2) = [0, 1]         !< this shard's index I and the count N
   end type run_options_t
-
-  !> The files of a run writing `target`: the file being written, the new
-  !> file of a resume, and the journal.
-  type :: run_files_t
-    character(len=:), allocatable :: target, partial, resumed, journal
-  end type run_files_t
 
   !> What the threads of a run share: the file and journal they write, the
   !> slots done, progress, timings and the first errors (one from a block,
@@ -70,10 +65,15 @@ module ellroll_run_campaign
     type(journal_t) :: journal
     type(progress_t) :: progress
     type(run_timings_t) :: timings
-    type(error_t) :: shared_err, block_err
+    !> the loop's first error, set under its lock (record_failure); `failed`
+    !> tells the other blocks to stop, read and written atomically
+    type(error_t) :: first_err
+    integer :: failed = 0
   contains
     procedure :: in_lanes
     procedure :: global_index
+    procedure :: record_failure
+    procedure :: loop_failed
   end type run_state_t
 
 contains
@@ -86,38 +86,26 @@ contains
   end function campaign_id
 
   !> Checked before any case runs: files can be created in the output's
-  !> folder, and a file already at the output's path is an ellroll output,
-  !> so that neither --overwrite nor a resume ever replaces the input or any
-  !> other file.
-  subroutine check_output_target(path, err)
-    character(len=*), intent(in) :: path
+  !> folder, and every file of the output (the output itself, its partial
+  !> file, journal and resume file) is absent or ellroll's: neither
+  !> --overwrite nor a resume ever replaces the input, a link or any other file.
+  subroutine check_output_target(path, input, err)
+    character(len=*), intent(in) :: path, input
     type(error_t), intent(inout) :: err
+    type(output_files_t) :: files
     integer :: code
     code = folder_write_error(folder_of(path))
     if (code /= 0) then
       call set_error(err, err_output, path // ': cannot create files in folder ' // folder_of(path) // ': ' // &
                      system_error_text(code))
-    else if (file_exists(path)) then
-      if (len(output_campaign_id(path)) == 0) &
-        call set_error(err, err_output, path // ': exists and is not an ellroll output file (the input, or ' // &
-                       'another file); it is never replaced, even with --overwrite: choose another output name')
+      return
     end if
+    call files%name(path, input)
+    call files%check(files%target, work_target, err)
+    call files%check(files%partial, work_partial, err)
+    call files%check(files%resumed, work_partial, err)
+    call files%check(files%journal, work_journal, err)
   end subroutine check_output_target
-
-  !> The campaign id of the ellroll output at path; '' when there is none
-  !> (no file, not HDF5, or an HDF5 file without the attribute).
-  function output_campaign_id(path) result(id)
-    character(len=*), intent(in) :: path
-    character(len=:), allocatable :: id
-    type(h5_input_t) :: existing
-    type(error_t) :: unreadable
-    id = ''
-    if (.not. file_exists(path)) return
-    call existing%open(path, unreadable)
-    if (unreadable%failed()) return
-    id = existing%text_attribute('campaign_id')
-    call existing%close()
-  end function output_campaign_id
 
   !> Global indices of shard I of N: I, I + N, I + 2N, ... (round robin, so
   !> that every shard gets a fair share of a sweep's cheap and dear cases).
@@ -137,7 +125,7 @@ contains
     character(len=:), allocatable, intent(out) :: messages
     integer(i8) :: i, n_bad
     integer :: param
-    character(len=:), allocatable :: reason
+    character(len=:), allocatable :: reason, description
     type(case_t) :: cs
     allocate (invalid(0:inp%campaign%n_cases() - 1))
     ! every case checked (in parallel: a sweep may hold millions), then the
@@ -155,7 +143,8 @@ contains
       if (n_bad > 5) cycle
       cs = inp%campaign%case_at(i)
       call check_case(cs, inp%plan%interval, param, reason)
-      messages = messages // achar(10) // '  ' // describe_invalid(inp, cs, param, reason)
+      call describe_invalid(inp, cs, param, reason, description)
+      messages = messages // achar(10) // '  ' // description
     end do
     if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(n_bad - 5) // ' more'
   contains
@@ -174,9 +163,9 @@ contains
   !> stability (dt rate above its limit; such a case ends 'unstable'), listed
   !> case by case, the first few, each with a dt that would do; or coarse
   !> (dt rate > 0.1), counted, the fastest named.
-  function step_size_advice(inp) result(message)
+  subroutine step_size_advice(inp, message)
     type(run_input_t), intent(in) :: inp
-    character(len=:), allocatable :: message
+    character(len=:), allocatable, intent(out) :: message
     real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
     integer, parameter :: listed = 5
     real(wp) :: worst_rate, limit
@@ -238,12 +227,16 @@ contains
       real(wp), intent(out) :: rate, dt
       type(case_t) :: one
       type(rolling_ball_t) :: ball
+      integer :: bad_param
+      character(len=:), allocatable :: why
       one = inp%campaign%case_at(index)
-      ball = make_ball(one)
+      rate = 0
       dt = one%dt
-      ! dt <= 0 (an invalid case, not yet set aside) is never large
-      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), &
-                          enough=warn_above / max(dt, tiny(dt)))
+      ! an invalid case is never run (it is refused, or skipped): no advice
+      call check_case(one, inp%plan%interval, bad_param, why)
+      if (bad_param /= 0) return
+      ball = make_ball(one)
+      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
     end subroutine start_rate
 
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
@@ -272,7 +265,7 @@ contains
       real(wp), intent(in) :: x
       hundredths = anint(100 * x) / 100
     end function hundredths
-  end function step_size_advice
+  end subroutine step_size_advice
 
   subroutine run_campaign(inp, opts, prov_in, err)
     type(run_input_t), intent(in) :: inp
@@ -282,14 +275,11 @@ contains
     character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
     logical :: resume, nothing_to_do
-    type(run_files_t) :: files
+    type(output_files_t) :: files
     type(run_state_t) :: run
 
     run%timings%started = wall_clock()
-    files%target = inp%plan%file
-    files%partial = files%target // '.partial'
-    files%resumed = files%partial // '.new'
-    files%journal = files%target // '.journal'
+    call files%name(inp%plan%file, inp%path)
 
     ! invalid cases: stop before any work, or skip them
     call find_invalid_cases(inp, invalid, messages)
@@ -300,63 +290,112 @@ contains
           ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
       return
     end if
-    call decide_start(inp, opts, files, resume, nothing_to_do, err)
-    if (err%failed() .or. nothing_to_do) return
-    call open_outputs(inp, opts, prov_in, files, resume, run, err)
+    call files%acquire('ellroll run ' // inp%path // trim(merge(' --resume', '         ', opts%resume)), err)
     if (err%failed()) return
-    call record_invalid(inp, invalid, run, err)
-    if (err%failed()) then
-      call abandon(run, files, err)
-      return
+    call decide_start(inp, opts, files, resume, nothing_to_do, err)
+    if (.not. (err%failed() .or. nothing_to_do)) then
+      call open_outputs(inp, opts, prov_in, files, resume, run, err)
+      if (.not. err%failed()) call record_invalid(inp, invalid, run, err)
+      if (err%failed()) then
+        call abandon(run, files, err)
+      else
+        call run_blocks(inp, opts, run)
+        call finish(run, files, opts, err)
+      end if
     end if
-    call run_blocks(inp, opts, run)
-    call finish(run, files, opts, err)
+    call files%release(err)
   end subroutine run_campaign
 
   !> Whether the run starts afresh or resumes, from the files there and the
-  !> options; nothing_to_do for a resume of a complete run. A journal
-  !> killed before its header was complete holds nothing finished, and the
-  !> run starts afresh.
+  !> options; nothing_to_do for a resume of a complete run. Every file of the
+  !> output is ellroll's or absent (else the run is refused, and nothing is
+  !> touched). A journal beside a complete output of this campaign is left
+  !> from a run killed between moving its file into place and removing the
+  !> journal: it goes. A journal killed before its header was complete holds
+  !> nothing finished, and the run starts afresh.
   subroutine decide_start(inp, opts, files, resume, nothing_to_do, err)
     type(run_input_t), intent(in) :: inp
     type(run_options_t), intent(in) :: opts
-    type(run_files_t), intent(in) :: files
+    type(output_files_t), intent(in) :: files
     logical, intent(out) :: resume, nothing_to_do
     type(error_t), intent(inout) :: err
-    logical :: journal_exists
+    logical :: journal_exists, target_exists, target_complete
     nothing_to_do = .false.
     resume = opts%resume
-    journal_exists = file_exists(files%journal)
+    call files%check(files%target, work_target, err)
+    call files%check(files%partial, work_partial, err)
+    call files%check(files%resumed, work_partial, err)
+    call files%check(files%journal, work_journal, err)
+    if (err%failed()) return
+    target_exists = path_kind(files%target) == kind_regular
+    journal_exists = path_kind(files%journal) == kind_regular
+    target_complete = .false.
+    if (target_exists) target_complete = holds_this_run(files%target, inp, opts%shard)
+    if (journal_exists .and. target_complete) then
+      write (error_unit, '(a)') 'ellroll: ' // files%target // ': complete; removing the journal of the run ' // &
+          'that wrote it (' // files%journal // ')'
+      call files%discard(files%journal, work_journal, err)
+      call files%discard(files%partial, work_partial, err)
+      call files%discard(files%resumed, work_partial, err)
+      if (err%failed()) return
+      journal_exists = .false.
+    end if
     if (journal_exists) then
       if (journal_is_torn(files%journal)) then
         write (error_unit, '(a)') 'ellroll: warning: ' // files%journal // ': the interrupted run finished ' // &
             'no case (killed before the journal''s header was written); starting afresh'
-        call remove_file(files%journal)
-        call remove_file(files%partial)
-        call remove_file(files%resumed)
+        call files%discard(files%journal, work_journal, err)
+        call files%discard(files%partial, work_partial, err)
+        call files%discard(files%resumed, work_partial, err)
+        if (err%failed()) return
         journal_exists = .false.
         resume = .false.
       end if
-    else if (.not. file_exists(files%target)) then
+    else if (.not. target_exists) then
       resume = .false.          ! nothing begun: a resume is the first run (a requeued job's)
     end if
     if (resume .and. .not. journal_exists) then          ! the output is there
       nothing_to_do = .true.
-      if (output_campaign_id(files%target) == campaign_id(inp)) then
+      if (target_complete) then
         write (error_unit, '(a)') 'ellroll: ' // files%target // ': this run is already complete; nothing to do'
       else
-        call set_error(err, err_output, files%target // ': holds the output of another input; nothing to resume')
+        call set_error(err, err_output, files%target // ': holds the output of another input or shard; ' // &
+                       'nothing to resume')
       end if
     else if (.not. resume .and. .not. opts%overwrite) then
       if (journal_exists) then
         call set_error(err, err_output, files%target // ': an interrupted run of this output exists (' // &
             files%journal // '); pass --resume to finish it, or --overwrite to start over')
-      else if (file_exists(files%target)) then
+      else if (target_exists) then
         call set_error(err, err_output, files%target // ': output file exists; pass --overwrite to replace it')
       end if
     end if
-    if (opts%overwrite) call remove_file(files%resumed)       ! left by a resume killed before its end
+    if (err%failed() .or. nothing_to_do .or. resume) return
+    ! afresh: what an earlier run left goes (the output itself stays until the new one replaces it)
+    call files%discard(files%resumed, work_partial, err)
+    call files%discard(files%partial, work_partial, err)
+    call files%discard(files%journal, work_journal, err)
   end subroutine decide_start
+
+  !> Whether the output at path is complete and of this campaign and shard.
+  logical function holds_this_run(path, inp, shard) result(holds)
+    character(len=*), intent(in) :: path
+    type(run_input_t), intent(in) :: inp
+    integer, intent(in) :: shard(2)
+    type(h5_input_t) :: existing
+    type(error_t) :: unreadable
+    character(len=:), allocatable :: id, spec
+    integer(i8), allocatable :: status(:)
+    holds = .false.
+    call existing%open(path, unreadable)
+    if (unreadable%failed()) return
+    call existing%text_attribute('campaign_id', id)
+    call existing%text_attribute('shard', spec)
+    status = existing%int_column('summary/status', unreadable)
+    call existing%close()
+    holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
+            spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
+  end function holds_this_run
 
   !> Create the output file and the journal, or on a resume the file into
   !> which the journaled cases go (they are then done).
@@ -364,7 +403,7 @@ contains
     type(run_input_t), intent(in) :: inp
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
-    type(run_files_t), intent(in) :: files
+    type(output_files_t), intent(in) :: files
     logical, intent(in) :: resume
     type(run_state_t), intent(inout) :: run
     type(error_t), intent(inout) :: err
@@ -385,7 +424,7 @@ contains
                               shard=opts%shard, fields=inp%plan%fields, &
                               in_place=written_in_place(inp%plan%fields, inp%plan%compression))
     if (resume) then
-      call open_for_resume(run%journal, files%journal, header, files%partial, files%resumed, journal_places, err)
+      call open_for_resume(run%journal, files, header, journal_places, err)
       if (err%failed()) return
     end if
     times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
@@ -396,14 +435,13 @@ contains
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) then
       call run%out%close(err)
-      call remove_file(run%out%path)
+      if (allocated(run%out%path)) call files%discard(run%out%path, work_partial, err)
       return
     end if
     allocate (run%done(0:run%n_slots - 1))
     run%done = .false.
     if (resume) then
-      call copy_journaled_cases(run%journal, journal_places, inp%campaign, opts%shard, files%partial, run%out, &
-                                run%done, err)
+      call copy_journaled_cases(run%journal, journal_places, inp%campaign, opts%shard, files, run%out, run%done, err)
     else
       call run%journal%create(files%journal, header, err)
     end if
@@ -452,7 +490,7 @@ contains
     run%timings%loop_started = wall_clock()
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
     do chunk = 0, (run%n_slots - 1) / run%block_slots
-      if (.not. (run%shared_err%failed() .or. run%block_err%failed())) then
+      if (.not. run%loop_failed()) then
         if (stop_signal() == 0) call run_block(run, inp, chunk)
       end if
     end do
@@ -465,12 +503,11 @@ contains
   !> moved into place and its journal deleted.
   subroutine finish(run, files, opts, err)
     type(run_state_t), intent(inout) :: run
-    type(run_files_t), intent(in) :: files
+    type(output_files_t), intent(inout) :: files
     type(run_options_t), intent(in) :: opts
     type(error_t), intent(inout) :: err
-    if (run%block_err%failed() .and. .not. run%shared_err%failed()) run%shared_err = run%block_err
-    if (run%shared_err%failed()) then
-      err = run%shared_err
+    if (run%first_err%failed()) then
+      err = run%first_err
       call abandon(run, files, err)
       return
     end if
@@ -481,15 +518,9 @@ contains
       return
     end if
     call run%out%close(err)
-    if (.not. err%failed()) then
-      if (.not. rename_file(files%partial, files%target)) &
-        call set_error(err, err_output, files%target // ': cannot move the finished file into place')
-    end if
-    if (err%failed()) then
-      call run%journal%close(delete=.false.)
-      return
-    end if
-    call run%journal%close(delete=.true.)
+    call run%journal%close(err)
+    call files%commit(files%partial, err)
+    if (err%failed()) return
     run%timings%ended = wall_clock()
     if (opts%timings) call run%timings%report()
   end subroutine finish
@@ -511,7 +542,7 @@ contains
     integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
     type(named_value_t), allocatable :: rows(:, :)
     real(wp) :: asked, taken
-    integer(i8) :: place
+    integer(i8) :: place, record_size
     n = 0
     do slot = chunk * run%block_slots, min(run%n_slots, (chunk + 1) * run%block_slots) - 1
       if (run%done(slot)) cycle
@@ -560,12 +591,11 @@ contains
       run_start = j + 1
     end do
     if (n_done > 0) call run%timings%add_write(writes_trajectories, asked)
+    record_size = run%journal%record_words + 1
+    allocate (records(record_size * n_done), rows(size(table_row(cases(1), results(1))), n_done))
     do j = 1, n_done
-      associate (record => run%journal%record(slots(j), results(j)), row => table_row(cases(j), results(j)))
-        if (j == 1) allocate (records(size(record) * n_done), rows(size(row), n_done))
-        records((j - 1) * size(record) + 1:j * size(record)) = record
-        rows(:, j) = row
-      end associate
+      records((j - 1) * record_size + 1:j * record_size) = run%journal%record(slots(j), results(j))
+      rows(:, j) = table_row(cases(j), results(j))
     end do
     ! the journal: places taken under its lock, the records written there
     ! outside it, after the trajectories (a resume takes a journaled case's
@@ -581,11 +611,10 @@ contains
       call run%journal%write_records(place, records, write_err)
       call run%timings%add_write(writes_journal, asked)
     end if
-    if (case_err%failed() .or. write_err%failed()) then
-      !$omp critical (ellroll_block_error)
-      if (.not. run%block_err%failed() .and. case_err%failed()) run%block_err = case_err
-      if (.not. run%block_err%failed()) run%block_err = write_err
-      !$omp end critical (ellroll_block_error)
+    if (case_err%failed()) then
+      call run%record_failure(case_err)
+    else
+      call run%record_failure(write_err)
     end if
     if (n_done == 0) return
     asked = wall_clock()
@@ -601,9 +630,10 @@ contains
     asked = wall_clock()
     !$omp critical (ellroll_writer)
     taken = wall_clock()
-    if (.not. (run%shared_err%failed() .or. run%block_err%failed())) call run%out%write_windows(full, run%shared_err)
+    if (.not. run%loop_failed()) call run%out%write_windows(full, write_err)
     call run%timings%tally(lock_writer, asked, taken)
     !$omp end critical (ellroll_writer)
+    call run%record_failure(write_err)
     asked = wall_clock()
     !$omp critical (ellroll_keep)
     taken = wall_clock()
@@ -620,6 +650,28 @@ contains
     in_lanes = self%use_batches .and. batchable(cs)
   end function in_lanes
 
+  !> Keep err as the loop's first error (if it is one and none came
+  !> before), and tell the other blocks to stop.
+  subroutine record_failure(self, err)
+    class(run_state_t), intent(inout) :: self
+    type(error_t), intent(in) :: err
+    if (.not. err%failed()) return
+    !$omp critical (ellroll_first_error)
+    if (.not. self%first_err%failed()) self%first_err = err
+    !$omp end critical (ellroll_first_error)
+    !$omp atomic write
+    self%failed = 1
+  end subroutine record_failure
+
+  !> Whether a block has failed (the loop then starts no more blocks).
+  logical function loop_failed(self)
+    class(run_state_t), intent(inout) :: self
+    integer :: flag
+    !$omp atomic read
+    flag = self%failed
+    loop_failed = flag /= 0
+  end function loop_failed
+
   !> The campaign's index of the case in this shard's `slot`.
   pure integer(i8) function global_index(self, slot)
     class(run_state_t), intent(in) :: self
@@ -630,7 +682,7 @@ contains
   !> After a failure, keep what is finished, and say where it is.
   subroutine abandon(run, files, err)
     type(run_state_t), intent(inout) :: run
-    type(run_files_t), intent(in) :: files
+    type(output_files_t), intent(in) :: files
     type(error_t), intent(inout) :: err
     call keep_finished(run, files)
     err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so far; ' // &
@@ -641,11 +693,14 @@ contains
   !> the partial file shows them; --resume takes it from there.
   subroutine keep_finished(run, files)
     type(run_state_t), intent(inout) :: run
-    type(run_files_t), intent(in) :: files
+    type(output_files_t), intent(in) :: files
     type(error_t) :: ignored
     call run%out%close(ignored)
     ! a resume that failed while copying: the next one takes back what it holds
-    if (run%out%path == files%resumed .and. .not. any(run%journal%header%in_place)) call remove_file(files%resumed)
-    call run%journal%close(delete=.false.)
+    if (allocated(run%out%path)) then
+      if (run%out%path == files%resumed .and. .not. any(run%journal%header%in_place)) &
+        call files%discard(files%resumed, work_partial, ignored)
+    end if
+    call run%journal%close(ignored)
   end subroutine keep_finished
 end module ellroll_run_campaign

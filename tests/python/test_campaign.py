@@ -388,7 +388,9 @@ def test_resume_runs_again_the_case_of_a_damaged_record(ellroll, tmp_path, bits)
     first = struct.unpack("<3q", journal.read_bytes()[JOURNAL_HEADER:JOURNAL_HEADER + 24])[1]
     flip_bits(journal, JOURNAL_HEADER + 16, bits)
     wall, stderr = resume_equals_the_whole_run(ellroll, tmp_path, name)
-    assert "out.h5.journal: 1 damaged records (their checksum does not match); their cases run again" in stderr
+    rerun = sum(1 for slot in range(len(wall)) if slot not in before or wall[slot] != before[slot])
+    assert (f"out.h5.journal: 1 damaged records skipped (their checksum does not match); {rerun} of {len(wall)} "
+            "cases have no valid record and run") in stderr, stderr
     assert wall[first] != before[first], "the case of a damaged record was kept"
     assert all(wall[slot] == seconds for slot, seconds in before.items() if slot != first)
 
@@ -485,6 +487,31 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
         # R = 0.5 fits at the start (radii 0.8, 5 m) but meets no_fit as the ball climbs
         assert [names[s] for s in status[:]] == ["completed", "invalid", "no_fit", "invalid"]
         assert np.all(np.isnan(f["trajectory/nutation"][1])) and np.all(np.isfinite(f["trajectory/nutation"][0]))
+        # a case never run holds no number that could pass for data: every real
+        # figure is NaN, every count 0
+        for name, dataset in f["summary"].items():
+            if name in ("status", "case") or name in f["summary/status"].attrs["coordinates"].split():
+                continue
+            values = dataset[:]
+            if values.dtype.kind == "f":
+                assert np.all(np.isnan(values[[1, 3]])) and np.all(np.isfinite(values[0])) or \
+                    name in ("nutation_period", "transmissibility", "error_contact", "error_theta", "error_energy"), name
+            else:
+                assert np.all(values[[1, 3]] == 0), name
+    table = run(ellroll, "summary", "out.h5", "--format", "csv", cwd=tmp_path).stdout.splitlines()
+    header = table[0].split(",")
+    invalid_row = dict(zip(header, table[2].split(",")))
+    assert invalid_row["status"] == "invalid" and invalid_row["theta_max"] == "NaN", invalid_row
+
+
+def test_the_step_advice_leaves_out_invalid_cases(ellroll, tmp_path):
+    """A case outside the cup is never run: it gets no advice about its step."""
+    name = write(tmp_path, "&campaign invalid = 'skip' /\n"
+                 "&sweep name = 'x', values = 0.0, 1.5 /\n&sweep name = 'omega_z', values = 20, 1e6 /\n")
+    result = run(ellroll, "check", name, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "2 of 4 cases: dt is beyond rk4's stability" not in result.stderr
+    assert "1 of 4 cases: dt is beyond rk4's stability" in result.stderr and "case 1:" in result.stderr, result.stderr
 
 
 def test_a_sweep_with_an_invalid_step_is_advised_and_skipped_under_fp_traps(ellroll_debug, tmp_path):

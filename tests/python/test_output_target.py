@@ -25,7 +25,7 @@ def test_an_output_onto_the_input_is_refused_even_with_overwrite(ellroll, tmp_pa
     for command in (["run", name, "-o", name, "--overwrite"], ["check", name, "-o", name]):
         result = run(ellroll, *command, cwd=tmp_path)
         assert result.returncode == 3, result.stderr
-        assert f"{name}: exists and is not an ellroll output file" in result.stderr
+        assert f"{name}: is the input file; it is never written" in result.stderr
     assert digest(tmp_path / name) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == [name]
 

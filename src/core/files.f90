@@ -1,0 +1,191 @@
+!> Files as ellroll makes, opens, removes and locks them (src/core/
+!> filesystem.c): a new file is created only where nothing is (O_EXCL), an
+!> existing one is opened, removed or renamed without following a link, and
+!> every answer is an errno value (0: done) that system_error_text words.
+module ellroll_files
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_long_long, c_size_t
+  implicit none
+  private
+
+  public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
+            sync_path, sync_folder, read_head, lock_output, unlock_output, host_name, process_id
+  public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other
+
+  !> What path_kind finds at a name (a link is not followed).
+  integer, parameter :: kind_missing = 0, kind_regular = 1, kind_link = 2, kind_folder = 3, kind_other = 4
+
+  interface
+    integer(c_int) function c_path_kind(path) bind(c, name='ellroll_path_kind')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_path_kind
+    integer(c_long_long) function c_file_size(path) bind(c, name='ellroll_file_size')
+      import :: c_long_long, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_file_size
+    integer(c_int) function c_create_new(path) bind(c, name='ellroll_create_new')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_create_new
+    integer(c_int) function c_same_file(a, b) bind(c, name='ellroll_same_file')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: a(*), b(*)
+    end function c_same_file
+    integer(c_int) function c_descriptor_is_at(fd, path) bind(c, name='ellroll_descriptor_is_at')
+      import :: c_int, c_char
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_descriptor_is_at
+    integer(c_int) function c_remove_path(path) bind(c, name='ellroll_remove_path')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_remove_path
+    integer(c_int) function c_rename_path(old, new) bind(c, name='ellroll_rename_path')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: old(*), new(*)
+    end function c_rename_path
+    integer(c_int) function c_sync_path(path) bind(c, name='ellroll_sync_path')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_sync_path
+    integer(c_int) function c_sync_folder(path) bind(c, name='ellroll_sync_folder')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_sync_folder
+    integer(c_int) function c_read_head(path, buffer, size) bind(c, name='ellroll_read_head')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+      character(kind=c_char), intent(out) :: buffer(*)
+      integer(c_int), value :: size
+    end function c_read_head
+    integer(c_int) function c_lock_output(path, me, holder, size) bind(c, name='ellroll_lock_output')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*), me(*)
+      character(kind=c_char), intent(out) :: holder(*)
+      integer(c_int), value :: size
+    end function c_lock_output
+    integer(c_int) function c_unlock_output(fd, path) bind(c, name='ellroll_unlock_output')
+      import :: c_int, c_char
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(in) :: path(*)
+    end function c_unlock_output
+    subroutine c_host_name(name, size) bind(c, name='ellroll_host_name')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: name(*)
+      integer(c_int), value :: size
+    end subroutine c_host_name
+    integer(c_long) function process_id() bind(c, name='ellroll_process_id')
+      import :: c_long
+    end function process_id
+  end interface
+
+contains
+
+  !> kind_missing, kind_regular, kind_link, kind_folder or kind_other, or a
+  !> negative errno value where the system cannot tell.
+  integer function path_kind(path)
+    character(len=*), intent(in) :: path
+    path_kind = c_path_kind(path // c_null_char)
+  end function path_kind
+
+  !> Bytes of the file at path (a link not followed), or a negative errno value.
+  integer(c_long_long) function file_size(path)
+    character(len=*), intent(in) :: path
+    file_size = c_file_size(path // c_null_char)
+  end function file_size
+
+  !> A new file at path, where nothing was (O_EXCL, no link followed): a
+  !> descriptor open for reading and writing, or a negative errno value.
+  integer function create_new_file(path) result(fd)
+    character(len=*), intent(in) :: path
+    fd = c_create_new(path // c_null_char)
+  end function create_new_file
+
+  !> Whether a and b name one file (links followed; false if either is missing).
+  logical function same_file(a, b)
+    character(len=*), intent(in) :: a, b
+    same_file = c_same_file(a // c_null_char, b // c_null_char) == 1
+  end function same_file
+
+  !> Whether descriptor fd is the regular file at path (not a link to it).
+  logical function descriptor_is_at(fd, path)
+    integer, intent(in) :: fd
+    character(len=*), intent(in) :: path
+    descriptor_is_at = c_descriptor_is_at(fd, path // c_null_char) == 1
+  end function descriptor_is_at
+
+  !> Remove the name path (a link itself, not its target): 0 or an errno value.
+  integer function remove_path(path)
+    character(len=*), intent(in) :: path
+    remove_path = c_remove_path(path // c_null_char)
+  end function remove_path
+
+  !> Move old over new in one step (rename): 0 or an errno value.
+  integer function rename_path(old, new)
+    character(len=*), intent(in) :: old, new
+    rename_path = c_rename_path(old // c_null_char, new // c_null_char)
+  end function rename_path
+
+  !> The file at path to the disk (fsync): 0 or an errno value.
+  integer function sync_path(path)
+    character(len=*), intent(in) :: path
+    sync_path = c_sync_path(path // c_null_char)
+  end function sync_path
+
+  !> A folder's entries to the disk, after a rename in it: 0 or an errno value.
+  integer function sync_folder(path)
+    character(len=*), intent(in) :: path
+    sync_folder = c_sync_folder(path // c_null_char)
+  end function sync_folder
+
+  !> The first len(head) bytes of the regular file at path (no link
+  !> followed), blank-padded; n: how many were read, or a negative errno.
+  subroutine read_head(path, head, n)
+    character(len=*), intent(in) :: path
+    character(len=*), intent(out) :: head
+    integer, intent(out) :: n
+    character(kind=c_char) :: buffer(len(head))
+    integer :: k
+    n = c_read_head(path // c_null_char, buffer, len(head))
+    head = ''
+    do k = 1, max(0, n)
+      head(k:k) = buffer(k)
+    end do
+  end subroutine read_head
+
+  !> Take the lock of an output (its lock file at path), noting `me` in it:
+  !> fd >= 0 while held; a negative errno otherwise, with `holder` the note
+  !> of the process that holds it (-EAGAIN), or -EEXIST where path is no
+  !> lock file of ellroll's.
+  subroutine lock_output(path, me, fd, holder)
+    character(len=*), intent(in) :: path, me
+    integer, intent(out) :: fd
+    character(len=:), allocatable, intent(out) :: holder
+    character(kind=c_char) :: buffer(512)
+    integer :: n
+    fd = c_lock_output(path // c_null_char, me // c_null_char, buffer, size(buffer))
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    holder = repeat(' ', n)
+    holder = transfer(buffer(:n), holder)
+  end subroutine lock_output
+
+  !> Release a lock of lock_output (its file removed first): 0 or an errno value.
+  integer function unlock_output(fd, path)
+    integer, intent(in) :: fd
+    character(len=*), intent(in) :: path
+    unlock_output = c_unlock_output(fd, path // c_null_char)
+  end function unlock_output
+
+  !> This machine's host name.
+  subroutine host_name(name)
+    character(len=:), allocatable, intent(out) :: name
+    character(kind=c_char) :: buffer(256)
+    integer :: n
+    call c_host_name(buffer, size(buffer))
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    name = repeat(' ', n)
+    name = transfer(buffer(:n), name)
+  end subroutine host_name
+end module ellroll_files

@@ -1,0 +1,238 @@
+!> The files of one output, and the only place that makes, checks, moves and
+!> removes them. For output OUT:
+!>   OUT           the finished file, moved into place when complete
+!>   OUT.partial   the file being written (HDF5, trajectories in place)
+!>   OUT.partial.new  a resume's new file, moved over OUT.partial
+!>   OUT.journal   every finished case, the durable record of a run
+!>   OUT.lock      held (fcntl) by the one process writing OUT, with its note
+!> A process takes the lock before it looks at or touches any of them, so a
+!> second run, resume or merge of the same output is refused at once and
+!> the first one's files are left alone. No name is followed if it is a
+!> symbolic link, and no file is removed or replaced unless it is one of
+!> ellroll's (its first bytes say so) and not the input.
+!>
+!> The lock is an fcntl lock: it holds between processes on one machine and,
+!> over NFS (v3 with its lock manager, v4), between machines; on Lustre
+!> between machines only with the `flock` mount option (`localflock` locks
+!> per node). Where the file system has no locks the run goes on with a
+!> warning.
+module ellroll_output_files
+  use, intrinsic :: iso_fortran_env, only: error_unit
+  use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_strings, only: itoa
+  use ellroll_system, only: system_error_text, folder_of, utc_timestamp
+  use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, sync_path, sync_folder, read_head, &
+      lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
+  implicit none
+  private
+
+  public :: output_files_t, work_partial, work_journal, work_target
+
+  !> What a file at a work name must be for ellroll to remove or replace it.
+  integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3
+
+  integer, parameter :: enoent = 2, eagain = 11, eexist = 17, enolck = 37, enosys = 38, eopnotsupp = 95
+
+  type :: output_files_t
+    character(len=:), allocatable :: target, partial, resumed, journal, lock
+    character(len=:), allocatable :: input          !< the input file (never written), '' if none
+    integer :: lock_fd = -1
+  contains
+    procedure :: name => name_files
+    procedure :: acquire
+    procedure :: release
+    procedure :: check
+    procedure :: discard
+    procedure :: commit
+  end type output_files_t
+
+contains
+
+  !> The names of the files of output `target`, written from input `input`.
+  subroutine name_files(self, target, input)
+    class(output_files_t), intent(inout) :: self
+    character(len=*), intent(in) :: target, input
+    self%target = target
+    self%partial = target // '.partial'
+    self%resumed = self%partial // '.new'
+    self%journal = target // '.journal'
+    self%lock = target // '.lock'
+    self%input = input
+  end subroutine name_files
+
+  !> Take the output's lock; refuse (exit 3) where another process holds
+  !> it, naming it, or where the lock's name holds something else.
+  subroutine acquire(self, command, err)
+    class(output_files_t), intent(inout) :: self
+    character(len=*), intent(in) :: command      !< what this process does, for the note
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: me, holder, host, stamp
+    integer :: fd
+    if (err%failed()) return
+    call host_name(host)
+    call utc_timestamp(stamp)
+    me = 'ellroll lock' // achar(10) // 'host ' // host // ', pid ' // itoa(int(process_id())) // &
+         ', started ' // stamp // ': ' // command // achar(10)
+    call lock_output(self%lock, me, fd, holder)
+    if (fd >= 0) then
+      self%lock_fd = fd
+    else if (fd == -eagain) then
+      call note_of(holder)
+      call set_error(err, err_output, self%target // ': another ellroll process writes this output (' // &
+          holder // '); nothing of its files was touched: wait for it to end, or choose another output')
+    else if (fd == -eexist) then
+      call set_error(err, err_output, self%lock // ': exists and is not a lock file of ellroll''s (a link, a ' // &
+          'folder or another file); it is never replaced: remove it, or choose another output')
+    else if (any(-fd == [enolck, enosys, eopnotsupp])) then
+      write (error_unit, '(a)') 'ellroll: warning: ' // self%lock // ': the file system cannot lock files (' // &
+          system_error_text(-fd) // '); make sure no other run writes this output'
+    else
+      call set_error(err, err_output, self%lock // ': cannot take the output''s lock: ' // system_error_text(-fd))
+    end if
+  contains
+    !> The holder's note on one line: 'host h, pid p, started t: command'.
+    subroutine note_of(note)
+      character(len=:), allocatable, intent(inout) :: note
+      note = note(index(note, achar(10)) + 1:)
+      if (index(note, achar(10)) > 0) note = note(:index(note, achar(10)) - 1)
+      if (len_trim(note) == 0) note = 'starting'
+    end subroutine note_of
+  end subroutine acquire
+
+  !> Release the output's lock (its file removed); err reports a failure
+  !> unless it holds an error already.
+  subroutine release(self, err)
+    class(output_files_t), intent(inout) :: self
+    type(error_t), intent(inout) :: err
+    integer :: code
+    if (self%lock_fd < 0) return
+    code = unlock_output(self%lock_fd, self%lock)
+    self%lock_fd = -1
+    if (code /= 0 .and. .not. err%failed()) &
+      call set_error(err, err_output, self%lock // ': cannot remove the output''s lock: ' // system_error_text(code))
+  end subroutine release
+
+  !> Whether what is at `path` may be read, replaced or removed as a file of
+  !> kind `what` (work_partial, work_journal, work_target): nothing there,
+  !> or a regular file of that kind that is not the input. Else err (exit 3)
+  !> says what is there and that it is left alone.
+  subroutine check(self, path, what, err)
+    class(output_files_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: what
+    type(error_t), intent(inout) :: err
+    integer :: kind
+    logical :: is_input
+    if (err%failed()) return
+    kind = path_kind(path)
+    if (kind == kind_missing) return
+    is_input = .false.
+    if (len(self%input) > 0) is_input = same_file(path, self%input)
+    if (kind < 0) then
+      call set_error(err, err_output, path // ': cannot look at it: ' // system_error_text(-kind))
+    else if (kind == kind_link) then
+      call set_error(err, err_output, path // ': is a symbolic link; ellroll never writes through one: ' // &
+                     'remove it, or choose another output name')
+    else if (kind == kind_folder) then
+      call set_error(err, err_output, path // ': is a folder; choose another output name')
+    else if (kind /= kind_regular) then
+      call set_error(err, err_output, path // ': is not a regular file (a FIFO, a device or a socket); ' // &
+                     'choose another output name')
+    else if (is_input) then
+      call set_error(err, err_output, path // ': is the input file; it is never written: choose another ' // &
+                     'output name')
+    else if (.not. is_ellroll_file(path, what)) then
+      call set_error(err, err_output, path // ': exists and is not an ellroll ' // trim(merge('work file  ', &
+                     'output file', what /= work_target)) // '; it is never replaced, even with --overwrite: ' // &
+                     'remove it, or choose another output name')
+    end if
+  end subroutine check
+
+  !> Remove a work file (checked first: ours, not a link, not the input);
+  !> nothing there is no error.
+  subroutine discard(self, path, what, err)
+    class(output_files_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: what
+    type(error_t), intent(inout) :: err
+    integer :: code
+    call self%check(path, what, err)
+    if (err%failed()) return
+    code = remove_path(path)
+    if (code /= 0 .and. code /= enoent) call set_error(err, err_output, path // ': cannot remove it: ' // &
+                                                       system_error_text(code))
+  end subroutine discard
+
+  !> The finished file (`finished`, closed) to the disk and moved over the
+  !> output, then the journal removed: the output is in place, complete,
+  !> before the record of its cases goes. A failure leaves both (a resume
+  !> then finds the output complete, and removes the journal).
+  subroutine commit(self, finished, err)
+    class(output_files_t), intent(inout) :: self
+    character(len=*), intent(in) :: finished
+    type(error_t), intent(inout) :: err
+    integer :: code
+    if (err%failed()) return
+    call self%check(self%target, work_target, err)
+    if (err%failed()) return
+    code = sync_path(finished)
+    if (code /= 0) then
+      call set_error(err, err_output, finished // ': cannot write it to the disk: ' // system_error_text(code))
+      return
+    end if
+    code = rename_path(finished, self%target)
+    if (code /= 0) then
+      call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
+                     ' into place: ' // system_error_text(code))
+      return
+    end if
+    code = sync_folder(folder_of(self%target))
+    if (code /= 0) then
+      call set_error(err, err_output, folder_of(self%target) // ': cannot write the folder''s entries to ' // &
+                     'the disk: ' // system_error_text(code))
+      return
+    end if
+    code = remove_path(self%journal)
+    if (code /= 0 .and. code /= enoent) call set_error(err, err_output, self%journal // ': the output is ' // &
+        'complete, but its journal cannot be removed: ' // system_error_text(code) // '; remove it by hand')
+  end subroutine commit
+
+  !> Whether the regular file at path is a file ellroll made of kind `what`:
+  !> an output is an HDF5 file that says it is ellroll's; a work file is
+  !> told by its first bytes: an HDF5 file (signature at byte 0, or at 512
+  !> behind the trajectories' label), a label of trajectories in place (a
+  !> resume keeps only them), a journal, or an empty or torn beginning of
+  !> one of these (a run killed as it created it: nothing, or zeros).
+  logical function is_ellroll_file(path, what) result(ours)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: what
+    character(len=*), parameter :: hdf5_signature = char(137) // 'HDF' // achar(13) // achar(10) // &
+        achar(26) // achar(10)
+    character(len=*), parameter :: label = 'ellroll:', journal_magic = 'ELLROLL'
+    character(len=520) :: head
+    integer :: n
+    type(h5_input_t) :: output
+    type(error_t) :: not_ours
+    ours = .false.
+    if (what == work_target) then
+      call output%open(path, not_ours)
+      call output%close()
+      ours = .not. not_ours%failed()
+      return
+    end if
+    call read_head(path, head, n)
+    if (n < 0) return
+    if (verify(head(:n), char(0)) == 0) then          ! empty, or never written
+      ours = .true.
+      return
+    end if
+    select case (what)
+    case (work_journal)
+      ours = n == 0 .or. head(1:min(n, len(journal_magic))) == journal_magic(:min(n, len(journal_magic)))
+    case default
+      ours = n == 0 .or. head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. &
+             head(1:min(n, 8)) == label(:min(n, 8))
+    end select
+  end function is_ellroll_file
+end module ellroll_output_files
