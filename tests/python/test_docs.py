@@ -34,14 +34,28 @@ def test_readme_is_short_and_its_links_resolve():
             assert (doc.parent / target).exists(), f"docs/{doc.name}: {target}"
 
 
-def test_no_development_log_in_the_files():
-    found = []
-    paths = [ROOT / "README.md", ROOT / "CMakeLists.txt"]
+def repository_text_files():
+    paths = [ROOT / "README.md", ROOT / "CMakeLists.txt", ROOT / "CITATION.cff"]
     for folder in FOLDERS:
         paths += [p for p in (ROOT / folder).rglob("*") if p.is_file() and p.suffix in
-                  {".md", ".f90", ".c", ".py", ".sh", ".nml", ".cmake", ".txt", ".in", ".bash", ".toml", ".sbatch"}]
-    for path in paths:
-        if path.name == "test_docs.py" or "egg-info" in str(path):
+                  {".md", ".f90", ".c", ".py", ".sh", ".nml", ".cmake", ".txt", ".in", ".bash", ".toml", ".sbatch"}
+                  and "egg-info" not in str(p)]
+    return paths
+
+
+def test_no_file_outside_the_repository_is_cited():
+    """The model's derivation is docs/model.md; nothing refers to notes that are not in the repository."""
+    outside = re.compile(r"physics\.md|\.\./shared\b")
+    found = [f"{path.relative_to(ROOT)}:{number}: {line.strip()}" for path in repository_text_files()
+             if path.name != "test_docs.py"
+             for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1) if outside.search(line)]
+    assert found == []
+
+
+def test_no_development_log_in_the_files():
+    found = []
+    for path in repository_text_files():
+        if path.name == "test_docs.py":
             continue
         for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
             if LOG_WORDS.search(line) and not FORTRAN_STOP.fullmatch(line):
