@@ -1,7 +1,11 @@
 """The docs as a user meets them: a short README whose links all lead
 somewhere, every doc file reached from it, and no development log in the
 repository's files (history belongs in commit messages)."""
+import os
 import re
+import subprocess
+
+import pytest
 
 from conftest import ROOT
 
@@ -61,3 +65,49 @@ def test_no_development_log_in_the_files():
             if LOG_WORDS.search(line) and not FORTRAN_STOP.fullmatch(line):
                 found.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
     assert found == []
+
+
+def test_the_installed_paper_case_example_runs(tmp_path):
+    """`cmake --install build --prefix P`, then P/share/ellroll/examples/paper_case.sh from a
+    folder of one's own, with P/bin/ellroll and the ellroll-plot on PATH (pip install ./post)."""
+    plot = ROOT / ".venv" / "bin" / "ellroll-plot"
+    if not (ROOT / "build" / "ellroll").exists() or not plot.exists():
+        pytest.skip("needs build/ellroll and .venv/bin/ellroll-plot (.ci/setup makes them)")
+    prefix, work = tmp_path / "prefix", tmp_path / "work"
+    work.mkdir()
+    subprocess.run(["cmake", "--install", str(ROOT / "build"), "--prefix", str(prefix)], check=True,
+                   capture_output=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("ELLROLL", "ELLROLL_PLOT")}
+    env.update(PATH=f"{plot.parent}{os.pathsep}/usr/bin{os.pathsep}/bin", MPLBACKEND="Agg")
+    done = subprocess.run(["bash", str(prefix / "share" / "ellroll" / "examples" / "paper_case.sh")], cwd=work,
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    for name in ("legeza1990.h5", "legeza1990_fig2_trace.png", "legeza1990_fig3_nutation.png", "report/index.html"):
+        assert (work / "results" / name).stat().st_size > 0, name
+    assert "theta_max: 0.2340974889" in done.stdout
+
+
+def test_slurm_submit_finds_the_checkouts_ellroll(tmp_path):
+    """The README's `examples/slurm/submit.sh ...` from the repository root, where ellroll is not
+    on PATH: the jobs get the checkout's build/ellroll (sbatch here is a stand-in that records
+    how it was called)."""
+    ellroll = ROOT / "build" / "ellroll"
+    if not ellroll.exists():
+        pytest.skip("needs build/ellroll")
+    stubs = tmp_path / "bin"
+    stubs.mkdir()
+    (stubs / "sbatch").write_text('#!/bin/bash\necho "$* ELLROLL=${ELLROLL:-}" >> "$SBATCH_LOG"\necho 42\n')
+    (stubs / "sbatch").chmod(0o755)
+    log = tmp_path / "sbatch.log"
+    env = {k: v for k, v in os.environ.items() if k != "ELLROLL"}
+    env.update(PATH=f"{stubs}{os.pathsep}/usr/bin{os.pathsep}/bin", SBATCH_LOG=str(log))
+    done = subprocess.run(["examples/slurm/submit.sh", "input/spin_sweep.nml", str(tmp_path / "on_slurm.h5"),
+                           "16", "8"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "array job 42, merge job 42\n"
+    array, merge = log.read_text().splitlines()
+    assert "--array=0-15 --cpus-per-task=8" in array and "campaign.sbatch" in array
+    assert "--dependency=afterok:42" in merge and "merge.sbatch" in merge
+    for call in (array, merge):
+        assert call.endswith(f"ELLROLL={ellroll.resolve()}")
+    assert not (tmp_path / "on_slurm.h5").exists()
