@@ -1,12 +1,15 @@
 """The docs as a user meets them: a short README whose links all lead
 somewhere, every doc file reached from it, and no development log in the
 repository's files (history belongs in commit messages)."""
+import concurrent.futures
 import os
 import re
 import subprocess
+import time
 
 import pytest
 
+import docs_blocks
 from conftest import ROOT
 
 FOLDERS = ["docs", "src", "post", "tests", "bench", "examples", "input", "cmake"]
@@ -65,6 +68,102 @@ def test_no_development_log_in_the_files():
             if LOG_WORDS.search(line) and not FORTRAN_STOP.fullmatch(line):
                 found.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
     assert found == []
+
+
+# Docs as tests: every shell block and Python snippet of the README, docs/*.md
+# and post/README.md runs, page by page, in a fresh folder (docs_blocks.py
+# says how, and what the HTML comments above some blocks mean).
+PARSED, PARSE_ERRORS = {}, []
+for _page in docs_blocks.pages():
+    try:
+        PARSED[_page] = docs_blocks.parse(_page)
+    except ValueError as error:
+        PARSE_ERRORS.append(str(error))
+        PARSED[_page] = []
+RUNNABLE = [block for blocks in PARSED.values() for block in blocks if block.kind != "text"]
+# the longest pages first: two pages run at a time
+ORDER = sorted(PARSED, key=lambda page: page not in ("docs/performance.md", "README.md"))
+
+
+@pytest.fixture(scope="module")
+def docs_run(tmp_path_factory):
+    for needed in (ROOT / "build" / "ellroll", ROOT / ".venv" / "bin" / "python"):
+        if not needed.exists():
+            pytest.skip(f"{needed} is not there (.ci/setup makes it)")
+    files = docs_blocks.repository_files()
+    before = docs_blocks.snapshot(files)
+    base = tmp_path_factory.mktemp("docs")
+    start = time.monotonic()
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+        futures = {page: pool.submit(docs_blocks.run_page, page, PARSED[page],
+                                     base / page.replace("/", "_").removesuffix(".md"), files) for page in ORDER}
+        results = {page: futures[page].result() for page in ORDER}
+    return {"results": results, "seconds": time.monotonic() - start, "before": before,
+            "after": docs_blocks.snapshot(files)}
+
+
+def test_docs_markers_parse_and_every_command_is_in_a_block():
+    problems = PARSE_ERRORS + [p for page in PARSED for p in docs_blocks.lint(page)]
+    assert problems == []
+    assert len(RUNNABLE) >= 20
+
+
+@pytest.mark.parametrize("block", RUNNABLE, ids=lambda block: block.name)
+def test_docs_block_runs_as_written(docs_run, block):
+    result = next(r for r in docs_run["results"][block.page] if r.block is block)
+    if result.status == "skipped":
+        pytest.skip(f"{block.name}: {result.message}")
+    assert result.status == "passed", f"{block.name} ({result.status}): {result.message}"
+
+
+def test_docs_blocks_leave_the_repository_as_it_was(docs_run):
+    changed = [name for name in docs_run["before"] if docs_run["before"][name] != docs_run["after"][name]]
+    assert changed == []
+
+
+def test_docs_blocks_summary(docs_run, capsys):
+    """Prints what ran: blocks found, run, skipped (with the reasons), output checks, time."""
+    results = [r for page in ORDER for r in docs_run["results"][page]]
+    ran = [r for r in results if r.status in ("passed", "failed")]
+    skipped = [r for r in results if r.status == "skipped"]
+    lines = [f"docs as tests: {len(RUNNABLE)} blocks found "
+             f"({sum(b.kind == 'sh' for b in RUNNABLE)} sh, {sum(b.kind == 'python' for b in RUNNABLE)} python) "
+             f"on {sum(bool(PARSED[p]) for p in PARSED)} pages; {len(ran)} run, {len(skipped)} skipped, "
+             f"{sum(r.checks for r in results)} output checks; {docs_run['seconds']:.1f} s, "
+             f"{sum(r.cpu for r in results):.1f} s of CPU"
+             + (" (ELLROLL_DOCS_FULL)" if docs_blocks.FULL else "")]
+    lines += [f"  skipped {r.block.name}: {r.message}" for r in skipped]
+    for page in ORDER:
+        if docs_run["results"][page]:
+            lines.append(f"  {page}: " + ", ".join(f"{r.block.line} {r.status} {r.seconds:.1f} s"
+                                                   for r in docs_run["results"][page]))
+    with capsys.disabled():
+        print("\n" + "\n".join(lines))
+    assert all(r.status in ("passed", "failed", "skipped", "not run") for r in results)
+
+
+def test_docs_output_checks_catch_a_difference():
+    """The comparisons behind the output blocks fail where the output differs."""
+    shown = "legeza1990.h5: 1 cases\n  steps: ... s\n...\n  theta_max: 0.2340974889... rad\n"
+    assert docs_blocks.compare_exact(shown, "legeza1990.h5: 1 cases\n  steps: 0.03 s\nmore\n"
+                                            "  theta_max: 0.23409748897743754 rad\n") == ""
+    assert docs_blocks.compare_exact(shown, "legeza1990.h5: 1 cases\n  steps: 0.03 s\n"
+                                            "  theta_max: 0.2340974890 rad\n") != ""
+    assert docs_blocks.compare_exact(shown, "legeza1990.h5: 2 cases\n  steps: 0.03 s\n"
+                                            "  theta_max: 0.23409748897743754 rad\n") != ""
+    table = "method   time s\nellroll rk4  dt=0.1   1.0e-04\nscipy  rtol=0.01  7.6e-02\n"
+    assert docs_blocks.compare_shape(table, "method   time s\nellroll rk4  dt=0.01   3.0e-04\n") == ""
+    assert docs_blocks.compare_shape(table, "method   time\nellroll rk4  dt=0.01   3.0e-04\n") != ""
+    assert docs_blocks.compare_shape(table, "method   time s\nellroll gauss4  dt=0.01   3.0e-04\n") != ""
+    assert docs_blocks.compare_shape(table, "method   time s\n") != ""
+
+
+def test_the_readme_shows_the_paper_case_input_as_it_is():
+    readme = (ROOT / "README.md").read_text()
+    shown = re.search(r"The paper's case, `input/legeza1990.nml`:\n\n```\n(.*?)```", readme, re.S).group(1)
+    case = [line for line in (ROOT / "input" / "legeza1990.nml").read_text().splitlines(keepends=True)
+            if not line.startswith("!")]
+    assert shown == "".join(case)
 
 
 def test_the_installed_paper_case_example_runs(tmp_path):
