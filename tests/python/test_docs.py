@@ -135,8 +135,10 @@ def test_docs_blocks_summary(docs_run, capsys):
     lines += [f"  skipped {r.block.name}: {r.message}" for r in skipped]
     for page in ORDER:
         if docs_run["results"][page]:
-            lines.append(f"  {page}: " + ", ".join(f"{r.block.line} {r.status} {r.seconds:.1f} s"
-                                                   for r in docs_run["results"][page]))
+            page_results = docs_run["results"][page]
+            lines.append(f"  {page}: {sum(r.seconds for r in page_results):.1f} s, "
+                         f"{sum(r.cpu for r in page_results):.1f} s of CPU; lines "
+                         + ", ".join(f"{r.block.line} {r.status}" for r in page_results))
     with capsys.disabled():
         print("\n" + "\n".join(lines))
     assert all(r.status in ("passed", "failed", "skipped", "not run") for r in results)
