@@ -1,5 +1,5 @@
 !> The baseline of bench/throughput: a straightforward scalar RK4 of the same
-!> equations in the paper's form (contact point r_A and omega, physics.md):
+!> equations in the paper's form (contact point r_A and omega):
 !> each right-hand side solves H r_A' = V_C (3x3, Gaussian elimination with
 !> partial pivoting), takes n' = (dn/dr_A) r_A', and projects r_A back onto
 !> the surface after each step. No tuning.

@@ -14,8 +14,11 @@ the speed-up of any number of threads, and with the time outside the loop it
 bounds the efficiency on --project threads (default 16): a ceiling measured
 here, for machines whose cores scale, not a measurement on that many cores.
 
-    python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16] [--cases 10000] [--repeat 3]
-                             [--rss-cases 1000 10000 100000] [--project 16]
+    .venv/bin/python bench/campaign.py [--exe build/ellroll] [--threads 1 2 16] [--cases 10000]
+                                       [--repeat 3] [--rss-cases 1000 10000 100000] [--project 16] [--quick]
+
+--quick (or ELLROLL_BENCH_QUICK=1): 200 cases, one run each, peak RSS at 100
+and 200 cases (a smoke test).
 """
 import argparse
 import pathlib
@@ -24,6 +27,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from common import executable, quick
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 INPUT = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
@@ -45,7 +50,7 @@ def measure(exe, folder, n_cases, threads):
     # the previous run's file is removed outside the timing: --overwrite would
     # free its pages inside it, serially, a cost of that file, not of this run
     (folder / "bench.h5").unlink(missing_ok=True)
-    out = subprocess.run([sys.executable, "-c", MEASURE, str(pathlib.Path(exe).resolve()), "run", "bench.nml", "-q",
+    out = subprocess.run([sys.executable, "-c", MEASURE, exe, "run", "bench.nml", "-q",
                           "--threads", str(threads), "--timings"], cwd=folder, check=True, capture_output=True, text=True)
     first, timings = out.stdout.split("\n", 1)
     seconds, rss_kib = first.split()
@@ -72,7 +77,11 @@ def main():
                         help="campaign sizes whose peak RSS is compared (the largest thread count)")
     parser.add_argument("--project", type=int, default=16,
                         help="thread count whose efficiency is bounded from the one-thread run's serial sections")
+    parser.add_argument("--quick", action="store_true", help="a tiny campaign (a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    if quick(args.quick):
+        args.cases, args.repeat, args.rss_cases = 200, 1, [100, 200]
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
         print(f"campaign of {args.cases} cases, 5,000 RK4 steps each ({time.strftime('%Y-%m-%d')})")

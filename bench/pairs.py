@@ -18,7 +18,10 @@ contact point at 30 s from dop853 at rtol 1e-14, atol 1e-16; beside it,
 vern9 at that tolerance against the same reference: how far the reference
 itself can be trusted.
 
-    python bench/pairs.py [--exe build/ellroll] [--repeat 5] [--quick]
+    .venv/bin/python bench/pairs.py [--exe build/ellroll] [--repeat 5] [--quick]
+
+--quick (or ELLROLL_BENCH_QUICK=1): rtol 1e-6, 1e-8 and 1e-12, one round (a
+smoke test).
 """
 import argparse
 import pathlib
@@ -30,6 +33,7 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from common import executable, quick  # noqa: E402
 from workprecision import calls_at  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -81,6 +85,8 @@ def main():
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--quick", action="store_true", help="fewer tolerances, one round (a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    args.quick = quick(args.quick)
     tolerances = [1e-6, 1e-8, 1e-12] if args.quick else [10.0**-k for k in range(6, 14)]
     repeat = 1 if args.quick else args.repeat
     with tempfile.TemporaryDirectory() as tmp:

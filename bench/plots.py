@@ -3,7 +3,11 @@
 command and of the report, each in its own process (default 100,000 cases:
 5 inputs sampled, paper cup, rk4 dt 1e-3, t_end 1 s, a sample every 0.01 s).
 
-    python bench/plots.py [--exe build/ellroll] [--cases 100000] [--keep DIR]
+    .venv/bin/python bench/plots.py [--exe build/ellroll] [--cases 100000] [--keep DIR] [--quick]
+
+ellroll-plot is the one on PATH, else the repository's .venv/bin/ellroll-plot.
+--quick (or ELLROLL_BENCH_QUICK=1): 200 cases and three of the commands (a
+smoke test).
 """
 import argparse
 import os
@@ -13,6 +17,8 @@ import subprocess
 import sys
 import tempfile
 import time
+
+from common import executable, quick
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 INPUT = """&geometry a = 1.0, b = 0.4, c = 0.2 /
@@ -50,7 +56,13 @@ def main():
     parser.add_argument("--cases", type=int, default=100000)
     parser.add_argument("--t-end", type=float, default=1.0)
     parser.add_argument("--keep", help="run in this folder and keep the file and figures")
+    parser.add_argument("--quick", action="store_true", help="200 cases, three commands (a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    commands = COMMANDS
+    if quick(args.quick):
+        args.cases = 200
+        commands = [COMMANDS[1], COMMANDS[5], COMMANDS[7]]
     plot = shutil.which("ellroll-plot") or str(ROOT / ".venv" / "bin" / "ellroll-plot")
     folder = pathlib.Path(args.keep or tempfile.mkdtemp(prefix="ellroll-plots-"))
     folder.mkdir(parents=True, exist_ok=True)
@@ -59,7 +71,7 @@ def main():
     size = (folder / "campaign.h5").stat().st_size / 2**30
     print(f"{args.cases} cases, file {size:.2f} GiB, written in {seconds:.1f} s")
     print(f"{'command':<62} {'time, s':>8} {'peak RSS, MiB':>14}")
-    for command in COMMANDS:
+    for command in commands:
         out = folder / "figures"
         seconds, rss = measure([plot, *command, "campaign.h5"]
                                + (["--out", str(out), "--overwrite"] if command[0] != "summary" else []), folder)

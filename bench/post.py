@@ -3,7 +3,9 @@
 summary of a 10^4-case campaign (a case's samples are one piece of each
 contiguous trajectory dataset, so reading a case is one read per dataset).
 
-    python bench/post.py [--exe build/ellroll] [--cases 10000]
+    .venv/bin/python bench/post.py [--exe build/ellroll] [--cases 10000] [--quick]
+
+--quick (or ELLROLL_BENCH_QUICK=1): 100 cases (a smoke test).
 """
 import argparse
 import pathlib
@@ -13,6 +15,8 @@ import time
 
 import h5py
 import numpy as np
+
+from common import executable, quick
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 INPUT = """&geometry a = 1.0, b = 0.4, c = 0.2 /
@@ -37,7 +41,11 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
     parser.add_argument("--cases", type=int, default=10000)
+    parser.add_argument("--quick", action="store_true", help="100 cases (a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    if quick(args.quick):
+        args.cases = 100
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
         (folder / "post.nml").write_text(INPUT.format(n=args.cases))

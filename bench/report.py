@@ -3,7 +3,7 @@
 the machine, the date, the commit, and each table beside the command that
 printed it, so the figures in the docs are always today's.
 
-    python bench/report.py [--build build] [--quick]
+    .venv/bin/python bench/report.py [--build build] [--quick]
 
 --quick runs each bench on a smaller scale (a smoke test; its figures are
 not for the docs, and it writes to stdout only).
@@ -20,16 +20,23 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 INTRO = """# Performance
 
 Every table below is the output of the command above it, on the machine
-named here; `python bench/report.py` reruns them all and rewrites this file.
+named here; `.venv/bin/python bench/report.py` reruns them all and rewrites this file.
 Ratios are measured side by side in one run; absolute times depend on the
 machine and on its other load (the machines are shared), so compare ratios.
 What each bench measures is in the docstring at the top of its source file.
+The tests (tests/python/test_docs.py) run each command at a tiny size
+(ELLROLL_BENCH_QUICK=1) and check that it prints the tables shown.
 """
+# above each command: how tests/python/test_docs.py runs it (docs_blocks.py)
+QUICK_MARKER = "<!-- docs-test: env ELLROLL_BENCH_QUICK=1 (a tiny size; ELLROLL_DOCS_FULL=1 runs it as written) -->\n"
+SHAPE_MARKER = "<!-- docs-test: output shape -->\n"
+
 
 
 def benches(build, quick):
     python = sys.executable
     exe = str(build / "ellroll")
+    # the Fortran benches take a second or less as written; the Python ones run quick in the tests
     return [
         ("RK4 and DOP853 kernels: case-steps per second against a naive scalar RK4, one case and SIMD batches",
          [str(build / "bench_throughput"), "3" if quick else "7"]),
@@ -51,6 +58,20 @@ def benches(build, quick):
         ("vern9 against dop853 on 16 cases: one case and batches, rtol 1e-6 to 1e-13",
          [python, "bench/pairs.py", "--exe", exe, *(["--quick"] if quick else [])]),
     ]
+
+
+def shown(command):
+    """The command as docs/performance.md shows it: paths from the repository root."""
+    words = []
+    for word in command:
+        if word == sys.executable:
+            python = pathlib.Path(sys.executable)
+            words.append(str(python.relative_to(ROOT)) if python.is_relative_to(ROOT) else "python")
+        elif word.startswith(str(ROOT)):
+            words.append(str(pathlib.Path(word).relative_to(ROOT)))
+        else:
+            words.append(word)
+    return " ".join(words)
 
 
 def machine():
@@ -75,13 +96,13 @@ def main():
     args = parser.parse_args()
     sections = [INTRO, machine() + "\n"]
     for title, command in benches(pathlib.Path(args.build), args.quick):
-        shown = " ".join("python" if c == sys.executable else
-                         str(pathlib.Path(c).relative_to(ROOT)) if c.startswith(str(ROOT)) else c for c in command)
-        print(f"== {shown}", file=sys.stderr, flush=True)
+        text = shown(command)
+        print(f"== {text}", file=sys.stderr, flush=True)
         result = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
         if result.returncode != 0:
-            sys.exit(f"bench failed: {shown}\n{result.stderr}")
-        sections.append(f"## {title}\n\n```sh\n{shown}\n```\n\n"
+            sys.exit(f"bench failed: {text}\n{result.stderr}")
+        markers = (QUICK_MARKER if command[0] == sys.executable else "") + SHAPE_MARKER
+        sections.append(f"## {title}\n\n{markers}```sh\n{text}\n```\n\n"
                         f"```\n{result.stdout.rstrip()}\n```\n")
     text = "\n".join(sections)
     if args.quick:

@@ -8,13 +8,18 @@ The paper's cup swept over omega_z, RK4 dt = 1e-4, no trajectories stored:
 - 8 cases on a harmonically shaken cup: not batchable, a block per case;
 - 2 cases on a fixed cup: fewer than a batch, a block per case.
 
-    python bench/small_campaigns.py [--exe build/ellroll] [--threads 1 2] [--repeat 3]
+    .venv/bin/python bench/small_campaigns.py [--exe build/ellroll] [--threads 1 2] [--repeat 3] [--quick]
+
+--quick (or ELLROLL_BENCH_QUICK=1): each campaign 1/40 as long, one run (a
+smoke test).
 """
 import argparse
 import pathlib
 import subprocess
 import tempfile
 import time
+
+from common import executable, quick
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
@@ -25,9 +30,13 @@ BASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 &sweep name = 'omega_z', start = 10, stop = 80, count = {n} /
 """
 SHAKEN = "&excitation kind = 'harmonic', amplitude = 0.05, 0.0, 0.0, frequency = 0.3 /\n"
-CAMPAIGNS = [("8 cases, fixed cup (one SIMD batch)", BASE.format(n=8, t_end=120.0)),
-             ("8 cases, shaken cup (a block each)", BASE.format(n=8, t_end=30.0) + SHAKEN),
-             ("2 cases, fixed cup (a block each)", BASE.format(n=2, t_end=120.0))]
+
+
+def campaigns(scale=1.0):
+    """(title, input) of each campaign, t_end multiplied by scale."""
+    return [("8 cases, fixed cup (one SIMD batch)", BASE.format(n=8, t_end=120.0 * scale)),
+            ("8 cases, shaken cup (a block each)", BASE.format(n=8, t_end=30.0 * scale) + SHAKEN),
+            ("2 cases, fixed cup (a block each)", BASE.format(n=2, t_end=120.0 * scale))]
 
 
 def wall(exe, folder, threads, repeat):
@@ -45,10 +54,15 @@ def main():
     parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="short campaigns, one run (a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    scale = 1.0
+    if quick(args.quick):
+        scale, args.repeat = 1 / 40, 1
     print(f"{'campaign':<38} {'threads':>7} {'wall s':>8} {'speed-up':>9} {'efficiency':>11}")
     with tempfile.TemporaryDirectory() as folder:
-        for title, text in CAMPAIGNS:
+        for title, text in campaigns(scale):
             (pathlib.Path(folder) / "small.nml").write_text(text)
             times = {t: wall(args.exe, folder, t, args.repeat) for t in args.threads}
             one = times[args.threads[0]] * args.threads[0]

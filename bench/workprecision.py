@@ -17,10 +17,13 @@ are below the batch size: these are one-case figures. "rk4 batch",
 of the case (SIMD batches of 8), per case: the cost of one case when many
 are run. (bench/pairs.py sets vern9 against dop853 on 16 different cases.)
 
-    python bench/workprecision.py [--exe build/ellroll] [--out docs]
+    .venv/bin/python bench/workprecision.py [--exe build/ellroll] [--out docs] [--quick]
 writes a table on stdout, workprecision.png and workprecision.csv in --out.
+--quick (or ELLROLL_BENCH_QUICK=1): a few points, one process each (a smoke
+test; give --out to keep docs/ as it is).
 """
 import argparse
+import os
 import pathlib
 import subprocess
 import sys
@@ -32,6 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from ball_numpy import RollingBall  # noqa: E402
+from common import executable, quick  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 T_END, INTERVAL = 30.0, 0.1
@@ -99,14 +103,18 @@ def main():
     parser.add_argument("--out", default=str(ROOT / "docs"))
     parser.add_argument("--quick", action="store_true", help="fewer points (for a smoke test)")
     args = parser.parse_args()
+    args.exe = executable(args.exe)
+    args.quick = quick(args.quick)
+    rounds = 1 if args.quick else 3
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
         reference, _, _ = ellroll_run(args.exe, folder, "method = 'dop853', rtol = 1e-13, atol = 1e-15", 1, 1)
-        check, _, _ = ellroll_run(args.exe, folder, "method = 'gauss4', dt = 2.5e-5", 1, 1)
-        print(f"reference: dop853 rtol 1e-13; gauss4 dt 2.5e-5 differs by {error(check, reference):.1e} m")
+        check_dt = 1e-4 if args.quick else 2.5e-5
+        check, _, _ = ellroll_run(args.exe, folder, f"method = 'gauss4', dt = {check_dt!r}", 1, 1)
+        print(f"reference: dop853 rtol 1e-13; gauss4 dt {check_dt:g} differs by {error(check, reference):.1e} m")
         rk4_steps = [1e-1, 5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4]
         gauss_steps = [5e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4]
         # rtol from 1e-2 to 1e-12, four a decade: in the stability-limited
@@ -117,22 +125,24 @@ def main():
         if args.quick:
             rk4_steps, gauss_steps, tolerances = rk4_steps[3:6], gauss_steps[2:4], tolerances[12:17:2]
         for dt in rk4_steps:
-            rows.append(("ellroll rk4", f"dt={dt:g}", *ellroll_run(args.exe, folder, f"method = 'rk4', dt = {dt!r}")))
+            rows.append(("ellroll rk4", f"dt={dt:g}",
+                         *ellroll_run(args.exe, folder, f"method = 'rk4', dt = {dt!r}", rounds=rounds)))
         for dt in rk4_steps:
             rows.append(("ellroll rk4 batch", f"dt={dt:g}",
-                         *ellroll_run(args.exe, folder, f"method = 'rk4', dt = {dt!r}", repeats=16)))
+                         *ellroll_run(args.exe, folder, f"method = 'rk4', dt = {dt!r}", repeats=16, rounds=rounds)))
         for dt in gauss_steps:
             rows.append(("ellroll gauss4", f"dt={dt:g}",
-                         *ellroll_run(args.exe, folder, f"method = 'gauss4', dt = {dt!r}")))
+                         *ellroll_run(args.exe, folder, f"method = 'gauss4', dt = {dt!r}", rounds=rounds)))
         for pair in ("dop853", "vern9"):
             for rtol in tolerances:
                 rows.append((f"ellroll {pair}", f"rtol={rtol:.3g}", *ellroll_run(
-                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}")))
+                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", rounds=rounds)))
             for rtol in tolerances:
                 rows.append((f"ellroll {pair} batch", f"rtol={rtol:.3g}", *ellroll_run(
-                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", repeats=16)))
+                    args.exe, folder, f"method = '{pair}', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", repeats=16,
+                    rounds=rounds)))
         for rtol in tolerances:
-            rows.append(("scipy DOP853", f"rtol={rtol:.3g}", *scipy_run(rtol)))
+            rows.append(("scipy DOP853", f"rtol={rtol:.3g}", *scipy_run(rtol, repeats=rounds)))
 
     table = [(name, setting, error(contact, reference), seconds, n_rhs) for name, setting, contact, seconds, n_rhs in rows]
     print(f"{'method':18} {'setting':12} {'error m':>10} {'time s':>10} {'RHS evals':>10}")
@@ -154,6 +164,8 @@ def main():
           f"{'campaign':>9}")
     for level in [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11]:
         ours = {f: cheapest(f, level, 3) for f in ("ellroll rk4", "ellroll gauss4", "ellroll dop853", "ellroll vern9")}
+        if all(np.isnan(list(ours.values()))):
+            continue    # no run reached this level (--quick)
         best_family = min(ours, key=lambda f: np.inf if np.isnan(ours[f]) else ours[f])
         peer = cheapest("scipy DOP853", level, 3)
         batches = [cheapest(f"ellroll {m} batch", level, 3) for m in ("rk4", "dop853", "vern9")]
@@ -171,7 +183,7 @@ def main():
         global CASE
         CASE = CASE.replace("interval = 0.1", "interval = 30.0")
         reference_end = ellroll_run(args.exe, folder, "method = 'dop853', rtol = 1e-13, atol = 1e-15", 1, 1)[0][-1]
-        for rtol in [10.0**(-k / 2) for k in range(10, 21)]:
+        for rtol in [10.0**(-k / 2) for k in (range(10, 21, 4) if args.quick else range(10, 21))]:
             contact, _, n_rhs = ellroll_run(args.exe, folder,
                                             f"method = 'dop853', rtol = {rtol!r}, atol = {rtol * 1e-3!r}", 1, 1)
             peer_end, peer_rhs = scipy_endpoint(rtol)
@@ -203,7 +215,8 @@ def main():
         ax.legend()
     fig.suptitle("Work-precision, Legeza (1990) case, 30 s")
     fig.savefig(out / "workprecision.png", dpi=120)
-    print(f"\nwrote {out / 'workprecision.png'} and {out / 'workprecision.csv'}")
+    shown = pathlib.Path(os.path.relpath(out))
+    print(f"wrote {shown / 'workprecision.png'} and {shown / 'workprecision.csv'}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
 #   examples/slurm/submit.sh [--time T] [--mem M] INPUT.nml OUT.h5 N [CPUS_PER_TASK]
 # --time and --mem go to each array task (sbatch's formats: --time=2:00:00,
 # --mem=4G); a task that reaches its time limit requeues itself and resumes
-# (campaign.sbatch). Set ELLROLL to the ellroll executable if it is not on
-# PATH. Prints the job ids.
+# (campaign.sbatch). The jobs run the ellroll executable named by ELLROLL,
+# else the ellroll on PATH, else the one beside this script (the checkout's
+# build/ellroll, or P/bin/ellroll once installed). Prints the job ids.
 set -euo pipefail
 usage="usage: $0 [--time T] [--mem M] INPUT.nml OUT.h5 N [CPUS_PER_TASK]"
 task_options=()
@@ -33,7 +34,23 @@ out=$(realpath -m "$2")
 n=$3
 cpus=${4:-2}
 here=$(dirname "$(realpath "$0")")
-"${ELLROLL:-ellroll}" check "$input" -o "$out" > /dev/null     # refuse bad input before queueing
+ellroll=${ELLROLL:-$(command -v ellroll || true)}
+for candidate in "$here/../../build/ellroll" "$here/../../../../bin/ellroll"; do
+  if [ -z "$ellroll" ] && [ -x "$candidate" ]; then
+    ellroll=$candidate
+  fi
+done
+if [ -z "$ellroll" ]; then
+  echo "$0: no ellroll executable: set ELLROLL, put ellroll on PATH, or build it (build/ellroll)" >&2
+  exit 2
+fi
+if ! found=$(command -v "$ellroll"); then
+  echo "$0: $ellroll: no such executable" >&2
+  exit 2
+fi
+ELLROLL=$(realpath "$found")
+export ELLROLL                                                # the array and merge jobs run this one
+"$ELLROLL" check "$input" -o "$out" > /dev/null               # refuse bad input before queueing
 array=$(sbatch --parsable --array="0-$((n - 1))" --cpus-per-task="$cpus" "${task_options[@]}" \
         "$here/campaign.sbatch" "$input" "$out")
 merge=$(sbatch --parsable --dependency="afterok:${array}" "$here/merge.sbatch" "$out" "$n")

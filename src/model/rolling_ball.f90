@@ -413,7 +413,7 @@ contains
   end function nutation_angle
 
   !> status_completed while the state is inside the model's domain, otherwise
-  !> the limit it crossed (first match in the order of physics.md).
+  !> the limit it crossed (the first that matches, in the order below).
   pure integer function limit_status(ball, y, obs) result(status)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(:)

@@ -54,7 +54,7 @@ module ellroll_integrators
 
   type(method_info_t), parameter :: methods(4) = [ &
       method_info_t('rk4', 'fixed', '4', .false., &
-                    "the paper's; large campaigns at errors above about 1e-6 m (SIMD batches)"), &
+                    "the paper's; large campaigns at errors of about 1e-3 m (SIMD batches)"), &
       method_info_t('dop853', 'adaptive', '8(5,3), dense output 7', .true., &
                     'accurate runs, rtol 1e-3 to 1e-7; outputs at any interval'), &
       method_info_t('vern9', 'adaptive', '9(8), dense output 8', .true., &

@@ -1,5 +1,5 @@
 !> Geometry against independent truth: the implicit surface equation,
-!> the shape operator of physics.md diagonalised by LAPACK, the bottom radii
+!> the paper's shape operator diagonalised by LAPACK, the bottom radii
 !> a^2/c and b^2/c, and quad-precision radii on a nearly spherical cup.
 program test_ellipsoid
   use ellroll_kinds, only: wp
@@ -64,7 +64,7 @@ contains
     n = n / norm2(n)
   end function random_lower_normal
 
-  !> physics.md: dn/dr_A = -(I - q^ q^T) D / Q; principal curvatures are the
+  !> The paper's form: dn/dr_A = -(I - q^ q^T) D / Q; principal curvatures are the
   !> tangent eigenvalues of (I - q^q^T) D (I - q^q^T) / Q.
   function radii_from_shape_operator(cup, p) result(r)
     type(ellipsoid_t), intent(in) :: cup

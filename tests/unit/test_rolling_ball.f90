@@ -1,4 +1,4 @@
-!> The right-hand side against physics.md's own formulation: contact-point
+!> The right-hand side against the paper's own formulation: contact-point
 !> velocity from the 3x3 system H r_A' = V_C (LAPACK dgesv), n' = (dn/dr_A) r_A',
 !> and the component form of Appell's equations. Plus observe's fit test
 !> against the principal radii, and the reaction at rest.
@@ -45,7 +45,7 @@ program test_rolling_ball
     kappa = (ball%radius + radii(2)) / minval(abs(ball%radius - radii))
     worst = max(worst, maxval(abs(f - reference)) / maxval(abs(reference)) / (kappa * epsilon(1.0_wp)))
   end do
-  call check_below(worst, 16.0_wp, 'closed-form RHS vs 3x3 solve of physics.md (max rel. diff / (kappa eps))')
+  call check_below(worst, 16.0_wp, 'closed-form RHS vs 3x3 solve of the paper (max rel. diff / (kappa eps))')
 
   ! observe's fit test (tr K and det K from the contact point's 1/s) against
   ! the principal radii computed apart (principal_radii, from the small
