@@ -1,15 +1,16 @@
 !> What ellroll's HDF5 writer, reader and layout share: hyperslabs (selected
 !> and written), dimension numbering, text types and text attributes.
 module ellroll_hdf5_common
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int
   use hdf5
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
   implicit none
   private
 
-  public :: select_slab, dim_index, new_text_type, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
-      write_int_slab, text_width
+  public :: hdf5_reason, note_failed_close, hdf5_close_failed
+  public :: select_slab, dataset_name, dim_index, new_text_type, fixed_text_type, write_text_attribute, &
+      write_text_slab, write_real_slab, write_int_slab, text_width
 
   !> Width of per-case text datasets (bytes, null-terminated).
   integer, parameter :: text_width = 32
@@ -17,7 +18,42 @@ module ellroll_hdf5_common
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
 
+  !> A file HDF5 could not close stays in its list of open files, and its
+  !> exit handler trips over it: the program then leaves without it.
+  logical :: failed_close = .false.
+
+  interface
+    subroutine c_hdf5_error_text(text, size) bind(c, name='ellroll_hdf5_error_text')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int), value :: size
+    end subroutine c_hdf5_error_text
+  end interface
+
 contains
+
+  subroutine note_failed_close()
+    failed_close = .true.
+  end subroutine note_failed_close
+
+  !> Whether HDF5 failed to close a file (hdf5_common's note).
+  logical function hdf5_close_failed()
+    hdf5_close_failed = failed_close
+  end function hdf5_close_failed
+
+  !> Why the last HDF5 call failed: the system's words where HDF5's file
+  !> driver recorded them ('Input/output error', 'No space left on
+  !> device'), else HDF5's own. HDF5's error stack is cleared.
+  subroutine hdf5_reason(reason)
+    character(len=:), allocatable, intent(out) :: reason
+    character(kind=c_char) :: buffer(256)
+    integer :: n
+    call c_hdf5_error_text(buffer, size(buffer))
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    reason = repeat(' ', n)
+    reason = transfer(buffer(:n), reason)
+  end subroutine hdf5_reason
 
   !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
   !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.
@@ -26,15 +62,21 @@ contains
     dim_index = dim + 1
   end function dim_index
 
-  subroutine select_slab(dset, offset, counts, file_space, mem_space)
+  !> The hyperslab of a dataset and a memory space of its shape; hdferr < 0
+  !> when any step failed.
+  subroutine select_slab(dset, offset, counts, file_space, mem_space, hdferr)
     integer(hid_t), intent(in) :: dset
     integer(i8), intent(in) :: offset(:), counts(:)
     integer(hid_t), intent(out) :: file_space, mem_space
-    integer :: hdferr
+    integer, intent(out) :: hdferr
+    integer :: code
+    mem_space = -1
     call h5dget_space_f(dset, file_space, hdferr)
+    if (hdferr < 0) return
     call h5sselect_hyperslab_f(file_space, H5S_SELECT_SET_F, int(offset, hsize_t), &
                                int(counts, hsize_t), hdferr)
-    call h5screate_simple_f(size(counts), int(counts, hsize_t), mem_space, hdferr)
+    call h5screate_simple_f(size(counts), int(counts, hsize_t), mem_space, code)
+    hdferr = min(hdferr, code)
   end subroutine select_slab
 
   !> UTF-8 variable-length strings: h5py reads them as str, not bytes.
@@ -45,6 +87,7 @@ contains
     call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
     call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
   end function new_text_type
+  !> A text attribute; hdferr < 0 when any step (closes included) failed.
   subroutine write_text_attribute(loc, name, value, hdferr)
     integer(hid_t), intent(in) :: loc
     character(len=*), intent(in) :: name, value
@@ -52,17 +95,21 @@ contains
     integer(hid_t) :: text_type, space, attr
     character(len=len(value)+1, kind=c_char), target :: text
     type(c_ptr), target :: pointers(1)
+    integer :: code
     text = value // c_null_char
     pointers(1) = c_loc(text)
     text_type = new_text_type()
     call h5screate_f(H5S_SCALAR_F, space, hdferr)
-    call h5acreate_f(loc, name, text_type, space, attr, hdferr)
+    if (hdferr >= 0) call h5acreate_f(loc, name, text_type, space, attr, hdferr)
     if (hdferr >= 0) then
       call h5awrite_f(attr, text_type, c_loc(pointers), hdferr)
-      call h5aclose_f(attr, hdferr)
+      call h5aclose_f(attr, code)
+      hdferr = min(hdferr, code)
     end if
-    call h5sclose_f(space, hdferr)
-    call h5tclose_f(text_type, hdferr)
+    call h5sclose_f(space, code)
+    hdferr = min(hdferr, code)
+    call h5tclose_f(text_type, code)
+    hdferr = min(hdferr, code)
   end subroutine write_text_attribute
 
   !> Per-case text (method, excitation kind) is fixed-length: variable-length
@@ -75,6 +122,18 @@ contains
     call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
     call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
   end function fixed_text_type
+
+  !> The name of an open dataset ('/summary/theta_max'), for messages.
+  subroutine dataset_name(dset, name)
+    integer(hid_t), intent(in) :: dset
+    character(len=:), allocatable, intent(out) :: name
+    character(len=256) :: buffer
+    integer(size_t) :: length
+    integer :: hdferr
+    call h5iget_name_f(dset, buffer, int(len(buffer), size_t), length, hdferr)
+    name = 'a dataset'
+    if (hdferr >= 0 .and. length > 0) name = buffer(:min(int(length), len(buffer)))
+  end subroutine dataset_name
 
   subroutine write_text_slab(path, dset, values, offset, err)
     character(len=*), intent(in) :: path           !< the file, for messages
@@ -118,12 +177,21 @@ contains
     integer(i8), intent(in) :: offset(:), counts(:)
     type(error_t), intent(inout) :: err
     integer(hid_t) :: file_space, mem_space
-    integer :: hdferr
+    integer :: hdferr, code
+    character(len=:), allocatable :: name, reason
     if (err%failed()) return
-    call select_slab(dset, offset, counts, file_space, mem_space)
-    call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_output, path // ': cannot write data (disk full?)')
-    call h5sclose_f(file_space, hdferr)
-    call h5sclose_f(mem_space, hdferr)
+    call select_slab(dset, offset, counts, file_space, mem_space, hdferr)
+    if (hdferr >= 0) call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr < 0) call hdf5_reason(reason)        ! now: the next HDF5 call clears HDF5's record of it
+    call h5sclose_f(file_space, code)
+    if (code < 0 .and. hdferr >= 0) call hdf5_reason(reason)
+    hdferr = min(hdferr, code)
+    call h5sclose_f(mem_space, code)
+    if (code < 0 .and. hdferr >= 0) call hdf5_reason(reason)
+    hdferr = min(hdferr, code)
+    if (hdferr < 0) then
+      call dataset_name(dset, name)
+      call set_error(err, err_output, path // ': cannot write ' // name // ': ' // reason)
+    end if
   end subroutine write_slab
 end module ellroll_hdf5_common

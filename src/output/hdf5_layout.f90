@@ -10,7 +10,7 @@ module ellroll_hdf5_layout
   use h5ds, only: h5dsset_scale_f, h5dsattach_scale_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
-  use ellroll_hdf5_common, only: dim_index, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
+  use ellroll_hdf5_common, only: hdf5_reason, dim_index, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
       write_int_slab
   implicit none
   private
@@ -35,6 +35,8 @@ module ellroll_hdf5_layout
     procedure :: write_reals
     procedure :: write_ints
     procedure :: write_texts
+    procedure :: close_dataset
+    procedure :: close_group
   end type layout_t
 
 contains
@@ -44,8 +46,11 @@ contains
     class(layout_t), intent(inout) :: self
     integer, intent(in) :: code
     character(len=*), intent(in) :: what
-    if (code < 0 .and. .not. self%err%failed()) &
-      call set_error(self%err, err_output, self%path // ': cannot ' // what // ' (HDF5 error)')
+    character(len=:), allocatable :: reason
+    if (code < 0 .and. .not. self%err%failed()) then
+      call hdf5_reason(reason)
+      call set_error(self%err, err_output, self%path // ': cannot ' // what // ': ' // reason)
+    end if
   end subroutine check
 
   integer(hid_t) function new_group(self, name) result(id)
@@ -79,33 +84,43 @@ contains
     integer(i8), intent(in), optional :: chunk(:)
     logical, intent(in), optional :: in_place
     integer(hid_t) :: space, dcpl
-    integer :: hdferr, closed
+    integer :: hdferr
     real(wp), target :: fill
     fill = ieee_value(fill, ieee_quiet_nan)
     dset = -1
     if (self%err%failed()) return
     call h5screate_simple_f(size(dims), int(dims, hsize_t), space, hdferr)
+    call self%check(hdferr, 'create a dataspace')
     call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+    call self%check(hdferr, 'create a property list')
     call h5pset_fill_value_f(dcpl, H5T_NATIVE_DOUBLE, c_loc(fill), hdferr)
+    call self%check(hdferr, 'set a fill value')
     if (present(chunk)) then
       call h5pset_chunk_f(dcpl, size(chunk), int(chunk, hsize_t), hdferr)
-      ! off by default: trajectories shrink by some 15 % and deflating them
+      call self%check(hdferr, 'set a chunk size')
+      ! off by default: trajectories shrink by some 20 % and deflating them
       ! in the single writer took as long as integrating them
       if (self%deflate_level > 0) then
         call h5pset_shuffle_f(dcpl, hdferr)
+        call self%check(hdferr, 'set the shuffle filter')
         call h5pset_deflate_f(dcpl, self%deflate_level, hdferr)
+        call self%check(hdferr, 'set the deflate filter')
       end if
     end if
     if (present(in_place)) then
       if (in_place) then
         call h5pset_alloc_time_f(dcpl, H5D_ALLOC_TIME_EARLY_F, hdferr)
+        call self%check(hdferr, 'set an allocation time')
         call h5pset_fill_time_f(dcpl, H5D_FILL_TIME_NEVER_F, hdferr)
+        call self%check(hdferr, 'set a fill time')
       end if
     end if
-    call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
-    call h5pclose_f(dcpl, closed)
-    call h5sclose_f(space, closed)
+    if (.not. self%err%failed()) call h5dcreate_f(loc, name, H5T_NATIVE_DOUBLE, space, dset, hdferr, dcpl_id=dcpl)
     call self%check(hdferr, 'create dataset ' // name)
+    call h5pclose_f(dcpl, hdferr)
+    call self%check(hdferr, 'close a property list')
+    call h5sclose_f(space, hdferr)
+    call self%check(hdferr, 'close a dataspace')
     call describe(self, dset, units, description)
   end function real_dataset
 
@@ -116,16 +131,23 @@ contains
     integer(i8), intent(in) :: n
     integer(i8), intent(in), optional, target :: fill
     integer(hid_t) :: space, dcpl
-    integer :: hdferr, closed
+    integer :: hdferr
     dset = -1
     if (self%err%failed()) return
     call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+    call self%check(hdferr, 'create a dataspace')
     call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
-    if (present(fill)) call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(fill), hdferr)
-    call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
-    call h5pclose_f(dcpl, closed)
-    call h5sclose_f(space, closed)
+    call self%check(hdferr, 'create a property list')
+    if (present(fill)) then
+      call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(fill), hdferr)
+      call self%check(hdferr, 'set a fill value')
+    end if
+    if (.not. self%err%failed()) call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
     call self%check(hdferr, 'create dataset ' // name)
+    call h5pclose_f(dcpl, hdferr)
+    call self%check(hdferr, 'close a property list')
+    call h5sclose_f(space, hdferr)
+    call self%check(hdferr, 'close a dataspace')
     call describe(self, dset, units, description)
   end function int_dataset
 
@@ -135,15 +157,18 @@ contains
     character(len=*), intent(in) :: name, description
     integer(i8), intent(in) :: n
     integer(hid_t) :: space, text_type
-    integer :: hdferr, closed
+    integer :: hdferr
     dset = -1
     if (self%err%failed()) return
     call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
+    call self%check(hdferr, 'create a dataspace')
     text_type = fixed_text_type()
-    call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
-    call h5tclose_f(text_type, closed)
-    call h5sclose_f(space, closed)
+    if (.not. self%err%failed()) call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
     call self%check(hdferr, 'create dataset ' // name)
+    call h5tclose_f(text_type, hdferr)
+    call self%check(hdferr, 'close a datatype')
+    call h5sclose_f(space, hdferr)
+    call self%check(hdferr, 'close a dataspace')
     call describe(self, dset, '1', description)
     ! netCDF's marker of UTF-8 text in a fixed-width character array: xarray
     ! gives str (h5py gives bytes; .asstr() decodes them)
@@ -178,6 +203,26 @@ contains
     call h5dsset_scale_f(dset, hdferr, name)
     call self%check(hdferr, 'make ' // name // ' a dimension scale')
   end subroutine make_scale
+
+  !> Close a dataset the layout made (its data written then, where HDF5
+  !> held it back), the failure recorded.
+  subroutine close_dataset(self, dset)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: dset
+    integer :: hdferr
+    if (dset < 0) return
+    call h5dclose_f(dset, hdferr)
+    call self%check(hdferr, 'close a dataset')
+  end subroutine close_dataset
+
+  subroutine close_group(self, group)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: group
+    integer :: hdferr
+    if (group < 0) return
+    call h5gclose_f(group, hdferr)
+    call self%check(hdferr, 'close a group')
+  end subroutine close_group
 
   subroutine write_reals(self, dset, values, offset, counts)
     class(layout_t), intent(inout) :: self

@@ -11,7 +11,7 @@ module ellroll_hdf5_reader
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_hdf5_common, only: select_slab, new_text_type, fixed_text_type, text_width
+  use ellroll_hdf5_common, only: note_failed_close, select_slab, new_text_type, fixed_text_type, text_width
   implicit none
   private
 
@@ -81,6 +81,7 @@ contains
     integer :: hdferr
     if (self%file < 0) return
     call h5fclose_f(self%file, hdferr)
+    if (hdferr < 0) call note_failed_close()       ! (a file only read: nothing is lost)
     self%file = -1
   end subroutine close_input
 
@@ -258,9 +259,10 @@ contains
       call set_error(err, err_input, self%path // ': no dataset /' // name)
       return
     end if
-    call select_slab(dset, offset, counts, file_space, mem_space)
+    call select_slab(dset, offset, counts, file_space, mem_space, hdferr)
     target_buffer = buffer
-    call h5dread_f(dset, mem_type, target_buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr >= 0) call h5dread_f(dset, mem_type, target_buffer, hdferr, mem_space_id=mem_space, &
+                                    file_space_id=file_space)
     if (hdferr < 0) call set_error(err, err_input, self%path // ': cannot read /' // name)
     call h5sclose_f(file_space, hdferr)
     call h5sclose_f(mem_space, hdferr)

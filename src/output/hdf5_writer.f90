@@ -21,7 +21,7 @@ module ellroll_hdf5_writer
   use ellroll_system, only: close_descriptor, system_error_text
   use ellroll_files, only: create_new_file, descriptor_is_at, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
-  use ellroll_hdf5_common, only: select_slab, write_text_slab, write_real_slab, write_int_slab
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
   implicit none
   private
@@ -133,7 +133,6 @@ contains
     type(layout_t) :: lay
     integer(i8) :: address(field_count)
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
-    integer :: hdferr
 
     lay%path = path
     if (present(compression)) lay%deflate_level = compression
@@ -152,9 +151,9 @@ contains
     call case_group(lay, 'summary', indices, summary_record(case_result_t()), coords)
     self%row_groups = [spread('case    ', 1, size(case_record(template))), &
                        spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
-    call h5dclose_f(lay%time_scale, hdferr)
-    call h5dclose_f(lay%xyz_scale, hdferr)
-    call h5dclose_f(lay%mode_scale, hdferr)
+    call lay%close_dataset(lay%time_scale)
+    call lay%close_dataset(lay%xyz_scale)
+    call lay%close_dataset(lay%mode_scale)
     if (lay%err%failed()) then
       if (.not. err%failed()) err = lay%err
       return
@@ -177,9 +176,19 @@ contains
     ! the 1.10 format indexes each fixed-size chunked dataset with a compact
     ! fixed array instead of a B-tree: memory stays flat as cases are added
     call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
+    call lay%check(hdferr, 'create a property list')
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
+    call lay%check(hdferr, 'set the file format')
+    ! no sieve buffer: a write goes to the file in its own call, so that a
+    ! failed write is told by that call (a buffer flushed later reported into
+    ! nothing that was checked)
+    call h5pset_sieve_buf_size_f(fapl, 0_size_t, hdferr)
+    call lay%check(hdferr, 'set the sieve buffer')
     call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
+    call lay%check(hdferr, 'create a property list')
     if (user_block) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
+    call lay%check(hdferr, 'set the user block')
+    if (lay%err%failed()) return
     ! the file is made where nothing is, never through a link (HDF5 would
     ! truncate whatever is there); HDF5 then lays out that very file
     own = create_new_file(lay%path)
@@ -188,10 +197,11 @@ contains
       return
     end if
     call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
-    ! closes report into their own code: hdferr keeps the creation's
-    call h5pclose_f(fapl, closed)
-    call h5pclose_f(fcpl, closed)
     call lay%check(hdferr, 'create the file')
+    call h5pclose_f(fapl, hdferr)
+    call lay%check(hdferr, 'close a property list')
+    call h5pclose_f(fcpl, hdferr)
+    call lay%check(hdferr, 'close a property list')
     if (.not. lay%err%failed()) then
       if (.not. descriptor_is_at(own, lay%path)) &
         call set_error(lay%err, err_output, lay%path // ': was replaced while it was being created')
@@ -246,7 +256,7 @@ contains
     type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: group, scale, dset
     integer(i8) :: n_cases
-    integer :: k, hdferr
+    integer :: k
     n_cases = size(indices, kind=i8)
     group = lay%new_group(name)
     scale = case_scale(lay, group, indices)
@@ -273,10 +283,10 @@ contains
         call lay%attach(dset, scale, 0)
       end select
       call name_coordinates(lay, dset, coords)
-      call h5dclose_f(dset, hdferr)
+      call lay%close_dataset(dset)
     end do
-    call h5dclose_f(scale, hdferr)
-    call h5gclose_f(group, hdferr)
+    call lay%close_dataset(scale)
+    call lay%close_group(group)
   end subroutine case_group
 
   !> The group's own 'case' scale, holding the global case indices.
@@ -307,10 +317,11 @@ contains
     end do
     call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
                                  int(status_count, size_t), hdferr)
+    call lay%check(hdferr, 'write attribute flag_values')
     call lay%text_attribute(dset, 'flag_meanings', meanings)
     call lay%attach(dset, scale, 0)
     call name_coordinates(lay, dset, coords)
-    call h5dclose_f(dset, hdferr)
+    call lay%close_dataset(dset)
   end subroutine create_status
 
   !> The varied inputs as datasets of the group, on its case dimension
@@ -321,7 +332,7 @@ contains
     type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: dset
     integer(i8) :: n
-    integer :: k, hdferr
+    integer :: k
     do k = 1, size(coords)
       if (lay%err%failed()) return
       if (allocated(coords(k)%values)) then
@@ -334,7 +345,7 @@ contains
         call lay%write_texts(dset, coords(k)%texts, 0_i8)
       end if
       call lay%attach(dset, scale, 0)
-      call h5dclose_f(dset, hdferr)
+      call lay%close_dataset(dset)
     end do
   end subroutine coordinate_datasets
 
@@ -366,7 +377,7 @@ contains
     integer(hid_t) :: group, scale, dset
     integer(i8) :: chunk_samples, n_cases
     integer(i8), allocatable :: dims(:)
-    integer :: f, hdferr
+    integer :: f
     address = -1
     n_cases = size(indices, kind=i8)
     group = lay%new_group('trajectory')
@@ -397,10 +408,10 @@ contains
       call lay%attach(dset, lay%time_scale, 1)
       if (field_ncomp(f) == 3) call lay%attach(dset, lay%xyz_scale, 2)
       call name_coordinates(lay, dset, coords)
-      call h5dclose_f(dset, hdferr)
+      call lay%close_dataset(dset)
     end do
-    call h5dclose_f(scale, hdferr)
-    call h5gclose_f(group, hdferr)
+    call lay%close_dataset(scale)
+    call lay%close_group(group)
   end subroutine trajectory_group
 
   !> Store one case's inputs, trajectories and summary at its slot icase
@@ -675,6 +686,7 @@ contains
     class(h5_output_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
     integer :: hdferr, k
+    character(len=:), allocatable :: reason
     if (self%file < 0) return
     call self%in_place%close(err)
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
@@ -686,15 +698,24 @@ contains
     if (allocated(self%open_ids)) then
       do k = 1, size(self%open_ids)
         call h5dclose_f(self%open_ids(k), hdferr)
+        if (hdferr < 0 .and. .not. err%failed()) then
+          call hdf5_reason(reason)
+          call set_error(err, err_output, self%path // ': cannot write /' // trim(self%open_names(k)) // ': ' // reason)
+        end if
       end do
       deallocate (self%open_names, self%open_ids)
     end if
     call h5fflush_f(self%file, H5F_SCOPE_GLOBAL_F, hdferr)
-    if (hdferr < 0 .and. .not. err%failed()) &
-      call set_error(err, err_output, self%path // ': cannot flush the file (disk full?)')
+    if (hdferr < 0 .and. .not. err%failed()) then
+      call hdf5_reason(reason)
+      call set_error(err, err_output, self%path // ': cannot write the file''s metadata: ' // reason)
+    end if
     call h5fclose_f(self%file, hdferr)
-    if (hdferr < 0 .and. .not. err%failed()) &
-      call set_error(err, err_output, self%path // ': cannot close the file (disk full?)')
+    if (hdferr < 0) call note_failed_close()
+    if (hdferr < 0 .and. .not. err%failed()) then
+      call hdf5_reason(reason)
+      call set_error(err, err_output, self%path // ': cannot close the file: ' // reason)
+    end if
     self%file = -1
   end subroutine close_file
 
@@ -708,6 +729,7 @@ contains
     type(error_t), intent(inout) :: err
     integer :: hdferr, closed, k
     integer(hid_t) :: dapl
+    character(len=:), allocatable :: reason
     ok = .false.
     if (err%failed()) return
     if (.not. allocated(self%open_names)) allocate (self%open_names(0), self%open_ids(0))
@@ -721,11 +743,13 @@ contains
     ! no chunk cache: each window writes whole chunks (one case each) once,
     ! so caching them only adds a copy per chunk
     call h5pcreate_f(H5P_DATASET_ACCESS_F, dapl, hdferr)
-    call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
-    call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
+    if (hdferr >= 0) call h5pset_chunk_cache_f(dapl, 0_size_t, 0_size_t, 1.0, hdferr)
+    if (hdferr >= 0) call h5dopen_f(self%file, name, dset, hdferr, dapl_id=dapl)
     call h5pclose_f(dapl, closed)
+    hdferr = min(hdferr, closed)
     if (hdferr < 0) then
-      call set_error(err, err_output, self%path // ': cannot open dataset /' // name)
+      call hdf5_reason(reason)
+      call set_error(err, err_output, self%path // ': cannot open dataset /' // name // ': ' // reason)
       return
     end if
     self%open_names = [character(len=64) :: self%open_names, name]

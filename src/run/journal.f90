@@ -67,6 +67,7 @@ module ellroll_journal
     procedure :: fingerprint
     procedure :: reserve
     procedure :: write_records
+    procedure :: holds_records
     procedure :: close => close_journal
   end type journal_t
 
@@ -272,6 +273,12 @@ contains
     if (code /= 0) call set_error(err, err_output, self%path // ': cannot write the journal: ' // &
                                   system_error_text(code))
   end subroutine write_records
+
+  !> Whether the journal holds (or has places taken for) any record.
+  pure logical function holds_records(self)
+    class(journal_t), intent(in) :: self
+    holds_records = self%next_position > header_bytes + 1
+  end function holds_records
 
   !> Close the journal (it stays: ellroll_output_files removes it when the
   !> output is in place); err reports a failed close (a delayed write error)

@@ -231,8 +231,8 @@ contains
     case (work_journal)
       ours = n == 0 .or. head(1:min(n, len(journal_magic))) == journal_magic(:min(n, len(journal_magic)))
     case default
-      ours = n == 0 .or. head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. &
-             head(1:min(n, 8)) == label(:min(n, 8))
+      ours = head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. head(1:min(n, 8)) == label(:min(n, 8))
+      if (n >= 520) ours = ours .or. (verify(head(:512), char(0)) == 0 .and. head(513:520) == hdf5_signature)
     end select
   end function is_ellroll_file
 end module ellroll_output_files

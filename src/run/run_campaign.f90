@@ -60,6 +60,7 @@ module ellroll_run_campaign
     integer(i8) :: n_slots = 0
     logical :: use_batches = .false.
     integer(i8) :: block_slots = 1             !< slots a block of the loop holds
+    logical :: resumed = .false.               !< a resume: the killed run's files are kept whatever happens
     logical, allocatable :: done(:)
     type(h5_output_t) :: out
     type(journal_t) :: journal
@@ -391,7 +392,7 @@ contains
     if (unreadable%failed()) return
     call existing%text_attribute('campaign_id', id)
     call existing%text_attribute('shard', spec)
-    status = existing%int_column('summary/status', unreadable)
+    allocate (status, source=existing%int_column('summary/status', unreadable))
     call existing%close()
     holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
             spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
@@ -423,6 +424,7 @@ contains
     header = journal_header_t(campaign_id=campaign_id(inp), n_slots=run%n_slots, n_samples=inp%plan%n_samples, &
                               shard=opts%shard, fields=inp%plan%fields, &
                               in_place=written_in_place(inp%plan%fields, inp%plan%compression))
+    run%resumed = resume
     if (resume) then
       call open_for_resume(run%journal, files, header, journal_places, err)
       if (err%failed()) return
@@ -433,11 +435,7 @@ contains
     call run%out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, &
                         inp%campaign%coordinates(globals), err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
-    if (err%failed()) then
-      call run%out%close(err)
-      if (allocated(run%out%path)) call files%discard(run%out%path, work_partial, err)
-      return
-    end if
+    if (err%failed()) return          ! (abandon closes the file and removes it)
     allocate (run%done(0:run%n_slots - 1))
     run%done = .false.
     if (resume) then
@@ -445,7 +443,6 @@ contains
     else
       call run%journal%create(files%journal, header, err)
     end if
-    if (err%failed()) call abandon(run, files, err)
   end subroutine open_outputs
 
   !> Invalid cases skipped: recorded, never integrated.
@@ -679,14 +676,25 @@ contains
     global_index = self%shard(1) + slot * self%shard(2)
   end function global_index
 
-  !> After a failure, keep what is finished, and say where it is.
+  !> After a failure, keep what is finished, and say where it is; a run
+  !> that finished nothing (and is no resume) leaves no file behind.
   subroutine abandon(run, files, err)
     type(run_state_t), intent(inout) :: run
     type(output_files_t), intent(in) :: files
     type(error_t), intent(inout) :: err
+    type(error_t) :: cleanup
+    logical :: kept
+    kept = run%journal%holds_records() .or. run%resumed
     call keep_finished(run, files)
-    err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so far; ' // &
-                  'fix the cause and run again with --resume'
+    if (kept) then
+      err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
+                    'far; fix the cause and run again with --resume'
+    else
+      call files%discard(files%partial, work_partial, cleanup)
+      call files%discard(files%resumed, work_partial, cleanup)
+      call files%discard(files%journal, work_journal, cleanup)
+      if (cleanup%failed()) err%message = err%message // achar(10) // '  ' // cleanup%message
+    end if
   end subroutine abandon
 
   !> Keep what is finished: the journal holds every case done so far, and
