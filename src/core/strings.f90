@@ -14,6 +14,9 @@ module ellroll_strings
   private
 
   public :: lower, itoa, join, format_real, real_text, text_hash
+  ! the lengths of itoa and format_real, for a caller's own result length
+  ! (gfortran 12 cannot nest len(itoa(x)) of a derived type's component there)
+  public :: decimal_width, real_text_length
 
   !> An integer as text, without blanks.
   interface itoa

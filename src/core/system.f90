@@ -8,7 +8,7 @@ module ellroll_system
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
-      system_error_text
+      system_error_text, open_regular_file, read_text, file_type_words
   public :: catch_stop_signals, stop_signal, signal_name, exit_now
 
   interface
@@ -87,6 +87,19 @@ module ellroll_system
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
     end function c_folder_write_error
+    integer(c_int) function c_open_regular_file(path, fd, bytes, file_type) bind(c, name='ellroll_open_regular_file')
+      import :: c_int, c_char, c_int64_t
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), intent(out) :: fd
+      integer(c_int64_t), intent(out) :: bytes
+      character(kind=c_char), intent(out) :: file_type
+    end function c_open_regular_file
+    integer(c_int) function c_read_text(fd, text, bytes) bind(c, name='ellroll_read_text')
+      import :: c_int, c_char, c_int64_t
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(out) :: text(*)
+      integer(c_int64_t), value :: bytes
+    end function c_read_text
     pure subroutine c_error_text(code, text, size) bind(c, name='ellroll_error_text')
       import :: c_int, c_char, c_size_t
       integer(c_int), value :: code
@@ -163,6 +176,43 @@ contains
     character(len=*), intent(in) :: path
     fd = c_open_descriptor(path // c_null_char, 1_c_int)
   end function open_for_writing
+
+  !> A descriptor of `path` open for reading, when it is a regular file
+  !> (links followed), and its size: 0; an errno value; or -1 when it is
+  !> something else, which `file_type` names (file_type_words). A FIFO or a
+  !> device is not opened: a FIFO would wait for a writer.
+  integer function open_regular_file(path, fd, bytes, file_type) result(code)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: fd
+    integer(i8), intent(out) :: bytes
+    character, intent(out) :: file_type
+    integer(c_int) :: descriptor
+    code = c_open_regular_file(path // c_null_char, descriptor, bytes, file_type)
+    fd = descriptor
+  end function open_regular_file
+
+  !> What a file_type of open_regular_file is, in words.
+  pure function file_type_words(file_type) result(words)
+    character, intent(in) :: file_type
+    character(len=22) :: words
+    select case (file_type)
+    case ('d'); words = 'a folder'
+    case ('p'); words = 'a FIFO (named pipe)'
+    case ('c'); words = 'a character device'
+    case ('b'); words = 'a block device'
+    case ('s'); words = 'a socket'
+    case ('r'); words = 'a regular file'
+    case default; words = 'not a regular file'
+    end select
+  end function file_type_words
+
+  !> The first len(text) bytes of the file open as fd: 0, an errno value,
+  !> or -1 where the file ends first.
+  integer function read_text(fd, text) result(code)
+    integer, intent(in) :: fd
+    character(len=*), intent(out) :: text
+    code = c_read_text(int(fd, c_int), text, int(len(text), c_int64_t))
+  end function read_text
 
   !> The same, for reading.
   integer function open_for_reading(path) result(fd)

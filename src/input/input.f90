@@ -482,7 +482,7 @@ contains
         return
       end if
       if (.not. record_files(rd, gi, v%record_file, paths)) return
-      call load_ground_motion(paths, cs%t_end, times, values, reason)
+      call load_ground_motion(paths, cs%t_end, 1.0_wp, times, values, reason)
       if (len(reason) > 0) then
         call rd%fail_value(gi, 'record_file', reason)
         return

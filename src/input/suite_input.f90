@@ -95,7 +95,7 @@ contains
     integer :: k
     allocate (records(size(specs)))
     do k = 1, size(specs)
-      call load_ground_motion(specs(k)%files, base%t_end, times, values, reason)
+      call load_ground_motion(specs(k)%files, base%t_end, specs(k)%factor, times, values, reason)
       if (len(reason) > 0) then
         call rd%fail_value(specs(k)%group, 'record_file', reason)
         return
