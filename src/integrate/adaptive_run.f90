@@ -100,7 +100,7 @@ contains
         res%status = status_pending
         return
       end if
-      h = last_step_clipped(t, h, cs%t_end)
+      h = last_step_clipped(t, h, cs%t_end, control%after_rejection)
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
       call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (integrator%error_norm > 1) then
@@ -208,11 +208,19 @@ contains
   end subroutine start_rest_search
 
   !> The step from t, shortened to end exactly at t_end when it would end
-  !> at or within round-off of it.
-  pure real(wp) function last_step_clipped(t, h, t_end) result(step)
+  !> at or within round-off of it (1e-12 t_end), or after a rejection
+  !> (after_rejection) when it would end past it: a rejected step within
+  !> 1e-12 t_end of t_end (a singular point of the equations there) would
+  !> otherwise be stretched back to t_end and tried again, unchanged, for ever.
+  pure real(wp) function last_step_clipped(t, h, t_end, after_rejection) result(step)
     real(wp), intent(in) :: t, h, t_end
+    logical, intent(in) :: after_rejection
     step = h
-    if (t + h >= t_end - 1.0e-12_wp * t_end) step = t_end - t
+    if (after_rejection) then
+      step = min(h, t_end - t)
+    else if (t + h >= t_end - 1.0e-12_wp * t_end) then
+      step = t_end - t
+    end if
   end function last_step_clipped
 
   !> h: the step to retry after a rejected attempt of size h with this
@@ -444,7 +452,7 @@ contains
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
     do while (t_at < t_until)
-      h = last_step_clipped(t_at, h, t_until)
+      h = last_step_clipped(t_at, h, t_until, control%after_rejection)
       if (h <= 16 * spacing(t_until)) return
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
       call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)

@@ -286,7 +286,7 @@ contains
         attempt = attempt + 1
         if (stop_asked(attempt)) exit
         do l = 1, lanes
-          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
+          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
         end do
         call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.

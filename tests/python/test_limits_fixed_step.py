@@ -137,3 +137,33 @@ def test_check_names_each_case_beyond_stability_and_those_end_unstable(ellroll, 
     assert listed == [4, 5, 6, 7], result.stderr
     out = run_case(ellroll, tmp_path, text, name="sweep.nml")
     assert [i for i, s in enumerate(out["status"]) if s == "unstable"] == listed
+
+
+def small_ball_text(method, dt, omega, cup=(1.0, 0.4, 0.2), start=(0.0, 0.0), t_end=2.0, interval=0.01, extra="",
+                    sweep=""):
+    a, b, c = cup
+    return (f"&geometry a = {a!r}, b = {b!r}, c = {c!r} /\n&ball radius = 0.05, weight = 100.0 /\n"
+            f"&initial x = {start[0]!r}, y = {start[1]!r}, omega = {', '.join(repr(float(w)) for w in omega)} /\n"
+            f"&integration method = '{method}', dt = {dt!r}, t_end = {t_end!r} {extra}/\n"
+            f"&output file = 'out.h5', interval = {interval!r} /\n" + sweep)
+
+
+FLAT_CUP = (1.0, 0.8, 0.01)
+
+
+@pytest.mark.parametrize("pair", ["vern9", "dop853"])
+def test_a_singular_point_within_round_off_of_t_end_ends_the_run(ellroll, ellroll_debug, tmp_path, pair):
+    """The flat cup's fit limit 5e-13 s after t_end = 1 s (vern9 with
+    t_end = 1.01 s: 'no_fit' at 1.000000000000512 s): a step that would end
+    within 1e-12 t_end of t_end is stretched to end there, and after it is
+    rejected it must not be stretched again. The case completes."""
+    text = small_ball_text(pair, 1.0, (-15.664441476396997, -3.465108540098682, -10.254719053652519), cup=FLAT_CUP,
+                           start=(0.21295101128683752, 0.025632306483354964), t_end=1.0,
+                           extra=", rtol = 1.0e-12, atol = 1.0e-14")
+    for exe in (ellroll, ellroll_debug):
+        (tmp_path / "edge.nml").write_text(text)
+        result = run(exe, "run", "edge.nml", "-q", "--overwrite", "-o", "out.h5", cwd=tmp_path, timeout=60)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / "out.h5", "r") as f:
+            assert f["summary/status"].attrs["flag_meanings"].split()[f["summary/status"][0]] == "completed"
+            assert f["summary/t_final"][0] == 1.0
