@@ -6,7 +6,8 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_pending, status_completed
+  use ellroll_exact, only: is_zero
+  use ellroll_status, only: status_pending, status_completed, status_rim
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
@@ -21,7 +22,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method
+  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, beyond_rim, slip_inside
 
   !> Step-size control of an embedded pair: Hairer's safety factor, a
   !> rejected step shrunk at most 3-fold, and after an accepted step
@@ -90,6 +91,8 @@ contains
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
     integer :: status
+    logical :: peak_inside
+    real(wp) :: passed                    ! where a slip inside a step is known
 
     t = 0
     h_max = cs%dt
@@ -111,9 +114,23 @@ contains
         call stop_in_step(integrator, run, plan, status, res)
         return
       end if
-      call record_samples_until(integrator, run, plan, t + h, obs, res)
-      if (nutation_peak_inside(y, f, y_new, f_new)) then
+      peak_inside = nutation_peak_inside(y, f, y_new, f_new)
+      if (peak_inside) then
         call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
+        if (beyond_rim(peak)) then
+          call stop_in_step(integrator, run, plan, status_rim, res, peak%t - t)
+          return
+        end if
+      end if
+      if (run%ball%mu > 0) then
+        call slip_inside(integrator, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
+        if (status /= status_completed) then
+          call stop_in_step(integrator, run, plan, status, res, passed)
+          return
+        end if
+      end if
+      call record_samples_until(integrator, run, plan, t + h, obs, res)
+      if (peak_inside) then
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
       end if
@@ -374,37 +391,154 @@ contains
 
   !> The last attempt (in dop) crossed a limit (status): bisect on its dense
   !> output, record the output samples before the crossing, and end the
-  !> case at the last valid point.
-  subroutine stop_in_step(dop, run, plan, status, res)
+  !> case at the last valid point. invalid: the offset from the step's
+  !> start known to be past the limit (default: its end).
+  subroutine stop_in_step(dop, run, plan, status, res, invalid)
     class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
+    real(wp), intent(in), optional :: invalid
     type(limit_search_t) :: search
-    call locate_crossing(dop, run, status, search, res%n_rhs)
+    call locate_crossing(dop, run, status, search, res%n_rhs, invalid)
     call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
     call end_at_crossing(dop, run, search, res)
     res%n_steps = res%n_steps + 1
   end subroutine stop_in_step
 
   !> Bisect the dense output of the last attempt (in dop), which crossed a
-  !> limit (status) at its end, for where the crossing lies.
-  subroutine locate_crossing(dop, run, status, search, n_rhs)
+  !> limit (status) at its end or at the offset invalid, for where the
+  !> crossing lies.
+  subroutine locate_crossing(dop, run, status, search, n_rhs, invalid)
     class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: status
     type(limit_search_t), intent(out) :: search
     integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(in), optional :: invalid
     type(observation_t) :: obs
     real(wp) :: offset
-    call search%begin(dop%t_old, dop%h, status)
+    if (present(invalid)) then
+      call search%begin(dop%t_old, invalid, status)
+    else
+      call search%begin(dop%t_old, dop%h, status)
+    end if
     do while (.not. search%done())
       offset = search%trial()
       call dense_state(dop, run, offset / dop%h, .true., obs, n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
   end subroutine locate_crossing
+
+  !> Whether a maximum of Theta inside a step lies at or past the rim
+  !> (n_z <= 0): the step's ends are inside, the path between is not. Its
+  !> time is where the step's dense output is known to be past the rim.
+  pure logical function beyond_rim(peak)
+    type(nutation_peak_t), intent(in) :: peak
+    beyond_rim = .not. peak%normal_z > 0
+  end function beyond_rim
+
+  !> With a friction limit (mu > 0): whether the path inside the last
+  !> attempt (in dop), from (y, f) at its start to its end (friction_end
+  !> needed there), both inside, passes the limit. The friction needed is
+  !> smooth along the path, and where a slip only grazes the limit its
+  !> maximum is narrow: a step can begin and end below the limit and pass it
+  !> between. The friction is evaluated on the dense output at 1e-3, 1/4,
+  !> 1/2, 3/4 and 1 - 1e-3 of the step; each maximum among these and the
+  !> ends that lies inside (in time order) is refined by successive
+  !> parabolas (golden sections where a parabola's vertex falls outside its
+  !> bracket) to 1e-6 of the step. (A maximum within 1e-3 of the step from
+  !> an end shows as a rise to it at the end.) status: status_completed, or
+  !> the limit met where the dense output passes it, at offset from the
+  !> step's start (for locate_crossing). Its RHS calls count in n_rhs.
+  subroutine slip_inside(dop, run, y, f, friction_end, status, offset, n_rhs)
+    class(embedded_pair_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: y(state_size), f(state_size), friction_end
+    integer, intent(out) :: status
+    real(wp), intent(out) :: offset
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), parameter :: golden = 0.381966011250105_wp, resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
+    real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+    integer, parameter :: max_trials = 60
+    type(observation_t) :: obs
+    real(wp) :: value(0:6)
+    integer :: i
+    status = status_completed
+    offset = 0
+    call observe(run%ball, dop%t_old, y, f, obs)
+    value(0) = obs%friction_needed
+    value(6) = friction_end
+    do i = 1, 5
+      if (trial(theta(i), value(i))) return
+    end do
+    do i = 1, 5
+      if (value(i) >= value(i - 1) .and. value(i) >= value(i + 1)) then
+        if (maximum_passes(theta(i - 1), theta(i), theta(i + 1), value(i - 1), value(i), value(i + 1))) return
+      end if
+    end do
+  contains
+    !> The friction needed at theta; true where the dense output passes a limit there.
+    logical function trial(at, friction)
+      real(wp), intent(in) :: at
+      real(wp), intent(out) :: friction
+      call dense_state(dop, run, at, .true., obs, n_rhs)
+      friction = obs%friction_needed
+      status = limit_status(run%ball, [obs%normal, obs%omega], obs)
+      trial = status /= status_completed
+      if (trial) offset = at * dop%h
+    end function trial
+
+    !> The maximum bracketed by a < b < c (fb >= fa, fc), refined until it
+    !> passes a limit (true) or the bracket is resolution wide.
+    logical function maximum_passes(a0, b0, c0, fa0, fb0, fc0) result(passes)
+      real(wp), intent(in) :: a0, b0, c0, fa0, fb0, fc0
+      real(wp) :: a, b, c, fa, fb, fc, x, fx, numerator, denominator
+      integer :: k
+      a = a0
+      b = b0
+      c = c0
+      fa = fa0
+      fb = fb0
+      fc = fc0
+      passes = .false.
+      do k = 1, max_trials
+        if (c - a <= resolution) exit
+        ! the vertex of the parabola through the bracket
+        numerator = (b - a)**2 * (fb - fc) - (b - c)**2 * (fb - fa)
+        denominator = (b - a) * (fb - fc) - (b - c) * (fb - fa)
+        x = -1
+        if (.not. is_zero(denominator)) x = b - 0.5_wp * numerator / denominator
+        if (.not. (x > a .and. x < c) .or. abs(x - b) < 0.25_wp * resolution) then
+          if (c - b > b - a) then
+            x = b + golden * (c - b)
+          else
+            x = b - golden * (b - a)
+          end if
+        end if
+        passes = trial(x, fx)
+        if (passes) return
+        if (fx >= fb) then
+          if (x > b) then
+            a = b
+            fa = fb
+          else
+            c = b
+            fc = fb
+          end if
+          b = x
+          fb = fx
+        else if (x > b) then
+          c = x
+          fc = fx
+        else
+          a = x
+          fa = fx
+        end if
+      end do
+    end function maximum_passes
+  end subroutine slip_inside
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(dop, run, search, res)

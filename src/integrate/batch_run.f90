@@ -7,7 +7,7 @@ module ellroll_batch_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_excitation, only: excitation_none
-  use ellroll_status, only: status_pending, status_completed, status_no_fit
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
@@ -18,7 +18,7 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
+      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside
   implicit none
   private
 
@@ -250,9 +250,11 @@ contains
     real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
     real(wp) :: k(lanes, state_size, max_pair_stages)
     real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
-    type(nutation_peak_t) :: peak
+    type(nutation_peak_t) :: peaks(lanes)
     type(step_control_t) :: control(lanes)
     logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
+    integer :: inside_status(lanes)
+    real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
     integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
     integer(i8) :: attempt
     integer :: i
@@ -309,7 +311,6 @@ contains
           f_new(l, :) = f_lane
         end do
         call lanes_observe(balls, y_new, f_new, out)
-        call summary%add(out, t + h, accepted .and. out%status == status_completed)
         ! a step with a sample, a maximum of Theta or a crossed limit inside
         ! needs its dense output: the stages for all lanes at once
         sample_inside = .false.
@@ -319,11 +320,39 @@ contains
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. out%status /= status_completed)
+        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
         if (any(dense)) call lanes_pair_dense_stages(dop(1), balls, y, h, k)
+        ! the path past a limit inside the step (past the rim at a maximum of
+        ! Theta, or slipping): the step's end is not the case's
+        inside_status = status_completed
         do l = 1, n
           if (.not. accepted(l)) cycle
           if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+          if (out%status(l) /= status_completed) cycle
+          if (peak_inside(l)) then
+            call locate_nutation_peak(dop(l), run(l)%ball, peaks(l), results(l)%n_rhs)
+            if (beyond_rim(peaks(l))) then
+              inside_status(l) = status_rim
+              passed(l) = peaks(l)%t - t(l)
+              cycle
+            end if
+          end if
+          if (balls%mu(l) > 0) then
+            y_lane = y(l, :)
+            f_lane = f(l, :)
+            call slip_inside(dop(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
+                             results(l)%n_rhs)
+          end if
+        end do
+        call summary%add(out, t + h, accepted .and. out%status == status_completed .and. inside_status == status_completed)
+        do l = 1, n
+          if (.not. accepted(l)) cycle
+          if (inside_status(l) /= status_completed) then
+            call summary%store(l, run(l), results(l))
+            call stop_in_step(dop(l), run(l), plan, inside_status(l), results(l), passed(l))
+            active(l) = .false.
+            cycle
+          end if
           if (out%status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
             call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
@@ -333,9 +362,8 @@ contains
           if (sample_inside(l)) call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
           if (peak_inside(l)) then
-            call locate_nutation_peak(dop(l), run(l)%ball, peak, results(l)%n_rhs)
-            call run(l)%maxima%add_peak(peak%t)
-            call summary%note_nutation(l, peak%tan_nutation, peak%lateral, peak%normal_z)
+            call run(l)%maxima%add_peak(peaks(l)%t)
+            call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
           end if
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1
