@@ -7,7 +7,7 @@ module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_status, only: status_pending, status_completed, status_rim
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
@@ -554,26 +554,36 @@ contains
   !> The exact flow from a fixed-step method's state y_from at t_from,
   !> followed with reference_pair at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
-  !> case ends there (res%status, res%t_final), and the flow's step ends
-  !> after t_tracked (the method's last state) are added to the summary.
-  !> The flow can stay inside up to t_until, or its steps shrink to
-  !> round-off: met = .false., and nothing is added to the summary. Its
-  !> RHS calls count in the case's n_rhs (n_rejected is the adaptive
-  !> method's own).
-  subroutine follow_flow_to_limit(run, t_from, y_from, t_tracked, t_until, res, met)
+  !> case ends there (res%status, res%t_final), the flow's step ends after
+  !> t_tracked (the method's last state) are added to the summary, and so are
+  !> the output samples after t_tracked up to the end (run%next_sample, the
+  !> first of them, from the flow's dense output). Where the flow's steps
+  !> fall to the resolution of t, it has reached a singular point of the
+  !> equations, and their only one is det L = 0, where the ball stops
+  !> fitting: the fit limit's square-root singularity, so sharp there that
+  !> the margin is crossed within about 1e-15 s of it. The case ends with
+  !> 'no_fit' at the flow's last step. The flow can stay inside up to
+  !> t_until: met = .false., and nothing is added to the summary or the
+  !> samples. Its RHS calls count in the case's n_rhs (n_rejected is the
+  !> adaptive method's own).
+  subroutine follow_flow_to_limit(run, plan, t_from, y_from, t_tracked, t_until, res, met)
     type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
     class(embedded_pair_t), allocatable :: dop
     type(step_control_t) :: control
     type(limit_search_t) :: search
+    type(nutation_peak_t) :: peak
     type(observation_t) :: obs
     type(observation_t), allocatable :: untracked(:)
     real(wp), allocatable :: untracked_t(:)
-    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h
-    integer :: status, n_untracked, i
+    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed
+    integer :: status, n_untracked
+    integer(i8) :: n_recorded
     met = .false.
+    n_recorded = res%n_recorded
     allocate (dop, source=reference_pair)
     dop%rtol = reference_rtol
     dop%atol = reference_atol
@@ -586,17 +596,40 @@ contains
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
     do while (t_at < t_until)
+      if (t_until - t_at <= 16 * spacing(t_until)) exit
+      if (h <= 16 * spacing(t_until)) then          ! the fit limit's singularity (above)
+        met = .true.
+        call track_untracked()
+        res%status = status_no_fit
+        res%t_final = t_at
+        return
+      end if
       h = last_step_clipped(t_at, h, t_until, control%after_rejection)
-      if (h <= 16 * spacing(t_until)) return
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
       call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (dop%error_norm > 1) cycle
       if (status /= status_completed) then
         met = .true.
-        do i = 1, n_untracked
-          call track(run, res, untracked_t(i), untracked(i))
-        end do
+        call track_untracked()
         call locate_crossing(dop, run, status, search, res%n_rhs)
+        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(dop, run, search, res)
+        return
+      end if
+      passed = -1
+      if (nutation_peak_inside(y_at, f_at, y_new, f_new)) then
+        call locate_nutation_peak(dop, run%ball, peak, res%n_rhs)
+        if (beyond_rim(peak)) then
+          status = status_rim
+          passed = peak%t - t_at
+        end if
+      end if
+      if (passed < 0 .and. run%ball%mu > 0) call slip_inside(dop, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
+      if (status /= status_completed) then        ! the path passed a limit inside the step
+        met = .true.
+        call track_untracked()
+        call locate_crossing(dop, run, status, search, res%n_rhs, passed)
+        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
         call end_at_crossing(dop, run, search, res)
         return
       end if
@@ -612,9 +645,18 @@ contains
         n_untracked = n_untracked + 1
         untracked(n_untracked) = obs
         untracked_t(n_untracked) = t_at
+        call record_samples_until(dop, run, plan, t_at, obs, res)
       end if
       call control%accept(h, dop%error_norm, t_until - t_from)
     end do
+    res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
+  contains
+    subroutine track_untracked()
+      integer :: i
+      do i = 1, n_untracked
+        call track(run, res, untracked_t(i), untracked(i))
+      end do
+    end subroutine track_untracked
   end subroutine follow_flow_to_limit
 
   !> Record every output sample in (t_old, t_until] of the last attempt (in

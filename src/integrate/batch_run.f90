@@ -162,9 +162,9 @@ contains
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), every(lanes), step
-    logical :: accepted(lanes), inside(lanes), sample_now(lanes)
+    logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
     integer :: i
-    real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane
+    real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane, y_new_lane, f_new_lane
     integer :: l
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
@@ -185,25 +185,15 @@ contains
         call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
+        passed = .false.
+        if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
         sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
         if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, sample_now)
         do l = 1, n
           if (.not. active(l)) cycle
-          results(l)%n_rhs = results(l)%n_rhs + 4
+          if (.not. passed(l)) results(l)%n_rhs = results(l)%n_rhs + 4
           results(l)%n_steps = step
-          if (.not. accepted(l)) then
-            call samples%flush(l, results(l))
-            call summary%store(l, run(l), results(l))
-            ! the stages' own limit, which rk4_ball_step tells, is found in the approach
-            y_lane = y(l, :)
-            f_lane = f(l, :)
-            checkpoint_lane = y_older_checkpoint(l, :)
-            call end_at_limit(rk4, run(l), checkpoint_lane, step - 1, y_lane, f_lane, h(l), every(l), &
-                              merge(out%status(l), status_no_fit, out%status(l) /= status_completed), results(l))
-            active(l) = .false.
-            cycle
-          end if
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
           if (step == n_steps(l)) then
@@ -232,6 +222,42 @@ contains
         end if
       end do
     end associate
+  contains
+    !> The active lanes whose step met a limit (end_at_limit, the one-case
+    !> code on the lane): those whose case ends there leave the batch; those
+    !> whose step the flow shows inside the model, taken in pieces, go on
+    !> (accepted, their new state observed with the others'), the summary
+    !> of their pieces taken back into the lane's.
+    subroutine meet_limits()
+      type(observation_t) :: obs
+      do l = 1, b%n
+        if (.not. b%active(l) .or. accepted(l)) cycle
+        results(l)%n_rhs = results(l)%n_rhs + 4
+        results(l)%n_steps = step
+        call samples%flush(l, results(l))
+        call b%summary%store(l, b%run(l), results(l))
+        ! the stages' own limit, which rk4_ball_step tells, is found in the approach
+        y_lane = b%y(l, :)
+        f_lane = b%f(l, :)
+        checkpoint_lane = y_older_checkpoint(l, :)
+        call end_at_limit(rk4, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
+                          every(l), merge(out%status(l), status_no_fit, out%status(l) /= status_completed), &
+                          results(l), y_new_lane, f_new_lane, obs)
+        if (results(l)%status /= status_completed) then
+          b%active(l) = .false.
+          cycle
+        end if
+        passed(l) = .true.
+        y_new(l, :) = y_new_lane
+        f_new(l, :) = f_new_lane
+        call b%summary%load(l, b%run(l), results(l))
+        b%summary%theta_moved(l) = .false.       ! results(l)%theta_max holds the largest so far
+        samples%first(l) = results(l)%n_recorded + 1
+      end do
+      if (.not. any(passed)) return
+      call lanes_observe(b%balls, y_new, f_new, out)
+      accepted = accepted .or. passed
+    end subroutine meet_limits
   end subroutine fixed_step_lanes
 
   !> An embedded pair with each case's tolerances (adaptive_loop across
