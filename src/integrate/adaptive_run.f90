@@ -6,7 +6,8 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_pending, status_completed
+  use ellroll_exact, only: is_zero
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
@@ -21,7 +22,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method
+  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, beyond_rim, slip_inside
 
   !> Step-size control of an embedded pair: Hairer's safety factor, a
   !> rejected step shrunk at most 3-fold, and after an accepted step
@@ -90,6 +91,8 @@ contains
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
     integer :: status
+    logical :: peak_inside
+    real(wp) :: passed                    ! where a slip inside a step is known
 
     t = 0
     h_max = cs%dt
@@ -100,7 +103,7 @@ contains
         res%status = status_pending
         return
       end if
-      h = last_step_clipped(t, h, cs%t_end)
+      h = last_step_clipped(t, h, cs%t_end, control%after_rejection)
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
       call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (integrator%error_norm > 1) then
@@ -111,9 +114,23 @@ contains
         call stop_in_step(integrator, run, plan, status, res)
         return
       end if
-      call record_samples_until(integrator, run, plan, t + h, obs, res)
-      if (nutation_peak_inside(y, f, y_new, f_new)) then
+      peak_inside = nutation_peak_inside(y, f, y_new, f_new)
+      if (peak_inside) then
         call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
+        if (beyond_rim(peak)) then
+          call stop_in_step(integrator, run, plan, status_rim, res, peak%t - t)
+          return
+        end if
+      end if
+      if (run%ball%mu > 0) then
+        call slip_inside(integrator, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
+        if (status /= status_completed) then
+          call stop_in_step(integrator, run, plan, status, res, passed)
+          return
+        end if
+      end if
+      call record_samples_until(integrator, run, plan, t + h, obs, res)
+      if (peak_inside) then
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
       end if
@@ -208,11 +225,19 @@ contains
   end subroutine start_rest_search
 
   !> The step from t, shortened to end exactly at t_end when it would end
-  !> at or within round-off of it.
-  pure real(wp) function last_step_clipped(t, h, t_end) result(step)
+  !> at or within round-off of it (1e-12 t_end), or after a rejection
+  !> (after_rejection) when it would end past it: a rejected step within
+  !> 1e-12 t_end of t_end (a singular point of the equations there) would
+  !> otherwise be stretched back to t_end and tried again, unchanged, for ever.
+  pure real(wp) function last_step_clipped(t, h, t_end, after_rejection) result(step)
     real(wp), intent(in) :: t, h, t_end
+    logical, intent(in) :: after_rejection
     step = h
-    if (t + h >= t_end - 1.0e-12_wp * t_end) step = t_end - t
+    if (after_rejection) then
+      step = min(h, t_end - t)
+    else if (t + h >= t_end - 1.0e-12_wp * t_end) then
+      step = t_end - t
+    end if
   end function last_step_clipped
 
   !> h: the step to retry after a rejected attempt of size h with this
@@ -371,37 +396,154 @@ contains
 
   !> The last attempt (in dop) crossed a limit (status): bisect on its dense
   !> output, record the output samples before the crossing, and end the
-  !> case at the last valid point.
-  subroutine stop_in_step(dop, run, plan, status, res)
+  !> case at the last valid point. invalid: the offset from the step's
+  !> start known to be past the limit (default: its end).
+  subroutine stop_in_step(dop, run, plan, status, res, invalid)
     class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
+    real(wp), intent(in), optional :: invalid
     type(limit_search_t) :: search
-    call locate_crossing(dop, run, status, search, res%n_rhs)
+    call locate_crossing(dop, run, status, search, res%n_rhs, invalid)
     call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
     call end_at_crossing(dop, run, search, res)
     res%n_steps = res%n_steps + 1
   end subroutine stop_in_step
 
   !> Bisect the dense output of the last attempt (in dop), which crossed a
-  !> limit (status) at its end, for where the crossing lies.
-  subroutine locate_crossing(dop, run, status, search, n_rhs)
+  !> limit (status) at its end or at the offset invalid, for where the
+  !> crossing lies.
+  subroutine locate_crossing(dop, run, status, search, n_rhs, invalid)
     class(embedded_pair_t), intent(inout) :: dop
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: status
     type(limit_search_t), intent(out) :: search
     integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(in), optional :: invalid
     type(observation_t) :: obs
     real(wp) :: offset
-    call search%begin(dop%t_old, dop%h, status)
+    if (present(invalid)) then
+      call search%begin(dop%t_old, invalid, status)
+    else
+      call search%begin(dop%t_old, dop%h, status)
+    end if
     do while (.not. search%done())
       offset = search%trial()
       call dense_state(dop, run, offset / dop%h, .true., obs, n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
   end subroutine locate_crossing
+
+  !> Whether a maximum of Theta inside a step lies at or past the rim
+  !> (n_z <= 0): the step's ends are inside, the path between is not. Its
+  !> time is where the step's dense output is known to be past the rim.
+  pure logical function beyond_rim(peak)
+    type(nutation_peak_t), intent(in) :: peak
+    beyond_rim = .not. peak%normal_z > 0
+  end function beyond_rim
+
+  !> With a friction limit (mu > 0): whether the path inside the last
+  !> attempt (in dop), from (y, f) at its start to its end (friction_end
+  !> needed there), both inside, passes the limit. The friction needed is
+  !> smooth along the path, and where a slip only grazes the limit its
+  !> maximum is narrow: a step can begin and end below the limit and pass it
+  !> between. The friction is evaluated on the dense output at 1e-3, 1/4,
+  !> 1/2, 3/4 and 1 - 1e-3 of the step; each maximum among these and the
+  !> ends that lies inside (in time order) is refined by successive
+  !> parabolas (golden sections where a parabola's vertex falls outside its
+  !> bracket) to 1e-6 of the step. (A maximum within 1e-3 of the step from
+  !> an end shows as a rise to it at the end.) status: status_completed, or
+  !> the limit met where the dense output passes it, at offset from the
+  !> step's start (for locate_crossing). Its RHS calls count in n_rhs.
+  subroutine slip_inside(dop, run, y, f, friction_end, status, offset, n_rhs)
+    class(embedded_pair_t), intent(inout) :: dop
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: y(state_size), f(state_size), friction_end
+    integer, intent(out) :: status
+    real(wp), intent(out) :: offset
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), parameter :: golden = 0.381966011250105_wp, resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
+    real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+    integer, parameter :: max_trials = 60
+    type(observation_t) :: obs
+    real(wp) :: value(0:6)
+    integer :: i
+    status = status_completed
+    offset = 0
+    call observe(run%ball, dop%t_old, y, f, obs)
+    value(0) = obs%friction_needed
+    value(6) = friction_end
+    do i = 1, 5
+      if (trial(theta(i), value(i))) return
+    end do
+    do i = 1, 5
+      if (value(i) >= value(i - 1) .and. value(i) >= value(i + 1)) then
+        if (maximum_passes(theta(i - 1), theta(i), theta(i + 1), value(i - 1), value(i), value(i + 1))) return
+      end if
+    end do
+  contains
+    !> The friction needed at theta; true where the dense output passes a limit there.
+    logical function trial(at, friction)
+      real(wp), intent(in) :: at
+      real(wp), intent(out) :: friction
+      call dense_state(dop, run, at, .true., obs, n_rhs)
+      friction = obs%friction_needed
+      status = limit_status(run%ball, [obs%normal, obs%omega], obs)
+      trial = status /= status_completed
+      if (trial) offset = at * dop%h
+    end function trial
+
+    !> The maximum bracketed by a < b < c (fb >= fa, fc), refined until it
+    !> passes a limit (true) or the bracket is resolution wide.
+    logical function maximum_passes(a0, b0, c0, fa0, fb0, fc0) result(passes)
+      real(wp), intent(in) :: a0, b0, c0, fa0, fb0, fc0
+      real(wp) :: a, b, c, fa, fb, fc, x, fx, numerator, denominator
+      integer :: k
+      a = a0
+      b = b0
+      c = c0
+      fa = fa0
+      fb = fb0
+      fc = fc0
+      passes = .false.
+      do k = 1, max_trials
+        if (c - a <= resolution) exit
+        ! the vertex of the parabola through the bracket
+        numerator = (b - a)**2 * (fb - fc) - (b - c)**2 * (fb - fa)
+        denominator = (b - a) * (fb - fc) - (b - c) * (fb - fa)
+        x = -1
+        if (.not. is_zero(denominator)) x = b - 0.5_wp * numerator / denominator
+        if (.not. (x > a .and. x < c) .or. abs(x - b) < 0.25_wp * resolution) then
+          if (c - b > b - a) then
+            x = b + golden * (c - b)
+          else
+            x = b - golden * (b - a)
+          end if
+        end if
+        passes = trial(x, fx)
+        if (passes) return
+        if (fx >= fb) then
+          if (x > b) then
+            a = b
+            fa = fb
+          else
+            c = b
+            fc = fb
+          end if
+          b = x
+          fb = fx
+        else if (x > b) then
+          c = x
+          fc = fx
+        else
+          a = x
+          fa = fx
+        end if
+      end do
+    end function maximum_passes
+  end subroutine slip_inside
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(dop, run, search, res)
@@ -417,26 +559,36 @@ contains
   !> The exact flow from a fixed-step method's state y_from at t_from,
   !> followed with reference_pair at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
-  !> case ends there (res%status, res%t_final), and the flow's step ends
-  !> after t_tracked (the method's last state) are added to the summary.
-  !> The flow can stay inside up to t_until, or its steps shrink to
-  !> round-off: met = .false., and nothing is added to the summary. Its
-  !> RHS calls count in the case's n_rhs (n_rejected is the adaptive
-  !> method's own).
-  subroutine follow_flow_to_limit(run, t_from, y_from, t_tracked, t_until, res, met)
+  !> case ends there (res%status, res%t_final), the flow's step ends after
+  !> t_tracked (the method's last state) are added to the summary, and so are
+  !> the output samples after t_tracked up to the end (run%next_sample, the
+  !> first of them, from the flow's dense output). Where the flow's steps
+  !> fall to the resolution of t, it has reached a singular point of the
+  !> equations, and their only one is det L = 0, where the ball stops
+  !> fitting: the fit limit's square-root singularity, so sharp there that
+  !> the margin is crossed within about 1e-15 s of it. The case ends with
+  !> 'no_fit' at the flow's last step. The flow can stay inside up to
+  !> t_until: met = .false., and nothing is added to the summary or the
+  !> samples. Its RHS calls count in the case's n_rhs (n_rejected is the
+  !> adaptive method's own).
+  subroutine follow_flow_to_limit(run, plan, t_from, y_from, t_tracked, t_until, res, met)
     type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
     class(embedded_pair_t), allocatable :: dop
     type(step_control_t) :: control
     type(limit_search_t) :: search
+    type(nutation_peak_t) :: peak
     type(observation_t) :: obs
     type(observation_t), allocatable :: untracked(:)
     real(wp), allocatable :: untracked_t(:)
-    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h
-    integer :: status, n_untracked, i
+    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed
+    integer :: status, n_untracked
+    integer(i8) :: n_recorded
     met = .false.
+    n_recorded = res%n_recorded
     allocate (dop, source=reference_pair)
     dop%rtol = reference_rtol
     dop%atol = reference_atol
@@ -449,17 +601,40 @@ contains
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
     do while (t_at < t_until)
-      h = last_step_clipped(t_at, h, t_until)
-      if (h <= 16 * spacing(t_until)) return
+      if (t_until - t_at <= 16 * spacing(t_until)) exit
+      if (h <= 16 * spacing(t_until)) then          ! the fit limit's singularity (above)
+        met = .true.
+        call track_untracked()
+        res%status = status_no_fit
+        res%t_final = t_at
+        return
+      end if
+      h = last_step_clipped(t_at, h, t_until, control%after_rejection)
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
       call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (dop%error_norm > 1) cycle
       if (status /= status_completed) then
         met = .true.
-        do i = 1, n_untracked
-          call track(run, res, untracked_t(i), untracked(i))
-        end do
+        call track_untracked()
         call locate_crossing(dop, run, status, search, res%n_rhs)
+        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(dop, run, search, res)
+        return
+      end if
+      passed = -1
+      if (nutation_peak_inside(y_at, f_at, y_new, f_new)) then
+        call locate_nutation_peak(dop, run%ball, peak, res%n_rhs)
+        if (beyond_rim(peak)) then
+          status = status_rim
+          passed = peak%t - t_at
+        end if
+      end if
+      if (passed < 0 .and. run%ball%mu > 0) call slip_inside(dop, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
+      if (status /= status_completed) then        ! the path passed a limit inside the step
+        met = .true.
+        call track_untracked()
+        call locate_crossing(dop, run, status, search, res%n_rhs, passed)
+        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
         call end_at_crossing(dop, run, search, res)
         return
       end if
@@ -475,9 +650,18 @@ contains
         n_untracked = n_untracked + 1
         untracked(n_untracked) = obs
         untracked_t(n_untracked) = t_at
+        call record_samples_until(dop, run, plan, t_at, obs, res)
       end if
       call control%accept(h, dop%error_norm, t_until - t_from)
     end do
+    res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
+  contains
+    subroutine track_untracked()
+      integer :: i
+      do i = 1, n_untracked
+        call track(run, res, untracked_t(i), untracked(i))
+      end do
+    end subroutine track_untracked
   end subroutine follow_flow_to_limit
 
   !> Record every output sample in (t_old, t_until] of the last attempt (in

@@ -7,7 +7,7 @@ module ellroll_batch_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_excitation, only: excitation_none
-  use ellroll_status, only: status_pending, status_completed, status_no_fit
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
@@ -18,7 +18,7 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
+      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside
   implicit none
   private
 
@@ -162,9 +162,9 @@ contains
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), every(lanes), step
-    logical :: accepted(lanes), inside(lanes), sample_now(lanes)
+    logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
     integer :: i
-    real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane
+    real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane, y_new_lane, f_new_lane
     integer :: l
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
@@ -185,25 +185,15 @@ contains
         call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
+        passed = .false.
+        if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
         sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
         if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, sample_now)
         do l = 1, n
           if (.not. active(l)) cycle
-          results(l)%n_rhs = results(l)%n_rhs + 4
+          if (.not. passed(l)) results(l)%n_rhs = results(l)%n_rhs + 4
           results(l)%n_steps = step
-          if (.not. accepted(l)) then
-            call samples%flush(l, results(l))
-            call summary%store(l, run(l), results(l))
-            ! the stages' own limit, which rk4_ball_step tells, is found in the approach
-            y_lane = y(l, :)
-            f_lane = f(l, :)
-            checkpoint_lane = y_older_checkpoint(l, :)
-            call end_at_limit(rk4, run(l), checkpoint_lane, step - 1, y_lane, f_lane, h(l), every(l), &
-                              merge(out%status(l), status_no_fit, out%status(l) /= status_completed), results(l))
-            active(l) = .false.
-            cycle
-          end if
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
           if (step == n_steps(l)) then
@@ -232,6 +222,42 @@ contains
         end if
       end do
     end associate
+  contains
+    !> The active lanes whose step met a limit (end_at_limit, the one-case
+    !> code on the lane): those whose case ends there leave the batch; those
+    !> whose step the flow shows inside the model, taken in pieces, go on
+    !> (accepted, their new state observed with the others'), the summary
+    !> of their pieces taken back into the lane's.
+    subroutine meet_limits()
+      type(observation_t) :: obs
+      do l = 1, b%n
+        if (.not. b%active(l) .or. accepted(l)) cycle
+        results(l)%n_rhs = results(l)%n_rhs + 4
+        results(l)%n_steps = step
+        call samples%flush(l, results(l))
+        call b%summary%store(l, b%run(l), results(l))
+        ! the stages' own limit, which rk4_ball_step tells, is found in the approach
+        y_lane = b%y(l, :)
+        f_lane = b%f(l, :)
+        checkpoint_lane = y_older_checkpoint(l, :)
+        call end_at_limit(rk4, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
+                          every(l), merge(out%status(l), status_no_fit, out%status(l) /= status_completed), &
+                          results(l), y_new_lane, f_new_lane, obs)
+        if (results(l)%status /= status_completed) then
+          b%active(l) = .false.
+          cycle
+        end if
+        passed(l) = .true.
+        y_new(l, :) = y_new_lane
+        f_new(l, :) = f_new_lane
+        call b%summary%load(l, b%run(l), results(l))
+        b%summary%theta_moved(l) = .false.       ! results(l)%theta_max holds the largest so far
+        samples%first(l) = results(l)%n_recorded + 1
+      end do
+      if (.not. any(passed)) return
+      call lanes_observe(b%balls, y_new, f_new, out)
+      accepted = accepted .or. passed
+    end subroutine meet_limits
   end subroutine fixed_step_lanes
 
   !> An embedded pair with each case's tolerances (adaptive_loop across
@@ -250,9 +276,11 @@ contains
     real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
     real(wp) :: k(lanes, state_size, max_pair_stages)
     real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
-    type(nutation_peak_t) :: peak
+    type(nutation_peak_t) :: peaks(lanes)
     type(step_control_t) :: control(lanes)
     logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
+    integer :: inside_status(lanes)
+    real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
     integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
     integer(i8) :: attempt
     integer :: i
@@ -286,7 +314,7 @@ contains
         attempt = attempt + 1
         if (stop_asked(attempt)) exit
         do l = 1, lanes
-          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l))
+          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
         end do
         call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.
@@ -309,7 +337,6 @@ contains
           f_new(l, :) = f_lane
         end do
         call lanes_observe(balls, y_new, f_new, out)
-        call summary%add(out, t + h, accepted .and. out%status == status_completed)
         ! a step with a sample, a maximum of Theta or a crossed limit inside
         ! needs its dense output: the stages for all lanes at once
         sample_inside = .false.
@@ -319,11 +346,39 @@ contains
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. out%status /= status_completed)
+        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
         if (any(dense)) call lanes_pair_dense_stages(dop(1), balls, y, h, k)
+        ! the path past a limit inside the step (past the rim at a maximum of
+        ! Theta, or slipping): the step's end is not the case's
+        inside_status = status_completed
         do l = 1, n
           if (.not. accepted(l)) cycle
           if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+          if (out%status(l) /= status_completed) cycle
+          if (peak_inside(l)) then
+            call locate_nutation_peak(dop(l), run(l)%ball, peaks(l), results(l)%n_rhs)
+            if (beyond_rim(peaks(l))) then
+              inside_status(l) = status_rim
+              passed(l) = peaks(l)%t - t(l)
+              cycle
+            end if
+          end if
+          if (balls%mu(l) > 0) then
+            y_lane = y(l, :)
+            f_lane = f(l, :)
+            call slip_inside(dop(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
+                             results(l)%n_rhs)
+          end if
+        end do
+        call summary%add(out, t + h, accepted .and. out%status == status_completed .and. inside_status == status_completed)
+        do l = 1, n
+          if (.not. accepted(l)) cycle
+          if (inside_status(l) /= status_completed) then
+            call summary%store(l, run(l), results(l))
+            call stop_in_step(dop(l), run(l), plan, inside_status(l), results(l), passed(l))
+            active(l) = .false.
+            cycle
+          end if
           if (out%status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
             call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
@@ -333,9 +388,8 @@ contains
           if (sample_inside(l)) call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
           if (peak_inside(l)) then
-            call locate_nutation_peak(dop(l), run(l)%ball, peak, results(l)%n_rhs)
-            call run(l)%maxima%add_peak(peak%t)
-            call summary%note_nutation(l, peak%tan_nutation, peak%lateral, peak%normal_z)
+            call run(l)%maxima%add_peak(peaks(l)%t)
+            call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
           end if
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1

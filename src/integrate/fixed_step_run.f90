@@ -1,7 +1,8 @@
 !> One case with a fixed-step method: each step checked against the model's
 !> limits at every state it evaluates the model at (its stages) and at its
 !> end, the output samples taken at the steps; the case ends where the flow
-!> from the state before a step that meets a limit meets it (end_at_limit).
+!> from the state before a step that meets a limit meets it, or, where the
+!> flow meets none, goes on past that step taken in pieces (end_at_limit).
 module ellroll_fixed_step_run
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_pending, status_completed, status_unstable
@@ -62,9 +63,12 @@ contains
       if (status == status_completed .and. rolling_stops(run%ball, y, y_new)) &
         call step_through_rest(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, y_older_checkpoint, k - 1, y, f, cs%dt, every, status, res)
-        res%n_steps = k
-        return
+        call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%dt, every, status, res, &
+                          y_new, f_new, obs)
+        if (res%status /= status_completed) then
+          res%n_steps = k
+          return
+        end if
       end if
       y = y_new
       f = f_new
@@ -168,42 +172,104 @@ contains
   !> met a limit (status). The case ends where the exact flow from the
   !> method's state at the older checkpoint (y_checkpoint, at step
   !> older_checkpoint_step(n_done)) first meets a model limit, within two
-  !> steps from the last state (follow_flow_to_limit), with that limit's
-  !> status. Near the fit limit the solution has a square-root singularity:
-  !> the method's last steps towards it err far more than its order says
-  !> (RK4 at dt = 1e-3 on the paper cup: its own trajectory meets the limit
-  !> up to 5e-6 s late, the flow from one step back 2e-7 s early, from 8
-  !> steps back within 1e-9 s of the true crossing). The end time then has
-  !> the method's error up to the checkpoint only. Where the flow leaves the
-  !> model before the last state, the samples after its end are dropped.
-  !> Where the flow stays inside (the step met a limit at its own stages),
-  !> or h was beyond the method's stability at the start ('unstable': the
-  !> linearised motion's fastest rate times h past stability_limit; the
-  !> limit was met by the method's own growth), the method's own trajectory
-  !> is followed instead (approach_on_own_steps).
-  subroutine end_at_limit(integrator, run, y_checkpoint, n_done, y, f, h, every, status, res)
+  !> steps from the last state and not after t_end (follow_flow_to_limit),
+  !> with that limit's status. Near the fit limit the solution has a
+  !> square-root singularity: the method's last steps towards it err far
+  !> more than its order says (RK4 at dt = 1e-3 on the paper cup: its own
+  !> trajectory meets the limit up to 5e-6 s late, the flow from one step
+  !> back 2e-7 s early, from 8 steps back within 1e-9 s of the true
+  !> crossing). The end time then has the method's error up to the
+  !> checkpoint only. Where the flow leaves the model before the last state,
+  !> the samples after its end are dropped; after it, the samples up to its
+  !> end are the flow's. Where the flow stays inside, the step is taken
+  !> again in pieces (step_in_pieces): the case goes on from its end
+  !> (res%status stays completed; y_new, f_new, obs at t + h), or ends where
+  !> the method's own trajectory meets the limit. Where h was beyond the
+  !> method's stability at the start ('unstable': the linearised motion's
+  !> fastest rate times h past stability_limit; the limit was met by the
+  !> method's own growth), the method's own trajectory is followed
+  !> (approach_on_own_steps).
+  subroutine end_at_limit(integrator, run, plan, t_end, y_checkpoint, n_done, y, f, h, every, status, res, &
+                          y_new, f_new, obs)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    real(wp), intent(in) :: y_checkpoint(state_size), y(state_size), f(state_size), h
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_end, y_checkpoint(state_size), y(state_size), f(state_size), h
     integer(i8), intent(in) :: n_done, every
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
     real(wp) :: t, t_checkpoint
     logical :: met
     t = n_done * h
+    y_new = y
+    f_new = f
     if (beyond_stability(integrator, run, h)) then
       call approach_on_own_steps(integrator, run, t, y, f, h, status, res)
       res%status = status_unstable
       return
     end if
     t_checkpoint = older_checkpoint_step(n_done) * h
-    call follow_flow_to_limit(run, t_checkpoint, y_checkpoint, t, t + 2 * h, res, met)
+    run%next_sample = res%n_recorded + 1        ! the first sample after t, should the flow pass it
+    call follow_flow_to_limit(run, plan, t_checkpoint, y_checkpoint, t, min(t + 2 * h, max(t_end, t + h)), res, met)
     if (met) then
       if (res%t_final < t) res%n_recorded = min(res%n_recorded, int(res%t_final / h, i8) / every + 1)
     else
-      call approach_on_own_steps(integrator, run, t, y, f, h, status, res)
+      call step_in_pieces(integrator, run, t, y, f, h, res, y_new, f_new, obs)
     end if
   end subroutine end_at_limit
+
+  !> The step h from (t, y, f), which met a limit that the exact flow does
+  !> not meet, taken again in pieces of h / 2^j: a piece that meets a limit
+  !> is halved, the pieces after it grow back, and the step still ends at
+  !> t + h, on the grid of dt. A whole step can meet a limit that the path
+  !> does not: at a stage (RK4's last stage, y + h k3, lies on a straight
+  !> line off the curved path and leaves the model where the path grazes the
+  !> rim closer than about h^2 |n_z''| / 2), where its equations have no
+  !> solution (the Gauss method's, next to the fit limit's singularity), or
+  !> at its end, by its own error where the path passes close to that
+  !> singularity (its derivatives grow as the inverse distance to it). Every
+  !> piece's end but the last adds to the summary. All pieces inside:
+  !> res%status stays completed, the step's end in y_new, f_new, obs. A piece
+  !> of h / 2^max_halvings that still meets a limit: the method's own
+  !> trajectory meets it, and the case ends there (approach_on_own_steps
+  !> from the piece's start).
+  subroutine step_in_pieces(integrator, run, t, y, f, h, res, y_new, f_new, obs)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
+    integer, parameter :: max_halvings = 20
+    integer(i8), parameter :: whole = 2_i8**max_halvings
+    real(wp) :: y_at(state_size), f_at(state_size), t_at, width
+    integer(i8) :: done, piece
+    integer :: status
+    done = 0
+    piece = whole
+    t_at = t
+    y_at = y
+    f_at = f
+    do while (done < whole)
+      width = h * (real(piece, wp) / real(whole, wp))
+      call fixed_step(integrator, run, t_at, y_at, f_at, width, y_new, f_new, obs, status, res%n_rhs)
+      if (status == status_completed) then
+        done = done + piece
+        t_at = t + h * (real(done, wp) / real(whole, wp))
+        y_at = y_new
+        f_at = f_new
+        if (done < whole) call track(run, res, t_at, obs)
+        if (mod(done, 2 * piece) == 0) piece = 2 * piece
+      else if (piece > 1) then
+        piece = piece / 2
+      else
+        call approach_on_own_steps(integrator, run, t_at, y_at, f_at, width, status, res)
+        return
+      end if
+    end do
+  end subroutine step_in_pieces
 
   !> Whether a step h is beyond the method's stability for the case's
   !> linearised motion at the start.
