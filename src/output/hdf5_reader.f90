@@ -7,11 +7,12 @@ module ellroll_hdf5_reader
   use h5lt
   use h5ds
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input
+  use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_hdf5_common, only: note_failed_close, select_slab, new_text_type, fixed_text_type, text_width
+  use ellroll_files, only: path_kind, kind_missing
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, fixed_text_type, text_width
   implicit none
   private
 
@@ -54,18 +55,27 @@ contains
     type(error_t), intent(inout) :: err
     integer :: hdferr
     logical :: is_hdf5
-    character(len=:), allocatable :: program
+    character(len=:), allocatable :: program, reason
     self%path = path
     call h5open_f(hdferr)
     call h5eset_auto_f(0, hdferr)
+    if (path_kind(path) == kind_missing) then
+      call set_error(err, err_input, path // ': no such file')
+      return
+    end if
     call h5fis_hdf5_f(path, is_hdf5, hdferr)
-    if (hdferr < 0 .or. .not. is_hdf5) then
-      call set_error(err, err_input, path // ': not an HDF5 file (or cannot be read)')
+    if (hdferr < 0) then
+      call hdf5_reason(reason)
+      call set_error(err, err_output, path // ': cannot read it: ' // reason)
+      return
+    else if (.not. is_hdf5) then
+      call set_error(err, err_input, path // ': not an HDF5 file')
       return
     end if
     call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
     if (hdferr < 0) then
-      call set_error(err, err_input, path // ': cannot open the HDF5 file')
+      call hdf5_reason(reason)
+      call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
       return
     end if
     call self%text_attribute('program', program)

@@ -189,8 +189,8 @@ contains
     end if
     code = sync_folder(folder_of(self%target))
     if (code /= 0) then
-      call set_error(err, err_output, folder_of(self%target) // ': cannot write the folder''s entries to ' // &
-                     'the disk: ' // system_error_text(code))
+      call set_error(err, err_output, self%target // ': in place, but its folder''s entry cannot be written ' // &
+                     'to the disk: ' // system_error_text(code))
       return
     end if
     code = remove_path(self%journal)

@@ -1,0 +1,175 @@
+"""Every write the program makes is checked: a failure injected into each
+write-type system call of a run, a resume and a merge (strace -e inject=...)
+ends in exit 3 with a message naming the file and the system's reason, or in
+exit 0 with the file an undisturbed run writes; the command repeated with the
+fault gone (a --resume, or merge --overwrite) then writes that file. A kill
+(SIGKILL) at each such call: the resume that follows writes it too. Never a
+crash, never exit 0 over a wrong file, never a work file left beside a
+finished output.
+
+The calls are counted in an undisturbed run (those of the dynamic loader,
+before the program opens its input, are left out). CI walks a seeded sample
+of the calls of every kind, the first and last of each among them;
+ELLROLL_FAULT_FULL=1 walks every call with EIO, ENOSPC and SIGKILL."""
+import os
+import pathlib
+import random
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from test_campaign import assert_same_datasets
+from test_fuzz import CRASH_SIGNS
+
+FULL = os.environ.get("ELLROLL_FAULT_FULL") == "1"
+SAMPLE_PER_KIND = 3          # in CI: the first, the last and this many more of each kind
+WRITE_CALLS = ["pwrite64", "pwritev", "write", "fsync", "ftruncate", "rename", "unlink", "close"]
+STRACE = shutil.which("strace")
+
+# 16 cases of rolling resistance (one at a time: blocks of 4 on one thread),
+# every field stored
+CAMPAIGN = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, rolling_resistance = 1.0e-4 /
+&initial x = 0.1, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 0.05 /
+&output file = 'out.h5', interval = 0.01 /
+&sweep name = 'omega_z', values = 5, 10, 20, 40 /
+&sweep name = 'x', values = 0.0, 0.05, 0.1, 0.15 /
+"""
+
+pytestmark = pytest.mark.skipif(STRACE is None, reason="strace is not installed")
+
+
+def strace(args, cwd, inject=None, trace_file=None, timeout=120):
+    command = [STRACE, "-f", "-o", str(trace_file or os.devnull)]
+    if inject:
+        command += ["-e", f"inject={inject}"]
+    else:
+        command += ["-e", "trace=" + ",".join(WRITE_CALLS + ["openat"])]
+    return subprocess.run(command + [str(a) for a in args], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def call_ordinals(trace, first_file):
+    """For each write-type system call, the ordinals (from 1, as strace's
+    when= counts them) of the calls made after the program opened
+    first_file."""
+    started = False
+    counts = {name: 0 for name in WRITE_CALLS}
+    ordinals = {name: [] for name in WRITE_CALLS}
+    for line in trace.read_text().splitlines():
+        match = re.match(r"\d+\s+(\w+)\(", line)
+        if not match:
+            continue
+        name = match.group(1)
+        if name == "openat" and f'"{first_file}"' in line:
+            started = True
+        if name in counts:
+            counts[name] += 1
+            if started:
+                ordinals[name].append(counts[name])
+    return ordinals
+
+
+def chosen(ordinals, seed):
+    rng = random.Random(seed)
+    points = []
+    for name, found in sorted(ordinals.items()):
+        if FULL or len(found) <= SAMPLE_PER_KIND + 2:
+            picked = found
+        else:
+            picked = sorted({found[0], found[-1], *rng.sample(found[1:-1], SAMPLE_PER_KIND)})
+        points += [(name, n) for n in picked]
+    return points
+
+
+def faults(points, seed):
+    """(call, ordinal, fault) to inject: in CI each point gets one of EIO,
+    ENOSPC and SIGKILL in turn; with ELLROLL_FAULT_FULL all three."""
+    kinds = ["error=EIO", "error=ENOSPC", "signal=SIGKILL"]
+    if FULL:
+        return [(name, n, kind) for name, n in points for kind in kinds]
+    offset = random.Random(seed).randrange(3)
+    return [(name, n, kinds[(k + offset) % 3]) for k, (name, n) in enumerate(points)]
+
+
+def no_crash(result, detail):
+    assert result.returncode >= 0 or result.returncode == -9, detail
+    assert not any(sign in result.stderr for sign in CRASH_SIGNS), detail
+
+
+def work_files(folder):
+    return sorted(p.name for p in folder.iterdir() if re.match(r"out\.h5\.", p.name))
+
+
+def scenario(ellroll, tmp_path, name):
+    """A folder with the campaign and what the command to test needs, the
+    command, the command that finishes the job once the fault is gone, the
+    file both must write, and the file whose opening marks the start."""
+    base = tmp_path / "base"
+    base.mkdir()
+    (base / "camp.nml").write_text(CAMPAIGN)
+    whole = subprocess.run([str(ellroll), "run", "camp.nml", "-q", "-o", "whole.h5"], cwd=base, capture_output=True,
+                           text=True)
+    assert whole.returncode == 0, whole.stderr
+    if name == "run":
+        return base, ["run", "camp.nml", "-q", "--threads", "1"], ["run", "camp.nml", "-q", "--resume"], \
+            "whole.h5", "camp.nml"
+    if name == "resume":
+        # a run killed after two of its four blocks were journaled: at its
+        # fifth positioned write of several pieces (trajectories, journal, twice)
+        killed = strace([ellroll, "run", "camp.nml", "-q", "--threads", "1"], base,
+                        inject="pwritev:signal=SIGKILL:when=5")
+        assert killed.returncode != 0 and (base / "out.h5.journal").exists(), killed.stderr
+        return base, ["run", "camp.nml", "-q", "--resume", "--threads", "1"], ["run", "camp.nml", "-q", "--resume"], \
+            "whole.h5", "camp.nml"
+    for shard in ("0/2", "1/2"):
+        made = subprocess.run([str(ellroll), "run", "camp.nml", "-q", "--shard", shard, "-o",
+                               f"s{shard[0]}.h5"], cwd=base, capture_output=True, text=True)
+        assert made.returncode == 0, made.stderr
+    return base, ["merge", "out.h5", "s0.h5", "s1.h5"], ["merge", "out.h5", "s0.h5", "s1.h5", "--overwrite"], \
+        "whole.h5", "s0.h5"
+
+
+@pytest.mark.parametrize("command", ["run", "resume", "merge"])
+def test_a_fault_at_each_write_is_an_error_or_the_right_file(ellroll, tmp_path, command):
+    base, args, finish, reference, first_file = scenario(ellroll, tmp_path, command)
+    counting = tmp_path / "counting"
+    shutil.copytree(base, counting)
+    trace = tmp_path / "trace.txt"
+    undisturbed = strace([ellroll, *args], counting, trace_file=trace)
+    assert undisturbed.returncode == 0, undisturbed.stderr
+    assert_same_datasets(base / reference, counting / "out.h5")
+    ordinals = call_ordinals(trace, first_file)
+    assert ordinals["pwrite64"] and ordinals["pwritev"] and ordinals["rename"], ordinals
+    seed = 20261125 + ["run", "resume", "merge"].index(command)
+    outcomes = {}
+    for call, n, fault in faults(chosen(ordinals, seed), seed):
+        folder = tmp_path / f"{call}{n}{fault.split('=')[1]}"
+        shutil.copytree(base, folder)
+        result = strace([ellroll, *args], folder, inject=f"{call}:{fault}:when={n}")
+        detail = f"{command}: {fault} at {call} #{n}:\n{result.stdout}\n{result.stderr}"
+        no_crash(result, detail)
+        if fault.startswith("signal"):
+            outcome = "killed" if result.returncode == -9 else f"exit {result.returncode}"
+        else:
+            assert result.returncode in (0, 3), detail
+            outcome = f"exit {result.returncode}"
+            if result.returncode == 3:
+                assert re.search(r"ellroll: error: (out|s0|s1)\.h5[.\w]*: ", result.stderr), detail
+                reason = "Input/output error" if fault == "error=EIO" else "No space left on device"
+                assert reason in result.stderr, detail
+            else:
+                assert_same_datasets(base / reference, folder / "out.h5")
+                assert work_files(folder) == [], detail
+        outcomes[outcome] = outcomes.get(outcome, 0) + 1
+        finished = subprocess.run([str(ellroll), *finish], cwd=folder, capture_output=True, text=True, timeout=120)
+        detail += f"\nthen {' '.join(finish)}:\n{finished.stderr}"
+        assert finished.returncode == 0, detail
+        assert_same_datasets(base / reference, folder / "out.h5")
+        assert work_files(folder) == [], detail
+        shutil.rmtree(folder)
+    print(f"{command}: {sum(len(v) for v in ordinals.values())} write-type calls "
+          f"({', '.join(f'{k} {len(v)}' for k, v in ordinals.items() if v)}); injected: {outcomes}")
