@@ -3,6 +3,7 @@
 !> error, 2 bad input, 3 output error.
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   !$ use omp_lib, only: omp_set_num_threads
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted, exit_code
@@ -20,7 +21,7 @@ program ellroll
   use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
       check_output_target
   use ellroll_integrators, only: methods
-  use ellroll_linear, only: oscillation_periods, no_spin_periods
+  use ellroll_linear, only: oscillation_periods, no_spin_periods, fits_at_bottom
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
   use ellroll_system, only: utc_timestamp, file_exists, remove_file, tune_runtime, catch_stop_signals, exit_now
@@ -357,17 +358,34 @@ contains
     character(len=160) :: line
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    write (output_unit, '(a)') '    case   sigma rad/s   period 1 s   period 2 s   no spin: x-z s   y-z s'
+    write (output_unit, '(a)') '    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s'
     do i = 0, inp%campaign%n_cases() - 1
       cs = inp%campaign%case_at(i)
       ball = make_ball(cs)
       n0 = normal_from_contact(ball%cup, cs%x, cs%y)
       periods = oscillation_periods(ball, dot_product(cs%omega, n0))
       no_spin = no_spin_periods(ball)
-      write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega, n0), periods, no_spin
+      write (line, '(i8, f14.4, 4a)') i, dot_product(cs%omega, n0), period_column(periods(1)), &
+          period_column(periods(2)), period_column(no_spin(1)), period_column(no_spin(2))
       write (output_unit, '(a)') trim(line)
     end do
   end subroutine modes_command
+
+  !> A period in a column of `modes`, right-aligned with a blank before it
+  !> whatever its size: six decimals, or six digits and an exponent (from a
+  !> cup of 1e6 m to a ball 1e-6 m under the cup's radius of curvature).
+  function period_column(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=14) :: text
+    ! NaN apart: an ordered comparison with it traps where invalid traps
+    if (ieee_is_nan(x)) then
+      write (text, '(f14.6)') x
+    else if (abs(x) >= 1.0e-4_wp .and. abs(x) < 1.0e5_wp) then
+      write (text, '(f14.6)') x
+    else
+      write (text, '(es14.5e3)') x
+    end if
+  end function period_column
 
   subroutine check_command(err)
     type(error_t), intent(inout) :: err
@@ -499,8 +517,14 @@ contains
     write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
     if (cs%g > 0) then
       periods = no_spin_periods(ball)
-      write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
-          format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
+      if (fits_at_bottom(ball)) then
+        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
+      else
+        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s (undefined: the ball does not fit ' // &
+            'at the bottom, radius >= a^2/c or b^2/c)'
+      end if
     end if
 
     n_cases = inp%campaign%n_cases()
