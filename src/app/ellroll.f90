@@ -11,7 +11,7 @@ program ellroll
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param, &
-      range_text
+      range_text, check_case
   use ellroll_params, only: params, param_component
   use ellroll_campaign, only: invalid_stop
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact
@@ -355,12 +355,22 @@ contains
     type(rolling_ball_t) :: ball
     real(wp) :: n0(3), periods(2), no_spin(2)
     integer(i8) :: i
+    integer :: param
     character(len=160) :: line
+    character(len=:), allocatable :: reason
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
     write (output_unit, '(a)') '    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s'
     do i = 0, inp%campaign%n_cases() - 1
       cs = inp%campaign%case_at(i)
+      ! an invalid case has no cup or ball to analyse: its reason instead
+      call check_case(cs, inp%plan%interval, param, reason)
+      if (param /= 0) then
+        write (line, '(i8)') i
+        write (output_unit, '(a)') trim(line) // '  invalid: ' // trim(params(param)%name) // ' = ' // &
+            format_real(get_param(cs, param)) // ': ' // reason
+        cycle
+      end if
       ball = make_ball(cs)
       n0 = normal_from_contact(ball%cup, cs%x, cs%y)
       periods = oscillation_periods(ball, dot_product(cs%omega, n0))

@@ -1,6 +1,7 @@
 !> Small text helpers shared by the input checks, the messages and the writer.
 module ellroll_strings
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_set_halting_mode, ieee_usual
+  use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero, equals
   implicit none
@@ -72,6 +73,7 @@ contains
     real(wp) :: back
     character(len=:), allocatable :: mantissa
     integer :: digits, exponent10, ios
+    type(ieee_status_type) :: fp_state
     if (.not. ieee_is_finite(x)) then
       write (buf, '(es12.3)') x
       text = trim(adjustl(buf))
@@ -82,12 +84,17 @@ contains
       return
     end if
     ! 15 significant digits that read back as x are the shortest such text
-    ! padded with zeros (x is within half an ulp of it); else 16 or 17
+    ! padded with zeros (x is within half an ulp of it); else 16 or 17.
+    ! Near huge() the rounded text reads back as an overflow, which must
+    ! not stop a build that traps on it: it only means more digits
+    call ieee_get_status(fp_state)
+    call ieee_set_halting_mode(ieee_usual, .false.)
     do digits = 15, 17
       write (buf, '(es40.' // itoa(digits - 1) // 'e3)') x
       read (buf, '(es40.0)', iostat=ios) back
       if (ios == 0 .and. equals(back, x)) exit
     end do
+    call ieee_set_status(fp_state)
     mantissa = strip_mantissa(trim(adjustl(buf(:index(buf, 'E') - 1))))
     digits = len(mantissa) - merge(1, 0, index(mantissa, '.') > 0) - merge(1, 0, mantissa(1:1) == '-')
     exponent10 = floor(log10(abs(x)))

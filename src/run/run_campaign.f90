@@ -17,7 +17,7 @@ module ellroll_run_campaign
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid
-  use ellroll_cases, only: case_t, check_case, make_ball, adaptive_method, is_multiple
+  use ellroll_cases, only: case_t, check_case, case_problem, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
@@ -161,10 +161,7 @@ contains
   contains
     logical function case_is_invalid(index)
       integer(i8), intent(in) :: index
-      integer :: bad_param
-      character(len=:), allocatable :: why
-      call check_case(inp%campaign%case_at(index), inp%plan%interval, bad_param, why)
-      case_is_invalid = bad_param /= 0
+      case_is_invalid = case_problem(inp%campaign%case_at(index), inp%plan%interval) /= 0
     end function case_is_invalid
   end subroutine find_invalid_cases
 
@@ -239,11 +236,14 @@ contains
       type(case_t) :: one
       type(rolling_ball_t) :: ball
       one = inp%campaign%case_at(index)
+      ! an invalid case (set aside later, with its message) is never large:
+      ! its start may not be a state at all
+      rate = 0
+      dt = 0
+      if (case_problem(one, inp%plan%interval) /= 0) return
       ball = make_ball(one)
       dt = one%dt
-      ! dt <= 0 (an invalid case, not yet set aside) is never large
-      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), &
-                          enough=warn_above / max(dt, tiny(dt)))
+      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
     end subroutine start_rate
 
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
