@@ -16,7 +16,7 @@ ctest --test-dir build-portable --output-on-failure -j 2
 echo "== pytest"
 ELLROLL_EXE="$PWD/build/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-debug/ellroll" \
   ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q tests/python
-echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, hard cases, limits, dt sweeps"
+echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, the input space, hard cases, limits, dt sweeps"
 ELLROLL_EXE="$PWD/build-sanitize/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-sanitize/ellroll" \
   .venv/bin/python -m pytest -q tests/python/test_fuzz.py tests/python/test_extreme_inputs.py \
-  tests/python/test_hard_cases.py tests/python/test_limits_fixed_step.py
+  tests/python/test_input_space.py tests/python/test_hard_cases.py tests/python/test_limits_fixed_step.py

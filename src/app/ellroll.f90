@@ -3,6 +3,7 @@
 !> error, 2 bad input, 3 output error.
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   !$ use omp_lib, only: omp_set_num_threads
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted, exit_code
@@ -10,7 +11,7 @@ program ellroll
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param, &
-      range_text
+      range_text, check_case
   use ellroll_params, only: params, param_component
   use ellroll_campaign, only: invalid_stop
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact
@@ -23,7 +24,7 @@ program ellroll
   use ellroll_output_files, only: output_files_t, work_target
   use ellroll_files, only: path_kind, kind_regular, kind_missing
   use ellroll_integrators, only: methods
-  use ellroll_linear, only: oscillation_periods, no_spin_periods
+  use ellroll_linear, only: oscillation_periods, no_spin_periods, fits_at_bottom
   use ellroll_merge, only: merge_shards
   use ellroll_report, only: print_summary
   use ellroll_system, only: utc_timestamp, tune_runtime, catch_stop_signals, exit_now
@@ -360,20 +361,47 @@ contains
     type(rolling_ball_t) :: ball
     real(wp) :: n0(3), periods(2), no_spin(2)
     integer(i8) :: i
+    integer :: param
     character(len=160) :: line
+    character(len=:), allocatable :: reason
     call read_input(trim(paths(1)), output_path, inp, err)
     if (err%failed()) return
-    write (output_unit, '(a)') '    case   sigma rad/s   period 1 s   period 2 s   no spin: x-z s   y-z s'
+    write (output_unit, '(a)') '    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s'
     do i = 0, inp%campaign%n_cases() - 1
       cs = inp%campaign%case_at(i)
+      ! an invalid case has no cup or ball to analyse: its reason instead
+      call check_case(cs, inp%plan%interval, param, reason)
+      if (param /= 0) then
+        write (line, '(i8)') i
+        write (output_unit, '(a)') trim(line) // '  invalid: ' // trim(params(param)%name) // ' = ' // &
+            format_real(get_param(cs, param)) // ': ' // reason
+        cycle
+      end if
       ball = make_ball(cs)
       n0 = normal_from_contact(ball%cup, cs%x, cs%y)
       periods = oscillation_periods(ball, dot_product(cs%omega, n0))
       no_spin = no_spin_periods(ball)
-      write (line, '(i8, f14.4, 2f13.6, f17.6, f8.4)') i, dot_product(cs%omega, n0), periods, no_spin
+      write (line, '(i8, f14.4, 4a)') i, dot_product(cs%omega, n0), period_column(periods(1)), &
+          period_column(periods(2)), period_column(no_spin(1)), period_column(no_spin(2))
       write (output_unit, '(a)') trim(line)
     end do
   end subroutine modes_command
+
+  !> A period in a column of `modes`, right-aligned with a blank before it
+  !> whatever its size: six decimals, or six digits and an exponent (from a
+  !> cup of 1e6 m to a ball 1e-6 m under the cup's radius of curvature).
+  function period_column(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=14) :: text
+    ! NaN apart: an ordered comparison with it traps where invalid traps
+    if (ieee_is_nan(x)) then
+      write (text, '(f14.6)') x
+    else if (abs(x) >= 1.0e-4_wp .and. abs(x) < 1.0e5_wp) then
+      write (text, '(f14.6)') x
+    else
+      write (text, '(es14.5e3)') x
+    end if
+  end function period_column
 
   subroutine check_command(err)
     type(error_t), intent(inout) :: err
@@ -550,8 +578,14 @@ contains
     write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
     if (cs%g > 0) then
       periods = no_spin_periods(ball)
-      write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
-          format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
+      if (fits_at_bottom(ball)) then
+        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
+      else
+        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s (undefined: the ball does not fit ' // &
+            'at the bottom, radius >= a^2/c or b^2/c)'
+      end if
     end if
 
     n_cases = inp%campaign%n_cases()

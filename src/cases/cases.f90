@@ -18,8 +18,8 @@ module ellroll_cases
   implicit none
   private
 
-  public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, finalize_case, &
-            adaptive_method, is_multiple, range_text, max_steps
+  public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, case_problem, &
+            finalize_case, adaptive_method, is_multiple, range_text, max_steps
   public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -50,6 +50,11 @@ module ellroll_cases
     character(len=32) :: record_name = '' !< a suite's record (&record name)
     real(wp) :: record_factor = 1         !< its factor (in excitation%values)
   end type case_t
+
+  ! what find_problem found: one code a message of check_case
+  integer, parameter :: problem_not_finite = 1, problem_range = 2, problem_weight_without_g = 3, &
+      problem_weight_mass = 4, problem_dt_above_t_end = 5, problem_too_many_steps = 6, problem_interval = 7, &
+      problem_outside = 8, problem_no_fit = 9
 
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
@@ -166,71 +171,103 @@ contains
   !> The first problem of a case, as the parameter it concerns and why;
   !> param = 0 when the case is valid. Checks every bound, that the start
   !> lies inside the cup, that the ball fits there, and that dt divides the
-  !> output interval.
+  !> output interval. Not for parallel loops: its message is built with
+  !> functions of deferred-length result, whose length gfortran keeps in one
+  !> static variable of the caller (case_problem is for those).
   subroutine check_case(cs, interval, param, reason)
     type(case_t), intent(in) :: cs
     real(wp), intent(in) :: interval
     integer, intent(out) :: param
     character(len=:), allocatable, intent(out) :: reason
     real(wp) :: value, level, radii(2)
-    integer :: k
+    integer :: problem
+    call find_problem(cs, interval, param, problem)
     reason = ''
-    do k = 1, param_count
-      param = k
-      value = get_param(cs, k)
-      if (.not. ieee_is_finite(value)) then
-        reason = 'must be a finite number'
-        return
-      end if
-      if (k == p_weight .and. is_zero(value)) cycle     ! mass given instead
-      if (k == p_mass .and. cs%weight > 0) cycle
-      if (value < params(k)%low .or. value > params(k)%high) then
-        reason = range_text(k)
-        return
-      end if
-    end do
-    param = p_weight
-    if (cs%weight > 0 .and. cs%g <= 0) then
+    if (param == 0) return
+    value = get_param(cs, param)
+    select case (problem)
+    case (problem_not_finite)
+      reason = 'must be a finite number'
+    case (problem_range)
+      reason = range_text(param)
+      if (params(param)%positive .and. value > 0 .and. value < params(param)%low) reason = 'is below ' // &
+          format_real(params(param)%low) // ', the least normal number; ' // reason
+    case (problem_weight_without_g)
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
-      return
-    end if
-    if (cs%weight > 0 .and. .not. cs%mass > 0) then
+    case (problem_weight_mass)
       reason = 'gives a mass weight / g above ' // format_real(params(p_mass)%high) // ' kg with g = ' // &
                format_real(cs%g) // ' m/s^2; give mass instead'
-      return
-    end if
-    param = p_dt
-    if (cs%dt > cs%t_end) then
+    case (problem_dt_above_t_end)
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
-      return
-    end if
-    if (cs%t_end > max_steps * cs%dt) then      ! (not t_end / dt: it may overflow)
+    case (problem_too_many_steps)
       reason = 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
                format_real(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
-      return
-    end if
-    if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%dt)) then
+    case (problem_interval)
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
-      return
-    end if
-    level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
-    if (level >= 1) then
-      param = merge(p_x, p_y, .not. is_zero(cs%x))
+    case (problem_outside)
+      level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
       reason = 'the start (x, y) = (' // format_real(cs%x) // ', ' // format_real(cs%y) // &
                ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
-      return
-    end if
-    radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
-                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
-    if (radii(1) / cs%radius - 1 <= cs%fit_margin) then
-      param = p_radius
+    case (problem_no_fit)
+      radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
+                              normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
                format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
                ' m, and radius must be below ' // format_real(radii(1)) // ' m'
-      return
-    end if
-    param = 0
+    end select
   end subroutine check_case
+
+  !> The parameter of a case's first problem (check_case), 0 when it is
+  !> valid: without the message, so that a parallel loop may call it.
+  pure integer function case_problem(cs, interval) result(param)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: interval
+    integer :: problem
+    call find_problem(cs, interval, param, problem)
+  end function case_problem
+
+  !> The checks of check_case, in its order: the parameter and which check
+  !> failed (param = 0: none).
+  pure subroutine find_problem(cs, interval, param, problem)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: interval
+    integer, intent(out) :: param, problem
+    real(wp) :: value, level, radii(2)
+    integer :: k
+    do k = 1, param_count
+      param = k
+      value = get_param(cs, k)
+      problem = problem_not_finite
+      if (.not. ieee_is_finite(value)) return
+      if (k == p_weight .and. is_zero(value)) cycle     ! mass given instead
+      if (k == p_mass .and. cs%weight > 0) cycle
+      problem = problem_range
+      if (value < params(k)%low .or. value > params(k)%high) return
+    end do
+    param = p_weight
+    problem = problem_weight_without_g
+    if (cs%weight > 0 .and. cs%g <= 0) return
+    problem = problem_weight_mass
+    if (cs%weight > 0 .and. .not. cs%mass > 0) return
+    param = p_dt
+    problem = problem_dt_above_t_end
+    if (cs%dt > cs%t_end) return
+    problem = problem_too_many_steps
+    if (cs%t_end > max_steps * cs%dt) return      ! (not t_end / dt: it may overflow)
+    problem = problem_interval
+    if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%dt)) return
+    level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
+    param = merge(p_x, p_y, .not. is_zero(cs%x))
+    problem = problem_outside
+    if (level >= 1) return
+    radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
+                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
+    param = p_radius
+    problem = problem_no_fit
+    if (radii(1) / cs%radius - 1 <= cs%fit_margin) return
+    param = 0
+    problem = 0
+  end subroutine find_problem
 
   pure function range_opening(k) result(text)
     integer, intent(in) :: k
@@ -291,13 +328,17 @@ contains
   function case_record(cs) result(rec)
     type(case_t), intent(in) :: cs
     type(named_value_t), allocatable :: rec(:)
-    real(wp) :: mu
+    real(wp) :: mu, weight
     mu = cs%mu
     if (mu <= 0) mu = ieee_value(mu, ieee_quiet_nan)
+    ! an invalid case's record holds its inputs as given, where m g may
+    ! overflow (it is NaN there, never a trap)
+    weight = ieee_value(weight, ieee_quiet_nan)
+    if (abs(cs%mass) <= huge(weight) / max(abs(cs%g), 1.0_wp)) weight = cs%mass * cs%g
     rec = [ &
       int_value('index', '1', 'global case index', cs%index), &
       row(p_a, cs%a), row(p_b, cs%b), row(p_c, cs%c), row(p_radius, cs%radius), row(p_mass, cs%mass), &
-      row(p_weight, cs%mass * cs%g), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
+      row(p_weight, weight), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
       row(p_rolling_resistance, cs%rolling_resistance), &
       row(p_x, cs%x), row(p_y, cs%y), &
       vector_value('omega', params(p_omega_x)%unit, 'initial angular velocity', cs%omega), &

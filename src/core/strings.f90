@@ -124,6 +124,7 @@ contains
     character(len=40) :: work
     character(len=16) :: fixed
     real(wp) :: back
+    real(wp), parameter :: near_huge = huge(1.0_wp) * (1 - 1.0e-14_wp)
     integer :: digits, exponent10, ios, mark, last
     buffer = ''
     if (.not. ieee_is_finite(x)) then
@@ -138,13 +139,19 @@ contains
       return
     end if
     ! 15 significant digits that read back as x are the shortest such text
-    ! padded with zeros (x is within half an ulp of it); else 16 or 17
-    do digits = 15, 17
-      write (work, scientific(digits)) x
-      read (work, '(es40.0)', iostat=ios) back
-      if (ios == 0 .and. equals(back, x)) exit
-    end do
-    digits = min(digits, 17)
+    ! padded with zeros (x is within half an ulp of it); else 16 or 17.
+    ! Within 1e-14 of huge() 15 or 16 digits may round up past it, and
+    ! reading that back would overflow (a trap in the Debug build): 17
+    ! digits, which always read back, are taken at once
+    if (abs(x) >= near_huge) then
+      write (work, scientific(17)) x
+    else
+      do digits = 15, 17
+        write (work, scientific(digits)) x
+        read (work, '(es40.0)', iostat=ios) back
+        if (ios == 0 .and. equals(back, x)) exit
+      end do
+    end if
     ! the mantissa without its trailing zeros (and without a bare '.')
     work = adjustl(work)
     mark = index(work, 'E') - 1

@@ -45,6 +45,7 @@ contains
       sw%values = v%values(:n)
     else
       if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return
+      if (.not. spaceable(rd, gi, 'stop', 'start', v%start, v%stop, lower(v%spacing) == 'log')) return
       if (v%count < 1 .or. v%count > max_values * 1000) then
         call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
         return
@@ -88,6 +89,7 @@ contains
       call rd%fail_value(gi, 'high', 'must be greater than low = ' // format_real(v%low))
       return
     end if
+    if (.not. spaceable(rd, gi, 'high', 'low', v%low, v%high, lower(v%spacing) == 'log')) return
     select case (lower(v%spacing))
     case ('linear')
       s%log_spacing = .false.
@@ -104,6 +106,32 @@ contains
     s%low = v%low; s%high = v%high
     draws = [draws, s]
   end subroutine add_sample
+
+  !> The values between `first` and `last` can be spaced in double
+  !> precision: last - first (linear) or last / first (log, both > 0) is a
+  !> normal number. Else the group is refused, naming `last`.
+  logical function spaceable(rd, gi, last_name, first_name, first, last, log_spacing) result(ok)
+    type(reader_t), intent(inout) :: rd
+    integer, intent(in) :: gi
+    character(len=*), intent(in) :: last_name, first_name
+    real(wp), intent(in) :: first, last
+    logical, intent(in) :: log_spacing
+    real(wp) :: decades
+    ok = .true.
+    if (log_spacing) then
+      if (.not. (first > 0 .and. last > 0)) return        ! refused with the spacing's own message
+      ! (logs: the ratio itself may overflow)
+      decades = log(last) - log(first)
+      ok = decades <= log(huge(1.0_wp)) .and. decades >= log(tiny(1.0_wp))
+      if (.not. ok) call rd%fail_value(gi, last_name, last_name // ' / ' // first_name // ' (' // first_name // &
+          ' = ' // format_real(first) // ') is beyond the normal numbers of double precision; narrow the range')
+    else
+      ! (halves: the difference itself may overflow)
+      ok = abs(last / 2 - first / 2) <= huge(1.0_wp) / 2
+      if (.not. ok) call rd%fail_value(gi, last_name, last_name // ' - ' // first_name // ' (' // first_name // &
+          ' = ' // format_real(first) // ') exceeds the largest number of double precision; narrow the range')
+    end if
+  end function spaceable
 
   !> The parameter named by a &sweep or &sample group.
   integer function swept_param(rd, v, gi, sweeps, draws) result(param)
@@ -140,7 +168,9 @@ contains
     type(sweep_t), intent(in) :: sweeps(:)
     type(sample_t), intent(in) :: draws(:)
     type(campaign_t), intent(inout) :: camp
-    integer :: gi, k, bi, param, line
+    integer :: gi, k, param, line
+    character(len=:), allocatable :: group
+    real(wp) :: cases
     gi = rd%group('campaign', .false.)
     if (gi > 0) then
       select case (lower(v%combine))
@@ -163,7 +193,8 @@ contains
       end if
     end if
     if (size(draws) > 0 .and. v%samples == 0) then
-      call rd%fail_at(draws(1)%line, '&sample needs &campaign samples = N (how many random cases)')
+      call rd%fail_at(draws(1)%line, '&sample: name = ''' // trim(params(draws(1)%param)%name) // &
+                      ''': needs &campaign samples = N (how many random cases)')
       return
     end if
     if (v%samples > 0 .and. size(draws) == 0) then
@@ -177,28 +208,39 @@ contains
     if (camp%combine == combine_zip) then
       do k = 2, size(sweeps)
         if (size(sweeps(k)%values) /= size(sweeps(1)%values)) then
-          call rd%fail_at(sweeps(k)%line, "&sweep: combine = 'zip' needs sweeps of equal length (" // &
-              itoa(size(sweeps(k)%values)) // ' values here, ' // itoa(size(sweeps(1)%values)) // &
-              ' at line ' // itoa(sweeps(1)%line) // ')')
+          call rd%fail_value(gi, 'combine', 'needs sweeps of equal length: the &sweep at line ' // &
+              itoa(sweeps(k)%line) // ' has ' // itoa(size(sweeps(k)%values)) // ' values, the one at line ' // &
+              itoa(sweeps(1)%line) // ' has ' // itoa(size(sweeps(1)%values)))
           return
         end if
       end do
     end if
-    bi = p_weight
     do k = 1, size(sweeps) + size(draws)
       if (k <= size(sweeps)) then
-        param = sweeps(k)%param; line = sweeps(k)%line
+        param = sweeps(k)%param; line = sweeps(k)%line; group = '&sweep'
       else
-        param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line
+        param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line; group = '&sample'
       end if
-      if (param == bi .and. camp%base%weight <= 0) call rd%fail_at(line, &
-          'weight is varied but &ball gives mass; vary mass instead')
-      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, &
-          'mass is varied but &ball gives weight; vary weight instead')
+      if (param == p_weight .and. camp%base%weight <= 0) call rd%fail_at(line, group // &
+          ': name = ''weight'': weight is varied but &ball gives mass; vary mass instead')
+      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, group // &
+          ': name = ''mass'': mass is varied but &ball gives weight; vary weight instead')
     end do
-    if (real(camp%n_cases(), wp) > real(max_cases, wp) .or. camp%n_cases() < 1) then
-      call rd%fail_at(rd%file%groups(1)%line, 'the campaign expands to more than ' // &
-                      itoa(max_cases) // ' cases')
-    end if
+    if (rd%err%failed()) return
+    ! counted in reals, naming the group that passes the limit: the lengths
+    ! of a few sweeps multiply beyond integer(i8)
+    cases = max(1, size(camp%records))
+    do k = 1, size(sweeps)
+      if (camp%combine == combine_zip .and. k > 1) exit
+      cases = cases * size(sweeps(k)%values)
+      if (cases > max_cases) then
+        call rd%fail_at(sweeps(k)%line, '&sweep: name = ''' // trim(params(sweeps(k)%param)%name) // &
+            ''': with this sweep the campaign expands to ' // format_real(cases) // ' cases, more than ' // &
+            itoa(max_cases))
+        return
+      end if
+    end do
+    if (cases * max(1_i8, v%samples) > max_cases) call rd%fail_value(gi, 'samples', 'the campaign expands to ' // &
+        format_real(cases * max(1_i8, v%samples)) // ' cases, more than ' // itoa(max_cases))
   end subroutine build_campaign
 end module ellroll_campaign_input

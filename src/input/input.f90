@@ -155,6 +155,15 @@ contains
           factor = 1
         end if
         do k = 1, size(grp%items)
+          associate (item => grp%items(k))
+            ! a longer text would be cut to the variable's length without a word
+            if (text_length(item%base) > 0 .and. longest_text(item%source) > text_length(item%base)) then
+              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
+                  ': a text of ' // itoa(longest_text(item%source)) // ' characters (blanks included); at most ' // &
+                  itoa(text_length(item%base)) // ' fit')
+              return
+            end if
+          end associate
           call read_assignment(grp, k, ios, msg)
           if (ios /= 0) then
             associate (item => grp%items(k))
@@ -220,6 +229,24 @@ contains
       end if
       call ieee_set_status(fp_state)
     end subroutine read_assignment
+
+    !> The length of the character variable `base` (0: not one).
+    integer function text_length(base)
+      character(len=*), intent(in) :: base
+      select case (base)
+      case ('method'); text_length = len(method)
+      case ('error_estimate'); text_length = len(error_estimate)
+      case ('file'); text_length = len(file)
+      case ('fields'); text_length = len(fields)
+      case ('kind'); text_length = len(kind)
+      case ('record_file'); text_length = len(record_file)
+      case ('combine'); text_length = len(combine)
+      case ('invalid'); text_length = len(invalid)
+      case ('spacing'); text_length = len(spacing)
+      case ('name'); text_length = len(name)
+      case default; text_length = 0
+      end select
+    end function text_length
 
     !> The namelist variables as they stand.
     type(namelist_values_t) function current() result(now)
@@ -356,7 +383,12 @@ contains
     else
       do k = p, p + width - 1
         if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
-          call rd%fail_value(gi, variable, range_text(k))
+          if (params(k)%positive .and. table_values(k) > 0 .and. table_values(k) < params(k)%low) then
+            call rd%fail_value(gi, variable, 'is below ' // format_real(params(k)%low) // &
+                               ', the least normal number; ' // range_text(k))
+          else
+            call rd%fail_value(gi, variable, range_text(k))
+          end if
           return
         end if
       end do
@@ -648,6 +680,44 @@ contains
     end function setting
   end subroutine describe_invalid
 
+
+  !> The longest quoted text in an assignment's source, as read (a doubled
+  !> quote is one character), or the longest unquoted item after the '='.
+  pure integer function longest_text(source) result(longest)
+    character(len=*), intent(in) :: source
+    integer :: pos, length
+    character :: quote
+    logical :: quoted
+    longest = 0
+    length = 0
+    quoted = .false.
+    quote = ' '
+    pos = index(source, '=') + 1
+    do while (pos <= len(source))
+      if (quoted) then
+        if (source(pos:pos) == quote) then
+          if (source(pos:min(pos + 1, len(source))) == quote // quote) then
+            pos = pos + 1                 ! a doubled quote: one character of the text
+            length = length + 1
+          else
+            quoted = .false.
+          end if
+        else
+          length = length + 1
+        end if
+      else if (source(pos:pos) == "'" .or. source(pos:pos) == '"') then
+        quoted = .true.
+        quote = source(pos:pos)
+        length = 0
+      else if (any(source(pos:pos) == [' ', ',', achar(9), achar(10)])) then
+        length = 0
+      else
+        length = length + 1
+      end if
+      longest = max(longest, length)
+      pos = pos + 1
+    end do
+  end function longest_text
 
   !> A one-assignment namelist in one record: '&group name = value /'.
   !> The assignment's lines are joined by blanks (the scanner blanked its

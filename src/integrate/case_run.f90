@@ -144,7 +144,11 @@ contains
     res%horizontal_force_max = sqrt(run%horizontal_force_sq_max)
     res%absolute_acceleration_max = res%horizontal_force_max / run%ball%mass
     res%absolute_acceleration_max_time = run%horizontal_force_sq_max_time
-    res%energy_drift = run%energy_deviation_max / abs(run%energy0)
+    ! relative to E0: undefined (NaN) where E0 = 0, a ball at rest without
+    ! gravity (the test is also false where the quotient would overflow)
+    res%energy_drift = ieee_value(0.0_wp, ieee_quiet_nan)
+    if (run%energy_deviation_max / huge(1.0_wp) < abs(run%energy0)) &
+      res%energy_drift = run%energy_deviation_max / abs(run%energy0)
     res%linear_periods = oscillation_periods(run%ball, run%spin0)
     call fill_unrecorded(res)
   end subroutine finish_case

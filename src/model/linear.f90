@@ -14,7 +14,7 @@ module ellroll_linear
   implicit none
   private
 
-  public :: jacobian, eigenvalues, oscillation_periods, fastest_rate, no_spin_periods
+  public :: jacobian, eigenvalues, oscillation_periods, fastest_rate, no_spin_periods, fits_at_bottom
 
 contains
 
@@ -56,15 +56,30 @@ contains
 
   !> The small-oscillation periods about the bottom without spin, in the
   !> x-z and y-z planes: 2 pi sqrt((1 + k)(rho - R) / g), rho the cup's
-  !> principal radii of curvature there (g > 0).
+  !> principal radii of curvature there; NaN where the ball cannot sit at the
+  !> bottom (fits_at_bottom) or nothing restores it (g = 0).
   pure function no_spin_periods(ball) result(periods)
     type(rolling_ball_t), intent(in) :: ball
     real(wp) :: periods(2)
-    periods = 2 * acos(-1.0_wp) * sqrt((1 + ball%inertia_factor) * (bottom_radii(ball%cup) - ball%radius) / ball%g)
+    periods = ieee_value(0.0_wp, ieee_quiet_nan)
+    if (.not. (fits_at_bottom(ball) .and. ball%g > 0)) return
+    ! the roots apart: (rho - R) / g overflows for a subnormal g
+    periods = 2 * acos(-1.0_wp) * (sqrt((1 + ball%inertia_factor) * (bottom_radii(ball%cup) - ball%radius)) / &
+                                   sqrt(ball%g))
   end function no_spin_periods
 
+  !> The ball can rest at the bottom: both principal radii of curvature
+  !> there (a^2/c, b^2/c) exceed its radius. Where one does not, the ball
+  !> that fits at its start touches the cup at two points before it gets
+  !> there, and nothing about the bottom is defined.
+  pure logical function fits_at_bottom(ball)
+    type(rolling_ball_t), intent(in) :: ball
+    fits_at_bottom = all(bottom_radii(ball%cup) > ball%radius)
+  end function fits_at_bottom
+
   !> The two small-oscillation periods (longer first) about the bottom,
-  !> spinning at sigma; NaN for a mode that does not oscillate.
+  !> spinning at sigma; NaN for a mode that does not oscillate, and both NaN
+  !> where the ball cannot sit at the bottom (fits_at_bottom).
   !> Why 2x2: the cup's mirror x -> -x followed by time reversal maps
   !> (n1, n2, w1, w2) to (-n1, n2, -w1, w2) and keeps the equilibrium, so the
   !> Jacobian J anticommutes with that involution: (n1, w1)' depends on
@@ -78,6 +93,8 @@ contains
     integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]   ! (n1, w1) and (n2, w2)
     real(wp) :: jac(state_size, state_size), squared(2, 2), half_trace, discriminant, frequencies(2)
     complex(wp) :: mu(2)
+    periods = ieee_value(0.0_wp, ieee_quiet_nan)
+    if (.not. fits_at_bottom(ball)) return
     jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma])
     squared = matmul(jac(odd, even), jac(even, odd))
     half_trace = (squared(1, 1) + squared(2, 2)) / 2
@@ -86,7 +103,6 @@ contains
     ! an eigenvalue sqrt(mu) oscillates at |Im sqrt(mu)|: a real mu < 0 is a
     ! pure oscillation; a complex pair (flutter) grows while it oscillates
     frequencies = abs(aimag(sqrt(mu)))
-    periods = ieee_value(0.0_wp, ieee_quiet_nan)
     if (.not. all(ieee_is_finite(frequencies))) return
     where (frequencies > 1.0e-9_wp * maxval(frequencies)) periods = two_pi / frequencies
     ! NaN is tested first: an ordered comparison with it traps where invalid traps

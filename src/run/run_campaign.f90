@@ -17,7 +17,7 @@ module ellroll_run_campaign
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_strings, only: itoa, text_hash, format_real
   use ellroll_status, only: status_invalid, status_pending
-  use ellroll_cases, only: case_t, check_case, make_ball, adaptive_method, is_multiple
+  use ellroll_cases, only: case_t, check_case, case_problem, make_ball, adaptive_method, is_multiple
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
@@ -151,10 +151,7 @@ contains
   contains
     logical function case_is_invalid(index)
       integer(i8), intent(in) :: index
-      integer :: bad_param
-      character(len=:), allocatable :: why
-      call check_case(inp%campaign%case_at(index), inp%plan%interval, bad_param, why)
-      case_is_invalid = bad_param /= 0
+      case_is_invalid = case_problem(inp%campaign%case_at(index), inp%plan%interval) /= 0
     end function case_is_invalid
   end subroutine find_invalid_cases
 
@@ -228,15 +225,14 @@ contains
       real(wp), intent(out) :: rate, dt
       type(case_t) :: one
       type(rolling_ball_t) :: ball
-      integer :: bad_param
-      character(len=:), allocatable :: why
       one = inp%campaign%case_at(index)
+      ! an invalid case (set aside later, with its message) is never large:
+      ! its start may not be a state at all
       rate = 0
-      dt = one%dt
-      ! an invalid case is never run (it is refused, or skipped): no advice
-      call check_case(one, inp%plan%interval, bad_param, why)
-      if (bad_param /= 0) return
+      dt = 0
+      if (case_problem(one, inp%plan%interval) /= 0) return
       ball = make_ball(one)
+      dt = one%dt
       rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
     end subroutine start_rate
 

@@ -3,7 +3,9 @@
 !> spin, the two gyroscopic mode periods against the frequencies found in a
 !> simulated small oscillation (peaks of a windowed Fourier transform).
 !> The periods' closed form against the full eigenvalue problem over random
-!> cups and spins. The fastest rate's cheap bound: never below the
+!> cups and spins. Periods about the bottom are NaN where the ball cannot sit
+!> there (a principal radius of curvature at the bottom at most R, though the
+!> ball fits at its start). The fastest rate's cheap bound: never below the
 !> eigenvalues' rate, and within 5x of it about the paper's case.
 program test_linear
   use ellroll_kinds, only: wp, pi, two_pi
@@ -11,7 +13,8 @@ program test_linear
   use ellroll_cases, only: case_t, make_ball, field_contact
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state, state_size
   use ellroll_results, only: case_result_t
-  use ellroll_linear, only: oscillation_periods, fastest_rate, jacobian, eigenvalues
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan, ieee_is_finite
+  use ellroll_linear, only: oscillation_periods, fastest_rate, jacobian, eigenvalues, no_spin_periods, fits_at_bottom
   use fixtures, only: paper_case, run_case
   use testing
   implicit none
@@ -24,6 +27,10 @@ program test_linear
   expected = 2 * pi * sqrt(7 * ([cs%a**2, cs%b**2] / cs%c - cs%radius) / (5 * cs%g))
   call check_close(periods(1), expected(1), 1.0e-8_wp, 'no spin: x-z period from the eigenvalues (s)')
   call check_close(periods(2), expected(2), 1.0e-8_wp, 'no spin: y-z period from the eigenvalues (s)')
+  periods = no_spin_periods(make_ball(cs))
+  call check_close(periods(1), expected(1), 1.0e-15_wp, 'no spin: x-z period, closed form (s)')
+  call check_close(periods(2), expected(2), 1.0e-15_wp, 'no spin: y-z period, closed form (s)')
+  call check_where_the_ball_cannot_sit_at_the_bottom()
 
   sigma = 40
   periods = oscillation_periods(make_ball(cs), sigma)
@@ -42,6 +49,34 @@ program test_linear
   call finish('test_linear')
 
 contains
+
+  !> a = b = 0.5, c = 2 (bottom radii 0.125 m), R = 0.3 m: the ball fits at
+  !> x = 0.45 (radii 0.453 and 5.96 m) but not at the bottom; so too a = 1,
+  !> b = 0.2, c = 1e6 (b^2/c = 4e-8 m). Without gravity nothing restores the
+  !> ball; with a subnormal g the period is long but finite.
+  subroutine check_where_the_ball_cannot_sit_at_the_bottom()
+    type(case_t) :: deep
+    deep = paper_case(1.0e-3_wp, 1.0_wp)
+    deep%a = 0.5_wp; deep%b = 0.5_wp; deep%c = 2; deep%radius = 0.3_wp; deep%x = 0.45_wp
+    call check(.not. fits_at_bottom(make_ball(deep)), 'a = b = 0.5, c = 2, R = 0.3: does not fit at the bottom')
+    call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'a = b = 0.5, c = 2: no-spin periods NaN')
+    call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 0.0_wp))), &
+               'a = b = 0.5, c = 2: periods NaN without spin')
+    call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 20.0_wp))), &
+               'a = b = 0.5, c = 2: periods NaN with spin')
+    deep%a = 1; deep%b = 0.2_wp; deep%c = 1.0e6_wp; deep%radius = 0.2_wp; deep%x = 0
+    call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'a = 1, b = 0.2, c = 1e6: no-spin periods NaN')
+    call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 20.0_wp))), &
+               'a = 1, b = 0.2, c = 1e6: periods NaN')
+    deep = paper_case(1.0e-3_wp, 1.0_wp)
+    deep%radius = 0.8_wp * deep%b**2 / deep%c     ! just fits: periods finite and short
+    call check(all(ieee_is_finite(no_spin_periods(make_ball(deep)))), 'R = 0.8 b^2/c: no-spin periods finite')
+    deep%g = 0
+    call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'g = 0: no-spin periods NaN')
+    deep%g = tiny(1.0_wp) * epsilon(1.0_wp)
+    periods = no_spin_periods(make_ball(deep))
+    call check(all(ieee_is_finite(periods) .and. periods > 1.0e150_wp), 'g subnormal: no-spin periods finite')
+  end subroutine check_where_the_ball_cannot_sit_at_the_bottom
 
   !> A cup with random axes (a = 1), a random ball below its least radius of
   !> curvature (c^2 / a), both from draw(1:3).
