@@ -4,16 +4,23 @@
 !> is the CRC zero-extended to 64 bits; a checksum over several arrays
 !> starts at checksum_start and continues with fold_reals.
 module ellroll_checksum
-  use, intrinsic :: iso_c_binding, only: c_int32_t, c_size_t
+  use, intrinsic :: iso_c_binding, only: c_int32_t, c_size_t, c_char
   use ellroll_kinds, only: wp, i8
   implicit none
   private
 
-  public :: checksum, checksum_start, fold_reals
+  public :: checksum, checksum_start, fold_reals, text_checksum
 
   integer(i8), parameter :: checksum_start = 0
 
   interface
+    !> (the same C function on text: a character scalar passes as its characters)
+    pure integer(c_int32_t) function c_crc32c_text(crc, data, bytes) bind(c, name='ellroll_crc32c')
+      import :: c_int32_t, c_size_t, c_char
+      integer(c_int32_t), value :: crc
+      character(kind=c_char), intent(in) :: data(*)
+      integer(c_size_t), value :: bytes
+    end function c_crc32c_text
     pure integer(c_int32_t) function c_crc32c(crc, data, bytes) bind(c, name='ellroll_crc32c')
       import :: c_int32_t, c_size_t
       integer(c_int32_t), value :: crc
@@ -29,6 +36,14 @@ contains
     checksum = checksum_start
     call fold(checksum, words, size(words, kind=i8))
   end function checksum
+
+  !> The CRC-32C of a text's bytes (a file's contents, its fingerprint).
+  pure integer(i8) function text_checksum(text)
+    character(len=*), intent(in) :: text
+    integer(c_int32_t) :: crc
+    crc = c_crc32c_text(0_c_int32_t, text, int(len(text), c_size_t))
+    text_checksum = iand(int(crc, i8), 4294967295_i8)
+  end function text_checksum
 
   !> Continue the checksum sum over n reals: `values` may be an array of any
   !> shape, taken in array element order.

@@ -20,7 +20,7 @@ module ellroll_input
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
-  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite, record_files
+  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite, record_files, note_files
   use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
       p_weight, p_mass, p_dt, p_scale
   implicit none
@@ -34,6 +34,9 @@ module ellroll_input
     character(len=:), allocatable :: path
     character(len=:), allocatable :: text       !< the input file, verbatim
     character(len=:), allocatable :: canonical  !< groups and assignments without comments or layout
+    !> every file the input reads (records), a line 'NAME: SIZE bytes, crc32c
+    !> HEX' each: with `canonical`, what makes a campaign the same
+    character(len=:), allocatable :: input_files
   end type run_input_t
 
   character(len=*), parameter :: known_groups(11) = [character(len=12) :: &
@@ -187,9 +190,10 @@ contains
     v = current()
     call build_base(rd, v, inp%campaign%base)
     if (rd%err%failed()) return
-    call build_excitation(rd, v, size(suite) > 0, inp%campaign%base)
+    inp%input_files = ''
+    call build_excitation(rd, v, size(suite) > 0, inp%campaign%base, inp%input_files)
     if (rd%err%failed()) return
-    call load_suite(rd, suite, inp%campaign%base, inp%campaign%records)
+    call load_suite(rd, suite, inp%campaign%base, inp%campaign%records, inp%input_files)
     if (rd%err%failed()) return
     call build_plan(rd, v, output_override, inp%campaign%base, inp%plan)
     if (rd%err%failed()) return
@@ -471,14 +475,16 @@ contains
   !> The cup's motion: its kind, and the inputs of that kind (a harmonic's
   !> amplitude, frequency and phase; a record's files, or a suite's &record
   !> groups, and scale).
-  subroutine build_excitation(rd, v, suite, cs)
+  subroutine build_excitation(rd, v, suite, cs, files_note)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
     logical, intent(in) :: suite            !< &record groups give the records
     type(case_t), intent(inout) :: cs
-    integer :: gi, p
+    character(len=:), allocatable, intent(inout) :: files_note   !< the record's files (note_files)
+    integer :: gi, p, k
     character(len=:), allocatable :: reason
     character(len=1024), allocatable :: paths(:)
+    character(len=40), allocatable :: fingerprints(:)
     real(wp), allocatable :: times(:), values(:, :)
     gi = rd%group('excitation', .false.)
     if (gi == 0) then
@@ -514,11 +520,14 @@ contains
         return
       end if
       if (.not. record_files(rd, gi, v%record_file, paths)) return
-      call load_ground_motion(paths, cs%t_end, 1.0_wp, times, values, reason)
+      allocate (fingerprints(size(paths)))
+      call load_ground_motion(paths, cs%t_end, 1.0_wp, times, values, reason, fingerprints)
       if (len(reason) > 0) then
         call rd%fail_value(gi, 'record_file', reason)
         return
       end if
+      call note_files([character(len=1024) :: (adjustl(v%record_file(k)), k = 1, size(paths))], fingerprints, &
+                      files_note)
       call set_record(cs%excitation, times, values)
     case default
       call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")

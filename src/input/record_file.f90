@@ -8,6 +8,7 @@ module ellroll_record_file
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: itoa, format_real, lower, decimal_width
+  use ellroll_checksum, only: text_checksum
   use ellroll_exact, only: equals
   use ellroll_decimal, only: decimal_value, decimal_ok, decimal_too_long, longest_decimal
   use ellroll_system, only: open_regular_file, read_text, close_descriptor, system_error_text, file_type_words
@@ -67,17 +68,22 @@ contains
   !> Every sample is checked against max_record_acceleration as read and
   !> times `factor` (the record's, applied by the caller). reason = '' when
   !> it is usable.
-  subroutine load_ground_motion(paths, t_end, factor, times, values, reason)
+  subroutine load_ground_motion(paths, t_end, factor, times, values, reason, fingerprints)
     character(len=*), intent(in) :: paths(:)
     real(wp), intent(in) :: t_end, factor
     real(wp), allocatable, intent(out) :: times(:), values(:, :)
     character(len=:), allocatable, intent(out) :: reason
+    !> each file's size and CRC-32C ('1234 bytes, crc32c 0a1b2c3d'): what a
+    !> resume and a merge compare to tell a changed file
+    character(len=40), intent(out), optional :: fingerprints(size(paths))
     type(axis_record_t) :: axes(3)
     type(text_file_t) :: file
     integer :: k
     do k = 1, size(paths)
       call read_record_text(trim(paths(k)), file, reason)
       if (len(reason) > 0) return
+      if (present(fingerprints)) write (fingerprints(k), '(i0, " bytes, crc32c ", z8.8)') len(file%text, kind=i8), &
+          text_checksum(file%text)
       call refuse_other_quantities(file, reason)
       if (len(reason) > 0) return
       if (.not. is_at2(file)) then

@@ -12,14 +12,15 @@ module ellroll_suite_input
   implicit none
   private
 
-  public :: record_spec_t, add_record_group, load_suite, record_files
+  public :: record_spec_t, add_record_group, load_suite, record_files, note_files, changed_files
 
   !> A &record group as written (its files resolved against the input's folder).
   type :: record_spec_t
     integer :: group = 0
     character(len=32) :: name = ''
     real(wp) :: factor = 1
-    character(len=1024), allocatable :: files(:)
+    character(len=1024), allocatable :: files(:)       !< as resolved against the input's folder
+    character(len=1024), allocatable :: names(:)       !< as the input gives them
   end type record_spec_t
 
   !> Largest factor of a record (as the scale of &excitation).
@@ -46,6 +47,7 @@ contains
       end if
     end do
     if (.not. record_files(rd, gi, v%record_file, spec%files)) return
+    spec%names = [character(len=1024) :: (adjustl(v%record_file(k)), k = 1, size(spec%files))]
     if (.not. (ieee_is_finite(v%factor) .and. v%factor >= 0 .and. v%factor <= max_factor)) then
       call rd%fail_value(gi, 'factor', 'must be between 0 and ' // format_real(max_factor))
       return
@@ -85,25 +87,66 @@ contains
 
   !> Every record of the suite read (the factor applied to its values), and
   !> the base case given the first.
-  subroutine load_suite(rd, specs, base, records)
+  subroutine load_suite(rd, specs, base, records, files_note)
     type(reader_t), intent(inout) :: rd
     type(record_spec_t), intent(in) :: specs(:)
     type(case_t), intent(inout) :: base
     type(suite_record_t), allocatable, intent(out) :: records(:)
+    character(len=:), allocatable, intent(inout) :: files_note    !< note_files' lines for each file read
     real(wp), allocatable :: times(:), values(:, :)
     character(len=:), allocatable :: reason
+    character(len=40), allocatable :: fingerprints(:)
     integer :: k
     allocate (records(size(specs)))
     do k = 1, size(specs)
-      call load_ground_motion(specs(k)%files, base%t_end, specs(k)%factor, times, values, reason)
+      if (allocated(fingerprints)) deallocate (fingerprints)
+      allocate (fingerprints(size(specs(k)%files)))
+      call load_ground_motion(specs(k)%files, base%t_end, specs(k)%factor, times, values, reason, fingerprints)
       if (len(reason) > 0) then
         call rd%fail_value(specs(k)%group, 'record_file', reason)
         return
       end if
+      call note_files(specs(k)%names, fingerprints, files_note)
       call set_record(records(k)%motion, times, specs(k)%factor * values)
       records(k)%name = specs(k)%name
       records(k)%factor = specs(k)%factor
     end do
     if (size(records) > 0) call use_record(base, records(1))
   end subroutine load_suite
+
+  !> A line 'NAME: FINGERPRINT' per file read (its name as the input gives
+  !> it), after the note's lines so far: what decides, beside the input's
+  !> text, whether a resume or a merge meets the same campaign.
+  pure subroutine note_files(names, fingerprints, note)
+    character(len=*), intent(in) :: names(:), fingerprints(:)
+    character(len=:), allocatable, intent(inout) :: note
+    integer :: k
+    if (.not. allocated(note)) note = ''
+    do k = 1, size(fingerprints)
+      note = note // trim(names(k)) // ': ' // trim(fingerprints(k)) // achar(10)
+    end do
+  end subroutine note_files
+
+  !> The names of the files whose lines of two notes of the input's files
+  !> differ ('record file X', 'record files X, Y').
+  pure subroutine changed_files(before, now, names)
+    character(len=*), intent(in) :: before, now
+    character(len=:), allocatable, intent(out) :: names
+    integer :: first, last, n
+    names = ''
+    n = 0
+    first = 1
+    do while (first <= len(now))
+      last = index(now(first:), achar(10)) + first - 1
+      if (last < first) last = len(now) + 1
+      if (index(achar(10) // before // achar(10), achar(10) // now(first:last - 1) // achar(10)) == 0) then
+        if (n > 0) names = names // ', '
+        names = names // now(first:index(now(first:last - 1) // ':', ':') + first - 2)
+        n = n + 1
+      end if
+      first = last + 1
+    end do
+    if (n == 0) names = 'the list of record files'
+    names = 'record file' // trim(merge('s', ' ', n > 1)) // ' ' // names
+  end subroutine changed_files
 end module ellroll_suite_input

@@ -30,7 +30,8 @@ module ellroll_hdf5_writer
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
-    character(len=:), allocatable :: campaign_id    !< hash of the canonical input
+    character(len=:), allocatable :: campaign_id    !< hash of the canonical input and its files' fingerprints
+    character(len=:), allocatable :: input_files    !< the files the input reads, with their fingerprints
     integer(i8) :: n_cases_total = 0                !< cases of the whole campaign
     character(len=:), allocatable :: shard          !< 'I/N'
   end type provenance_t
@@ -224,6 +225,7 @@ contains
     call lay%text_attribute(self%file, 'input_namelist', prov%input_namelist)
     call lay%text_attribute(self%file, 'command_line', prov%command_line)
     call lay%text_attribute(self%file, 'campaign_id', prov%campaign_id)
+    if (allocated(prov%input_files)) call lay%text_attribute(self%file, 'input_files', prov%input_files)
     call lay%text_attribute(self%file, 'shard', prov%shard)
     if (lay%err%failed()) return
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)

@@ -25,25 +25,30 @@ module ellroll_journal
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_checksum, only: checksum, checksum_start, fold_reals
-  use ellroll_system, only: open_for_writing, write_pieces_at, read_at, close_descriptor, system_error_text
+  use ellroll_system, only: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, &
+      system_error_text
   use ellroll_files, only: create_new_file, file_size
+  use ellroll_suite_input, only: changed_files
   implicit none
   private
 
   public :: journal_t, journal_header_t, journal_is_torn
 
-  character(len=8), parameter :: magic = 'ELLROLL3'
+  character(len=8), parameter :: magic = 'ELLROLL4'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
   !> The header: magic, then these words (the campaign id's 64 bytes, n_slots,
   !> n_samples, the shard's two numbers, a flag per field for the stored and
-  !> for the in-place fields), then their checksum.
+  !> for the in-place fields, the note's length in words), then their
+  !> checksum; then the note of the input's files (their fingerprints), blank
+  !> padded to whole words, and its checksum; then the records.
   integer, parameter :: id_words = 8
-  integer, parameter :: header_words = id_words + 4 + 2 * field_count
+  integer, parameter :: header_words = id_words + 4 + 2 * field_count + 1
   integer, parameter :: header_bytes = 8 + 8 * (header_words + 1)
 
   !> What a journal must agree on with the run that resumes it.
   type :: journal_header_t
-    character(len=64) :: campaign_id = ''
+    character(len=64) :: campaign_id = ''          !< the campaign's id, then the id of the input's text alone
+    character(len=:), allocatable :: input_files   !< the input's files and their fingerprints, a line each
     integer(i8) :: n_slots = 0
     integer(i8) :: n_samples = 0
     integer :: shard(2) = [0, 1]
@@ -81,6 +86,7 @@ contains
     type(journal_header_t), intent(in) :: header
     type(error_t), intent(inout) :: err
     integer(i8), target :: start(header_bytes / 8)
+    integer(i8), allocatable, target :: note(:)
     character(len=8), target :: magic_text
     integer :: code
     self%path = path
@@ -91,33 +97,58 @@ contains
       call set_error(err, err_output, path // ': cannot create the journal: ' // system_error_text(-self%fd))
       return
     end if
+    note = note_words(header%input_files)
     magic_text = magic
     start(1) = transfer(magic_text, 0_i8)
-    start(2:header_words + 1) = encode_header(header)
+    start(2:header_words + 1) = encode_header(header, size(note, kind=i8) - 1)
     start(header_words + 2) = checksum(start(2:header_words + 1))
-    code = write_pieces_at(self%fd, [c_loc(start)], [int(header_bytes, i8)], 0_i8)
+    code = write_pieces_at(self%fd, [c_loc(start), c_loc(note)], [int(header_bytes, i8), 8 * size(note, kind=i8)], &
+                           0_i8)
     if (code /= 0) then
       call set_error(err, err_output, path // ': cannot write the journal: ' // system_error_text(code))
       return
     end if
-    self%next_position = header_bytes + 1
+    self%next_position = header_bytes + 8 * size(note) + 1
   end subroutine create
+
+  !> A note as whole words, blank-padded, and their checksum after them.
+  pure function note_words(note) result(words)
+    character(len=*), intent(in) :: note
+    integer(i8), allocatable :: words(:)
+    character(len=8 * ((len(note) + 7) / 8)) :: padded
+    padded = note
+    allocate (words(len(padded) / 8 + 1))
+    if (len(padded) > 0) words(:size(words) - 1) = transfer(padded, 0_i8, size(words) - 1)
+    words(size(words)) = checksum(words(:size(words) - 1))
+  end function note_words
 
   !> Whether the journal at path ends before its header does: the run was
   !> killed before it had written the header, so nothing it did is kept.
   logical function journal_is_torn(path)
     character(len=*), intent(in) :: path
+    integer(i8), target :: start(header_bytes / 8)
     integer(i8) :: bytes
+    integer :: fd, code
     bytes = file_size(path)
     journal_is_torn = bytes >= 0 .and. bytes < header_bytes
+    if (journal_is_torn .or. bytes < 0) return
+    ! the header whole, but not the note of the input's files after it
+    fd = open_for_reading(path)
+    if (fd < 0) return
+    code = read_at(fd, c_loc(start), int(header_bytes, i8), 0_i8)
+    if (code == 0 .and. start(header_words + 2) == checksum(start(2:header_words + 1))) &
+      journal_is_torn = bytes < header_bytes + 8 * (start(header_words + 1) + 1)
+    code = close_descriptor(fd)
   end function journal_is_torn
 
-  function encode_header(header) result(words)
+  function encode_header(header, n_note) result(words)
     type(journal_header_t), intent(in) :: header
+    integer(i8), intent(in) :: n_note          !< words of the note of the input's files
     integer(i8) :: words(header_words)
     words(:id_words) = transfer(header%campaign_id, 0_i8, id_words)
     words(id_words + 1:id_words + 4) = [header%n_slots, header%n_samples, int(header%shard, i8)]
-    words(id_words + 5:) = [merge(1_i8, 0_i8, header%fields), merge(1_i8, 0_i8, header%in_place)]
+    words(id_words + 5:header_words - 1) = [merge(1_i8, 0_i8, header%fields), merge(1_i8, 0_i8, header%in_place)]
+    words(header_words) = n_note
   end function encode_header
 
   function decode_header(words) result(header)
@@ -128,7 +159,7 @@ contains
     header%n_samples = words(id_words + 2)
     header%shard = int(words(id_words + 3:id_words + 4))
     header%fields = words(id_words + 5:id_words + 4 + field_count) == 1
-    header%in_place = words(id_words + 5 + field_count:) == 1
+    header%in_place = words(id_words + 5 + field_count:header_words - 1) == 1
   end function decode_header
 
   !> Open a journal to resume it; refuse one written for another campaign.
@@ -160,9 +191,14 @@ contains
       return
     end if
     found = decode_header(start(2:header_words + 1))
+    call read_note(self%fd, start(header_words + 1), found%input_files, code)
+    if (code /= 0) then
+      call set_error(err, err_output, path // ': the journal''s note of the input''s files is damaged, so none ' // &
+                     'of its cases can be trusted; start over with --overwrite')
+      return
+    end if
     if (found%campaign_id /= expected%campaign_id) then
-      call set_error(err, err_input, path // ': the input differs from the one this run was started with; ' // &
-          'resume with the same input, or start over with --overwrite')
+      call explain_other_campaign(path, found, expected, err)
       return
     end if
     if (found%n_slots /= expected%n_slots .or. found%n_samples /= expected%n_samples .or. &
@@ -174,8 +210,49 @@ contains
     end if
     self%header = found
     self%record_words = words_per_record(found)
-    self%next_position = header_bytes + 1
+    self%next_position = header_bytes + 8 * (start(header_words + 1) + 1) + 1
   end subroutine open_existing
+
+  !> The note of n words (and its checksum) after the header; code /= 0 when
+  !> it cannot be read or fails its checksum.
+  subroutine read_note(fd, n, note, code)
+    integer, intent(in) :: fd
+    integer(i8), intent(in) :: n
+    character(len=:), allocatable, intent(out) :: note
+    integer, intent(out) :: code
+    integer(i8), allocatable, target :: words(:)
+    note = ''
+    code = -1
+    if (n < 0 .or. n > 2_i8**24) return
+    allocate (words(n + 1))
+    code = read_at(fd, c_loc(words), 8 * (n + 1), int(header_bytes, i8))
+    if (code /= 0) return
+    if (words(n + 1) /= checksum(words(:n))) then
+      code = -1
+      return
+    end if
+    note = repeat(' ', 8 * int(n))
+    if (n > 0) note = transfer(words(:n), note)
+    note = trim(note)
+  end subroutine read_note
+
+  !> Why a journal is of another campaign: the input's text differs, or
+  !> (the text the same) a file it reads has changed since the run began.
+  subroutine explain_other_campaign(path, found, expected, err)
+    character(len=*), intent(in) :: path
+    type(journal_header_t), intent(in) :: found, expected
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: changed
+    if (found%campaign_id(17:32) /= expected%campaign_id(17:32)) then
+      call set_error(err, err_input, path // ': the input differs from the one this run was started with; ' // &
+          'resume with the same input, or start over with --overwrite')
+      return
+    end if
+    call changed_files(found%input_files, expected%input_files, changed)
+    call set_error(err, err_input, path // ': ' // changed // ' changed since this run began (its size or ' // &
+        'contents differ); resume with the file as it was, or start over with --overwrite')
+  end subroutine explain_other_campaign
+
 
   !> Where each slot's valid record lies (places(slot), -1 for none), to
   !> read them back in slot order with record_at; the journal's records are

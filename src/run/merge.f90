@@ -10,6 +10,7 @@ module ellroll_merge
   use ellroll_results, only: case_result_t
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_suite_input, only: changed_files
   use ellroll_run_campaign, only: shard_slots, campaign_id
   use ellroll_files, only: same_file, path_kind, kind_missing
   use ellroll_output_files, only: output_files_t, work_partial, work_target
@@ -97,8 +98,7 @@ contains
       call shards(k)%text_attribute('shard', spec)
       call shards(k)%text_attribute('campaign_id', other_id)
       if (other_id /= id) then
-        call set_error(err, err_input, trim(shard_paths(k)) // ': belongs to another campaign than ' // &
-                       trim(shard_paths(1)))
+        call explain_other_campaign(shards(1), shards(k), trim(shard_paths(1)), trim(shard_paths(k)), err)
         return
       end if
       if (shard_count(spec) /= n_shards) then
@@ -143,6 +143,7 @@ contains
     call move_alloc(stored_file, prov%input_file)
     call move_alloc(stored_namelist, prov%input_namelist)
     prov%campaign_id = id
+    call shards(1)%text_attribute('input_files', prov%input_files)
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = '0/1'
     all_cases = [(i, i = 0, inp%campaign%n_cases() - 1)]
@@ -165,6 +166,26 @@ contains
       call shards(k)%close()
     end do
   end subroutine merge_into
+
+  !> Two shards of other campaigns: their inputs differ, or (the input the
+  !> same) a file it reads differed when they ran.
+  subroutine explain_other_campaign(first, other, first_path, other_path, err)
+    type(h5_input_t), intent(in) :: first, other
+    character(len=*), intent(in) :: first_path, other_path
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: text_1, text_2, files_1, files_2, names
+    call first%text_attribute('input_namelist', text_1)
+    call other%text_attribute('input_namelist', text_2)
+    call first%text_attribute('input_files', files_1)
+    call other%text_attribute('input_files', files_2)
+    if (text_1 /= text_2 .or. files_1 == files_2) then
+      call set_error(err, err_input, other_path // ': belongs to another campaign than ' // first_path)
+      return
+    end if
+    call changed_files(files_1, files_2, names)
+    call set_error(err, err_input, other_path // ': ran with other contents of ' // names // ' than ' // &
+                   first_path // '; run every shard with the same files')
+  end subroutine explain_other_campaign
 
   integer function shard_index(spec)
     character(len=*), intent(in) :: spec

@@ -80,10 +80,11 @@ module ellroll_run_campaign
 contains
 
   !> The id that ties a file, its journal and its shards to one campaign.
+  !> (A record file changed gives another id: its fingerprint is part of it.)
   function campaign_id(inp) result(id)
     type(run_input_t), intent(in) :: inp
     character(len=16) :: id
-    id = text_hash(inp%canonical)
+    id = text_hash(inp%canonical // inp%input_files)
   end function campaign_id
 
   !> Checked before any case runs: files can be created in the output's
@@ -415,11 +416,15 @@ contains
     run%shard = opts%shard
     prov = prov_in
     prov%campaign_id = campaign_id(inp)
+    prov%input_files = inp%input_files
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
-    header = journal_header_t(campaign_id=campaign_id(inp), n_slots=run%n_slots, n_samples=inp%plan%n_samples, &
-                              shard=opts%shard, fields=inp%plan%fields, &
-                              in_place=written_in_place(inp%plan%fields, inp%plan%compression))
+    header = journal_header_t(campaign_id=campaign_id(inp) // text_hash(inp%canonical), &
+                              n_slots=run%n_slots, n_samples=inp%plan%n_samples, shard=opts%shard, &
+                              fields=inp%plan%fields, in_place=written_in_place(inp%plan%fields, inp%plan%compression))
+    ! (assigned apart: gfortran 12 copies a deferred-length component of a
+    ! structure constructor into a buffer of one byte)
+    header%input_files = inp%input_files
     run%resumed = resume
     if (resume) then
       call open_for_resume(run%journal, files, header, journal_places, err)

@@ -182,7 +182,9 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 24, 4
-JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8) + 8   # magic; id, slots, samples, shard, two flags per field; checksum
+# magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
+# input's files (empty without records) and its checksum
+JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8 + 1) + 8 + 8
 RECORD_MARKER = 7310312871522813004
 
 
