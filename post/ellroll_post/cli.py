@@ -7,7 +7,8 @@ import sys
 
 from .reader import NotAnEllrollFile, open as open_run
 from . import plots
-from .report import OutputExists, build_report, refuse_existing
+from .report import build_report
+from .safe_write import OutputExists, check_target, save_figure
 from .summary import format_summary
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
@@ -22,7 +23,7 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrit
     stem = figure_stem(run, "sweep_" + "_".join(x_names) if name == "sweep" else
                        FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
     path = pathlib.Path(out) / f"{stem}.{fmt}"
-    refuse_existing(path, overwrite)
+    check_target(path, overwrite)
     if name == "sweep":
         fig = plt.figure(figsize=(7.5, 3.2 * len(y_names) + 0.6), layout="constrained")
         plots.plot_sweep(fig, run, x_names, y_names)
@@ -41,9 +42,10 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrit
                 plots.plot_transmissibility(ax, run)
             else:
                 getattr(plots, f"plot_{name}")(ax, run, case)
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
-    return path
+    try:
+        return save_figure(fig, path, overwrite, fmt)
+    finally:
+        plt.close(fig)
 
 
 def figure_stem(run, figure):
@@ -122,9 +124,9 @@ def main(argv=None):
         if args.command == "workprecision":
             fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
             written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
-            refuse_existing(written[0], args.overwrite)
+            check_target(written[0], args.overwrite)
             plots.plot_workprecision(axes, workprecision_points(args.files))
-            fig.savefig(written[0], dpi=150)
+            save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
                 if args.command == "report":

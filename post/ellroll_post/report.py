@@ -3,6 +3,7 @@ that shows them beside the summary table."""
 import html
 import pathlib
 
+from .safe_write import MARK, check_target, write_text
 from .summary import format_summary, summary_table
 
 # figure name -> trajectory fields it needs
@@ -19,14 +20,6 @@ CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, th
             "spectrum": "Spectra of the transmitted and the ground acceleration"}
 
 
-class OutputExists(Exception):
-    """A figure or page the command would write is already there."""
-
-
-def refuse_existing(path, overwrite):
-    """A figure, table or page already there is replaced only when asked."""
-    if path.exists() and not overwrite:
-        raise OutputExists(f"{path} exists; give --overwrite to replace it")
 
 
 def build_report(run, out, draw, case=0, fmt="png", overwrite=False):
@@ -34,7 +27,7 @@ def build_report(run, out, draw, case=0, fmt="png", overwrite=False):
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for page in ("index.html", "summary.csv"):
-        refuse_existing(out / page, overwrite)
+        check_target(out / page, overwrite)
     made = []
     swept = run.swept_inputs()
     if swept:
@@ -52,8 +45,8 @@ def build_report(run, out, draw, case=0, fmt="png", overwrite=False):
     for name, needs in CASE_FIGURES.items():
         if needs <= set(run.fields):
             made.append(draw(name, run, out, case, fmt))
-    (out / "summary.csv").write_text(format_summary(run, "csv"))
-    (out / "index.html").write_text(_index_html(run, made, case))
+    write_text(out / "summary.csv", overwrite, format_summary(run, "csv"))
+    write_text(out / "index.html", overwrite, _index_html(run, made, case))
     return made
 
 
@@ -69,7 +62,7 @@ def _index_html(run, figures, case, shown=200):
     images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>'
                        f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>' for p in figures)
     return f"""<!DOCTYPE html>
-<html><head><meta charset="utf-8"><title>ellroll report: {html.escape(run.path)}</title>
+<html><head><meta charset="utf-8"><meta name="generator" content="{MARK}"><title>ellroll report: {html.escape(run.path)}</title>
 <style>body{{font-family:sans-serif;margin:2em}} img{{max-width:100%}} figure{{margin:1em 0}}
 table{{border-collapse:collapse;font-size:small}} td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}</style>
 </head><body>

@@ -27,10 +27,10 @@ module ellroll_output_files
   implicit none
   private
 
-  public :: output_files_t, work_partial, work_journal, work_target
+  public :: output_files_t, work_partial, work_journal, work_target, work_lock
 
   !> What a file at a work name must be for ellroll to remove or replace it.
-  integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3
+  integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3, work_lock = 4
 
   integer, parameter :: enoent = 2, eagain = 11, eexist = 17, enolck = 37, enosys = 38, eopnotsupp = 95
 
@@ -69,6 +69,7 @@ contains
     type(error_t), intent(inout) :: err
     character(len=:), allocatable :: me, holder, host, stamp
     integer :: fd
+    call self%check(self%lock, work_lock, err)
     if (err%failed()) return
     call host_name(host)
     call utc_timestamp(stamp)
@@ -159,6 +160,7 @@ contains
     integer :: code
     call self%check(path, what, err)
     if (err%failed()) return
+    if (path_kind(path) == kind_missing) return
     code = remove_path(path)
     if (code /= 0 .and. code /= enoent) call set_error(err, err_output, path // ': cannot remove it: ' // &
                                                        system_error_text(code))
@@ -209,7 +211,7 @@ contains
     integer, intent(in) :: what
     character(len=*), parameter :: hdf5_signature = char(137) // 'HDF' // achar(13) // achar(10) // &
         achar(26) // achar(10)
-    character(len=*), parameter :: label = 'ellroll:', journal_magic = 'ELLROLL'
+    character(len=*), parameter :: label = 'ellroll:', journal_magic = 'ELLROLL', lock_mark = 'ellroll lock'
     character(len=520) :: head
     integer :: n
     type(h5_input_t) :: output
@@ -229,7 +231,9 @@ contains
     end if
     select case (what)
     case (work_journal)
-      ours = n == 0 .or. head(1:min(n, len(journal_magic))) == journal_magic(:min(n, len(journal_magic)))
+      ours = head(1:min(n, len(journal_magic))) == journal_magic(:min(n, len(journal_magic)))
+    case (work_lock)
+      ours = head(1:min(n, len(lock_mark))) == lock_mark(:min(n, len(lock_mark)))
     case default
       ours = head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. head(1:min(n, 8)) == label(:min(n, 8))
       if (n >= 520) ours = ours .or. (verify(head(:512), char(0)) == 0 .and. head(513:520) == hdf5_signature)

@@ -1,0 +1,359 @@
+"""No command replaces a file it did not make, follows a link, or destroys
+another process's work.
+
+Contract: every writing command (ellroll run, run --overwrite, run --resume,
+merge, merge --overwrite, and every ellroll-plot command) against a
+symbolic link, a foreign file, a folder or the input at each name it would
+write: refused with a message, the file left as it was, no file left behind.
+One writer: two starts on one output at seeded random offsets (plain/plain,
+plain/resume, overwrite/plain) in a loop: one does the work, the other is
+refused at once naming the first's process, and the output is the
+undisturbed run's. Input files are fingerprinted: a record changed before a
+resume, or shards run with different records, are refused naming the file.
+The end of a run: a kill between moving the output into place and removing
+its journal leaves a complete output that a resume recognises."""
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import time
+
+import pytest
+
+from conftest import ROOT, run
+from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes
+
+
+CAMPAIGN = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = {t_end} /
+&output file = 'out.h5', interval = 0.05 /
+&sweep name = 'omega_z', values = 5, 10, 20, 40 /
+"""
+VICTIM = b"somebody's data\n"
+LONG = 400.0             # t_end of a run that lasts about a second (4 cases, one thread)
+WORK_NAMES = ["out.h5", "out.h5.partial", "out.h5.partial.new", "out.h5.journal", "out.h5.lock"]
+
+
+def folder_with(tmp_path, name="w", t_end=0.2):
+    folder = tmp_path / name
+    folder.mkdir()
+    (folder / "camp.nml").write_text(CAMPAIGN.format(t_end=t_end))
+    return folder
+
+
+def contents(folder):
+    return {p.name: (p.readlink() if p.is_symlink() else p.read_bytes() if p.is_file() else "folder")
+            for p in sorted(folder.iterdir())}
+
+
+def hostile(folder, name, kind):
+    """Put a link to a victim, a foreign file or a folder at name."""
+    target = folder / name
+    if kind == "link":
+        (folder / "victim.txt").write_bytes(VICTIM)
+        target.symlink_to("victim.txt")
+    elif kind == "foreign":
+        target.write_bytes(VICTIM)
+    else:
+        target.mkdir()
+
+
+@pytest.mark.parametrize("kind", ["link", "foreign", "folder"])
+@pytest.mark.parametrize("name", WORK_NAMES)
+@pytest.mark.parametrize("options", [[], ["--overwrite"], ["--resume"]], ids=["plain", "overwrite", "resume"])
+def test_run_never_writes_a_file_it_did_not_make(ellroll, tmp_path, kind, name, options):
+    folder = folder_with(tmp_path)
+    hostile(folder, name, kind)
+    before = contents(folder)
+    result = run(ellroll, "run", "camp.nml", "-q", *options, cwd=folder)
+    detail = f"{kind} at {name}, {options}: {result.stderr}"
+    if name == "out.h5" and kind != "link" and "--overwrite" not in options and "--resume" not in options:
+        assert result.returncode == 3 and "out.h5" in result.stderr, detail
+    else:
+        assert result.returncode == 3, detail
+        assert re.search(rf"{re.escape(name)}: (is a symbolic link|exists and is not an ellroll|is a folder|"
+                         r"output file exists)", result.stderr), detail
+    assert contents(folder) == before, detail
+
+
+@pytest.mark.parametrize("output", ["camp.nml", "out.h5.partial"])
+def test_the_input_is_never_an_output_nor_a_work_file(ellroll, tmp_path, output):
+    folder = folder_with(tmp_path)
+    if output != "camp.nml":
+        shutil.copy(folder / "camp.nml", folder / output)
+        command = ["run", output, "-o", "out.h5", "--overwrite"]
+    else:
+        command = ["run", "camp.nml", "-o", output, "--overwrite"]
+    before = contents(folder)
+    result = run(ellroll, *command, cwd=folder)
+    assert result.returncode == 3 and "is the input file; it is never written" in result.stderr, result.stderr
+    assert contents(folder) == before
+
+
+@pytest.mark.parametrize("kind", ["link", "foreign", "shard", "folder"])
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_merge_never_replaces_a_file_it_did_not_make(ellroll, tmp_path, kind, overwrite):
+    folder = folder_with(tmp_path)
+    for shard in ("0", "1"):
+        assert run(ellroll, "run", "camp.nml", "-q", "--shard", f"{shard}/2", "-o", f"s{shard}.h5",
+                   cwd=folder).returncode == 0
+    target = "s0.h5" if kind == "shard" else "merged.csv"
+    if kind != "shard":
+        hostile(folder, target, kind)
+    before = contents(folder)
+    result = run(ellroll, "merge", target, "s0.h5", "s1.h5", *(["--overwrite"] if overwrite else []), cwd=folder)
+    assert result.returncode in (2, 3) and f"{target}: " in result.stderr, result.stderr
+    assert contents(folder) == before
+
+
+def test_merge_replaces_its_own_output_only_with_overwrite(ellroll, tmp_path):
+    folder = folder_with(tmp_path)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "whole.h5", cwd=folder).returncode == 0
+    for shard in ("0", "1"):
+        assert run(ellroll, "run", "camp.nml", "-q", "--shard", f"{shard}/2", "-o", f"s{shard}.h5",
+                   cwd=folder).returncode == 0
+    assert run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", cwd=folder).returncode == 0
+    again = run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", cwd=folder)
+    assert again.returncode == 3 and "out.h5: output file exists; pass --overwrite" in again.stderr
+    assert run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", "--overwrite", cwd=folder).returncode == 0
+    assert_same_datasets(folder / "whole.h5", folder / "out.h5")
+    assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5", "s0.h5", "s1.h5", "whole.h5"]
+
+
+PLOT_COMMANDS = [["trace"], ["nutation"], ["reaction"], ["energy"], ["sweep"], ["report"]]
+
+
+@pytest.fixture(scope="module")
+def plotted(ellroll, tmp_path_factory):
+    """A campaign's file, for ellroll-plot (run in this process: main(argv))."""
+    folder = folder_with(tmp_path_factory.mktemp("plots"))
+    assert run(ellroll, "run", "camp.nml", "-q", cwd=folder).returncode == 0
+    return folder
+
+
+def plot(folder, *argv):
+    from ellroll_post.cli import main
+    import contextlib
+    import io
+    out, err = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(list(argv))
+    finally:
+        os.chdir(cwd)
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.mark.parametrize("command", PLOT_COMMANDS, ids=[c[0] for c in PLOT_COMMANDS])
+def test_ellroll_plot_never_writes_a_file_it_did_not_make(plotted, command):
+    figures = f"figures_{command[0]}"
+    code, out, err = plot(plotted, *command, "out.h5", "--out", figures)
+    assert code == 0, err
+    written = [os.path.basename(line) for line in out.splitlines() if line]
+    code, _, err = plot(plotted, *command, "out.h5", "--out", figures)
+    assert code == 2 and "exists; give --overwrite" in err, err
+    code, _, err = plot(plotted, *command, "out.h5", "--out", figures, "--overwrite")
+    assert code == 0, err
+    folder = plotted / figures
+    for kind in ("link", "foreign", "folder"):
+        (folder / written[0]).unlink() if not (folder / written[0]).is_dir() else (folder / written[0]).rmdir()
+        (folder / "victim.txt").unlink(missing_ok=True)
+        hostile(folder, written[0], kind)
+        before = contents(folder)
+        code, _, err = plot(plotted, *command, "out.h5", "--out", figures, "--overwrite")
+        assert code == 2 and written[0] in err, (kind, err)
+        assert re.search(r"(symbolic link|not made by ellroll-plot|not a regular file)", err), (kind, err)
+        assert contents(folder) == before, f"{kind}: a file was replaced or left behind"
+
+
+def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):
+    code, _, err = plot(plotted, "workprecision", "out.h5", "--out", "figures_wp")
+    assert code == 2 and "no error figures" in err
+    assert list((plotted / "figures_wp").iterdir()) == []
+
+
+# ---- one writer per output
+
+def start(ellroll, folder, *options):
+    return subprocess.Popen([str(ellroll), "run", "camp.nml", "-q", "--threads", "1", *options], cwd=folder,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.mark.parametrize("pair", [("plain", "plain"), ("plain", "resume"), ("overwrite", "plain")])
+def test_two_starts_on_one_output_one_writes_the_other_is_refused(ellroll, tmp_path, pair):
+    options = {"plain": [], "resume": ["--resume"], "overwrite": ["--overwrite"]}
+    rng = random.Random(f"{pair}")
+    reference = folder_with(tmp_path, "reference", t_end=LONG)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "whole.h5", cwd=reference).returncode == 0
+    overlapped = 0
+    for trial in range(3):
+        folder = folder_with(tmp_path, f"trial{trial}", t_end=LONG)
+        if pair[0] == "overwrite":
+            shutil.copy(reference / "whole.h5", folder / "out.h5")
+        first = start(ellroll, folder, *options[pair[0]])
+        time.sleep(rng.uniform(0.0, 0.3))
+        second = start(ellroll, folder, *options[pair[1]])
+        results = [(p.wait(timeout=120), p.stderr.read(), p.pid) for p in (first, second)]
+        detail = f"trial {trial}, {pair}: {results}"
+        locked_out = [r for r in results if "another ellroll process writes this output" in r[1]]
+        if locked_out:
+            overlapped += 1
+            code, message, _ = locked_out[0]
+            winner = next(pid for c, _, pid in results if c == 0)
+            assert code == 3 and f"pid {winner}," in message, detail
+            assert sorted(c for c, _, _ in results) == [0, 3], detail
+        else:       # the second began after the first had ended
+            assert all(c == 0 or "output file exists" in m for c, m, _ in results), detail
+        assert_same_datasets(reference / "whole.h5", folder / "out.h5")
+        assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"], detail
+    assert overlapped >= 2, "the starts did not overlap: the test did not try the lock"
+
+
+def test_a_resume_refused_by_the_lock_leaves_the_run_alone(ellroll, tmp_path):
+    folder = folder_with(tmp_path, t_end=LONG)
+    writer = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists():
+        time.sleep(0.01)
+    note = (folder / "out.h5.lock").read_text()
+    assert note.startswith("ellroll lock\nhost ") and f"pid {writer.pid}," in note, note
+    for options in (["--resume"], ["--overwrite"], []):
+        result = run(ellroll, "run", "camp.nml", "-q", *options, cwd=folder)
+        assert result.returncode == 3 and f"pid {writer.pid}" in result.stderr, result.stderr
+    merged = run(ellroll, "merge", "out.h5", "x.h5", cwd=folder)
+    assert merged.returncode == 3 and "another ellroll process" in merged.stderr, merged.stderr
+    assert writer.wait(timeout=120) == 0, writer.stderr.read()
+    assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"]
+
+
+# ---- the end of a run, and signals
+
+def test_a_complete_output_beside_its_journal_is_recognised(ellroll, tmp_path):
+    """Killed after the output was moved into place, before its journal was
+    removed: the next command on it (a plain run, which refuses as for any
+    output, or a resume) says the output is complete and removes the stale
+    journal; a resume writes nothing."""
+    folder = folder_with(tmp_path)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "whole.h5", cwd=folder).returncode == 0
+    killed = subprocess.run(["strace", "-f", "-o", os.devnull, "-e", "trace=unlink", "-e",
+                             "inject=unlink:signal=SIGKILL:when=1", str(ellroll), "run", "camp.nml", "-q"],
+                            cwd=folder, capture_output=True, text=True)
+    if shutil.which("strace") is None:
+        pytest.skip("strace is not installed")
+    assert killed.returncode != 0
+    assert (folder / "out.h5").exists() and (folder / "out.h5.journal").exists()
+    shutil.copy(folder / "out.h5.journal", folder / "journal.kept")
+    plain = run(ellroll, "run", "camp.nml", "-q", cwd=folder)
+    assert plain.returncode == 3 and "output file exists" in plain.stderr, plain.stderr
+    assert "out.h5: complete; removing the journal of the run that wrote it" in plain.stderr, plain.stderr
+    (folder / "journal.kept").rename(folder / "out.h5.journal")
+    resumed = run(ellroll, "run", "camp.nml", "--resume", cwd=folder)
+    assert resumed.returncode == 0 and "complete; removing the journal" in resumed.stderr, resumed.stderr
+    assert "nothing to do" in resumed.stderr
+    assert_same_datasets(folder / "whole.h5", folder / "out.h5")
+    assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5", "whole.h5"]
+
+
+def test_repeated_sigterm_is_one_stop(ellroll, tmp_path):
+    """scancel and a job script's trap may both send SIGTERM: the run stops
+    once, with its message and its finished cases; a second SIGINT still
+    ends it at once."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "whole.h5", cwd=folder).returncode == 0
+    writer = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists():
+        time.sleep(0.01)
+    time.sleep(0.2)
+    for _ in range(3):
+        writer.send_signal(signal.SIGTERM)
+    assert writer.wait(timeout=60) == 143
+    assert "interrupted by SIGTERM" in writer.stderr.read()
+    resumed = run(ellroll, "run", "camp.nml", "-q", "--resume", cwd=folder)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_datasets(folder / "whole.h5", folder / "out.h5")
+
+
+def test_bytes_appended_to_a_journal_rerun_nothing(ellroll, tmp_path):
+    folder = folder_with(tmp_path)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "whole.h5", cwd=folder).returncode == 0
+    killed = subprocess.run(["strace", "-f", "-o", os.devnull, "-e", "inject=unlink:signal=SIGKILL:when=1",
+                             str(ellroll), "run", "camp.nml", "-q", "--threads", "1"], cwd=folder)
+    assert killed.returncode != 0
+    (folder / "out.h5").rename(folder / "out.h5.partial")        # every case journaled, none moved into place
+    journal = folder / "out.h5.journal"
+    with open(journal, "ab") as f:
+        f.write(random.Random(7).randbytes(2 * record_bytes()))
+    resumed = run(ellroll, "run", "camp.nml", "--resume", cwd=folder)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "2 damaged records skipped" in resumed.stderr and "0 of 4 cases have no valid record" in resumed.stderr, \
+        resumed.stderr
+    assert_same_datasets(folder / "whole.h5", folder / "out.h5")
+
+
+# ---- input files
+
+RECORD_SUITE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.05, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 1.0 /
+&excitation kind = 'record' /
+&record name = 'SYN1', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /
+&record name = 'SYN3', record_file = 'records/SYN3_H1.AT2', 'records/SYN3_H2.AT2' /
+&sweep name = 'rolling_resistance', values = 0.0, 1.0e-4, 1.0e-3, 2.0e-3 /
+&output file = 'out.h5', interval = 0.05 /
+"""
+
+
+def record_folder(tmp_path):
+    folder = tmp_path / "records_run"
+    shutil.copytree(ROOT / "input" / "records", folder / "records")
+    (folder / "suite.nml").write_text(RECORD_SUITE)
+    return folder
+
+
+def change_a_value(path):
+    lines = path.read_text().splitlines(keepends=True)
+    lines[5] = lines[5].replace("E", "E", 1)[:-2] + ("1" if lines[5][-2] != "1" else "2") + lines[5][-1]
+    path.write_text("".join(lines))
+
+
+def test_a_record_changed_before_a_resume_is_refused_naming_it(ellroll, tmp_path):
+    folder = record_folder(tmp_path)
+    killed = subprocess.run(["strace", "-f", "-o", os.devnull, "-e", "inject=pwritev:signal=SIGKILL:when=6",
+                             str(ellroll), "run", "suite.nml", "-q", "--threads", "1"], cwd=folder)
+    assert killed.returncode != 0 and (folder / "out.h5.journal").exists()
+    change_a_value(folder / "records" / "SYN3_H2.AT2")
+    result = run(ellroll, "run", "suite.nml", "-q", "--resume", cwd=folder)
+    assert result.returncode == 2, result.stderr
+    assert "record file records/SYN3_H2.AT2 changed since this run began" in result.stderr, result.stderr
+    shutil.copy(ROOT / "input" / "records" / "SYN3_H2.AT2", folder / "records" / "SYN3_H2.AT2")
+    assert run(ellroll, "run", "suite.nml", "-q", "--resume", cwd=folder).returncode == 0
+
+
+def test_shards_run_with_different_records_are_not_merged(ellroll, tmp_path):
+    folder = record_folder(tmp_path)
+    assert run(ellroll, "run", "suite.nml", "-q", "--shard", "0/2", "-o", "s0.h5", cwd=folder).returncode == 0
+    change_a_value(folder / "records" / "SYN1_H1.AT2")
+    assert run(ellroll, "run", "suite.nml", "-q", "--shard", "1/2", "-o", "s1.h5", cwd=folder).returncode == 0
+    result = run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", cwd=folder)
+    assert result.returncode == 2 and "record file records/SYN1_H1.AT2" in result.stderr, result.stderr
+    assert not (folder / "out.h5").exists()
+
+
+@pytest.mark.parametrize("what", ["output", "record"])
+def test_a_fifo_is_refused_without_waiting(ellroll, tmp_path, what):
+    folder = record_folder(tmp_path)
+    if what == "output":
+        os.mkfifo(folder / "out.h5")
+    else:
+        (folder / "records" / "SYN1_H1.AT2").unlink()
+        os.mkfifo(folder / "records" / "SYN1_H1.AT2")
+    for command in ("check", "run"):
+        result = run(ellroll, command, "suite.nml", "-q" if command == "run" else "--threads", *(
+            [] if command == "run" else ["1"]), cwd=folder, timeout=30)
+        assert result.returncode in (2, 3) and "not a regular file" in result.stderr, result.stderr
