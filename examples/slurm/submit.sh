@@ -53,5 +53,7 @@ export ELLROLL                                                # the array and me
 "$ELLROLL" check "$input" -o "$out" > /dev/null               # refuse bad input before queueing
 array=$(sbatch --parsable --array="0-$((n - 1))" --cpus-per-task="$cpus" "${task_options[@]}" \
         "$here/campaign.sbatch" "$input" "$out")
-merge=$(sbatch --parsable --dependency="afterok:${array}" "$here/merge.sbatch" "$out" "$n")
+# a failed task (a second submission refused by the first one's lock, say)
+# cancels the merge instead of leaving it pending forever
+merge=$(sbatch --parsable --dependency="afterok:${array}" --kill-on-invalid-dep=yes "$here/merge.sbatch" "$out" "$n")
 echo "array job $array, merge job $merge"

@@ -444,7 +444,8 @@ contains
     if (n_ranks > 1) then
       call run_ranks(inp, err)
     else
-      call run_campaign(inp, opts, provenance(inp%text), err)
+      call check_rank_files(inp%plan%file, 1, err)
+      if (.not. err%failed()) call run_campaign(inp, opts, provenance(inp%text), err)
     end if
     if (err%failed() .or. rank /= 0) return
     ! the output is complete: a summary that cannot be read back is a warning
@@ -515,25 +516,40 @@ contains
   end subroutine run_ranks
 
 
-  !> Files of an earlier run of this output on more ranks than now (rank
-  !> n_ranks's, at least) are refused: this run could not finish them.
+  !> Files of an earlier run of this output on another number of MPI ranks
+  !> are refused: this run could not finish them. Its rank files stop at
+  !> rank n_ranks - 1: none of rank n_ranks (more ranks before), and some of
+  !> rank n_ranks - 1 wherever rank 0 has some (fewer ranks before).
   subroutine check_rank_files(target, n_ranks, err)
     character(len=*), intent(in) :: target
     integer, intent(in) :: n_ranks
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: stray
-    integer :: k
-    character(len=*), parameter :: suffixes(3) = [character(len=13) :: '', '.partial', '.journal']
     if (err%failed()) return
-    do k = 1, size(suffixes)
-      stray = target // '.rank' // itoa(n_ranks) // '.h5' // trim(suffixes(k))
-      if (path_kind(stray) == kind_missing) cycle
-      call set_error(err, err_output, stray // ': the files of a run of this output on more than ' // &
-          itoa(n_ranks) // ' MPI ranks are here; finish it on as many ranks as it was started on ' // &
-          '(--resume), or start over with --overwrite after removing its .rank files')
-      return
-    end do
+    if (any_rank_file(target, n_ranks)) then
+      call set_error(err, err_output, target // '.rank' // itoa(n_ranks) // '.h5: the files of a run of this ' // &
+          'output on more than ' // itoa(n_ranks) // ' MPI ranks are here; finish it on as many ranks as it ' // &
+          'was started on (--resume), or remove its .rank files')
+    else if (n_ranks > 1) then
+      if (any_rank_file(target, 0)) then
+        if (.not. any_rank_file(target, n_ranks - 1)) call set_error(err, err_output, target // &
+          '.rank0.h5: the files of a run of this output on fewer than ' // itoa(n_ranks) // ' MPI ranks are ' // &
+          'here; finish it on as many ranks as it was started on (--resume), or remove its .rank files')
+      end if
+    end if
   end subroutine check_rank_files
+
+  !> Whether any file of rank r of an MPI run of output `target` is there.
+  logical function any_rank_file(target, r)
+    character(len=*), intent(in) :: target
+    integer, intent(in) :: r
+    character(len=*), parameter :: suffixes(3) = [character(len=8) :: '', '.partial', '.journal']
+    integer :: k
+    any_rank_file = .false.
+    do k = 1, size(suffixes)
+      if (path_kind(target // '.rank' // itoa(r) // '.h5' // trim(suffixes(k))) /= kind_missing) &
+        any_rank_file = .true.
+    end do
+  end function any_rank_file
 
   function provenance(input_text) result(prov)
     character(len=*), intent(in) :: input_text

@@ -62,6 +62,7 @@ module ellroll_journal
     type(journal_header_t) :: header
     integer(i8) :: record_words = 0
     integer(i8) :: next_position = 0     !< byte position (1-based) of the next record
+    integer(i8) :: records_start = 0     !< that of the first record
     integer(i8) :: n_damaged = 0          !< records read back that failed their checksum
   contains
     procedure :: create
@@ -109,6 +110,7 @@ contains
       return
     end if
     self%next_position = header_bytes + 8 * size(note) + 1
+    self%records_start = self%next_position
   end subroutine create
 
   !> A note as whole words, blank-padded, and their checksum after them.
@@ -211,6 +213,7 @@ contains
     self%header = found
     self%record_words = words_per_record(found)
     self%next_position = header_bytes + 8 * (start(header_words + 1) + 1) + 1
+    self%records_start = self%next_position
   end subroutine open_existing
 
   !> The note of n words (and its checksum) after the header; code /= 0 when
@@ -354,7 +357,7 @@ contains
   !> Whether the journal holds (or has places taken for) any record.
   pure logical function holds_records(self)
     class(journal_t), intent(in) :: self
-    holds_records = self%next_position > header_bytes + 1
+    holds_records = self%next_position > self%records_start
   end function holds_records
 
   !> Close the journal (it stays: ellroll_output_files removes it when the

@@ -3,7 +3,9 @@ the file equals a single-process run."""
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -36,3 +38,44 @@ def test_bad_input_under_mpi(tmp_path):
     result = mpirun(2, "run", name, cwd=tmp_path)
     assert result.returncode == 2 and "1 of 2 cases are invalid" in result.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml"]
+
+
+def test_a_resume_of_a_complete_mpi_run_has_nothing_to_do(tmp_path):
+    name = write(tmp_path, SPIN_RADIUS, t_end=0.2)
+    assert mpirun(2, "run", name, "-q", cwd=tmp_path).returncode == 0
+    result = mpirun(2, "run", name, "--resume", cwd=tmp_path)
+    assert result.returncode == 0 and "already complete; nothing to do" in result.stderr, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml", "out.h5"]
+
+
+def test_an_interrupted_mpi_run_names_the_mpi_command_that_finishes_it(ellroll, tmp_path):
+    """SIGTERM to the ranks (as scancel sends it): each keeps its finished
+    cases and names the MPI command that finishes the run; a resume on more
+    or fewer ranks (or a serial one) is refused before it runs anything.
+    (Each rank's own standard error is kept by a wrapper: mpirun drops what
+    ranks that end with an error status write last.)"""
+    name = write(tmp_path, SPIN_RADIUS, t_end=20000.0)
+    (tmp_path / "camp.nml").write_text((tmp_path / "camp.nml").read_text().replace("interval = 0.01",
+                                                                                 "interval = 10.0"))
+    wrapper = tmp_path / "rank.sh"
+    wrapper.write_text(f"#!/bin/sh\n{MPI_EXE} \"$@\" 2> \"rank$OMPI_COMM_WORLD_RANK.err\"\n")
+    wrapper.chmod(0o755)
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1")
+    process = subprocess.Popen(["mpirun", "--oversubscribe", "-n", "2", str(wrapper), "run", name, "-q"],
+                               cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while not all((tmp_path / f"out.h5.rank{r}.h5.journal").exists() for r in (0, 1)):
+        time.sleep(0.02)
+        assert process.poll() is None, process.stderr.read()
+    subprocess.run(["pkill", "-TERM", "-f", f"{MPI_EXE} run {name}"])
+    process.communicate(timeout=120)
+    for r in (0, 1):
+        message = (tmp_path / f"rank{r}.err").read_text()
+        assert "interrupted by SIGTERM" in message, message
+        assert "'mpirun -n 2 ellroll run camp.nml -q --resume' finishes the rest" in message, message
+        (tmp_path / f"rank{r}.err").unlink()
+    wrapper.unlink()
+    more = mpirun(3, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert more.returncode != 0, more.stderr
+    fewer = mpirun(1, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert fewer.returncode == 3 and "out.h5.rank1.h5" in fewer.stderr and "more than 1 MPI ranks" in fewer.stderr, \
+        fewer.stderr

@@ -200,11 +200,16 @@ def test_a_figure_or_report_already_there_is_kept_unless_asked(paper_file, tmp_p
     figure = tmp_path / "legeza1990_fig2_trace.png"
     assert plot_cli("trace", paper_file, "--out", tmp_path).returncode == 0
     first = figure.read_bytes()
-    figure.write_bytes(b"kept")
+    figure.write_bytes(first + b"kept")           # one of ours: its metadata marks it
     result = plot_cli("trace", paper_file, "--out", tmp_path)
-    assert result.returncode == 2 and "exists; give --overwrite" in result.stderr and figure.read_bytes() == b"kept"
+    assert result.returncode == 2 and "exists; give --overwrite" in result.stderr
+    assert figure.read_bytes() == first + b"kept"
     assert plot_cli("trace", paper_file, "--out", tmp_path, "--overwrite").returncode == 0
     assert figure.read_bytes() == first
+    figure.write_bytes(b"somebody's picture")     # not ours: never replaced
+    result = plot_cli("trace", paper_file, "--out", tmp_path, "--overwrite")
+    assert result.returncode == 2 and "not made by ellroll-plot" in result.stderr
+    assert figure.read_bytes() == b"somebody's picture"
     report = tmp_path / "report"
     assert plot_cli("report", paper_file, "--out", report).returncode == 0
     page = (report / "index.html").read_text()
