@@ -6,13 +6,14 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_events, only: root_search_t
-  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations
+  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations, tolerance_ratio_cap
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
@@ -21,7 +22,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method
+  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, judged_norm
 
   !> Step-size control of an embedded pair: Hairer's safety factor, a
   !> rejected step shrunk at most 3-fold, and after an accepted step
@@ -153,7 +154,7 @@ contains
       resting = rolling_stops(run%ball, y, y_new)
       if (resting) call shorten_to_rest(dop, run, t, y, f, h, y_new, res)
     end if
-    if (.not. ieee_is_finite(dop%error_norm)) dop%error_norm = huge(1.0_wp)
+    dop%error_norm = judged_norm(dop%error_norm, h, is_zero(dop%atol))
     if (dop%error_norm > 1) then
       call control%reject(h, dop%error_norm)
       return
@@ -206,6 +207,22 @@ contains
     call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_end), direction), &
                       rest_tolerance * h)
   end subroutine start_rest_search
+
+  !> The error norm of an attempt of size h as the step control takes it:
+  !> huge where it is not finite, or, under pure relative control, where
+  !> some component's error reached tolerance_ratio_cap times its tolerance
+  !> (it has none: the norm is then at least h cap / sqrt(6.06), and h times
+  !> it would accept a short enough step of any error).
+  pure real(wp) function judged_norm(error_norm, h, pure_relative)
+    real(wp), intent(in) :: error_norm, h
+    logical, intent(in) :: pure_relative
+    judged_norm = error_norm
+    if (.not. ieee_is_finite(error_norm)) then
+      judged_norm = huge(1.0_wp)
+    else if (pure_relative .and. error_norm >= abs(h) * (tolerance_ratio_cap / 4)) then
+      judged_norm = huge(1.0_wp)
+    end if
+  end function judged_norm
 
   !> The step from t, shortened to end exactly at t_end when it would end
   !> at or within round-off of it.

@@ -4,8 +4,8 @@
 !> lane alone (its interpolant, a crossed limit, a maximum of Theta) is the
 !> one-case code on that lane.
 module ellroll_batch_run
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: is_zero
   use ellroll_excitation, only: excitation_none
   use ellroll_status, only: status_pending, status_completed, status_no_fit
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
@@ -18,7 +18,7 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
+      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, judged_norm
   implicit none
   private
 
@@ -293,7 +293,7 @@ contains
         do l = 1, n
           if (.not. active(l)) cycle
           results(l)%n_rhs = results(l)%n_rhs + attempt_calls
-          if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
+          error_norm(l) = judged_norm(error_norm(l), h(l), is_zero(atol(l)))
           accepted(l) = error_norm(l) <= 1
           if (.not. accepted(l)) then
             call control(l)%reject(h(l), error_norm(l))
