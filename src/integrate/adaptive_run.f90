@@ -38,9 +38,9 @@ module ellroll_adaptive_run
   !> round-off: err >= 2.6e-7 (where 0.9 err^(-1/8) reaches the ratio 6) and
   !> err_prev >= 1e-4 (Hairer's floor), so that two evaluations of a step
   !> differing by round-off (a case alone and in a SIMD batch) choose the
-  !> same next step. With the floors (and err <= 1, err_prev in [1e-4, 1]) the
-  !> ratio after an accepted step lies in [0.57, 3.4] for k = 8 ([0.60, 2.9]
-  !> for k = 9): no clamp is needed.
+  !> same next step where the norms are that small. With the floors (and err
+  !> <= 1, err_prev in [1e-4, 1]) the ratio after an accepted step lies in
+  !> [0.57, 3.4] for k = 8 ([0.60, 2.9] for k = 9): no clamp is needed.
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp
   real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
 

@@ -90,8 +90,10 @@ contains
   !> SIMD lane (ellroll_ball_lanes): steps, f, the summary's quantities, the
   !> stored outputs and the limits for all lanes at once, each lane with its
   !> own step; maxima of Theta, dense output and the search for a crossed
-  !> limit per lane with the one-case code. Each result equals
-  !> simulate_case's to round-off (tested), whatever the other lanes hold;
+  !> limit per lane with the one-case code. Each step equals simulate_case's
+  !> to round-off: RK4's results agree to round-off, an embedded pair's
+  !> until a step decision falls within it and the two runs part, then to
+  !> the tolerance (tested); whatever the other lanes hold, bitwise the same.
   !> wall_time is the batch's time shared equally among its cases.
   subroutine simulate_batch(cases, plan, results)
     type(case_t), intent(in) :: cases(:)
