@@ -15,9 +15,10 @@ module ellroll_status
   integer, parameter :: status_nonfinite = 6   !< state became NaN or infinite
   integer, parameter :: status_constraint = 7  !< contact point left the surface beyond tolerance
   integer, parameter :: status_invalid = 8     !< input invalid (&campaign invalid = 'skip'), not run
-  !> a fixed-step method could not follow the model: its step was beyond the
+  !> the method could not follow the model: a fixed step was beyond the
   !> method's stability at the start (what it met was its own growth), or
-  !> its implicit equations had no solution
+  !> its implicit equations had no solution; an adaptive method's step
+  !> control shrank the step to round-off of t (or made max_steps attempts)
   integer, parameter :: status_unstable = 9
   integer, parameter :: status_count = 10
 

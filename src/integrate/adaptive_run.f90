@@ -4,16 +4,16 @@
 !> that no result depends on where the steps fall. The batches use the same
 !> pieces per lane.
 module ellroll_adaptive_run
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
-  use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
+  use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration, max_steps
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_events, only: root_search_t
-  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations
+  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations, tolerance_ratio_cap
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
@@ -22,7 +22,8 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, beyond_rim, slip_inside
+  public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, beyond_rim, slip_inside, &
+            round_off_step, cannot_follow, judged_norm
 
   !> Step-size control of an embedded pair: Hairer's safety factor, a
   !> rejected step shrunk at most 3-fold, and after an accepted step
@@ -37,9 +38,9 @@ module ellroll_adaptive_run
   !> round-off: err >= 2.6e-7 (where 0.9 err^(-1/8) reaches the ratio 6) and
   !> err_prev >= 1e-4 (Hairer's floor), so that two evaluations of a step
   !> differing by round-off (a case alone and in a SIMD batch) choose the
-  !> same next step. With the floors (and err <= 1, err_prev in [1e-4, 1]) the
-  !> ratio after an accepted step lies in [0.57, 3.4] for k = 8 ([0.60, 2.9]
-  !> for k = 9): no clamp is needed.
+  !> same next step where the norms are that small. With the floors (and err
+  !> <= 1, err_prev in [1e-4, 1]) the ratio after an accepted step lies in
+  !> [0.57, 3.4] for k = 8 ([0.60, 2.9] for k = 9): no clamp is needed.
   real(wp), parameter :: adaptive_safety = 0.9_wp, adaptive_min_factor = 0.333_wp
   real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
 
@@ -50,6 +51,21 @@ module ellroll_adaptive_run
   !> smaller error (bench/pairs.py).
   type(vern9_t), parameter :: reference_pair = vern9_t()
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
+
+  !> A step of at most smallest_step_ulps eps |t| (16 to 32 units in the
+  !> last place of t; follow_flow_to_limit: 16 units of its end) or not a
+  !> number is round-off: Hairer's "step size too small". Such steps
+  !> still take the state on where its motion outruns the clock: next to the
+  !> fit limit's square-root singularity (fit_margin 0) some 20-50 of them
+  !> reach the limit, across a ramp of 1e-9 s in a record at t = 1000 s at
+  !> rtol 1e-14 some 3,000 (liftoff there). An adaptive case that makes
+  !> max_round_off_attempts attempts of round-off steps without an accepted
+  !> step beyond them (about 0.1 s), that is to attempt a step
+  !> of 0, or that has made max_steps attempts in all (the most steps any
+  !> case takes), cannot follow the model: it ends 'unstable' at its last
+  !> accepted step.
+  real(wp), parameter :: smallest_step_ulps = 16
+  integer, parameter :: max_round_off_attempts = 100000
 
   !> Where the rolling stops inside a step (rolling resistance) is located
   !> to this part of the step, in at most max_rest_trials trial steps.
@@ -90,11 +106,12 @@ contains
     type(observation_t) :: obs
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
-    integer :: status
+    integer :: status, round_off_attempts
     logical :: peak_inside
     real(wp) :: passed                    ! where a slip inside a step is known
 
     t = 0
+    round_off_attempts = 0
     h_max = cs%dt
     control%order = integrator%control_order()
     call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
@@ -104,6 +121,12 @@ contains
         return
       end if
       h = last_step_clipped(t, h, cs%t_end, control%after_rejection)
+      if (round_off_step(t, h)) round_off_attempts = round_off_attempts + 1
+      if (cannot_follow(h, round_off_attempts, res%n_steps + res%n_rejected)) then
+        res%status = status_unstable
+        res%t_final = t
+        return
+      end if
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
       call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (integrator%error_norm > 1) then
@@ -134,6 +157,7 @@ contains
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
       end if
+      if (.not. round_off_step(t, h)) round_off_attempts = 0
       t = t + h
       y = y_new
       f = f_new
@@ -170,7 +194,7 @@ contains
       resting = rolling_stops(run%ball, y, y_new)
       if (resting) call shorten_to_rest(dop, run, t, y, f, h, y_new, res)
     end if
-    if (.not. ieee_is_finite(dop%error_norm)) dop%error_norm = huge(1.0_wp)
+    dop%error_norm = judged_norm(dop%error_norm, h, is_zero(dop%atol))
     if (dop%error_norm > 1) then
       call control%reject(h, dop%error_norm)
       return
@@ -223,6 +247,48 @@ contains
     call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_end), direction), &
                       rest_tolerance * h)
   end subroutine start_rest_search
+
+  !> The error norm of an attempt of size h as the step control takes it:
+  !> huge where it is not finite, or, under pure relative control, where
+  !> some component's error reached tolerance_ratio_cap times its tolerance
+  !> (it has none: the norm is then at least h cap / sqrt(6.06), and h times
+  !> it would accept a short enough step of any error).
+  pure real(wp) function judged_norm(error_norm, h, pure_relative)
+    real(wp), intent(in) :: error_norm, h
+    logical, intent(in) :: pure_relative
+    judged_norm = error_norm
+    if (.not. ieee_is_finite(error_norm)) then
+      judged_norm = huge(1.0_wp)
+    else if (pure_relative .and. error_norm >= abs(h) * (tolerance_ratio_cap / 4)) then
+      judged_norm = huge(1.0_wp)
+    end if
+  end function judged_norm
+
+  !> Whether a step h from t is round-off: at most smallest_step_ulps eps |t|,
+  !> or not a number.
+  pure logical function round_off_step(t, h)
+    real(wp), intent(in) :: t, h
+    if (ieee_is_nan(h)) then            ! (tested first: an ordered comparison with NaN traps)
+      round_off_step = .true.
+    else
+      round_off_step = h <= (smallest_step_ulps * epsilon(1.0_wp)) * abs(t)
+    end if
+  end function round_off_step
+
+  !> Whether a case about to attempt a step h ends 'unstable', after these
+  !> attempts of round-off steps since its last accepted step beyond them
+  !> and these attempts in all; a step of 0 (or not a number) is no step.
+  pure logical function cannot_follow(h, round_off_attempts, attempts)
+    real(wp), intent(in) :: h
+    integer, intent(in) :: round_off_attempts
+    integer(i8), intent(in) :: attempts
+    cannot_follow = round_off_attempts > max_round_off_attempts .or. real(attempts, wp) >= max_steps
+    if (ieee_is_nan(h)) then
+      cannot_follow = .true.
+    else if (h <= 0) then
+      cannot_follow = .true.
+    end if
+  end function cannot_follow
 
   !> The step from t, shortened to end exactly at t_end when it would end
   !> at or within round-off of it (1e-12 t_end), or after a rejection
@@ -610,6 +676,7 @@ contains
         return
       end if
       h = last_step_clipped(t_at, h, t_until, control%after_rejection)
+      if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
       call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (dop%error_norm > 1) cycle

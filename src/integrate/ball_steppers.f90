@@ -10,7 +10,8 @@ module ellroll_ball_steppers
   use ellroll_exact, only: is_zero
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_excitation, only: excitation_none, base_acceleration
-  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_equations, max_pair_stages, estimate_round_off
+  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_equations, max_pair_stages, estimate_round_off, &
+      tolerance_ratio_cap, shortest_h
   use ellroll_dop853_tableau, only: end_stage, a_value, a_column, a_row, e5, bhh, in_error_estimate
   use ellroll_vern9_tableau, only: vern9_end_stage => end_stage, v9_value => a_value, v9_column => a_column, &
       v9_row => a_row, e8, v9_in_error_estimate => in_error_estimate
@@ -20,6 +21,15 @@ module ellroll_ball_steppers
   private
 
   public :: rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
+
+  !> An embedded pair's stage input is held within +-stage_clamp in every
+  !> component. Only a step far too long for the motion leaves that range
+  !> (|n| is 1 at a step's start, and no valid case turns at 1e20 rad/s):
+  !> Hairer's starting step may move the state by more than its own size,
+  !> and the quadratic growth of omega' then takes the later stages past
+  !> overflow. Clamped, they stay finite (the model's terms are of degree
+  !> five at most in the state), and the error norm rejects the attempt.
+  real(wp), parameter :: stage_clamp = 1.0e20_wp
 
 contains
 
@@ -58,7 +68,7 @@ contains
 
   !> One attempt of an embedded pair on the ball (generic: pair%step);
   !> afterwards pair%error_norm and pair%k(:, pair%end_stage()) = f(t + h,
-  !> y_new) are set.
+  !> y_new) are set; its stage inputs are held within +-stage_clamp.
   pure subroutine pair_ball_step(pair, ball, t, y, f0, h, y_new)
     class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
@@ -72,6 +82,7 @@ contains
     pair%k(:state_size, 1) = f0
     do s = 2, pair%end_stage()                ! the last stage input is y_new
       call pair%stage_input(s, start, h, stage)
+      if (.not. all(abs(stage) <= stage_clamp)) stage = min(max(stage, -stage_clamp), stage_clamp)
       call ball_derivative(ball, t + pair%node(s) * h, stage(:state_size), pair%k(:state_size, s))
     end do
     y_new = stage(:state_size)
@@ -193,9 +204,9 @@ contains
         if (in_error_estimate(s)) err5 = err5 + e5(s) * k(:, i, s)
       end do
       err3 = (y_new(:, i) - y(:, i)) / h - bhh(1) * k(:, i, 1) - bhh(2) * k(:, i, 9) - bhh(3) * k(:, i, 12)
-      scale = atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol
-      e5_norm2 = e5_norm2 + (err5 / scale)**2
-      e3_norm2 = e3_norm2 + (err3 / scale)**2
+      scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
+      e5_norm2 = e5_norm2 + (min(abs(err5), tolerance_ratio_cap * scale) / scale)**2
+      e3_norm2 = e3_norm2 + (min(abs(err3), tolerance_ratio_cap * scale) / scale)**2
     end do
     do l = 1, lanes
       if (is_zero(e5_norm2(l)) .and. is_zero(e3_norm2(l))) then
@@ -211,10 +222,11 @@ contains
     real(wp), dimension(lanes, state_size), intent(in) :: y, f0
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
     real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
-    real(wp), dimension(lanes) :: err, noise, scale, norm2
+    real(wp), dimension(lanes) :: err, noise, scale, norm2, floor_limit
     integer :: s, i
     k(:, :, 1) = f0
     call lanes_stages(p, v9_value, v9_column, v9_row, 2, vern9_end_stage, y, h, k, y_new)   ! the last input is y_new
+    floor_limit = 1 / merge(max(abs(h), shortest_h), shortest_h, atol <= 0)     ! (vern9_finish_attempt)
     norm2 = 0
     do i = 1, state_size
       err = 0
@@ -225,9 +237,9 @@ contains
           noise = noise + abs(e8(s) * k(:, i, s))
         end if
       end do
-      err = max(abs(err), estimate_round_off * noise)
-      scale = atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol
-      norm2 = norm2 + (err / scale)**2
+      scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
+      err = max(abs(err), min(estimate_round_off * noise, scale * floor_limit))
+      norm2 = norm2 + (min(err, tolerance_ratio_cap * scale) / scale)**2
     end do
     error_norm = abs(h) * sqrt(norm2 / state_size)
   end subroutine lanes_vern9_attempt
@@ -269,7 +281,7 @@ contains
 
   !> The input of stage s of every lane: y + h sum_j a(s, j) k_j, over the
   !> nonzero a(s, j) of a pair's tableau (packed by rows: values, columns,
-  !> rows) in the order of its stage_input.
+  !> rows) in the order of its stage_input, held within +-stage_clamp.
   pure subroutine lanes_stage_input(s, values, columns, rows, y, h, k, stage)
     integer, intent(in) :: s, columns(*), rows(*)
     real(wp), intent(in) :: values(*)
@@ -283,7 +295,7 @@ contains
       do m = rows(s) + 1, rows(s + 1) - 1
         total = total + (h * values(m)) * k(:, i, columns(m))
       end do
-      stage(:, i) = total
+      stage(:, i) = min(max(total, -stage_clamp), stage_clamp)
     end do
   end subroutine lanes_stage_input
 end module ellroll_ball_steppers

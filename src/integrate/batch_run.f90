@@ -4,10 +4,10 @@
 !> lane alone (its interpolant, a crossed limit, a maximum of Theta) is the
 !> one-case code on that lane.
 module ellroll_batch_run
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: is_zero
   use ellroll_excitation, only: excitation_none
-  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
@@ -18,7 +18,8 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside
+      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside, &
+      round_off_step, cannot_follow, judged_norm
   implicit none
   private
 
@@ -89,8 +90,10 @@ contains
   !> SIMD lane (ellroll_ball_lanes): steps, f, the summary's quantities, the
   !> stored outputs and the limits for all lanes at once, each lane with its
   !> own step; maxima of Theta, dense output and the search for a crossed
-  !> limit per lane with the one-case code. Each result equals
-  !> simulate_case's to round-off (tested), whatever the other lanes hold;
+  !> limit per lane with the one-case code. Each step equals simulate_case's
+  !> to round-off: RK4's results agree to round-off, an embedded pair's
+  !> until a step decision falls within it and the two runs part, then to
+  !> the tolerance (tested); whatever the other lanes hold, bitwise the same.
   !> wall_time is the batch's time shared equally among its cases.
   subroutine simulate_batch(cases, plan, results)
     type(case_t), intent(in) :: cases(:)
@@ -283,7 +286,7 @@ contains
     real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
     integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
     integer(i8) :: attempt
-    integer :: i
+    integer :: i, round_off_attempts(lanes)
     real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
     integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
@@ -310,18 +313,29 @@ contains
         end if
       end do
       attempt = 0
+      round_off_attempts = 0
       do while (any(active))
         attempt = attempt + 1
         if (stop_asked(attempt)) exit
         do l = 1, lanes
-          if (active(l)) h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
+          if (.not. active(l)) cycle
+          h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
+          if (round_off_step(t(l), h(l))) round_off_attempts(l) = round_off_attempts(l) + 1
+          if (cannot_follow(h(l), round_off_attempts(l), results(l)%n_steps + results(l)%n_rejected)) then
+            results(l)%status = status_unstable          ! (adaptive_loop)
+            results(l)%t_final = t(l)
+            call summary%store(l, run(l), results(l))
+            active(l) = .false.
+            h(l) = max(h(l), tiny(1.0_wp))     ! idle: a round-off step from a valid state, never 0 (0 / 0)
+          end if
         end do
+        if (.not. any(active)) exit
         call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
           results(l)%n_rhs = results(l)%n_rhs + attempt_calls
-          if (.not. ieee_is_finite(error_norm(l))) error_norm(l) = huge(1.0_wp)
+          error_norm(l) = judged_norm(error_norm(l), h(l), is_zero(atol(l)))
           accepted(l) = error_norm(l) <= 1
           if (.not. accepted(l)) then
             call control(l)%reject(h(l), error_norm(l))
@@ -391,6 +405,7 @@ contains
             call run(l)%maxima%add_peak(peaks(l)%t)
             call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
           end if
+          if (.not. round_off_step(t(l), h(l))) round_off_attempts(l) = 0
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1
           if (t(l) < t_end(l)) then

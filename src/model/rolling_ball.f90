@@ -348,7 +348,8 @@ contains
   !> Every derived output of a state y at time t with time derivative dydt,
   !> written out flat: one 1/|y| serves every quantity, and the contact
   !> point's 1/s the fit test's tr K and det K. The batch's lanes_observe
-  !> is the same arithmetic, expression by expression (tested bitwise).
+  !> is the same arithmetic, expression by expression (tested to 8 eps: the
+  !> compiler fuses multiply-adds differently in the vector code).
   pure subroutine observe(ball, t, y, dydt, obs, base)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t

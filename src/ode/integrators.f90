@@ -43,6 +43,28 @@ module ellroll_integrators
   !> round-off, would part ways).
   real(wp), parameter, public :: estimate_round_off = 16 * epsilon(1.0_wp)
 
+  !> Under pure relative control (atol = 0) the round-off floor alone never
+  !> rejects a step: it counts for at most the component's tolerance (scale
+  !> / h). A component that is zero at the start of a step then has the
+  !> step's own change as its size, and 16 eps sum_s |e8(s)| = 2.1e-14 of it
+  !> as its floor, whatever h: at rtol 1e-14 no first step from n_x = 0
+  !> would be accepted (with atol > 0 a short enough step is). The bound is
+  !> scale times floor_limit: 1 / h, h taken no shorter than shortest_h (no
+  !> overflow); with atol > 0, 1 / shortest_h, which no floor reaches unless
+  !> atol is below 1e-250 or so.
+  real(wp), parameter, public :: shortest_h = 1.0e-280_wp
+
+  !> A component's error (or, for the starting step, its size) in units of
+  !> its tolerance atol + rtol |y| is taken no larger than this, so that its
+  !> square does not overflow: an atol below about 1e-150, or atol = 0 (pure
+  !> relative control) and a component that is zero at both ends of a step,
+  !> whose tolerance is taken as tiny(1.0) (it contributes 0 while it stays
+  !> exactly zero). Under pure relative control the run loops reject an
+  !> attempt whose norm reaches h times a quarter of the cap whatever its h
+  !> (such a component has no tolerance; h times the norm would accept a
+  !> short enough step of any error: ellroll_adaptive_run's judged_norm).
+  real(wp), parameter, public :: tolerance_ratio_cap = 1.0e150_wp
+
   !> What a method is, for users and for the code that picks how to run it.
   type :: method_info_t
     character(len=8) :: name
@@ -337,6 +359,17 @@ contains
     self%dense_stages_ready = dense_stages_ready
   end subroutine pair_hold_attempt
 
+  !> The bound on vern9's round-off floor, in units of a component's
+  !> tolerance (shortest_h).
+  pure real(wp) function floor_limit(atol, h)
+    real(wp), intent(in) :: atol, h
+    if (atol <= 0) then
+      floor_limit = 1 / max(abs(h), shortest_h)
+    else
+      floor_limit = 1 / shortest_h
+    end if
+  end function floor_limit
+
   !> Hairer's starting step: first guess from |y|/|f|, refined with one Euler step.
   subroutine pair_initial_step(self, sys, t, y, f0, h_max, h, n_rhs)
     class(embedded_pair_t), intent(inout) :: self
@@ -346,9 +379,13 @@ contains
     real(wp), intent(out) :: h
     integer(i8), intent(inout) :: n_rhs
     real(wp) :: scale(size(y)), f1(size(y)), d0, d1, d2, h0, h1
+    logical :: scaled(size(y))
     scale = self%atol + abs(y) * self%rtol
-    d0 = sqrt(sum((y / scale)**2) / size(y))
-    d1 = sqrt(sum((f0 / scale)**2) / size(y))
+    ! pure relative control (atol = 0): a component that is exactly zero has
+    ! no size to guess a step from (its relative change is infinite at once)
+    scaled = scale > 0
+    d0 = scaled_rms(y)
+    d1 = scaled_rms(f0)
     if (d0 < 1.0e-5_wp .or. d1 < 1.0e-5_wp) then
       h0 = 1.0e-6_wp
     else
@@ -357,13 +394,23 @@ contains
     h0 = min(h0, h_max)
     call sys%rhs(t + h0, y + h0 * f0, f1)
     n_rhs = n_rhs + 1
-    d2 = sqrt(sum(((f1 - f0) / scale)**2) / size(y)) / h0
+    d2 = scaled_rms(f1 - f0) / h0
     if (max(d1, d2) <= 1.0e-15_wp) then
       h1 = max(1.0e-6_wp, h0 * 1.0e-3_wp)
     else
       h1 = (0.01_wp / max(d1, d2))**(1.0_wp / self%control_order())
     end if
     h = min(100 * h0, h1, h_max)
+    if (.not. (h > 0)) h = h0          ! f not finite at the trial point: the first guess
+  contains
+    !> The root mean square of v in units of scale (its scaled components),
+    !> each at most tolerance_ratio_cap.
+    pure real(wp) function scaled_rms(v)
+      real(wp), intent(in) :: v(:)
+      real(wp) :: ratio(size(v))
+      ratio = merge(min(abs(v), tolerance_ratio_cap * scale) / merge(scale, 1.0_wp, scaled), 0.0_wp, scaled)
+      scaled_rms = sqrt(sum(ratio**2) / size(v))
+    end function scaled_rms
   end subroutine pair_initial_step
 
   !> The stage that is f(t + h, y_new).
@@ -436,7 +483,9 @@ contains
   end subroutine dop853_stage_input
 
   !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
-  !> to end_stage in self%k): Hairer's mix of the 5th- and 3rd-order estimates.
+  !> to end_stage in self%k): Hairer's mix of the 5th- and 3rd-order
+  !> estimates, each component in units of atol + rtol max(|y|, |y_new|)
+  !> (tolerance_ratio_cap).
   pure subroutine dop853_finish_attempt(self, n, t, y, h, y_new)
     class(dop853_t), intent(inout) :: self
     integer, intent(in) :: n
@@ -449,9 +498,9 @@ contains
       if (in_error_estimate(s)) err5 = err5 + e5(s) * self%k(:, s)
     end do
     err3 = (y_new - y) / h - bhh(1) * self%k(:, 1) - bhh(2) * self%k(:, 9) - bhh(3) * self%k(:, 12)
-    scale(:n) = self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol
-    e5_norm2 = sum((err5(:n) / scale(:n))**2)
-    e3_norm2 = sum((err3(:n) / scale(:n))**2)
+    scale(:n) = max(self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol, tiny(1.0_wp))
+    e5_norm2 = sum((min(abs(err5(:n)), tolerance_ratio_cap * scale(:n)) / scale(:n))**2)
+    e3_norm2 = sum((min(abs(err3(:n)), tolerance_ratio_cap * scale(:n)) / scale(:n))**2)
     if (is_zero(e5_norm2) .and. is_zero(e3_norm2)) then
       error_norm = 0
     else
@@ -544,7 +593,9 @@ contains
   !> Error norm of the attempt y -> y_new of an n-equation system (stages 1
   !> to 16 in self%k): the root mean square of h sum_s e8(s) k_s, the
   !> difference of the 8th- and 9th-order solutions (no smaller than
-  !> estimate_round_off sum_s |e8(s) k_s|), scaled by atol + rtol |y|.
+  !> estimate_round_off sum_s |e8(s) k_s|; with atol = 0 up to the
+  !> tolerance, shortest_h), in units of atol + rtol max(|y|, |y_new|)
+  !> (tolerance_ratio_cap).
   pure subroutine vern9_finish_attempt(self, n, t, y, h, y_new)
     class(vern9_t), intent(inout) :: self
     integer, intent(in) :: n
@@ -560,9 +611,9 @@ contains
         noise = noise + abs(e8(s) * self%k(:, s))
       end if
     end do
-    err = max(abs(err), estimate_round_off * noise)
-    scale(:n) = self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol
-    norm2 = sum((err(:n) / scale(:n))**2)
+    scale(:n) = max(self%atol + max(abs(y(:n)), abs(y_new(:n))) * self%rtol, tiny(1.0_wp))
+    err(:n) = max(abs(err(:n)), min(estimate_round_off * noise(:n), scale(:n) * floor_limit(self%atol, h)))
+    norm2 = sum((min(err(:n), tolerance_ratio_cap * scale(:n)) / scale(:n))**2)
     call self%hold_attempt(t, h, y, y_new, abs(h) * sqrt(norm2 / n), dense_stages_ready=.false.)
   end subroutine vern9_finish_attempt
 

@@ -1,17 +1,28 @@
 !> The batch path (simulate_batch: cases across SIMD lanes) against the
 !> one-case path (simulate_case) on cases that differ in everything a lane
 !> holds: geometry, ball, spin, step, length, and how they end (completed,
-!> rim, no_fit, slip). Every summary figure and every stored sample agrees
-!> to 1e-13 relative, for RK4, DOP853 and Verner's 9(8) (each lane its own
-!> step control); a case's result does not depend on its lane or on the
-!> other cases of its batch (bitwise).
+!> rim, no_fit, slip). One step of each path from the same state agrees to
+!> round-off: the right-hand side, the observed outputs, an embedded pair's
+!> stages, new point and error norm (the compiler fuses multiply-adds
+!> differently in the vector and the scalar code). RK4 then takes the same
+!> steps on both paths, and every summary figure and stored sample agrees to
+!> 1e-13 relative. DOP853 and Verner's 9(8) (each lane its own step control)
+!> take the same steps until a step decision falls within that round-off of
+!> its threshold; after it the two are runs of one method at one tolerance:
+!> the same status, step counts within 1 + 2 %, results within 100 rtol.
+!> A case's result does not depend on its lane or on the other cases of its
+!> batch (bitwise).
 program test_batch
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip
-  use ellroll_cases, only: case_t, output_plan_t, field_count
+  use ellroll_cases, only: case_t, output_plan_t, field_count, make_ball
   use ellroll_results, only: case_result_t
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, ball_derivative, observe
+  use ellroll_ball_lanes, only: ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_observe
+  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_pair_stages
+  use ellroll_ball_steppers, only: pair_ball_step, lanes_pair_attempt
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
   use fixtures, only: paper_case
   use testing
@@ -27,6 +38,7 @@ program test_batch
   plan%fields = .true.
 
   cases = make_cases()
+  call one_step(cases)
   call compare_paths(cases, 'rk4')
   ! a sample at every step: the step that crosses a limit is a sample step
   ! (its sample is past the limit, not the case's), and the batch's sample
@@ -46,25 +58,150 @@ program test_batch
   call compare_paths(cases, 'dop853')
   cases%method = 'vern9'
   call compare_paths(cases, 'vern9')
+  call parted_runs()
   call finish('test_batch')
 
 contains
+
+  !> One step of each path from the same states (the cases' starts, the
+  !> normals tilted and the spins changed by seeded random amounts): the
+  !> right-hand side and the observed outputs (the reaction from omega',
+  !> the contact point, the energy) agree to 8 eps of their size; an attempt
+  !> of each pair, 2 to 50 ms long (stages up to the new point, each from the
+  !> ones before), to 1e-13 of the stages' size, and its error norm to the
+  !> round-off of its estimate, a difference of stages (eps sum_s |k_s|,
+  !> scaled as the norm).
+  subroutine one_step(cases)
+    type(case_t), intent(in) :: cases(lanes)
+    type(rolling_ball_t) :: ball(lanes)
+    type(ball_lanes_t) :: balls
+    type(lane_outputs_t) :: out
+    type(observation_t) :: obs
+    class(embedded_pair_t), allocatable :: pair
+    real(wp), dimension(lanes, state_size) :: y, f, f_lanes, y_raw
+    real(wp) :: k(lanes, state_size, max_pair_stages), h(lanes), rtol(lanes), atol(lanes), norm(lanes), u(state_size)
+    real(wp) :: y_new(state_size), noise(state_size), scale(state_size), stages, y_lane(state_size), f_lane(state_size)
+    real(wp) :: rhs_worst, observe_worst, stage_worst, norm_worst
+    integer :: l, seed_size, kind, s
+    character(len=6), parameter :: names(2) = ['dop853', 'vern9 ']
+    call random_seed(size=seed_size)
+    call random_seed(put=[(1990 + 11 * l, l = 1, seed_size)])
+    rhs_worst = 0
+    observe_worst = 0
+    do l = 1, lanes
+      ball(l) = make_ball(cases(l))
+      call set_lane(balls, l, ball(l))
+      call random_number(u)
+      y(l, :) = initial_state(ball(l), cases(l)%x, cases(l)%y, cases(l)%omega)
+      y(l, 1:2) = y(l, 1:2) + 0.2_wp * (u(1:2) - 0.5_wp)
+      y(l, 4:6) = y(l, 4:6) + 4 * (u(4:6) - 0.5_wp)
+      h(l) = 0.002_wp + 0.048_wp * u(3)
+      rtol(l) = cases(l)%rtol
+      atol(l) = cases(l)%atol
+    end do
+    call lanes_derivative(balls, y, f_lanes)
+    call lanes_observe(balls, y, f_lanes, out)
+    do l = 1, lanes
+      y_lane = y(l, :)               ! contiguous rows for the one-case routines
+      call ball_derivative(ball(l), 0.0_wp, y_lane, f_lane)
+      f(l, :) = f_lane
+      rhs_worst = max(rhs_worst, maxval(abs(f_lanes(l, :) - f_lane)) / maxval(abs(f_lane)))
+      call observe(ball(l), 0.0_wp, y_lane, f_lane, obs)
+      observe_worst = max(observe_worst, maxval(abs(out%reaction(l, :) - obs%reaction)) / norm2(obs%reaction), &
+                          maxval(abs(out%contact(l, :) - obs%contact)) / norm2(obs%contact), &
+                          abs(out%energy(l) - obs%energy) / abs(obs%energy))
+    end do
+    call check_below(rhs_worst / epsilon(1.0_wp), 8.0_wp, 'one state: batch vs one case, right-hand side (eps)')
+    call check_below(observe_worst / epsilon(1.0_wp), 8.0_wp, &
+                     'one state: batch vs one case, contact, reaction and energy (eps)')
+    do kind = 1, 2
+      if (kind == 1) then
+        allocate (dop853_t :: pair)
+      else
+        allocate (vern9_t :: pair)
+      end if
+      stage_worst = 0
+      norm_worst = 0
+      call lanes_pair_attempt(pair, balls, y, f, h, rtol, atol, k, y_raw, norm)
+      do l = 1, lanes
+        pair%rtol = rtol(l)
+        pair%atol = atol(l)
+        y_lane = y(l, :)
+        f_lane = f(l, :)
+        call pair_ball_step(pair, ball(l), 0.0_wp, y_lane, f_lane, h(l), y_new)
+        stages = maxval(abs(pair%k(:state_size, :pair%end_stage())))
+        do s = 2, pair%end_stage()
+          stage_worst = max(stage_worst, maxval(abs(k(l, :, s) - pair%k(:state_size, s))) / stages)
+        end do
+        stage_worst = max(stage_worst, maxval(abs(y_raw(l, :) - y_new)) / maxval(abs(y_new)))
+        noise = sum(abs(pair%k(:state_size, :pair%end_stage())), dim=2)
+        scale = atol(l) + max(abs(y(l, :)), abs(y_new)) * rtol(l)
+        norm_worst = max(norm_worst, abs(norm(l) - pair%error_norm) / &
+                         (epsilon(1.0_wp) * (h(l) * sqrt(sum((noise / scale)**2) / state_size) + pair%error_norm)))
+      end do
+      call check_below(stage_worst, 1.0e-13_wp, trim(names(kind)) // &
+                       ' attempt: batch vs one case, stages and new point (rel. to the stages)')
+      call check_below(norm_worst, 1.0_wp, trim(names(kind)) // &
+                       ' attempt: batch vs one case, error norm (in units of its round-off)')
+      deallocate (pair)
+    end do
+  end subroutine one_step
+
+  !> The paper's case with dop853 at rtol = atol = 1e-6 over 30 s, alone
+  !> and in a batch of its own copies. Where the compiler fuses
+  !> multiply-adds (-march=native on an FMA processor) the batch's round-off
+  !> turns one step decision the other way and the runs part (175 steps, 13
+  !> rejected, against 174 and 12 alone); without (the Debug build) both take
+  !> 175 and 12. Either way both complete, within 1 step and 1 rejection,
+  !> their samples within 100 rtol of each other.
+  subroutine parted_runs()
+    type(case_t) :: cs, cases(lanes)
+    type(case_result_t) :: res, batch(lanes)
+    type(output_plan_t) :: plan_30
+    type(error_t) :: err
+    real(wp) :: worst
+    logical :: parted, close
+    integer :: l
+    cs = paper_case(30.0_wp, 30.0_wp)
+    cs%method = 'dop853'
+    cs%rtol = 1.0e-6_wp
+    cs%atol = 1.0e-6_wp
+    plan_30%interval = 0.01_wp
+    plan_30%n_samples = 3001
+    plan_30%fields = .true.
+    call simulate_case(cs, plan_30, res, err)
+    cases = cs
+    call simulate_batch(cases, plan_30, batch)
+    parted = .false.
+    close = .true.
+    worst = 0
+    do l = 1, lanes
+      parted = parted .or. batch(l)%n_steps /= res%n_steps .or. batch(l)%n_rejected /= res%n_rejected
+      close = close .and. batch(l)%status == status_completed .and. abs(batch(l)%n_steps - res%n_steps) <= 1 &
+              .and. abs(batch(l)%n_rejected - res%n_rejected) <= 1
+      worst = max(worst, sample_difference(res, batch(l)))
+    end do
+    print '(a, i0, a, i0, a, i0, a, i0, a)', 'dop853 rtol = atol = 1e-6, 30 s: alone ', res%n_steps, ' steps (', &
+          res%n_rejected, ' rejected), in a batch ', batch(1)%n_steps, ' (', batch(1)%n_rejected, ')'
+    if (parted) print '(a)', 'dop853 rtol = atol = 1e-6, 30 s: the batch and the one-case run parted (round-off)'
+    call check(close .and. res%status == status_completed, &
+               'dop853 rtol = atol = 1e-6, 30 s: both complete, steps and rejected steps within 1')
+    call check_below(worst, 100 * cs%rtol, 'dop853 rtol = atol = 1e-6, 30 s: samples, batch vs one case (max rel. diff)')
+  end subroutine parted_runs
 
   !> The batch of these cases against each case on the one-case path, and
   !> the lanes' independence.
   !>
   !> RK4 takes the same steps on both paths, so everything agrees to
-  !> round-off. DOP853's step sizes carry the round-off of its error
-  !> estimate, a difference of stages about rtol |k| in size: eps / rtol
-  !> relative, 1e-7 at rtol 1e-9. Verner's estimate sum_s e8(s) k_s has
-  !> sum_s |e8(s)| = 5.9 (k_8 and k_12 cancel): its round-off is eps 5.9 /
-  !> rtol relative, 1.3e-5 at rtol 1e-10, the batch's tightest. That moves
-  !> the step ends, so the figures taken at step ends (the maxima of the
-  !> forces and of the displacement) differ at that level (held to 1e-6 for
-  !> DOP853, 1e-5 for Verner's); what does not depend on where steps end (output
-  !> samples at fixed times, Theta's maxima located on the dense output, the
-  !> end time found by bisection, the periods) agrees to round-off
-  !> accumulated over the steps.
+  !> round-off. The pairs' step sizes carry the round-off of their error
+  !> estimates (one_step), and a step decision that falls within it of its
+  !> threshold parts the two runs: over 30 s of the paper's case at 8 spins
+  !> and rtol 1e-2 to 1e-12, one in 40 cases took other steps (at most 1
+  !> step and 2 rejections more or fewer); over 300 s, steps within 2.4 %.
+  !> Once parted, they are two runs at one tolerance: the same status, and
+  !> results within that tolerance's error (the contact points apart by
+  !> less than either's distance to a run at rtol 1e-13; here held to 100
+  !> rtol, the accuracy test_integrators holds each pair to).
   subroutine compare_paths(cases, label)
     type(case_t), intent(in) :: cases(n_cases)
     character(len=*), intent(in) :: label
@@ -74,14 +211,12 @@ contains
     integer, parameter :: forces(3) = [3, 4, 11]
     type(case_result_t) :: single(n_cases), batch(n_cases), reordered(n_cases), alone(1)
     type(error_t) :: err
-    real(wp) :: located_bound, samples_bound, step_ends_bound
+    real(wp) :: allowed, step_ends_bound
     real(wp) :: worst_located, worst_step_ends, worst_samples, worst_at_limit, worst_end_time, difference(11)
-    integer :: l, order(n_cases)
-    logical :: same_status, same_counts, lane_independent, adaptive, at_limit
+    integer :: l, order(n_cases), parted
+    logical :: same_status, same_counts, close_counts, lane_independent, adaptive, at_limit, same_steps
 
     adaptive = cases(1)%method /= 'rk4'
-    located_bound = merge(1.0e-12_wp, 1.0e-13_wp, adaptive)
-    samples_bound = located_bound
     step_ends_bound = merge(1.0e-6_wp, 1.0e-13_wp, adaptive)
     if (cases(1)%method == 'vern9') step_ends_bound = 1.0e-5_wp
     do l = 1, n_cases
@@ -92,36 +227,56 @@ contains
 
     same_status = .true.
     same_counts = .true.
+    close_counts = .true.
+    parted = 0
     worst_located = 0
     worst_step_ends = 0
     worst_samples = 0
     worst_at_limit = 0
     worst_end_time = 0
     do l = 1, n_cases
+      ! round-off for RK4; 100 rtol once a pair's two runs part
+      allowed = merge(100 * cases(l)%rtol, 1.0e-13_wp, adaptive)
       same_status = same_status .and. single(l)%status == batch(l)%status
       difference = abs(figures(single(l)) - figures(batch(l))) / max(abs(figures(batch(l))), tiny(1.0_wp))
-      worst_samples = max(worst_samples, sample_difference(single(l), batch(l)))
+      worst_samples = max(worst_samples, sample_difference(single(l), batch(l)) / allowed)
       at_limit = single(l)%status == status_no_fit .or. single(l)%status == status_rim
-      worst_end_time = max(worst_end_time, abs(single(l)%t_final - batch(l)%t_final))
+      worst_end_time = max(worst_end_time, abs(single(l)%t_final - batch(l)%t_final) / merge(allowed, 1.0e-12_wp, adaptive))
       if (at_limit .and. adaptive) cycle       ! below
-      same_counts = same_counts .and. single(l)%n_steps == batch(l)%n_steps .and. single(l)%n_rhs == batch(l)%n_rhs &
-                    .and. single(l)%n_rejected == batch(l)%n_rejected &
-                    .and. single(l)%nutation_maxima == batch(l)%nutation_maxima
-      worst_located = max(worst_located, maxval(difference(located)), maxval(difference(round_off)))
+      same_steps = single(l)%n_steps == batch(l)%n_steps .and. single(l)%n_rhs == batch(l)%n_rhs &
+                   .and. single(l)%n_rejected == batch(l)%n_rejected
+      same_counts = same_counts .and. same_steps .and. single(l)%nutation_maxima == batch(l)%nutation_maxima
+      close_counts = close_counts .and. abs(single(l)%n_steps - batch(l)%n_steps) <= 1 + single(l)%n_steps / 50 &
+                     .and. abs(single(l)%n_rejected - batch(l)%n_rejected) <= 2 + single(l)%n_steps / 50 &
+                     .and. abs(single(l)%nutation_maxima - batch(l)%nutation_maxima) <= 1
+      worst_located = max(worst_located, maxval(difference(located)) / allowed, maxval(difference(round_off)) / allowed)
       if (at_limit) then
         worst_at_limit = max(worst_at_limit, maxval(difference(forces)))
         difference(forces) = 0
       end if
-      worst_step_ends = max(worst_step_ends, maxval(difference(at_step_ends)))
+      ! the figures taken at step ends sample the motion where each run's steps end
+      if (same_steps) then
+        worst_step_ends = max(worst_step_ends, maxval(difference(at_step_ends)))
+      else
+        parted = parted + 1
+      end if
     end do
     call check(same_status, label // ' batch: every case ends with the status of the one-case path')
-    call check(same_counts, label // ' batch: same steps, RHS calls and maxima of Theta per case')
-    call check_below(worst_located, located_bound, &
-                     label // ' batch vs one case: Theta_max, periods, end time, energy drift (max rel. diff)')
-    call check_below(worst_step_ends, step_ends_bound, &
-                     label // ' batch vs one case: maxima of forces and displacement (max rel. diff)')
-    call check_below(worst_samples, samples_bound, label // ' batch vs one case: stored samples (max rel. diff)')
-    call check_below(worst_end_time, 1.0e-12_wp, label // ' batch vs one case: end time (s)')
+    if (adaptive) then
+      print '(a, i0, a)', label // ' batch: ', parted, ' of the completed or slipping cases took other steps alone'
+      call check(close_counts, label // ' batch: steps within 1 + 2 %, rejected ones within 2 + 2 %, maxima of ' // &
+                 'Theta within 1 per case')
+    else
+      call check(same_counts, label // ' batch: same steps, RHS calls and maxima of Theta per case')
+    end if
+    call check_below(worst_located, 1.0_wp, label // ' batch vs one case: Theta_max, periods, end time, energy ' // &
+                     'drift (max rel. diff, in units of ' // trim(merge('100 rtol ', 'round-off', adaptive)) // ')')
+    call check_below(worst_step_ends, step_ends_bound, label // ' batch vs one case, cases that took the same ' // &
+                     'steps: maxima of forces and displacement (max rel. diff)')
+    call check_below(worst_samples, 1.0_wp, label // ' batch vs one case: stored samples (max rel. diff, in units ' // &
+                     'of ' // trim(merge('100 rtol ', 'round-off', adaptive)) // ')')
+    call check_below(worst_end_time, 1.0_wp, label // ' batch vs one case: end time (in units of ' // &
+                     trim(merge('100 rtol', '1e-12 s ', adaptive)) // ')')
     if (.not. adaptive) then
       ! A case that stops at no_fit or at the rim has its largest forces at the
       ! stop, where the model turns singular: at no_fit det L = (R - r1)(R - r2)

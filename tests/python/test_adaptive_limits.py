@@ -1,0 +1,58 @@
+"""The adaptive pairs at the ends of their documented ranges, through the
+program, on the Release and the Debug build (traps on invalid, zero-divide
+and overflow): atol = 0 (pure relative error control, the normal's x and y
+exactly zero at the start) runs the paper's case, one case and a batch, to
+the accuracy of atol > 0; a spin of 1e6 rad/s about every axis, whose
+starting step is far too long for its motion, ends at the fit limit without
+a trap. Every run is held to a timeout: an adaptive case must never hang."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+from test_fuzz import CRASH_SIGNS
+
+CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.0, y = 0.0, omega = {omega} /
+&integration method = '{method}', rtol = {rtol!r}, atol = {atol!r}, t_end = {t_end!r} /
+&output file = 'out.h5', interval = {interval!r}, fields = 'contact' /
+"""
+SPINS_8 = "&sweep name = 'omega_z', values = 5, 10, 15, 20, 25, 30, 35, 40 /\n"
+
+
+def run_case(exe, folder, name, sweep="", timeout=60, **values):
+    (folder / f"{name}.nml").write_text(CASE.format(**values) + sweep)
+    result = run(exe, "run", f"{name}.nml", "-o", f"{name}.h5", "-q", cwd=folder, timeout=timeout)
+    assert not any(sign in result.stderr for sign in CRASH_SIGNS), result.stderr
+    assert result.returncode == 0, result.stderr
+    with h5py.File(folder / f"{name}.h5") as f:
+        status = f["summary/status"]
+        names = dict(zip(status.attrs["flag_values"], status.attrs["flag_meanings"].split()))
+        return [names[s] for s in status[:]], f["summary/t_final"][:], f["trajectory/contact"][:]
+
+
+@pytest.mark.parametrize("build", ["release", "debug"])
+@pytest.mark.parametrize("method", ["dop853", "vern9"])
+@pytest.mark.parametrize("sweep", ["", SPINS_8], ids=["one case", "batch"])
+def test_pure_relative_control(ellroll, ellroll_debug, tmp_path, build, method, sweep):
+    exe = ellroll if build == "release" else ellroll_debug
+    rtol, omega = 1.0e-8, "-2.0, 2.0, 20.0"
+    common = dict(method=method, omega=omega, rtol=rtol, t_end=3.0, interval=0.5)
+    status, t_final, relative = run_case(exe, tmp_path, "relative", sweep, atol=0.0, **common)
+    assert status == ["completed"] * len(status) and np.all(t_final == 3.0)
+    reference_status, _, reference = run_case(exe, tmp_path, "reference", sweep, atol=1.0e-13,
+                                              **dict(common, rtol=1.0e-13, method="vern9"))
+    assert reference_status == status
+    # the accuracy the pairs reach at atol > 0 (test_integrators): within 100 rtol
+    assert np.max(np.linalg.norm(relative - reference, axis=-1)) < 100 * rtol
+
+
+@pytest.mark.parametrize("method", ["dop853", "vern9"])
+@pytest.mark.parametrize("sweep", ["", "&sweep name = 'omega_z', values = " + ", ".join(
+    str(1.0e6 - k) for k in range(8)) + " /\n"], ids=["one case", "batch"])
+def test_a_starting_step_far_too_long_stays_finite(ellroll_debug, tmp_path, method, sweep):
+    status, t_final, _ = run_case(ellroll_debug, tmp_path, "spin", sweep, method=method, omega="1e6, 1e6, 1e6",
+                                  rtol=1.0e-6, atol=1.0e-6, t_end=1.0e-4, interval=1.0e-5)
+    assert status == ["no_fit"] * len(status)
+    assert np.all(np.abs(t_final - 1.0806e-6) < 1.0e-9)
