@@ -8,7 +8,7 @@ program ellroll
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted, exit_code
   use ellroll_strings, only: itoa, format_real
-  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
+  use ellroll_records, only: named_value_t, kind_real, kind_int
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param, &
       range_text, check_case
@@ -681,7 +681,7 @@ contains
         end if
       case (kind_int)
         text = itoa(rec(k)%int)
-      case (kind_text)
+      case default                         ! text
         text = "'" // trim(rec(k)%text) // "'"
       end select
       if (trim(rec(k)%units) /= '1') text = text // ' ' // trim(rec(k)%units)

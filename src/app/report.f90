@@ -39,6 +39,7 @@ contains
     type(column_t), allocatable :: columns(:)
     integer(i8), allocatable :: status(:), steps(:), index(:)
     real(wp), allocatable :: wall(:), theta_max(:)
+    allocate (columns(0))
     call file%open(path, err)
     if (err%failed()) return
     if (format == 'table') then

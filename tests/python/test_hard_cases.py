@@ -7,7 +7,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, run
+from conftest import ROOT, SANITIZED, run
 
 HARD = ROOT / "input" / "hard"
 G = 9.81
@@ -115,6 +115,7 @@ def test_tiny_motions_keep_their_relative_accuracy(ellroll, tmp_path):
         assert theta[0] == pytest.approx(x0 * 0.2, rel=1e-12)      # Theta(0) = x0 c / a^2
 
 
+@pytest.mark.skipif(SANITIZED, reason="a numerical property of long runs: the Release and Debug builds test it")
 def test_long_run_energy_drift_per_method(ellroll, tmp_path):
     drift = {}
     for method in ("rk4", "gauss4"):
