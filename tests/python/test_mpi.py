@@ -48,6 +48,19 @@ def test_a_resume_of_a_complete_mpi_run_has_nothing_to_do(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml", "out.h5"]
 
 
+def ranks_in(folder):
+    """The process ids of the MPI build's processes working in folder."""
+    found = []
+    for entry in pathlib.Path("/proc").iterdir():
+        try:
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+            if command[0].decode() == str(MPI_EXE) and (entry / "cwd").resolve() == folder.resolve():
+                found.append(int(entry.name))
+        except (OSError, ValueError, IndexError):
+            continue
+    return found
+
+
 def test_an_interrupted_mpi_run_names_the_mpi_command_that_finishes_it(ellroll, tmp_path):
     """SIGTERM to the ranks (as scancel sends it): each keeps its finished
     cases and names the MPI command that finishes the run; a resume on more
@@ -66,7 +79,8 @@ def test_an_interrupted_mpi_run_names_the_mpi_command_that_finishes_it(ellroll, 
     while not all((tmp_path / f"out.h5.rank{r}.h5.journal").exists() for r in (0, 1)):
         time.sleep(0.02)
         assert process.poll() is None, process.stderr.read()
-    subprocess.run(["pkill", "-TERM", "-f", f"{MPI_EXE} run {name}"])
+    for rank in ranks_in(tmp_path):
+        os.kill(rank, signal.SIGTERM)
     process.communicate(timeout=120)
     for r in (0, 1):
         message = (tmp_path / f"rank{r}.err").read_text()
