@@ -8,6 +8,7 @@ module ellroll_hdf5_layout
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use hdf5
   use h5ds, only: h5dsset_scale_f, h5dsattach_scale_f
+  use h5lt, only: h5ltset_attribute_double_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_hdf5_common, only: hdf5_reason, dim_index, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
@@ -122,6 +123,13 @@ contains
     call h5sclose_f(space, hdferr)
     call self%check(hdferr, 'close a dataspace')
     call describe(self, dset, units, description)
+    ! CF's _FillValue, of the variable's type: what was never written (a
+    ! sample after a case ended, a figure of a case never run) is missing
+    ! to netCDF readers and xarray, as NaN is to h5py and numpy
+    if (.not. self%err%failed()) then
+      call h5ltset_attribute_double_f(dset, '.', '_FillValue', [fill], 1_size_t, hdferr)
+      call self%check(hdferr, 'write attribute _FillValue')
+    end if
   end function real_dataset
 
   integer(hid_t) function int_dataset(self, loc, name, n, units, description, fill) result(dset)

@@ -339,3 +339,25 @@ def test_bash_completion_beside_the_binary(ellroll, tmp_path):
     assert complete("summary", "out.h5", "--format", "") == ["csv", "json", "table"]
     assert "--resume" in complete("run", "--") and complete("run", "ca") == ["case.nml"]
     assert complete("merge", "o") == ["out.h5"]
+
+
+def test_undefined_values_are_nan_and_marked_missing(ellroll, tmp_path):
+    """A case never run and the samples after an early end are NaN, and CF's
+    _FillValue (NaN, of the dataset's type) marks them missing for netCDF
+    readers; xarray gives NaN for them."""
+    import xarray as xr
+    (tmp_path / "c.nml").write_text(
+        "&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
+        "&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /\n&integration dt = 1.0e-3, t_end = 0.2 /\n"
+        "&output file = 'out.h5', interval = 0.01 /\n&campaign invalid = 'skip' /\n"
+        "&sweep name = 'x', values = 0.0, 1.5 /\n")
+    assert run(ellroll, "run", "c.nml", "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5") as f:
+        for group in ("summary", "trajectory", "case"):
+            for name, dataset in f[group].items():
+                if dataset.dtype.kind == "f":
+                    assert "_FillValue" in dataset.attrs and np.isnan(dataset.attrs["_FillValue"]), name
+                    assert dataset.attrs["_FillValue"].dtype == dataset.dtype, name
+        assert np.isnan(f["summary/theta_max"][1]) and np.all(np.isnan(f["trajectory/contact"][1]))
+    tree = xr.open_datatree(tmp_path / "out.h5", engine="h5netcdf")
+    assert np.isnan(tree["summary"]["theta_max"].values[1]) and np.isfinite(tree["summary"]["theta_max"].values[0])
