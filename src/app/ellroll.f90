@@ -19,8 +19,11 @@ program ellroll
   use ellroll_hdf5_writer, only: provenance_t
   use ellroll_hdf5_common, only: hdf5_close_failed
   use ellroll_run_timings, only: wall_clock
-  use ellroll_run_campaign, only: run_options_t, run_campaign, find_invalid_cases, shard_slots, step_size_advice, &
-      check_output_target, holds_this_run
+  use ellroll_run_campaign, only: run_options_t, run_campaign
+  use ellroll_shards, only: shard_slots
+  use ellroll_step_advice, only: step_size_advice
+  use ellroll_invalid_cases, only: find_invalid_cases
+  use ellroll_output_start, only: check_output_target, holds_this_run
   use ellroll_output_files, only: output_files_t, work_target
   use ellroll_files, only: path_kind, kind_regular, kind_missing
   use ellroll_integrators, only: methods
