@@ -11,7 +11,7 @@ module ellroll_merge
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
-  use ellroll_run_campaign, only: shard_slots, campaign_id
+  use ellroll_shards, only: shard_slots, campaign_id
   use ellroll_files, only: same_file, path_kind, kind_missing
   use ellroll_output_files, only: output_files_t, work_partial, work_target
   implicit none

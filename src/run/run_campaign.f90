@@ -1,8 +1,10 @@
 !> Running a campaign (or one shard of it) into one HDF5 file: OpenMP over
-!> cases with dynamic scheduling, a single writer of the table rows (HDF5's
-!> Fortran API is not thread-safe) while each thread writes its cases'
-!> trajectories and journal records in place, a journal that makes an
-!> interruption lose nothing, resume, and the decisions about existing outputs.
+!> blocks of cases with dynamic scheduling, a single writer of the table
+!> rows (HDF5's Fortran API is not thread-safe) while each thread writes
+!> its cases' trajectories and journal records in place, a journal that
+!> makes an interruption lose nothing, progress and timings. How the run
+!> begins on the files there (afresh, resumed, nothing to do) is
+!> ellroll_output_start's; which cases are invalid, ellroll_invalid_cases'.
 !>
 !> Files, for output OUT: OUT.partial (the HDF5 file being written, moved to
 !> OUT when complete) and OUT.journal (every finished case, the durable
@@ -12,35 +14,28 @@
 !> (ellroll_resume).
 module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
-  use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
-  use ellroll_strings, only: itoa, text_hash, format_real
-  use ellroll_status, only: status_invalid, status_pending
-  use ellroll_cases, only: case_t, check_case, case_problem, make_ball, adaptive_method, is_multiple
-  use ellroll_rolling_ball, only: rolling_ball_t, initial_state
-  use ellroll_linear, only: fastest_rate
-  use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
-  use ellroll_campaign, only: campaign_t, invalid_stop
+  use ellroll_errors, only: error_t, set_error, err_interrupted
+  use ellroll_strings, only: itoa
+  use ellroll_status, only: status_invalid
+  use ellroll_cases, only: case_t
   use ellroll_results, only: case_result_t
-  use ellroll_input, only: run_input_t, describe_invalid
+  use ellroll_input, only: run_input_t
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
-  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, table_row, written_in_place
-  use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, table_row
   use ellroll_records, only: named_value_t
-  use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
-  use ellroll_resume, only: open_for_resume, copy_journaled_cases
+  use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: folder_write_error, folder_of, system_error_text, stop_signal, signal_name
-  use ellroll_files, only: path_kind, kind_regular
-  use ellroll_output_files, only: output_files_t, work_partial, work_journal, work_target
+  use ellroll_system, only: stop_signal, signal_name
+  use ellroll_output_files, only: output_files_t, work_partial, work_journal
+  use ellroll_output_start, only: decide_start, open_outputs
+  use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
       writes_trajectories, writes_journal
   implicit none
   private
 
-  public :: run_options_t, run_campaign, shard_slots, find_invalid_cases, campaign_id, step_size_advice, &
-            check_output_target, holds_this_run
+  public :: run_options_t, run_campaign
 
   type :: run_options_t
     integer :: threads = 0               !< 0: OMP_NUM_THREADS or all cores
@@ -53,8 +48,7 @@ module ellroll_run_campaign
   end type run_options_t
 
   !> What the threads of a run share: the file and journal they write, the
-  !> slots done, progress, timings and the first errors (one from a block,
-  !> one from the writer).
+  !> slots done, progress, timings and the loop's first error.
   type :: run_state_t
     integer :: shard(2) = [0, 1]
     integer(i8) :: n_slots = 0
@@ -79,192 +73,6 @@ module ellroll_run_campaign
 
 contains
 
-  !> The id that ties a file, its journal and its shards to one campaign.
-  !> (A record file changed gives another id: its fingerprint is part of it.)
-  function campaign_id(inp) result(id)
-    type(run_input_t), intent(in) :: inp
-    character(len=16) :: id
-    id = text_hash(inp%canonical // inp%input_files)
-  end function campaign_id
-
-  !> Checked before any case runs: files can be created in the output's
-  !> folder, and every file of the output (the output itself, its partial
-  !> file, journal and resume file) is absent or ellroll's: neither
-  !> --overwrite nor a resume ever replaces the input, a link or any other file.
-  subroutine check_output_target(path, input, err)
-    character(len=*), intent(in) :: path, input
-    type(error_t), intent(inout) :: err
-    type(output_files_t) :: files
-    integer :: code
-    code = folder_write_error(folder_of(path))
-    if (code /= 0) then
-      call set_error(err, err_output, path // ': cannot create files in folder ' // folder_of(path) // ': ' // &
-                     system_error_text(code))
-      return
-    end if
-    call files%name(path, input)
-    call files%check(files%target, work_target, err)
-    call files%check(files%partial, work_partial, err)
-    call files%check(files%resumed, work_partial, err)
-    call files%check(files%journal, work_journal, err)
-  end subroutine check_output_target
-
-  !> Global indices of shard I of N: I, I + N, I + 2N, ... (round robin, so
-  !> that every shard gets a fair share of a sweep's cheap and dear cases).
-  function shard_slots(n_total, shard) result(indices)
-    integer(i8), intent(in) :: n_total
-    integer, intent(in) :: shard(2)
-    integer(i8), allocatable :: indices(:)
-    integer(i8) :: j
-    ! floor division: a shard past the last case gets none (truncation gave it one)
-    indices = [(int(shard(1), i8) + j * shard(2), j = 0, floor(real(n_total - shard(1) - 1, wp) / shard(2), i8))]
-  end function shard_slots
-
-  !> Every invalid case of the campaign, with the message for the first few.
-  subroutine find_invalid_cases(inp, invalid, messages)
-    type(run_input_t), intent(in) :: inp
-    logical, allocatable, intent(out) :: invalid(:)
-    character(len=:), allocatable, intent(out) :: messages
-    integer(i8) :: i, n_bad
-    integer :: param
-    character(len=:), allocatable :: reason, description
-    type(case_t) :: cs
-    allocate (invalid(0:inp%campaign%n_cases() - 1))
-    ! every case checked (in parallel: a sweep may hold millions), then the
-    ! messages of the first five in case order
-    !$omp parallel do schedule(dynamic, 256)
-    do i = 0, inp%campaign%n_cases() - 1
-      invalid(i) = case_is_invalid(i)
-    end do
-    !$omp end parallel do
-    messages = ''
-    n_bad = 0
-    do i = 0, inp%campaign%n_cases() - 1
-      if (.not. invalid(i)) cycle
-      n_bad = n_bad + 1
-      if (n_bad > 5) cycle
-      cs = inp%campaign%case_at(i)
-      call check_case(cs, inp%plan%interval, param, reason)
-      call describe_invalid(inp, cs, param, reason, description)
-      messages = messages // achar(10) // '  ' // description
-    end do
-    if (n_bad > 5) messages = messages // achar(10) // '  ... and ' // itoa(n_bad - 5) // ' more'
-  contains
-    logical function case_is_invalid(index)
-      integer(i8), intent(in) :: index
-      case_is_invalid = case_problem(inp%campaign%case_at(index), inp%plan%interval) /= 0
-    end function case_is_invalid
-  end subroutine find_invalid_cases
-
-  !> Warnings (or ''), each line starting 'ellroll: warning:', for the
-  !> fixed-step cases whose dt is large against the fastest rate of their
-  !> linearised motion at the start (spin and curvature): beyond the method's
-  !> stability (dt rate above its limit; such a case ends 'unstable'), listed
-  !> case by case, the first few, each with a dt that would do; or coarse
-  !> (dt rate > 0.1), counted, the fastest named.
-  subroutine step_size_advice(inp, message)
-    type(run_input_t), intent(in) :: inp
-    character(len=:), allocatable, intent(out) :: message
-    real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
-    integer, parameter :: listed = 5
-    real(wp) :: worst_rate, limit
-    real(wp), allocatable :: rates(:), steps(:)
-    integer(i8) :: i, worst, n_coarse, n_unstable
-    character(len=:), allocatable :: unstable_cases, cases_of
-    class(integrator_t), allocatable :: integrator
-    type(error_t) :: err
-    message = ''
-    if (adaptive_method(inp%campaign%base%method)) return
-    call new_integrator(trim(inp%campaign%base%method), integrator, err)
-    if (err%failed()) return
-    limit = stability_limit(integrator)
-    allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1))
-    !$omp parallel do schedule(dynamic, 256)
-    do i = 0, inp%campaign%n_cases() - 1
-      call start_rate(i, rates(i), steps(i))
-    end do
-    !$omp end parallel do
-    n_coarse = 0
-    n_unstable = 0
-    unstable_cases = ''
-    worst_rate = 0
-    worst = 0
-    do i = 0, inp%campaign%n_cases() - 1
-      if (steps(i) * rates(i) > limit) then
-        n_unstable = n_unstable + 1
-        if (n_unstable <= listed) unstable_cases = unstable_cases // achar(10) // '  case ' // itoa(i) // &
-            ': dt = ' // format_real(steps(i)) // ' s, dt * rate = ' // format_real(hundredths(steps(i) * rates(i))) // &
-            '; dt <= ' // format_real(nice_step(aim / rates(i), inp%plan%interval)) // ' s would do'
-      else if (steps(i) * rates(i) > warn_above) then
-        n_coarse = n_coarse + 1
-        if (rates(i) > worst_rate) then
-          worst_rate = rates(i)
-          worst = i
-        end if
-      end if
-    end do
-    cases_of = ' of ' // itoa(inp%campaign%n_cases()) // ' cases: '
-    if (n_unstable > 0) then
-      message = 'ellroll: warning: ' // itoa(n_unstable) // cases_of // 'dt is beyond ' // &
-          trim(inp%campaign%base%method) // '''s stability for their spin and curvature (dt * rate > ' // &
-          format_real(hundredths(limit)) // ', rate the fastest of the motion at the start); they will end ''unstable'':' // &
-          unstable_cases
-      if (n_unstable > listed) message = message // achar(10) // '  ... and ' // itoa(n_unstable - listed) // &
-          ' more'
-    end if
-    if (n_coarse == 0) return
-    if (len(message) > 0) message = message // achar(10)
-    message = message // 'ellroll: warning: ' // itoa(n_coarse) // cases_of // &
-        'dt is large for their fastest time scale (case ' // itoa(worst) // ': dt = ' // &
-        format_real(steps(worst)) // ' s, 1/rate = ' // format_real(1 / worst_rate) // ' s); suggested dt <= ' // &
-        format_real(nice_step(aim / worst_rate, inp%plan%interval)) // ' s, or method = ''dop853'''
-  contains
-    !> Case `index`'s fastest rate at the start and its step; where a bound on
-    !> the rate is within the limit, the bound (the rate is only compared with it).
-    subroutine start_rate(index, rate, dt)
-      integer(i8), intent(in) :: index
-      real(wp), intent(out) :: rate, dt
-      type(case_t) :: one
-      type(rolling_ball_t) :: ball
-      one = inp%campaign%case_at(index)
-      ! an invalid case (set aside later, with its message) is never large:
-      ! its start may not be a state at all
-      rate = 0
-      dt = 0
-      if (case_problem(one, inp%plan%interval) /= 0) return
-      ball = make_ball(one)
-      dt = one%dt
-      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
-    end subroutine start_rate
-
-    !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
-    !> (a power below 1 divided by, so that 5e-6 is the double nearest 5e-6).
-    real(wp) function nice_step(limit, interval) result(step)
-      real(wp), intent(in) :: limit, interval
-      real(wp), parameter :: mantissas(3) = [1.0_wp, 2.0_wp, 5.0_wp]
-      integer :: k, m, exponent10
-      do k = 0, 30
-        exponent10 = floor(log10(limit)) - k
-        do m = 3, 1, -1
-          if (exponent10 < 0) then
-            step = mantissas(m) / 10.0_wp**(-exponent10)
-          else
-            step = mantissas(m) * 10.0_wp**exponent10
-          end if
-          if (step > limit) cycle
-          if (is_multiple(interval, step)) return
-        end do
-      end do
-      step = limit
-    end function nice_step
-
-    !> x rounded to two decimals, for a message
-    pure real(wp) function hundredths(x)
-      real(wp), intent(in) :: x
-      hundredths = anint(100 * x) / 100
-    end function hundredths
-  end subroutine step_size_advice
-
   subroutine run_campaign(inp, opts, prov_in, err)
     type(run_input_t), intent(in) :: inp
     type(run_options_t), intent(in) :: opts
@@ -283,17 +91,19 @@ contains
     call find_invalid_cases(inp, invalid, messages)
     run%timings%advice = opts%advice_seconds
     run%timings%checked = wall_clock()
-    if (any(invalid) .and. inp%campaign%invalid == invalid_stop) then
-      call set_error(err, err_input, itoa(count(invalid)) // ' of ' // itoa(size(invalid)) // &
-          ' cases are invalid (set &campaign invalid = ''skip'' to run the others):' // messages)
-      return
-    end if
+    call refuse_invalid_cases(inp, invalid, messages, err)
+    if (err%failed()) return
     call files%acquire('ellroll run ' // inp%path // trim(merge(' --resume', '         ', opts%resume)), err)
     if (err%failed()) return
-    call decide_start(inp, opts, files, resume, nothing_to_do, err)
+    call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
     if (.not. (err%failed() .or. nothing_to_do)) then
-      call open_outputs(inp, opts, prov_in, files, resume, run, err)
-      if (.not. err%failed()) call record_invalid(inp, invalid, run, err)
+      run%shard = opts%shard
+      run%resumed = resume
+      call open_outputs(inp, opts%shard, prov_in, files, resume, run%out, run%journal, run%done, err)
+      if (.not. err%failed()) then
+        run%n_slots = size(run%done, kind=i8)
+        call record_invalid(inp, invalid, run, err)
+      end if
       if (err%failed()) then
         call abandon(run, files, err)
       else
@@ -303,148 +113,6 @@ contains
     end if
     call files%release(err)
   end subroutine run_campaign
-
-  !> Whether the run starts afresh or resumes, from the files there and the
-  !> options; nothing_to_do for a resume of a complete run. Every file of the
-  !> output is ellroll's or absent (else the run is refused, and nothing is
-  !> touched). A journal beside a complete output of this campaign is left
-  !> from a run killed between moving its file into place and removing the
-  !> journal: it goes. A journal killed before its header was complete holds
-  !> nothing finished, and the run starts afresh.
-  subroutine decide_start(inp, opts, files, resume, nothing_to_do, err)
-    type(run_input_t), intent(in) :: inp
-    type(run_options_t), intent(in) :: opts
-    type(output_files_t), intent(in) :: files
-    logical, intent(out) :: resume, nothing_to_do
-    type(error_t), intent(inout) :: err
-    logical :: journal_exists, target_exists, target_complete
-    nothing_to_do = .false.
-    resume = opts%resume
-    call files%check(files%target, work_target, err)
-    call files%check(files%partial, work_partial, err)
-    call files%check(files%resumed, work_partial, err)
-    call files%check(files%journal, work_journal, err)
-    if (err%failed()) return
-    target_exists = path_kind(files%target) == kind_regular
-    journal_exists = path_kind(files%journal) == kind_regular
-    target_complete = .false.
-    if (target_exists) target_complete = holds_this_run(files%target, inp, opts%shard)
-    if (journal_exists .and. target_complete) then
-      write (error_unit, '(a)') 'ellroll: ' // files%target // ': complete; removing the journal of the run ' // &
-          'that wrote it (' // files%journal // ')'
-      call files%discard(files%journal, work_journal, err)
-      call files%discard(files%partial, work_partial, err)
-      call files%discard(files%resumed, work_partial, err)
-      if (err%failed()) return
-      journal_exists = .false.
-    end if
-    if (journal_exists) then
-      if (journal_is_torn(files%journal)) then
-        write (error_unit, '(a)') 'ellroll: warning: ' // files%journal // ': the interrupted run finished ' // &
-            'no case (killed before the journal''s header was written); starting afresh'
-        call files%discard(files%journal, work_journal, err)
-        call files%discard(files%partial, work_partial, err)
-        call files%discard(files%resumed, work_partial, err)
-        if (err%failed()) return
-        journal_exists = .false.
-        resume = .false.
-      end if
-    else if (.not. target_exists) then
-      resume = .false.          ! nothing begun: a resume is the first run (a requeued job's)
-    end if
-    if (resume .and. .not. journal_exists) then          ! the output is there
-      nothing_to_do = .true.
-      if (target_complete) then
-        write (error_unit, '(a)') 'ellroll: ' // files%target // ': this run is already complete; nothing to do'
-      else
-        call set_error(err, err_output, files%target // ': holds the output of another input or shard; ' // &
-                       'nothing to resume')
-      end if
-    else if (.not. resume .and. .not. opts%overwrite) then
-      if (journal_exists) then
-        call set_error(err, err_output, files%target // ': an interrupted run of this output exists (' // &
-            files%journal // '); pass --resume to finish it, or --overwrite to start over')
-      else if (target_exists) then
-        call set_error(err, err_output, files%target // ': output file exists; pass --overwrite to replace it')
-      end if
-    end if
-    if (err%failed() .or. nothing_to_do .or. resume) return
-    ! afresh: what an earlier run left goes (the output itself stays until the new one replaces it)
-    call files%discard(files%resumed, work_partial, err)
-    call files%discard(files%partial, work_partial, err)
-    call files%discard(files%journal, work_journal, err)
-  end subroutine decide_start
-
-  !> Whether the output at path is complete and of this campaign and shard.
-  logical function holds_this_run(path, inp, shard) result(holds)
-    character(len=*), intent(in) :: path
-    type(run_input_t), intent(in) :: inp
-    integer, intent(in) :: shard(2)
-    type(h5_input_t) :: existing
-    type(error_t) :: unreadable
-    character(len=:), allocatable :: id, spec
-    integer(i8), allocatable :: status(:)
-    holds = .false.
-    call existing%open(path, unreadable)
-    if (unreadable%failed()) return
-    call existing%text_attribute('campaign_id', id)
-    call existing%text_attribute('shard', spec)
-    allocate (status, source=existing%int_column('summary/status', unreadable))
-    call existing%close()
-    holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
-            spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
-  end function holds_this_run
-
-  !> Create the output file and the journal, or on a resume the file into
-  !> which the journaled cases go (they are then done).
-  subroutine open_outputs(inp, opts, prov_in, files, resume, run, err)
-    type(run_input_t), intent(in) :: inp
-    type(run_options_t), intent(in) :: opts
-    type(provenance_t), intent(in) :: prov_in
-    type(output_files_t), intent(in) :: files
-    logical, intent(in) :: resume
-    type(run_state_t), intent(inout) :: run
-    type(error_t), intent(inout) :: err
-    integer(i8), allocatable :: globals(:), journal_places(:)
-    real(wp), allocatable :: times(:)
-    type(journal_header_t) :: header
-    type(provenance_t) :: prov
-    character(len=:), allocatable :: writing
-    integer(i8) :: i
-    allocate (globals, source=shard_slots(inp%campaign%n_cases(), opts%shard))
-    run%n_slots = size(globals, kind=i8)
-    run%shard = opts%shard
-    prov = prov_in
-    prov%campaign_id = campaign_id(inp)
-    prov%input_files = inp%input_files
-    prov%n_cases_total = inp%campaign%n_cases()
-    prov%shard = itoa(opts%shard(1)) // '/' // itoa(opts%shard(2))
-    header = journal_header_t(campaign_id=campaign_id(inp) // text_hash(inp%canonical), &
-                              n_slots=run%n_slots, n_samples=inp%plan%n_samples, shard=opts%shard, &
-                              fields=inp%plan%fields, in_place=written_in_place(inp%plan%fields, inp%plan%compression))
-    ! (assigned apart: gfortran 12 copies a deferred-length component of a
-    ! structure constructor into a buffer of one byte)
-    header%input_files = inp%input_files
-    run%resumed = resume
-    if (resume) then
-      call open_for_resume(run%journal, files, header, journal_places, err)
-      if (err%failed()) return
-    end if
-    times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
-    writing = files%partial
-    if (resume) writing = files%resumed      ! moved over partial once the journaled cases are in it
-    call run%out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, &
-                        inp%campaign%coordinates(globals), err, inp%plan%compression)
-    deallocate (globals)          ! from here on, memory does not grow with the case count
-    if (err%failed()) return          ! (abandon closes the file and removes it)
-    allocate (run%done(0:run%n_slots - 1))
-    run%done = .false.
-    if (resume) then
-      call copy_journaled_cases(run%journal, journal_places, inp%campaign, opts%shard, files, run%out, run%done, err)
-    else
-      call run%journal%create(files%journal, header, err)
-    end if
-  end subroutine open_outputs
 
   !> Invalid cases skipped: recorded, never integrated.
   subroutine record_invalid(inp, invalid, run, err)

@@ -1,7 +1,7 @@
-!> The summary table of an output file: cases per status, the slowest case,
-!> totals. Printed at the end of a run and by `ellroll summary`, both from
-!> the file itself.
-module ellroll_report
+!> `ellroll summary OUT.h5`: the summary of an output file, read from the
+!> file itself: a table (cases per status, the slowest case, totals; also
+!> printed at the end of a run), or one row per case as CSV or JSON.
+module ellroll_cmd_summary
   use, intrinsic :: iso_fortran_env, only: output_unit
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
@@ -11,10 +11,11 @@ module ellroll_report
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_results, only: case_result_t, summary_record
+  use ellroll_cli, only: cli_t
   implicit none
   private
 
-  public :: print_summary
+  public :: summary_command, print_summary
 
   !> A column of `ellroll summary --format csv|json`: one of its kinds of
   !> values is allocated, one value per case.
@@ -27,6 +28,12 @@ module ellroll_report
   end type column_t
 
 contains
+
+  subroutine summary_command(cli, err)
+    type(cli_t), intent(in) :: cli
+    type(error_t), intent(inout) :: err
+    call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
+  end subroutine summary_command
 
   !> The summary of a file: the table (format 'table'), or one row per case
   !> ('csv', or strict 'json' with NaN as null and units in a header): the
@@ -272,4 +279,4 @@ contains
         status_name(int(status(slowest))) // ')'
     if (size(status) == 1) write (output_unit, '(a)') '  theta_max: ' // format_real(theta_max(1)) // ' rad'
   end subroutine print_table
-end module ellroll_report
+end module ellroll_cmd_summary

@@ -1,0 +1,201 @@
+!> The ellroll command line: its arguments parsed into a command, its
+!> files and options; the provenance a command writes into its outputs; and
+!> the command line that finishes an interrupted run.
+module ellroll_cli
+  use ellroll_errors, only: error_t, set_error, err_input
+  use ellroll_strings, only: itoa
+  use ellroll_hdf5_writer, only: provenance_t
+  use ellroll_run_campaign, only: run_options_t
+  use ellroll_system, only: utc_timestamp
+  use ellroll_version, only: version_string
+  implicit none
+  private
+
+  public :: cli_t, parse_arguments, provenance, resume_line
+
+  !> What the command line asks for.
+  type :: cli_t
+    character(len=:), allocatable :: command              !< run, check, ..., help or version
+    character(len=:), allocatable :: output_path          !< -o, --output; '' when not given
+    character(len=5) :: summary_format = 'table'          !< ellroll summary --format: table, csv or json
+    character(len=8) :: help_topic = ''                   !< ellroll COMMAND --help: that command's help
+    character(len=1024), allocatable :: paths(:)          !< the files after the command
+    type(run_options_t) :: opts
+  end type cli_t
+
+contains
+
+  !> The command line's arguments; err (bad input, with a pointer to
+  !> --help) names the first that makes no sense.
+  subroutine parse_arguments(cli, err)
+    type(cli_t), intent(out) :: cli
+    type(error_t), intent(inout) :: err
+    integer :: k, n
+    character(len=:), allocatable :: arg, value
+    cli%command = ''
+    cli%output_path = ''
+    allocate (cli%paths(0))
+    n = command_argument_count()
+    k = 1
+    do while (k <= n)
+      call get_argument(k, arg)
+      select case (arg)
+      case ('-h', '--help', 'help')
+        cli%help_topic = cli%command
+        cli%command = 'help'
+        return
+      case ('-V', '--version', 'version')
+        cli%command = 'version'
+        return
+      case ('-o', '--output', '--threads', '--shard', '--format')
+        if (k == n) then
+          call usage_error(err, arg // ' needs a value')
+          return
+        end if
+        k = k + 1
+        call get_argument(k, value)
+        call take_value(cli, arg, value, err)
+        if (err%failed()) return
+      case ('--overwrite')
+        cli%opts%overwrite = .true.
+      case ('--resume')
+        cli%opts%resume = .true.
+      case ('-q', '--quiet')
+        cli%opts%quiet = .true.
+      case ('--timings')
+        cli%opts%timings = .true.
+      case ('run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes')
+        if (len(cli%command) > 0) then
+          call usage_error(err, 'more than one command given (' // cli%command // ', ' // arg // ')')
+          return
+        end if
+        cli%command = arg
+      case default
+        if (arg(1:min(1, len(arg))) == '-') then
+          call usage_error(err, 'unknown option ' // arg)
+          return
+        end if
+        if (len(cli%command) == 0) then
+          call usage_error(err, "unknown command '" // arg // "'")
+          return
+        end if
+        cli%paths = [character(len=1024) :: cli%paths, arg]
+      end select
+      k = k + 1
+    end do
+    call check_arguments(cli, err)
+  end subroutine parse_arguments
+
+  !> The value of an option that takes one.
+  subroutine take_value(cli, option, value, err)
+    type(cli_t), intent(inout) :: cli
+    character(len=*), intent(in) :: option, value
+    type(error_t), intent(inout) :: err
+    integer :: ios
+    select case (option)
+    case ('-o', '--output')
+      cli%output_path = value
+    case ('--threads')
+      read (value, *, iostat=ios) cli%opts%threads
+      if (ios /= 0 .or. cli%opts%threads < 1) &
+        call usage_error(err, '--threads needs a positive number, not ' // value)
+    case ('--format')
+      if (all(value /= [character(len=5) :: 'table', 'csv', 'json'])) then
+        call usage_error(err, "--format needs table, csv or json, not '" // value // "'")
+        return
+      end if
+      cli%summary_format = value
+    case ('--shard')
+      if (.not. parse_shard(value, cli%opts%shard)) &
+        call usage_error(err, '--shard needs I/N with 0 <= I < N, not ' // value)
+    end select
+  end subroutine take_value
+
+  !> The files a command needs, and options that exclude each other.
+  subroutine check_arguments(cli, err)
+    type(cli_t), intent(in) :: cli
+    type(error_t), intent(inout) :: err
+    if (len(cli%command) == 0) then
+      call usage_error(err, 'no command given')
+    else if (cli%command == 'methods' .or. cli%command == 'inputs') then
+      return
+    else if (size(cli%paths) == 0) then
+      call usage_error(err, cli%command // ' needs ' // merge('an output file and shard files', &
+                                                             'an input file                 ', cli%command == 'merge'))
+    else if (cli%command == 'merge' .and. size(cli%paths) < 2) then
+      call usage_error(err, 'merge needs an output file and at least one shard file')
+    else if (cli%command /= 'merge' .and. size(cli%paths) > 1) then
+      call usage_error(err, 'more than one input file given (' // trim(cli%paths(1)) // ', ' // &
+                       trim(cli%paths(2)) // ')')
+    else if (cli%opts%resume .and. cli%opts%overwrite) then
+      call usage_error(err, '--resume and --overwrite exclude each other')
+    end if
+  end subroutine check_arguments
+
+  !> I/N of --shard.
+  logical function parse_shard(text, shard) result(ok)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: shard(2)
+    integer :: slash, ios1, ios2
+    slash = index(text, '/')
+    ok = .false.
+    if (slash < 2 .or. slash == len(text)) return
+    read (text(:slash-1), *, iostat=ios1) shard(1)
+    read (text(slash+1:), *, iostat=ios2) shard(2)
+    ok = ios1 == 0 .and. ios2 == 0 .and. shard(2) >= 1 .and. shard(1) >= 0 .and. shard(1) < shard(2)
+  end function parse_shard
+
+  subroutine usage_error(err, message)
+    type(error_t), intent(inout) :: err
+    character(len=*), intent(in) :: message
+    call set_error(err, err_input, message // " (see 'ellroll --help')")
+  end subroutine usage_error
+
+  subroutine get_argument(k, arg)
+    integer, intent(in) :: k
+    character(len=:), allocatable, intent(out) :: arg
+    integer :: length
+    call get_command_argument(k, length=length)
+    allocate (character(len=length) :: arg)
+    if (length > 0) call get_command_argument(k, arg)
+  end subroutine get_argument
+
+  !> What an output records of the command that wrote it: the program, its
+  !> version, the time, the input file and its text, the command line.
+  function provenance(input_file, input_text) result(prov)
+    character(len=*), intent(in) :: input_file, input_text
+    type(provenance_t) :: prov
+    integer :: length
+    character(len=:), allocatable :: line
+    call get_command(length=length)
+    allocate (character(len=length) :: line)
+    call get_command(line)
+    prov%program = 'ellroll'
+    prov%version = version_string
+    call utc_timestamp(prov%created)
+    prov%input_file = input_file
+    prov%input_namelist = input_text
+    prov%command_line = line
+  end function provenance
+
+  !> This command line with --resume in place of --overwrite: it finishes
+  !> an interrupted run (under MPI, on as many ranks).
+  subroutine resume_line(n_ranks, line)
+    integer, intent(in) :: n_ranks
+    character(len=:), allocatable, intent(out) :: line
+    character(len=4096) :: argument
+    integer :: k
+    line = 'ellroll'
+    if (n_ranks > 1) line = 'mpirun -n ' // itoa(n_ranks) // ' ellroll'
+    do k = 1, command_argument_count()
+      call get_command_argument(k, argument)
+      if (argument == '--overwrite' .or. argument == '--resume') cycle
+      if (index(trim(argument), ' ') > 0) then
+        line = line // ' "' // trim(argument) // '"'
+      else
+        line = line // ' ' // trim(argument)
+      end if
+    end do
+    line = line // ' --resume'
+  end subroutine resume_line
+end module ellroll_cli

@@ -1,0 +1,159 @@
+!> `ellroll run FILE.nml`: an input read and checked, its step advice
+!> given, its campaign run into its output, then the output's summary
+!> printed. Under MPI (more than one rank) each rank runs a shard and rank
+!> 0 merges them.
+module ellroll_cmd_run
+  use, intrinsic :: iso_fortran_env, only: error_unit
+  use ellroll_errors, only: error_t, set_error, err_input, err_output
+  use ellroll_strings, only: itoa
+  use ellroll_input, only: run_input_t, read_input
+  use ellroll_run_timings, only: wall_clock
+  use ellroll_run_campaign, only: run_options_t, run_campaign
+  use ellroll_output_start, only: check_output_target, holds_this_run
+  use ellroll_output_files, only: output_files_t, work_target
+  use ellroll_step_advice, only: step_size_advice
+  use ellroll_merge, only: merge_shards
+  use ellroll_files, only: path_kind, kind_regular, kind_missing
+  use ellroll_system, only: catch_stop_signals
+  use ellroll_ranks, only: ranks_all_ok
+  use ellroll_cli, only: cli_t, provenance
+  use ellroll_cmd_summary, only: print_summary
+  implicit none
+  private
+
+  public :: run_command
+
+contains
+
+  !> Exit 2 for bad input, 3 for an output that cannot be written; a
+  !> case that reaches a model limit is a result, not an error.
+  subroutine run_command(cli, rank, n_ranks, err)
+    type(cli_t), intent(in) :: cli
+    integer, intent(in) :: rank, n_ranks      !< this process's MPI rank, of n_ranks (0 of 1 without MPI)
+    type(error_t), intent(inout) :: err
+    type(error_t) :: unread
+    type(run_input_t) :: inp
+    type(run_options_t) :: opts
+    character(len=:), allocatable :: advice
+    opts = cli%opts
+    call read_input(trim(cli%paths(1)), cli%output_path, inp, err)
+    if (err%failed()) return
+    call check_output_target(inp%plan%file, inp%path, err)
+    if (err%failed()) return
+    call catch_stop_signals()
+    opts%advice_seconds = wall_clock()
+    call step_size_advice(inp, advice)
+    opts%advice_seconds = wall_clock() - opts%advice_seconds
+    if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') advice
+    if (n_ranks > 1) then
+      call run_ranks(inp, opts, trim(cli%paths(1)), rank, n_ranks, err)
+    else
+      call check_rank_files(inp%plan%file, 1, err)
+      if (.not. err%failed()) call run_campaign(inp, opts, provenance(trim(cli%paths(1)), inp%text), err)
+    end if
+    if (err%failed() .or. rank /= 0) return
+    ! the output is complete: a summary that cannot be read back is a warning
+    call print_summary(inp%plan%file, 'table', unread)
+    if (unread%failed()) write (error_unit, '(a)') 'ellroll: warning: cannot print the summary: ' // unread%message
+  end subroutine run_command
+
+  !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has
+  !> succeeded, rank 0 merges the shards into OUT and removes them.
+  subroutine run_ranks(inp, opts, input_file, rank, n_ranks, err)
+    type(run_input_t), intent(inout) :: inp
+    type(run_options_t), intent(inout) :: opts
+    character(len=*), intent(in) :: input_file
+    integer, intent(in) :: rank, n_ranks
+    type(error_t), intent(inout) :: err
+    type(output_files_t) :: files
+    character(len=:), allocatable :: target
+    character(len=1024), allocatable :: shard_files(:)
+    integer :: r
+    logical :: shard_done, complete, all_ok, to_run
+    if (opts%shard(2) > 1) then
+      call set_error(err, err_input, '--shard cannot be combined with MPI ranks (each rank is a shard)')
+      return
+    end if
+    target = inp%plan%file
+    shard_files = [character(len=1024) :: (target // '.rank' // itoa(r) // '.h5', r = 0, n_ranks - 1)]
+    ! rank 0 holds the output's lock until the shards are merged into it
+    complete = .false.
+    if (rank == 0) then
+      call files%name(target, inp%path)
+      call files%acquire('mpirun -n ' // itoa(n_ranks) // ' ellroll run ' // inp%path, err)
+      call files%check(target, work_target, err)
+      call check_rank_files(target, n_ranks, err)
+      if (.not. err%failed()) then
+        if (path_kind(target) == kind_regular) then
+          if (opts%resume) complete = holds_this_run(target, inp, [0, 1])
+          if (.not. (opts%overwrite .or. complete)) &
+            call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+        end if
+      end if
+    end if
+    ! (every rank takes part in both collectives, whatever they answer)
+    all_ok = ranks_all_ok(.not. err%failed())
+    to_run = ranks_all_ok(.not. complete)
+    if (.not. all_ok .or. .not. to_run) then
+      if (all_ok .and. rank == 0) &
+        write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
+      call files%release(err)
+      return
+    end if
+    opts%shard = [rank, n_ranks]
+    opts%quiet = opts%quiet .or. rank /= 0
+    inp%plan%file = trim(shard_files(rank + 1))
+    ! a rank whose shard finished before an interruption has nothing to resume
+    shard_done = .false.
+    if (opts%resume) shard_done = holds_this_run(inp%plan%file, inp, opts%shard)
+    if (.not. shard_done) call run_campaign(inp, opts, provenance(input_file, inp%text), err)
+    inp%plan%file = target
+    if (.not. ranks_all_ok(.not. err%failed())) then
+      if (.not. err%failed()) call set_error(err, err_output, 'another rank failed; see its message')
+      call files%release(err)
+      return
+    end if
+    if (rank == 0) then
+      call merge_shards(target, shard_files, .true., provenance(input_file, inp%text), err, locked=files)
+      do r = 1, n_ranks
+        if (.not. err%failed()) call files%discard(trim(shard_files(r)), work_target, err)
+      end do
+      call files%release(err)
+    end if
+  end subroutine run_ranks
+
+  !> Files of an earlier run of this output on another number of MPI ranks
+  !> are refused: this run could not finish them. Its rank files stop at
+  !> rank n_ranks - 1: none of rank n_ranks (more ranks before), and some of
+  !> rank n_ranks - 1 wherever rank 0 has some (fewer ranks before).
+  subroutine check_rank_files(target, n_ranks, err)
+    character(len=*), intent(in) :: target
+    integer, intent(in) :: n_ranks
+    type(error_t), intent(inout) :: err
+    if (err%failed()) return
+    if (any_rank_file(target, n_ranks)) then
+      call set_error(err, err_output, target // '.rank' // itoa(n_ranks) // '.h5: the files of a run of this ' // &
+          'output on more than ' // itoa(n_ranks) // ' MPI ranks are here; finish it on as many ranks as it ' // &
+          'was started on (--resume), or remove its .rank files')
+    else if (n_ranks > 1) then
+      if (any_rank_file(target, 0)) then
+        if (.not. any_rank_file(target, n_ranks - 1)) call set_error(err, err_output, target // &
+          '.rank0.h5: the files of a run of this output on fewer than ' // itoa(n_ranks) // ' MPI ranks are ' // &
+          'here; finish it on as many ranks as it was started on (--resume), or remove its .rank files')
+      end if
+    end if
+  end subroutine check_rank_files
+
+  !> Whether any file of rank r of an MPI run of output `target` is there.
+  logical function any_rank_file(target, r)
+    character(len=*), intent(in) :: target
+    integer, intent(in) :: r
+    character(len=*), parameter :: suffixes(3) = [character(len=8) :: '', '.partial', '.journal']
+    integer :: k
+    any_rank_file = .false.
+    do k = 1, size(suffixes)
+      if (path_kind(target // '.rank' // itoa(r) // '.h5' // trim(suffixes(k))) /= kind_missing) &
+        any_rank_file = .true.
+    end do
+  end function any_rank_file
+end module ellroll_cmd_run
