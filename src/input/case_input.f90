@@ -54,8 +54,9 @@ contains
 
   end subroutine build_input
 
-  !> Row p's namelist variable holds finite numbers in their rows' ranges
-  !> (a scalar, or a vector from its first row), and is given if `needed`.
+  !> Row p's namelist variable, where given, holds finite numbers in their
+  !> rows' ranges (a scalar, or a vector from its first row); it must be
+  !> given if `needed`.
   logical function check_variable(rd, gi, p, table_values, needed) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi, p
@@ -67,7 +68,9 @@ contains
     width = param_width(p)
     ok = .false.
     units = trim(params(p)%unit)
-    if (needed .and. .not. rd%given(gi, variable)) then
+    if (.not. (needed .or. rd%given(gi, variable))) then
+      ok = .true.             ! the row's default (none for param_unset_allowed: NaN)
+    else if (.not. rd%given(gi, variable)) then
       if (width == 1) then
         call rd%fail_missing(gi, variable, 'add ' // variable // ' = <value> (' // units // ') to &' // &
                              trim(params(p)%group))
@@ -158,11 +161,11 @@ contains
       call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
     else if (rd%given(gi, 'weight')) then
       if (.not. check_variable(rd, gi, p_weight, table_values, .true.)) return
-      cs%weight = table_values(p_weight)
+      cs%param(p_weight) = table_values(p_weight)
       ok = .true.
     else if (rd%given(gi, 'mass')) then
       if (.not. check_variable(rd, gi, p_mass, table_values, .true.)) return
-      cs%mass = table_values(p_mass)
+      cs%param(p_mass) = table_values(p_mass)
       ok = .true.
     else
       call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
@@ -210,7 +213,7 @@ contains
       cs%excitation%kind = excitation_record
       if (.not. only_for_kind(rd, gi, 'record')) return
       if (.not. check_variable(rd, gi, p_scale, v%param, .false.)) return
-      cs%excitation%scale = v%param(p_scale)
+      cs%param(p_scale) = v%param(p_scale)
       if (suite) then
         if (rd%given(gi, 'record_file')) call rd%fail_value(gi, 'record_file', &
             'the &record groups give the records; record_file here is for a single record')
@@ -293,7 +296,8 @@ contains
     end if
     plan%interval = v%interval
     plan%n_samples = nint(cs%t_end / v%interval, i8) + 1
-    if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
+    ! adaptive, no dt given: steps limited by accuracy alone
+    if (ieee_is_nan(cs%param(p_dt))) cs%param(p_dt) = cs%t_end
 
     ! the cup's acceleration is stored only when the cup moves
     plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
@@ -343,7 +347,7 @@ contains
       if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
         gi = rd%group('output', .true.)
         variable = 'interval'
-        reason = 'must be a whole number of steps dt = ' // format_real(cs%dt) // ' s'
+        reason = 'must be a whole number of steps dt = ' // format_real(cs%param(p_dt)) // ' s'
       end if
       call rd%fail_value(gi, variable, reason)
       return

@@ -332,30 +332,36 @@ contains
     if (pos > 0) msg = msg(:pos) // base // msg(pos + 1 + len(stand_in):)
   end subroutine rename_in_message
 
+  !> Unknown and repeated variables of group gi: it knows its rows of the
+  !> parameter table and its own variables.
   logical function names_known(rd, gi) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
-    character(len=20), allocatable :: table_names(:)
+    character(len=len(params%variable)), allocatable :: table_names(:), own_names(:)
     integer :: p
     associate (group => rd%file%groups(gi)%name)
       allocate (table_names, source=pack(params%variable, params%group == group .and. &
                                            [(param_component(p) <= 1, p = 1, param_count)]))
-      select case (group)
-      case ('integration'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'method', 't_end', &
-                                                      'error_estimate']])
-      case ('output'); ok = check_names(rd, gi, [character(len=20) :: 'file', 'interval', 'fields', &
-                                                 'compression'])
-      case ('excitation'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'kind', 'record_file']])
-      case ('campaign'); ok = check_names(rd, gi, [character(len=20) :: 'combine', 'samples', 'seed', &
-                                                   'invalid'])
-      case ('sweep'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'values', 'start', 'stop', &
-                                                'count', 'spacing'])
-      case ('sample'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'low', 'high', 'spacing'])
-      case ('record'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'record_file', 'factor'])
-      case default; ok = check_names(rd, gi, table_names)
-      end select
+      allocate (own_names, source=own_variables(group))
+      ok = check_names(rd, gi, [character(len=len(params%variable)) :: table_names, own_names])
     end associate
   end function names_known
+
+  !> A group's variables outside the parameter table (read_namelist's).
+  pure function own_variables(group) result(names)
+    character(len=*), intent(in) :: group
+    character(len=len(params%variable)), allocatable :: names(:)
+    select case (group)
+    case ('integration'); names = [character(len=len(names)) :: 'method', 't_end', 'error_estimate']
+    case ('output'); names = [character(len=len(names)) :: 'file', 'interval', 'fields', 'compression']
+    case ('excitation'); names = [character(len=len(names)) :: 'kind', 'record_file']
+    case ('campaign'); names = [character(len=len(names)) :: 'combine', 'samples', 'seed', 'invalid']
+    case ('sweep'); names = [character(len=len(names)) :: 'name', 'values', 'start', 'stop', 'count', 'spacing']
+    case ('sample'); names = [character(len=len(names)) :: 'name', 'low', 'high', 'spacing']
+    case ('record'); names = [character(len=len(names)) :: 'name', 'record_file', 'factor']
+    case default; allocate (names(0))
+    end select
+  end function own_variables
 
 
 

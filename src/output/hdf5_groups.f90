@@ -12,6 +12,7 @@ module ellroll_hdf5_groups
   use ellroll_status, only: status_count, status_name, status_pending
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
+  use ellroll_params, only: dataset_inputs
   use ellroll_hdf5_layout, only: layout_t
   implicit none
   private
@@ -83,6 +84,10 @@ contains
         dset = lay%text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
         call lay%attach(dset, scale, 0)
       end select
+      ! the names a sweep gives the inputs a /case dataset holds (readers
+      ! take them from here)
+      if (name == 'case' .and. len_trim(dataset_inputs(rec(k)%name)) > 0) &
+        call lay%text_attribute(dset, 'input_names', trim(dataset_inputs(rec(k)%name)))
       call name_coordinates(lay, dset, coords)
       call lay%close_dataset(dset)
     end do

@@ -121,6 +121,7 @@ contains
     type(layout_t) :: lay
     integer(i8) :: address(field_count)
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
+    type(named_value_t), allocatable :: inputs(:), figures(:)
 
     lay%path = path
     if (present(compression)) lay%deflate_level = compression
@@ -134,11 +135,13 @@ contains
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
     call open_new_file(self, lay, any(in_place_fields), prov)
     call shared_scales(lay, times)
-    call case_group(lay, 'case', indices, case_record(template), coords(:0))
+    inputs = case_record(template)
+    figures = summary_record(case_result_t())
+    call case_group(lay, 'case', indices, inputs, coords(:0))
     call trajectory_group(lay, self%fields, self%in_windows, self%n_samples, indices, coords, address)
-    call case_group(lay, 'summary', indices, summary_record(case_result_t()), coords)
-    self%row_groups = [spread('case    ', 1, size(case_record(template))), &
-                       spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
+    call case_group(lay, 'summary', indices, figures, coords)
+    ! a row (table_row): the inputs, the figures, the status
+    self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(figures) + 1)]
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)

@@ -36,6 +36,7 @@ module ellroll_run_campaign
   use ellroll_output_files, only: output_files_t, work_partial, work_journal, work_target
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
       writes_trajectories, writes_journal
+  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y
   implicit none
   private
 
@@ -233,8 +234,9 @@ contains
       dt = 0
       if (case_problem(one, inp%plan%interval) /= 0) return
       ball = make_ball(one)
-      dt = one%dt
-      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
+      dt = one%param(p_dt)
+      rate = fastest_rate(ball, initial_state(ball, one%param(p_x), one%param(p_y), &
+          one%param(p_omega_x:p_omega_z)), enough=warn_above / dt)
     end subroutine start_rate
 
     !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
