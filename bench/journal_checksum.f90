@@ -17,6 +17,7 @@ program journal_checksum
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case
   use ellroll_system, only: tune_runtime
+  use ellroll_params, only: p_a, p_b, p_c, p_dt, p_g, p_mass, p_omega_x, p_omega_z, p_radius
   implicit none
   integer, parameter :: summary_words = 64, full_words = summary_words + 3001 * 17
   integer :: repeats, k, j, inner
@@ -34,8 +35,13 @@ program journal_checksum
   do j = 1, full_words
     words(j) = ieor(shiftl(int(j, i8), 29), int(j, i8))     ! varied bits, no overflow
   end do
-  cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
-  cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = 1.0e-3_wp; cs%t_end = 30
+  cs%param(p_a) = 1
+  cs%param(p_b) = 0.4_wp
+  cs%param(p_c) = 0.2_wp
+  cs%param(p_radius) = 0.2_wp
+  cs%param(p_g) = 9.81_wp
+  cs%param(p_mass) = 2620 / 9.81_wp
+  cs%param(p_omega_x:p_omega_z) = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%param(p_dt) = 1.0e-3_wp; cs%t_end = 30
   plan%interval = 0.01_wp
   plan%n_samples = 3001
   plan%fields = .true.

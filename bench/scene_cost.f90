@@ -20,6 +20,8 @@ program scene_cost
   use ellroll_simulate, only: simulate_case
   use ellroll_system, only: tune_runtime
   use ellroll_excitation, only: excitation_harmonic, set_record
+  use ellroll_params, only: p_a, p_b, p_c, p_dt, p_excitation_amplitude_x, p_excitation_amplitude_z, &
+      p_excitation_frequency, p_g, p_mass, p_omega_x, p_omega_z, p_radius, p_x, p_y, p_rolling_resistance
   implicit none
   integer, parameter :: n_scenes = 5, n_record = 3001
   character(len=*), parameter :: names(n_scenes) = [character(len=24) :: 'fixed cup', 'record', &
@@ -33,10 +35,15 @@ program scene_cost
 
   call tune_runtime()
   repeats = repeats_argument(default=5)
-  scenes(1)%a = 1; scenes(1)%b = 0.4_wp; scenes(1)%c = 0.2_wp; scenes(1)%radius = 0.2_wp
-  scenes(1)%g = 9.81_wp; scenes(1)%mass = 2620 / 9.81_wp
-  scenes(1)%x = 0.05_wp; scenes(1)%y = 0.03_wp; scenes(1)%omega = [0.0_wp, 0.0_wp, 0.5_wp]
-  scenes(1)%dt = 1.0e-3_wp; scenes(1)%t_end = 30
+  scenes(1)%param(p_a) = 1
+  scenes(1)%param(p_b) = 0.4_wp
+  scenes(1)%param(p_c) = 0.2_wp
+  scenes(1)%param(p_radius) = 0.2_wp
+  scenes(1)%param(p_g) = 9.81_wp; scenes(1)%param(p_mass) = 2620 / 9.81_wp
+  scenes(1)%param(p_x) = 0.05_wp
+  scenes(1)%param(p_y) = 0.03_wp
+  scenes(1)%param(p_omega_x:p_omega_z) = [0.0_wp, 0.0_wp, 0.5_wp]
+  scenes(1)%param(p_dt) = 1.0e-3_wp; scenes(1)%t_end = 30
   scenes(2:) = scenes(1)
   do k = 1, n_record
     times(k) = real(k - 1, wp) * 0.01_wp
@@ -46,9 +53,9 @@ program scene_cost
   times(2:n_record - 1) = times(2:n_record - 1) + 1.0e-4_wp * sin(real([(k, k = 2, n_record - 1)], wp))
   call set_record(scenes(3)%excitation, times, values)
   scenes(4)%excitation%kind = excitation_harmonic
-  scenes(4)%excitation%amplitude = [0.3_wp, 0.2_wp, 0.0_wp]
-  scenes(4)%excitation%frequency = 0.7_wp
-  scenes(5)%rolling_resistance = 1.0e-4_wp
+  scenes(4)%param(p_excitation_amplitude_x:p_excitation_amplitude_z) = [0.3_wp, 0.2_wp, 0.0_wp]
+  scenes(4)%param(p_excitation_frequency) = 0.7_wp
+  scenes(5)%param(p_rolling_resistance) = 1.0e-4_wp
   plan%interval = 30
   plan%n_samples = 2
   plan%fields = .false.

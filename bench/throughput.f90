@@ -25,6 +25,7 @@ program throughput
   use ellroll_ball_lanes, only: ball_lanes_t, set_lane, lanes_derivative
   use ellroll_ball_steppers, only: lanes_rk4_step, rk4_ball_step
   use baseline_rk4, only: baseline_run
+  use ellroll_params, only: p_a, p_b, p_c, p_dt, p_g, p_mass, p_omega_x, p_omega_z, p_radius
   implicit none
   real(wp), parameter :: dt = 1.0e-3_wp, t_end = 30.0_wp
   integer, parameter :: n_steps = 30000
@@ -37,8 +38,13 @@ program throughput
 
   call tune_runtime()               ! as the ellroll program does
   repeats = repeats_argument(default=7)
-  cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp; cs%radius = 0.2_wp; cs%g = 9.81_wp; cs%mass = 2620 / 9.81_wp
-  cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%dt = dt; cs%t_end = t_end
+  cs%param(p_a) = 1
+  cs%param(p_b) = 0.4_wp
+  cs%param(p_c) = 0.2_wp
+  cs%param(p_radius) = 0.2_wp
+  cs%param(p_g) = 9.81_wp
+  cs%param(p_mass) = 2620 / 9.81_wp
+  cs%param(p_omega_x:p_omega_z) = [-2.0_wp, 2.0_wp, 20.0_wp]; cs%param(p_dt) = dt; cs%t_end = t_end
   summary_plan%interval = t_end
   summary_plan%n_samples = 2
   summary_plan%fields = .false.
@@ -48,7 +54,7 @@ program throughput
 
   batch_cases = cs
   do k = 1, lanes
-    batch_cases(k)%omega(3) = 19 + k
+    batch_cases(k)%param(p_omega_z) = 19 + k
   end do
 
   best = huge(1.0_wp)
@@ -110,7 +116,7 @@ contains
     integer :: step, stage_limit
     ball = make_ball(cs)
     call system_clock(start, rate)
-    y = initial_state(ball, 0.0_wp, 0.0_wp, cs%omega)
+    y = initial_state(ball, 0.0_wp, 0.0_wp, cs%param(p_omega_x:p_omega_z))
     do step = 1, n_steps
       call ball%rhs(0.0_wp, y, f)
       call rk4_ball_step(ball, 0.0_wp, y, f, dt, y_new, stage_limit)
@@ -141,7 +147,7 @@ contains
     integer :: step, l
     do l = 1, lanes
       call set_lane(balls, l, make_ball(batch_cases(l)))
-      y(l, :) = initial_state(make_ball(batch_cases(l)), 0.0_wp, 0.0_wp, batch_cases(l)%omega)
+      y(l, :) = initial_state(make_ball(batch_cases(l)), 0.0_wp, 0.0_wp, batch_cases(l)%param(p_omega_x:p_omega_z))
     end do
     h = dt
     call system_clock(start, rate)

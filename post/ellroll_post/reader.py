@@ -8,20 +8,6 @@ class NotAnEllrollFile(Exception):
     """The file is missing, unreadable, not written by ellroll, or lacks what is asked."""
 
 
-# inputs as the namelist names them -> (/case dataset, component)
-INPUTS = {"a": ("a", None), "b": ("b", None), "c": ("c", None), "radius": ("radius", None),
-          "weight": ("weight", None), "mass": ("mass", None), "mu": ("mu", None),
-          "inertia_factor": ("inertia_factor", None), "g": ("g", None), "x": ("x", None), "y": ("y", None),
-          "omega_x": ("omega", 0), "omega_y": ("omega", 1), "omega_z": ("omega", 2), "dt": ("dt", None),
-          "fit_margin": ("fit_margin", None), "rtol": ("rtol", None), "atol": ("atol", None),
-          "excitation_frequency": ("excitation_frequency", None), "excitation_phase": ("excitation_phase", None),
-          "excitation_amplitude_x": ("excitation_amplitude", 0), "excitation_amplitude_y": ("excitation_amplitude", 1),
-          "excitation_amplitude_z": ("excitation_amplitude", 2), "scale": ("scale", None),
-          "rolling_resistance": ("rolling_resistance", None)}
-# the other /case names a file may give these inputs (ellroll 0.1.0 files), read as the same
-ALIASES = {"case/x": "case/x0", "case/y": "case/y0", "case/omega": "case/omega0"}
-
-
 class EllrollFile:
     def __init__(self, path):
         self.path = str(path)
@@ -61,7 +47,14 @@ class EllrollFile:
 
     @property
     def summary_names(self):
-        return sorted(set(self._h5["summary"]) - {"case"} - set(self._coordinates("summary")))
+        return sorted(self.summary_figures)
+
+    @property
+    def summary_figures(self):
+        """The figures of /summary in the file's order (its members are kept
+        in the order they were made, the order of ellroll's summary table),
+        without the case index, the status and the varied inputs."""
+        return [n for n in self._h5["summary"] if n not in {"case", "status", *self._coordinates("summary")}]
 
     def _coordinates(self, group):
         """The varied inputs a group holds as coordinates of its cases (CF's
@@ -72,8 +65,6 @@ class EllrollFile:
         return []
 
     def _dataset(self, name):
-        if name not in self._h5 and ALIASES.get(name) in self._h5:
-            name = ALIASES[name]
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
@@ -91,34 +82,52 @@ class EllrollFile:
         self.check_case(case)
         return self._dataset(f"trajectory/{field}")[case]
 
+    @property
+    def inputs(self):
+        """{input: (/case dataset, component or None)}: every input the file
+        holds, named as a sweep names it (omega_z), in the file's order. Each
+        /case dataset of inputs names them in its `input_names` attribute,
+        one per component; a file written before that attribute gives its
+        real /case datasets of one value per case under their own names."""
+        if not hasattr(self, "_inputs"):
+            group = self._h5["case"]
+            named = {d: v.attrs["input_names"].split() for d, v in group.items() if "input_names" in v.attrs}
+            if not named:
+                named = {d: [d] for d, v in group.items() if v.dtype.kind == "f" and v.ndim == 1}
+            self._inputs = {name: (dataset, component if len(names) > 1 else None)
+                            for dataset, names in named.items() for component, name in enumerate(names)}
+        return self._inputs
+
+    def _input(self, name):
+        """(/case dataset, component) of an input, by its name (omega_z) or
+        its /case dataset's (omega)."""
+        return self.inputs.get(name, (name, None))
+
     def case_input(self, name, case=0):
-        """A resolved input of one case, by its namelist name (omega_z) or /case name (omega0)."""
+        """A resolved input of one case, by its name (omega_z) or /case name (omega)."""
         self.check_case(case)
-        dataset, component = INPUTS.get(name, (name, None))
+        dataset, component = self._input(name)
         value = self._dataset(f"case/{dataset}")[case]
         if component is not None:
             value = value[component]
         return value.decode() if isinstance(value, bytes) else value
 
     def input_units(self, name):
-        """The units of an input, by its namelist name (omega_z) or /case name."""
-        return self.units("case/" + INPUTS.get(name, (name, None))[0])
+        """The units of an input, by its name (omega_z) or /case name."""
+        return self.units("case/" + self._input(name)[0])
 
     def input_column(self, name):
         """An input over all cases (for sweeps)."""
-        dataset, component = INPUTS.get(name, (name, None))
+        dataset, component = self._input(name)
         values = self._dataset(f"case/{dataset}")
         return values[:, component] if component is not None else values[:]
 
     def swept_inputs(self):
-        """The inputs that differ between cases, in namelist names."""
+        """The inputs that differ between cases, by name."""
         if self.n_cases < 2:
             return []
         swept = []
-        for name in INPUTS:
-            dataset, _ = INPUTS[name]
-            if f"case/{dataset}" not in self._h5 and ALIASES.get(f"case/{dataset}") not in self._h5:
-                continue
+        for name in self.inputs:
             column = self.input_column(name)
             if np.unique(column[np.isfinite(column)]).size > 1:
                 swept.append(name)

@@ -6,14 +6,6 @@ import json
 
 import numpy as np
 
-# /summary in the order of the file's layout (src/cases/results.f90)
-COLUMNS = ["t_final", "n_steps", "n_rejected", "n_rhs", "wall_time", "theta_max", "reaction_normal_max",
-           "friction_needed_max", "energy_drift", "constraint_error_max", "nutation_period", "nutation_maxima",
-           "error_contact", "error_theta", "error_energy", "n_rhs_reference", "linear_periods", "displacement_max",
-           "displacement_max_time", "residual_displacement", "horizontal_force_max", "absolute_acceleration_max",
-           "absolute_acceleration_max_time", "transmissibility"]
-
-
 def summary_table(run):
     """{column: (units, values)}: the case index, the varied inputs, the
     status by name, then every figure of /summary (a value per mode: one
@@ -25,9 +17,7 @@ def summary_table(run):
         else:
             table[name] = (run.input_units(name), run.input_column(name).astype(float).tolist())
     table["status"] = ("1", run.status_names())
-    names = [c for c in COLUMNS if c in run.summary_names]
-    names += sorted(set(run.summary_names) - set(names) - {"status"})
-    for name in names:
+    for name in run.summary_figures:
         values, units = run.summary(name), run.units(f"summary/{name}")
         if values.ndim == 1:
             table[name] = (units, values.tolist())

@@ -9,7 +9,7 @@ module ellroll_cmd_check
   use ellroll_records, only: named_value_t, kind_real, kind_int
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param
-  use ellroll_params, only: params
+  use ellroll_params, only: params, p_dt, p_g, p_omega_x, p_omega_z, p_radius, p_x, p_y
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_linear, only: no_spin_periods, fits_at_bottom
@@ -61,18 +61,18 @@ contains
     ball = make_ball(cs)
     write (output_unit, '(a)') 'base case (resolved input):'
     call print_values(case_record(cs))
-    n0 = normal_from_contact(ball%cup, cs%x, cs%y)
+    n0 = normal_from_contact(ball%cup, cs%param(p_x), cs%param(p_y))
     radii = principal_radii(ball%cup, n0)
-    y = initial_state(ball, cs%x, cs%y, cs%omega)
+    y = initial_state(ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     call ball%rhs(0.0_wp, y, f)
     call observe(ball, 0.0_wp, y, f, obs)
     write (output_unit, '(a)') 'derived:'
     write (output_unit, '(a)') '  z0 = ' // format_real(obs%contact(3)) // ' m'
     write (output_unit, '(a)') '  principal radii of curvature at the start = ' // &
-        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // format_real(cs%radius) // ' m)'
+        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // format_real(cs%param(p_radius)) // ' m)'
     write (output_unit, '(a)') '  spin omega . n at the start = ' // format_real(dot_product(y(4:6), n0)) // ' rad/s'
     write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
-    if (cs%g > 0) then
+    if (cs%param(p_g) > 0) then
       periods = no_spin_periods(ball)
       if (fits_at_bottom(ball)) then
         write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
@@ -121,7 +121,7 @@ contains
     write (output_unit, '(a)') 'output:'
     write (output_unit, '(a)') '  file = ' // inp%plan%file
     write (output_unit, '(a)') '  steps per case = ' // itoa(nint(inp%campaign%base%t_end / &
-        inp%campaign%base%dt, i8)) // ', samples = ' // itoa(inp%plan%n_samples) // ' every ' // &
+        inp%campaign%base%param(p_dt), i8)) // ', samples = ' // itoa(inp%plan%n_samples) // ' every ' // &
         format_real(inp%plan%interval) // ' s'
     line = '  fields ='
     do k = 1, field_count

@@ -8,7 +8,7 @@ module ellroll_cmd_modes
   use ellroll_strings, only: format_real
   use ellroll_input, only: run_input_t, read_input
   use ellroll_cases, only: case_t, make_ball, get_param, check_case
-  use ellroll_params, only: params
+  use ellroll_params, only: params, p_omega_x, p_omega_z, p_x, p_y
   use ellroll_ellipsoid, only: normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
   use ellroll_linear, only: oscillation_periods, no_spin_periods
@@ -47,10 +47,10 @@ contains
         cycle
       end if
       ball = make_ball(cs)
-      n0 = normal_from_contact(ball%cup, cs%x, cs%y)
-      periods = oscillation_periods(ball, dot_product(cs%omega, n0))
+      n0 = normal_from_contact(ball%cup, cs%param(p_x), cs%param(p_y))
+      periods = oscillation_periods(ball, dot_product(cs%param(p_omega_x:p_omega_z), n0))
       no_spin = no_spin_periods(ball)
-      write (line, '(i8, f14.4, 4a)') i, dot_product(cs%omega, n0), period_column(periods(1)), &
+      write (line, '(i8, f14.4, 4a)') i, dot_product(cs%param(p_omega_x:p_omega_z), n0), period_column(periods(1)), &
           period_column(periods(2)), period_column(no_spin(1)), period_column(no_spin(2))
       write (output_unit, '(a)') trim(line)
     end do

@@ -2,13 +2,14 @@
 !> sweep or a sample may vary, with their groups, units and bounds), the
 !> checks every case must pass, and the output plan shared by all cases.
 module ellroll_cases
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_params, only: params, param_count, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
-      p_inertia_factor, p_g, p_x, p_y, p_omega_x, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
-      p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, &
-      p_rolling_resistance
+  use ellroll_params, only: params, param_count, param_component, param_width, param_unset_allowed, param_dataset, &
+      param_dataset_description, param_datasets, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
+          p_inertia_factor, p_g, p_x, p_y, &
+      p_omega_x, p_omega_z, p_dt, p_fit_margin, p_excitation_frequency, p_excitation_phase, &
+      p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
@@ -25,28 +26,20 @@ module ellroll_cases
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
             field_reaction, field_energy, field_base_acceleration
 
-  !> The inputs of the parameter table (ellroll_params) with its defaults,
-  !> and the others.
+  !> A case: every input of the parameter table at its row (param(p_radius),
+  !> ...; the row's default until the input sets it), and the others.
   type :: case_t
     integer(i8) :: index = 0
-    real(wp) :: a = params(p_a)%default, b = params(p_b)%default, c = params(p_c)%default
-    real(wp) :: radius = params(p_radius)%default
-    real(wp) :: weight = params(p_weight)%default   !< N; 0 when the mass was given directly
-    real(wp) :: mass = params(p_mass)%default       !< kg; weight / g when the weight was given
-    real(wp) :: g = params(p_g)%default
-    real(wp) :: inertia_factor = params(p_inertia_factor)%default
-    real(wp) :: mu = params(p_mu)%default           !< 0: no friction limit
-    real(wp) :: rolling_resistance = params(p_rolling_resistance)%default   !< delta, m
-    real(wp) :: x = params(p_x)%default, y = params(p_y)%default     !< the contact point at t = 0
-    real(wp) :: omega(3) = params(p_omega_x:p_omega_z)%default     !< the angular velocity at t = 0
+    !> weight: 0 when the mass was given directly; mass: weight / g when the
+    !> weight was given (finalize_case); mu: 0, no friction limit
+    real(wp) :: param(param_count) = params%default
     character(len=32) :: method = 'rk4'
-    real(wp) :: dt = params(p_dt)%default
     real(wp) :: t_end = 0
-    real(wp) :: fit_margin = params(p_fit_margin)%default
-    real(wp) :: rtol = params(p_rtol)%default       !< adaptive method: relative tolerance
-    real(wp) :: atol = params(p_atol)%default       !< adaptive method: absolute tolerance
     logical :: error_estimate = .false.   !< also run the reference and store error figures
-    type(excitation_t) :: excitation      !< translation of the cup (none by default)
+    !> the cup's motion: its kind and a record's samples (the harmonic's
+    !> amplitude, frequency and phase and the record's scale are rows of
+    !> param, which make_ball puts in)
+    type(excitation_t) :: excitation
     character(len=32) :: record_name = '' !< a suite's record (&record name)
     real(wp) :: record_factor = 1         !< its factor (in excitation%values)
   end type case_t
@@ -92,61 +85,14 @@ contains
   pure real(wp) function get_param(cs, p) result(value)
     type(case_t), intent(in) :: cs
     integer, intent(in) :: p                 !< a row of the parameter table
-    select case (p)
-    case (p_a); value = cs%a
-    case (p_b); value = cs%b
-    case (p_c); value = cs%c
-    case (p_radius); value = cs%radius
-    case (p_weight); value = cs%weight
-    case (p_mass); value = cs%mass
-    case (p_mu); value = cs%mu
-    case (p_inertia_factor); value = cs%inertia_factor
-    case (p_g); value = cs%g
-    case (p_x); value = cs%x
-    case (p_y); value = cs%y
-    case (p_omega_x:p_omega_z); value = cs%omega(p - p_omega_x + 1)
-    case (p_dt); value = cs%dt
-    case (p_fit_margin); value = cs%fit_margin
-    case (p_rtol); value = cs%rtol
-    case (p_atol); value = cs%atol
-    case (p_excitation_frequency); value = cs%excitation%frequency
-    case (p_excitation_phase); value = cs%excitation%phase
-    case (p_excitation_amplitude_x:p_excitation_amplitude_z)
-      value = cs%excitation%amplitude(p - p_excitation_amplitude_x + 1)
-    case (p_scale); value = cs%excitation%scale
-    case (p_rolling_resistance); value = cs%rolling_resistance
-    case default; value = ieee_value(value, ieee_quiet_nan)
-    end select
+    value = cs%param(p)
   end function get_param
 
   pure subroutine set_param(cs, p, value)
     type(case_t), intent(inout) :: cs
     integer, intent(in) :: p                 !< a row of the parameter table
     real(wp), intent(in) :: value
-    select case (p)
-    case (p_a); cs%a = value
-    case (p_b); cs%b = value
-    case (p_c); cs%c = value
-    case (p_radius); cs%radius = value
-    case (p_weight); cs%weight = value
-    case (p_mass); cs%mass = value
-    case (p_mu); cs%mu = value
-    case (p_inertia_factor); cs%inertia_factor = value
-    case (p_g); cs%g = value
-    case (p_x); cs%x = value
-    case (p_y); cs%y = value
-    case (p_omega_x:p_omega_z); cs%omega(p - p_omega_x + 1) = value
-    case (p_dt); cs%dt = value
-    case (p_fit_margin); cs%fit_margin = value
-    case (p_rtol); cs%rtol = value
-    case (p_atol); cs%atol = value
-    case (p_excitation_frequency); cs%excitation%frequency = value
-    case (p_excitation_phase); cs%excitation%phase = value
-    case (p_excitation_amplitude_x:p_excitation_amplitude_z)
-      cs%excitation%amplitude(p - p_excitation_amplitude_x + 1) = value
-    case (p_scale); cs%excitation%scale = value
-    case (p_rolling_resistance); cs%rolling_resistance = value
-    end select
+    cs%param(p) = value
   end subroutine set_param
 
   !> A fixed-step case's steps between output samples: its own dt, which a
@@ -154,7 +100,7 @@ contains
   pure integer(i8) function steps_per_sample(cs, plan)
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
-    steps_per_sample = max(1_i8, nint(plan%interval / cs%dt, i8))
+    steps_per_sample = max(1_i8, nint(plan%interval / cs%param(p_dt), i8))
   end function steps_per_sample
 
   !> Derive what follows from the given values (the mass from a weight).
@@ -162,10 +108,12 @@ contains
     type(case_t), intent(inout) :: cs
     ! tested before it is used: NaN, or a quotient beyond any valid mass,
     ! would trap here, before check_case names the input
-    if (.not. (ieee_is_finite(cs%weight) .and. ieee_is_finite(cs%g))) return
-    if (cs%weight <= 0) return
-    cs%mass = 0
-    if (cs%g > 0 .and. cs%weight / params(p_mass)%high <= cs%g) cs%mass = cs%weight / cs%g
+    associate (weight => cs%param(p_weight), g => cs%param(p_g), mass => cs%param(p_mass))
+      if (.not. (ieee_is_finite(weight) .and. ieee_is_finite(g))) return
+      if (weight <= 0) return
+      mass = 0
+      if (g > 0 .and. weight / params(p_mass)%high <= g) mass = weight / g
+    end associate
   end subroutine finalize_case
 
   !> The first problem of a case, as the parameter it concerns and why;
@@ -196,7 +144,7 @@ contains
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
     case (problem_weight_mass)
       reason = 'gives a mass weight / g above ' // format_real(params(p_mass)%high) // ' kg with g = ' // &
-               format_real(cs%g) // ' m/s^2; give mass instead'
+               format_real(cs%param(p_g)) // ' m/s^2; give mass instead'
     case (problem_dt_above_t_end)
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
     case (problem_too_many_steps)
@@ -205,12 +153,11 @@ contains
     case (problem_interval)
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
     case (problem_outside)
-      level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
-      reason = 'the start (x, y) = (' // format_real(cs%x) // ', ' // format_real(cs%y) // &
+      level = start_level(cs)
+      reason = 'the start (x, y) = (' // format_real(cs%param(p_x)) // ', ' // format_real(cs%param(p_y)) // &
                ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
     case (problem_no_fit)
-      radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
-                              normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
+      radii = start_radii(cs)
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
                format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
                ' m, and radius must be below ' // format_real(radii(1)) // ' m'
@@ -236,38 +183,53 @@ contains
     integer :: k
     do k = 1, param_count
       param = k
-      value = get_param(cs, k)
+      value = cs%param(k)
       problem = problem_not_finite
+      if (ieee_is_nan(value) .and. param_unset_allowed(k)) cycle
       if (.not. ieee_is_finite(value)) return
       if (k == p_weight .and. is_zero(value)) cycle     ! mass given instead
-      if (k == p_mass .and. cs%weight > 0) cycle
+      if (k == p_mass .and. cs%param(p_weight) > 0) cycle
       problem = problem_range
       if (value < params(k)%low .or. value > params(k)%high) return
     end do
     param = p_weight
     problem = problem_weight_without_g
-    if (cs%weight > 0 .and. cs%g <= 0) return
+    if (cs%param(p_weight) > 0 .and. cs%param(p_g) <= 0) return
     problem = problem_weight_mass
-    if (cs%weight > 0 .and. .not. cs%mass > 0) return
+    if (cs%param(p_weight) > 0 .and. .not. cs%param(p_mass) > 0) return
     param = p_dt
     problem = problem_dt_above_t_end
-    if (cs%dt > cs%t_end) return
+    if (cs%param(p_dt) > cs%t_end) return
     problem = problem_too_many_steps
-    if (cs%t_end > max_steps * cs%dt) return      ! (not t_end / dt: it may overflow)
+    if (cs%t_end > max_steps * cs%param(p_dt)) return      ! (not t_end / dt: it may overflow)
     problem = problem_interval
-    if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%dt)) return
-    level = (cs%x / cs%a)**2 + (cs%y / cs%b)**2
-    param = merge(p_x, p_y, .not. is_zero(cs%x))
+    if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%param(p_dt))) return
+    level = start_level(cs)
+    param = merge(p_x, p_y, .not. is_zero(cs%param(p_x)))
     problem = problem_outside
     if (level >= 1) return
-    radii = principal_radii(new_ellipsoid(cs%a, cs%b, cs%c), &
-                            normal_from_contact(new_ellipsoid(cs%a, cs%b, cs%c), cs%x, cs%y))
+    radii = start_radii(cs)
     param = p_radius
     problem = problem_no_fit
-    if (radii(1) / cs%radius - 1 <= cs%fit_margin) return
+    if (radii(1) / cs%param(p_radius) - 1 <= cs%param(p_fit_margin)) return
     param = 0
     problem = 0
   end subroutine find_problem
+
+  !> (x/a)^2 + (y/b)^2 of the start: below 1 inside the cup.
+  pure real(wp) function start_level(cs)
+    type(case_t), intent(in) :: cs
+    start_level = (cs%param(p_x) / cs%param(p_a))**2 + (cs%param(p_y) / cs%param(p_b))**2
+  end function start_level
+
+  !> The principal radii of curvature of the cup at the start.
+  pure function start_radii(cs) result(radii)
+    type(case_t), intent(in) :: cs
+    real(wp) :: radii(2)
+    associate (cup => new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c)))
+      radii = principal_radii(cup, normal_from_contact(cup, cs%param(p_x), cs%param(p_y)))
+    end associate
+  end function start_radii
 
   pure function range_opening(k) result(text)
     integer, intent(in) :: k
@@ -310,61 +272,68 @@ contains
     is_multiple = abs(ratio - anint(ratio)) <= 1.0e-9_wp * max(1.0_wp, ratio) .and. anint(ratio) >= 1
   end function is_multiple
 
+  !> The model of a case: its cup, ball and the cup's motion.
   pure function make_ball(cs) result(ball)
     type(case_t), intent(in) :: cs
     type(rolling_ball_t) :: ball
-    ball%cup = new_ellipsoid(cs%a, cs%b, cs%c)
-    ball%radius = cs%radius
-    ball%mass = cs%mass
-    ball%g = cs%g
-    ball%inertia_factor = cs%inertia_factor
-    ball%mu = cs%mu
-    ball%fit_margin = cs%fit_margin
+    ball%cup = new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c))
+    ball%radius = cs%param(p_radius)
+    ball%mass = cs%param(p_mass)
+    ball%g = cs%param(p_g)
+    ball%inertia_factor = cs%param(p_inertia_factor)
+    ball%mu = cs%param(p_mu)
+    ball%fit_margin = cs%param(p_fit_margin)
+    ball%rolling_resistance = cs%param(p_rolling_resistance)
     ball%excitation = cs%excitation
-    ball%rolling_resistance = cs%rolling_resistance
+    ball%excitation%amplitude = cs%param(p_excitation_amplitude_x:p_excitation_amplitude_z)
+    ball%excitation%frequency = cs%param(p_excitation_frequency)
+    ball%excitation%phase = cs%param(p_excitation_phase)
+    ball%excitation%scale = cs%param(p_scale)
   end function make_ball
 
-  !> Every resolved input of a case, as stored under /case/.
+  !> Every resolved input of a case, as stored under /case/: its index, a
+  !> dataset per row of the parameter table (a vector's rows as one), then
+  !> the inputs outside the table.
   function case_record(cs) result(rec)
     type(case_t), intent(in) :: cs
     type(named_value_t), allocatable :: rec(:)
-    real(wp) :: mu, weight
-    mu = cs%mu
-    if (mu <= 0) mu = ieee_value(mu, ieee_quiet_nan)
-    ! an invalid case's record holds its inputs as given, where m g may
-    ! overflow (it is NaN there, never a trap)
-    weight = ieee_value(weight, ieee_quiet_nan)
-    if (abs(cs%mass) <= huge(weight) / max(abs(cs%g), 1.0_wp)) weight = cs%mass * cs%g
-    rec = [ &
-      int_value('index', '1', 'global case index', cs%index), &
-      row(p_a, cs%a), row(p_b, cs%b), row(p_c, cs%c), row(p_radius, cs%radius), row(p_mass, cs%mass), &
-      row(p_weight, weight), row(p_g, cs%g), row(p_inertia_factor, cs%inertia_factor), row(p_mu, mu), &
-      row(p_rolling_resistance, cs%rolling_resistance), &
-      row(p_x, cs%x), row(p_y, cs%y), &
-      vector_value('omega', params(p_omega_x)%unit, 'initial angular velocity', cs%omega), &
+    type(named_value_t) :: rows(param_datasets)
+    integer :: p, k
+    k = 0
+    do p = 1, param_count
+      if (param_component(p) > 1) cycle
+      k = k + 1
+      if (param_component(p) == 0) then
+        rows(k) = real_value(trim(params(p)%name), trim(params(p)%unit), trim(params(p)%description), &
+                             stored_value(cs, p))
+      else
+        rows(k) = vector_value(trim(param_dataset(p)), trim(params(p)%unit), trim(param_dataset_description(p)), &
+                               cs%param(p:p + param_width(p) - 1))
+      end if
+    end do
+    rec = [int_value('index', '1', 'global case index', cs%index), rows, &
       text_value('method', 'integration method', cs%method), &
-      row(p_dt, cs%dt), &
       real_value('t_end', 's', 'end time', cs%t_end), &
-      row(p_fit_margin, cs%fit_margin), row(p_rtol, cs%rtol), row(p_atol, cs%atol), &
       int_value('error_estimate', '1', '1: error figures from a reference run are in /summary', &
                 merge(1_i8, 0_i8, cs%error_estimate)), &
       text_value('excitation_kind', 'motion of the cup: none, harmonic or record', &
                  excitation_kind_names(cs%excitation%kind)), &
-      vector_value('excitation_amplitude', params(p_excitation_amplitude_x)%unit, &
-                   'harmonic: amplitude of the cup acceleration', cs%excitation%amplitude), &
-      row(p_excitation_frequency, cs%excitation%frequency), row(p_excitation_phase, cs%excitation%phase), &
-      row(p_scale, cs%excitation%scale), &
       text_value('record', 'record of a suite (&record name; blank: none)', cs%record_name), &
       real_value('record_factor', '1', 'factor of that record (&record factor)', cs%record_factor)]
-
-  contains
-
-    !> A table row's value under its name, with its unit and description.
-    function row(p, value) result(named)
-      integer, intent(in) :: p
-      real(wp), intent(in) :: value
-      type(named_value_t) :: named
-      named = real_value(trim(params(p)%name), trim(params(p)%unit), trim(params(p)%description), value)
-    end function row
   end function case_record
+
+  !> Row p's value as /case stores it: the input, but mu 0 (no limit) as NaN
+  !> and the weight as m g, also where the mass was given (NaN where it
+  !> would overflow: an invalid case's record holds its inputs as given).
+  pure real(wp) function stored_value(cs, p) result(value)
+    type(case_t), intent(in) :: cs
+    integer, intent(in) :: p
+    value = cs%param(p)
+    if (p == p_mu .and. value <= 0) value = ieee_value(value, ieee_quiet_nan)
+    if (p == p_weight) then
+      value = ieee_value(value, ieee_quiet_nan)
+      if (abs(cs%param(p_mass)) <= huge(value) / max(abs(cs%param(p_g)), 1.0_wp)) &
+        value = cs%param(p_mass) * cs%param(p_g)
+    end if
+  end function stored_value
 end module ellroll_cases

@@ -2,20 +2,19 @@
 !> with its namelist group and variable, unit, valid range, default, whether
 !> a sweep or a sample may vary it, and a one-line description. It drives
 !> the namelist defaults, the range checks and their messages, the names a
-!> sweep may use, the units and long names of /case, and `ellroll inputs`
-!> (docs/inputs.md). Adding such an input is a row here, a named index
-!> below, its place in case_t (get/set in ellroll_cases) and its use in
-!> the model.
+!> sweep may use, where a case holds the input (case_t%param, at its row),
+!> the datasets of /case with their units, long names and input names, and
+!> `ellroll inputs` (docs/inputs.md). Adding such an input is a row here,
+!> its named index below, and its use in the model (make_ball).
 module ellroll_params
-  use ellroll_kinds, only: wp
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
+  use ellroll_kinds, only: wp, i8
   implicit none
   private
 
-  public :: param_t, params, param_count, param_index, param_default, param_component, param_width
-  public :: p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, p_inertia_factor, p_g, p_x, p_y, &
-            p_omega_x, p_omega_y, p_omega_z, p_dt, p_fit_margin, p_rtol, p_atol, &
-            p_excitation_frequency, p_excitation_phase, p_excitation_amplitude_x, &
-            p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale, p_rolling_resistance
+  public :: param_t, params, param_count, param_index, param_default, param_component, param_width, &
+            param_unset_allowed, param_dataset, param_dataset_description, dataset_inputs, &
+            param_datasets
 
   type :: param_t
     character(len=22) :: name            !< as a sweep or a sample names it
@@ -33,15 +32,12 @@ module ellroll_params
   ! Bounds keep every derived quantity finite (squares, products, s^4).
   real(wp), parameter :: length_max = 1.0e6_wp, length_min = 1.0e-6_wp
   real(wp), parameter :: least = tiny(1.0_wp)
+  !> The default of an input that may be left unset: the case then holds NaN there.
+  real(wp), parameter :: none = transfer(9221120237041090560_i8, 1.0_wp)
 
-  integer, parameter :: p_a = 1, p_b = 2, p_c = 3, p_radius = 4, p_weight = 5, p_mass = 6, p_mu = 7, &
-      p_inertia_factor = 8, p_g = 9, p_x = 10, p_y = 11, p_omega_x = 12, p_omega_y = 13, p_omega_z = 14, &
-      p_dt = 15, p_fit_margin = 16, p_rtol = 17, p_atol = 18, p_excitation_frequency = 19, &
-      p_excitation_phase = 20, p_excitation_amplitude_x = 21, p_excitation_amplitude_y = 22, &
-      p_excitation_amplitude_z = 23, p_scale = 24, p_rolling_resistance = 25
-  integer, parameter :: param_count = 25
-
-  type(param_t), parameter :: params(param_count) = [ &
+  !> A vector's rows follow one another, named NAME_x, NAME_y, NAME_z and
+  !> described 'LONG NAME, x ...': /case holds them as one dataset NAME, (ncase, 3), long name LONG NAME.
+  type(param_t), parameter :: params(*) = [ &
       param_t('a', 'geometry', 'a', 'm', length_min, length_max, .false., .true., 0.0_wp, .true., &
               'semi-axis of the cup along x'), &
       param_t('b', 'geometry', 'b', 'm', length_min, length_max, .false., .true., 0.0_wp, .true., &
@@ -93,6 +89,34 @@ module ellroll_params
       param_t('rolling_resistance', 'ball', 'rolling_resistance', 'm', 0.0_wp, 0.1_wp, .false., .false., 0.0_wp, &
               .true., 'delta: a couple delta N opposes the rolling')]
 
+  integer, parameter :: param_count = size(params)
+  !> The datasets of /case that hold rows (a vector's rows in one).
+  integer, parameter :: param_datasets = param_count - count(params(2:)%variable == params(:param_count - 1)%variable)
+  ! Each row's named index, found by its name (0 if misspelt: the Debug build's bounds checks stop at
+  ! its first use).
+  integer, parameter, public :: p_a = findloc(params%name, 'a', dim=1), p_b = findloc(params%name, 'b', dim=1), &
+      p_c = findloc(params%name, 'c', dim=1)
+  integer, parameter, public :: p_radius = findloc(params%name, 'radius', dim=1)
+  integer, parameter, public :: p_weight = findloc(params%name, 'weight', dim=1)
+  integer, parameter, public :: p_mass = findloc(params%name, 'mass', dim=1)
+  integer, parameter, public :: p_mu = findloc(params%name, 'mu', dim=1)
+  integer, parameter, public :: p_inertia_factor = findloc(params%name, 'inertia_factor', dim=1)
+  integer, parameter, public :: p_g = findloc(params%name, 'g', dim=1)
+  integer, parameter, public :: p_x = findloc(params%name, 'x', dim=1), p_y = findloc(params%name, 'y', dim=1)
+  integer, parameter, public :: p_omega_x = findloc(params%name, 'omega_x', dim=1), &
+      p_omega_y = findloc(params%name, 'omega_y', dim=1), p_omega_z = findloc(params%name, 'omega_z', dim=1)
+  integer, parameter, public :: p_dt = findloc(params%name, 'dt', dim=1)
+  integer, parameter, public :: p_fit_margin = findloc(params%name, 'fit_margin', dim=1)
+  integer, parameter, public :: p_rtol = findloc(params%name, 'rtol', dim=1)
+  integer, parameter, public :: p_atol = findloc(params%name, 'atol', dim=1)
+  integer, parameter, public :: p_excitation_frequency = findloc(params%name, 'excitation_frequency', dim=1)
+  integer, parameter, public :: p_excitation_phase = findloc(params%name, 'excitation_phase', dim=1)
+  integer, parameter, public :: p_excitation_amplitude_x = findloc(params%name, 'excitation_amplitude_x', dim=1), &
+      p_excitation_amplitude_y = findloc(params%name, 'excitation_amplitude_y', dim=1), &
+      p_excitation_amplitude_z = findloc(params%name, 'excitation_amplitude_z', dim=1)
+  integer, parameter, public :: p_scale = findloc(params%name, 'scale', dim=1)
+  integer, parameter, public :: p_rolling_resistance = findloc(params%name, 'rolling_resistance', dim=1)
+
 contains
 
   !> The row named `name`, or 0.
@@ -102,7 +126,8 @@ contains
   end function param_index
 
   !> What a namelist variable holds before the input sets it: the row's
-  !> default, or NaN for a required input (its absence is then found).
+  !> default, or NaN for a required input (its absence is then found) and
+  !> for one that may be left unset (param_unset_allowed).
   pure real(wp) function param_default(p)
     use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
     integer, intent(in) :: p
@@ -125,4 +150,42 @@ contains
     integer, intent(in) :: p
     param_width = count(params%variable == params(p)%variable)
   end function param_width
+
+  !> Whether row p's input may be left unset: its default is none (NaN),
+  !> and a case without it holds NaN there.
+  pure logical function param_unset_allowed(p)
+    integer, intent(in) :: p
+    param_unset_allowed = .not. params(p)%required .and. ieee_is_nan(params(p)%default)
+  end function param_unset_allowed
+
+  !> The /case dataset of row p: its name, or a vector's (its name without
+  !> the component's '_x').
+  pure function param_dataset(p) result(name)
+    integer, intent(in) :: p
+    character(len=len(params%name)) :: name
+    name = params(p)%name
+    if (param_width(p) > 1) name = name(:index(name, '_', back=.true.) - 1)
+  end function param_dataset
+
+  !> The long name of row p's /case dataset: its description, or a
+  !> vector's (its description up to the component's ', x').
+  pure function param_dataset_description(p) result(text)
+    integer, intent(in) :: p
+    character(len=len(params%description)) :: text
+    text = params(p)%description
+    if (param_width(p) > 1) text = text(:index(text, ',', back=.true.) - 1)
+  end function param_dataset_description
+
+  !> The names of the inputs /case/`dataset` holds, one per component, as a
+  !> sweep names them (blank: a dataset of no row).
+  pure function dataset_inputs(dataset) result(names)
+    character(len=*), intent(in) :: dataset
+    character(len=3 * (len(params%name) + 1)) :: names
+    integer :: p
+    names = ''
+    do p = 1, param_count
+      if (param_dataset(p) == dataset) names = trim(names) // ' ' // params(p)%name
+    end do
+    names = adjustl(names)
+  end function dataset_inputs
 end module ellroll_params

@@ -221,9 +221,9 @@ contains
       else
         param = draws(k - size(sweeps))%param; line = draws(k - size(sweeps))%line; group = '&sample'
       end if
-      if (param == p_weight .and. camp%base%weight <= 0) call rd%fail_at(line, group // &
+      if (param == p_weight .and. camp%base%param(p_weight) <= 0) call rd%fail_at(line, group // &
           ': name = ''weight'': weight is varied but &ball gives mass; vary mass instead')
-      if (param == p_mass .and. camp%base%weight > 0) call rd%fail_at(line, group // &
+      if (param == p_mass .and. camp%base%param(p_weight) > 0) call rd%fail_at(line, group // &
           ': name = ''mass'': mass is varied but &ball gives weight; vary weight instead')
     end do
     if (rd%err%failed()) return

@@ -1,28 +1,23 @@
 !> Reading and validating the input namelist file into a campaign (a base
 !> case, sweeps and samples) and an output plan. Every message a user sees
-!> about input is written here, in ellroll_input_reader or in
+!> about input is written here, in ellroll_case_input, ellroll_input_reader or
 !> ellroll_campaign_input; each names the file, line, group, variable and
 !> value.
 module ellroll_input
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite, ieee_is_nan, &
-      ieee_set_halting_mode, ieee_usual
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_set_halting_mode, ieee_usual
   use, intrinsic :: ieee_exceptions, only: ieee_status_type, ieee_get_status, ieee_set_status
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, &
       scan_namelist_text
-  use ellroll_strings, only: lower, itoa, join, format_real
-  use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      get_param, set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
+  use ellroll_strings, only: itoa, join, format_real
+  use ellroll_cases, only: case_t, output_plan_t, get_param
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
-  use ellroll_integrators, only: method_names
-  use ellroll_record_file, only: load_ground_motion
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
-  use ellroll_campaign_input, only: add_sweep, add_sample, build_campaign
-  use ellroll_suite_input, only: record_spec_t, add_record_group, load_suite, record_files, note_files
-  use ellroll_params, only: params, param_count, param_default, param_component, param_width, p_radius, &
-      p_weight, p_mass, p_dt, p_scale
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names
+  use ellroll_campaign_input, only: add_sweep, add_sample
+  use ellroll_suite_input, only: record_spec_t, add_record_group
+  use ellroll_case_input, only: build_input
+  use ellroll_params, only: params, param_count, param_default, param_component, param_width
   implicit none
   private
 
@@ -42,11 +37,6 @@ module ellroll_input
   character(len=*), parameter :: known_groups(11) = [character(len=12) :: &
       'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'excitation', 'campaign', &
       'sweep', 'sample', 'record']
-  !> Largest memory one case's output buffers may take.
-  real(wp), parameter :: max_case_buffer_bytes = 2.0_wp**31
-
-
-
 contains
 
   subroutine read_input(path, output_override, inp, err)
@@ -102,183 +92,193 @@ contains
     call canonical_text(rd%file, inp%canonical)
   end subroutine interpret
 
-  !> The namelist variables outside the parameter table are declared in
-  !> this one scope, so that one loop reads every assignment of every group;
-  !> each assignment is read alone.
+  !> Every assignment of every group, each read alone (read_assignment)
+  !> into the namelist values v, which build_input then checks and turns
+  !> into the campaign and the output plan.
   subroutine read_groups(rd, output_override, inp)
     type(reader_t), intent(inout) :: rd
     character(len=*), intent(in) :: output_override
     type(run_input_t), intent(inout) :: inp
-    real(wp) :: table_values(param_count)
-    ! &integration, &output
-    character(len=32) :: method, error_estimate
-    real(wp) :: t_end, interval
-    character(len=1024) :: file
-    character(len=32) :: fields(max_fields)
-    integer :: compression
-    ! &excitation
-    character(len=16) :: kind
-    character(len=1024) :: record_file(3), excitation_files(3)
-    real(wp) :: factor
-    ! &campaign, &sweep, &sample
-    character(len=16) :: combine, invalid, spacing
-    integer(i8) :: samples, seed
-    character(len=32) :: name
-    real(wp) :: values(max_values), start, stop, low, high
-    integer :: count
-    namelist /integration/ method, t_end, error_estimate
-    namelist /output/ file, interval, fields, compression
-    namelist /excitation/ kind, record_file
-    namelist /campaign/ combine, samples, seed, invalid
-    namelist /sweep/ name, values, start, stop, count, spacing
-    namelist /sample/ name, low, high, spacing
-    namelist /record/ name, record_file, factor
     integer :: gi, k, ios
     character(len=512) :: msg
+    character(len=1024) :: excitation_files(3)
     type(sweep_t), allocatable :: sweeps(:)
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
     type(record_spec_t), allocatable :: suite(:)
 
-    table_values = [(param_default(k), k = 1, param_count)]     ! NaN: required
-    method = 'rk4'; t_end = nan(); error_estimate = 'none'
-    file = ''; interval = nan(); fields = ''; compression = 0
-    combine = 'grid'; invalid = 'stop'; samples = 0; seed = 0
-    kind = 'none'; record_file = ''; factor = 1
+    v%param = [(param_default(k), k = 1, param_count)]     ! NaN: required
+    v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'
+    v%file = ''; v%interval = nan(); v%fields = ''; v%compression = 0
+    v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
+    v%kind = 'none'; v%record_file = ''; v%factor = 1
     allocate (sweeps(0), draws(0), suite(0))
 
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
         if (.not. names_known(rd, gi)) return
-        name = ''; values = nan(); start = nan(); stop = nan(); count = 0; spacing = 'linear'
-        low = nan(); high = nan()
+        v%name = ''; v%values = nan(); v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
+        v%low = nan(); v%high = nan()
         if (grp%name == 'record') then       ! (its record_file is not &excitation's)
-          excitation_files = record_file
-          record_file = ''
-          factor = 1
+          excitation_files = v%record_file
+          v%record_file = ''
+          v%factor = 1
         end if
         do k = 1, size(grp%items)
           associate (item => grp%items(k))
             ! a longer text would be cut to the variable's length without a word
-            if (text_length(item%base) > 0 .and. longest_text(item%source) > text_length(item%base)) then
+            if (text_length(v, item%base) > 0 .and. longest_text(item%source) > text_length(v, item%base)) then
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
                   ': a text of ' // itoa(longest_text(item%source)) // ' characters (blanks included); at most ' // &
-                  itoa(text_length(item%base)) // ' fit')
+                  itoa(text_length(v, item%base)) // ' fit')
               return
             end if
-          end associate
-          call read_assignment(grp, k, ios, msg)
-          if (ios /= 0) then
-            associate (item => grp%items(k))
+            call read_assignment(grp, k, v, ios, msg)
+            if (ios /= 0) then
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
                   ': not a valid value for this variable (wrong type, or more items than it holds; ' // &
                   'gfortran says: ' // trim(msg) // ')')
-            end associate
-            return
-          end if
+              return
+            end if
+          end associate
         end do
-        if (grp%name == 'sweep') call add_sweep(rd, current(), gi, sweeps, draws)
-        if (grp%name == 'sample') call add_sample(rd, current(), gi, sweeps, draws)
+        if (grp%name == 'sweep') call add_sweep(rd, v, gi, sweeps, draws)
+        if (grp%name == 'sample') call add_sample(rd, v, gi, sweeps, draws)
         if (grp%name == 'record') then
-          call add_record_group(rd, current(), gi, suite)
-          record_file = excitation_files
+          call add_record_group(rd, v, gi, suite)
+          v%record_file = excitation_files
         end if
         if (rd%err%failed()) return
       end associate
     end do
-
-    v = current()
-    call build_base(rd, v, inp%campaign%base)
-    if (rd%err%failed()) return
-    inp%input_files = ''
-    call build_excitation(rd, v, size(suite) > 0, inp%campaign%base, inp%input_files)
-    if (rd%err%failed()) return
-    call load_suite(rd, suite, inp%campaign%base, inp%campaign%records, inp%input_files)
-    if (rd%err%failed()) return
-    call build_plan(rd, v, output_override, inp%campaign%base, inp%plan)
-    if (rd%err%failed()) return
-    call check_base(rd, inp%campaign%base, inp%plan)
-    if (rd%err%failed()) return
-    call build_campaign(rd, v, sweeps, draws, inp%campaign)
-
-  contains
-    !> Read assignment k of a group alone: into the parameter table's values,
-    !> or into the variables of its namelist.
-    subroutine read_assignment(grp, k, ios, msg)
-      type(nml_group_t), intent(in) :: grp
-      integer, intent(in) :: k
-      integer, intent(out) :: ios
-      character(len=*), intent(inout) :: msg
-      type(ieee_status_type) :: fp_state
-      character(len=:), allocatable :: one_assignment
-      integer :: row
-      call assignment_record(grp, k, one_assignment)
-      row = variable_row(grp%name, grp%items(k)%base)
-      call ieee_get_status(fp_state)
-      ! text such as 1e309 reads as Inf, which the checks name; its
-      ! conversion must not stop a build that traps on overflow
-      call ieee_set_halting_mode(ieee_usual, .false.)
-      if (row > 0) then
-        call read_table_value(grp%items(k), row, table_values, ios, msg)
-      else
-        select case (grp%name)
-        case ('integration'); read (one_assignment, nml=integration, iostat=ios, iomsg=msg)
-        case ('output'); read (one_assignment, nml=output, iostat=ios, iomsg=msg)
-        case ('excitation'); read (one_assignment, nml=excitation, iostat=ios, iomsg=msg)
-        case ('campaign'); read (one_assignment, nml=campaign, iostat=ios, iomsg=msg)
-        case ('sweep'); read (one_assignment, nml=sweep, iostat=ios, iomsg=msg)
-        case ('sample'); read (one_assignment, nml=sample, iostat=ios, iomsg=msg)
-        case ('record'); read (one_assignment, nml=record, iostat=ios, iomsg=msg)
-        end select
-      end if
-      call ieee_set_status(fp_state)
-    end subroutine read_assignment
-
-    !> The length of the character variable `base` (0: not one).
-    integer function text_length(base)
-      character(len=*), intent(in) :: base
-      select case (base)
-      case ('method'); text_length = len(method)
-      case ('error_estimate'); text_length = len(error_estimate)
-      case ('file'); text_length = len(file)
-      case ('fields'); text_length = len(fields)
-      case ('kind'); text_length = len(kind)
-      case ('record_file'); text_length = len(record_file)
-      case ('combine'); text_length = len(combine)
-      case ('invalid'); text_length = len(invalid)
-      case ('spacing'); text_length = len(spacing)
-      case ('name'); text_length = len(name)
-      case default; text_length = 0
-      end select
-    end function text_length
-
-    !> The namelist variables as they stand.
-    type(namelist_values_t) function current() result(now)
-      now%param = table_values
-      now%method = method
-      now%error_estimate = error_estimate
-      now%t_end = t_end
-      now%interval = interval
-      now%file = file
-      now%fields = fields
-      now%compression = compression
-      now%kind = kind
-      now%record_file = record_file
-      now%factor = factor
-      now%combine = combine
-      now%invalid = invalid
-      now%spacing = spacing
-      now%samples = samples
-      now%seed = seed
-      now%name = name
-      now%values = values
-      now%start = start
-      now%stop = stop
-      now%low = low
-      now%high = high
-      now%count = count
-    end function current
+    call build_input(rd, v, output_override, sweeps, draws, suite, inp%campaign, inp%plan, inp%input_files)
   end subroutine read_groups
+
+  !> Read assignment k of a group alone: into the parameter table's values,
+  !> or into the variables of its namelist (read_namelist).
+  subroutine read_assignment(grp, k, v, ios, msg)
+    type(nml_group_t), intent(in) :: grp
+    integer, intent(in) :: k
+    type(namelist_values_t), intent(inout) :: v
+    integer, intent(out) :: ios
+    character(len=*), intent(inout) :: msg
+    type(ieee_status_type) :: fp_state
+    character(len=:), allocatable :: one_assignment
+    integer :: row
+    call assignment_record(grp, k, one_assignment)
+    row = variable_row(grp%name, grp%items(k)%base)
+    call ieee_get_status(fp_state)
+    ! text such as 1e309 reads as Inf, which the checks name; its
+    ! conversion must not stop a build that traps on overflow
+    call ieee_set_halting_mode(ieee_usual, .false.)
+    if (row > 0) then
+      call read_table_value(grp%items(k), row, v%param, ios, msg)
+    else
+      call read_namelist(grp%name, one_assignment, v, ios, msg)
+    end if
+    call ieee_set_status(fp_state)
+  end subroutine read_assignment
+
+  !> One assignment of a group's own variables (outside the parameter
+  !> table), read with the group's namelist: its variables start from v's
+  !> values and go back into v.
+  subroutine read_namelist(group, text, v, ios, msg)
+    character(len=*), intent(in) :: group, text
+    type(namelist_values_t), intent(inout) :: v
+    integer, intent(out) :: ios
+    character(len=*), intent(inout) :: msg
+    ios = 0
+    select case (group)
+    case ('integration'); call read_integration()
+    case ('output'); call read_output()
+    case ('excitation'); call read_excitation()
+    case ('campaign'); call read_campaign()
+    case ('sweep', 'sample'); call read_sweep_or_sample()
+    case ('record'); call read_record_group()
+    end select
+  contains
+    subroutine read_integration()
+      character(len=len(v%method)) :: method, error_estimate
+      real(wp) :: t_end
+      namelist /integration/ method, t_end, error_estimate
+      method = v%method; t_end = v%t_end; error_estimate = v%error_estimate
+      read (text, nml=integration, iostat=ios, iomsg=msg)
+      v%method = method; v%t_end = t_end; v%error_estimate = error_estimate
+    end subroutine read_integration
+
+    subroutine read_output()
+      character(len=len(v%file)) :: file
+      real(wp) :: interval
+      character(len=len(v%fields)) :: fields(size(v%fields))
+      integer :: compression
+      namelist /output/ file, interval, fields, compression
+      file = v%file; interval = v%interval; fields = v%fields; compression = v%compression
+      read (text, nml=output, iostat=ios, iomsg=msg)
+      v%file = file; v%interval = interval; v%fields = fields; v%compression = compression
+    end subroutine read_output
+
+    subroutine read_excitation()
+      character(len=len(v%kind)) :: kind
+      character(len=len(v%record_file)) :: record_file(size(v%record_file))
+      namelist /excitation/ kind, record_file
+      kind = v%kind; record_file = v%record_file
+      read (text, nml=excitation, iostat=ios, iomsg=msg)
+      v%kind = kind; v%record_file = record_file
+    end subroutine read_excitation
+
+    subroutine read_campaign()
+      character(len=len(v%combine)) :: combine, invalid
+      integer(i8) :: samples, seed
+      namelist /campaign/ combine, samples, seed, invalid
+      combine = v%combine; samples = v%samples; seed = v%seed; invalid = v%invalid
+      read (text, nml=campaign, iostat=ios, iomsg=msg)
+      v%combine = combine; v%samples = samples; v%seed = seed; v%invalid = invalid
+    end subroutine read_campaign
+
+    subroutine read_sweep_or_sample()
+      character(len=len(v%name)) :: name
+      character(len=len(v%spacing)) :: spacing
+      real(wp) :: values(size(v%values)), start, stop, low, high
+      integer :: count
+      namelist /sweep/ name, values, start, stop, count, spacing
+      namelist /sample/ name, low, high, spacing
+      name = v%name; values = v%values; start = v%start; stop = v%stop; count = v%count
+      spacing = v%spacing; low = v%low; high = v%high
+      if (group == 'sweep') then
+        read (text, nml=sweep, iostat=ios, iomsg=msg)
+      else
+        read (text, nml=sample, iostat=ios, iomsg=msg)
+      end if
+      v%name = name; v%values = values; v%start = start; v%stop = stop; v%count = count
+      v%spacing = spacing; v%low = low; v%high = high
+    end subroutine read_sweep_or_sample
+
+    subroutine read_record_group()
+      character(len=len(v%name)) :: name
+      character(len=len(v%record_file)) :: record_file(size(v%record_file))
+      real(wp) :: factor
+      namelist /record/ name, record_file, factor
+      name = v%name; record_file = v%record_file; factor = v%factor
+      read (text, nml=record, iostat=ios, iomsg=msg)
+      v%name = name; v%record_file = record_file; v%factor = factor
+    end subroutine read_record_group
+  end subroutine read_namelist
+
+  !> The length of the character variable `base` of the namelists (0: not one).
+  pure integer function text_length(v, base)
+    type(namelist_values_t), intent(in) :: v
+    character(len=*), intent(in) :: base
+    select case (base)
+    case ('method', 'error_estimate'); text_length = len(v%method)
+    case ('file'); text_length = len(v%file)
+    case ('fields'); text_length = len(v%fields)
+    case ('kind'); text_length = len(v%kind)
+    case ('record_file'); text_length = len(v%record_file)
+    case ('combine', 'invalid', 'spacing'); text_length = len(v%combine)
+    case ('name'); text_length = len(v%name)
+    case default; text_length = 0
+    end select
+  end function text_length
 
   !> The first row of the parameter table that namelist variable `base` of
   !> `group` sets, or 0.
@@ -332,326 +332,37 @@ contains
     if (pos > 0) msg = msg(:pos) // base // msg(pos + 1 + len(stand_in):)
   end subroutine rename_in_message
 
+  !> Unknown and repeated variables of group gi: it knows its rows of the
+  !> parameter table and its own variables.
   logical function names_known(rd, gi) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
-    character(len=20), allocatable :: table_names(:)
+    character(len=len(params%variable)), allocatable :: table_names(:), own_names(:)
     integer :: p
     associate (group => rd%file%groups(gi)%name)
       allocate (table_names, source=pack(params%variable, params%group == group .and. &
                                            [(param_component(p) <= 1, p = 1, param_count)]))
-      select case (group)
-      case ('integration'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'method', 't_end', &
-                                                      'error_estimate']])
-      case ('output'); ok = check_names(rd, gi, [character(len=20) :: 'file', 'interval', 'fields', &
-                                                 'compression'])
-      case ('excitation'); ok = check_names(rd, gi, [table_names, [character(len=20) :: 'kind', 'record_file']])
-      case ('campaign'); ok = check_names(rd, gi, [character(len=20) :: 'combine', 'samples', 'seed', &
-                                                   'invalid'])
-      case ('sweep'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'values', 'start', 'stop', &
-                                                'count', 'spacing'])
-      case ('sample'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'low', 'high', 'spacing'])
-      case ('record'); ok = check_names(rd, gi, [character(len=20) :: 'name', 'record_file', 'factor'])
-      case default; ok = check_names(rd, gi, table_names)
-      end select
+      allocate (own_names, source=own_variables(group))
+      ok = check_names(rd, gi, [character(len=len(params%variable)) :: table_names, own_names])
     end associate
   end function names_known
 
-  !> Row p's namelist variable holds finite numbers in their rows' ranges
-  !> (a scalar, or a vector from its first row), and is given if `needed`.
-  logical function check_variable(rd, gi, p, table_values, needed) result(ok)
-    type(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi, p
-    real(wp), intent(in) :: table_values(:)
-    logical, intent(in) :: needed
-    character(len=:), allocatable :: variable, units
-    integer :: width, k
-    variable = trim(params(p)%variable)
-    width = param_width(p)
-    ok = .false.
-    units = trim(params(p)%unit)
-    if (needed .and. .not. rd%given(gi, variable)) then
-      if (width == 1) then
-        call rd%fail_missing(gi, variable, 'add ' // variable // ' = <value> (' // units // ') to &' // &
-                             trim(params(p)%group))
-      else
-        call rd%fail_missing(gi, variable, 'add ' // variable // ' = <x>, <y>, <z> (' // units // ') to &' // &
-                             trim(params(p)%group))
-      end if
-    else if (.not. all(ieee_is_finite(table_values(p:p + width - 1)))) then
-      if (width == 1) then
-        call rd%fail_value(gi, variable, 'must be a finite number')
-      else
-        call rd%fail_value(gi, variable, 'three finite numbers are needed (x, y, z in ' // units // ')')
-      end if
-    else
-      do k = p, p + width - 1
-        if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
-          if (params(k)%positive .and. table_values(k) > 0 .and. table_values(k) < params(k)%low) then
-            call rd%fail_value(gi, variable, 'is below ' // format_real(params(k)%low) // &
-                               ', the least normal number; ' // range_text(k))
-          else
-            call rd%fail_value(gi, variable, range_text(k))
-          end if
-          return
-        end if
-      end do
-      ok = .true.
-    end if
-  end function check_variable
-
-  !> The rows of the parameter table given directly: every required one is
-  !> there (weight or mass, and dt unless the method is adaptive), all are
-  !> finite. The excitation's rows are taken with their kind.
-  subroutine build_base(rd, v, cs)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(inout) :: v
-    type(case_t), intent(out) :: cs
-    integer :: gi, p
-    do p = 1, param_count
-      if (param_component(p) > 1 .or. params(p)%group == 'excitation') cycle
-      if (any(p == [p_weight, p_mass, p_dt])) cycle
-      gi = rd%group(trim(params(p)%group), params(p)%required)
-      if (gi == 0 .and. params(p)%required) return
-      if (gi == 0) cycle
-      if (.not. check_variable(rd, gi, p, v%param, params(p)%required)) return
-      if (p == p_radius) then           ! the ball's size, then its weight or mass
-        if (.not. weight_or_mass(rd, v%param, cs)) return
-      end if
-    end do
-    gi = rd%group('integration', .true.)
-    if (gi == 0) return
-    v%method = lower(adjustl(v%method))
-    if (index(' ' // method_names() // ' ', ' ' // trim(v%method) // ' ') == 0 .or. len_trim(v%method) == 0) then
-      call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names() // ')')
-      return
-    end if
-    if (.not. rd%require(gi, 't_end', v%t_end)) return
-    ! an adaptive method chooses its steps; dt, if given, is the largest
-    if (.not. (adaptive_method(v%method) .and. .not. rd%given(gi, 'dt'))) then
-      if (.not. check_variable(rd, gi, p_dt, v%param, .true.)) return
-    end if
-    select case (lower(adjustl(v%error_estimate)))
-    case ('none'); cs%error_estimate = .false.
-    case ('reference'); cs%error_estimate = .true.
-    case default
-      call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
-      return
+  !> A group's variables outside the parameter table (read_namelist's).
+  pure function own_variables(group) result(names)
+    character(len=*), intent(in) :: group
+    character(len=len(params%variable)), allocatable :: names(:)
+    select case (group)
+    case ('integration'); names = [character(len=len(names)) :: 'method', 't_end', 'error_estimate']
+    case ('output'); names = [character(len=len(names)) :: 'file', 'interval', 'fields', 'compression']
+    case ('excitation'); names = [character(len=len(names)) :: 'kind', 'record_file']
+    case ('campaign'); names = [character(len=len(names)) :: 'combine', 'samples', 'seed', 'invalid']
+    case ('sweep'); names = [character(len=len(names)) :: 'name', 'values', 'start', 'stop', 'count', 'spacing']
+    case ('sample'); names = [character(len=len(names)) :: 'name', 'low', 'high', 'spacing']
+    case ('record'); names = [character(len=len(names)) :: 'name', 'record_file', 'factor']
+    case default; allocate (names(0))
     end select
-    if (v%t_end <= 0 .or. v%t_end > 1.0e9_wp) then
-      call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
-      return
-    end if
-    do p = 1, param_count
-      if (params(p)%group /= 'excitation' .and. p /= p_weight .and. p /= p_mass) call set_param(cs, p, v%param(p))
-    end do
-    cs%method = v%method; cs%t_end = v%t_end
-    call finalize_case(cs)
-  end subroutine build_base
+  end function own_variables
 
-  !> Exactly one of weight and mass, into the case.
-  logical function weight_or_mass(rd, table_values, cs) result(ok)
-    type(reader_t), intent(inout) :: rd
-    real(wp), intent(in) :: table_values(:)
-    type(case_t), intent(inout) :: cs
-    integer :: gi
-    ok = .false.
-    gi = rd%group('ball', .true.)
-    if (rd%given(gi, 'weight') .and. rd%given(gi, 'mass')) then
-      call rd%fail_value(gi, 'mass', 'give exactly one of weight (N) and mass (kg), not both')
-    else if (rd%given(gi, 'weight')) then
-      if (.not. check_variable(rd, gi, p_weight, table_values, .true.)) return
-      cs%weight = table_values(p_weight)
-      ok = .true.
-    else if (rd%given(gi, 'mass')) then
-      if (.not. check_variable(rd, gi, p_mass, table_values, .true.)) return
-      cs%mass = table_values(p_mass)
-      ok = .true.
-    else
-      call rd%fail_missing(gi, 'weight', 'give exactly one of weight (N) and mass (kg)')
-    end if
-  end function weight_or_mass
-
-  !> The cup's motion: its kind, and the inputs of that kind (a harmonic's
-  !> amplitude, frequency and phase; a record's files, or a suite's &record
-  !> groups, and scale).
-  subroutine build_excitation(rd, v, suite, cs, files_note)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    logical, intent(in) :: suite            !< &record groups give the records
-    type(case_t), intent(inout) :: cs
-    character(len=:), allocatable, intent(inout) :: files_note   !< the record's files (note_files)
-    integer :: gi, p, k
-    character(len=:), allocatable :: reason
-    character(len=1024), allocatable :: paths(:)
-    character(len=40), allocatable :: fingerprints(:)
-    real(wp), allocatable :: times(:), values(:, :)
-    gi = rd%group('excitation', .false.)
-    if (gi == 0) then
-      if (suite) cs%excitation%kind = excitation_record
-      return
-    end if
-    if (suite .and. lower(adjustl(v%kind)) /= 'record') then
-      call rd%fail_value(gi, 'kind', "must be 'record' with &record groups (a suite of records)")
-      return
-    end if
-    select case (lower(adjustl(v%kind)))
-    case ('none')
-      cs%excitation%kind = excitation_none
-      if (.not. only_for_kind(rd, gi, 'none')) return
-    case ('harmonic')
-      cs%excitation%kind = excitation_harmonic
-      if (.not. only_for_kind(rd, gi, 'harmonic')) return
-      do p = 1, param_count
-        if (params(p)%group /= 'excitation' .or. p == p_scale) cycle
-        if (param_component(p) <= 1) then
-          if (.not. check_variable(rd, gi, p, v%param, .false.)) return
-        end if
-        call set_param(cs, p, v%param(p))
-      end do
-    case ('record')
-      cs%excitation%kind = excitation_record
-      if (.not. only_for_kind(rd, gi, 'record')) return
-      if (.not. check_variable(rd, gi, p_scale, v%param, .false.)) return
-      cs%excitation%scale = v%param(p_scale)
-      if (suite) then
-        if (rd%given(gi, 'record_file')) call rd%fail_value(gi, 'record_file', &
-            'the &record groups give the records; record_file here is for a single record')
-        return
-      end if
-      if (.not. record_files(rd, gi, v%record_file, paths)) return
-      allocate (fingerprints(size(paths)))
-      call load_ground_motion(paths, cs%t_end, 1.0_wp, times, values, reason, fingerprints)
-      if (len(reason) > 0) then
-        call rd%fail_value(gi, 'record_file', reason)
-        return
-      end if
-      call note_files([character(len=1024) :: (adjustl(v%record_file(k)), k = 1, size(paths))], fingerprints, &
-                      files_note)
-      call set_record(cs%excitation, times, values)
-    case default
-      call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
-    end select
-  end subroutine build_excitation
-
-  !> The inputs of &excitation that belong to another kind are refused.
-  logical function only_for_kind(rd, gi, kind) result(ok)
-    type(reader_t), intent(inout) :: rd
-    integer, intent(in) :: gi
-    character(len=*), intent(in) :: kind
-    character(len=*), parameter :: harmonic_inputs(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
-    character(len=*), parameter :: record_inputs(2) = [character(len=11) :: 'record_file', 'scale']
-    integer :: k
-    ok = .false.
-    do k = 1, size(harmonic_inputs)
-      if (kind /= 'harmonic' .and. rd%given(gi, trim(harmonic_inputs(k)))) then
-        call rd%fail_value(gi, trim(harmonic_inputs(k)), "applies to kind = 'harmonic' only")
-        return
-      end if
-    end do
-    do k = 1, size(record_inputs)
-      if (kind /= 'record' .and. rd%given(gi, trim(record_inputs(k)))) then
-        call rd%fail_value(gi, trim(record_inputs(k)), "applies to kind = 'record' only")
-        return
-      end if
-    end do
-    ok = .true.
-  end function only_for_kind
-
-  subroutine build_plan(rd, v, output_override, cs, plan)
-    type(reader_t), intent(inout) :: rd
-    type(namelist_values_t), intent(in) :: v
-    character(len=*), intent(in) :: output_override
-    type(case_t), intent(inout) :: cs
-    type(output_plan_t), intent(inout) :: plan
-    integer :: gi, k, f
-    real(wp) :: bytes_per_sample
-    character(len=32) :: field
-    gi = rd%group('output', .true.)
-    if (gi == 0) return
-    ! (len first: a caller's constant '' then removes the copy at link time,
-    ! which GCC's link-time optimiser would otherwise flag as an overread)
-    if (len(output_override) > 0 .and. len_trim(output_override) > 0) then
-      plan%file = trim(output_override)
-    else if (len_trim(v%file) > 0) then
-      plan%file = trim(adjustl(v%file))
-    else
-      call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
-      return
-    end if
-    if (.not. rd%require(gi, 'interval', v%interval)) return
-    if (v%interval <= 0 .or. v%interval > cs%t_end) then
-      call rd%fail_value(gi, 'interval', 'must be > 0 and <= t_end = ' // format_real(cs%t_end) // ' s')
-      return
-    end if
-    if (cs%t_end > max_steps * v%interval) then       ! (not t_end / interval: it may overflow)
-      call rd%fail_value(gi, 'interval', 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
-                         format_real(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
-      return
-    end if
-    if (.not. is_multiple(cs%t_end, v%interval)) then
-      call rd%fail_value(gi, 'interval', 't_end = ' // format_real(cs%t_end) // &
-                         ' s must be a whole number of output intervals')
-      return
-    end if
-    plan%interval = v%interval
-    plan%n_samples = nint(cs%t_end / v%interval, i8) + 1
-    if (ieee_is_nan(cs%dt)) cs%dt = cs%t_end       ! adaptive, no dt given: steps limited by accuracy alone
-
-    ! the cup's acceleration is stored only when the cup moves
-    plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
-    if (rd%given(gi, 'fields')) then
-      plan%fields = .false.
-      do k = 1, max_fields
-        field = lower(adjustl(v%fields(k)))
-        if (len_trim(field) == 0 .or. field == 'none') cycle
-        if (field == 'all') then
-          plan%fields = .true.
-          cycle
-        end if
-        f = findloc(field_names, trim(field), dim=1)
-        if (f == 0) then
-          call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "' (known: " // &
-                             join(field_names) // ', all, none)')
-          return
-        end if
-        plan%fields(f) = .true.
-      end do
-    end if
-    if (v%compression < 0 .or. v%compression > 9) then
-      call rd%fail_value(gi, 'compression', 'must be 0 (none) to 9 (deflate level, with shuffle)')
-      return
-    end if
-    plan%compression = v%compression
-    bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
-    if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
-      call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
-          format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
-          ' GiB; raise interval or select fewer fields')
-    end if
-  end subroutine build_plan
-
-  !> The base case must be valid whatever the sweeps do; its messages point
-  !> at the variable's line.
-  subroutine check_base(rd, cs, plan)
-    type(reader_t), intent(inout) :: rd
-    type(case_t), intent(in) :: cs
-    type(output_plan_t), intent(inout) :: plan
-    integer :: param, gi
-    character(len=:), allocatable :: reason, variable
-    call check_case(cs, plan%interval, param, reason)
-    if (param /= 0) then
-      gi = rd%group(trim(params(param)%group), .true.)
-      variable = trim(params(param)%variable)
-      if (variable == 'dt' .and. index(reason, 'output interval') > 0) then
-        gi = rd%group('output', .true.)
-        variable = 'interval'
-        reason = 'must be a whole number of steps dt = ' // format_real(cs%dt) // ' s'
-      end if
-      call rd%fail_value(gi, variable, reason)
-      return
-    end if
-  end subroutine check_base
 
 
   !> The message for an invalid case of a campaign: its index, the values

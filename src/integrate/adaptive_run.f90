@@ -17,6 +17,7 @@ module ellroll_adaptive_run
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
+  use ellroll_params, only: p_dt
   implicit none
   private
 
@@ -112,7 +113,7 @@ contains
 
     t = 0
     round_off_attempts = 0
-    h_max = cs%dt
+    h_max = cs%param(p_dt)
     control%order = integrator%control_order()
     call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     do while (t < cs%t_end)

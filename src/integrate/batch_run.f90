@@ -20,6 +20,7 @@ module ellroll_batch_run
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
       nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside, &
       round_off_step, cannot_follow, judged_norm
+  use ellroll_params, only: p_atol, p_dt, p_rolling_resistance, p_rtol
   implicit none
   private
 
@@ -83,7 +84,7 @@ contains
     type(case_t), intent(in) :: cs
     batchable = (cs%method == 'rk4' .or. cs%method == 'dop853' .or. cs%method == 'vern9') &
                 .and. cs%excitation%kind == excitation_none &
-                .and. .not. cs%error_estimate .and. .not. cs%rolling_resistance > 0
+                .and. .not. cs%error_estimate .and. .not. cs%param(p_rolling_resistance) > 0
   end function batchable
 
   !> Up to `lanes` batchable cases of one method advanced together, one per
@@ -173,8 +174,8 @@ contains
                n => b%n, donor => b%donor)
       do l = 1, lanes
         i = merge(l, donor, active(l))
-        h(l) = cases(i)%dt
-        n_steps(l) = nint(cases(i)%t_end / cases(i)%dt, i8)
+        h(l) = cases(i)%param(p_dt)
+        n_steps(l) = nint(cases(i)%t_end / cases(i)%param(p_dt), i8)
         every(l) = steps_per_sample(cases(i), plan)
         if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
       end do
@@ -297,12 +298,12 @@ contains
       t = 0
       do l = 1, lanes
         i = merge(l, donor, active(l))
-        dop(l)%rtol = cases(i)%rtol
-        dop(l)%atol = cases(i)%atol
+        dop(l)%rtol = cases(i)%param(p_rtol)
+        dop(l)%atol = cases(i)%param(p_atol)
         control(l)%order = dop(1)%control_order()
-        rtol(l) = cases(i)%rtol
-        atol(l) = cases(i)%atol
-        h_max(l) = cases(i)%dt
+        rtol(l) = cases(i)%param(p_rtol)
+        atol(l) = cases(i)%param(p_atol)
+        h_max(l) = cases(i)%param(p_dt)
         t_end(l) = cases(i)%t_end
         y_lane = y(l, :)
         f_lane = f(l, :)

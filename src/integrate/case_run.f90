@@ -18,6 +18,7 @@ module ellroll_case_run
   use ellroll_linear, only: oscillation_periods
   use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_system, only: stop_signal
+  use ellroll_params, only: p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y
   implicit none
   private
 
@@ -112,18 +113,20 @@ contains
     res%friction_needed_max = 0
     res%constraint_error_max = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
-    y = initial_state(run%ball, cs%x, cs%y, cs%omega)
+    y = initial_state(run%ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     run%start = y
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
     call observe(run%ball, 0.0_wp, y, f, obs)
     run%energy0 = obs%energy
-    run%spin0 = dot_product(cs%omega, obs%normal)
-    if (cs%excitation%kind == excitation_harmonic .and. cs%excitation%frequency > 0) then
-      run%spectrum%omega = two_pi * cs%excitation%frequency
-      if (floor(0.5_wp * cs%t_end * cs%excitation%frequency) >= 1) run%spectrum%start = &
-          cs%t_end - floor(0.5_wp * cs%t_end * cs%excitation%frequency) / cs%excitation%frequency
-    end if
+    run%spin0 = dot_product(cs%param(p_omega_x:p_omega_z), obs%normal)
+    associate (frequency => cs%param(p_excitation_frequency))
+      if (cs%excitation%kind == excitation_harmonic .and. frequency > 0) then
+        run%spectrum%omega = two_pi * frequency
+        if (floor(0.5_wp * cs%t_end * frequency) >= 1) run%spectrum%start = &
+            cs%t_end - floor(0.5_wp * cs%t_end * frequency) / frequency
+      end if
+    end associate
     call track(run, res, 0.0_wp, obs)
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)

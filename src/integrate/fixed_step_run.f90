@@ -18,6 +18,7 @@ module ellroll_fixed_step_run
   use ellroll_ball_steppers, only: rk4_ball_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
   use ellroll_adaptive_run, only: follow_flow_to_limit, start_rest_search, max_rest_trials
+  use ellroll_params, only: p_dt
   implicit none
   private
 
@@ -48,7 +49,7 @@ contains
     integer(i8) :: k, n_steps, every, sample
     integer :: status
 
-    n_steps = nint(cs%t_end / cs%dt, i8)
+    n_steps = nint(cs%t_end / cs%param(p_dt), i8)
     every = steps_per_sample(cs, plan)
     t = 0
     y_checkpoint = y
@@ -59,11 +60,12 @@ contains
         return
       end if
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
-      call fixed_step(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
+      call fixed_step(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
       if (status == status_completed .and. rolling_stops(run%ball, y, y_new)) &
-        call step_through_rest(integrator, run, t, y, f, cs%dt, y_new, f_new, obs, status, res%n_rhs)
+        call step_through_rest(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%dt, every, status, res, &
+        call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%param(p_dt), &
+            every, status, res, &
                           y_new, f_new, obs)
         if (res%status /= status_completed) then
           res%n_steps = k
@@ -72,7 +74,7 @@ contains
       end if
       y = y_new
       f = f_new
-      t = k * cs%dt
+      t = k * cs%param(p_dt)
       res%n_steps = k
       if (mod(k, checkpoint_steps) == 0) then
         y_older_checkpoint = y_checkpoint

@@ -17,6 +17,7 @@ module ellroll_simulate
   use ellroll_fixed_step_run, only: fixed_step_loop
   use ellroll_adaptive_run, only: adaptive_loop, reference_method, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
+  use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none
   private
 
@@ -44,9 +45,9 @@ contains
     call integrate(cs, own_plan, res, err)
     reference_case = cs
     reference_case%method = reference_method()
-    reference_case%rtol = reference_rtol
-    reference_case%atol = reference_atol
-    reference_case%dt = cs%t_end
+    reference_case%param(p_rtol) = reference_rtol
+    reference_case%param(p_atol) = reference_atol
+    reference_case%param(p_dt) = cs%t_end
     call integrate(reference_case, own_plan, reference, err)
     res%error_contact = max_difference(res%fields(field_contact)%values, reference%fields(field_contact)%values)
     res%error_theta = max_difference(res%fields(field_nutation)%values, reference%fields(field_nutation)%values)
@@ -92,8 +93,8 @@ contains
     if (res%status == status_completed) then
       select type (integrator)
       class is (embedded_pair_t)
-        integrator%rtol = cs%rtol
-        integrator%atol = cs%atol
+        integrator%rtol = cs%param(p_rtol)
+        integrator%atol = cs%param(p_atol)
         call adaptive_loop(integrator, cs, plan, run, y, f, res)
       class default
         call fixed_step_loop(integrator, cs, plan, run, y, f, res)

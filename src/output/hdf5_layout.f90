@@ -54,14 +54,25 @@ contains
     end if
   end subroutine check
 
+  !> A group that keeps its members in the order they are made (HDF5's
+  !> link creation order, tracked and indexed): readers list /case and
+  !> /summary in the order of the tables they come from.
   integer(hid_t) function new_group(self, name) result(id)
     class(layout_t), intent(inout) :: self
     character(len=*), intent(in) :: name
+    integer(hid_t) :: gcpl
     integer :: hdferr
     id = -1
     if (self%err%failed()) return
-    call h5gcreate_f(self%file, name, id, hdferr)
+    call h5pcreate_f(H5P_GROUP_CREATE_F, gcpl, hdferr)
+    call self%check(hdferr, 'create a property list')
+    if (.not. self%err%failed()) &
+      call h5pset_link_creation_order_f(gcpl, ior(H5P_CRT_ORDER_TRACKED_F, H5P_CRT_ORDER_INDEXED_F), hdferr)
+    call self%check(hdferr, 'set the link creation order')
+    if (.not. self%err%failed()) call h5gcreate_f(self%file, name, id, hdferr, gcpl_id=gcpl)
     call self%check(hdferr, 'create group /' // name)
+    call h5pclose_f(gcpl, hdferr)
+    call self%check(hdferr, 'close a property list')
   end function new_group
 
   subroutine text_attribute(self, loc, name, value)

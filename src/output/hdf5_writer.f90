@@ -5,24 +5,21 @@
 !> HDF5 stores arrays in C order, so the Fortran dimensions below are the
 !> reverse of what h5py shows: Fortran (3, nt, ncase) is h5py (ncase, nt, 3).
 module ellroll_hdf5_writer
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int64_t
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use hdf5
-  use h5lt
-  use h5ds
+  use h5lt, only: h5ltset_attribute_int_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text, int_value
-  use ellroll_status, only: status_count, status_name, status_pending
-  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, &
-      field_descriptions
+  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_ncomp
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: close_descriptor, system_error_text
   use ellroll_files, only: create_new_file, descriptor_is_at, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
-  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, write_text_slab, write_real_slab, write_int_slab
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
+  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group
   implicit none
   private
 
@@ -36,16 +33,6 @@ module ellroll_hdf5_writer
     character(len=:), allocatable :: shard          !< 'I/N'
   end type provenance_t
 
-  !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
-  integer, parameter :: max_chunk_bytes = 2**20
-  interface
-    !> The file address of a contiguous dataset's data (HADDR_UNDEF, all
-    !> bits set, when it has none); not in the 1.10 Fortran API.
-    integer(c_int64_t) function h5d_address(dset) bind(c, name='H5Dget_offset')
-      import :: c_int64_t
-      integer(c_int64_t), value :: dset             !< an hid_t: int64_t since HDF5 1.10
-    end function h5d_address
-  end interface
 
   !> Cases are kept per window of consecutive cases (their table rows: inputs,
   !> summary, status; and compressed trajectories) and written with one
@@ -134,6 +121,7 @@ contains
     type(layout_t) :: lay
     integer(i8) :: address(field_count)
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
+    type(named_value_t), allocatable :: inputs(:), figures(:)
 
     lay%path = path
     if (present(compression)) lay%deflate_level = compression
@@ -147,11 +135,13 @@ contains
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
     call open_new_file(self, lay, any(in_place_fields), prov)
     call shared_scales(lay, times)
-    call case_group(lay, 'case', indices, case_record(template), coords(:0))
-    call trajectory_group(self, lay, indices, coords, address)
-    call case_group(lay, 'summary', indices, summary_record(case_result_t()), coords)
-    self%row_groups = [spread('case    ', 1, size(case_record(template))), &
-                       spread('summary ', 1, size(table_row(template, case_result_t())) - size(case_record(template)))]
+    inputs = case_record(template)
+    figures = summary_record(case_result_t())
+    call case_group(lay, 'case', indices, inputs, coords(:0))
+    call trajectory_group(lay, self%fields, self%in_windows, self%n_samples, indices, coords, address)
+    call case_group(lay, 'summary', indices, figures, coords)
+    ! a row (table_row): the inputs, the figures, the status
+    self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(figures) + 1)]
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)
@@ -231,190 +221,6 @@ contains
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
     call lay%check(hdferr, 'write attribute n_cases_total')
   end subroutine open_new_file
-
-  !> The dimension scales every group shares: /time, /xyz, /mode.
-  subroutine shared_scales(lay, times)
-    type(layout_t), intent(inout) :: lay
-    real(wp), intent(in) :: times(:)
-    lay%time_scale = lay%real_dataset(lay%file, 'time', [size(times, kind=i8)], 's', 'output times')
-    call lay%write_reals(lay%time_scale, times, [0_i8], [size(times, kind=i8)])
-    call lay%make_scale(lay%time_scale, 'time')
-    lay%xyz_scale = lay%text_dataset(lay%file, 'xyz', 3_i8, 'vector component')
-    call lay%write_texts(lay%xyz_scale, ['x', 'y', 'z'], 0_i8)
-    call lay%make_scale(lay%xyz_scale, 'xyz')
-    lay%mode_scale = lay%int_dataset(lay%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
-    call lay%write_ints(lay%mode_scale, [1_i8, 2_i8], 0_i8)
-    call lay%make_scale(lay%mode_scale, 'mode')
-  end subroutine shared_scales
-
-  !> A group of one value per case: a dataset per entry of `rec` (/case:
-  !> the resolved inputs; /summary: the case's status and figures), with
-  !> the varied inputs `coords` as their coordinates.
-  subroutine case_group(lay, name, indices, rec, coords)
-    type(layout_t), intent(inout) :: lay
-    character(len=*), intent(in) :: name
-    integer(i8), intent(in) :: indices(:)
-    type(named_value_t), intent(in) :: rec(:)
-    type(coordinate_t), intent(in) :: coords(:)
-    integer(hid_t) :: group, scale, dset
-    integer(i8) :: n_cases
-    integer :: k
-    n_cases = size(indices, kind=i8)
-    group = lay%new_group(name)
-    scale = case_scale(lay, group, indices)
-    call coordinate_datasets(lay, group, scale, coords)
-    if (name == 'summary') call create_status(lay, group, scale, n_cases, coords)
-    do k = 1, size(rec)
-      if (lay%err%failed()) exit
-      select case (rec(k)%kind)
-      case (kind_real)
-        if (rec(k)%ncomp == 1) then
-          dset = lay%real_dataset(group, rec(k)%name, [n_cases], rec(k)%units, rec(k)%description)
-          call lay%attach(dset, scale, 0)
-        else
-          dset = lay%real_dataset(group, rec(k)%name, [int(rec(k)%ncomp, i8), n_cases], rec(k)%units, &
-                                  rec(k)%description)
-          call lay%attach(dset, scale, 0)
-          call lay%attach(dset, merge(lay%xyz_scale, lay%mode_scale, rec(k)%ncomp == 3), 1)
-        end if
-      case (kind_int)
-        dset = lay%int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
-        call lay%attach(dset, scale, 0)
-      case (kind_text)
-        dset = lay%text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
-        call lay%attach(dset, scale, 0)
-      end select
-      call name_coordinates(lay, dset, coords)
-      call lay%close_dataset(dset)
-    end do
-    call lay%close_dataset(scale)
-    call lay%close_group(group)
-  end subroutine case_group
-
-  !> The group's own 'case' scale, holding the global case indices.
-  integer(hid_t) function case_scale(lay, group, indices) result(id)
-    type(layout_t), intent(inout) :: lay
-    integer(hid_t), intent(in) :: group
-    integer(i8), intent(in) :: indices(:)
-    id = lay%int_dataset(group, 'case', size(indices, kind=i8), '1', 'global case index')
-    call lay%write_ints(id, indices, 0_i8)
-    call lay%make_scale(id, 'case')
-  end function case_scale
-
-  subroutine create_status(lay, group, scale, n_cases, coords)
-    type(layout_t), intent(inout) :: lay
-    integer(hid_t), intent(in) :: group, scale
-    integer(i8), intent(in) :: n_cases
-    type(coordinate_t), intent(in) :: coords(:)
-    integer(hid_t) :: dset
-    integer :: s, hdferr
-    character(len=:), allocatable :: meanings
-    integer(i8), target :: pending
-    pending = status_pending
-    dset = lay%int_dataset(group, 'status', n_cases, '1', 'how the case ended', fill=pending)
-    if (lay%err%failed()) return
-    meanings = status_name(0)
-    do s = 1, status_count - 1
-      meanings = meanings // ' ' // status_name(s)
-    end do
-    call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
-                                 int(status_count, size_t), hdferr)
-    call lay%check(hdferr, 'write attribute flag_values')
-    call lay%text_attribute(dset, 'flag_meanings', meanings)
-    call lay%attach(dset, scale, 0)
-    call name_coordinates(lay, dset, coords)
-    call lay%close_dataset(dset)
-  end subroutine create_status
-
-  !> The varied inputs as datasets of the group, on its case dimension
-  !> (CF auxiliary coordinates: xarray gives them as coordinates of `case`).
-  subroutine coordinate_datasets(lay, group, scale, coords)
-    type(layout_t), intent(inout) :: lay
-    integer(hid_t), intent(in) :: group, scale
-    type(coordinate_t), intent(in) :: coords(:)
-    integer(hid_t) :: dset
-    integer(i8) :: n
-    integer :: k
-    do k = 1, size(coords)
-      if (lay%err%failed()) return
-      if (allocated(coords(k)%values)) then
-        n = size(coords(k)%values, kind=i8)
-        dset = lay%real_dataset(group, trim(coords(k)%name), [n], coords(k)%unit, coords(k)%description)
-        call lay%write_reals(dset, coords(k)%values, [0_i8], [n])
-      else
-        n = size(coords(k)%texts, kind=i8)
-        dset = lay%text_dataset(group, trim(coords(k)%name), n, coords(k)%description)
-        call lay%write_texts(dset, coords(k)%texts, 0_i8)
-      end if
-      call lay%attach(dset, scale, 0)
-      call lay%close_dataset(dset)
-    end do
-  end subroutine coordinate_datasets
-
-  !> The CF `coordinates` attribute of a dataset on the case dimension.
-  subroutine name_coordinates(lay, dset, coords)
-    type(layout_t), intent(inout) :: lay
-    integer(hid_t), intent(in) :: dset
-    type(coordinate_t), intent(in) :: coords(:)
-    character(len=:), allocatable :: names
-    integer :: k
-    if (size(coords) == 0) return
-    names = trim(coords(1)%name)
-    do k = 2, size(coords)
-      names = names // ' ' // trim(coords(k)%name)
-    end do
-    call lay%text_attribute(dset, 'coordinates', names)
-  end subroutine name_coordinates
-
-  !> /trajectory: the stored fields. Compressed: chunks of one case each,
-  !> written through HDF5. Otherwise contiguous, allocated now and never
-  !> filled (each case is written once, in place, at `address`; a case not
-  !> written yet reads as zeros, its status 'pending').
-  subroutine trajectory_group(self, lay, indices, coords, address)
-    type(h5_output_t), intent(in) :: self
-    type(layout_t), intent(inout) :: lay
-    integer(i8), intent(in) :: indices(:)
-    type(coordinate_t), intent(in) :: coords(:)
-    integer(i8), intent(out) :: address(field_count)
-    integer(hid_t) :: group, scale, dset
-    integer(i8) :: chunk_samples, n_cases
-    integer(i8), allocatable :: dims(:)
-    integer :: f
-    address = -1
-    n_cases = size(indices, kind=i8)
-    group = lay%new_group('trajectory')
-    scale = case_scale(lay, group, indices)
-    call coordinate_datasets(lay, group, scale, coords)
-    do f = 1, field_count
-      if (.not. self%fields(f) .or. lay%err%failed()) cycle
-      chunk_samples = min(self%n_samples, int(max_chunk_bytes / (8 * field_ncomp(f)), i8))
-      if (field_ncomp(f) == 1) then
-        dims = [self%n_samples, n_cases]
-      else
-        dims = [3_i8, self%n_samples, n_cases]
-      end if
-      if (self%in_windows(f)) then
-        dset = lay%real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
-                                trim(field_descriptions(f)), chunk=[dims(:size(dims) - 2), chunk_samples, 1_i8])
-      else
-        dset = lay%real_dataset(group, trim(field_names(f)), dims, trim(field_units(f)), &
-                                trim(field_descriptions(f)), in_place=.true.)
-        if (dset >= 0) then
-          address(f) = h5d_address(int(dset, c_int64_t))
-          if (address(f) < 0 .and. n_cases > 0) &   ! an empty shard has no data, no address
-            call set_error(lay%err, err_output, lay%path // ': no file address for /trajectory/' // &
-                           trim(field_names(f)))
-        end if
-      end if
-      call lay%attach(dset, scale, 0)
-      call lay%attach(dset, lay%time_scale, 1)
-      if (field_ncomp(f) == 3) call lay%attach(dset, lay%xyz_scale, 2)
-      call name_coordinates(lay, dset, coords)
-      call lay%close_dataset(dset)
-    end do
-    call lay%close_dataset(scale)
-    call lay%close_group(group)
-  end subroutine trajectory_group
 
   !> Store one case's inputs, trajectories and summary at its slot icase
   !> (0-based). Trajectories read from another file's store (`moved_from`,

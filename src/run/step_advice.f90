@@ -10,6 +10,7 @@ module ellroll_step_advice
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
   use ellroll_input, only: run_input_t
+  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y
   implicit none
   private
 
@@ -94,8 +95,9 @@ contains
       dt = 0
       if (case_problem(one, inp%plan%interval) /= 0) return
       ball = make_ball(one)
-      dt = one%dt
-      rate = fastest_rate(ball, initial_state(ball, one%x, one%y, one%omega), enough=warn_above / dt)
+      dt = one%param(p_dt)
+      rate = fastest_rate(ball, initial_state(ball, one%param(p_x), one%param(p_y), &
+          one%param(p_omega_x:p_omega_z)), enough=warn_above / dt)
     end subroutine start_rate
   end subroutine step_size_advice
 

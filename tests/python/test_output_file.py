@@ -10,6 +10,8 @@ import h5py
 import numpy as np
 import pytest
 
+import ellroll_post
+
 from conftest import PAPER_INPUT, run
 
 FIELDS = {"contact": ("m", 3), "center": ("m", 3), "omega": ("rad/s", 3), "normal": ("1", 3),
@@ -361,3 +363,21 @@ def test_undefined_values_are_nan_and_marked_missing(ellroll, tmp_path):
         assert np.isnan(f["summary/theta_max"][1]) and np.all(np.isnan(f["trajectory/contact"][1]))
     tree = xr.open_datatree(tmp_path / "out.h5", engine="h5netcdf")
     assert np.isnan(tree["summary"]["theta_max"].values[1]) and np.isfinite(tree["summary"]["theta_max"].values[0])
+
+
+def test_case_datasets_name_their_inputs(ellroll, paper_file):
+    """Every input of the parameter table (`ellroll inputs`) is named once by
+    the `input_names` attribute of the /case dataset that holds it (a
+    vector's one name per component), which the reader takes them from."""
+    table = run(ellroll, "inputs").stdout.splitlines()[2:]
+    names = [line.split("|")[1].strip().strip("`") for line in table]
+    with h5py.File(paper_file, "r") as f:
+        named = [(name, dataset) for dataset, values in f["case"].items()
+                 for name in values.attrs.get("input_names", "").split()]
+        assert sorted(n for n, _ in named) == sorted(names)
+        assert f["case/omega"].attrs["input_names"] == "omega_x omega_y omega_z"
+        assert dict(named)["excitation_amplitude_y"] == "excitation_amplitude"
+        assert "input_names" not in f["case/t_end"].attrs
+    with ellroll_post.open(paper_file) as runfile:
+        assert list(runfile.inputs) == [n for n, _ in named]
+        assert runfile.inputs["omega_z"] == ("omega", 2) and runfile.input_units("omega_z") == "rad/s"

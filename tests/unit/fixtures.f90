@@ -5,6 +5,7 @@ module fixtures
   use ellroll_cases, only: case_t, output_plan_t
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case
+  use ellroll_params, only: p_a, p_b, p_c, p_dt, p_g, p_mass, p_omega_x, p_omega_z, p_radius, p_x, p_y
   implicit none
   private
   public :: paper_case, plan_for, run_case
@@ -15,13 +16,13 @@ contains
   function paper_case(dt, t_end) result(cs)
     real(wp), intent(in) :: dt, t_end
     type(case_t) :: cs
-    cs%a = 1; cs%b = 0.4_wp; cs%c = 0.2_wp
-    cs%radius = 0.2_wp
-    cs%g = 9.81_wp
-    cs%mass = 2620 / cs%g
-    cs%x = 0; cs%y = 0
-    cs%omega = [-2.0_wp, 2.0_wp, 20.0_wp]
-    cs%dt = dt
+    cs%param(p_a) = 1; cs%param(p_b) = 0.4_wp; cs%param(p_c) = 0.2_wp
+    cs%param(p_radius) = 0.2_wp
+    cs%param(p_g) = 9.81_wp
+    cs%param(p_mass) = 2620 / cs%param(p_g)
+    cs%param(p_x) = 0; cs%param(p_y) = 0
+    cs%param(p_omega_x:p_omega_z) = [-2.0_wp, 2.0_wp, 20.0_wp]
+    cs%param(p_dt) = dt
     cs%t_end = t_end
   end function paper_case
 
@@ -30,8 +31,8 @@ contains
     type(case_t), intent(in) :: cs
     integer, intent(in) :: every
     type(output_plan_t) :: plan
-    plan%interval = every * cs%dt
-    plan%n_samples = nint(cs%t_end / cs%dt, i8) / every + 1
+    plan%interval = every * cs%param(p_dt)
+    plan%n_samples = nint(cs%t_end / cs%param(p_dt), i8) / every + 1
     plan%fields = .true.
   end function plan_for
 

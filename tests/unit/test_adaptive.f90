@@ -18,6 +18,7 @@ program test_adaptive
   use ellroll_adaptive_run, only: round_off_step, cannot_follow
   use fixtures, only: paper_case
   use testing
+  use ellroll_params, only: p_atol, p_fit_margin, p_g, p_mass, p_omega_x, p_omega_z, p_radius, p_rtol
   implicit none
   character(len=6), parameter :: pairs(2) = ['dop853', 'vern9 ']
   integer :: pair
@@ -75,9 +76,9 @@ contains
     integer :: l
     cs = paper_case(0.5_wp, 3.0_wp)
     cs%method = method
-    cs%omega = [0.0_wp, 0.0_wp, 20.0_wp]
-    cs%rtol = 1.0e-9_wp
-    cs%atol = 0
+    cs%param(p_omega_x:p_omega_z) = [0.0_wp, 0.0_wp, 20.0_wp]
+    cs%param(p_rtol) = 1.0e-9_wp
+    cs%param(p_atol) = 0
     plan = plan_every(0.1_wp, cs%t_end)
     call simulate_case(cs, plan, res, err)
     cases = cs
@@ -116,25 +117,25 @@ contains
     cs = paper_case(2.0_wp, 2.0_wp)
     plan = plan_every(2.0_wp, cs%t_end)
     cs%method = merge('vern9 ', 'dop853', method == 'dop853')
-    cs%rtol = 1.0e-13_wp
-    cs%atol = 1.0e-15_wp
+    cs%param(p_rtol) = 1.0e-13_wp
+    cs%param(p_atol) = 1.0e-15_wp
     call simulate_case(cs, plan, reference, err)
     cs%method = method
-    cs%atol = 0
+    cs%param(p_atol) = 0
     worst = 0
     completed = .true.
     do l = 1, lanes
       cases(l) = cs
-      cases(l)%rtol = 10.0_wp**(-4 - l)
+      cases(l)%param(p_rtol) = 10.0_wp**(-4 - l)
       call simulate_case(cases(l), plan, res, err)
       error = norm2(res%fields(field_contact)%values(:, 2) - reference%fields(field_contact)%values(:, 2))
-      worst = max(worst, error / cases(l)%rtol)
+      worst = max(worst, error / cases(l)%param(p_rtol))
       completed = completed .and. res%status == status_completed
     end do
     call simulate_batch(cases, plan, batch)
     do l = 1, lanes
       error = norm2(batch(l)%fields(field_contact)%values(:, 2) - reference%fields(field_contact)%values(:, 2))
-      worst = max(worst, error / cases(l)%rtol)
+      worst = max(worst, error / cases(l)%param(p_rtol))
       completed = completed .and. batch(l)%status == status_completed
     end do
     call check(completed, method // ', atol = 0, rtol 1e-5 to 1e-12: every case completes (one case and a batch)')
@@ -155,13 +156,13 @@ contains
     integer :: l
     cs = paper_case(30.0_wp, 30.0_wp)
     cs%method = method
-    cs%rtol = 0
-    cs%atol = 0
+    cs%param(p_rtol) = 0
+    cs%param(p_atol) = 0
     plan = plan_every(10.0_wp, cs%t_end)
     call simulate_case(cs, plan, res, err)
     cases = paper_case(30.0_wp, 30.0_wp)      ! 700 to 1,100 steps: lane 3 idles beside them
     cases%method = method
-    cases%rtol = 1.0e-12_wp
+    cases%param(p_rtol) = 1.0e-12_wp
     cases(3) = cs
     call simulate_batch(cases, plan, batch)
     ended = res%status == status_unstable .and. res%t_final < cs%t_end .and. &
@@ -189,12 +190,12 @@ contains
     type(output_plan_t) :: plan
     type(error_t) :: err
     cs = paper_case(1.0_wp, 1.0_wp)
-    cs%radius = 0.7_wp
-    cs%mass = 100 / cs%g
-    cs%omega = [-1.0_wp, 0.0_wp, 0.0_wp]
-    cs%fit_margin = 0
-    cs%rtol = 1.0e-10_wp
-    cs%atol = 1.0e-13_wp
+    cs%param(p_radius) = 0.7_wp
+    cs%param(p_mass) = 100 / cs%param(p_g)
+    cs%param(p_omega_x:p_omega_z) = [-1.0_wp, 0.0_wp, 0.0_wp]
+    cs%param(p_fit_margin) = 0
+    cs%param(p_rtol) = 1.0e-10_wp
+    cs%param(p_atol) = 1.0e-13_wp
     plan = plan_every(1.0e-3_wp, cs%t_end)
     cs%method = merge('vern9 ', 'dop853', method == 'dop853')
     call simulate_case(cs, plan, other, err)
@@ -220,9 +221,9 @@ contains
     type(output_plan_t) :: plan
     type(error_t) :: err
     cs = paper_case(1.0e-4_wp, 1.0e-4_wp)
-    cs%omega = 1.0e6_wp
-    cs%rtol = 1.0e-6_wp
-    cs%atol = 1.0e-6_wp
+    cs%param(p_omega_x:p_omega_z) = 1.0e6_wp
+    cs%param(p_rtol) = 1.0e-6_wp
+    cs%param(p_atol) = 1.0e-6_wp
     plan = plan_every(1.0e-5_wp, cs%t_end)
     cs%method = merge('vern9 ', 'dop853', method == 'dop853')
     call simulate_case(cs, plan, other, err)
@@ -232,9 +233,9 @@ contains
     call simulate_batch(cases, plan, batch)
     call check(res%status == status_no_fit .and. batch(1)%status == status_no_fit, &
                method // ', omega = 1e6 rad/s about every axis: ends no_fit (one case and a batch)')
-    call check_below(abs(res%t_final - other%t_final) / other%t_final, 10 * cs%rtol, &
+    call check_below(abs(res%t_final - other%t_final) / other%t_final, 10 * cs%param(p_rtol), &
                      method // ', omega = 1e6 rad/s: no_fit time vs the other pair (rel.)')
-    call check_below(abs(res%t_final - batch(1)%t_final) / res%t_final, 10 * cs%rtol, &
+    call check_below(abs(res%t_final - batch(1)%t_final) / res%t_final, 10 * cs%param(p_rtol), &
                      method // ', omega = 1e6 rad/s: no_fit time, batch vs one case (rel.)')
   end subroutine fast_spin_start
 end program test_adaptive

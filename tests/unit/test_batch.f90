@@ -26,6 +26,8 @@ program test_batch
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
   use fixtures, only: paper_case
   use testing
+  use ellroll_params, only: p_atol, p_dt, p_omega_x, p_omega_z, p_rtol, p_x, p_y, p_a, p_b, p_c, p_g, &
+      p_inertia_factor, p_mass, p_mu, p_radius
   implicit none
   integer, parameter :: n_cases = lanes
   type(case_t) :: cases(n_cases)
@@ -51,9 +53,9 @@ program test_batch
   ! the embedded pairs: each lane its own tolerances and largest step
   do l = 1, n_cases
     cases(l)%method = 'dop853'
-    cases(l)%rtol = 10.0_wp**(-6 - l / 2)
-    cases(l)%atol = cases(l)%rtol * 1.0e-3_wp
-    cases(l)%dt = merge(0.05_wp, 0.5_wp, mod(l, 2) == 0)
+    cases(l)%param(p_rtol) = 10.0_wp**(-6 - l / 2)
+    cases(l)%param(p_atol) = cases(l)%param(p_rtol) * 1.0e-3_wp
+    cases(l)%param(p_dt) = merge(0.05_wp, 0.5_wp, mod(l, 2) == 0)
   end do
   call compare_paths(cases, 'dop853')
   cases%method = 'vern9'
@@ -92,12 +94,12 @@ contains
       ball(l) = make_ball(cases(l))
       call set_lane(balls, l, ball(l))
       call random_number(u)
-      y(l, :) = initial_state(ball(l), cases(l)%x, cases(l)%y, cases(l)%omega)
+      y(l, :) = initial_state(ball(l), cases(l)%param(p_x), cases(l)%param(p_y), cases(l)%param(p_omega_x:p_omega_z))
       y(l, 1:2) = y(l, 1:2) + 0.2_wp * (u(1:2) - 0.5_wp)
       y(l, 4:6) = y(l, 4:6) + 4 * (u(4:6) - 0.5_wp)
       h(l) = 0.002_wp + 0.048_wp * u(3)
-      rtol(l) = cases(l)%rtol
-      atol(l) = cases(l)%atol
+      rtol(l) = cases(l)%param(p_rtol)
+      atol(l) = cases(l)%param(p_atol)
     end do
     call lanes_derivative(balls, y, f_lanes)
     call lanes_observe(balls, y, f_lanes, out)
@@ -164,8 +166,8 @@ contains
     integer :: l
     cs = paper_case(30.0_wp, 30.0_wp)
     cs%method = 'dop853'
-    cs%rtol = 1.0e-6_wp
-    cs%atol = 1.0e-6_wp
+    cs%param(p_rtol) = 1.0e-6_wp
+    cs%param(p_atol) = 1.0e-6_wp
     plan_30%interval = 0.01_wp
     plan_30%n_samples = 3001
     plan_30%fields = .true.
@@ -186,7 +188,8 @@ contains
     if (parted) print '(a)', 'dop853 rtol = atol = 1e-6, 30 s: the batch and the one-case run parted (round-off)'
     call check(close .and. res%status == status_completed, &
                'dop853 rtol = atol = 1e-6, 30 s: both complete, steps and rejected steps within 1')
-    call check_below(worst, 100 * cs%rtol, 'dop853 rtol = atol = 1e-6, 30 s: samples, batch vs one case (max rel. diff)')
+    call check_below(worst, 100 * cs%param(p_rtol), &
+        'dop853 rtol = atol = 1e-6, 30 s: samples, batch vs one case (max rel. diff)')
   end subroutine parted_runs
 
   !> The batch of these cases against each case on the one-case path, and
@@ -236,7 +239,7 @@ contains
     worst_end_time = 0
     do l = 1, n_cases
       ! round-off for RK4; 100 rtol once a pair's two runs part
-      allowed = merge(100 * cases(l)%rtol, 1.0e-13_wp, adaptive)
+      allowed = merge(100 * cases(l)%param(p_rtol), 1.0e-13_wp, adaptive)
       same_status = same_status .and. single(l)%status == batch(l)%status
       difference = abs(figures(single(l)) - figures(batch(l))) / max(abs(figures(batch(l))), tiny(1.0_wp))
       worst_samples = max(worst_samples, sample_difference(single(l), batch(l)) / allowed)
@@ -309,16 +312,16 @@ contains
   function make_cases() result(cs)
     type(case_t) :: cs(n_cases)
     cs = paper_case(1.0e-3_wp, 3.0_wp)
-    cs(2)%omega = [1.0_wp, -3.0_wp, 45.0_wp]                 ! faster spin
-    cs(3)%a = 0.8_wp; cs(3)%b = 0.5_wp; cs(3)%c = 0.3_wp       ! another cup
-    cs(3)%x = 0.05_wp; cs(3)%y = -0.03_wp
-    cs(4)%dt = 2.0e-3_wp; cs(4)%t_end = 2.0_wp                 ! another step and length
-    cs(5)%radius = 0.05_wp; cs(5)%mass = 100 / 9.81_wp         ! reaches the rim
-    cs(5)%omega = [-29.05_wp, 0.0_wp, 0.0_wp]
-    cs(6)%radius = 0.7_wp; cs(6)%mass = 100 / 9.81_wp          ! stops fitting the cup
-    cs(6)%omega = [-1.0_wp, 0.0_wp, 0.0_wp]
-    cs(7)%mu = 0.085_wp                                        ! slips
-    cs(8)%inertia_factor = 2.0_wp / 3; cs(8)%g = 3.71_wp       ! hollow ball on Mars
+    cs(2)%param(p_omega_x:p_omega_z) = [1.0_wp, -3.0_wp, 45.0_wp]                 ! faster spin
+    cs(3)%param(p_a) = 0.8_wp; cs(3)%param(p_b) = 0.5_wp; cs(3)%param(p_c) = 0.3_wp       ! another cup
+    cs(3)%param(p_x) = 0.05_wp; cs(3)%param(p_y) = -0.03_wp
+    cs(4)%param(p_dt) = 2.0e-3_wp; cs(4)%t_end = 2.0_wp                 ! another step and length
+    cs(5)%param(p_radius) = 0.05_wp; cs(5)%param(p_mass) = 100 / 9.81_wp         ! reaches the rim
+    cs(5)%param(p_omega_x:p_omega_z) = [-29.05_wp, 0.0_wp, 0.0_wp]
+    cs(6)%param(p_radius) = 0.7_wp; cs(6)%param(p_mass) = 100 / 9.81_wp          ! stops fitting the cup
+    cs(6)%param(p_omega_x:p_omega_z) = [-1.0_wp, 0.0_wp, 0.0_wp]
+    cs(7)%param(p_mu) = 0.085_wp                                        ! slips
+    cs(8)%param(p_inertia_factor) = 2.0_wp / 3; cs(8)%param(p_g) = 3.71_wp       ! hollow ball on Mars
   end function make_cases
 
   !> The summary figures; round-off-sized ones (drift, residual) + 1, so

@@ -6,7 +6,7 @@ program test_campaign
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: equals
   use ellroll_cases, only: case_t
-  use ellroll_params, only: param_index
+  use ellroll_params, only: param_index, p_a, p_omega_x, p_omega_z, p_radius
   use ellroll_campaign
   use fixtures, only: paper_case
   use testing
@@ -23,12 +23,14 @@ program test_campaign
   camp%sweeps(2) = sweep_t(param=param_index('radius'), values=[0.05_wp, 0.1_wp])
   call check(camp%n_cases() == 6, 'grid of 3 x 2 has 6 cases')
   cs = camp%case_at(3_i8)         ! second omega_z, second radius: the last sweep varies fastest
-  call check(equals(cs%omega(3), 10.0_wp) .and. equals(cs%radius, 0.1_wp) .and. cs%index == 3, 'grid order')
-  call check(equals(cs%omega(1), -2.0_wp) .and. equals(cs%a, 1.0_wp), 'unswept inputs keep the base values')
+  call check(equals(cs%param(p_omega_z), 10.0_wp) .and. equals(cs%param(p_radius), 0.1_wp) .and. cs%index == 3, &
+      'grid order')
+  call check(equals(cs%param(p_omega_x), -2.0_wp) .and. equals(cs%param(p_a), 1.0_wp), &
+      'unswept inputs keep the base values')
   camp%combine = combine_zip
   camp%sweeps(2)%values = [0.05_wp, 0.1_wp, 0.15_wp]
   cs = camp%case_at(2_i8)
-  call check(camp%n_cases() == 3 .and. equals(cs%omega(3), 20.0_wp) .and. equals(cs%radius, 0.15_wp), &
+  call check(camp%n_cases() == 3 .and. equals(cs%param(p_omega_z), 20.0_wp) .and. equals(cs%param(p_radius), 0.15_wp), &
              'zip pairs values')
 
   total = 0; total2 = 0; product_sum = 0

@@ -181,6 +181,7 @@ program test_integrators
   use ellroll_adaptive_run, only: step_control_t
   use vern9_conditions, only: vern9_order_conditions
   use testing
+  use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none
 
   class(integrator_t), allocatable :: method
@@ -226,15 +227,15 @@ program test_integrators
   do pair = 1, 2
     cs = paper_case(2.0_wp, 2.0_wp)        ! dt = largest step: error control alone decides
     cs%method = pairs(3 - pair)
-    cs%rtol = 1.0e-13_wp
-    cs%atol = 1.0e-15_wp
+    cs%param(p_rtol) = 1.0e-13_wp
+    cs%param(p_atol) = 1.0e-15_wp
     res = run_case(cs, 1)
     reference(1:3) = res%fields(field_contact)%values(:, 2)
     cs%method = pairs(pair)
     tolerances = [1.0e-5_wp, 1.0e-7_wp, 1.0e-9_wp, 1.0e-11_wp]
     do k = 1, 4
-      cs%rtol = tolerances(k)
-      cs%atol = tolerances(k) * 1.0e-3_wp
+      cs%param(p_rtol) = tolerances(k)
+      cs%param(p_atol) = tolerances(k) * 1.0e-3_wp
       res = run_case(cs, 1)
       errors(k) = norm2(res%fields(field_contact)%values(:, 2) - reference(1:3))
       print '(a, es8.1, a, es9.2, a, i0)', trim(pairs(pair)) // ' rtol ', tolerances(k), ': contact error ', &
@@ -294,8 +295,8 @@ contains
     real(wp) :: rejected
     cs = paper_case(30.0_wp, 30.0_wp)
     cs%method = 'dop853'
-    cs%rtol = 1.0e-3_wp
-    cs%atol = 1.0e-6_wp
+    cs%param(p_rtol) = 1.0e-3_wp
+    cs%param(p_atol) = 1.0e-6_wp
     res = run_case(cs, 1)
     rejected = real(res%n_rejected, wp) / real(res%n_steps + res%n_rejected, wp)
     print '(a, i0, a, i0, a)', 'dop853 rtol 1e-3 on the paper case: ', res%n_steps, ' steps, ', res%n_rejected, &
@@ -319,8 +320,8 @@ contains
     logical :: finite
     cs = paper_case(0.5_wp, 10.0_wp)
     cs%method = 'dop853'
-    cs%rtol = 1.0e-9_wp
-    cs%atol = 1.0e-12_wp
+    cs%param(p_rtol) = 1.0e-9_wp
+    cs%param(p_atol) = 1.0e-12_wp
     plan%interval = 0.1_wp
     plan%n_samples = 101
     plan%fields = .false.
@@ -372,7 +373,7 @@ contains
     reference = [res%fields(field_contact)%values(:, 2), res%fields(field_omega)%values(:, 2)]
     dts = [0.01_wp, 0.005_wp, 0.0025_wp, 0.00125_wp]
     do k = 1, 4
-      cs%dt = dts(k)
+      cs%param(p_dt) = dts(k)
       res = run_case(cs, nint(2 / dts(k)))
       errors(k) = maxval(abs([res%fields(field_contact)%values(:, 2) * 20, &
                               res%fields(field_omega)%values(:, 2) / 20] - &
@@ -476,12 +477,12 @@ contains
     cs = paper_case(1.0e-4_wp, 3.0_wp)
     fine_rk4 = run_case(cs, 30000)
     cs%method = 'dop853'
-    cs%dt = cs%t_end
-    cs%rtol = 1.0e-12_wp
-    cs%atol = 1.0e-14_wp
+    cs%param(p_dt) = cs%t_end
+    cs%param(p_rtol) = 1.0e-12_wp
+    cs%param(p_atol) = 1.0e-14_wp
     tight = run_case(cs, 1)
-    cs%rtol = loose_rtol
-    cs%atol = 1.0e-3_wp * loose_rtol
+    cs%param(p_rtol) = loose_rtol
+    cs%param(p_atol) = 1.0e-3_wp * loose_rtol
     loose = run_case(cs, 1)
     call check(all([loose%nutation_maxima, tight%nutation_maxima] == fine_rk4%nutation_maxima) &
                .and. fine_rk4%nutation_maxima == 3, 'dop853: the three maxima of Theta in 3 s that RK4 finds')

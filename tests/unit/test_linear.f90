@@ -17,6 +17,7 @@ program test_linear
   use ellroll_linear, only: oscillation_periods, fastest_rate, jacobian, eigenvalues, no_spin_periods, fits_at_bottom
   use fixtures, only: paper_case, run_case
   use testing
+  use ellroll_params, only: p_a, p_b, p_c, p_g, p_omega_x, p_omega_z, p_radius, p_x, p_y
   implicit none
   type(case_t) :: cs
   type(case_result_t) :: res
@@ -24,7 +25,8 @@ program test_linear
 
   cs = paper_case(1.0e-3_wp, 1.0_wp)
   periods = oscillation_periods(make_ball(cs), 0.0_wp)
-  expected = 2 * pi * sqrt(7 * ([cs%a**2, cs%b**2] / cs%c - cs%radius) / (5 * cs%g))
+  expected = 2 * pi * sqrt(7 * ([cs%param(p_a)**2, &
+      cs%param(p_b)**2] / cs%param(p_c) - cs%param(p_radius)) / (5 * cs%param(p_g)))
   call check_close(periods(1), expected(1), 1.0e-8_wp, 'no spin: x-z period from the eigenvalues (s)')
   call check_close(periods(2), expected(2), 1.0e-8_wp, 'no spin: y-z period from the eigenvalues (s)')
   periods = no_spin_periods(make_ball(cs))
@@ -36,9 +38,9 @@ program test_linear
   periods = oscillation_periods(make_ball(cs), sigma)
   call check(periods(1) > expected(1) .and. periods(2) < expected(2), 'spin splits the modes apart')
   cs = paper_case(0.01_wp, 400.0_wp)
-  cs%x = 1.0e-4_wp
-  cs%y = 0.5e-4_wp
-  cs%omega = [0.0_wp, 0.0_wp, sigma]
+  cs%param(p_x) = 1.0e-4_wp
+  cs%param(p_y) = 0.5e-4_wp
+  cs%param(p_omega_x:p_omega_z) = [0.0_wp, 0.0_wp, sigma]
   res = run_case(cs, 1)
   measured = [two_pi / peak_frequency(res%fields(field_contact)%values(1, :), 0.01_wp, two_pi / periods(1)), &
               two_pi / peak_frequency(res%fields(field_contact)%values(1, :), 0.01_wp, two_pi / periods(2))]
@@ -57,23 +59,31 @@ contains
   subroutine check_where_the_ball_cannot_sit_at_the_bottom()
     type(case_t) :: deep
     deep = paper_case(1.0e-3_wp, 1.0_wp)
-    deep%a = 0.5_wp; deep%b = 0.5_wp; deep%c = 2; deep%radius = 0.3_wp; deep%x = 0.45_wp
+    deep%param(p_a) = 0.5_wp
+    deep%param(p_b) = 0.5_wp
+    deep%param(p_c) = 2
+    deep%param(p_radius) = 0.3_wp
+    deep%param(p_x) = 0.45_wp
     call check(.not. fits_at_bottom(make_ball(deep)), 'a = b = 0.5, c = 2, R = 0.3: does not fit at the bottom')
     call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'a = b = 0.5, c = 2: no-spin periods NaN')
     call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 0.0_wp))), &
                'a = b = 0.5, c = 2: periods NaN without spin')
     call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 20.0_wp))), &
                'a = b = 0.5, c = 2: periods NaN with spin')
-    deep%a = 1; deep%b = 0.2_wp; deep%c = 1.0e6_wp; deep%radius = 0.2_wp; deep%x = 0
+    deep%param(p_a) = 1
+    deep%param(p_b) = 0.2_wp
+    deep%param(p_c) = 1.0e6_wp
+    deep%param(p_radius) = 0.2_wp
+    deep%param(p_x) = 0
     call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'a = 1, b = 0.2, c = 1e6: no-spin periods NaN')
     call check(all(ieee_is_nan(oscillation_periods(make_ball(deep), 20.0_wp))), &
                'a = 1, b = 0.2, c = 1e6: periods NaN')
     deep = paper_case(1.0e-3_wp, 1.0_wp)
-    deep%radius = 0.8_wp * deep%b**2 / deep%c     ! just fits: periods finite and short
+    deep%param(p_radius) = 0.8_wp * deep%param(p_b)**2 / deep%param(p_c)     ! just fits: periods finite and short
     call check(all(ieee_is_finite(no_spin_periods(make_ball(deep)))), 'R = 0.8 b^2/c: no-spin periods finite')
-    deep%g = 0
+    deep%param(p_g) = 0
     call check(all(ieee_is_nan(no_spin_periods(make_ball(deep)))), 'g = 0: no-spin periods NaN')
-    deep%g = tiny(1.0_wp) * epsilon(1.0_wp)
+    deep%param(p_g) = tiny(1.0_wp) * epsilon(1.0_wp)
     periods = no_spin_periods(make_ball(deep))
     call check(all(ieee_is_finite(periods) .and. periods > 1.0e150_wp), 'g subnormal: no-spin periods finite')
   end subroutine check_where_the_ball_cannot_sit_at_the_bottom
@@ -84,9 +94,9 @@ contains
     real(wp), intent(in) :: draw(3)
     type(case_t) :: cup
     cup = paper_case(1.0e-3_wp, 1.0_wp)
-    cup%b = 0.2_wp + 0.8_wp * draw(1)
-    cup%c = 0.05_wp + 0.15_wp * draw(2)
-    cup%radius = (0.02_wp + 0.9_wp * draw(3)) * cup%c**2 / cup%a
+    cup%param(p_b) = 0.2_wp + 0.8_wp * draw(1)
+    cup%param(p_c) = 0.05_wp + 0.15_wp * draw(2)
+    cup%param(p_radius) = (0.02_wp + 0.9_wp * draw(3)) * cup%param(p_c)**2 / cup%param(p_a)
   end function random_cup
 
   subroutine seed_random()
@@ -142,8 +152,8 @@ contains
       call random_number(draw)
       cup = random_cup(draw(1:3))
       ball = make_ball(cup)
-      y = initial_state(ball, 0.7_wp * (2 * draw(4) - 1) * (cup%a - cup%radius), &
-                        0.7_wp * (2 * draw(5) - 1) * (cup%b - cup%radius), &
+      y = initial_state(ball, 0.7_wp * (2 * draw(4) - 1) * (cup%param(p_a) - cup%param(p_radius)), &
+                        0.7_wp * (2 * draw(5) - 1) * (cup%param(p_b) - cup%param(p_radius)), &
                         1000 * draw(6)**3 * [draw(1) - 0.5_wp, draw(2) - 0.5_wp, 1.0_wp])
       exact = fastest_rate(ball, y)
       bound = fastest_rate(ball, y, enough=huge(1.0_wp))
@@ -156,7 +166,7 @@ contains
     worst_ratio = 0
     do k = 0, 99
       cup = paper_case(1.0e-3_wp, 1.0_wp)
-      cup%radius = 0.02_wp + 0.18_wp * mod(k, 10) / 9
+      cup%param(p_radius) = 0.02_wp + 0.18_wp * mod(k, 10) / 9
       ball = make_ball(cup)
       y = initial_state(ball, 0.0_wp, 0.0_wp, [-2.0_wp, 2.0_wp, 5 + 95 * (k / 10) / 9.0_wp])
       worst_ratio = max(worst_ratio, fastest_rate(ball, y, enough=huge(1.0_wp)) / fastest_rate(ball, y))

@@ -9,6 +9,7 @@ program test_physics
   use ellroll_ellipsoid, only: new_ellipsoid, surface_residual
   use fixtures, only: paper_case, run_case
   use testing
+  use ellroll_params, only: p_a, p_b, p_c, p_omega_x, p_omega_z, p_radius, p_x, p_y, p_dt, p_g
   implicit none
   type(case_t) :: cs
   type(case_result_t) :: res, back
@@ -23,18 +24,19 @@ program test_physics
   call check_below(res%constraint_error_max, 1.0e-13_wp, 'paper case: contact point off the surface (all steps)')
   worst = 0
   do j = 1, size(res%fields(field_contact)%values, 2)
-    worst = max(worst, surface_residual(new_ellipsoid(cs%a, cs%b, cs%c), res%fields(field_contact)%values(:, j)))
+    worst = max(worst, surface_residual(new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c)), &
+        res%fields(field_contact)%values(:, j)))
   end do
   call check_below(worst, 1.0e-13_wp, 'paper case: stored contact points on the surface')
 
   ! --- small oscillations in both principal planes, no spin
-  call check_period('x-z', [1.0e-4_wp, 0.0_wp], 1, cs%a**2 / cs%c)
-  call check_period('y-z', [0.0_wp, 1.0e-4_wp], 2, cs%b**2 / cs%c)
+  call check_period('x-z', [1.0e-4_wp, 0.0_wp], 1, cs%param(p_a)**2 / cs%param(p_c))
+  call check_period('y-z', [0.0_wp, 1.0e-4_wp], 2, cs%param(p_b)**2 / cs%param(p_c))
 
   ! --- spherical cup: omega . n stays constant
   cs = paper_case(1.0e-3_wp, 20.0_wp)
-  cs%a = 1; cs%b = 1; cs%c = 1; cs%radius = 0.3_wp
-  cs%x = 0.3_wp; cs%y = -0.2_wp; cs%omega = [1.0_wp, -2.0_wp, 5.0_wp]
+  cs%param(p_a) = 1; cs%param(p_b) = 1; cs%param(p_c) = 1; cs%param(p_radius) = 0.3_wp
+  cs%param(p_x) = 0.3_wp; cs%param(p_y) = -0.2_wp; cs%param(p_omega_x:p_omega_z) = [1.0_wp, -2.0_wp, 5.0_wp]
   res = run_case(cs, 1)
   call check(res%status == status_completed, 'spherical cup run completes')
   spin0 = dot_product(res%fields(field_omega)%values(:, 1), res%fields(field_normal)%values(:, 1))
@@ -48,9 +50,9 @@ program test_physics
   ! --- time reversal: 10 s forward, flip omega, 10 s forward again
   cs = paper_case(2.5e-4_wp, 10.0_wp)
   res = run_case(cs, 40000)
-  cs%x = res%fields(field_contact)%values(1, 2)
-  cs%y = res%fields(field_contact)%values(2, 2)
-  cs%omega = -res%fields(field_omega)%values(:, 2)
+  cs%param(p_x) = res%fields(field_contact)%values(1, 2)
+  cs%param(p_y) = res%fields(field_contact)%values(2, 2)
+  cs%param(p_omega_x:p_omega_z) = -res%fields(field_omega)%values(:, 2)
   back = run_case(cs, 40000)
   call check_below(maxval(abs(back%fields(field_contact)%values(:, 2))), 1.0e-8_wp, &
                    'time reversal: contact point back at the start (m)')
@@ -70,16 +72,16 @@ contains
     real(wp) :: expected, first, last, u0, u1, crossing
     integer :: j, crossings
     osc = paper_case(1.0e-3_wp, 40.0_wp)
-    osc%x = start(1); osc%y = start(2); osc%omega = 0
+    osc%param(p_x) = start(1); osc%param(p_y) = start(2); osc%param(p_omega_x:p_omega_z) = 0
     r = run_case(osc, 1)
-    expected = 2 * pi * sqrt(7 * (rho - osc%radius) / (5 * osc%g))
+    expected = 2 * pi * sqrt(7 * (rho - osc%param(p_radius)) / (5 * osc%param(p_g)))
     crossings = 0
     first = 0; last = 0
     do j = 1, size(r%fields(field_contact)%values, 2) - 1
       u0 = r%fields(field_contact)%values(axis, j)
       u1 = r%fields(field_contact)%values(axis, j + 1)
       if (u0 * u1 < 0) then
-        crossing = ((j - 1) + u0 / (u0 - u1)) * osc%dt
+        crossing = ((j - 1) + u0 / (u0 - u1)) * osc%param(p_dt)
         if (crossings == 0) first = crossing
         last = crossing
         crossings = crossings + 1
