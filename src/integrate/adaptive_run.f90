@@ -13,7 +13,8 @@ module ellroll_adaptive_run
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_events, only: root_search_t
-  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations, tolerance_ratio_cap
+  use ellroll_errors, only: error_t
+  use ellroll_integrators, only: embedded_pair_t, new_pair, max_equations, tolerance_ratio_cap
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
@@ -49,7 +50,7 @@ module ellroll_adaptive_run
   !> method's last state to the limit its step met. Verner's pair reaches
   !> these tolerances in fewer RHS calls and less time than DOP853, with a
   !> smaller error (bench/pairs.py).
-  type(vern9_t), parameter :: reference_pair = vern9_t()
+  character(len=*), parameter :: reference_method = 'vern9'
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   !> A step of at most smallest_step_ulps eps |t| (16 to 32 units in the
@@ -335,19 +336,6 @@ contains
     self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
-  pure function reference_info_name() result(name)
-    character(len=8) :: name
-    associate (info => reference_pair%info())
-      name = info%name
-    end associate
-  end function reference_info_name
-
-  !> The name of the reference method (reference_pair's).
-  pure function reference_method() result(name)
-    character(len=len_trim(reference_info_name())) :: name
-    name = reference_info_name()
-  end function reference_method
-
   !> x^(1/order); for order 8 by three square roots (a fraction of the cost
   !> of x**0.125).
   pure real(wp) function error_root(x, order)
@@ -623,7 +611,7 @@ contains
   end subroutine end_at_crossing
 
   !> The exact flow from a fixed-step method's state y_from at t_from,
-  !> followed with reference_pair at reference_rtol, reference_atol up to t_until at
+  !> followed with reference_method at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
   !> case ends there (res%status, res%t_final), the flow's step ends after
   !> t_tracked (the method's last state) are added to the summary, and so are
@@ -644,6 +632,7 @@ contains
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
     class(embedded_pair_t), allocatable :: dop
+    type(error_t) :: err
     type(step_control_t) :: control
     type(limit_search_t) :: search
     type(nutation_peak_t) :: peak
@@ -655,7 +644,7 @@ contains
     integer(i8) :: n_recorded
     met = .false.
     n_recorded = res%n_recorded
-    allocate (dop, source=reference_pair)
+    call new_pair(reference_method, dop, err)      ! (a row of the method table: it cannot fail)
     dop%rtol = reference_rtol
     dop%atol = reference_atol
     t_at = t_from

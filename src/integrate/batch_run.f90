@@ -6,15 +6,16 @@
 module ellroll_batch_run
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_excitation, only: excitation_none
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
-  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, rk4_t, max_pair_stages
-  use ellroll_ball_steppers, only: lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
+  use ellroll_errors, only: error_t
+  use ellroll_cases, only: make_ball
+  use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
+  use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
@@ -76,14 +77,16 @@ module ellroll_batch_run
 
 contains
 
-  !> Whether a case runs in a batch (simulate_batch): RK4 or a pair on a
-  !> fixed cup, without the reference run; a property of the case alone, so
-  !> that every run and every shard takes the same path for it.
+  !> Whether a case runs in a batch (simulate_batch): its method batches
+  !> (the method table), its model runs in lanes (runs_in_lanes), and it
+  !> has no reference run; a property of the case alone, so that every run
+  !> and every shard takes the same path for it.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
-    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853' .or. cs%method == 'vern9') &
-                .and. cs%excitation%kind == excitation_none &
-                .and. .not. cs%error_estimate .and. .not. cs%rolling_resistance > 0
+    type(method_info_t) :: method
+    method = method_info(cs%method)
+    batchable = method%batches .and. .not. cs%error_estimate
+    if (batchable) batchable = runs_in_lanes(make_ball(cs))
   end function batchable
 
   !> Up to `lanes` batchable cases of one method advanced together, one per
@@ -100,6 +103,9 @@ contains
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(out) :: results(:)
     type(batch_t) :: b
+    class(integrator_t), allocatable :: method
+    class(embedded_pair_t), allocatable :: pairs(:)
+    type(error_t) :: err
     ! one lane's row, contiguous, for the one-case routines (explicit-shape arguments)
     real(wp), dimension(state_size) :: y_lane, f_lane
     integer(i8) :: clock_start, clock_end, clock_rate
@@ -128,19 +134,13 @@ contains
           y(l, :) = y(donor, :)
           f(l, :) = f(donor, :)
         end do
-        select case (cases(1)%method)
-        case ('dop853')
-          block
-            type(dop853_t) :: pairs(lanes)
-            call adaptive_lanes(b, pairs, cases, plan, results)
-          end block
-        case ('vern9')
-          block
-            type(vern9_t) :: pairs(lanes)
-            call adaptive_lanes(b, pairs, cases, plan, results)
-          end block
-        case default
-          call fixed_step_lanes(b, cases, plan, results)
+        call new_integrator(trim(cases(1)%method), method, err)    ! (batchable: a row of the table)
+        select type (method)
+        class is (embedded_pair_t)
+          allocate (pairs(lanes), mold=method)
+          call adaptive_lanes(b, pairs, cases, plan, results)
+        class default
+          call fixed_step_lanes(b, method, cases, plan, results)
         end select
         where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
       end if
@@ -153,13 +153,13 @@ contains
     end associate
   end subroutine simulate_batch
 
-  !> RK4 with each case's dt (fixed_step_loop across lanes).
-  subroutine fixed_step_lanes(b, cases, plan, results)
+  !> A fixed-step method with each case's dt (fixed_step_loop across lanes).
+  subroutine fixed_step_lanes(b, integrator, cases, plan, results)
     type(batch_t), intent(inout) :: b
+    class(integrator_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
-    type(rk4_t) :: rk4
     type(lane_outputs_t) :: out
     type(lane_sample_block_t) :: samples
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
@@ -185,7 +185,7 @@ contains
       do while (any(active))
         step = step + 1
         if (stop_asked(step)) exit
-        call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
+        call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
@@ -243,7 +243,7 @@ contains
         y_lane = b%y(l, :)
         f_lane = b%f(l, :)
         checkpoint_lane = y_older_checkpoint(l, :)
-        call end_at_limit(rk4, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
+        call end_at_limit(integrator, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
                           every(l), merge(out%status(l), status_no_fit, out%status(l) /= status_completed), &
                           results(l), y_new_lane, f_new_lane, obs)
         if (results(l)%status /= status_completed) then

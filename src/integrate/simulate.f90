@@ -43,7 +43,7 @@ contains
     own_plan%fields([field_contact, field_nutation, field_energy]) = .true.
     call integrate(cs, own_plan, res, err)
     reference_case = cs
-    reference_case%method = reference_method()
+    reference_case%method = reference_method
     reference_case%rtol = reference_rtol
     reference_case%atol = reference_atol
     reference_case%dt = cs%t_end
