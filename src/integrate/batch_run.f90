@@ -266,12 +266,12 @@ contains
   !> An embedded pair with each case's tolerances (adaptive_loop across
   !> lanes): the attempts of all lanes together, the step control of each
   !> lane its own. An attempt, with the dense-output stages computed for all
-  !> lanes, is copied into the lane's pair (dop, one per lane, all of one
+  !> lanes, is copied into the lane's pair (one per lane, all of one
   !> type) only when its dense output is needed (a sample or a maximum of
   !> Theta inside the step, a crossed limit).
-  subroutine adaptive_lanes(b, dop, cases, plan, results)
+  subroutine adaptive_lanes(b, pairs, cases, plan, results)
     type(batch_t), intent(inout) :: b
-    class(embedded_pair_t), intent(inout) :: dop(lanes)
+    class(embedded_pair_t), intent(inout) :: pairs(lanes)
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
@@ -291,15 +291,15 @@ contains
     integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
-      attempt_calls = dop(1)%attempt_calls()      ! the lanes' pairs are of one type
-      end_stage = dop(1)%end_stage()
+      attempt_calls = pairs(1)%attempt_calls()      ! the lanes' pairs are of one type
+      end_stage = pairs(1)%end_stage()
       idle_rhs = 0
       t = 0
       do l = 1, lanes
         i = merge(l, donor, active(l))
-        dop(l)%rtol = cases(i)%rtol
-        dop(l)%atol = cases(i)%atol
-        control(l)%order = dop(1)%control_order()
+        pairs(l)%rtol = cases(i)%rtol
+        pairs(l)%atol = cases(i)%atol
+        control(l)%order = pairs(1)%control_order()
         rtol(l) = cases(i)%rtol
         atol(l) = cases(i)%atol
         h_max(l) = cases(i)%dt
@@ -307,9 +307,9 @@ contains
         y_lane = y(l, :)
         f_lane = f(l, :)
         if (active(l)) then
-          call dop(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
+          call pairs(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
         else
-          call dop(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
+          call pairs(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
         end if
       end do
       attempt = 0
@@ -330,7 +330,7 @@ contains
           end if
         end do
         if (.not. any(active)) exit
-        call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
@@ -361,16 +361,16 @@ contains
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
         dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
-        if (any(dense)) call lanes_pair_dense_stages(dop(1), balls, y, h, k)
+        if (any(dense)) call lanes_pair_dense_stages(pairs(1), balls, y, h, k)
         ! the path past a limit inside the step (past the rim at a maximum of
         ! Theta, or slipping): the step's end is not the case's
         inside_status = status_completed
         do l = 1, n
           if (.not. accepted(l)) cycle
-          if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+          if (dense(l)) call load_attempt(pairs(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
           if (out%status(l) /= status_completed) cycle
           if (peak_inside(l)) then
-            call locate_nutation_peak(dop(l), run(l)%ball, peaks(l), results(l)%n_rhs)
+            call locate_nutation_peak(pairs(l), run(l)%ball, peaks(l), results(l)%n_rhs)
             if (beyond_rim(peaks(l))) then
               inside_status(l) = status_rim
               passed(l) = peaks(l)%t - t(l)
@@ -380,7 +380,7 @@ contains
           if (balls%mu(l) > 0) then
             y_lane = y(l, :)
             f_lane = f(l, :)
-            call slip_inside(dop(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
+            call slip_inside(pairs(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
                              results(l)%n_rhs)
           end if
         end do
@@ -389,17 +389,17 @@ contains
           if (.not. accepted(l)) cycle
           if (inside_status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
-            call stop_in_step(dop(l), run(l), plan, inside_status(l), results(l), passed(l))
+            call stop_in_step(pairs(l), run(l), plan, inside_status(l), results(l), passed(l))
             active(l) = .false.
             cycle
           end if
           if (out%status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
-            call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
+            call stop_in_step(pairs(l), run(l), plan, out%status(l), results(l))
             active(l) = .false.
             cycle
           end if
-          if (sample_inside(l)) call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
+          if (sample_inside(l)) call record_samples_until(pairs(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
           if (peak_inside(l)) then
             call run(l)%maxima%add_peak(peaks(l)%t)
@@ -425,16 +425,16 @@ contains
   !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
   !> dense-output ones) into its pair, as pair_ball_step leaves it, for its
   !> dense output.
-  pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
-    class(embedded_pair_t), intent(inout) :: dop
+  pure subroutine load_attempt(pair, l, t, h, y, y_raw, k, error_norm)
+    class(embedded_pair_t), intent(inout) :: pair
     integer, intent(in) :: l
     real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, max_pair_stages)
     real(wp), intent(in) :: error_norm
     real(wp) :: y_lane(state_size), y_raw_lane(state_size)
-    dop%k(:state_size, :) = k(l, :, :)
+    pair%k(:state_size, :) = k(l, :, :)
     y_lane = y(l, :)                     ! contiguous for hold_attempt's explicit-shape arguments
     y_raw_lane = y_raw(l, :)
-    call dop%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
+    call pair%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
   end subroutine load_attempt
 
   !> Lane l's end-of-step observation, what an output sample stores (no base
