@@ -13,7 +13,8 @@ module ellroll_adaptive_run
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
   use ellroll_events, only: root_search_t
-  use ellroll_integrators, only: embedded_pair_t, vern9_t, max_equations, tolerance_ratio_cap
+  use ellroll_errors, only: error_t
+  use ellroll_integrators, only: embedded_pair_t, new_pair, max_equations, tolerance_ratio_cap
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample
@@ -50,7 +51,7 @@ module ellroll_adaptive_run
   !> method's last state to the limit its step met. Verner's pair reaches
   !> these tolerances in fewer RHS calls and less time than DOP853, with a
   !> smaller error (bench/pairs.py).
-  type(vern9_t), parameter :: reference_pair = vern9_t()
+  character(len=*), parameter :: reference_method = 'vern9'
   real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
 
   !> A step of at most smallest_step_ulps eps |t| (16 to 32 units in the
@@ -96,8 +97,8 @@ contains
   !> from the dense output, so that they do not depend on where the steps
   !> fall; a sample computes only what the stored fields need. The steps are
   !> the fused ones of the ball (ellroll_ball_steppers).
-  subroutine adaptive_loop(integrator, cs, plan, run, y, f, res)
-    class(embedded_pair_t), intent(inout) :: integrator
+  subroutine adaptive_loop(pair, cs, plan, run, y, f, res)
+    class(embedded_pair_t), intent(inout) :: pair
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
@@ -114,8 +115,8 @@ contains
     t = 0
     round_off_attempts = 0
     h_max = cs%param(p_dt)
-    control%order = integrator%control_order()
-    call integrator%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
+    control%order = pair%control_order()
+    call pair%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     do while (t < cs%t_end)
       if (stop_asked(res%n_steps + res%n_rejected)) then
         res%status = status_pending
@@ -129,31 +130,31 @@ contains
         return
       end if
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
-      call attempt_step(integrator, control, run, t, y, f, h, y_new, f_new, obs, status, res)
-      if (integrator%error_norm > 1) then
+      call attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
+      if (pair%error_norm > 1) then
         res%n_rejected = res%n_rejected + 1
         cycle
       end if
       if (status /= status_completed) then
-        call stop_in_step(integrator, run, plan, status, res)
+        call stop_in_step(pair, run, plan, status, res)
         return
       end if
       peak_inside = nutation_peak_inside(y, f, y_new, f_new)
       if (peak_inside) then
-        call locate_nutation_peak(integrator, run%ball, peak, res%n_rhs)
+        call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         if (beyond_rim(peak)) then
-          call stop_in_step(integrator, run, plan, status_rim, res, peak%t - t)
+          call stop_in_step(pair, run, plan, status_rim, res, peak%t - t)
           return
         end if
       end if
       if (run%ball%mu > 0) then
-        call slip_inside(integrator, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
+        call slip_inside(pair, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
         if (status /= status_completed) then
-          call stop_in_step(integrator, run, plan, status, res, passed)
+          call stop_in_step(pair, run, plan, status, res, passed)
           return
         end if
       end if
-      call record_samples_until(integrator, run, plan, t + h, obs, res)
+      call record_samples_until(pair, run, plan, t + h, obs, res)
       if (peak_inside) then
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
@@ -164,20 +165,20 @@ contains
       f = f_new
       res%n_steps = res%n_steps + 1
       call track_step_end(run, res, t, obs)
-      call control%accept(h, integrator%error_norm, h_max)
+      call control%accept(h, pair%error_norm, h_max)
     end do
     res%t_final = cs%t_end
   end subroutine adaptive_loop
 
   !> One attempt of size h from (t, y, f), its RHS calls counted in
-  !> res. Rejected (dop%error_norm > 1, a non-finite norm made huge): h is
+  !> res. Rejected (pair%error_norm > 1, a non-finite norm made huge): h is
   !> shrunk by the step control. Accepted: the new state projected, f and the derived
   !> outputs there, and the model's limit status. An attempt in which the
   !> rolling stops (rolling resistance) is cut there first (shorten_to_rest)
   !> and, accepted, ends with the ball at rest: an event, not a discontinuity
   !> inside a step for the step control to shrink around.
-  subroutine attempt_step(dop, control, run, t, y, f, h, y_new, f_new, obs, status, res)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
+    class(embedded_pair_t), intent(inout) :: pair
     type(step_control_t), intent(inout) :: control
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size)
@@ -188,19 +189,19 @@ contains
     type(case_result_t), intent(inout) :: res
     logical :: resting
     status = status_completed
-    call pair_ball_step(dop, run%ball, t, y, f, h, y_new)
-    res%n_rhs = res%n_rhs + dop%attempt_calls()
+    call pair_ball_step(pair, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + pair%attempt_calls()
     resting = .false.
-    if (ieee_is_finite(dop%error_norm)) then
+    if (ieee_is_finite(pair%error_norm)) then
       resting = rolling_stops(run%ball, y, y_new)
-      if (resting) call shorten_to_rest(dop, run, t, y, f, h, y_new, res)
+      if (resting) call shorten_to_rest(pair, run, t, y, f, h, y_new, res)
     end if
-    dop%error_norm = judged_norm(dop%error_norm, h, is_zero(dop%atol))
-    if (dop%error_norm > 1) then
-      call control%reject(h, dop%error_norm)
+    pair%error_norm = judged_norm(pair%error_norm, h, is_zero(pair%atol))
+    if (pair%error_norm > 1) then
+      call control%reject(h, pair%error_norm)
       return
     end if
-    call project_with_rate(y_new, dop%k(:state_size, dop%end_stage()), f_new)
+    call project_with_rate(y_new, pair%k(:state_size, pair%end_stage()), f_new)
     if (resting) then
       call come_to_rest(y_new)
       call ball_derivative(run%ball, t + h, y_new, f_new)
@@ -213,9 +214,9 @@ contains
   !> The attempt of size h from (t, y, f), which ended at y_new with the
   !> rolling stopped inside (rolling_stops), cut to end where the rolling
   !> part of omega turns against its direction at t (root_search_t on trial
-  !> attempts); dop holds the attempt of the shortened h.
-  subroutine shorten_to_rest(dop, run, t, y, f, h, y_new, res)
-    class(embedded_pair_t), intent(inout) :: dop
+  !> attempts); pair holds the attempt of the shortened h.
+  subroutine shorten_to_rest(pair, run, t, y, f, h, y_new, res)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size)
     real(wp), intent(inout) :: h
@@ -228,13 +229,13 @@ contains
     do k = 1, max_rest_trials
       if (search%done()) exit
       offset = search%trial()
-      call pair_ball_step(dop, run%ball, t, y, f, offset, y_new)
-      res%n_rhs = res%n_rhs + dop%attempt_calls()
+      call pair_ball_step(pair, run%ball, t, y, f, offset, y_new)
+      res%n_rhs = res%n_rhs + pair%attempt_calls()
       call search%report(offset, dot_product(rolling_part(y_new), direction))
     end do
     h = search%high
-    call pair_ball_step(dop, run%ball, t, y, f, h, y_new)
-    res%n_rhs = res%n_rhs + dop%attempt_calls()
+    call pair_ball_step(pair, run%ball, t, y, f, h, y_new)
+    res%n_rhs = res%n_rhs + pair%attempt_calls()
   end subroutine shorten_to_rest
 
   !> The search for where the rolling stops in a step of size h from y to
@@ -336,19 +337,6 @@ contains
     self%log_previous_norm = max(log_norm, log_previous_floor)
   end subroutine step_control_accept
 
-  pure function reference_info_name() result(name)
-    character(len=8) :: name
-    associate (info => reference_pair%info())
-      name = info%name
-    end associate
-  end function reference_info_name
-
-  !> The name of the reference method (reference_pair's).
-  pure function reference_method() result(name)
-    character(len=len_trim(reference_info_name())) :: name
-    name = reference_info_name()
-  end function reference_method
-
   !> x^(1/order); for order 8 by three square roots (a fraction of the cost
   !> of x**0.125).
   pure real(wp) function error_root(x, order)
@@ -391,14 +379,14 @@ contains
     nutation_trend = (y(1) * rate(1) + y(2) * rate(2)) * y(3) - (y(1)**2 + y(2)**2) * rate(3)
   end function nutation_trend
 
-  !> The maximum of Theta inside the last attempt (in dop): the root of
+  !> The maximum of Theta inside the last attempt (in pair): the root of
   !> d tan(Theta)/dt on its dense output and the interpolant's derivative (a
   !> simple root: its time is well conditioned), by regula falsi with the
   !> Illinois modification (superlinear, the bracket kept) to a bracket of
   !> 4 units of round-off in theta: about 10 evaluations where bisection
   !> takes 52.
-  subroutine locate_nutation_peak(dop, ball, peak, n_rhs)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine locate_nutation_peak(pair, ball, peak, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     type(nutation_peak_t), intent(out) :: peak
     integer(i8), intent(inout) :: n_rhs
@@ -407,8 +395,8 @@ contains
     real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
     integer :: i, kept_side
     logical :: prepared
-    call pair_ball_dense(dop, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
-    if (prepared) n_rhs = n_rhs + dop%dense_calls()
+    call pair_ball_dense(pair, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
+    if (prepared) n_rhs = n_rhs + pair%dense_calls()
     low = 0
     high = 1
     trend_low = trend_at(low)
@@ -444,10 +432,10 @@ contains
       end if
     end do
     middle = 0.5_wp * (low + high)
-    call pair_ball_dense(dop, ball, middle, y, prepared)
+    call pair_ball_dense(pair, ball, middle, y, prepared)
     y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
     lateral = sqrt(y(1)**2 + y(2)**2)
-    peak%t = dop%t_old + middle * dop%h
+    peak%t = pair%t_old + middle * pair%h
     peak%tan_nutation = lateral / y(3)
     peak%lateral = lateral
     peak%normal_z = y(3)
@@ -455,35 +443,35 @@ contains
     real(wp) function trend_at(theta)
       real(wp), intent(in) :: theta
       real(wp) :: state(state_size), rate(max_equations)
-      call pair_ball_dense(dop, ball, theta, state, prepared)
-      call dop%dense_rate(theta, rate)
+      call pair_ball_dense(pair, ball, theta, state, prepared)
+      call pair%dense_rate(theta, rate)
       trend_at = nutation_trend(state, rate(:state_size))
     end function trend_at
   end subroutine locate_nutation_peak
 
-  !> The last attempt (in dop) crossed a limit (status): bisect on its dense
+  !> The last attempt (in pair) crossed a limit (status): bisect on its dense
   !> output, record the output samples before the crossing, and end the
   !> case at the last valid point. invalid: the offset from the step's
   !> start known to be past the limit (default: its end).
-  subroutine stop_in_step(dop, run, plan, status, res, invalid)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine stop_in_step(pair, run, plan, status, res, invalid)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in), optional :: invalid
     type(limit_search_t) :: search
-    call locate_crossing(dop, run, status, search, res%n_rhs, invalid)
-    call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
-    call end_at_crossing(dop, run, search, res)
+    call locate_crossing(pair, run, status, search, res%n_rhs, invalid)
+    call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+    call end_at_crossing(pair, run, search, res)
     res%n_steps = res%n_steps + 1
   end subroutine stop_in_step
 
-  !> Bisect the dense output of the last attempt (in dop), which crossed a
+  !> Bisect the dense output of the last attempt (in pair), which crossed a
   !> limit (status) at its end or at the offset invalid, for where the
   !> crossing lies.
-  subroutine locate_crossing(dop, run, status, search, n_rhs, invalid)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine locate_crossing(pair, run, status, search, n_rhs, invalid)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: status
     type(limit_search_t), intent(out) :: search
@@ -492,13 +480,13 @@ contains
     type(observation_t) :: obs
     real(wp) :: offset
     if (present(invalid)) then
-      call search%begin(dop%t_old, invalid, status)
+      call search%begin(pair%t_old, invalid, status)
     else
-      call search%begin(dop%t_old, dop%h, status)
+      call search%begin(pair%t_old, pair%h, status)
     end if
     do while (.not. search%done())
       offset = search%trial()
-      call dense_state(dop, run, offset / dop%h, .true., obs, n_rhs)
+      call dense_state(pair, run, offset / pair%h, .true., obs, n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
   end subroutine locate_crossing
@@ -512,7 +500,7 @@ contains
   end function beyond_rim
 
   !> With a friction limit (mu > 0): whether the path inside the last
-  !> attempt (in dop), from (y, f) at its start to its end (friction_end
+  !> attempt (in pair), from (y, f) at its start to its end (friction_end
   !> needed there), both inside, passes the limit. The friction needed is
   !> smooth along the path, and where a slip only grazes the limit its
   !> maximum is narrow: a step can begin and end below the limit and pass it
@@ -524,8 +512,8 @@ contains
   !> an end shows as a rise to it at the end.) status: status_completed, or
   !> the limit met where the dense output passes it, at offset from the
   !> step's start (for locate_crossing). Its RHS calls count in n_rhs.
-  subroutine slip_inside(dop, run, y, f, friction_end, status, offset, n_rhs)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine slip_inside(pair, run, y, f, friction_end, status, offset, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: y(state_size), f(state_size), friction_end
     integer, intent(out) :: status
@@ -539,7 +527,7 @@ contains
     integer :: i
     status = status_completed
     offset = 0
-    call observe(run%ball, dop%t_old, y, f, obs)
+    call observe(run%ball, pair%t_old, y, f, obs)
     value(0) = obs%friction_needed
     value(6) = friction_end
     do i = 1, 5
@@ -555,11 +543,11 @@ contains
     logical function trial(at, friction)
       real(wp), intent(in) :: at
       real(wp), intent(out) :: friction
-      call dense_state(dop, run, at, .true., obs, n_rhs)
+      call dense_state(pair, run, at, .true., obs, n_rhs)
       friction = obs%friction_needed
       status = limit_status(run%ball, [obs%normal, obs%omega], obs)
       trial = status /= status_completed
-      if (trial) offset = at * dop%h
+      if (trial) offset = at * pair%h
     end function trial
 
     !> The maximum bracketed by a < b < c (fb >= fa, fc), refined until it
@@ -613,18 +601,18 @@ contains
   end subroutine slip_inside
 
   !> The case ends at the last valid point of a located crossing.
-  pure subroutine end_at_crossing(dop, run, search, res)
-    class(embedded_pair_t), intent(in) :: dop
+  pure subroutine end_at_crossing(pair, run, search, res)
+    class(embedded_pair_t), intent(in) :: pair
     type(run_state_t), intent(inout) :: run
     type(limit_search_t), intent(in) :: search
     type(case_result_t), intent(inout) :: res
     res%status = search%crossed
-    res%t_final = dop%t_old + search%valid
+    res%t_final = pair%t_old + search%valid
     if (search%found_valid) call accumulate(run, res, res%t_final, search%last_valid)
   end subroutine end_at_crossing
 
   !> The exact flow from a fixed-step method's state y_from at t_from,
-  !> followed with reference_pair at reference_rtol, reference_atol up to t_until at
+  !> followed with reference_method at reference_rtol, reference_atol up to t_until at
   !> most, to where it first meets a model limit. met: a limit was met, the
   !> case ends there (res%status, res%t_final), the flow's step ends after
   !> t_tracked (the method's last state) are added to the summary, and so are
@@ -644,7 +632,8 @@ contains
     real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: met
-    class(embedded_pair_t), allocatable :: dop
+    class(embedded_pair_t), allocatable :: pair
+    type(error_t) :: err
     type(step_control_t) :: control
     type(limit_search_t) :: search
     type(nutation_peak_t) :: peak
@@ -656,15 +645,15 @@ contains
     integer(i8) :: n_recorded
     met = .false.
     n_recorded = res%n_recorded
-    allocate (dop, source=reference_pair)
-    dop%rtol = reference_rtol
-    dop%atol = reference_atol
+    call new_pair(reference_method, pair, err)      ! (a row of the method table: it cannot fail)
+    pair%rtol = reference_rtol
+    pair%atol = reference_atol
     t_at = t_from
     y_at = y_from
     call ball_derivative(run%ball, t_at, y_at, f_at)
     res%n_rhs = res%n_rhs + 1
-    control%order = dop%control_order()
-    call dop%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
+    control%order = pair%control_order()
+    call pair%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
     do while (t_at < t_until)
@@ -679,31 +668,32 @@ contains
       h = last_step_clipped(t_at, h, t_until, control%after_rejection)
       if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
       if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
-      call attempt_step(dop, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
-      if (dop%error_norm > 1) cycle
+      call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
+      if (pair%error_norm > 1) cycle
       if (status /= status_completed) then
         met = .true.
         call track_untracked()
-        call locate_crossing(dop, run, status, search, res%n_rhs)
-        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
-        call end_at_crossing(dop, run, search, res)
+        call locate_crossing(pair, run, status, search, res%n_rhs)
+        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(pair, run, search, res)
         return
       end if
       passed = -1
       if (nutation_peak_inside(y_at, f_at, y_new, f_new)) then
-        call locate_nutation_peak(dop, run%ball, peak, res%n_rhs)
+        call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         if (beyond_rim(peak)) then
           status = status_rim
           passed = peak%t - t_at
         end if
       end if
-      if (passed < 0 .and. run%ball%mu > 0) call slip_inside(dop, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
+      if (passed < 0 .and. run%ball%mu > 0) &
+        call slip_inside(pair, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
       if (status /= status_completed) then        ! the path passed a limit inside the step
         met = .true.
         call track_untracked()
-        call locate_crossing(dop, run, status, search, res%n_rhs, passed)
-        call record_samples_until(dop, run, plan, dop%t_old + search%valid, search%last_trial, res)
-        call end_at_crossing(dop, run, search, res)
+        call locate_crossing(pair, run, status, search, res%n_rhs, passed)
+        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(pair, run, search, res)
         return
       end if
       t_at = t_at + h
@@ -718,9 +708,9 @@ contains
         n_untracked = n_untracked + 1
         untracked(n_untracked) = obs
         untracked_t(n_untracked) = t_at
-        call record_samples_until(dop, run, plan, t_at, obs, res)
+        call record_samples_until(pair, run, plan, t_at, obs, res)
       end if
-      call control%accept(h, dop%error_norm, t_until - t_from)
+      call control%accept(h, pair%error_norm, t_until - t_from)
     end do
     res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
   contains
@@ -733,11 +723,11 @@ contains
   end subroutine follow_flow_to_limit
 
   !> Record every output sample in (t_old, t_until] of the last attempt (in
-  !> dop), from its dense output; a sample at the step's end is obs_end. A
+  !> pair), from its dense output; a sample at the step's end is obs_end. A
   !> sample computes only what the stored fields need: the geometry of the
   !> state, or every derived output (with f there when the reaction is stored).
-  subroutine record_samples_until(dop, run, plan, t_until, obs_end, res)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine record_samples_until(pair, run, plan, t_until, obs_end, res)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     real(wp), intent(in) :: t_until
@@ -749,15 +739,15 @@ contains
     complete = any(plan%fields([field_energy, field_reaction, field_base_acceleration]))
     do while (sample_due(run, plan, t_until))
       t_sample = real(run%next_sample - 1, wp) * plan%interval
-      theta = (t_sample - dop%t_old) / dop%h
-      if (abs(t_sample - (dop%t_old + dop%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
+      theta = (t_sample - pair%t_old) / pair%h
+      if (abs(t_sample - (pair%t_old + pair%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
         call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
       else if (complete) then
-        call dense_state(dop, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
+        call dense_state(pair, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
         call record_sample(res, run%next_sample, obs)
       else
-        call pair_ball_dense(dop, run%ball, theta, y, prepared)
-        if (prepared) res%n_rhs = res%n_rhs + dop%dense_calls()
+        call pair_ball_dense(pair, run%ball, theta, y, prepared)
+        if (prepared) res%n_rhs = res%n_rhs + pair%dense_calls()
         call record_geometry_sample(res, run%next_sample, run%ball, y)
       end if
       run%next_sample = run%next_sample + 1
@@ -766,31 +756,31 @@ contains
 
   !> The state at t_old + theta h of the last attempt, from its dense
   !> output, the normal projected to unit length.
-  subroutine dense_point(dop, run, theta, y, n_rhs)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine dense_point(pair, run, theta, y, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(state_size)
     integer(i8), intent(inout) :: n_rhs
     logical :: prepared
-    call pair_ball_dense(dop, run%ball, theta, y, prepared)
-    if (prepared) n_rhs = n_rhs + dop%dense_calls()
+    call pair_ball_dense(pair, run%ball, theta, y, prepared)
+    if (prepared) n_rhs = n_rhs + pair%dense_calls()
     call normalize_normal(y)
   end subroutine dense_point
 
   !> Every derived output at t_old + theta h of the last attempt, from its
   !> dense output, with f there (one more RHS call) when with_rate (the
   !> limits and the stored reaction need it).
-  subroutine dense_state(dop, run, theta, with_rate, obs, n_rhs)
-    class(embedded_pair_t), intent(inout) :: dop
+  subroutine dense_state(pair, run, theta, with_rate, obs, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: theta
     logical, intent(in) :: with_rate
     type(observation_t), intent(out) :: obs
     integer(i8), intent(inout) :: n_rhs
     real(wp) :: y(state_size), f(state_size), t
-    call dense_point(dop, run, theta, y, n_rhs)
-    t = dop%t_old + theta * dop%h
+    call dense_point(pair, run, theta, y, n_rhs)
+    t = pair%t_old + theta * pair%h
     f = 0
     if (with_rate) then
       call ball_derivative(run%ball, t, y, f)

@@ -6,21 +6,19 @@
 !> The lanes_ steps advance several balls at once, one per SIMD lane
 !> (ellroll_ball_lanes), each lane with its own step size.
 module ellroll_ball_steppers
-  use ellroll_kinds, only: wp
-  use ellroll_exact, only: is_zero
+  use ellroll_kinds, only: wp, i8
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, ball_derivative, stage_status
   use ellroll_excitation, only: excitation_none, base_acceleration
-  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_equations, max_pair_stages, estimate_round_off, &
-      tolerance_ratio_cap, shortest_h
-  use ellroll_dop853_tableau, only: end_stage, a_value, a_column, a_row, e5, bhh, in_error_estimate
-  use ellroll_vern9_tableau, only: vern9_end_stage => end_stage, v9_value => a_value, v9_column => a_column, &
-      v9_row => a_row, e8, v9_in_error_estimate => in_error_estimate
+  use ellroll_integrator, only: integrator_t
+  use ellroll_rk4, only: rk4_t
+  use ellroll_embedded_pair, only: embedded_pair_t, width, max_pair_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
   use ellroll_status, only: status_completed
   implicit none
   private
 
-  public :: rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
+  public :: ball_fixed_step, rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_fixed_step, lanes_rk4_step, &
+            lanes_pair_attempt, lanes_pair_dense_stages
 
   !> An embedded pair's stage input is held within +-stage_clamp in every
   !> component. Only a step far too long for the motion leaves that range
@@ -32,6 +30,42 @@ module ellroll_ball_steppers
   real(wp), parameter :: stage_clamp = 1.0e20_wp
 
 contains
+
+  !> One step of a fixed-step method on the ball from (t, y, f): its fused
+  !> step where it has one (RK4), else its own; stage_limit as
+  !> rk4_ball_step's, n_rhs counts its RHS calls.
+  subroutine ball_fixed_step(integrator, ball, t, y, f, h, y_new, stage_limit, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp), intent(out) :: y_new(state_size)
+    integer, intent(out) :: stage_limit
+    integer(i8), intent(inout) :: n_rhs
+    select type (integrator)
+    type is (rk4_t)
+      call rk4_ball_step(ball, t, y, f, h, y_new, stage_limit)
+      n_rhs = n_rhs + 3
+    class default
+      call integrator%step(ball, t, y, f, h, y_new, n_rhs)
+      stage_limit = integrator%stage_limit
+    end select
+  end subroutine ball_fixed_step
+
+  !> One step of a fixed-step method that batches (its row of the method
+  !> table) across lanes: RK4's lanes_rk4_step.
+  pure subroutine lanes_fixed_step(integrator, p, y, f0, h, y_new, f_new, inside)
+    class(integrator_t), intent(in) :: integrator
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
+    real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
+    logical, intent(out), optional :: inside(lanes)
+    select type (integrator)
+    type is (rk4_t)
+      call lanes_rk4_step(p, y, f0, h, y_new, f_new, inside)
+    class default
+      error stop 'lanes_fixed_step: a method marked as batching has no step across lanes'
+    end select
+  end subroutine lanes_fixed_step
 
   !> One classical RK4 step of the ball (generic: rk4_t%step); stage_limit
   !> is 0 when the model held at every stage, else the status of the first
@@ -75,13 +109,14 @@ contains
     real(wp), intent(in) :: t, h
     real(wp), intent(in) :: y(state_size), f0(state_size)
     real(wp), intent(out) :: y_new(state_size)
-    real(wp) :: start(max_equations), stage(max_equations)
+    real(wp) :: start(width), stage(width), steps(width)
     integer :: s
     start = 0
     start(:state_size) = y
+    steps = h
     pair%k(:state_size, 1) = f0
     do s = 2, pair%end_stage()                ! the last stage input is y_new
-      call pair%stage_input(s, start, h, stage)
+      call pair%stage_columns(s, 1, pair%k, start, steps, stage)
       if (.not. all(abs(stage) <= stage_clamp)) stage = min(max(stage, -stage_clamp), stage_clamp)
       call ball_derivative(ball, t + pair%node(s) * h, stage(:state_size), pair%k(:state_size, s))
     end do
@@ -97,13 +132,14 @@ contains
     real(wp), intent(in) :: theta
     real(wp), intent(out) :: y(state_size)
     logical, intent(out) :: prepared
-    real(wp) :: stage(max_equations)
+    real(wp) :: stage(width), steps(width)
     integer :: s
     prepared = .not. pair%dense_ready
     if (prepared) then
       if (.not. pair%dense_stages_ready) then
+        steps = pair%h
         do s = pair%end_stage() + 1, pair%end_stage() + pair%dense_calls()
-          call pair%stage_input(s, pair%y_old, pair%h, stage)
+          call pair%stage_columns(s, 1, pair%k, pair%y_old, steps, stage)
           call ball_derivative(ball, pair%t_old + pair%node(s) * pair%h, stage(:state_size), pair%k(:state_size, s))
         end do
       end if
@@ -177,125 +213,38 @@ contains
     real(wp), dimension(lanes, state_size), intent(in) :: y, f0
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
     real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
-    select type (pair)
-    type is (dop853_t)
-      call lanes_dop853_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
-    type is (vern9_t)
-      call lanes_vern9_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
-    class default
-      error stop 'lanes_pair_attempt: a pair without a fused step'
-    end select
+    k(:, :, 1) = f0
+    call lanes_stages(pair, p, 2, pair%end_stage(), y, h, k, y_new)   ! the last stage input is y_new
+    call pair%error_norms_across(state_size, k, y, y_new, h, rtol, atol, error_norm)
   end subroutine lanes_pair_attempt
 
-  pure subroutine lanes_dop853_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
-    type(ball_lanes_t), intent(in) :: p
-    real(wp), dimension(lanes, state_size), intent(in) :: y, f0
-    real(wp), dimension(lanes), intent(in) :: h, rtol, atol
-    real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
-    real(wp), dimension(lanes) :: err5, err3, scale, e5_norm2, e3_norm2
-    integer :: s, i, l
-    k(:, :, 1) = f0
-    call lanes_stages(p, a_value, a_column, a_row, 2, end_stage, y, h, k, y_new)   ! the last stage input is y_new
-    e5_norm2 = 0
-    e3_norm2 = 0
-    do i = 1, state_size
-      err5 = 0
-      do s = 1, end_stage
-        if (in_error_estimate(s)) err5 = err5 + e5(s) * k(:, i, s)
-      end do
-      err3 = (y_new(:, i) - y(:, i)) / h - bhh(1) * k(:, i, 1) - bhh(2) * k(:, i, 9) - bhh(3) * k(:, i, 12)
-      scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
-      e5_norm2 = e5_norm2 + (min(abs(err5), tolerance_ratio_cap * scale) / scale)**2
-      e3_norm2 = e3_norm2 + (min(abs(err3), tolerance_ratio_cap * scale) / scale)**2
-    end do
-    do l = 1, lanes
-      if (is_zero(e5_norm2(l)) .and. is_zero(e3_norm2(l))) then
-        error_norm(l) = 0
-      else
-        error_norm(l) = abs(h(l)) * e5_norm2(l) / sqrt((e5_norm2(l) + 0.01_wp * e3_norm2(l)) * state_size)
-      end if
-    end do
-  end subroutine lanes_dop853_attempt
-
-  pure subroutine lanes_vern9_attempt(p, y, f0, h, rtol, atol, k, y_new, error_norm)
-    type(ball_lanes_t), intent(in) :: p
-    real(wp), dimension(lanes, state_size), intent(in) :: y, f0
-    real(wp), dimension(lanes), intent(in) :: h, rtol, atol
-    real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
-    real(wp), dimension(lanes) :: err, noise, scale, norm2, floor_limit
-    integer :: s, i
-    k(:, :, 1) = f0
-    call lanes_stages(p, v9_value, v9_column, v9_row, 2, vern9_end_stage, y, h, k, y_new)   ! the last input is y_new
-    floor_limit = 1 / merge(max(abs(h), shortest_h), shortest_h, atol <= 0)     ! (vern9_finish_attempt)
-    norm2 = 0
-    do i = 1, state_size
-      err = 0
-      noise = 0
-      do s = 1, size(e8)
-        if (v9_in_error_estimate(s)) then
-          err = err + e8(s) * k(:, i, s)
-          noise = noise + abs(e8(s) * k(:, i, s))
-        end if
-      end do
-      scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
-      err = max(abs(err), min(estimate_round_off * noise, scale * floor_limit))
-      norm2 = norm2 + (min(err, tolerance_ratio_cap * scale) / scale)**2
-    end do
-    error_norm = abs(h) * sqrt(norm2 / state_size)
-  end subroutine lanes_vern9_attempt
-
-  !> The dense-output stages k(:, :, first_dense_stage:) of every lane's
-  !> last attempt from y with step h (pair_ball_dense across lanes).
+  !> The dense-output stages k(:, :, end_stage + 1:) of every lane's last
+  !> attempt from y with step h (pair_ball_dense across lanes).
   pure subroutine lanes_pair_dense_stages(pair, p, y, h, k)
     class(embedded_pair_t), intent(in) :: pair
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), h(lanes)
     real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
     real(wp) :: stage(lanes, state_size)
-    integer :: first, last
-    first = pair%end_stage() + 1
-    last = pair%end_stage() + pair%dense_calls()
-    select type (pair)
-    type is (dop853_t)
-      call lanes_stages(p, a_value, a_column, a_row, first, last, y, h, k, stage)
-    type is (vern9_t)
-      call lanes_stages(p, v9_value, v9_column, v9_row, first, last, y, h, k, stage)
-    end select
+    call lanes_stages(pair, p, pair%end_stage() + 1, pair%end_stage() + pair%dense_calls(), y, h, k, stage)
   end subroutine lanes_pair_dense_stages
 
-  !> Stages first to last of every lane, from y with step h, of a pair's
-  !> tableau (packed by rows: values, columns, rows): f at each stage's input
-  !> into k; stage: the last stage's input.
-  pure subroutine lanes_stages(p, values, columns, rows, first, last, y, h, k, stage)
+  !> Stages first to last of the pair of every lane, from y with step h: f
+  !> at each stage's input (held within +-stage_clamp) into k; stage: the
+  !> last stage's input. The lanes are the pair's columns of `width` values
+  !> (ellroll_embedded_pair), one column per component.
+  pure subroutine lanes_stages(pair, p, first, last, y, h, k, stage)
+    class(embedded_pair_t), intent(in) :: pair
     type(ball_lanes_t), intent(in) :: p
-    integer, intent(in) :: columns(*), rows(*), first, last
-    real(wp), intent(in) :: values(*), y(lanes, state_size), h(lanes)
+    integer, intent(in) :: first, last
+    real(wp), intent(in) :: y(lanes, state_size), h(lanes)
     real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
     real(wp), intent(out) :: stage(lanes, state_size)
     integer :: s
     do s = first, last
-      call lanes_stage_input(s, values, columns, rows, y, h, k, stage)
+      call pair%stage_columns(s, state_size, k, y, h, stage)
+      stage = min(max(stage, -stage_clamp), stage_clamp)
       call lanes_derivative(p, stage, k(:, :, s))
     end do
   end subroutine lanes_stages
-
-  !> The input of stage s of every lane: y + h sum_j a(s, j) k_j, over the
-  !> nonzero a(s, j) of a pair's tableau (packed by rows: values, columns,
-  !> rows) in the order of its stage_input, held within +-stage_clamp.
-  pure subroutine lanes_stage_input(s, values, columns, rows, y, h, k, stage)
-    integer, intent(in) :: s, columns(*), rows(*)
-    real(wp), intent(in) :: values(*)
-    real(wp), intent(in) :: y(lanes, state_size), h(lanes), k(lanes, state_size, max_pair_stages)
-    real(wp), intent(out) :: stage(lanes, state_size)
-    real(wp) :: total(lanes)
-    integer :: i, m
-    do i = 1, state_size
-      m = rows(s)
-      total = y(:, i) + (h * values(m)) * k(:, i, columns(m))
-      do m = rows(s) + 1, rows(s + 1) - 1
-        total = total + (h * values(m)) * k(:, i, columns(m))
-      end do
-      stage(:, i) = min(max(total, -stage_clamp), stage_clamp)
-    end do
-  end subroutine lanes_stage_input
 end module ellroll_ball_steppers

@@ -6,15 +6,16 @@
 module ellroll_batch_run
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_excitation, only: excitation_none
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
-  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, rk4_t, max_pair_stages
-  use ellroll_ball_steppers, only: lanes_rk4_step, lanes_pair_attempt, lanes_pair_dense_stages
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe
+  use ellroll_errors, only: error_t
+  use ellroll_cases, only: make_ball
+  use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
+  use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
@@ -77,14 +78,16 @@ module ellroll_batch_run
 
 contains
 
-  !> Whether a case runs in a batch (simulate_batch): RK4 or a pair on a
-  !> fixed cup, without the reference run; a property of the case alone, so
-  !> that every run and every shard takes the same path for it.
+  !> Whether a case runs in a batch (simulate_batch): its method batches
+  !> (the method table), its model runs in lanes (runs_in_lanes), and it
+  !> has no reference run; a property of the case alone, so that every run
+  !> and every shard takes the same path for it.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
-    batchable = (cs%method == 'rk4' .or. cs%method == 'dop853' .or. cs%method == 'vern9') &
-                .and. cs%excitation%kind == excitation_none &
-                .and. .not. cs%error_estimate .and. .not. cs%param(p_rolling_resistance) > 0
+    type(method_info_t) :: method
+    method = method_info(cs%method)
+    batchable = method%batches .and. .not. cs%error_estimate
+    if (batchable) batchable = runs_in_lanes(make_ball(cs))
   end function batchable
 
   !> Up to `lanes` batchable cases of one method advanced together, one per
@@ -101,6 +104,9 @@ contains
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(out) :: results(:)
     type(batch_t) :: b
+    class(integrator_t), allocatable :: method
+    class(embedded_pair_t), allocatable :: pairs(:)
+    type(error_t) :: err
     ! one lane's row, contiguous, for the one-case routines (explicit-shape arguments)
     real(wp), dimension(state_size) :: y_lane, f_lane
     integer(i8) :: clock_start, clock_end, clock_rate
@@ -129,19 +135,13 @@ contains
           y(l, :) = y(donor, :)
           f(l, :) = f(donor, :)
         end do
-        select case (cases(1)%method)
-        case ('dop853')
-          block
-            type(dop853_t) :: pairs(lanes)
-            call adaptive_lanes(b, pairs, cases, plan, results)
-          end block
-        case ('vern9')
-          block
-            type(vern9_t) :: pairs(lanes)
-            call adaptive_lanes(b, pairs, cases, plan, results)
-          end block
-        case default
-          call fixed_step_lanes(b, cases, plan, results)
+        call new_integrator(trim(cases(1)%method), method, err)    ! (batchable: a row of the table)
+        select type (method)
+        class is (embedded_pair_t)
+          allocate (pairs(lanes), mold=method)
+          call adaptive_lanes(b, pairs, cases, plan, results)
+        class default
+          call fixed_step_lanes(b, method, cases, plan, results)
         end select
         where (active(:n)) results(:n)%status = status_pending      ! the run was asked to stop
       end if
@@ -154,13 +154,13 @@ contains
     end associate
   end subroutine simulate_batch
 
-  !> RK4 with each case's dt (fixed_step_loop across lanes).
-  subroutine fixed_step_lanes(b, cases, plan, results)
+  !> A fixed-step method with each case's dt (fixed_step_loop across lanes).
+  subroutine fixed_step_lanes(b, integrator, cases, plan, results)
     type(batch_t), intent(inout) :: b
+    class(integrator_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
-    type(rk4_t) :: rk4
     type(lane_outputs_t) :: out
     type(lane_sample_block_t) :: samples
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
@@ -186,7 +186,7 @@ contains
       do while (any(active))
         step = step + 1
         if (stop_asked(step)) exit
-        call lanes_rk4_step(balls, y, f, h, y_new, f_new, inside)
+        call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside)
         call lanes_observe(balls, y_new, f_new, out)
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
@@ -244,7 +244,7 @@ contains
         y_lane = b%y(l, :)
         f_lane = b%f(l, :)
         checkpoint_lane = y_older_checkpoint(l, :)
-        call end_at_limit(rk4, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
+        call end_at_limit(integrator, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
                           every(l), merge(out%status(l), status_no_fit, out%status(l) /= status_completed), &
                           results(l), y_new_lane, f_new_lane, obs)
         if (results(l)%status /= status_completed) then
@@ -267,12 +267,12 @@ contains
   !> An embedded pair with each case's tolerances (adaptive_loop across
   !> lanes): the attempts of all lanes together, the step control of each
   !> lane its own. An attempt, with the dense-output stages computed for all
-  !> lanes, is copied into the lane's pair (dop, one per lane, all of one
+  !> lanes, is copied into the lane's pair (one per lane, all of one
   !> type) only when its dense output is needed (a sample or a maximum of
   !> Theta inside the step, a crossed limit).
-  subroutine adaptive_lanes(b, dop, cases, plan, results)
+  subroutine adaptive_lanes(b, pairs, cases, plan, results)
     type(batch_t), intent(inout) :: b
-    class(embedded_pair_t), intent(inout) :: dop(lanes)
+    class(embedded_pair_t), intent(inout) :: pairs(lanes)
     type(case_t), intent(in) :: cases(:)
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
@@ -292,15 +292,15 @@ contains
     integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
-      attempt_calls = dop(1)%attempt_calls()      ! the lanes' pairs are of one type
-      end_stage = dop(1)%end_stage()
+      attempt_calls = pairs(1)%attempt_calls()      ! the lanes' pairs are of one type
+      end_stage = pairs(1)%end_stage()
       idle_rhs = 0
       t = 0
       do l = 1, lanes
         i = merge(l, donor, active(l))
-        dop(l)%rtol = cases(i)%param(p_rtol)
-        dop(l)%atol = cases(i)%param(p_atol)
-        control(l)%order = dop(1)%control_order()
+        pairs(l)%rtol = cases(i)%param(p_rtol)
+        pairs(l)%atol = cases(i)%param(p_atol)
+        control(l)%order = pairs(1)%control_order()
         rtol(l) = cases(i)%param(p_rtol)
         atol(l) = cases(i)%param(p_atol)
         h_max(l) = cases(i)%param(p_dt)
@@ -308,9 +308,9 @@ contains
         y_lane = y(l, :)
         f_lane = f(l, :)
         if (active(l)) then
-          call dop(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
+          call pairs(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
         else
-          call dop(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
+          call pairs(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
         end if
       end do
       attempt = 0
@@ -331,7 +331,7 @@ contains
           end if
         end do
         if (.not. any(active)) exit
-        call lanes_pair_attempt(dop(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
@@ -362,16 +362,16 @@ contains
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
         dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
-        if (any(dense)) call lanes_pair_dense_stages(dop(1), balls, y, h, k)
+        if (any(dense)) call lanes_pair_dense_stages(pairs(1), balls, y, h, k)
         ! the path past a limit inside the step (past the rim at a maximum of
         ! Theta, or slipping): the step's end is not the case's
         inside_status = status_completed
         do l = 1, n
           if (.not. accepted(l)) cycle
-          if (dense(l)) call load_attempt(dop(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
+          if (dense(l)) call load_attempt(pairs(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
           if (out%status(l) /= status_completed) cycle
           if (peak_inside(l)) then
-            call locate_nutation_peak(dop(l), run(l)%ball, peaks(l), results(l)%n_rhs)
+            call locate_nutation_peak(pairs(l), run(l)%ball, peaks(l), results(l)%n_rhs)
             if (beyond_rim(peaks(l))) then
               inside_status(l) = status_rim
               passed(l) = peaks(l)%t - t(l)
@@ -381,7 +381,7 @@ contains
           if (balls%mu(l) > 0) then
             y_lane = y(l, :)
             f_lane = f(l, :)
-            call slip_inside(dop(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
+            call slip_inside(pairs(l), run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
                              results(l)%n_rhs)
           end if
         end do
@@ -390,17 +390,17 @@ contains
           if (.not. accepted(l)) cycle
           if (inside_status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
-            call stop_in_step(dop(l), run(l), plan, inside_status(l), results(l), passed(l))
+            call stop_in_step(pairs(l), run(l), plan, inside_status(l), results(l), passed(l))
             active(l) = .false.
             cycle
           end if
           if (out%status(l) /= status_completed) then
             call summary%store(l, run(l), results(l))
-            call stop_in_step(dop(l), run(l), plan, out%status(l), results(l))
+            call stop_in_step(pairs(l), run(l), plan, out%status(l), results(l))
             active(l) = .false.
             cycle
           end if
-          if (sample_inside(l)) call record_samples_until(dop(l), run(l), plan, t(l) + h(l), &
+          if (sample_inside(l)) call record_samples_until(pairs(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
           if (peak_inside(l)) then
             call run(l)%maxima%add_peak(peaks(l)%t)
@@ -426,16 +426,16 @@ contains
   !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
   !> dense-output ones) into its pair, as pair_ball_step leaves it, for its
   !> dense output.
-  pure subroutine load_attempt(dop, l, t, h, y, y_raw, k, error_norm)
-    class(embedded_pair_t), intent(inout) :: dop
+  pure subroutine load_attempt(pair, l, t, h, y, y_raw, k, error_norm)
+    class(embedded_pair_t), intent(inout) :: pair
     integer, intent(in) :: l
     real(wp), intent(in) :: t, h, y(lanes, state_size), y_raw(lanes, state_size), k(lanes, state_size, max_pair_stages)
     real(wp), intent(in) :: error_norm
     real(wp) :: y_lane(state_size), y_raw_lane(state_size)
-    dop%k(:state_size, :) = k(l, :, :)
+    pair%k(:state_size, :) = k(l, :, :)
     y_lane = y(l, :)                     ! contiguous for hold_attempt's explicit-shape arguments
     y_raw_lane = y_raw(l, :)
-    call dop%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
+    call pair%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
   end subroutine load_attempt
 
   !> Lane l's end-of-step observation, what an output sample stores (no base

@@ -14,8 +14,8 @@ module ellroll_fixed_step_run
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
       rolling_stops, rolling_part, come_to_rest, set_rolling_mode
-  use ellroll_integrators, only: integrator_t, rk4_t, stability_limit
-  use ellroll_ball_steppers, only: rk4_ball_step
+  use ellroll_integrators, only: integrator_t, stability_limit
+  use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
   use ellroll_adaptive_run, only: follow_flow_to_limit, start_rest_search, max_rest_trials
   use ellroll_params, only: p_dt
@@ -147,14 +147,7 @@ contains
     integer(i8), intent(inout) :: n_rhs
     integer :: stage_limit
     real(wp) :: base(3)
-    select type (integrator)
-    type is (rk4_t)
-      call rk4_ball_step(run%ball, t, y, f, h, y_new, stage_limit)
-      n_rhs = n_rhs + 3
-    class default
-      call integrator%step(run%ball, t, y, f, h, y_new, n_rhs)
-      stage_limit = integrator%stage_limit
-    end select
+    call ball_fixed_step(integrator, run%ball, t, y, f, h, y_new, stage_limit, n_rhs)
     call normalize_normal(y_new)
     base = 0                                  ! the cup's acceleration, looked up once
     if (run%ball%excitation%kind /= excitation_none) base = base_acceleration(run%ball%excitation, t + h)

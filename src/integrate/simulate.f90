@@ -44,7 +44,7 @@ contains
     own_plan%fields([field_contact, field_nutation, field_energy]) = .true.
     call integrate(cs, own_plan, res, err)
     reference_case = cs
-    reference_case%method = reference_method()
+    reference_case%method = reference_method
     reference_case%param(p_rtol) = reference_rtol
     reference_case%param(p_atol) = reference_atol
     reference_case%param(p_dt) = cs%t_end

@@ -9,12 +9,13 @@
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
+  use ellroll_excitation, only: excitation_none
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
   private
 
-  public :: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_observe
+  public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -41,6 +42,13 @@ module ellroll_ball_lanes
   end type lane_outputs_t
 
 contains
+
+  !> Whether a ball's scene runs in lanes: the kernels here hold a fixed cup
+  !> and the smooth model (no rolling resistance).
+  pure logical function runs_in_lanes(ball)
+    type(rolling_ball_t), intent(in) :: ball
+    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. ball%rolling_resistance > 0
+  end function runs_in_lanes
 
   !> Put a ball (on a fixed cup) into lane l.
   pure subroutine set_lane(p, l, ball)

@@ -5,12 +5,29 @@ module fixtures
   use ellroll_cases, only: case_t, output_plan_t
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case
+  use ellroll_integrators, only: methods
   use ellroll_params, only: p_a, p_b, p_c, p_dt, p_g, p_mass, p_omega_x, p_omega_z, p_radius, p_x, p_y
   implicit none
   private
-  public :: paper_case, plan_for, run_case
+  public :: paper_case, plan_for, run_case, other_pair
 
 contains
+
+  !> The adaptive method after `name` in the method table (cyclically): the
+  !> peer a pair's results are checked against.
+  pure function other_pair(name) result(other)
+    character(len=*), intent(in) :: name
+    character(len=len(methods%name)) :: other
+    integer :: k, j
+    k = findloc(methods%name, name, dim=1)
+    other = name
+    do j = 1, size(methods) - 1
+      if (methods(modulo(k + j - 1, size(methods)) + 1)%adaptive) then
+        other = methods(modulo(k + j - 1, size(methods)) + 1)%name
+        return
+      end if
+    end do
+  end function other_pair
 
   !> Legeza (1990), section 3.
   function paper_case(dt, t_end) result(cs)

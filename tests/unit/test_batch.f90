@@ -21,7 +21,8 @@ program test_batch
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, ball_derivative, observe
   use ellroll_ball_lanes, only: ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_observe
-  use ellroll_integrators, only: embedded_pair_t, dop853_t, vern9_t, max_pair_stages
+  use ellroll_integrators, only: embedded_pair_t, methods, method_info_t, method_info, new_pair, max_pair_stages
+  use ellroll_embedded_pair, only: width
   use ellroll_ball_steppers, only: pair_ball_step, lanes_pair_attempt
   use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
   use fixtures, only: paper_case
@@ -32,34 +33,41 @@ program test_batch
   integer, parameter :: n_cases = lanes
   type(case_t) :: cases(n_cases)
   type(output_plan_t) :: plan
-  integer :: l
+  integer :: l, k
 
   ! output every 0.01 s of the longest case; shorter cases leave NaN after their end
   plan%interval = 0.01_wp
   plan%n_samples = 301
   plan%fields = .true.
 
+  ! the embedded pairs' columns are the lanes
+  call check(lanes == width, 'a batch has as many lanes as an embedded pair''s columns have entries')
   cases = make_cases()
   call one_step(cases)
-  call compare_paths(cases, 'rk4')
-  ! a sample at every step: the step that crosses a limit is a sample step
-  ! (its sample is past the limit, not the case's), and the batch's sample
-  ! blocks fill and flush many times
-  plan%interval = 1.0e-3_wp
-  plan%n_samples = 3001
-  call compare_paths(cases, 'rk4, a sample every step')
-  plan%interval = 0.01_wp
-  plan%n_samples = 301
-  ! the embedded pairs: each lane its own tolerances and largest step
-  do l = 1, n_cases
-    cases(l)%method = 'dop853'
-    cases(l)%param(p_rtol) = 10.0_wp**(-6 - l / 2)
-    cases(l)%param(p_atol) = cases(l)%param(p_rtol) * 1.0e-3_wp
-    cases(l)%param(p_dt) = merge(0.05_wp, 0.5_wp, mod(l, 2) == 0)
+  do k = 1, size(methods)                 ! every method of the table that batches
+    if (.not. methods(k)%batches) cycle
+    cases = make_cases()
+    cases%method = methods(k)%name
+    if (.not. methods(k)%adaptive) then
+      call compare_paths(cases, trim(methods(k)%name))
+      ! a sample at every step: the step that crosses a limit is a sample step
+      ! (its sample is past the limit, not the case's), and the batch's sample
+      ! blocks fill and flush many times
+      plan%interval = 1.0e-3_wp
+      plan%n_samples = 3001
+      call compare_paths(cases, trim(methods(k)%name) // ', a sample every step')
+      plan%interval = 0.01_wp
+      plan%n_samples = 301
+    else
+      ! each lane its own tolerances and largest step
+      do l = 1, n_cases
+        cases(l)%param(p_rtol) = 10.0_wp**(-6 - l / 2)
+        cases(l)%param(p_atol) = cases(l)%param(p_rtol) * 1.0e-3_wp
+        cases(l)%param(p_dt) = merge(0.05_wp, 0.5_wp, mod(l, 2) == 0)
+      end do
+      call compare_paths(cases, trim(methods(k)%name))
+    end if
   end do
-  call compare_paths(cases, 'dop853')
-  cases%method = 'vern9'
-  call compare_paths(cases, 'vern9')
   call parted_runs()
   call finish('test_batch')
 
@@ -84,8 +92,8 @@ contains
     real(wp) :: k(lanes, state_size, max_pair_stages), h(lanes), rtol(lanes), atol(lanes), norm(lanes), u(state_size)
     real(wp) :: y_new(state_size), noise(state_size), scale(state_size), stages, y_lane(state_size), f_lane(state_size)
     real(wp) :: rhs_worst, observe_worst, stage_worst, norm_worst
-    integer :: l, seed_size, kind, s
-    character(len=6), parameter :: names(2) = ['dop853', 'vern9 ']
+    type(error_t) :: err
+    integer :: l, seed_size, row, s
     call random_seed(size=seed_size)
     call random_seed(put=[(1990 + 11 * l, l = 1, seed_size)])
     rhs_worst = 0
@@ -116,12 +124,9 @@ contains
     call check_below(rhs_worst / epsilon(1.0_wp), 8.0_wp, 'one state: batch vs one case, right-hand side (eps)')
     call check_below(observe_worst / epsilon(1.0_wp), 8.0_wp, &
                      'one state: batch vs one case, contact, reaction and energy (eps)')
-    do kind = 1, 2
-      if (kind == 1) then
-        allocate (dop853_t :: pair)
-      else
-        allocate (vern9_t :: pair)
-      end if
+    do row = 1, size(methods)             ! every embedded pair of the method table that batches
+      if (.not. (methods(row)%adaptive .and. methods(row)%batches)) cycle
+      call new_pair(methods(row)%name, pair, err)
       stage_worst = 0
       norm_worst = 0
       call lanes_pair_attempt(pair, balls, y, f, h, rtol, atol, k, y_raw, norm)
@@ -141,9 +146,9 @@ contains
         norm_worst = max(norm_worst, abs(norm(l) - pair%error_norm) / &
                          (epsilon(1.0_wp) * (h(l) * sqrt(sum((noise / scale)**2) / state_size) + pair%error_norm)))
       end do
-      call check_below(stage_worst, 1.0e-13_wp, trim(names(kind)) // &
+      call check_below(stage_worst, 1.0e-13_wp, trim(methods(row)%name) // &
                        ' attempt: batch vs one case, stages and new point (rel. to the stages)')
-      call check_below(norm_worst, 1.0_wp, trim(names(kind)) // &
+      call check_below(norm_worst, 1.0_wp, trim(methods(row)%name) // &
                        ' attempt: batch vs one case, error norm (in units of its round-off)')
       deallocate (pair)
     end do
@@ -213,15 +218,17 @@ contains
     integer, parameter :: located(5) = [1, 2, 7, 8, 9], round_off(2) = [5, 6], at_step_ends(4) = [3, 4, 10, 11]
     integer, parameter :: forces(3) = [3, 4, 11]
     type(case_result_t) :: single(n_cases), batch(n_cases), reordered(n_cases), alone(1)
+    type(method_info_t) :: method
     type(error_t) :: err
     real(wp) :: allowed, step_ends_bound
     real(wp) :: worst_located, worst_step_ends, worst_samples, worst_at_limit, worst_end_time, difference(11)
     integer :: l, order(n_cases), parted
     logical :: same_status, same_counts, close_counts, lane_independent, adaptive, at_limit, same_steps
 
-    adaptive = cases(1)%method /= 'rk4'
-    step_ends_bound = merge(1.0e-6_wp, 1.0e-13_wp, adaptive)
-    if (cases(1)%method == 'vern9') step_ends_bound = 1.0e-5_wp
+    method = method_info(cases(1)%method)
+    adaptive = method%adaptive
+    ! (an embedded pair that took the same steps: dop853 1.3e-7, vern9 6.9e-6)
+    step_ends_bound = merge(1.0e-5_wp, 1.0e-13_wp, adaptive)
     do l = 1, n_cases
       call check(batchable(cases(l)), label // ': test case is batchable')
       call simulate_case(cases(l), plan, single(l), err)

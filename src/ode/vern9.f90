@@ -1,6 +1,5 @@
-!> The Butcher tableau of Verner's "most efficient" 9(8) pair with its
-!> 8th-order interpolant, shared by the generic step (ellroll_integrators)
-!> and the fused steps of the ball (ellroll_ball_steppers).
+!> Verner's "most efficient" 9(8) pair with its 8th-order interpolant: its
+!> Butcher tableau and its arithmetic on columns (ellroll_embedded_pair).
 !>
 !> J. H. Verner, Numerically optimal Runge-Kutta pairs with interpolants,
 !> Numer. Algorithms 53 (2010) 383-396; the coefficients of his table
@@ -11,12 +10,15 @@
 !> The order conditions (9 for the weights, 8 for the embedded weights and
 !> for the interpolant at any theta) are tested to rounding in
 !> tests/unit/test_integrators.f90.
-module ellroll_vern9_tableau
+module ellroll_vern9
   use ellroll_kinds, only: wp
+  use ellroll_embedded_pair, only: embedded_pair_t, pair_shape_t, width, max_estimates, tolerance_ratio_cap, &
+      estimate_round_off, floor_limit, packed_stage_columns
   implicit none
   private
   integer, private :: j, s              ! of the implied loops in the constants below
 
+  public :: vern9_t
   public :: stages, stages_dense, end_stage, first_dense_stage, c9, a98, a_value, a_column, a_row, b9, e8, p98, q98, &
       in_error_estimate, in_dense_output
 
@@ -291,4 +293,120 @@ module ellroll_vern9_tableau
   !> The stages with a weight in the error estimate and in the dense output.
   logical, parameter :: in_error_estimate(stages) = abs(e8) > 0
   logical, parameter :: in_dense_output(stages_dense) = any(abs(q98) > 0, dim=1)
-end module ellroll_vern9_tableau
+
+  type, extends(embedded_pair_t) :: vern9_t
+  contains
+    procedure, nopass :: stage_columns => vern9_stage_columns
+    procedure, nopass :: scaled_errors => vern9_scaled_errors
+    procedure, nopass :: error_norms => vern9_error_norms
+    procedure :: build_dense => vern9_build_dense
+    procedure :: dense_value => vern9_dense_value
+    procedure :: dense_rate => vern9_dense_rate
+    procedure, nopass :: node => vern9_node
+    procedure, nopass :: shape => vern9_shape
+  end type vern9_t
+
+contains
+
+  pure type(pair_shape_t) function vern9_shape() result(shape)
+    shape = pair_shape_t(end_stage=end_stage, stages_dense=stages_dense, control_order=9)
+  end function vern9_shape
+
+  pure real(wp) function vern9_node(stage)
+    integer, intent(in) :: stage
+    vern9_node = c9(stage)
+  end function vern9_node
+
+  pure subroutine vern9_stage_columns(stage, columns, k, y, h, point)
+    integer, intent(in) :: stage, columns
+    real(wp), intent(in) :: k(width, columns, *), y(width, columns), h(width)
+    real(wp), intent(out) :: point(width, columns)
+    call packed_stage_columns(stage, a_value, a_column, a_row, columns, k, y, h, point)
+  end subroutine vern9_stage_columns
+
+  !> Column i's error estimate of the attempt y -> y_new: sum_s e8(s) k_s,
+  !> h times which is the difference of the 8th- and 9th-order solutions (no
+  !> smaller than estimate_round_off sum_s |e8(s) k_s|; with atol = 0 up to
+  !> the tolerance, shortest_h), in units of atol + rtol max(|y|, |y_new|)
+  !> (tolerance_ratio_cap).
+  pure subroutine vern9_scaled_errors(i, columns, k, y, y_new, h, rtol, atol, errors)
+    integer, intent(in) :: i, columns
+    real(wp), intent(in) :: k(width, columns, *), y(width, columns), y_new(width, columns)
+    real(wp), intent(in) :: h(width), rtol(width), atol(width)
+    real(wp), intent(out) :: errors(width, max_estimates)
+    real(wp) :: err(width), noise(width), scale(width)
+    integer :: stage
+    err = 0
+    noise = 0
+    !GCC$ unroll 16
+    do stage = 1, size(e8)               ! unrolled, the tests on e8 fold away
+      if (in_error_estimate(stage)) then
+        err = err + e8(stage) * k(:, i, stage)
+        noise = noise + abs(e8(stage) * k(:, i, stage))
+      end if
+    end do
+    scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
+    err = max(abs(err), min(estimate_round_off * noise, scale * floor_limit(atol, h)))
+    errors(:, 1) = min(err, tolerance_ratio_cap * scale) / scale
+    errors(:, 2) = 0
+  end subroutine vern9_scaled_errors
+
+  !> The root mean square of the scaled errors, times |h|.
+  pure subroutine vern9_error_norms(n, h, sums, norms)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: h(width), sums(width, max_estimates)
+    real(wp), intent(out) :: norms(width)
+    norms = abs(h) * sqrt(sums(:, 1) / n)
+  end subroutine vern9_error_norms
+
+  !> The interpolant's coefficients, once the dense-output stages are in
+  !> self%k: c_j = h sum_s q98(j, s) k_s, the coefficient of x^j, x = 2
+  !> theta - 1. One coefficient at a time, its sum in registers; the loops
+  !> unrolled: the weights are constants, the stages without one fold away.
+  pure subroutine vern9_build_dense(self)
+    class(vern9_t), intent(inout) :: self
+    real(wp) :: total(width)
+    integer :: s, j
+    !GCC$ unroll 9
+    do j = 0, 8
+      total = 0
+      !GCC$ unroll 21
+      do s = 1, stages_dense
+        if (in_dense_output(s)) total = total + q98(j, s) * self%k(:, s)
+      end do
+      self%dense_coefficients(:, j) = self%h * total
+    end do
+    self%dense_ready = .true.
+  end subroutine vern9_build_dense
+
+  !> y(t_old + theta h), theta in [0, 1], of the last attempt's interpolant
+  !> (Estrin's scheme in x = 2 theta - 1).
+  pure subroutine vern9_dense_value(self, theta, y)
+    class(vern9_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(width)
+    real(wp) :: x, x2, x4
+    x = 2 * theta - 1
+    x2 = x * x
+    x4 = x2 * x2
+    associate (c => self%dense_coefficients)
+      y = self%y_old + ((((c(:, 0) + x * c(:, 1)) + x2 * (c(:, 2) + x * c(:, 3))) &
+                         + x4 * ((c(:, 4) + x * c(:, 5)) + x2 * (c(:, 6) + x * c(:, 7)))) + (x4 * x4) * c(:, 8))
+    end associate
+  end subroutine vern9_dense_value
+
+  !> dy/dtheta = h dy/dt of the interpolant at t_old + theta h (dy/dx 2).
+  pure subroutine vern9_dense_rate(self, theta, rate)
+    class(vern9_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: rate(width)
+    real(wp) :: x, x2, x4
+    x = 2 * theta - 1
+    x2 = x * x
+    x4 = x2 * x2
+    associate (c => self%dense_coefficients)
+      rate = 2 * (((c(:, 1) + (2 * x) * c(:, 2)) + x2 * (3 * c(:, 3) + (4 * x) * c(:, 4))) &
+                  + x4 * ((5 * c(:, 5) + (6 * x) * c(:, 6)) + x2 * (7 * c(:, 7) + (8 * x) * c(:, 8))))
+    end associate
+  end subroutine vern9_dense_rate
+end module ellroll_vern9

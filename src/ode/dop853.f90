@@ -1,12 +1,15 @@
-!> The Butcher tableau of Dormand and Prince's 8(5,3) pair with its
-!> 7th-order dense output, shared by the generic step (ellroll_integrators)
-!> and the fused steps of the ball (ellroll_ball_steppers).
-module ellroll_dop853_tableau
+!> Dormand and Prince's 8(5,3) pair with its 7th-order dense output: its
+!> Butcher tableau and its arithmetic on columns (ellroll_embedded_pair).
+module ellroll_dop853
   use ellroll_kinds, only: wp
+  use ellroll_exact, only: is_zero
+  use ellroll_embedded_pair, only: embedded_pair_t, pair_shape_t, width, max_estimates, tolerance_ratio_cap, &
+      packed_stage_columns
   implicit none
   private
   integer, private :: j, s              ! of the implied loops in the constants below
 
+  public :: dop853_t
   public :: stages, stages_dense, end_stage, first_dense_stage, c853, a853, a_value, a_column, a_row, e5, bhh, d853, &
       in_error_estimate, in_dense_output
 
@@ -149,4 +152,132 @@ module ellroll_dop853_tableau
   !> the loops over stages skip the others at compile time.
   logical, parameter :: in_error_estimate(stages + 1) = abs(e5) > 0
   logical, parameter :: in_dense_output(16) = any(abs(d853) > 0, dim=1)
-end module ellroll_dop853_tableau
+
+  type, extends(embedded_pair_t) :: dop853_t
+  contains
+    procedure, nopass :: stage_columns => dop853_stage_columns
+    procedure, nopass :: scaled_errors => dop853_scaled_errors
+    procedure, nopass :: error_norms => dop853_error_norms
+    procedure :: build_dense => dop853_build_dense
+    procedure :: dense_value => dop853_dense_value
+    procedure :: dense_rate => dop853_dense_rate
+    procedure, nopass :: node => dop853_node
+    procedure, nopass :: shape => dop853_shape
+  end type dop853_t
+
+contains
+
+  pure type(pair_shape_t) function dop853_shape() result(shape)
+    shape = pair_shape_t(end_stage=end_stage, stages_dense=stages_dense, control_order=8)
+  end function dop853_shape
+
+  pure real(wp) function dop853_node(stage)
+    integer, intent(in) :: stage
+    dop853_node = c853(stage)
+  end function dop853_node
+
+  pure subroutine dop853_stage_columns(stage, columns, k, y, h, point)
+    integer, intent(in) :: stage, columns
+    real(wp), intent(in) :: k(width, columns, *), y(width, columns), h(width)
+    real(wp), intent(out) :: point(width, columns)
+    call packed_stage_columns(stage, a_value, a_column, a_row, columns, k, y, h, point)
+  end subroutine dop853_stage_columns
+
+  !> Column i's error estimates of the attempt y -> y_new: Hairer's 5th-
+  !> and 3rd-order ones, each component in units of atol + rtol max(|y|,
+  !> |y_new|) (tolerance_ratio_cap).
+  pure subroutine dop853_scaled_errors(i, columns, k, y, y_new, h, rtol, atol, errors)
+    integer, intent(in) :: i, columns
+    real(wp), intent(in) :: k(width, columns, *), y(width, columns), y_new(width, columns)
+    real(wp), intent(in) :: h(width), rtol(width), atol(width)
+    real(wp), intent(out) :: errors(width, max_estimates)
+    real(wp) :: err5(width), err3(width), scale(width)
+    integer :: stage
+    err5 = 0
+    !GCC$ unroll 16
+    do stage = 1, end_stage              ! unrolled, the tests on e5 fold away
+      if (in_error_estimate(stage)) err5 = err5 + e5(stage) * k(:, i, stage)
+    end do
+    err3 = (y_new(:, i) - y(:, i)) / h - bhh(1) * k(:, i, 1) - bhh(2) * k(:, i, 9) - bhh(3) * k(:, i, 12)
+    scale = max(atol + max(abs(y(:, i)), abs(y_new(:, i))) * rtol, tiny(1.0_wp))
+    errors(:, 1) = min(abs(err5), tolerance_ratio_cap * scale) / scale
+    errors(:, 2) = min(abs(err3), tolerance_ratio_cap * scale) / scale
+  end subroutine dop853_scaled_errors
+
+  !> Hairer's mix of the two estimates' norms: |h| e5^2 / sqrt(n (e5^2 + e3^2 / 100)).
+  pure subroutine dop853_error_norms(n, h, sums, norms)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: h(width), sums(width, max_estimates)
+    real(wp), intent(out) :: norms(width)
+    integer :: l
+    do l = 1, width
+      if (is_zero(sums(l, 1)) .and. is_zero(sums(l, 2))) then
+        norms(l) = 0
+      else
+        norms(l) = abs(h(l)) * sums(l, 1) / sqrt((sums(l, 1) + 0.01_wp * sums(l, 2)) * n)
+      end if
+    end do
+  end subroutine dop853_error_norms
+
+  !> The interpolant's coefficients, once the dense-output stages are in
+  !> self%k: Hairer's form y_old + theta (r1 + theta1 (r2 + theta (r3 + ...
+  !> r7))), theta1 = 1 - theta, rewritten in powers of theta, y_old + sum_i
+  !> c_i theta^i, so that a value or a rate is a tree of independent
+  !> products (Estrin) rather than a chain of fourteen dependent operations.
+  pure subroutine dop853_build_dense(self)
+    class(dop853_t), intent(inout) :: self
+    real(wp) :: delta(width), rows(width, 7), stage(width)
+    integer :: s, i
+    delta = self%y_new - self%y_old
+    rows = 0                   ! local, fixed-size: kept in registers
+    rows(:, 1) = delta
+    rows(:, 2) = self%h * self%k(:, 1) - delta
+    rows(:, 3) = 2 * delta - self%h * (self%k(:, end_stage) + self%k(:, 1))
+    do s = 1, stages_dense
+      if (.not. in_dense_output(s)) cycle
+      stage = self%k(:, s)
+      do i = 1, 4
+        rows(:, 3 + i) = rows(:, 3 + i) + (self%h * d853(i, s)) * stage
+      end do
+    end do
+    ! theta (r1 + theta1 (r2 + theta (r3 + theta1 (r4 + ... theta r7)))) expanded
+    associate (c => self%dense_coefficients)
+      c(:, 0) = rows(:, 1) + rows(:, 2)
+      c(:, 1) = (rows(:, 3) - rows(:, 2)) + rows(:, 4)
+      c(:, 2) = (rows(:, 5) + rows(:, 6)) - (rows(:, 3) + 2 * rows(:, 4))
+      c(:, 3) = (rows(:, 4) + rows(:, 7)) - (2 * rows(:, 5) + 3 * rows(:, 6))
+      c(:, 4) = (rows(:, 5) + 3 * rows(:, 6)) - 3 * rows(:, 7)
+      c(:, 5) = 3 * rows(:, 7) - rows(:, 6)
+      c(:, 6) = -rows(:, 7)
+    end associate
+    self%dense_ready = .true.
+  end subroutine dop853_build_dense
+
+  !> y(t_old + theta h), theta in [0, 1], of the last attempt's interpolant.
+  pure subroutine dop853_dense_value(self, theta, y)
+    class(dop853_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: y(width)
+    real(wp) :: theta2, theta4
+    theta2 = theta * theta
+    theta4 = theta2 * theta2
+    associate (c => self%dense_coefficients)
+      y = self%y_old + theta * (((c(:, 0) + theta * c(:, 1)) + theta2 * (c(:, 2) + theta * c(:, 3))) &
+                                + theta4 * ((c(:, 4) + theta * c(:, 5)) + theta2 * c(:, 6)))
+    end associate
+  end subroutine dop853_dense_value
+
+  !> dy/dtheta = h dy/dt of the interpolant at t_old + theta h.
+  pure subroutine dop853_dense_rate(self, theta, rate)
+    class(dop853_t), intent(in) :: self
+    real(wp), intent(in) :: theta
+    real(wp), intent(out) :: rate(width)
+    real(wp) :: theta2, theta4
+    theta2 = theta * theta
+    theta4 = theta2 * theta2
+    associate (c => self%dense_coefficients)
+      rate = ((c(:, 0) + (2 * theta) * c(:, 1)) + theta2 * (3 * c(:, 2) + (4 * theta) * c(:, 3))) &
+             + theta4 * ((5 * c(:, 4) + (6 * theta) * c(:, 5)) + (7 * theta2) * c(:, 6))
+    end associate
+  end subroutine dop853_dense_rate
+end module ellroll_dop853
