@@ -24,7 +24,7 @@ module ellroll_cmd_summary
     character(len=:), allocatable :: units
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
-    character(len=32), allocatable :: texts(:)
+    character(len=64), allocatable :: texts(:)
   end type column_t
 
 contains
