@@ -134,7 +134,7 @@ contains
     self%in_windows = fields .and. .not. in_place_fields
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
-    call open_new_file(self, lay, any(in_place_fields), prov, label_address)
+    call open_new_file(self, lay, any(in_place_fields), label_address)
     call shared_scales(lay, times)
     inputs = case_record(template)
     figures = summary_record(case_result_t())
@@ -146,6 +146,7 @@ contains
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)
+    call write_provenance(self, lay, prov)
     if (lay%err%failed()) then
       if (.not. err%failed()) err = lay%err
       return
@@ -153,13 +154,12 @@ contains
     call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, label_address, err)
   end subroutine create
 
-  !> Create the file, truncating any of that name, with its provenance,
-  !> and with `labelled` /trajectory_label (its address: label_address).
-  subroutine open_new_file(self, lay, labelled, prov, label_address)
+  !> Create the file, truncating any of that name, and with `labelled`
+  !> /trajectory_label (its address: label_address).
+  subroutine open_new_file(self, lay, labelled, label_address)
     type(h5_output_t), intent(inout) :: self
     type(layout_t), intent(inout) :: lay
     logical, intent(in) :: labelled         !< room for the label of trajectories written in place
-    type(provenance_t), intent(in) :: prov
     integer(i8), intent(out) :: label_address
     integer :: hdferr, closed, own
     integer(hid_t) :: fapl
@@ -198,14 +198,25 @@ contains
     closed = close_descriptor(own)
     if (lay%err%failed()) return
     lay%file = self%file
-    ! the label first, before the provenance (an input of any length), so
-    ! that it lies where a resume looks for it
+    ! the label first, so that it lies near the file's start, where a
+    ! resume looks for it
     if (labelled) then
       label_address = trajectory_label(lay, label_bytes)
       if (label_address + label_bytes > label_search_bytes .and. .not. lay%err%failed()) &
         call set_error(lay%err, err_output, lay%path // ': /trajectory_label lies beyond the file''s first ' // &
                        itoa(label_search_bytes) // ' bytes')
     end if
+  end subroutine open_new_file
+
+  !> The root's attributes: written after the layout, so that where the
+  !> trajectories lie (and so /trajectory_label) depends on the layout
+  !> alone, not on the command line or the input's text.
+  subroutine write_provenance(self, lay, prov)
+    type(h5_output_t), intent(inout) :: self
+    type(layout_t), intent(inout) :: lay
+    type(provenance_t), intent(in) :: prov
+    integer :: hdferr
+    if (lay%err%failed()) return
     ! CF-1.10 global attributes, then ellroll's own provenance
     call lay%text_attribute(self%file, 'Conventions', 'CF-1.10')
     call lay%text_attribute(self%file, 'title', 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
@@ -226,7 +237,7 @@ contains
     if (lay%err%failed()) return
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
     call lay%check(hdferr, 'write attribute n_cases_total')
-  end subroutine open_new_file
+  end subroutine write_provenance
 
   !> Store one case's inputs, trajectories and summary at its slot icase
   !> (0-based). Trajectories read from another file's store (`moved_from`,
