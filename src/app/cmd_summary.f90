@@ -24,7 +24,7 @@ module ellroll_cmd_summary
     character(len=:), allocatable :: units
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
-    character(len=32), allocatable :: texts(:)
+    character(len=64), allocatable :: texts(:)
   end type column_t
 
 contains
@@ -148,14 +148,19 @@ contains
     call move_alloc(longer, columns)
   end subroutine append
 
-  !> One row per case, a header of the column names.
+  !> One row per case, a header of the column names with their units,
+  !> `name [units]` (the bare name for units '1': dimensionless, counts,
+  !> text).
   subroutine print_csv(columns)
     type(column_t), intent(in) :: columns(:)
     character(len=:), allocatable :: line
     integer :: i, k
-    line = trim(columns(1)%name)
-    do k = 2, size(columns)
-      line = line // ',' // trim(columns(k)%name)
+    line = ''
+    do k = 1, size(columns)
+      if (k > 1) line = line // ','
+      line = line // trim(columns(k)%name)
+      if (len_trim(columns(k)%units) > 0 .and. columns(k)%units /= '1') &
+        line = line // ' [' // trim(columns(k)%units) // ']'
     end do
     write (output_unit, '(a)') line
     do i = 1, size(columns(1)%ints)

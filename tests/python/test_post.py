@@ -140,14 +140,14 @@ def test_summary_formats(sweep_file):
     text = plot_cli("summary", sweep_file)
     assert text.returncode == 0 and "no_fit" in text.stdout and "omega_z" in text.stdout.splitlines()[0]
     rows = list(csv.DictReader(io.StringIO(plot_cli("summary", sweep_file, "--format", "csv").stdout)))
-    assert len(rows) == 6 and rows[2]["radius"] == "0.5" and rows[2]["status"] == "no_fit"
+    assert len(rows) == 6 and rows[2]["radius [m]"] == "0.5" and rows[2]["status"] == "no_fit"
     text = plot_cli("summary", sweep_file, "--format", "json").stdout
     data = json.loads(text, parse_constant=lambda token: pytest.fail(f"not strict JSON: {token}"))
     with h5py.File(sweep_file, "r") as f:
         assert [c["theta_max"] for c in data["cases"]] == list(f["summary/theta_max"][:])
         transmissibility = f["summary/transmissibility"][:]                  # NaN: no harmonic excitation
     assert np.all(np.isnan(transmissibility)) and all(c["transmissibility"] is None for c in data["cases"])
-    assert {"displacement_max", "residual_displacement", "absolute_acceleration_max"} <= set(rows[0])
+    assert {"displacement_max [m]", "residual_displacement [m]", "absolute_acceleration_max [m/s^2]"} <= set(rows[0])
 
 
 def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
