@@ -8,11 +8,12 @@ module ellroll_hdf5_groups
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: set_error, err_output
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
-  use ellroll_status, only: status_count, status_name, status_pending
+  use ellroll_status, only: status_count, status_pending
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: dataset_inputs
   use ellroll_hdf5_layout, only: layout_t
+  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
   implicit none
   private
 
@@ -75,15 +76,16 @@ contains
   subroutine shared_scales(lay, times)
     type(layout_t), intent(inout) :: lay
     real(wp), intent(in) :: times(:)
-    lay%time_scale = lay%real_dataset(lay%file, 'time', [size(times, kind=i8)], 's', 'output times')
+    lay%time_scale = lay%real_dataset(lay%file, trim(time_entry%name), [size(times, kind=i8)], time_entry%units, &
+                                      time_entry%description)
     call lay%write_reals(lay%time_scale, times, [0_i8], [size(times, kind=i8)])
-    call lay%make_scale(lay%time_scale, 'time')
-    lay%xyz_scale = lay%text_dataset(lay%file, 'xyz', 3_i8, 'vector component')
+    call lay%make_scale(lay%time_scale, trim(time_entry%name))
+    lay%xyz_scale = lay%text_dataset(lay%file, trim(xyz_entry%name), 3_i8, xyz_entry%description)
     call lay%write_texts(lay%xyz_scale, ['x', 'y', 'z'], 0_i8)
-    call lay%make_scale(lay%xyz_scale, 'xyz')
-    lay%mode_scale = lay%int_dataset(lay%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
+    call lay%make_scale(lay%xyz_scale, trim(xyz_entry%name))
+    lay%mode_scale = lay%int_dataset(lay%file, trim(mode_entry%name), 2_i8, mode_entry%units, mode_entry%description)
     call lay%write_ints(lay%mode_scale, [1_i8, 2_i8], 0_i8)
-    call lay%make_scale(lay%mode_scale, 'mode')
+    call lay%make_scale(lay%mode_scale, trim(mode_entry%name))
   end subroutine shared_scales
 
   !> A group of one value per case: a dataset per entry of `rec` (/case:
@@ -139,9 +141,10 @@ contains
     type(layout_t), intent(inout) :: lay
     integer(hid_t), intent(in) :: group
     integer(i8), intent(in) :: indices(:)
-    id = lay%int_dataset(group, 'case', size(indices, kind=i8), '1', 'global case index')
+    id = lay%int_dataset(group, trim(case_entry%name), size(indices, kind=i8), case_entry%units, &
+                         case_entry%description)
     call lay%write_ints(id, indices, 0_i8)
-    call lay%make_scale(id, 'case')
+    call lay%make_scale(id, trim(case_entry%name))
   end function case_scale
 
   subroutine create_status(lay, group, scale, n_cases, coords)
@@ -154,12 +157,10 @@ contains
     character(len=:), allocatable :: meanings
     integer(i8), target :: pending
     pending = status_pending
-    dset = lay%int_dataset(group, 'status', n_cases, '1', 'how the case ended', fill=pending)
+    dset = lay%int_dataset(group, trim(status_entry%name), n_cases, status_entry%units, status_entry%description, &
+                           fill=pending)
     if (lay%err%failed()) return
-    meanings = status_name(0)
-    do s = 1, status_count - 1
-      meanings = meanings // ' ' // status_name(s)
-    end do
+    call status_flag_meanings(meanings)
     call lay%int_attribute(dset, 'flag_values', [(int(s, i8), s = 0, status_count - 1)])
     call lay%text_attribute(dset, 'flag_meanings', meanings)
     call lay%attach(dset, scale, 0)

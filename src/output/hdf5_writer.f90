@@ -10,7 +10,7 @@ module ellroll_hdf5_writer
   use h5lt, only: h5ltset_attribute_int_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
-  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text, int_value
+  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_ncomp
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_campaign, only: coordinate_t
@@ -21,6 +21,7 @@ module ellroll_hdf5_writer
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label
+  use ellroll_file_layout, only: table_row, file_title, file_references
   implicit none
   private
 
@@ -219,12 +220,10 @@ contains
     if (lay%err%failed()) return
     ! CF-1.10 global attributes, then ellroll's own provenance
     call lay%text_attribute(self%file, 'Conventions', 'CF-1.10')
-    call lay%text_attribute(self%file, 'title', 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
-                            'ellipsoidal cup')
+    call lay%text_attribute(self%file, 'title', file_title)
     call lay%text_attribute(self%file, 'source', prov%program // ' ' // prov%version)
     call lay%text_attribute(self%file, 'history', prov%created // ' ' // prov%command_line)
-    call lay%text_attribute(self%file, 'references', 'V. P. Legeza (1990), Derivation of the equations of ' // &
-        'motion of a heavy ball in the cavity of a triaxial ellipsoid and their numerical analysis (in Russian)')
+    call lay%text_attribute(self%file, 'references', file_references)
     call lay%text_attribute(self%file, 'program', prov%program)
     call lay%text_attribute(self%file, 'version', prov%version)
     call lay%text_attribute(self%file, 'created', prov%created)
@@ -295,14 +294,6 @@ contains
     logical :: written_in_place(field_count)
     written_in_place = fields .and. deflate_level <= 0
   end function written_in_place
-
-  !> A case's row of the case and summary tables: its inputs, its summary, its status.
-  function table_row(cs, res) result(row)
-    type(case_t), intent(in) :: cs
-    type(case_result_t), intent(in) :: res
-    type(named_value_t), allocatable :: row(:)
-    row = [case_record(cs), summary_record(res), int_value('status', '', '', int(res%status, i8))]
-  end function table_row
 
   !> Keep a case (its table row and its trajectories) in its window; a window
   !> complete, or the oldest when all are in use, goes to `full`.
