@@ -178,8 +178,8 @@ def _attributes(lines):
     attrs = {}
     for line in lines.splitlines():
         name, kind, value = line.split("\t", 2)
-        if kind == "i4":
-            attrs[name] = np.array(value.split(), dtype=np.int32)
+        if kind in ("i4", "i8"):
+            attrs[name] = np.array(value.split(), dtype=np.int32 if kind == "i4" else np.int64)
         elif name == "input_namelist":
             attrs[name] = value.replace("\\n", "\n").replace("\\\\", "\\")
         else:

@@ -51,7 +51,7 @@ module ellroll_memory_run
     integer(i8) :: shape(3) = 0
     character(len=8) :: dims(3) = ''
     !> other attributes, a line 'NAME<tab>TYPE<tab>VALUE' each (TYPE: str,
-    !> or i4 for a list of integers)
+    !> or i4 / i8 for a list of 4- / 8-byte integers)
     character(len=:), allocatable :: attributes
     integer :: field = 0                     !< a trajectory: its field, read from the cases' results
     real(wp), allocatable :: reals(:)
@@ -267,7 +267,7 @@ contains
     where(size(row)) = add(out, 'summary', status_entry, kind_int, ['case'], [n_cases])
     call status_flag_meanings(meanings)
     call add_attribute(out%datasets(where(size(row))), 'flag_values', &
-                       int_list([(int(k, i8), k = 0, status_count - 1)]), 'i4')
+                       int_list([(int(k, i8), k = 0, status_count - 1)]), 'i8')
     call add_attribute(out%datasets(where(size(row))), 'flag_meanings', meanings)
     call name_coordinates(out%datasets(where(size(row))))
     do k = n_case_entries + 1, size(row) - 1
