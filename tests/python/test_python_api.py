@@ -251,3 +251,19 @@ def test_the_gil_is_released_while_the_cases_run():
     assert duration > 0.05, duration               # long enough to tell
     gaps = np.diff([span[0], *inside, span[1]])
     assert gaps.max() < duration / 2, (gaps.max(), duration)
+
+
+def test_run_arrays_are_the_trees_values():
+    """run_arrays: the same values, dimensions and units as run's DataTree, without xarray."""
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 2.0")
+    tree = ellroll.run(text, threads=1)
+    arrays, attributes = ellroll.run_arrays(text, threads=1)
+    assert set(arrays) == {"", "case", "summary", "trajectory"}
+    for group, values in arrays.items():
+        node = tree[group] if group else tree
+        for name, array in values.items():
+            if name == "wall_time":
+                continue
+            assert same_bits(array, node[name].values), (group, name)
+            assert attributes[group][name]["dims"] == node[name].dims, (group, name)
+            assert attributes[group][name]["units"] == node[name].attrs["units"], (group, name)
