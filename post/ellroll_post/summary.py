@@ -89,7 +89,8 @@ def number_text(x):
             break
     mantissa = work.split("e")[0].rstrip("0").rstrip(".")
     digits = sum(c.isdigit() for c in mantissa)
-    exponent10 = math.floor(math.log10(abs(x)))
+    # the exponent of the digits written (rounding may carry into the next power of ten)
+    exponent10 = int(work.split("e")[1])
     if -4 <= exponent10 < 10:
         return f"{x:.{max(0, digits - 1 - exponent10)}f}"
     return f"{mantissa}e{'-' if exponent10 < 0 else '+'}{abs(exponent10):02d}"

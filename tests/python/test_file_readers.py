@@ -162,3 +162,48 @@ def test_docs_snippet(files, tmp_path):
     block = text.split("<!-- summary_frame example -->")[1].split("```python\n")[1].split("```")[0]
     shutil.copy(files["sweep"], tmp_path / "spin_sweep.h5")
     subprocess.run([sys.executable, "-c", block], cwd=tmp_path, check=True, capture_output=True, text=True)
+
+
+def test_csv_numbers_at_every_power_of_ten_read_back(ellroll, files):
+    """Each number the CSV writes reads back as the double stored, and both
+    tools write the same text, for the doubles at and beside every power of
+    ten (where rounding to 15 digits carries into the next decade) and the
+    ends of the range."""
+    edges = [0.5 ** 1074, 0.5 ** 1022, np.nextafter(0.5 ** 1022, 0), np.finfo(float).max]
+    for k in range(-323, 309):
+        power = float(f"1e{k}")
+        edges += [power, np.nextafter(power, 0), np.nextafter(power, np.inf),
+                  float(f"9.999999999999999e{k - 1}"), float(f"9.9999999999999999e{k - 1}")]
+    edges = [x for x in edges if x > 0]
+    edges += [-x for x in edges[::7]]
+    # a sweep of 400 short cases holds them in a few files
+    folder = files["sweep"].parent
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.01").replace("interval = 0.01", "interval = 0.01")
+    spins = ", ".join(str(1 + i / 10) for i in range(400))
+    (folder / "powers.nml").write_text(text + f"&sweep name = 'omega_z', values = {spins} /\n")
+    assert run(ellroll, "run", "powers.nml", "-q", "-o", "powers.h5", cwd=folder).returncode == 0
+    edited = folder / "powers.h5"
+    header = next(csv.reader(io.StringIO(run(ellroll, "summary", edited, "--format", "csv").stdout)))
+    varied = {h.split(" [")[0] for h in header[1:header.index("status")]}      # the inputs' columns
+    with h5py.File(edited, "r") as f:
+        columns = [name for name, item in f["summary"].items()
+                   if item.dtype == np.float64 and item.ndim == 1 and name != "wall_time" and name not in varied]
+        n_cases = f["summary/theta_max"].shape[0]
+    per_file = n_cases * len(columns)
+    for start in range(0, len(edges), per_file):
+        chunk = np.array(edges[start:start + per_file] + [1.0] * (per_file - len(edges[start:start + per_file])))
+        with h5py.File(edited, "r+") as f:
+            for j, name in enumerate(columns):
+                f["summary"][name][...] = chunk[j * n_cases:(j + 1) * n_cases]
+        fortran = run(ellroll, "summary", edited, "--format", "csv").stdout
+        python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(edited), "--format", "csv"],
+                                capture_output=True, text=True).stdout
+        assert fortran == python and fortran
+        rows = list(csv.reader(io.StringIO(fortran)))
+        header = rows[0]
+        for j, name in enumerate(columns):
+            column = next(i for i, h in enumerate(header) if h == name or h.startswith(name + " ["))
+            written = [float(row[column]) for row in rows[1:]]
+            expected = chunk[j * n_cases:(j + 1) * n_cases]
+            assert np.array_equal(np.array(written), expected), (name, [(w, e, row[column]) for w, e, row in
+                                                                      zip(written, expected, rows[1:]) if w != e][:3])
