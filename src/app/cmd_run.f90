@@ -18,7 +18,6 @@ module ellroll_cmd_run
   use ellroll_strings, only: format_real
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_status, only: status_invalid
-  use, intrinsic :: iso_fortran_env, only: output_unit
   use ellroll_system, only: catch_stop_signals
   use ellroll_ranks, only: ranks_all_ok
   use ellroll_cli, only: cli_t, provenance
@@ -67,10 +66,11 @@ contains
     ! the output is complete: a summary that cannot be read back is a warning
     call print_summary(inp%plan%file, 'table', unread)
     if (unread%failed()) write (error_unit, '(a)') 'ellroll: warning: cannot print the summary: ' // unread%message
-    call final_block(inp, wall_clock() - started, ran, advice)
+    if (.not. cli%opts%quiet) call final_block(inp, wall_clock() - started, ran, advice)
   end subroutine run_command
 
-  !> The end of a run: its wall time, cases per second, the output's size,
+  !> The end of a run, on stderr beside the progress (stdout holds the
+  !> file's summary, as `ellroll summary` prints it): its wall time, cases per second, the output's size,
   !> and a recap of the warnings (the advice before the run, invalid cases
   !> skipped, steps that dt capped), the count and the first few.
   subroutine final_block(inp, elapsed, ran, advice)
@@ -97,7 +97,8 @@ contains
         trim(merge(' case run ', ' cases run', n_cases == 1))
     if (elapsed > 0) line = line // ', ' // format_real(real(nint(10 * n_cases / elapsed, i8), wp) / 10) // &
         ' cases/s'
-    write (output_unit, '(a)') '  ' // line // '; ' // inp%plan%file // ': ' // trim(size_text(int(file_size(inp%plan%file), i8)))
+    write (error_unit, '(a)') 'ellroll: ' // line // '; ' // inp%plan%file // ': ' // &
+        trim(size_text(int(file_size(inp%plan%file), i8)))
     ! the recap: a line per warning, 'ellroll: warning: ' left off
     n_warnings = 0
     warnings = ''
@@ -115,8 +116,8 @@ contains
       call add(cap(19:))
     end if
     if (n_warnings == 0) return
-    write (output_unit, '(a)') '  warnings: ' // itoa(n_warnings) // warnings
-    if (n_warnings > shown) write (output_unit, '(a)') '    ... and ' // itoa(n_warnings - shown) // ' more (above)'
+    write (error_unit, '(a)') 'ellroll: warnings: ' // itoa(n_warnings) // warnings
+    if (n_warnings > shown) write (error_unit, '(a)') '    ... and ' // itoa(n_warnings - shown) // ' more (above)'
   contains
     subroutine add(text)
       character(len=*), intent(in) :: text

@@ -79,7 +79,7 @@ def test_bad_input_exits_2_and_touches_no_output(ellroll, tmp_path, edits, words
 @pytest.mark.parametrize("args,words", [
     (["run"], "needs an input file"),
     (["run", "missing.nml"], "missing.nml: input file not found"),
-    (["run", "."], "cannot read input file"),
+    (["run", "."], ".: a folder, not an input file"),
     (["run", "a.nml", "b.nml"], "more than one input file"),
     (["run", "a.nml", "--fast"], "unknown option --fast"),
     (["run", "a.nml", "-o"], "-o needs a value"),
