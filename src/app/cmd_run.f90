@@ -55,11 +55,11 @@ contains
     if (advice(1:min(1, len(advice))) == achar(10)) advice = advice(2:)
     opts%advice_seconds = wall_clock() - opts%advice_seconds
     if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') advice
+    ran = -1                                 ! (unknown under MPI: each rank runs a shard)
     if (n_ranks > 1) then
       call run_ranks(inp, opts, trim(cli%paths(1)), rank, n_ranks, err)
     else
       call check_rank_files(inp%plan%file, 1, err)
-      ran = -1
       if (.not. err%failed()) call run_campaign(inp, opts, provenance(trim(cli%paths(1)), inp%text), err, ran)
     end if
     if (err%failed() .or. rank /= 0) return

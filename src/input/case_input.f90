@@ -110,6 +110,7 @@ contains
     type(case_t), intent(out) :: cs
     integer :: gi, p
     character(len=:), allocatable :: hint
+    character(len=len(methods%name)) :: method_list(size(methods))
     do p = 1, param_count
       if (param_component(p) > 1 .or. params(p)%group == 'excitation') cycle
       if (any(p == [p_weight, p_mass, p_dt])) cycle
@@ -125,7 +126,8 @@ contains
     if (gi == 0) return
     v%method = lower(adjustl(v%method))
     if (index(' ' // method_names() // ' ', ' ' // trim(v%method) // ' ') == 0 .or. len_trim(v%method) == 0) then
-      call did_you_mean(trim(v%method), methods%name, '', hint)
+      method_list = methods%name          ! (contiguous: no array temporary)
+      call did_you_mean(trim(v%method), method_list, '', hint)
       call rd%fail_value(gi, 'method', 'unknown method' // hint // ' (known: ' // method_names() // ')')
       return
     end if
