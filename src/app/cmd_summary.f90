@@ -12,6 +12,8 @@ module ellroll_cmd_summary
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_cli, only: cli_t
+  use ellroll_errors, only: set_error, err_input
+  use ellroll_files, only: path_kind, kind_folder
   implicit none
   private
 
@@ -32,8 +34,32 @@ contains
   subroutine summary_command(cli, err)
     type(cli_t), intent(in) :: cli
     type(error_t), intent(inout) :: err
-    call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
+    call check_readable(trim(cli%paths(1)), err)
+    if (.not. err%failed()) call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
   end subroutine summary_command
+
+  !> A folder, or a file this user may not read, is bad input: said so
+  !> before HDF5 tries it.
+  subroutine check_readable(path, err)
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    integer :: unit, ios
+    character(len=256) :: msg
+    logical :: exists
+    if (path_kind(path) == kind_folder) then
+      call set_error(err, err_input, path // ': a folder, not an output file (give the .h5 file in it)')
+      return
+    end if
+    inquire (file=path, exist=exists)
+    if (.not. exists) return                  ! print_summary says 'no such file'
+    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', status='old', &
+          iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(err, err_input, path // ': cannot read it (' // trim(msg) // '); check its permissions')
+      return
+    end if
+    close (unit)
+  end subroutine check_readable
 
   !> The summary of a file: the table (format 'table'), or one row per case
   !> ('csv', or strict 'json' with NaN as null and units in a header): the

@@ -14,6 +14,7 @@
 !> (ellroll_resume).
 module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_interrupted
   use ellroll_strings, only: itoa
@@ -72,11 +73,12 @@ module ellroll_run_campaign
 
 contains
 
-  subroutine run_campaign(inp, opts, prov_in, err)
+  subroutine run_campaign(inp, opts, prov_in, err, ran)
     type(run_input_t), intent(in) :: inp
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
+    integer(i8), intent(out), optional :: ran      !< the cases this call integrated
     character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
     logical :: resume, nothing_to_do
@@ -92,6 +94,7 @@ contains
     run%timings%checked = wall_clock()
     call refuse_invalid_cases(inp, invalid, messages, err)
     if (err%failed()) return
+    if (present(ran)) ran = 0
     call files%acquire('ellroll run ' // inp%path // trim(merge(' --resume', '         ', opts%resume)), err)
     if (err%failed()) return
     call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
@@ -101,12 +104,17 @@ contains
       call open_outputs(inp, opts%shard, prov_in, files, resume, run%out, run%journal, run%done, err)
       if (.not. err%failed()) then
         run%n_slots = size(run%done, kind=i8)
+        if (resume .and. .not. opts%quiet) write (error_unit, '(a)') 'ellroll: resuming ' // files%target // &
+            ': kept ' // itoa(count(run%done, kind=i8)) // ' of ' // itoa(run%n_slots) // &
+            ' cases from the journal; running ' // itoa(run%n_slots - count(run%done, kind=i8))
         call record_invalid(inp, invalid, run, err)
       end if
       if (err%failed()) then
         call abandon(run, files, err)
       else
+        if (present(ran)) ran = -count(run%done, kind=i8)
         call run_blocks(inp, opts, run)
+        if (present(ran)) ran = ran + run%progress%done
         call finish(run, files, opts, err)
       end if
     end if

@@ -558,7 +558,10 @@ def test_progress_lines_in_a_log_and_quiet(ellroll, tmp_path):
     result = run(ellroll, "run", name, cwd=tmp_path)
     assert result.returncode == 0
     lines = result.stderr.strip().splitlines()
-    assert lines[-1].startswith("ellroll: 20/20 cases (100%)") and "cases/s" in lines[-1]
+    progress = [line for line in lines if line.startswith("ellroll: ") and " cases (" in line]
+    assert progress[-1].startswith("ellroll: 20/20 cases (100%)") and "cases/s" in progress[-1]
+    assert "ETA" not in progress[-1] and "done in" in progress[-1]
+    assert lines[-1].startswith("ellroll: done in ") and "20 cases run" in lines[-1]
     assert "\r" not in result.stderr
     assert re.search(r"^  completed +20$", result.stdout, re.M)
     result = run(ellroll, "run", name, "-q", "--overwrite", cwd=tmp_path)
