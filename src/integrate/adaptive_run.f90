@@ -11,8 +11,8 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration, max_steps
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal, rolling_stops, rolling_part, come_to_rest, set_rolling_mode
-  use ellroll_events, only: root_search_t
+      ball_derivative, normalize_normal
+  use ellroll_events, only: event_search_t, max_event_trials
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: embedded_pair_t, new_pair, max_equations, tolerance_ratio_cap
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
@@ -22,7 +22,7 @@ module ellroll_adaptive_run
   implicit none
   private
 
-  public :: nutation_peak_t, adaptive_loop, last_step_clipped, start_rest_search
+  public :: nutation_peak_t, adaptive_loop, last_step_clipped
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
   public :: follow_flow_to_limit, reference_rtol, reference_atol, reference_method, beyond_rim, slip_inside, &
             round_off_step, cannot_follow, judged_norm
@@ -69,11 +69,6 @@ module ellroll_adaptive_run
   real(wp), parameter :: smallest_step_ulps = 16
   integer, parameter :: max_round_off_attempts = 100000
 
-  !> Where the rolling stops inside a step (rolling resistance) is located
-  !> to this part of the step, in at most max_rest_trials trial steps.
-  real(wp), parameter :: rest_tolerance = 1.0e-12_wp
-  integer, parameter, public :: max_rest_trials = 60
-
   type, public :: step_control_t
     integer :: order = 8                    !< the pair's control_order
     logical :: after_rejection = .false.
@@ -102,7 +97,7 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    real(wp), intent(inout) :: y(:), f(:)
+    real(wp), intent(inout) :: y(state_size), f(state_size)
     type(case_result_t), intent(inout) :: res
     real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max
     type(observation_t) :: obs
@@ -129,7 +124,7 @@ contains
         res%t_final = t
         return
       end if
-      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
+      call run%ball%begin_step(y)
       call attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) then
         res%n_rejected = res%n_rejected + 1
@@ -173,28 +168,29 @@ contains
   !> One attempt of size h from (t, y, f), its RHS calls counted in
   !> res. Rejected (pair%error_norm > 1, a non-finite norm made huge): h is
   !> shrunk by the step control. Accepted: the new state projected, f and the derived
-  !> outputs there, and the model's limit status. An attempt in which the
-  !> rolling stops (rolling resistance) is cut there first (shorten_to_rest)
-  !> and, accepted, ends with the ball at rest: an event, not a discontinuity
-  !> inside a step for the step control to shrink around.
+  !> outputs there, and the model's limit status. An attempt in which an
+  !> event of the model happens (event_crossed) is cut there first
+  !> (shorten_to_event) and, accepted, ends where the model acted
+  !> (apply_event): an event, not a discontinuity inside a step for the
+  !> step control to shrink around.
   subroutine attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
     class(embedded_pair_t), intent(inout) :: pair
     type(step_control_t), intent(inout) :: control
-    type(run_state_t), intent(in) :: run
+    type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size)
     real(wp), intent(inout) :: h
     real(wp), intent(out) :: y_new(state_size), f_new(state_size)
     type(observation_t), intent(out) :: obs
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
-    logical :: resting
+    integer :: event
     status = status_completed
     call pair_ball_step(pair, run%ball, t, y, f, h, y_new)
     res%n_rhs = res%n_rhs + pair%attempt_calls()
-    resting = .false.
+    event = 0
     if (ieee_is_finite(pair%error_norm)) then
-      resting = rolling_stops(run%ball, y, y_new)
-      if (resting) call shorten_to_rest(pair, run, t, y, f, h, y_new, res)
+      event = run%ball%event_crossed(y, y_new)
+      if (event /= 0) call shorten_to_event(pair, run, event, t, y, f, h, y_new, res)
     end if
     pair%error_norm = judged_norm(pair%error_norm, h, is_zero(pair%atol))
     if (pair%error_norm > 1) then
@@ -202,8 +198,8 @@ contains
       return
     end if
     call project_with_rate(y_new, pair%k(:state_size, pair%end_stage()), f_new)
-    if (resting) then
-      call come_to_rest(y_new)
+    if (event /= 0) then
+      call run%ball%apply_event(event, y_new)
       call ball_derivative(run%ball, t + h, y_new, f_new)
       res%n_rhs = res%n_rhs + 1
     end if
@@ -211,44 +207,33 @@ contains
     status = limit_status(run%ball, y_new, obs)
   end subroutine attempt_step
 
-  !> The attempt of size h from (t, y, f), which ended at y_new with the
-  !> rolling stopped inside (rolling_stops), cut to end where the rolling
-  !> part of omega turns against its direction at t (root_search_t on trial
-  !> attempts); pair holds the attempt of the shortened h.
-  subroutine shorten_to_rest(pair, run, t, y, f, h, y_new, res)
+  !> The attempt of size h from (t, y, f), which ended at y_new past an
+  !> event of the model (event_crossed), cut to end where the event's
+  !> function changes sign (event_search_t on trial attempts); pair holds
+  !> the attempt of the shortened h.
+  subroutine shorten_to_event(pair, run, event, t, y, f, h, y_new, res)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
+    integer, intent(in) :: event
     real(wp), intent(in) :: t, y(state_size), f(state_size)
     real(wp), intent(inout) :: h
     real(wp), intent(inout) :: y_new(state_size)
     type(case_result_t), intent(inout) :: res
-    type(root_search_t) :: search
-    real(wp) :: direction(3), offset
+    type(event_search_t) :: search
+    real(wp) :: offset
     integer :: k
-    call start_rest_search(search, y, y_new, h, direction)
-    do k = 1, max_rest_trials
+    call search%begin(run%ball, event, y_new, h)
+    do k = 1, max_event_trials
       if (search%done()) exit
       offset = search%trial()
       call pair_ball_step(pair, run%ball, t, y, f, offset, y_new)
       res%n_rhs = res%n_rhs + pair%attempt_calls()
-      call search%report(offset, dot_product(rolling_part(y_new), direction))
+      call search%report_state(run%ball, offset, y_new, .true.)
     end do
     h = search%high
     call pair_ball_step(pair, run%ball, t, y, f, h, y_new)
     res%n_rhs = res%n_rhs + pair%attempt_calls()
-  end subroutine shorten_to_rest
-
-  !> The search for where the rolling stops in a step of size h from y to
-  !> y_end: its event function is the rolling part of omega along its
-  !> direction at y (returned), positive at 0 and not at h.
-  pure subroutine start_rest_search(search, y, y_end, h, direction)
-    type(root_search_t), intent(out) :: search
-    real(wp), intent(in) :: y(state_size), y_end(state_size), h
-    real(wp), intent(out) :: direction(3)
-    direction = rolling_part(y)
-    call search%start(dot_product(direction, direction), h, dot_product(rolling_part(y_end), direction), &
-                      rest_tolerance * h)
-  end subroutine start_rest_search
+  end subroutine shorten_to_event
 
   !> The error norm of an attempt of size h as the step control takes it:
   !> huge where it is not finite, or, under pure relative control, where
@@ -667,7 +652,7 @@ contains
       end if
       h = last_step_clipped(t_at, h, t_until, control%after_rejection)
       if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
-      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y_at)
+      call run%ball%begin_step(y_at)
       call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) cycle
       if (status /= status_completed) then

@@ -21,7 +21,7 @@ module ellroll_batch_run
   use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
       nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside, &
       round_off_step, cannot_follow, judged_norm
-  use ellroll_params, only: p_atol, p_dt, p_rolling_resistance, p_rtol
+  use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none
   private
 
