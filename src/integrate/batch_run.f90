@@ -18,9 +18,9 @@ module ellroll_batch_run
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
-  use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside, &
-      round_off_step, cannot_follow, judged_norm
+  use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
+      stop_in_step, record_samples_until, beyond_rim, slip_inside
+  use ellroll_step_control, only: step_control_t, last_step_clipped, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none
   private

@@ -16,7 +16,7 @@ module ellroll_fixed_step_run
   use ellroll_integrators, only: integrator_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
-  use ellroll_adaptive_run, only: follow_flow_to_limit
+  use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
   private
