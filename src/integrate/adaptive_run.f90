@@ -73,7 +73,7 @@ contains
         res%t_final = t
         return
       end if
-      call run%ball%begin_step(y)
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
       call attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) then
         res%n_rejected = res%n_rejected + 1
@@ -137,7 +137,7 @@ contains
     call pair_ball_step(pair, run%ball, t, y, f, h, y_new)
     res%n_rhs = res%n_rhs + pair%attempt_calls()
     event = 0
-    if (ieee_is_finite(pair%error_norm)) then
+    if (ieee_is_finite(pair%error_norm) .and. run%ball%nonsmooth()) then
       event = run%ball%event_crossed(y, y_new)
       if (event /= 0) call shorten_to_event(pair, run, event, t, y, f, h, y_new, res)
     end if

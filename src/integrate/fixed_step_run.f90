@@ -58,10 +58,10 @@ contains
         res%status = status_pending
         return
       end if
-      call run%ball%begin_step(y)
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
       call fixed_step(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
       event = 0
-      if (status == status_completed) event = run%ball%event_crossed(y, y_new)
+      if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
       if (event /= 0) call step_through_event(integrator, run, event, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, &
                                               res%n_rhs)
       if (status /= status_completed) then

@@ -86,7 +86,7 @@ contains
       end if
       h = last_step_clipped(t_at, h, t_until, control%after_rejection)
       if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
-      call run%ball%begin_step(y_at)
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y_at)
       call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) cycle
       if (status /= status_completed) then

@@ -8,7 +8,7 @@
 !> lane or which batch it runs in.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance, nonsmooth
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
   use ellroll_excitation, only: excitation_none
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
@@ -47,7 +47,7 @@ contains
   !> and the smooth model (no non-smooth laws: no events, no mode per step).
   pure logical function runs_in_lanes(ball)
     type(rolling_ball_t), intent(in) :: ball
-    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. nonsmooth(ball)
+    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. ball%nonsmooth()
   end function runs_in_lanes
 
   !> Put a ball (on a fixed cup) into lane l.

@@ -23,7 +23,7 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal, nonsmooth, smooth_part
+            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -55,6 +55,7 @@ module ellroll_rolling_ball
     procedure :: rhs => ball_rhs
     procedure :: stage_status => ball_stage_status
     procedure :: reaction_limited
+    procedure :: nonsmooth => ball_nonsmooth
     procedure :: begin_step => ball_begin_step
     procedure :: event_crossed => ball_event_crossed
     procedure :: event_start_value => ball_event_start_value
@@ -222,10 +223,10 @@ contains
 
   !> Whether the model has non-smooth laws (rolling resistance): a mode
   !> per step and events (hybrid_system_t).
-  pure logical function nonsmooth(ball)
-    type(rolling_ball_t), intent(in) :: ball
-    nonsmooth = ball%rolling_resistance > 0
-  end function nonsmooth
+  pure logical function ball_nonsmooth(self) result(nonsmooth)
+    class(rolling_ball_t), intent(in) :: self
+    nonsmooth = self%rolling_resistance > 0
+  end function ball_nonsmooth
 
   !> The model without its non-smooth laws: their forces turn with the
   !> motion and have no derivative where it stops; they take energy, they

@@ -26,7 +26,7 @@ module ellroll_ode
 
   !> A model with non-smooth laws (rolling resistance; a sliding regime with
   !> Coulomb friction would be another), declared to the run loops, which
-  !> know nothing of what they mean:
+  !> know nothing of what they mean, where they act (nonsmooth):
   !>  - a mode held over each step (begin_step, from the state at its
   !>    start: the direction a friction-like force opposes, the regime), so
   !>    that the flow inside a step stays smooth up to an event;
@@ -43,6 +43,7 @@ module ellroll_ode
   !> Where a case ends is a limit's (stage_status, the model's limit status).
   type, abstract, extends(limited_system_t) :: hybrid_system_t
   contains
+    procedure(nonsmooth_interface), deferred :: nonsmooth
     procedure(begin_step_interface), deferred :: begin_step
     procedure(event_crossed_interface), deferred :: event_crossed
     procedure(event_start_value_interface), deferred :: event_start_value
@@ -65,6 +66,13 @@ module ellroll_ode
       class(limited_system_t), intent(in) :: self
       real(wp), intent(in) :: t, y(:), dydt(:)
     end function stage_status_interface
+
+    !> Whether the model's non-smooth laws act (a case without them steps
+    !> as a smooth system: no mode, no events).
+    pure logical function nonsmooth_interface(self)
+      import :: hybrid_system_t
+      class(hybrid_system_t), intent(in) :: self
+    end function nonsmooth_interface
 
     !> The mode for a step from the state y.
     pure subroutine begin_step_interface(self, y)
