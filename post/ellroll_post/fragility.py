@@ -24,9 +24,22 @@ class FragilityFit:
     """A fitted lognormal fragility: median theta (the IM's unit), dispersion
     beta, and their 5-95 % intervals from the bootstrap (NaN where none)."""
 
-    def __init__(self, theta, beta, theta_interval=(math.nan, math.nan), beta_interval=(math.nan, math.nan)):
+    def __init__(self, theta, beta, theta_interval=(math.nan, math.nan), beta_interval=(math.nan, math.nan),
+                 samples=None):
         self.theta, self.beta = float(theta), float(beta)
         self.theta_interval, self.beta_interval = tuple(theta_interval), tuple(beta_interval)
+        # the bootstrap's (theta, beta) pairs, for a band about the curve
+        self.samples = np.empty((0, 2)) if samples is None else np.asarray(samples, dtype=float)
+
+    def band(self, x, low=5, high=95):
+        """The low-high percentile band of P(exceed | IM = x) over the
+        bootstrap's fits (NaN without a bootstrap)."""
+        x = np.asarray(x, dtype=float)
+        if not len(self.samples):
+            return np.full(x.shape, np.nan), np.full(x.shape, np.nan)
+        with np.errstate(divide="ignore"):
+            p = stats.norm.cdf(np.log(x[None, :] / self.samples[:, :1]) / self.samples[:, 1:])
+        return np.percentile(p, low, axis=0), np.percentile(p, high, axis=0)
 
     def probability(self, x):
         """P(exceed | IM = x)."""
@@ -127,4 +140,4 @@ def _with_intervals(fit, samples):
         return fit
     samples = np.array(samples)
     return FragilityFit(fit.theta, fit.beta, tuple(np.percentile(samples[:, 0], [5, 95])),
-                        tuple(np.percentile(samples[:, 1], [5, 95])))
+                        tuple(np.percentile(samples[:, 1], [5, 95])), samples)
