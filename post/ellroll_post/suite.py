@@ -348,10 +348,10 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
     scale. Returns (DataFrame, per-row details): the table has the design
     inputs, limit_state, im, units, theta and its interval, beta and its
     interval, n_points, n_known, n_exceeded and a note where no fit exists
-    (every case exceeds, none does, or no two intensities separate them);
+    (every case exceeds, none does) or says the outcomes separate;
     the details hold the points (x, n, z), the fit (or None) and the
     per-case masks for drawing."""
-    from .fragility import fit_stripes
+    from .fragility import fit_stripes, separating_step
     im_name, x, units = intensity(run, im)
     names = [n for n in stripe_inputs(run) if n != "scale"]
     keys = np.stack([run.input_column(n).astype(float) for n in names], axis=1) if names else \
@@ -381,22 +381,14 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
                 row.update(theta=fit.theta, beta=fit.beta, theta_low=fit.theta_interval[0],
                            theta_high=fit.theta_interval[1], beta_low=fit.beta_interval[0],
                            beta_high=fit.beta_interval[1])
-                if _separated(levels, n, z):
-                    row["note"] = "the outcomes separate completely in the intensity: beta not identified"
+                if separating_step(levels, n, z):
+                    row["note"] = "the outcomes separate in the intensity: no finite maximum, beta -> 0"
             rows.append(row)
             details.append(dict(row=row, x=levels, n=n, z=z, fit=fit, cases=cases,
                                 exceeded=None if flags is None else flags))
     table = pd.DataFrame(rows)
     table.attrs.update(im=im_name, units=units, design_inputs=names, bootstrap=bootstrap)
     return table, details
-
-
-def _separated(x, n, z):
-    """Whether every level below some intensity has no exceedance and every
-    level above it only exceedances (the likelihood then grows as beta -> 0)."""
-    if np.any((z > 0) & (z < n)):
-        return False
-    return x[z == 0].max(initial=-np.inf) < x[z == n].min(initial=np.inf)
 
 
 def format_fragility(table, fmt="table", path=""):
