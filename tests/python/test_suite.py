@@ -4,13 +4,12 @@ cases chosen by hand (cases at a model limit, with absurd peaks, never mixed
 in; two design values kept apart), the figure's artists (legend labels, log
 axes, counts, limit marks), a lognormal fragility drawn at random (seeded)
 and fitted back within its bootstrap interval, and the commands on a real
-small suite (the shipped input/isolator_suite.nml at higher scales, where
-some records lift the ball off)."""
+small suite (input/isolator_fragility.nml: input/isolator_suite.nml at
+higher scales, where some records lift the ball off)."""
 import csv
 import io
 import json
 import math
-import pathlib
 import shutil
 import subprocess
 import sys
@@ -39,16 +38,18 @@ def plot_cli(*args):
 
 @pytest.fixture(scope="module")
 def small_suite(ellroll, tmp_path_factory):
-    """input/isolator_suite.nml (3 records x 2 rolling resistances) at five
-    scales, 12 s: the lower scales complete, the higher lift the ball off."""
+    """input/isolator_fragility.nml: input/isolator_suite.nml's cup and 3
+    records x 2 rolling resistances at five scales, 12 s: the lower scales
+    complete, the higher lift the ball off."""
     folder = tmp_path_factory.mktemp("small_suite")
     shutil.copytree(ROOT / "input" / "records", folder / "records")
-    text = (ROOT / "input" / "isolator_suite.nml").read_text()
-    for old, new in (("values = 1.0, 2.0 /", f"values = {', '.join(map(str, SCALES))} /"),
-                     ("t_end = 30.0", "t_end = 12.0"), ("isolator_suite.h5", "small.h5")):
-        assert old in text
-        text = text.replace(old, new)
-    (folder / "small.nml").write_text(text)
+    text = (ROOT / "input" / "isolator_fragility.nml").read_text()
+    suite_text = (ROOT / "input" / "isolator_suite.nml").read_text()
+    for group in ("&geometry", "&ball", "&record      name = 'SYN3'"):
+        assert [l for l in text.splitlines() if l.startswith(group)] == \
+            [l for l in suite_text.splitlines() if l.startswith(group)]
+    assert f"values = {', '.join(map(str, SCALES))} /" in text
+    (folder / "small.nml").write_text(text.replace("isolator_fragility.h5", "small.h5"))
     start = time.perf_counter()
     result = run(ellroll, "run", "small.nml", "-q", "--threads", "2", cwd=folder)
     seconds = time.perf_counter() - start
@@ -279,6 +280,11 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
         assert float(row["theta_low"]) < float(row["theta"]) < float(row["theta_high"])
         assert SCALES[0] < float(row["theta"]) < SCALES[-1]
         assert int(row["n_known"]) == cases.sum() and int(row["n_exceeded"]) == np.sum(cases & exceeded)
+    # docs/isolator.md's figures (200 resamples, seed 0)
+    with ellroll_post.open(small_suite) as f:
+        documented = suite.suite_fragility(f, bootstrap=200)[0].iloc[0]
+    assert [round(documented[k], 1) for k in ("theta", "theta_low", "theta_high")] == [74.3, 70.0, 81.0]
+    assert [round(documented[k], 2) for k in ("beta", "beta_low", "beta_high")] == [0.11, 0.0, 0.21]
     result = plot_cli("fragility", small_suite, "-o", tmp_path / "f.png", "--bootstrap", "50")
     assert result.returncode == 0 and (tmp_path / "f.png").stat().st_size > 5000, result.stderr
     fig, ax = plt.subplots()
@@ -317,8 +323,7 @@ def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_
         sa = np.array([{"SYN1": 0.1, "SYN2": 0.2, "SYN3": 0.3}[r] for r in records]) * factor * scale
         assert name == "sa_1.0" and np.allclose(values, sa, rtol=1e-15)
         assert suite.intensity(f, "Sa(T)")[0] == "sa_1.0"
-        table, details = suite.suite_fragility(f, "PGA")
-        levels, counts, hits = suite.fragility_points(pga, f.status_names())
+        table, _ = suite.suite_fragility(f, "PGA")
         assert table.iloc[0]["n_points"] == np.unique(pga[f.input_column("rolling_resistance") == 1e-5]).size
     result = plot_cli("fragility", path, "--im", "PGA", "--out", tmp_path, "--bootstrap", "20")
     assert result.returncode == 0, result.stderr
