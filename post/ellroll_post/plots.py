@@ -559,8 +559,10 @@ def plot_suite(axes, run, quantities=SUITE_QUANTITIES):
                             label=(f"{label}: " if label else "") + "16-84 %")
             _stripe_counts(ax, x, part, g, len(groups), colour)
         ax.plot([], [], "o", ms=3, color="0.5", alpha=0.5, mew=0, label="each completed record")
-        ax.plot([], [], "x", color=LIMIT_COLOUR, mew=1.5, ls="none",
-                label="ended at a model limit (n of the stripe's cases); peak left out")
+        limits = bool(table["n_limit"].any())
+        if limits:
+            ax.plot([], [], "x", color=LIMIT_COLOUR, mew=1.5, ls="none",
+                    label="ended at a model limit (n of the stripe's cases); peak left out")
         _note(ax, "n/N at the foot: completed records / cases")
         if not table[f"{quantity}_n"].any():
             _note(ax, "no completed record: no median")
@@ -576,7 +578,7 @@ def plot_suite(axes, run, quantities=SUITE_QUANTITIES):
         elif finite.size == 0:
             ax.set_ylim(0, 1)
         # room at the foot for the counts and at the top for the limit marks, one row a group
-        _make_room(ax, 0.05 * len(groups) + 0.01, 0.06 * len(groups) + 0.02)
+        _make_room(ax, 0.05 * len(groups) + 0.01, (0.06 * len(groups) + 0.02) if limits else 0.02)
         units = run.units(f"summary/{quantity}")
         ax.set_ylabel(quantity if units in ("", "1") else f"{quantity}, {tex_units(units)}")
         ax.grid(alpha=0.3, which="both" if ax.get_yscale() == "log" else "major")
