@@ -198,7 +198,7 @@ contains
     integer, allocatable :: where(:)          !< the dataset of each entry of a row
     character(len=:), allocatable :: coordinate_names, meanings
     integer(i8) :: i, n_cases, n_samples
-    integer :: k, f, d, n_case_entries, ncomp
+    integer :: k, f, d, n_case_entries
     n_cases = inp%campaign%n_cases()
     n_samples = inp%plan%n_samples
     out%n_samples = n_samples
@@ -219,20 +219,7 @@ contains
     end do
     coordinate_names = adjustl(coordinate_names)
 
-    ! the root: the shared dimension scales
-    d = add(out, '', time_entry, kind_real, ['time'], [n_samples])
-    out%datasets(d)%reals = [(real(i, wp) * inp%plan%interval, i = 0, n_samples - 1)]    ! (as open_outputs)
-    d = add(out, '', xyz_entry, kind_text, ['xyz'], [3_i8])
-    out%datasets(d)%texts = [character(len=text_width) :: 'x', 'y', 'z']
-    d = add(out, '', mode_entry, kind_int, ['mode'], [2_i8])
-    out%datasets(d)%ints = [1_i8, 2_i8]
-    out%attributes = 'Conventions' // tab // 'str' // tab // 'CF-1.10' // newline // &
-                     'title' // tab // 'str' // tab // file_title // newline // &
-                     'references' // tab // 'str' // tab // file_references // newline // &
-                     'campaign_id' // tab // 'str' // tab // campaign_id(inp) // newline // &
-                     'n_cases_total' // tab // 'i4' // tab // itoa(n_cases) // newline
-    ! the input, as the file keeps it, in a line of its own: it holds newlines
-    out%attributes = out%attributes // 'input_namelist' // tab // 'str' // tab // escaped(inp%text) // newline
+    call lay_out_root(inp, out, n_cases, n_samples)
 
     ! a row: the case's inputs (/case), its summary and its status (/summary)
     allocate (row, source=table_row(inp%campaign%base, case_result_t()))
@@ -275,32 +262,7 @@ contains
       call name_coordinates(out%datasets(where(k)))
     end do
 
-    ! the rows of every case, into the columns
-    do k = 1, size(row)
-      associate (ds => out%datasets(where(k)))
-        select case (ds%kind)
-        case (kind_real); allocate (ds%reals(row(k)%ncomp * n_cases))
-        case (kind_int); allocate (ds%ints(n_cases))
-        case (kind_text); allocate (ds%texts(n_cases))
-        end select
-      end associate
-    end do
-    do i = 0, n_cases - 1
-      row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
-      do k = 1, size(row)
-        associate (ds => out%datasets(where(k)))
-          select case (ds%kind)
-          case (kind_real)
-            ncomp = row(k)%ncomp
-            ds%reals(i * ncomp + 1:(i + 1) * ncomp) = row(k)%reals(:ncomp)
-          case (kind_int)
-            ds%ints(i + 1) = row(k)%int
-          case (kind_text)
-            ds%texts(i + 1) = row(k)%text
-          end select
-        end associate
-      end do
-    end do
+    call fill_columns(inp, out, row, where)
     call write_catalog(out)
   contains
     integer function add_entry(group, entry) result(d)
@@ -344,6 +306,65 @@ contains
       if (len(coordinate_names) > 0) call add_attribute(ds, 'coordinates', coordinate_names)
     end subroutine name_coordinates
   end subroutine lay_out
+
+  !> The root's shared dimension scales and its attributes (as the file's).
+  subroutine lay_out_root(inp, out, n_cases, n_samples)
+    type(run_input_t), intent(in) :: inp
+    type(memory_output_t), intent(inout) :: out
+    integer(i8), intent(in) :: n_cases, n_samples
+    integer(i8) :: i
+    integer :: d
+    d = add(out, '', time_entry, kind_real, ['time'], [n_samples])
+    out%datasets(d)%reals = [(real(i, wp) * inp%plan%interval, i = 0, n_samples - 1)]    ! (as open_outputs)
+    d = add(out, '', xyz_entry, kind_text, ['xyz'], [3_i8])
+    out%datasets(d)%texts = [character(len=text_width) :: 'x', 'y', 'z']
+    d = add(out, '', mode_entry, kind_int, ['mode'], [2_i8])
+    out%datasets(d)%ints = [1_i8, 2_i8]
+    out%attributes = 'Conventions' // tab // 'str' // tab // 'CF-1.10' // newline // &
+                     'title' // tab // 'str' // tab // file_title // newline // &
+                     'references' // tab // 'str' // tab // file_references // newline // &
+                     'campaign_id' // tab // 'str' // tab // campaign_id(inp) // newline // &
+                     'n_cases_total' // tab // 'i4' // tab // itoa(n_cases) // newline
+    ! the input, as the file keeps it, in a line of its own: it holds newlines
+    out%attributes = out%attributes // 'input_namelist' // tab // 'str' // tab // escaped(inp%text) // newline
+  end subroutine lay_out_root
+
+  !> Every case's row (its inputs, status and figures) into the columns of
+  !> the datasets `where` names, entry by entry.
+  subroutine fill_columns(inp, out, row, where)
+    type(run_input_t), intent(in) :: inp
+    type(memory_output_t), intent(inout) :: out
+    type(named_value_t), intent(inout) :: row(:)
+    integer, intent(in) :: where(:)
+    integer(i8) :: i, n_cases
+    integer :: k, ncomp
+    n_cases = inp%campaign%n_cases()
+    do k = 1, size(row)
+      associate (ds => out%datasets(where(k)))
+        select case (ds%kind)
+        case (kind_real); allocate (ds%reals(row(k)%ncomp * n_cases))
+        case (kind_int); allocate (ds%ints(n_cases))
+        case (kind_text); allocate (ds%texts(n_cases))
+        end select
+      end associate
+    end do
+    do i = 0, n_cases - 1
+      row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
+      do k = 1, size(row)
+        associate (ds => out%datasets(where(k)))
+          select case (ds%kind)
+          case (kind_real)
+            ncomp = row(k)%ncomp
+            ds%reals(i * ncomp + 1:(i + 1) * ncomp) = row(k)%reals(:ncomp)
+          case (kind_int)
+            ds%ints(i + 1) = row(k)%int
+          case (kind_text)
+            ds%texts(i + 1) = row(k)%text
+          end select
+        end associate
+      end do
+    end do
+  end subroutine fill_columns
 
   pure integer function digit_count(value)
     integer(i8), intent(in) :: value          !< >= 0
