@@ -6,7 +6,7 @@ if(NOT rc EQUAL 0)
   message(FATAL_ERROR "cmake --install failed (${rc})")
 endif()
 foreach(path bin/ellroll share/ellroll/input/legeza1990.nml share/ellroll/examples/paper_case.sh
-        share/doc/ellroll/README.md share/doc/ellroll/LICENSE share/doc/ellroll/model.md
+        share/doc/ellroll/README.md share/doc/ellroll/LICENSE share/doc/ellroll/docs/model.md share/doc/ellroll/post/README.md
         share/bash-completion/completions/ellroll)
   if(NOT EXISTS ${PREFIX}/${path})
     message(FATAL_ERROR "not installed: ${path}")

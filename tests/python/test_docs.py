@@ -186,6 +186,13 @@ def test_the_installed_paper_case_example_runs(tmp_path):
     for name in ("legeza1990.h5", "legeza1990_fig2_trace.png", "legeza1990_fig3_nutation.png", "report/index.html"):
         assert (work / "results" / name).stat().st_size > 0, name
     assert "theta_max: 0.2340974889" in done.stdout
+    # the installed README and pages link to each other where they are installed
+    docs = prefix / "share" / "doc" / "ellroll"
+    pages = sorted(docs.rglob("*.md"))
+    assert docs / "README.md" in pages and docs / "docs" / "usage.md" in pages and docs / "post" / "README.md" in pages
+    broken = [(str(page.relative_to(docs)), target) for page in pages for target in links(page.read_text())
+              if not (page.parent / target).exists()]
+    assert broken == []
 
 
 def test_slurm_submit_finds_the_checkouts_ellroll(tmp_path):
