@@ -24,11 +24,13 @@ import ctypes
 import os
 import pathlib
 import shutil
+import re
+import tempfile
 import threading
 
 import numpy as np
 
-__all__ = ["run", "run_arrays", "namelist", "Error", "InputError", "library_path"]
+__all__ = ["run", "run_arrays", "namelist", "Record", "Error", "InputError", "library_path"]
 
 # the error classes of `ellroll run`'s exit codes
 _INTERNAL, _INPUT = 1, 2
@@ -50,6 +52,33 @@ class InputError(Error, ValueError):
 
 _lock = threading.Lock()
 _library = None
+
+
+class Record:
+    """A ground-acceleration record given as arrays, for `record_file` in a dict input.
+
+    time: increasing sample times (s), the first at 0 or before;
+    acceleration: one row per time, a column per axis (x, y[, z]), m/s^2.
+    run() writes it as a CSV file in a private folder for the run (each
+    number as the shortest text that reads back as the same double, so the
+    run equals one of the same CSV given by name) and removes it after.
+    """
+
+    def __init__(self, time, acceleration, name="record"):
+        self.time = np.asarray(time, dtype=np.float64)
+        self.acceleration = np.asarray(acceleration, dtype=np.float64)
+        if self.time.ndim != 1 or self.acceleration.ndim != 2 or \
+                self.acceleration.shape[0] != self.time.shape[0] or self.acceleration.shape[1] not in (2, 3):
+            raise InputError(f"Record {name!r}: give time as n values and acceleration as n rows of 2 or 3 "
+                             f"(x, y[, z]), not shapes {self.time.shape} and {self.acceleration.shape}", _INPUT)
+        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", name):
+            raise InputError(f"Record name {name!r}: letters, digits, '_', '.', '-' (1 to 64)", _INPUT)
+        self.name = name
+
+    def csv_text(self):
+        """The record as a CSV file's text: `time, ax, ay[, az]`, m/s^2."""
+        columns = np.column_stack([self.time, self.acceleration])
+        return "".join(", ".join(repr(float(v)) for v in row) + "\n" for row in columns)
 
 
 def library_path():
@@ -123,6 +152,9 @@ def _literal(value, where):
         return repr(float(value))
     if isinstance(value, str):
         return "'" + value.replace("'", "''") + "'"
+    if isinstance(value, Record):
+        raise InputError(f"{where}: a Record is written for run() and run_arrays(); give namelist() a file name",
+                         _INPUT)
     if isinstance(value, (list, tuple, np.ndarray)):
         items = np.asarray(value, dtype=object).ravel() if isinstance(value, np.ndarray) else value
         if len(items) == 0:
@@ -235,7 +267,8 @@ def run_arrays(inputs, threads=None, *, path=None):
 def run(inputs, threads=None, *, path=None):
     """Run an input in memory; its results as the output file lays them out.
 
-    inputs: the namelist text of an input, or a dict of its groups (namelist()).
+    inputs: the namelist text of an input, or a dict of its groups (namelist());
+        in a dict, a record_file may be a Record (arrays).
     threads: threads to run the cases on (None: OMP_NUM_THREADS or all cores),
         as `ellroll run --threads`; the results are the same for any count.
     path: the input's name in messages, and the folder its record files are
@@ -256,7 +289,35 @@ def run(inputs, threads=None, *, path=None):
 
 def _run_groups(inputs, threads, path):
     """The library's run of an input: its datasets by group, and the root's attributes."""
-    text = inputs if isinstance(inputs, str) else namelist(inputs)
+    if isinstance(inputs, str):
+        return _run_text(inputs, threads, path)
+    with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
+        return _run_text(namelist(_with_record_files(inputs, pathlib.Path(folder))), threads, path)
+
+
+def _with_record_files(groups, folder):
+    """groups with each Record value replaced by the path of its CSV file, written into folder."""
+    written = {}
+
+    def file_of(value):
+        if not isinstance(value, Record):
+            return value
+        if id(value) not in written:
+            target = folder / f"{len(written) + 1}_{value.name}.csv"
+            target.write_text(value.csv_text())
+            written[id(value)] = str(target)
+        return written[id(value)]
+
+    def members(group):
+        return {name: ([file_of(v) for v in value] if isinstance(value, (list, tuple)) else file_of(value))
+                for name, value in group.items()} if isinstance(group, dict) else group
+
+    return {name: ([members(g) for g in contents] if isinstance(contents, (list, tuple)) else members(contents))
+            for name, contents in groups.items()}
+
+
+def _run_text(text, threads, path):
+    """The library's run of a namelist text."""
     if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
         raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
     lib = _lib()

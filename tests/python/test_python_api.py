@@ -6,6 +6,7 @@ import concurrent.futures
 import os
 import pathlib
 import sys
+import tempfile
 import threading
 import time
 
@@ -267,3 +268,48 @@ def test_run_arrays_are_the_trees_values():
             assert same_bits(array, node[name].values), (group, name)
             assert attributes[group][name]["dims"] == node[name].dims, (group, name)
             assert attributes[group][name]["units"] == node[name].attrs["units"], (group, name)
+
+
+def test_a_record_given_as_arrays_runs_as_its_csv(program, tmp_path):
+    """ellroll.Record: arrays in a dict input give the results of the same
+    record read from its CSV file by `ellroll run`, bit for bit; a single
+    record and a suite of two; the private files are gone after the run."""
+    rng = np.random.default_rng(7)
+    time = np.arange(0, 4.0, 0.01)
+    accelerations = [rng.normal(0, 0.3, (time.size, 3)), rng.normal(0, 0.5, (time.size, 2))]
+    records = [ellroll.Record(time, a, name=f"r{k}") for k, a in enumerate(accelerations)]
+    for k, record in enumerate(records):
+        (tmp_path / f"r{k}.csv").write_text(record.csv_text())
+    base = {"geometry": {"a": 1.0, "b": 0.4, "c": 0.2}, "ball": {"radius": 0.2, "weight": 2620.0},
+            "initial": {"x": 0.0, "y": 0.0, "omega": [0.0, 0.0, 0.0]},
+            "integration": {"method": "rk4", "dt": 1e-3, "t_end": 5.0}, "output": {"file": "out.h5", "interval": 0.01}}
+    single = dict(base, excitation={"kind": "record", "record_file": records[0]})
+    suite = dict(base, excitation={"kind": "record"},
+                 record=[{"name": f"r{k}", "record_file": r, "factor": 1.0 + k} for k, r in enumerate(records)])
+    for inputs in (single, suite):
+        by_name = _with_names(inputs, {id(r): f"r{k}.csv" for k, r in enumerate(records)})
+        (tmp_path / "in.nml").write_text(ellroll.namelist(by_name))
+        result = run(program, "run", "in.nml", "-o", "out.h5", "-q", "--overwrite", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        before = set(pathlib.Path(tempfile.gettempdir()).glob("ellroll-records-*"))
+        tree = ellroll.run(inputs, threads=1)
+        assert set(pathlib.Path(tempfile.gettempdir()).glob("ellroll-records-*")) <= before
+        with h5py.File(tmp_path / "out.h5", "r") as f:
+            assert f["summary/status"][0] == 1 and f["summary/displacement_max"][0] > 0
+            for group in ("summary", "trajectory"):
+                for name, stored in f[group].items():
+                    if name in ("wall_time", "record") or not isinstance(stored, h5py.Dataset):
+                        continue
+                    assert same_bits(tree[group][name].values, file_values(stored)), (group, name)
+    with pytest.raises(ellroll.InputError, match="2 or 3"):
+        ellroll.Record(time, accelerations[0][:, :1])
+
+
+def _with_names(groups, names):
+    """groups with each Record replaced by its file name in names."""
+    def value(v):
+        return names[id(v)] if isinstance(v, ellroll.Record) else v
+
+    def members(group):
+        return {k: value(v) for k, v in group.items()}
+    return {g: ([members(x) for x in c] if isinstance(c, list) else members(c)) for g, c in groups.items()}
