@@ -5,9 +5,11 @@ import functools
 import pathlib
 import sys
 
+import numpy as np
+
 from .reader import NotAnEllrollFile, open as open_run
 from . import plots
-from .report import build_report
+from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, save_figure
 from .summary import format_summary
 
@@ -24,6 +26,8 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrit
                        FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
     path = pathlib.Path(out) / f"{stem}.{fmt}"
     check_target(path, overwrite)
+    if name in plots.FIELD_NEEDS:               # before a figure is made: a clear error, no empty file
+        plots.require(run, name, case)
     if name == "sweep":
         fig = plt.figure(figsize=(7.5, 3.2 * len(y_names) + 0.6), layout="constrained")
         plots.plot_sweep(fig, run, x_names, y_names)
@@ -35,8 +39,8 @@ def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrit
             fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
             plots.plot_suite(axes, run)
         else:
-            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4), "transmissibility": (8, 5),
-                    "spectrum": (8, 4.5)}[name]
+            size = {"trace": (8, 4.6), "nutation": (8, 4), "energy": (8, 4), "transmissibility": (10, 5),
+                    "spectrum": (10, 4.5)}[name]
             fig, ax = plt.subplots(figsize=size, layout="constrained")
             if name == "transmissibility":
                 plots.plot_transmissibility(ax, run)
@@ -103,6 +107,9 @@ def main(argv=None):
     p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
     p.add_argument("file")
     p.add_argument("--case", type=int, default=0, help="case for the per-case figures (default 0)")
+    p.add_argument("--cases", action="store_true",
+                   help=f"the table of every case in index.html (default: the first {REPORT_ROWS}, the rest in "
+                        "summary.csv)")
     p = sub.add_parser("summary", help="the summary table")
     p.add_argument("file")
     p.add_argument("--format", default="table", choices=["table", "csv", "json"])
@@ -122,20 +129,25 @@ def main(argv=None):
         out = pathlib.Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         if args.command == "workprecision":
-            fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
             written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
             check_target(written[0], args.overwrite)
-            plots.plot_workprecision(axes, workprecision_points(args.files))
+            points = workprecision_points(args.files)
+            fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
+            plots.plot_workprecision(axes, points)
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
                 if args.command == "report":
+                    run.check_case(args.case)
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
-                                           args.format, args.overwrite) + [out / "index.html"]
+                                           args.format, args.overwrite, all_cases=args.cases) + [out / "index.html"]
                 elif args.command == "transmissibility":
                     if "excitation_frequency" not in run.swept_inputs():
                         raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
                                                "(&sweep name = 'excitation_frequency')")
+                    if not np.any(np.isfinite(run.summary("transmissibility"))):
+                        raise NotAnEllrollFile(f"{args.file}: no transmissibility in /summary (every case NaN): the "
+                                               "cup is not shaken harmonically (&excitation kind = 'harmonic')")
                     written = [draw("transmissibility", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "suite":
                     if len(set(run.record_names()) - {""}) < 2:
@@ -156,10 +168,6 @@ def main(argv=None):
                                                    f"(known: {', '.join(run.summary_names)})")
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
-                    run.check_case(args.case)
-                    if args.command == "spectrum" and not {"reaction", "base_acceleration"} <= set(run.fields):
-                        raise NotAnEllrollFile(f"{args.file}: the spectrum needs the fields reaction and "
-                                               "base_acceleration (a moving cup)")
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
     except (NotAnEllrollFile, OutputExists, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)

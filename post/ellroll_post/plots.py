@@ -1,11 +1,88 @@
 """Figures of ellroll files, each drawn on given matplotlib Axes (or a Figure)."""
+import pathlib
+import re
+
 import numpy as np
 
 from .geometry import energy_bound, surface_residual
+from .reader import NotAnEllrollFile
+
+# figure -> trajectory fields it cannot be drawn without
+FIELD_NEEDS = {"trace": ("contact",), "nutation": ("nutation",), "reaction": ("reaction", "normal"),
+               "energy": ("energy",), "spectrum": ("reaction", "base_acceleration")}
+FIELD_NOTES = {"base_acceleration": "stored only when the cup moves: an &excitation"}
+ISOLATOR_FIELDS = ("center", "base_acceleration")
+
+
+def missing_fields(run, names):
+    return [n for n in names if n not in run.fields]
+
+
+def require(run, figure, case=None):
+    """Raise NotAnEllrollFile with one line saying what `figure` lacks in
+    this file and what to do: the trajectory fields to add to &output
+    fields, or a case that has no samples (never run)."""
+    missing = missing_fields(run, FIELD_NEEDS.get(figure, ()))
+    if missing:
+        notes = "".join(f"; {n} is {FIELD_NOTES[n]}" for n in missing if n in FIELD_NOTES)
+        stored = ", ".join(run.fields) or "none"
+        raise NotAnEllrollFile(
+            f"{run.path}: the {figure} figure needs the trajectory field{_s(missing)} {', '.join(missing)}, "
+            f"not stored in this file (it stores: {stored}){notes}; add "
+            f"{', '.join(repr(n) for n in missing)} to &output fields (or fields = 'all') and run it again")
+    if case is not None:
+        require_samples(run, case, FIELD_NEEDS.get(figure, ())[:1])
+
+
+def require_samples(run, case, fields=()):
+    """A case that was never run (invalid, pending) or has no finite sample
+    of `fields` has nothing to draw: say so, with what to do."""
+    run.check_case(case)
+    status = run.status_name(case)
+    if status == "invalid":
+        raise NotAnEllrollFile(f"{run.path}: case {case} was never run (status invalid: its inputs were rejected; "
+                               "`ellroll check` on the input says why): no samples to draw; choose another --case")
+    if status == "pending":
+        raise NotAnEllrollFile(f"{run.path}: case {case} was never run (status pending: an unfinished file; "
+                               "`ellroll run --resume` finishes it): no samples to draw")
+    for field in fields:
+        values = run.trajectory(field, case)
+        if not np.any(np.isfinite(values)):
+            raise NotAnEllrollFile(f"{run.path}: case {case} ({status}) has no finite sample of {field}")
+
+
+def has_samples(run, case, fields=()):
+    try:
+        require_samples(run, case, fields)
+    except NotAnEllrollFile:
+        return False
+    return True
+
+
+def _s(items):
+    return "s" if len(items) != 1 else ""
+
+
+def cup_moves(run, case=0):
+    """Whether the cup of a case is shaken (&excitation kind other than 'none')."""
+    try:
+        kind = run.case_input("excitation_kind", case)
+    except NotAnEllrollFile:
+        return "base_acceleration" in run.fields
+    return str(kind).strip() not in ("", "none")
+
+
+def _note(ax, text):
+    """A legend entry without a symbol: what the figure leaves out, and why."""
+    ax.plot([], [], " ", label=text)
 
 
 def _case_label(run, case):
     return f"case {case}: {run.status_name(case)}"
+
+
+def _file_label(run):
+    return pathlib.Path(run.path).name
 
 
 def energy_bound_level(run, case=0):
@@ -21,17 +98,27 @@ def energy_bound_level(run, case=0):
 
 def plot_trace(ax, run, case=0):
     """Fig. 2: the contact point's trace in the XY plane, the cup's rim, the
-    energy bound (the curve the ball does not cross), start and end."""
+    energy bound (the curve the ball does not cross; on a fixed cup, with
+    the fields energy, omega and normal stored: otherwise a note says why
+    it is left out), start and end."""
+    require(run, "trace", case)
     contact = run.trajectory("contact", case)
     valid = np.isfinite(contact[:, 0])
     x, y = contact[valid, 0], contact[valid, 1]
     a, b, c = (run.case_input(n, case) for n in "abc")
     phi = np.linspace(0, 2 * np.pi, 400)
     ax.plot(a * np.cos(phi), b * np.sin(phi), color="0.6", lw=1, label="rim of the cup (z = c)")
-    if {"energy", "omega", "normal"} <= set(run.fields):
+    bound_needs = missing_fields(run, ("energy", "omega", "normal"))
+    if cup_moves(run, case):
+        _note(ax, "no energy bound: the cup moves (its work changes the energy)")
+    elif bound_needs:
+        _note(ax, f"no energy bound: needs the field{_s(bound_needs)} {', '.join(bound_needs)}")
+    else:
         bx, by = energy_bound(a, b, c, run.case_input("radius", case), energy_bound_level(run, case))
         if np.any(np.isfinite(bx)):
             ax.plot(bx, by, color="C1", lw=1, ls="--", label="energy bound (spin about n kept)")
+        else:
+            _note(ax, "no energy bound: the energy reaches the rim")
     ax.plot(x, y, lw=0.7, color="C0", label="contact point")
     ax.plot(x[:1], y[:1], "o", color="C2", label="start")
     ax.plot(x[-1:], y[-1:], "s", color="C3", label=f"end S, t = {run.time[valid][-1]:g} s")
@@ -46,6 +133,7 @@ def plot_trace(ax, run, case=0):
 def plot_nutation(ax, run, case=0):
     """Fig. 3: the nutation angle Theta against time, theta_max and the
     measured nutation period annotated."""
+    require(run, "nutation", case)
     theta = run.trajectory("nutation", case)
     t = run.time
     ax.plot(t, theta, lw=0.8, color="C0")
@@ -76,49 +164,100 @@ def reaction_parts(run, case=0):
 
 
 def plot_reaction(axes, run, case=0):
-    """Normal force (the weight m g as a reference), friction force and the
-    friction coefficient needed against time, each on its own axis (three
-    Axes: the two forces differ by orders of magnitude); legends beside."""
+    """Normal force F_n (the weight m g as a reference), friction force |F_t|
+    and the friction coefficient needed |F_t| / F_n against time, each on its
+    own axis (three Axes: the two forces differ by orders of magnitude);
+    legends beside."""
+    require(run, "reaction", case)
     t = run.time
     n_force, tangential, mu = reaction_parts(run, case)
     weight = run.case_input("mass", case) * run.case_input("g", case)
-    axes[0].plot(t, n_force, lw=0.8, label="normal force N")
-    axes[0].axhline(weight, color="0.5", ls="--", lw=0.8, label=f"weight m g = {weight:g} N")
-    axes[0].set_ylabel("N, N")
-    axes[0].set_title(f"Force of the cup on the ball ({_case_label(run, case)})")
-    axes[1].plot(t, tangential, lw=0.8, color="C1", label="friction force |F_t|")
-    axes[1].set_ylabel("|F_t|, N")
-    axes[2].plot(t, mu, lw=0.8, color="C2", label=r"friction coefficient needed $|F_t|/N$")
+    axes[0].plot(t, n_force, lw=0.8, label=r"normal force $F_n = \mathbf{F} \cdot \mathbf{n}$")
+    axes[0].axhline(weight, color="0.5", ls="--", lw=0.8, label=f"weight $m g$ = {weight:g} N")
+    axes[0].set_ylabel(r"$F_n$, N")
+    axes[0].set_title(f"Force of the cup on the ball, {_file_label(run)} ({_case_label(run, case)})")
+    axes[1].plot(t, tangential, lw=0.8, color="C1", label=r"friction force $|F_t|$")
+    axes[1].set_ylabel(r"$|F_t|$, N")
+    axes[2].plot(t, mu, lw=0.8, color="C2", label=r"friction coefficient needed $|F_t| / F_n$")
     mu_limit = run.case_input("mu", case)
     if np.isfinite(mu_limit):
-        axes[2].axhline(mu_limit, color="C3", ls="--", lw=0.8, label=f"mu = {mu_limit:g}")
-    axes[2].set_ylabel(r"$|F_t| / N$")
-    axes[2].set_xlabel("t, s")
+        axes[2].axhline(mu_limit, color="C3", ls="--", lw=0.8, label=rf"friction limit $\mu$ = {mu_limit:g}")
+    axes[2].set_ylabel(r"$|F_t| / F_n$, 1")
+    axes[2].set_xlabel(r"$t$, s")
     for ax in axes:
         ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return axes
 
 
+def cup_work(run, case=0):
+    """The work W(t) done on the ball in the cup's frame by the moving cup
+    (the inertial force -m a_base on the centre), W = -m int a_base . dC,
+    by the trapezoid rule over the stored samples (its error is of the
+    order of the output interval squared); None without the fields center
+    and base_acceleration. On a cup without rolling resistance E - E0 = W."""
+    if missing_fields(run, ISOLATOR_FIELDS):
+        return None
+    center = run.trajectory("center", case)
+    base = run.trajectory("base_acceleration", case)
+    steps = -run.case_input("mass", case) * np.sum((base[1:] + base[:-1]) / 2 * np.diff(center, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
 def plot_energy(ax, run, case=0):
-    """Relative energy error and constraint error against time (log)."""
+    """On a fixed cup: the relative energy error and the largest constraint
+    error so far against time (log). On a moving cup the energy changes by
+    the cup's work, which is no error: the energy change E - E0 and, with
+    the fields center and base_acceleration, the cup's work W against time
+    (linear), the largest constraint error and |E - E0 - W| noted."""
+    require(run, "energy", case)
     t = run.time
     tiny = 1e-18
-    if "energy" in run.fields:
-        energy = run.trajectory("energy", case)
-        ax.semilogy(t, np.maximum(np.abs(energy / energy[0] - 1), tiny), lw=0.8, label=r"$|E - E_0| / E_0$")
+    energy = run.trajectory("energy", case)
+    residual = None
     if "contact" in run.fields:
         a, b, c = (run.case_input(n, case) for n in "abc")
         residual = surface_residual(a, b, c, run.trajectory("contact", case))
-        # round-off that changes sign every sample would fill the plot as a
-        # block: its running maximum is the line to read
-        valid = np.isfinite(residual)
-        envelope = np.full_like(residual, np.nan)
-        envelope[valid] = np.maximum.accumulate(np.maximum(residual[valid], tiny))
-        ax.semilogy(t, envelope, lw=0.8,
-                    label=r"constraint error $|(x/a)^2+(y/b)^2+((z-c)/c)^2-1|$, largest so far")
-    ax.set_xlabel("t, s")
-    ax.set_ylabel("error (zero shown as 1e-18)")
-    ax.set_title(f"Energy and constraint errors ({_case_label(run, case)})")
+    resistance = run.case_input("rolling_resistance", case)
+    if cup_moves(run, case):
+        work = cup_work(run, case)
+        ax.plot(t, energy - energy[0], lw=0.9, label=r"energy change $E - E_0$")
+        drawn = "Energy change"
+        if work is not None:
+            ax.plot(t, work, lw=0.9, ls="--", color="C1",
+                    label=r"work of the moving cup $W = -m \int \mathbf{a}_\mathrm{base} \cdot d\mathbf{C}$")
+            drawn = "Energy change and the moving cup's work"
+            if not resistance > 0:
+                balance = np.nanmax(np.abs(energy - energy[0] - work)) / abs(energy[0])
+                _note(ax, rf"largest $|E - E_0 - W| / |E_0|$ = {balance:.2g} (trapezoid rule over the samples)")
+            else:
+                _note(ax, r"$E - E_0 - W$: the rolling resistance's work")
+        else:
+            _note(ax, "the cup's work needs the fields " + ", ".join(missing_fields(run, ISOLATOR_FIELDS)))
+        if residual is not None:
+            _note(ax, f"largest constraint error {np.nanmax(residual):.2g}")
+        ax.set_ylabel(r"$E - E_0$, J")
+    else:
+        change = np.maximum(np.abs(energy / energy[0] - 1), tiny)
+        if resistance > 0:
+            ax.semilogy(t, change, lw=0.8, label=r"energy change $|E - E_0| / E_0$ (the rolling resistance's work)")
+            drawn = "Energy change (rolling resistance)"
+        else:
+            ax.semilogy(t, change, lw=0.8, label=r"energy error $|E - E_0| / E_0$")
+            drawn = "Energy error"
+        if residual is not None:
+            # round-off that changes sign every sample would fill the plot as a
+            # block: its running maximum is the line to read
+            valid = np.isfinite(residual)
+            envelope = np.full_like(residual, np.nan)
+            envelope[valid] = np.maximum.accumulate(np.maximum(residual[valid], tiny))
+            ax.semilogy(t, envelope, lw=0.8,
+                        label=r"constraint error $|(x/a)^2+(y/b)^2+((z-c)/c)^2-1|$, largest so far")
+            drawn += " and constraint error"
+        else:
+            _note(ax, "no constraint error: needs the field contact")
+        ax.set_ylabel("relative error, 1 (zero shown as 1e-18)")
+    ax.set_xlabel(r"$t$, s")
+    ax.set_title(f"{drawn}, {_file_label(run)} ({_case_label(run, case)})")
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(0.0, -0.15), frameon=False)
     return ax
 
@@ -146,18 +285,20 @@ def plot_sweep(fig, run, x_names, y_names):
                 distinct = np.unique(keys, axis=0)
                 if len(distinct) <= MAX_LINES:
                     groups = {tuple(k): np.all(keys == k, axis=1) for k in distinct}
-            if len(groups) == 1 and others:       # sampled, or too many lines: every case a point
-                ax.plot(x, y, "o", ms=2, alpha=max(0.05, min(0.5, 1000 / len(x))), mew=0,
-                        label=f"{run.n_cases} cases ({', '.join(others)} vary too)")
-                _quantile_band(ax, x[~early], y[~early])
+            sampled = len(groups) == 1 and bool(others)
+            if sampled:                           # sampled, or too many lines: every case a point
+                done = ~early
+                ax.plot(x[done], y[done], "o", ms=2, alpha=max(0.05, min(0.6, 1000 / len(x))), mew=0, color="C0",
+                        label=f"{_count(done.sum(), 'completed case')} ({', '.join(others)} vary too)")
+                _quantile_band(ax, x[done], y[done])
             else:
                 for key, mask in groups.items():
                     order = np.argsort(x[mask])
                     label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key)) or None
                     ax.plot(x[mask][order], y[mask][order], marker="o", ms=3, lw=1, label=label)
-            _mark_early(ax, x, y, status, color="C3")
+            _mark_early(ax, x, y, status)
             ax.set_xlabel(f"{x_names[0]}, {run.input_units(x_names[0])}")
-            if len(groups) > 1 or np.any(early):
+            if len(groups) > 1 or np.any(early) or sampled:
                 _legend_beside(ax)
         else:
             xa, xb = run.input_column(x_names[0]), run.input_column(x_names[1])
@@ -166,10 +307,11 @@ def plot_sweep(fig, run, x_names, y_names):
                 grid = np.full((len(ub), len(ua)), np.nan)
                 grid[np.searchsorted(ub, xb), np.searchsorted(ua, xa)] = y
                 mesh = ax.pcolormesh(ua, ub, grid, shading="nearest")
-            else:                                      # sampled: each case a coloured point
-                mesh = ax.scatter(xa, xb, c=y, s=6)
+            else:                                      # sampled: each completed case a coloured point
+                done = ~early
+                mesh = ax.scatter(xa[done], xb[done], c=y[done], s=8, linewidths=0)
             fig.colorbar(mesh, ax=ax, label=f"{y_name}, {units}")
-            _mark_early(ax, xa, xb, status, color="C3")
+            _mark_early(ax, xa, xb, status)
             if np.any(early):
                 _legend_beside(ax, title="status")
             ax.set_xlabel(f"{x_names[0]}, {run.input_units(x_names[0])}")
@@ -181,28 +323,49 @@ def plot_sweep(fig, run, x_names, y_names):
     return axes
 
 
-def _quantile_band(ax, x, y, bins=30):
+BAND_MIN_CASES = 80     # completed cases for a median and 10-90 % band (5 bins of 16)
+
+
+def band_bins(n):
+    """Bins of the median and band over n completed cases: about 20 cases a
+    bin, 5 to 30 bins."""
+    return int(min(max(n // 20, 5), 30))
+
+
+def _quantile_band(ax, x, y):
     """Median and 10-90 % band of y in bins of x: the trend a cloud of many
-    sampled cases hides."""
+    sampled cases hides; with fewer than BAND_MIN_CASES finite cases a note
+    says why there is none."""
     finite = np.isfinite(x) & np.isfinite(y)
     x, y = x[finite], y[finite]
-    if len(x) < 20 * bins:
+    if len(x) < BAND_MIN_CASES:
+        _note(ax, f"no median or 10-90 % band: {_count(len(x), 'completed case')}, "
+                  f"{BAND_MIN_CASES} needed")
         return
+    bins = band_bins(len(x))
     edges = np.linspace(x.min(), x.max(), bins + 1)
     which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
     centres = (edges[:-1] + edges[1:]) / 2
-    q = np.array([np.percentile(y[which == b], [10, 50, 90]) if np.any(which == b) else [np.nan] * 3
+    # a bin of fewer than 5 cases has no 10th or 90th percentile worth drawing
+    q = np.array([np.percentile(y[which == b], [10, 50, 90]) if np.sum(which == b) >= 5 else [np.nan] * 3
                   for b in range(bins)])
-    ax.fill_between(centres, q[:, 0], q[:, 2], color="k", alpha=0.15, lw=0, label="10-90 % of completed cases")
+    ax.fill_between(centres, q[:, 0], q[:, 2], color="k", alpha=0.15, lw=0,
+                    label=f"10-90 % of completed cases ({bins} bins)")
     ax.plot(centres, q[:, 1], color="k", lw=1.5, label="median of completed cases")
 
 
-def _mark_early(ax, x, y, status, color):
-    """Each way a case ended early, its own marker and legend entry (names
-    beside every point would bury a campaign's figure)."""
+def _count(n, noun):
+    """'1 case', '2 cases'."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def _mark_early(ax, x, y, status):
+    """Each way a case ended early, its own grey marker and legend entry
+    (names beside every point would bury a campaign's figure; grey, thin
+    and open, they leave the completed cases' colours readable)."""
     for marker, name in zip("xs^vDP*", sorted(set(status[status != "completed"]))):
         ended = status == name
-        ax.plot(x[ended], y[ended], marker, mfc="none", mec=color, mew=1.2, ms=6, ls="none",
+        ax.plot(x[ended], y[ended], marker, mfc="none", mec="0.45", mew=0.8, ms=4, ls="none",
                 label=f"ended: {name}")
 
 
@@ -225,7 +388,10 @@ def plot_workprecision(axes, points):
     for ax in axes:
         ax.set_ylabel("error of the contact point, m")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize="small")
+    # one legend for both panels (the same methods), outside them: never over a curve
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[0].figure.legend(handles, labels, loc="outside right upper", fontsize="small", frameon=False,
+                          title="method")
     return axes
 
 
@@ -238,10 +404,57 @@ def linear_transmissibility(ratio, inertia_factor=0.4):
     return np.abs(1 + k - k * ratio**2) / ((1 + k) * np.abs(1 - ratio**2))
 
 
+def mode_axes(run, case=0):
+    """For each linear mode of /summary/linear_periods, the horizontal axes
+    (0: x, 1: y) it moves the ball along: about the bottom of a cup without
+    spin the modes lie along the principal axes, of periods
+    2 pi sqrt((1 + k) (rho - R) / g) with rho = a^2/c or b^2/c (docs/model.md);
+    each mode is matched to the nearer one. With an initial spin the modes
+    couple both axes; so does a round cup (a = b)."""
+    periods = run.summary("linear_periods", case)
+    a, b, c = (run.case_input(n, case) for n in "abc")
+    radius, k, g = (run.case_input(n, case) for n in ("radius", "inertia_factor", "g"))
+    spin = np.asarray(run.case_input("omega", case), float)
+    with np.errstate(invalid="ignore"):
+        along = 2 * np.pi * np.sqrt((1 + k) * (np.array([a * a, b * b]) / c - radius) / g)
+    if np.any(spin != 0) or a == b or not np.all(np.isfinite(along)):
+        return [(0, 1)] * len(periods)
+    return [(int(np.argmin(np.abs(along - period))),) for period in periods]
+
+
+def excited_axes(run, case=0):
+    """The horizontal axes (0: x, 1: y) along which a harmonic excitation shakes the cup."""
+    amplitude = np.asarray(run.case_input("excitation_amplitude", case), float)
+    return {i for i in (0, 1) if amplitude[i] != 0}
+
+
+def log_frequency_axis(ax, low, high):
+    """A log frequency axis labelled in plain numbers at every decade in
+    [low, high], also at 2 and 5 times each decade where the span is three
+    decades or less, and at every minor tick where it is under one (else
+    one or no label would show)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    ax.set_xscale("log")
+    ax.set_xlim(low / 1.15, high * 1.15)
+    decades = np.log10(high / low)
+    ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0,)))
+    ax.xaxis.set_minor_locator(LogLocator(base=10, subs=np.arange(2, 10)))
+    plain = FuncFormatter(lambda value, _: f"{value:g}")
+    ax.xaxis.set_major_formatter(plain)
+    if decades < 1:
+        ax.xaxis.set_minor_formatter(plain)
+    elif decades <= 3:
+        ax.xaxis.set_minor_formatter(FuncFormatter(
+            lambda value, _: f"{value:g}" if round(value / 10 ** np.floor(np.log10(value) + 1e-9)) in (2, 5) else ""))
+    else:
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.tick_params(axis="x", which="minor", labelsize="small")
+
+
 def plot_transmissibility(ax, run):
     """Transmissibility against the excitation frequency (log-log), with the
-    linear resonance frequencies (/summary/linear_periods) marked and the
-    linear prediction for each."""
+    linear resonance frequencies (/summary/linear_periods) of the modes the
+    shaking excites marked, and the linear prediction for each."""
     frequency = run.input_column("excitation_frequency")
     transmissibility = run.summary("transmissibility")
     order = np.argsort(frequency)
@@ -249,18 +462,22 @@ def plot_transmissibility(ax, run):
     periods = run.summary("linear_periods", 0)
     k = run.case_input("inertia_factor", 0)
     grid = np.geomspace(frequency.min(), frequency.max(), 400)
-    for mode, period in enumerate(periods):
-        if np.isfinite(period):
+    shaken = excited_axes(run, 0)
+    for mode, (period, axes_of_mode) in enumerate(zip(periods, mode_axes(run, 0))):
+        if np.isfinite(period) and shaken & set(axes_of_mode):
+            along = " and ".join("xy"[i] for i in axes_of_mode)
             ax.axvline(1 / period, color=f"C{mode + 1}", ls="--", lw=0.8,
-                       label=f"linear resonance, mode {mode + 1}: {1 / period:.4g} Hz")
+                       label=f"linear resonance, mode {mode + 1} (along {along}): {1 / period:.4g} Hz")
             ax.loglog(grid, linear_transmissibility(grid * period, k), color=f"C{mode + 1}", lw=0.7, alpha=0.6,
                       label=f"linear prediction, mode {mode + 1}")
     ax.axhline(1, color="0.6", lw=0.6)
+    log_frequency_axis(ax, frequency.min(), frequency.max())
     ax.set_xlabel("excitation frequency, Hz")
-    ax.set_ylabel("transmissibility |a_ball| / |a_base|")
-    ax.set_title(f"Transmissibility ({run.n_cases} frequencies)")
+    ax.set_ylabel(r"transmissibility $|a_\mathrm{ball}| / |a_\mathrm{base}|$, 1")
+    ax.set_title(f"Transmissibility, {_file_label(run)} ({run.n_cases} frequencies, shaken along "
+                 f"{' and '.join('xy'[i] for i in sorted(shaken)) or 'no axis'})")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="x-small")
+    ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return ax
 
 
@@ -329,17 +546,55 @@ def acceleration_spectra(run, case=0):
     return frequency, amplitude(ground), amplitude(transmitted)
 
 
+def excitation_description(run, case=0):
+    """What shakes the cup of a case, for a title: the record by its name
+    (a suite's &record name) or file, its factor and scale; or the harmonic
+    frequency and amplitude."""
+    kind = str(run.case_input("excitation_kind", case)).strip()
+    if kind == "record":
+        name = run.record_names()[case]
+        files = _record_files(run, name)
+        text = "record " + (f"{name} ({', '.join(files)})" if name and files else name or ", ".join(files) or "?")
+        factor = run.case_input("record_factor", case) * run.case_input("scale", case)
+        return text + (f", scaled by {factor:g}" if factor != 1 else "")
+    if kind == "harmonic":
+        amplitude = np.asarray(run.case_input("excitation_amplitude", case), float)
+        along = ", ".join(f"{v:g} m/s$^2$ along {n}" for v, n in zip(amplitude, "xyz") if v != 0)
+        return f"harmonic {run.case_input('excitation_frequency', case):g} Hz, {along}"
+    return "cup at rest"
+
+
+def _record_files(run, name):
+    """The files of a record: those of its &record group (by name) in the
+    input namelist, else every file the run read (the attribute input_files)."""
+    attrs = run.attrs
+    text = str(attrs.get("input_namelist", ""))
+    if name:
+        for group in re.findall(r"&record\b((?:'[^']*'|\"[^\"]*\"|[^'\"/])*)/", text, flags=re.I):
+            if re.search(rf"name\s*=\s*['\"]{re.escape(name)}['\"]", group, flags=re.I):
+                part = re.search(r"record_file\s*=\s*((?:['\"][^'\"]*['\"]\s*,?\s*)+)", group, flags=re.I)
+                if part:
+                    return [pathlib.PurePath(f).name for f in re.findall(r"['\"]([^'\"]*)['\"]", part.group(1))]
+    files = [line.split(":")[0].strip() for line in str(attrs.get("input_files", "")).splitlines() if line.strip()]
+    return [pathlib.PurePath(f).name for f in files]
+
+
 def plot_spectrum(ax, run, case=0):
-    """The transmitted acceleration's spectrum against the ground's (log)."""
+    """The transmitted acceleration's spectrum against the ground's (log);
+    the title names the file, the case and the record (or the harmonic
+    shaking); the legend beside the axes."""
+    require(run, "spectrum", case)
     frequency, ground, transmitted = acceleration_spectra(run, case)
     ax.loglog(frequency[1:], ground[1:], lw=0.8, color="0.4", label="ground (cup) acceleration")
     ax.loglog(frequency[1:], transmitted[1:], lw=0.8, color="C0", label="transmitted (ball, absolute)")
     for mode, period in enumerate(run.summary("linear_periods", case)):
         if np.isfinite(period):
-            ax.axvline(1 / period, color=f"C{mode + 1}", ls="--", lw=0.8, label=f"linear mode {mode + 1}")
+            ax.axvline(1 / period, color=f"C{mode + 1}", ls="--", lw=0.8,
+                       label=f"linear mode {mode + 1}: {1 / period:.3g} Hz")
     ax.set_xlabel("frequency, Hz")
-    ax.set_ylabel("horizontal amplitude, m/s^2")
-    ax.set_title(f"Acceleration spectra ({_case_label(run, case)})")
+    ax.set_ylabel(r"horizontal amplitude, m/s$^2$")
+    ax.set_title(f"Acceleration spectra: {excitation_description(run, case)}\n{_file_label(run)}, "
+                 f"{_case_label(run, case)}", fontsize="medium")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small", loc="lower left")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return ax

@@ -43,7 +43,7 @@ class EllrollFile:
 
     @property
     def fields(self):
-        return sorted(set(self._h5["trajectory"]) - {"case"} - set(self._coordinates("trajectory")))
+        return sorted(set(self._h5["trajectory"]) - {"case", "time"} - set(self._coordinates("trajectory")))
 
     @property
     def summary_names(self):

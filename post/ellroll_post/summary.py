@@ -1,8 +1,10 @@
 """The summary table of an ellroll file as text, CSV or JSON: the columns of
-`ellroll summary --format csv|json`."""
+`ellroll summary --format csv|json`, and its CSV text, character for
+character (numbers written as ellroll writes them: number_text)."""
 import csv
 import io
 import json
+import math
 
 import numpy as np
 
@@ -45,8 +47,8 @@ def format_summary(run, fmt="table"):
     if fmt == "csv":
         out = io.StringIO()
         writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(keys)
-        writer.writerows(zip(*columns))
+        writer.writerow([column_header(k, units) for k, (units, _) in table.items()])
+        writer.writerows([number_text(v) if isinstance(v, float) else v for v in row] for row in zip(*columns))
         return out.getvalue()
     cells = [[_fmt(v) for v in values] for values in columns]
     widths = [max(len(k), *(len(c) for c in column)) if column else len(k) for k, column in zip(keys, cells)]
@@ -59,3 +61,36 @@ def _fmt(value):
     if isinstance(value, float):
         return f"{value:.6g}"
     return str(value)
+
+
+def column_header(name, units):
+    """A CSV column's header: `name [units]`, or the bare name for a
+    dimensionless column or one of text (units '1' or none)."""
+    return name if units in ("", "1") else f"{name} [{units}]"
+
+
+_NEAR_HUGE = 1.7976931348623157e308 * (1 - 1.0e-14)
+
+
+def number_text(x):
+    """x as ellroll writes it (format_real, src/core/strings.f90): the
+    shortest of 15, 16 or 17 significant digits that reads back as x, trailing
+    zeros dropped; fixed point from 1e-4 to below 1e10 ('30', '0.2'), else
+    'MANTISSAe+XX' ('1e-06'); 'NaN', 'Infinity', '-Infinity'; '0' for zero."""
+    if math.isnan(x):
+        return "NaN"
+    if math.isinf(x):
+        return "Infinity" if x > 0 else "-Infinity"
+    if x == 0:
+        return "0"
+    for digits in ((17,) if abs(x) >= _NEAR_HUGE else (15, 16, 17)):
+        work = f"{x:.{digits - 1}e}"
+        if float(work) == x:
+            break
+    mantissa = work.split("e")[0].rstrip("0").rstrip(".")
+    digits = sum(c.isdigit() for c in mantissa)
+    # the exponent of the digits written (rounding may carry into the next power of ten)
+    exponent10 = int(work.split("e")[1])
+    if -4 <= exponent10 < 10:
+        return f"{x:.{max(0, digits - 1 - exponent10)}f}"
+    return f"{mantissa}e{'-' if exponent10 < 0 else '+'}{abs(exponent10):02d}"

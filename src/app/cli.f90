@@ -8,10 +8,17 @@ module ellroll_cli
   use ellroll_run_campaign, only: run_options_t
   use ellroll_system, only: utc_timestamp
   use ellroll_version, only: version_string
+  use ellroll_suggest, only: did_you_mean
   implicit none
   private
 
   public :: cli_t, parse_arguments, provenance, resume_line
+
+  character(len=*), parameter :: commands(*) = [character(len=7) :: &
+      'run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes', 'help', 'version']
+  character(len=*), parameter :: options(*) = [character(len=11) :: &
+      '--output', '--threads', '--shard', '--format', '--overwrite', '--resume', '--quiet', '--timings', &
+      '--help', '--version']
 
   !> What the command line asks for.
   type :: cli_t
@@ -31,7 +38,7 @@ contains
     type(cli_t), intent(out) :: cli
     type(error_t), intent(inout) :: err
     integer :: k, n
-    character(len=:), allocatable :: arg, value
+    character(len=:), allocatable :: arg, value, hint
     cli%command = ''
     cli%output_path = ''
     allocate (cli%paths(0))
@@ -72,11 +79,13 @@ contains
         cli%command = arg
       case default
         if (arg(1:min(1, len(arg))) == '-') then
-          call usage_error(err, 'unknown option ' // arg)
+          call did_you_mean(arg, options, '', hint)
+          call usage_error(err, 'unknown option ' // arg // hint)
           return
         end if
         if (len(cli%command) == 0) then
-          call usage_error(err, "unknown command '" // arg // "'")
+          call did_you_mean(arg, commands, 'ellroll ', hint)
+          call usage_error(err, "unknown command '" // arg // "'" // hint)
           return
         end if
         cli%paths = [character(len=1024) :: cli%paths, arg]

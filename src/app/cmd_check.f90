@@ -15,7 +15,7 @@ module ellroll_cmd_check
   use ellroll_linear, only: no_spin_periods, fits_at_bottom
   use ellroll_shards, only: shard_slots
   use ellroll_output_start, only: check_output_target
-  use ellroll_step_advice, only: step_size_advice
+  use ellroll_step_advice, only: step_size_advice, dt_cap_advice
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_cli, only: cli_t
   implicit none
@@ -38,6 +38,8 @@ contains
     if (err%failed()) return
     call describe(inp, cli%opts%shard)
     call step_size_advice(inp, messages)
+    if (len(messages) > 0) write (error_unit, '(a)') messages
+    call dt_cap_advice(inp, messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages
     call find_invalid_cases(inp, invalid, messages)
     call refuse_invalid_cases(inp, invalid, messages, err)

@@ -11,9 +11,13 @@ module ellroll_cmd_run
   use ellroll_run_campaign, only: run_options_t, run_campaign
   use ellroll_output_start, only: check_output_target, holds_this_run
   use ellroll_output_files, only: output_files_t, work_target
-  use ellroll_step_advice, only: step_size_advice
+  use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
   use ellroll_merge, only: merge_shards
-  use ellroll_files, only: path_kind, kind_regular, kind_missing
+  use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size
+  use ellroll_kinds, only: wp, i8
+  use ellroll_strings, only: format_real
+  use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_status, only: status_invalid
   use ellroll_system, only: catch_stop_signals
   use ellroll_ranks, only: ranks_all_ok
   use ellroll_cli, only: cli_t, provenance
@@ -34,7 +38,10 @@ contains
     type(error_t) :: unread
     type(run_input_t) :: inp
     type(run_options_t) :: opts
-    character(len=:), allocatable :: advice
+    character(len=:), allocatable :: advice, cap
+    real(wp) :: started
+    integer(i8) :: ran
+    started = wall_clock()
     opts = cli%opts
     call read_input(trim(cli%paths(1)), cli%output_path, inp, err)
     if (err%failed()) return
@@ -43,19 +50,119 @@ contains
     call catch_stop_signals()
     opts%advice_seconds = wall_clock()
     call step_size_advice(inp, advice)
+    call dt_cap_advice(inp, cap)
+    if (len(cap) > 0) advice = trim(advice // achar(10) // cap)
+    if (advice(1:min(1, len(advice))) == achar(10)) advice = advice(2:)
     opts%advice_seconds = wall_clock() - opts%advice_seconds
     if (len(advice) > 0 .and. rank == 0) write (error_unit, '(a)') advice
+    ran = -1                                 ! (unknown under MPI: each rank runs a shard)
     if (n_ranks > 1) then
       call run_ranks(inp, opts, trim(cli%paths(1)), rank, n_ranks, err)
     else
       call check_rank_files(inp%plan%file, 1, err)
-      if (.not. err%failed()) call run_campaign(inp, opts, provenance(trim(cli%paths(1)), inp%text), err)
+      if (.not. err%failed()) call run_campaign(inp, opts, provenance(trim(cli%paths(1)), inp%text), err, ran)
     end if
     if (err%failed() .or. rank /= 0) return
     ! the output is complete: a summary that cannot be read back is a warning
     call print_summary(inp%plan%file, 'table', unread)
     if (unread%failed()) write (error_unit, '(a)') 'ellroll: warning: cannot print the summary: ' // unread%message
+    if (.not. cli%opts%quiet) call final_block(inp, wall_clock() - started, ran, advice)
   end subroutine run_command
+
+  !> The end of a run, on stderr beside the progress (stdout holds the
+  !> file's summary, as `ellroll summary` prints it): its wall time, cases per second, the output's size,
+  !> and a recap of the warnings (the advice before the run, invalid cases
+  !> skipped, steps that dt capped), the count and the first few.
+  subroutine final_block(inp, elapsed, ran, advice)
+    type(run_input_t), intent(in) :: inp
+    real(wp), intent(in) :: elapsed
+    integer(i8), intent(in) :: ran               !< cases integrated by this process; < 0 unknown (MPI)
+    character(len=*), intent(in) :: advice       !< warnings printed before the run, a line each
+    integer, parameter :: shown = 3
+    type(h5_input_t) :: file
+    type(error_t) :: unread
+    integer(i8), allocatable :: status(:), steps(:), index(:)
+    character(len=:), allocatable :: line, warnings, cap
+    integer :: n_warnings, start, eol
+    integer(i8) :: n_cases
+    call file%open(inp%plan%file, unread)
+    status = file%int_column('summary/status', unread)
+    steps = file%int_column('summary/n_steps', unread)
+    index = file%int_column('summary/case', unread)
+    call file%close()
+    if (unread%failed()) return
+    n_cases = size(status, kind=i8)
+    if (ran >= 0) n_cases = ran
+    line = 'done in ' // format_real(hundredths(elapsed)) // ' s: ' // itoa(n_cases) // &
+        trim(merge(' case run ', ' cases run', n_cases == 1))
+    if (elapsed > 0) line = line // ', ' // format_real(real(nint(10 * n_cases / elapsed, i8), wp) / 10) // &
+        ' cases/s'
+    write (error_unit, '(a)') 'ellroll: ' // line // '; ' // inp%plan%file // ': ' // &
+        trim(size_text(int(file_size(inp%plan%file), i8)))
+    ! the recap: a line per warning, 'ellroll: warning: ' left off
+    n_warnings = 0
+    warnings = ''
+    start = 1
+    do while (start <= len(advice))
+      eol = index_of_newline(advice, start)
+      if (advice(start:min(eol - 1, start + 17)) == 'ellroll: warning: ') call add(advice(start + 18:eol - 1))
+      start = eol + 1
+    end do
+    if (count(status == status_invalid) > 0) call add(itoa(count(status == status_invalid)) // &
+        ' invalid cases skipped (status invalid)')
+    call dt_cap_after_run(inp, index, status, steps, cap)
+    if (len(cap) > 0 .and. index_of_text(advice, ' caps ') == 0) then        ! (not said before the run)
+      write (error_unit, '(a)') cap
+      call add(cap(19:))
+    end if
+    if (n_warnings == 0) return
+    write (error_unit, '(a)') 'ellroll: warnings: ' // itoa(n_warnings) // warnings
+    if (n_warnings > shown) write (error_unit, '(a)') '    ... and ' // itoa(n_warnings - shown) // ' more (above)'
+  contains
+    subroutine add(text)
+      character(len=*), intent(in) :: text
+      n_warnings = n_warnings + 1
+      if (n_warnings <= shown) warnings = warnings // achar(10) // '    ' // text
+    end subroutine add
+  end subroutine final_block
+
+  pure integer function index_of_newline(text, start) result(eol)
+    character(len=*), intent(in) :: text
+    integer, intent(in) :: start
+    eol = index(text(start:), achar(10))
+    if (eol == 0) then
+      eol = len(text) + 1
+    else
+      eol = start + eol - 1
+    end if
+  end function index_of_newline
+
+  pure integer function index_of_text(text, part)
+    character(len=*), intent(in) :: text, part
+    index_of_text = index(text, part)
+  end function index_of_text
+
+  pure real(wp) function hundredths(x)
+    real(wp), intent(in) :: x
+    hundredths = anint(100 * x) / 100
+  end function hundredths
+
+  !> A size in bytes as B, KiB, MiB or GiB (one decimal).
+  pure function size_text(bytes) result(text)
+    integer(i8), intent(in) :: bytes
+    character(len=24) :: text
+    real(wp) :: b
+    b = real(bytes, wp)
+    if (b < 1024) then
+      write (text, '(i0, a)') bytes, ' B'
+    else if (b < 2.0_wp**20) then
+      write (text, '(f0.1, a)') b / 1024, ' KiB'
+    else if (b < 2.0_wp**30) then
+      write (text, '(f0.1, a)') b / 2.0_wp**20, ' MiB'
+    else
+      write (text, '(f0.1, a)') b / 2.0_wp**30, ' GiB'
+    end if
+  end function size_text
 
   !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has
   !> succeeded, rank 0 merges the shards into OUT and removes them.

@@ -12,6 +12,8 @@ module ellroll_cmd_summary
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_cli, only: cli_t
+  use ellroll_errors, only: set_error, err_input
+  use ellroll_files, only: path_kind, kind_folder
   implicit none
   private
 
@@ -24,7 +26,7 @@ module ellroll_cmd_summary
     character(len=:), allocatable :: units
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
-    character(len=32), allocatable :: texts(:)
+    character(len=64), allocatable :: texts(:)
   end type column_t
 
 contains
@@ -32,8 +34,32 @@ contains
   subroutine summary_command(cli, err)
     type(cli_t), intent(in) :: cli
     type(error_t), intent(inout) :: err
-    call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
+    call check_readable(trim(cli%paths(1)), err)
+    if (.not. err%failed()) call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
   end subroutine summary_command
+
+  !> A folder, or a file this user may not read, is bad input: said so
+  !> before HDF5 tries it.
+  subroutine check_readable(path, err)
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    integer :: unit, ios
+    character(len=256) :: msg
+    logical :: exists
+    if (path_kind(path) == kind_folder) then
+      call set_error(err, err_input, path // ': a folder, not an output file (give the .h5 file in it)')
+      return
+    end if
+    inquire (file=path, exist=exists)
+    if (.not. exists) return                  ! print_summary says 'no such file'
+    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', status='old', &
+          iostat=ios, iomsg=msg)
+    if (ios /= 0) then
+      call set_error(err, err_input, path // ': cannot read it (' // trim(msg) // '); check its permissions')
+      return
+    end if
+    close (unit)
+  end subroutine check_readable
 
   !> The summary of a file: the table (format 'table'), or one row per case
   !> ('csv', or strict 'json' with NaN as null and units in a header): the
@@ -148,14 +174,19 @@ contains
     call move_alloc(longer, columns)
   end subroutine append
 
-  !> One row per case, a header of the column names.
+  !> One row per case, a header of the column names with their units,
+  !> `name [units]` (the bare name for units '1': dimensionless, counts,
+  !> text).
   subroutine print_csv(columns)
     type(column_t), intent(in) :: columns(:)
     character(len=:), allocatable :: line
     integer :: i, k
-    line = trim(columns(1)%name)
-    do k = 2, size(columns)
-      line = line // ',' // trim(columns(k)%name)
+    line = ''
+    do k = 1, size(columns)
+      if (k > 1) line = line // ','
+      line = line // trim(columns(k)%name)
+      if (len_trim(columns(k)%units) > 0 .and. columns(k)%units /= '1') &
+        line = line // ' [' // trim(columns(k)%units) // ']'
     end do
     write (output_unit, '(a)') line
     do i = 1, size(columns(1)%ints)

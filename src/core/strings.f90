@@ -161,7 +161,9 @@ contains
     end do
     if (work(last:last) == '.') last = last - 1
     digits = last - merge(1, 0, index(work(:last), '.') > 0) - merge(1, 0, work(1:1) == '-')
-    exponent10 = floor(log10(abs(x)))
+    ! the exponent of the digits written (rounding may carry into the next
+    ! power of ten: 9.9999999999999999e22 is written 1.00000000000000E+023)
+    read (work(mark + 2:), *) exponent10
     if (exponent10 >= -4 .and. exponent10 < 10) then
       write (fixed, '(a, i0, a)') '(f40.', max(0, digits - 1 - exponent10), ')'
       write (buffer, fixed) x

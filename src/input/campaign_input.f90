@@ -9,6 +9,7 @@ module ellroll_campaign_input
       invalid_skip
   use ellroll_params, only: params, param_index, p_weight, p_mass
   use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, max_values
+  use ellroll_suggest, only: did_you_mean
   implicit none
   private
 
@@ -141,6 +142,7 @@ contains
     type(sample_t), intent(in) :: draws(:)
     integer, intent(in) :: gi
     integer :: k
+    character(len=:), allocatable :: hint
     param = 0
     if (.not. rd%given(gi, 'name')) then
       call rd%fail_missing(gi, 'name', 'name the input to vary, e.g. name = ''omega_z''')
@@ -148,7 +150,9 @@ contains
     end if
     param = param_index(trim(lower(adjustl(v%name))))
     if (param == 0) then
-      call rd%fail_value(gi, 'name', 'not an input that can vary (one of: ' // join(pack(params%name, params%sweepable)) // ')')
+      call did_you_mean(trim(lower(adjustl(v%name))), pack(params%name, params%sweepable), '', hint)
+      call rd%fail_value(gi, 'name', 'not an input that can vary' // hint // ' (one of: ' // &
+                         join(pack(params%name, params%sweepable)) // ')')
       return
     end if
     do k = 1, size(sweeps)

@@ -10,9 +10,10 @@ module ellroll_case_input
       set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
-  use ellroll_integrators, only: method_names
+  use ellroll_integrators, only: method_names, methods
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields
+  use ellroll_suggest, only: did_you_mean
   use ellroll_campaign_input, only: build_campaign
   use ellroll_suite_input, only: record_spec_t, load_suite, record_files, note_files
   use ellroll_params, only: params, param_count, param_component, param_width, p_radius, p_weight, p_mass, p_dt, &
@@ -108,6 +109,8 @@ contains
     type(namelist_values_t), intent(inout) :: v
     type(case_t), intent(out) :: cs
     integer :: gi, p
+    character(len=:), allocatable :: hint
+    character(len=len(methods%name)) :: method_list(size(methods))
     do p = 1, param_count
       if (param_component(p) > 1 .or. params(p)%group == 'excitation') cycle
       if (any(p == [p_weight, p_mass, p_dt])) cycle
@@ -123,7 +126,9 @@ contains
     if (gi == 0) return
     v%method = lower(adjustl(v%method))
     if (index(' ' // method_names() // ' ', ' ' // trim(v%method) // ' ') == 0 .or. len_trim(v%method) == 0) then
-      call rd%fail_value(gi, 'method', 'unknown method (known: ' // method_names() // ')')
+      method_list = methods%name          ! (contiguous: no array temporary)
+      call did_you_mean(trim(v%method), method_list, '', hint)
+      call rd%fail_value(gi, 'method', 'unknown method' // hint // ' (known: ' // method_names() // ')')
       return
     end if
     if (.not. rd%require(gi, 't_end', v%t_end)) return
@@ -267,6 +272,7 @@ contains
     integer :: gi, k, f
     real(wp) :: bytes_per_sample
     character(len=32) :: field
+    character(len=:), allocatable :: hint
     gi = rd%group('output', .true.)
     if (gi == 0) return
     ! (len first: a caller's constant '' then removes the copy at link time,
@@ -312,7 +318,8 @@ contains
         end if
         f = findloc(field_names, trim(field), dim=1)
         if (f == 0) then
-          call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "' (known: " // &
+          call did_you_mean(trim(field), field_names, '', hint)
+          call rd%fail_value(gi, 'fields', "unknown field '" // trim(field) // "'" // hint // " (known: " // &
                              join(field_names) // ', all, none)')
           return
         end if

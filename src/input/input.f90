@@ -13,11 +13,12 @@ module ellroll_input
   use ellroll_strings, only: itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, get_param
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample
   use ellroll_suite_input, only: record_spec_t, add_record_group
   use ellroll_case_input, only: build_input
   use ellroll_params, only: params, param_count, param_default, param_component, param_width
+  use ellroll_suggest, only: did_you_mean
   implicit none
   private
 
@@ -67,11 +68,13 @@ contains
     type(run_input_t), intent(inout) :: inp
     type(error_t), intent(inout) :: err
     integer :: k, first
+    character(len=:), allocatable :: hint
     if (.not. rd%err%failed()) then
       do k = 1, size(rd%file%groups)
         associate (grp => rd%file%groups(k))
           if (.not. any(known_groups == grp%name)) then
-            call rd%fail_at(grp%line, 'unknown group &' // grp%name // ' (known groups: ' // &
+            call did_you_mean(grp%name, known_groups, '&', hint)
+            call rd%fail_at(grp%line, 'unknown group &' // grp%name // hint // ' (known groups: ' // &
                             join(known_groups) // ')')
           else if (all(grp%name /= [character(len=6) :: 'sweep', 'sample', 'record'])) then
             first = rd%file%group_index(grp%name)
@@ -106,6 +109,7 @@ contains
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
     type(record_spec_t), allocatable :: suite(:)
+    character(len=:), allocatable :: reason
 
     v%param = [(param_default(k), k = 1, param_count)]     ! NaN: required
     v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'
@@ -135,9 +139,8 @@ contains
             end if
             call read_assignment(grp, k, v, ios, msg)
             if (ios /= 0) then
-              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
-                  ': not a valid value for this variable (wrong type, or more items than it holds; ' // &
-                  'gfortran says: ' // trim(msg) // ')')
+              call bad_value_reason(grp%name, item, reason)
+              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // reason)
               return
             end if
           end associate
@@ -263,6 +266,97 @@ contains
       v%name = name; v%record_file = record_file; v%factor = factor
     end subroutine read_record_group
   end subroutine read_namelist
+
+  !> Why a value that Fortran's namelist read refused is wrong, for the
+  !> message after 'NAME = VALUE': a word that is not a number where the
+  !> variable holds numbers, a fraction where it holds whole numbers, more
+  !> values than it holds; else what the variable takes.
+  subroutine bad_value_reason(group, item, reason)
+    character(len=*), intent(in) :: group
+    type(nml_assignment_t), intent(in) :: item
+    character(len=:), allocatable, intent(out) :: reason
+    character(len=:), allocatable :: token, expected
+    integer :: row, capacity, count, start, pos, ios, star
+    character :: kind, quote
+    real(wp) :: x
+    integer(i8) :: whole
+    row = variable_row(group, item%base)
+    if (row > 0) then
+      kind = 'r'
+      capacity = param_width(row)
+    else
+      call own_variable_shape(item%base, kind, capacity)
+    end if
+    if (item%name /= item%base) capacity = huge(1)       ! an element: the count is not checked here
+    select case (kind)
+    case ('r'); expected = 'a number'
+    case ('i'); expected = 'a whole number'
+    case default; expected = "a text in quotes, e.g. " // item%base // " = 'value'"
+    end select
+    if (kind == 'r' .and. capacity > 1 .and. capacity < huge(1)) expected = 'up to ' // itoa(capacity) // ' numbers'
+    reason = ' is not a valid value for ' // item%base // ' (it takes ' // expected // ')'
+    count = 0
+    start = 1
+    quote = ' '
+    do pos = 1, len(item%value) + 1
+      if (pos <= len(item%value)) then
+        if (quote /= ' ') then
+          if (item%value(pos:pos) == quote) quote = ' '
+          cycle
+        end if
+        if (item%value(pos:pos) == "'" .or. item%value(pos:pos) == '"') quote = item%value(pos:pos)
+        if (item%value(pos:pos) /= ',' .and. item%value(pos:pos) /= ' ') cycle
+      end if
+      token = item%value(start:pos - 1)
+      start = pos + 1
+      if (len(token) == 0) cycle
+      count = count + 1
+      star = index(token, '*')
+      if (star > 1 .and. quote == ' ') then              ! r*value: r copies
+        read (token(:star - 1), *, iostat=ios) whole
+        if (ios == 0) count = count + int(min(max(whole, 1_i8), 1000000000_i8)) - 1
+        token = token(star + 1:)
+        if (len(token) == 0) cycle
+      end if
+      if (kind == 't') cycle
+      read (token, *, iostat=ios) x
+      if (ios /= 0 .or. scan(token, '''"/') > 0) then
+        reason = ' is not a number'
+        if (len(token) < len(item%value)) reason = ': ' // token // ' is not a number'
+        return
+      end if
+      if (kind == 'i') then
+        read (token, *, iostat=ios) whole
+        if (ios /= 0 .or. scan(token, '.eEdD') > 0) then
+          reason = ' is not a whole number'
+          if (len(token) < len(item%value)) reason = ': ' // token // ' is not a whole number'
+          return
+        end if
+      end if
+    end do
+    if (count > capacity .and. capacity == 1) then
+      reason = ': ' // itoa(count) // ' values given; ' // item%base // ' holds one'
+    else if (count > capacity) then
+      reason = ': ' // itoa(count) // ' values given; ' // item%base // ' holds ' // itoa(capacity)
+    end if
+  end subroutine bad_value_reason
+
+  !> The kind ('r' real, 'i' integer, 't' text) and number of values of a
+  !> group's own variable (read_namelist's).
+  pure subroutine own_variable_shape(base, kind, capacity)
+    character(len=*), intent(in) :: base
+    character, intent(out) :: kind
+    integer, intent(out) :: capacity
+    capacity = 1
+    select case (base)
+    case ('t_end', 'interval', 'start', 'stop', 'low', 'high', 'factor'); kind = 'r'
+    case ('values'); kind = 'r'; capacity = max_values
+    case ('compression', 'count', 'samples', 'seed'); kind = 'i'
+    case ('fields'); kind = 't'; capacity = max_fields
+    case ('record_file'); kind = 't'; capacity = 3
+    case default; kind = 't'
+    end select
+  end subroutine own_variable_shape
 
   !> The length of the character variable `base` of the namelists (0: not one).
   pure integer function text_length(v, base)

@@ -8,7 +8,8 @@ module ellroll_input_reader
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_namelist_scan, only: nml_file_t, nml_assignment_t
   use ellroll_strings, only: itoa, join
-  use ellroll_params, only: param_count
+  use ellroll_params, only: param_count, params
+  use ellroll_suggest, only: did_you_mean
   implicit none
   private
 
@@ -54,11 +55,49 @@ contains
     class(reader_t), intent(inout) :: rd
     character(len=*), intent(in) :: name
     logical, intent(in) :: required
+    character(len=:), allocatable :: needs
     gi = rd%file%group_index(name)
     if (gi == 0 .and. required .and. .not. rd%err%failed()) then
-      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // ' is missing (it is required)')
+      call group_needs(name, needs)
+      call set_error(rd%err, err_input, rd%file%path // ': group &' // name // ' is missing (it is required' // &
+                     needs // ')')
     end if
   end function find_group
+
+  !> What a required group needs: its required variables (of the parameter
+  !> table, a vector once, and of its own) and a line that gives them.
+  pure subroutine group_needs(name, text)
+    character(len=*), intent(in) :: name
+    character(len=:), allocatable, intent(out) :: text
+    character(len=:), allocatable :: needed, example
+    integer :: p
+    needed = ''
+    do p = 1, param_count
+      if (params(p)%group /= name .or. .not. params(p)%required) cycle
+      if (index(' ' // needed // ',', ' ' // trim(params(p)%variable) // ',') > 0) cycle
+      if (params(p)%variable == 'mass') then
+        needed = needed // ' or mass'
+        cycle
+      end if
+      if (len(needed) > 0) needed = needed // ','
+      needed = needed // ' ' // trim(params(p)%variable)
+    end do
+    select case (name)
+    case ('geometry'); example = '&geometry a = 1.0, b = 0.4, c = 0.2 /'
+    case ('ball'); example = '&ball radius = 0.2, weight = 2620.0 /'
+    case ('initial'); example = '&initial omega = 0.0, 0.0, 20.0 /'
+    case ('integration')
+      needed = needed // ' (for rk4 and gauss4), t_end'
+      example = "&integration method = 'rk4', dt = 1.0e-3, t_end = 30.0 /"
+    case ('output')
+      needed = needed // ' file, interval'
+      example = "&output file = 'out.h5', interval = 0.01 /"
+    case default; example = ''
+    end select
+    text = ''
+    if (len(needed) > 0) text = '; it needs' // needed
+    if (len(example) > 0) text = text // '; add a line such as: ' // example
+  end subroutine group_needs
 
   !> Unknown and repeated variable names in group gi.
   logical function check_names(rd, gi, known) result(ok)
@@ -66,12 +105,14 @@ contains
     integer, intent(in) :: gi
     character(len=*), intent(in) :: known(:)
     integer :: k, j
+    character(len=:), allocatable :: hint
     ok = .false.
     associate (grp => rd%file%groups(gi))
       do k = 1, size(grp%items)
         if (.not. any(known == grp%items(k)%base)) then
+          call did_you_mean(grp%items(k)%base, known, '', hint)
           call rd%fail_at(grp%items(k)%line, '&' // grp%name // ': unknown variable ' // grp%items(k)%name // &
-              ' = ' // grp%items(k)%value // ' (known in &' // grp%name // ': ' // join(known) // ')')
+              ' = ' // grp%items(k)%value // hint // ' (known in &' // grp%name // ': ' // join(known) // ')')
           return
         end if
         do j = 1, k - 1

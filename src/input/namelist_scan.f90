@@ -8,6 +8,7 @@
 module ellroll_namelist_scan
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_strings, only: lower, itoa
+  use ellroll_files, only: path_kind, kind_folder
   implicit none
   private
 
@@ -71,6 +72,10 @@ contains
       call set_error(err, err_input, path // ': input file not found')
       return
     end if
+    if (path_kind(path) == kind_folder) then
+      call set_error(err, err_input, path // ': a folder, not an input file (give the namelist file in it)')
+      return
+    end if
     open (newunit=unit, file=path, access='stream', form='unformatted', action='read', &
           status='old', iostat=ios, iomsg=msg)
     if (ios /= 0) then
@@ -90,8 +95,32 @@ contains
       call set_error(err, err_input, path // ': cannot read input file: ' // trim(msg))
       return
     end if
+    if (holds_hdf5_signature(file%text)) then
+      call set_error(err, err_input, path // ' is not a namelist file (it looks like an HDF5 file; did you mean ' // &
+                     '`ellroll summary ' // path // '`?)')
+      return
+    else if (index(file%text, achar(0)) > 0) then
+      call set_error(err, err_input, path // ' is not a namelist file (it holds binary data; an input file is ' // &
+                     'text with groups such as &geometry ... /)')
+      return
+    end if
     call scan_namelist_text(file, err)
   end subroutine scan_namelist_file
+
+  !> Whether text starts with the HDF5 signature at 0, 512, 1024, 2048, ...
+  !> bytes (where HDF5 looks for it: behind a user block).
+  pure logical function holds_hdf5_signature(text)
+    character(len=*), intent(in) :: text
+    character(len=*), parameter :: signature = char(137) // 'HDF' // achar(13) // achar(10) // achar(26) // achar(10)
+    integer :: at
+    holds_hdf5_signature = .true.
+    at = 0
+    do while (at + len(signature) <= len(text))
+      if (text(at + 1:at + len(signature)) == signature) return
+      at = max(512, 2 * at)
+    end do
+    holds_hdf5_signature = .false.
+  end function holds_hdf5_signature
 
   !> Split file%text into groups and assignments.
   subroutine scan_namelist_text(file, err)

@@ -9,11 +9,11 @@ module ellroll_hdf5_common
   private
 
   public :: hdf5_reason, note_failed_close, hdf5_close_failed
-  public :: select_slab, dataset_name, dim_index, new_text_type, fixed_text_type, write_text_attribute, &
-      write_text_slab, write_real_slab, write_int_slab, text_width
+  public :: select_slab, dataset_name, dim_index, new_text_type, write_text_attribute, &
+      write_text_slab, write_real_slab, write_int_slab
 
-  !> Width of per-case text datasets (bytes, null-terminated).
-  integer, parameter :: text_width = 32
+  !> The type conversion buffer of a write of text rows (bytes).
+  integer(size_t), parameter :: text_buffer_bytes = 16384
 
   !> H5T_VARIABLE of the C API: (size_t) -1.
   integer(size_t), parameter :: variable_length = -1
@@ -112,17 +112,6 @@ contains
     hdferr = min(hdferr, code)
   end subroutine write_text_attribute
 
-  !> Per-case text (method, excitation kind) is fixed-length: variable-length
-  !> strings written case by case would fill HDF5's global heap, in memory
-  !> and in the file, in proportion to the number of cases.
-  integer(hid_t) function fixed_text_type() result(text_type)
-    integer :: hdferr
-    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
-    call h5tset_size_f(text_type, int(text_width, size_t), hdferr)
-    call h5tset_strpad_f(text_type, H5T_STR_NULLTERM_F, hdferr)
-    call h5tset_cset_f(text_type, H5T_CSET_UTF8_F, hdferr)
-  end function fixed_text_type
-
   !> The name of an open dataset ('/summary/theta_max'), for messages.
   subroutine dataset_name(dset, name)
     integer(hid_t), intent(in) :: dset
@@ -135,20 +124,39 @@ contains
     if (hdferr >= 0 .and. length > 0) name = buffer(:min(int(length), len(buffer)))
   end subroutine dataset_name
 
+  !> Per-case text (method, excitation kind, record) as variable-length
+  !> strings, as the text attributes: netCDF-C, h5netcdf and h5py all read
+  !> them as text (netCDF-C reads fixed-length strings as variable-length
+  !> ones, and xarray then fails on the `_Encoding` that h5netcdf needs to
+  !> give fixed-length ones as text). The rows go in windows of cases, so
+  !> the global heap that holds them grows by whole collections, as the
+  !> fixed-length datasets did.
   subroutine write_text_slab(path, dset, values, offset, err)
     character(len=*), intent(in) :: path           !< the file, for messages
     integer(hid_t), intent(in) :: dset
     character(len=*), intent(in) :: values(:)
     integer(i8), intent(in) :: offset
     type(error_t), intent(inout) :: err
-    character(len=text_width, kind=c_char), target :: texts(size(values))
-    integer(hid_t) :: text_type
+    character(len=len(values) + 1, kind=c_char), target :: texts(size(values))
+    type(c_ptr), target :: pointers(size(values))
+    integer(hid_t) :: text_type, xfer
     integer :: k, hdferr
     do k = 1, size(values)
       texts(k) = trim(values(k)) // c_null_char
+      pointers(k) = c_loc(texts(k))
     end do
-    text_type = fixed_text_type()
-    call write_slab(path, dset, text_type, c_loc(texts), [offset], [size(values, kind=i8)], err)
+    text_type = new_text_type()
+    ! the strings go through a conversion buffer, which HDF5 allocates and
+    ! clears for every write (1 MiB by default: 9 % of a campaign of short
+    ! cases); a window's rows need a few KiB
+    call h5pcreate_f(H5P_DATASET_XFER_F, xfer, hdferr)
+    if (hdferr >= 0) call h5pset_buffer_f(xfer, text_buffer_bytes, hdferr)
+    if (hdferr < 0) then
+      call set_error(err, err_output, path // ': cannot set a conversion buffer')
+    else
+      call write_slab(path, dset, text_type, c_loc(pointers), [offset], [size(values, kind=i8)], err, xfer)
+    end if
+    call h5pclose_f(xfer, hdferr)
     call h5tclose_f(text_type, hdferr)
   end subroutine write_text_slab
 
@@ -170,18 +178,26 @@ contains
     call write_slab(path, dset, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), offset, counts, err)
   end subroutine write_int_slab
 
-  subroutine write_slab(path, dset, mem_type, buffer, offset, counts, err)
+  subroutine write_slab(path, dset, mem_type, buffer, offset, counts, err, xfer)
     character(len=*), intent(in) :: path           !< the file, for messages
     integer(hid_t), intent(in) :: dset, mem_type
     type(c_ptr), intent(in) :: buffer
     integer(i8), intent(in) :: offset(:), counts(:)
     type(error_t), intent(inout) :: err
+    integer(hid_t), intent(in), optional :: xfer   !< a transfer property list (default: HDF5's)
     integer(hid_t) :: file_space, mem_space
     integer :: hdferr, code
     character(len=:), allocatable :: name, reason
     if (err%failed()) return
     call select_slab(dset, offset, counts, file_space, mem_space, hdferr)
-    if (hdferr >= 0) call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
+    if (hdferr >= 0) then
+      if (present(xfer)) then
+        call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space, &
+                        xfer_prp=xfer)
+      else
+        call h5dwrite_f(dset, mem_type, buffer, hdferr, mem_space_id=mem_space, file_space_id=file_space)
+      end if
+    end if
     if (hdferr < 0) call hdf5_reason(reason)        ! now: the next HDF5 call clears HDF5's record of it
     call h5sclose_f(file_space, code)
     if (code < 0 .and. hdferr >= 0) call hdf5_reason(reason)

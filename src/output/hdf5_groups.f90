@@ -5,19 +5,19 @@
 module ellroll_hdf5_groups
   use, intrinsic :: iso_c_binding, only: c_int64_t
   use hdf5
-  use h5lt, only: h5ltset_attribute_int_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: set_error, err_output
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
-  use ellroll_status, only: status_count, status_name, status_pending
+  use ellroll_status, only: status_count, status_pending
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: dataset_inputs
   use ellroll_hdf5_layout, only: layout_t
+  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
   implicit none
   private
 
-  public :: shared_scales, case_group, trajectory_group
+  public :: shared_scales, case_group, trajectory_group, trajectory_label
 
   !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
   integer, parameter :: max_chunk_bytes = 2**20
@@ -32,19 +32,60 @@ module ellroll_hdf5_groups
 
 contains
 
+  !> /trajectory_label, a scalar fixed-length string of `bytes` bytes,
+  !> contiguous and allocated at once, never filled: ellroll_trajectory_store
+  !> writes the label of the trajectories written in place there, beside
+  !> HDF5. Made first, it lies near the file's start (its address is the
+  !> result; -1 when the layout failed).
+  integer(i8) function trajectory_label(lay, bytes) result(address)
+    type(layout_t), intent(inout) :: lay
+    integer, intent(in) :: bytes
+    integer(hid_t) :: text_type, space, dcpl, dset
+    integer :: hdferr
+    address = -1
+    if (lay%err%failed()) return
+    call h5tcopy_f(H5T_FORTRAN_S1, text_type, hdferr)
+    call lay%check(hdferr, 'create a datatype')
+    call h5tset_size_f(text_type, int(bytes, size_t), hdferr)
+    call lay%check(hdferr, 'set a text size')
+    call h5tset_strpad_f(text_type, H5T_STR_NULLPAD_F, hdferr)
+    call lay%check(hdferr, 'set a text padding')
+    call h5screate_f(H5S_SCALAR_F, space, hdferr)
+    call lay%check(hdferr, 'create a dataspace')
+    call h5pcreate_f(H5P_DATASET_CREATE_F, dcpl, hdferr)
+    call lay%check(hdferr, 'create a property list')
+    call h5pset_alloc_time_f(dcpl, H5D_ALLOC_TIME_EARLY_F, hdferr)
+    call lay%check(hdferr, 'set an allocation time')
+    call h5pset_fill_time_f(dcpl, H5D_FILL_TIME_NEVER_F, hdferr)
+    call lay%check(hdferr, 'set a fill time')
+    if (.not. lay%err%failed()) call h5dcreate_f(lay%file, 'trajectory_label', text_type, space, dset, hdferr, &
+                                                  dcpl_id=dcpl)
+    call lay%check(hdferr, 'create dataset trajectory_label')
+    call h5pclose_f(dcpl, hdferr)
+    call h5sclose_f(space, hdferr)
+    call h5tclose_f(text_type, hdferr)
+    if (lay%err%failed()) return
+    call lay%text_attribute(dset, 'units', '1')
+    call lay%text_attribute(dset, 'long_name', 'where the trajectories lie in this file (for a resume)')
+    address = h5d_address(int(dset, c_int64_t))
+    if (address < 0) call set_error(lay%err, err_output, lay%path // ': no file address for /trajectory_label')
+    call lay%close_dataset(dset)
+  end function trajectory_label
+
   !> The dimension scales every group shares: /time, /xyz, /mode.
   subroutine shared_scales(lay, times)
     type(layout_t), intent(inout) :: lay
     real(wp), intent(in) :: times(:)
-    lay%time_scale = lay%real_dataset(lay%file, 'time', [size(times, kind=i8)], 's', 'output times')
+    lay%time_scale = lay%real_dataset(lay%file, trim(time_entry%name), [size(times, kind=i8)], time_entry%units, &
+                                      time_entry%description)
     call lay%write_reals(lay%time_scale, times, [0_i8], [size(times, kind=i8)])
-    call lay%make_scale(lay%time_scale, 'time')
-    lay%xyz_scale = lay%text_dataset(lay%file, 'xyz', 3_i8, 'vector component')
+    call lay%make_scale(lay%time_scale, trim(time_entry%name))
+    lay%xyz_scale = lay%text_dataset(lay%file, trim(xyz_entry%name), 3_i8, xyz_entry%description)
     call lay%write_texts(lay%xyz_scale, ['x', 'y', 'z'], 0_i8)
-    call lay%make_scale(lay%xyz_scale, 'xyz')
-    lay%mode_scale = lay%int_dataset(lay%file, 'mode', 2_i8, '1', 'oscillation mode (the longer period first)')
+    call lay%make_scale(lay%xyz_scale, trim(xyz_entry%name))
+    lay%mode_scale = lay%int_dataset(lay%file, trim(mode_entry%name), 2_i8, mode_entry%units, mode_entry%description)
     call lay%write_ints(lay%mode_scale, [1_i8, 2_i8], 0_i8)
-    call lay%make_scale(lay%mode_scale, 'mode')
+    call lay%make_scale(lay%mode_scale, trim(mode_entry%name))
   end subroutine shared_scales
 
   !> A group of one value per case: a dataset per entry of `rec` (/case:
@@ -100,9 +141,10 @@ contains
     type(layout_t), intent(inout) :: lay
     integer(hid_t), intent(in) :: group
     integer(i8), intent(in) :: indices(:)
-    id = lay%int_dataset(group, 'case', size(indices, kind=i8), '1', 'global case index')
+    id = lay%int_dataset(group, trim(case_entry%name), size(indices, kind=i8), case_entry%units, &
+                         case_entry%description)
     call lay%write_ints(id, indices, 0_i8)
-    call lay%make_scale(id, 'case')
+    call lay%make_scale(id, trim(case_entry%name))
   end function case_scale
 
   subroutine create_status(lay, group, scale, n_cases, coords)
@@ -111,19 +153,15 @@ contains
     integer(i8), intent(in) :: n_cases
     type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: dset
-    integer :: s, hdferr
+    integer :: s
     character(len=:), allocatable :: meanings
     integer(i8), target :: pending
     pending = status_pending
-    dset = lay%int_dataset(group, 'status', n_cases, '1', 'how the case ended', fill=pending)
+    dset = lay%int_dataset(group, trim(status_entry%name), n_cases, status_entry%units, status_entry%description, &
+                           fill=pending)
     if (lay%err%failed()) return
-    meanings = status_name(0)
-    do s = 1, status_count - 1
-      meanings = meanings // ' ' // status_name(s)
-    end do
-    call h5ltset_attribute_int_f(dset, '.', 'flag_values', [(s, s = 0, status_count - 1)], &
-                                 int(status_count, size_t), hdferr)
-    call lay%check(hdferr, 'write attribute flag_values')
+    call status_flag_meanings(meanings)
+    call lay%int_attribute(dset, 'flag_values', [(int(s, i8), s = 0, status_count - 1)])
     call lay%text_attribute(dset, 'flag_meanings', meanings)
     call lay%attach(dset, scale, 0)
     call name_coordinates(lay, dset, coords)
@@ -170,26 +208,33 @@ contains
     call lay%text_attribute(dset, 'coordinates', names)
   end subroutine name_coordinates
 
-  !> /trajectory: the stored fields. Compressed: chunks of one case each,
+  !> /trajectory: the stored fields, on its own `time` scale (the values
+  !> of /time: netCDF readers give a group's coordinates from the group
+  !> itself, so that xarray's open_dataset(group='trajectory') has time as
+  !> a coordinate). Compressed: chunks of one case each,
   !> written through HDF5. Otherwise contiguous, allocated now and never
   !> filled (each case is written once, in place, at `address`; a case not
   !> written yet reads as zeros, its status 'pending').
-  subroutine trajectory_group(lay, fields, in_windows, n_samples, indices, coords, address)
+  subroutine trajectory_group(lay, fields, in_windows, times, indices, coords, address)
     logical, intent(in) :: fields(field_count)       !< the stored fields
     logical, intent(in) :: in_windows(field_count)   !< those written through HDF5 (compressed)
-    integer(i8), intent(in) :: n_samples
+    real(wp), intent(in) :: times(:)                 !< the output times
     type(layout_t), intent(inout) :: lay
     integer(i8), intent(in) :: indices(:)
     type(coordinate_t), intent(in) :: coords(:)
     integer(i8), intent(out) :: address(field_count)
-    integer(hid_t) :: group, scale, dset
-    integer(i8) :: chunk_samples, n_cases
+    integer(hid_t) :: group, scale, time, dset
+    integer(i8) :: chunk_samples, n_cases, n_samples
     integer(i8), allocatable :: dims(:)
     integer :: f
     address = -1
     n_cases = size(indices, kind=i8)
+    n_samples = size(times, kind=i8)
     group = lay%new_group('trajectory')
     scale = case_scale(lay, group, indices)
+    time = lay%real_dataset(group, 'time', [n_samples], 's', 'output times')
+    call lay%write_reals(time, times, [0_i8], [n_samples])
+    call lay%make_scale(time, 'time')
     call coordinate_datasets(lay, group, scale, coords)
     do f = 1, field_count
       if (.not. fields(f) .or. lay%err%failed()) cycle
@@ -213,11 +258,12 @@ contains
         end if
       end if
       call lay%attach(dset, scale, 0)
-      call lay%attach(dset, lay%time_scale, 1)
+      call lay%attach(dset, time, 1)
       if (field_ncomp(f) == 3) call lay%attach(dset, lay%xyz_scale, 2)
       call name_coordinates(lay, dset, coords)
       call lay%close_dataset(dset)
     end do
+    call lay%close_dataset(time)
     call lay%close_dataset(scale)
     call lay%close_group(group)
   end subroutine trajectory_group

@@ -11,7 +11,7 @@ module ellroll_hdf5_layout
   use h5lt, only: h5ltset_attribute_double_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
-  use ellroll_hdf5_common, only: hdf5_reason, dim_index, fixed_text_type, write_text_attribute, write_text_slab, write_real_slab, &
+  use ellroll_hdf5_common, only: hdf5_reason, dim_index, new_text_type, write_text_attribute, write_text_slab, write_real_slab, &
       write_int_slab
   implicit none
   private
@@ -28,6 +28,7 @@ module ellroll_hdf5_layout
     procedure :: check
     procedure :: new_group
     procedure :: text_attribute
+    procedure :: int_attribute
     procedure :: real_dataset
     procedure :: int_dataset
     procedure :: text_dataset
@@ -84,6 +85,27 @@ contains
     call write_text_attribute(loc, name, value, hdferr)
     call self%check(hdferr, 'write attribute ' // name)
   end subroutine text_attribute
+
+  !> An attribute of 64-bit integers, the type of the int datasets (CF asks
+  !> flag_values to have the type of its variable).
+  subroutine int_attribute(self, loc, name, values)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name
+    integer(i8), intent(in), target :: values(:)
+    integer(hid_t) :: space, attr
+    integer :: hdferr, code
+    if (self%err%failed()) return
+    call h5screate_simple_f(1, [size(values, kind=hsize_t)], space, hdferr)
+    if (hdferr >= 0) call h5acreate_f(loc, name, H5T_STD_I64LE, space, attr, hdferr)
+    if (hdferr >= 0) then
+      call h5awrite_f(attr, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), hdferr)
+      call h5aclose_f(attr, code)
+      hdferr = min(hdferr, code)
+    end if
+    call h5sclose_f(space, code)
+    call self%check(min(hdferr, code), 'write attribute ' // name)
+  end subroutine int_attribute
 
   !> A dataset of reals, NaN until written, with its units and long name:
   !> chunked (and deflated at the layout's level) when `chunk` is given;
@@ -181,7 +203,7 @@ contains
     if (self%err%failed()) return
     call h5screate_simple_f(1, [int(n, hsize_t)], space, hdferr)
     call self%check(hdferr, 'create a dataspace')
-    text_type = fixed_text_type()
+    text_type = new_text_type()
     if (.not. self%err%failed()) call h5dcreate_f(loc, name, text_type, space, dset, hdferr)
     call self%check(hdferr, 'create dataset ' // name)
     call h5tclose_f(text_type, hdferr)
@@ -189,9 +211,6 @@ contains
     call h5sclose_f(space, hdferr)
     call self%check(hdferr, 'close a dataspace')
     call describe(self, dset, '1', description)
-    ! netCDF's marker of UTF-8 text in a fixed-width character array: xarray
-    ! gives str (h5py gives bytes; .asstr() decodes them)
-    call self%text_attribute(dset, '_Encoding', 'utf-8')
   end function text_dataset
 
   subroutine describe(self, dset, units, description)

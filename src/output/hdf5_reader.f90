@@ -12,7 +12,7 @@ module ellroll_hdf5_reader
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_files, only: path_kind, kind_missing
-  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, fixed_text_type, text_width
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type
   implicit none
   private
 
@@ -28,6 +28,10 @@ module ellroll_hdf5_reader
       type(c_ptr), value :: mem
     end function c_h5free_memory
   end interface
+
+  !> Width of the text text_column gives (a record's name is at most 32
+  !> characters).
+  integer, parameter :: text_column_width = 64
 
   type :: h5_input_t
     integer(hid_t) :: file = -1
@@ -179,22 +183,29 @@ contains
                         [int(ncomp, i8), size(values, 2, kind=i8)], err)
   end function real_rows
 
-  !> A whole 1-D dataset of per-case text (fixed width), trailing blanks as read.
+  !> A whole 1-D dataset of per-case text (variable-length strings), blank
+  !> padded; a string never written (a null pointer) is blank.
   function text_column(self, name, err) result(values)
     class(h5_input_t), intent(in) :: self
     character(len=*), intent(in) :: name
     type(error_t), intent(inout) :: err
-    character(len=text_width), allocatable, target :: values(:)
+    character(len=text_column_width), allocatable :: values(:)
+    type(c_ptr), allocatable, target :: pointers(:)
+    character(kind=c_char), pointer :: chars(:)
     integer(hid_t) :: text_type
-    integer :: hdferr, k, end
-    allocate (values(self%dataset_length(name)))
+    integer :: hdferr, k, n
+    allocate (values(self%dataset_length(name)), pointers(self%dataset_length(name)))
     values = ''
-    text_type = fixed_text_type()
-    call self%read_slab(name, text_type, c_loc(values), [0_i8], [size(values, kind=i8)], err)
+    text_type = new_text_type()
+    call self%read_slab(name, text_type, c_loc(pointers), [0_i8], [size(values, kind=i8)], err)
     call h5tclose_f(text_type, hdferr)
-    do k = 1, size(values)            ! written null-terminated
-      end = index(values(k), c_null_char)
-      if (end > 0) values(k)(end:) = ''
+    if (err%failed()) return
+    do k = 1, size(values)
+      if (.not. c_associated(pointers(k))) cycle
+      n = int(c_strlen(pointers(k)))
+      call c_f_pointer(pointers(k), chars, [n])
+      values(k) = transfer(chars(:min(n, text_column_width)), values(k)(:min(n, text_column_width)))
+      hdferr = c_h5free_memory(pointers(k))     ! the string HDF5 allocated
     end do
   end function text_column
 

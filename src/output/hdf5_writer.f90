@@ -10,16 +10,18 @@ module ellroll_hdf5_writer
   use h5lt, only: h5ltset_attribute_int_f
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
-  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text, int_value
+  use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_ncomp
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: close_descriptor, system_error_text
+  use ellroll_strings, only: itoa
   use ellroll_files, only: create_new_file, descriptor_is_at, rename_path
-  use ellroll_trajectory_store, only: trajectory_store_t, label_bytes
+  use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
-  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group
+  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label
+  use ellroll_file_layout, only: table_row, file_title, file_references
   implicit none
   private
 
@@ -119,7 +121,7 @@ contains
     type(error_t), intent(inout) :: err
     integer, intent(in), optional :: compression   !< deflate level of the trajectories (0: none, the default)
     type(layout_t) :: lay
-    integer(i8) :: address(field_count)
+    integer(i8) :: address(field_count), label_address
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
     type(named_value_t), allocatable :: inputs(:), figures(:)
 
@@ -133,33 +135,36 @@ contains
     self%in_windows = fields .and. .not. in_place_fields
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
-    call open_new_file(self, lay, any(in_place_fields), prov)
+    call open_new_file(self, lay, any(in_place_fields), label_address)
     call shared_scales(lay, times)
     inputs = case_record(template)
     figures = summary_record(case_result_t())
     call case_group(lay, 'case', indices, inputs, coords(:0))
-    call trajectory_group(lay, self%fields, self%in_windows, self%n_samples, indices, coords, address)
+    call trajectory_group(lay, self%fields, self%in_windows, times, indices, coords, address)
     call case_group(lay, 'summary', indices, figures, coords)
     ! a row (table_row): the inputs, the figures, the status
     self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(figures) + 1)]
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)
+    call write_provenance(self, lay, prov)
     if (lay%err%failed()) then
       if (.not. err%failed()) err = lay%err
       return
     end if
-    call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, err)
+    call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, label_address, err)
   end subroutine create
 
-  !> Create the file, truncating any of that name, with its provenance.
-  subroutine open_new_file(self, lay, user_block, prov)
+  !> Create the file, truncating any of that name, and with `labelled`
+  !> /trajectory_label (its address: label_address).
+  subroutine open_new_file(self, lay, labelled, label_address)
     type(h5_output_t), intent(inout) :: self
     type(layout_t), intent(inout) :: lay
-    logical, intent(in) :: user_block       !< room for the label of trajectories written in place
-    type(provenance_t), intent(in) :: prov
+    logical, intent(in) :: labelled         !< room for the label of trajectories written in place
+    integer(i8), intent(out) :: label_address
     integer :: hdferr, closed, own
-    integer(hid_t) :: fapl, fcpl
+    integer(hid_t) :: fapl
+    label_address = -1
     call h5open_f(hdferr)
     call lay%check(hdferr, 'initialise HDF5')
     if (lay%err%failed()) return
@@ -175,10 +180,6 @@ contains
     ! nothing that was checked)
     call h5pset_sieve_buf_size_f(fapl, 0_size_t, hdferr)
     call lay%check(hdferr, 'set the sieve buffer')
-    call h5pcreate_f(H5P_FILE_CREATE_F, fcpl, hdferr)
-    call lay%check(hdferr, 'create a property list')
-    if (user_block) call h5pset_userblock_f(fcpl, int(label_bytes, hsize_t), hdferr)
-    call lay%check(hdferr, 'set the user block')
     if (lay%err%failed()) return
     ! the file is made where nothing is, never through a link (HDF5 would
     ! truncate whatever is there); HDF5 then lays out that very file
@@ -187,11 +188,9 @@ contains
       call set_error(lay%err, err_output, lay%path // ': cannot create the file: ' // system_error_text(-own))
       return
     end if
-    call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, creation_prp=fcpl, access_prp=fapl)
+    call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, access_prp=fapl)
     call lay%check(hdferr, 'create the file')
     call h5pclose_f(fapl, hdferr)
-    call lay%check(hdferr, 'close a property list')
-    call h5pclose_f(fcpl, hdferr)
     call lay%check(hdferr, 'close a property list')
     if (.not. lay%err%failed()) then
       if (.not. descriptor_is_at(own, lay%path)) &
@@ -200,14 +199,31 @@ contains
     closed = close_descriptor(own)
     if (lay%err%failed()) return
     lay%file = self%file
+    ! the label first, so that it lies near the file's start, where a
+    ! resume looks for it
+    if (labelled) then
+      label_address = trajectory_label(lay, label_bytes)
+      if (label_address + label_bytes > label_search_bytes .and. .not. lay%err%failed()) &
+        call set_error(lay%err, err_output, lay%path // ': /trajectory_label lies beyond the file''s first ' // &
+                       itoa(label_search_bytes) // ' bytes')
+    end if
+  end subroutine open_new_file
+
+  !> The root's attributes: written after the layout, so that where the
+  !> trajectories lie (and so /trajectory_label) depends on the layout
+  !> alone, not on the command line or the input's text.
+  subroutine write_provenance(self, lay, prov)
+    type(h5_output_t), intent(inout) :: self
+    type(layout_t), intent(inout) :: lay
+    type(provenance_t), intent(in) :: prov
+    integer :: hdferr
+    if (lay%err%failed()) return
     ! CF-1.10 global attributes, then ellroll's own provenance
     call lay%text_attribute(self%file, 'Conventions', 'CF-1.10')
-    call lay%text_attribute(self%file, 'title', 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
-                            'ellipsoidal cup')
+    call lay%text_attribute(self%file, 'title', file_title)
     call lay%text_attribute(self%file, 'source', prov%program // ' ' // prov%version)
     call lay%text_attribute(self%file, 'history', prov%created // ' ' // prov%command_line)
-    call lay%text_attribute(self%file, 'references', 'V. P. Legeza (1990), Derivation of the equations of ' // &
-        'motion of a heavy ball in the cavity of a triaxial ellipsoid and their numerical analysis (in Russian)')
+    call lay%text_attribute(self%file, 'references', file_references)
     call lay%text_attribute(self%file, 'program', prov%program)
     call lay%text_attribute(self%file, 'version', prov%version)
     call lay%text_attribute(self%file, 'created', prov%created)
@@ -220,7 +236,7 @@ contains
     if (lay%err%failed()) return
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
     call lay%check(hdferr, 'write attribute n_cases_total')
-  end subroutine open_new_file
+  end subroutine write_provenance
 
   !> Store one case's inputs, trajectories and summary at its slot icase
   !> (0-based). Trajectories read from another file's store (`moved_from`,
@@ -278,14 +294,6 @@ contains
     logical :: written_in_place(field_count)
     written_in_place = fields .and. deflate_level <= 0
   end function written_in_place
-
-  !> A case's row of the case and summary tables: its inputs, its summary, its status.
-  function table_row(cs, res) result(row)
-    type(case_t), intent(in) :: cs
-    type(case_result_t), intent(in) :: res
-    type(named_value_t), allocatable :: row(:)
-    row = [case_record(cs), summary_record(res), int_value('status', '', '', int(res%status, i8))]
-  end function table_row
 
   !> Keep a case (its table row and its trajectories) in its window; a window
   !> complete, or the oldest when all are in use, goes to `full`.

@@ -4,11 +4,16 @@
 !> system calls, beside HDF5 (which allocated the space and never touches it
 !> again), and a resume reads them back the same way.
 !>
-!> The file's first label_bytes bytes (HDF5's user block, which the library
-!> reserves and leaves alone) hold a label: the case and sample counts and
-!> the field addresses. A resume finds a killed run's trajectories from the
-!> label alone, without trusting HDF5's metadata, which a kill may have left
-!> half written.
+!> A label of label_bytes bytes, the data of a small dataset near the
+!> file's start (/trajectory_label, contiguous, allocated before the file's
+!> other data and never written by HDF5), holds the case and sample counts
+!> and the field addresses, as text (netCDF readers read it as a string). A
+!> resume finds a killed run's trajectories from the label alone, without
+!> trusting HDF5's metadata, which a kill may have left half written: it
+!> looks for the label's marker in the file's first label_search_bytes and
+!> takes the first copy whose checksum holds. (An HDF5 user block at the
+!> file's start would hold it at a fixed place, but xarray then takes the
+!> file for no netCDF/HDF5 file at all.)
 module ellroll_trajectory_store
   use, intrinsic :: iso_c_binding, only: c_loc, c_ptr
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
@@ -22,13 +27,14 @@ module ellroll_trajectory_store
   implicit none
   private
 
-  public :: trajectory_store_t, label_bytes
+  public :: trajectory_store_t, label_bytes, label_search_bytes
 
   integer(i8), parameter :: piece_words = 2_i8**17      !< a piece of move_in: 1 MiB
-  integer, parameter :: label_bytes = 512        !< a power of two >= 512, as HDF5 asks of a user block
-  integer(i8), parameter :: label_marker = transfer('ellroll:', 0_i8)     !< readable in a dump
-  integer(i8), parameter :: label_version = 1
-  integer, parameter :: label_words = 4 + field_count + 1     !< marker, version, counts, addresses, checksum
+  integer, parameter :: label_bytes = 512               !< the label's text, NUL padded
+  integer, parameter :: label_search_bytes = 65536      !< where a resume looks for it
+  character(len=*), parameter :: label_marker = 'ellroll trajectories:'
+  integer(i8), parameter :: label_version = 2           !< 1: binary, in the user block
+  integer, parameter :: label_words = 3 + field_count + 1     !< version, counts, addresses, checksum
 
   type :: trajectory_store_t
     character(len=:), allocatable :: path
@@ -38,6 +44,7 @@ module ellroll_trajectory_store
     logical :: fields(field_count) = .false.       !< the fields stored here
     integer(i8) :: address(field_count) = -1       !< where each begins (-1: not here, or no cases)
     integer(i8) :: freed_to(field_count) = -1      !< where the storage freed by move_in ends
+    integer(i8) :: label_address = -1              !< where the label lies
   contains
     procedure :: start
     procedure :: open_existing
@@ -54,30 +61,36 @@ module ellroll_trajectory_store
 
 contains
 
-  !> Open the file HDF5 laid out for writing, and label it. Nothing to do
-  !> when no field is stored in place.
-  subroutine start(self, path, n_cases, n_samples, fields, address, err)
+  !> Open the file HDF5 laid out for writing, and write its label at
+  !> label_address. Nothing to do when no field is stored in place.
+  subroutine start(self, path, n_cases, n_samples, fields, address, label_address, err)
     class(trajectory_store_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     integer(i8), intent(in) :: n_cases, n_samples
     logical, intent(in) :: fields(field_count)
     integer(i8), intent(in) :: address(field_count)
+    integer(i8), intent(in) :: label_address
     type(error_t), intent(inout) :: err
-    integer(i8), target :: label(label_bytes / 8)
-    integer :: code
+    character(len=label_bytes), target :: label
+    integer(i8) :: words(label_words)
+    integer :: code, k
     call describe(self, path, n_cases, n_samples, fields)
     self%address = merge(address, -1_i8, fields)
     if (.not. any(fields)) return
+    self%label_address = label_address
     self%fd = open_for_writing(path)
     if (self%fd < 0) then
       call set_error(err, err_output, path // ': cannot open for writing the trajectories: ' // &
                      system_error_text(-self%fd))
       return
     end if
-    label = 0
-    label(:label_words - 1) = [label_marker, label_version, n_cases, n_samples, self%address]
-    label(label_words) = checksum(label(:label_words - 1))
-    code = write_pieces_at(self%fd, [c_loc(label)], [int(label_bytes, i8)], 0_i8)
+    words(:label_words - 1) = [label_version, n_cases, n_samples, self%address]
+    words(label_words) = checksum(words(:label_words - 1))
+    write (label, '(a, *(1x, i0))') label_marker, words
+    do k = len_trim(label) + 1, label_bytes      ! NUL padded, as its HDF5 type says
+      label(k:k) = achar(0)
+    end do
+    code = write_pieces_at(self%fd, [c_loc(label)], [int(label_bytes, i8)], label_address)
     if (code /= 0) call set_error(err, err_output, path // ': cannot write its label: ' // system_error_text(code))
   end subroutine start
 
@@ -92,8 +105,10 @@ contains
     logical, intent(in) :: fields(field_count)
     logical, intent(in) :: writable
     type(error_t), intent(inout) :: err
-    integer(i8), target :: label(label_words)
-    integer :: code
+    character(len=:), allocatable, target :: head
+    integer(i8) :: words(label_words), size_bytes
+    integer :: code, at, from, last, ios
+    logical :: found
     call describe(self, path, n_cases, n_samples, fields)
     if (writable) then
       self%fd = open_for_writing(path)
@@ -104,16 +119,38 @@ contains
       call set_error(err, err_output, path // ': cannot open: ' // system_error_text(-self%fd))
       return
     end if
-    code = read_at(self%fd, c_loc(label), 8_i8 * label_words, 0_i8)
+    inquire (file=path, size=size_bytes)
+    allocate (character(len=int(max(0_i8, min(size_bytes, int(label_search_bytes, i8))))) :: head)
+    code = -1
+    if (len(head) > 0) code = read_at(self%fd, c_loc(head), int(len(head), i8), 0_i8)
     if (code /= 0) then
       call set_error(err, err_output, path // ': no trajectory label')
-    else if (label(1) /= label_marker .or. label(label_words) /= checksum(label(:label_words - 1))) then
+      return
+    end if
+    ! the first marker followed by words whose checksum holds
+    found = .false.
+    from = 1
+    do
+      at = index(head(from:), label_marker)
+      if (at == 0) exit
+      at = from + at - 1 + len(label_marker)
+      from = at
+      last = min(len(head), at + label_bytes - len(label_marker) - 1)
+      if (index(head(at:last), achar(0)) > 0) last = at + index(head(at:last), achar(0)) - 2  ! the text ends at its NUL
+      read (head(at:last), *, iostat=ios) words
+      if (ios /= 0) cycle
+      if (words(label_words) /= checksum(words(:label_words - 1))) cycle
+      found = .true.
+      self%label_address = at - 1 - len(label_marker)
+      exit
+    end do
+    if (.not. found) then
       call set_error(err, err_output, path // ': no trajectory label, or a damaged one')
-    else if (label(2) /= label_version .or. label(3) /= n_cases .or. label(4) /= n_samples .or. &
-             any((label(5:4 + field_count) >= 0) .neqv. (fields .and. n_cases > 0))) then
+    else if (words(1) /= label_version .or. words(2) /= n_cases .or. words(3) /= n_samples .or. &
+             any((words(4:3 + field_count) >= 0) .neqv. (fields .and. n_cases > 0))) then
       call set_error(err, err_output, path // ': its trajectories are laid out for another run')
     else
-      self%address = label(5:4 + field_count)
+      self%address = words(4:3 + field_count)
       self%freed_to = self%address
     end if
   end subroutine open_existing
@@ -277,25 +314,31 @@ contains
   !> the file is no HDF5 file after, only a store of trajectories.
   subroutine release_all_but_trajectories(self)
     class(trajectory_store_t), intent(inout) :: self
-    integer(i8) :: gap_start, gap_end, ignored
+    integer(i8) :: kept(2, 0:field_count)     !< (start, end) of the label and of each field's trajectories
+    integer(i8) :: gap_start, ignored
     integer :: f, next
-    gap_start = label_bytes
+    kept(:, 0) = [self%label_address, self%label_address + label_bytes]
+    do f = 1, field_count
+      kept(:, f) = [self%address(f), self%address(f) + 8 * field_ncomp(f) * self%n_samples * self%n_cases]
+    end do
+    gap_start = 0
     do
-      ! the gap ends where the next field's trajectories begin, or at the file's end
-      next = 0
-      do f = 1, field_count
-        if (self%address(f) < gap_start) cycle
-        if (next == 0) then
+      ! the gap ends where the next range kept begins, or at the file's end
+      next = -1
+      do f = 0, field_count
+        if (kept(1, f) < gap_start) cycle
+        if (next < 0) then
           next = f
-        else if (self%address(f) < self%address(next)) then
+        else if (kept(1, f) < kept(1, next)) then
           next = f
         end if
       end do
-      gap_end = huge(0_i8)
-      if (next > 0) gap_end = self%address(next)
-      ignored = release_range(self%fd, gap_start, gap_end)
-      if (next == 0) exit
-      gap_start = self%address(next) + 8 * field_ncomp(next) * self%n_samples * self%n_cases
+      if (next < 0) then
+        ignored = release_range(self%fd, gap_start, huge(0_i8))
+        exit
+      end if
+      ignored = release_range(self%fd, gap_start, kept(1, next))
+      gap_start = kept(2, next)
     end do
   end subroutine release_all_but_trajectories
 

@@ -25,9 +25,10 @@ contains
     character(len=:), allocatable :: reason, description
     type(case_t) :: cs
     allocate (invalid(0:inp%campaign%n_cases() - 1))
-    ! every case checked (in parallel: a sweep may hold millions), then the
-    ! messages of the first five in case order
-    !$omp parallel do schedule(dynamic, 256)
+    ! every case checked (in parallel: a sweep may hold millions; a few
+    ! cases on this thread alone), then the messages of the first five in
+    ! case order
+    !$omp parallel do schedule(dynamic, 256) if (inp%campaign%n_cases() > 256)
     do i = 0, inp%campaign%n_cases() - 1
       invalid(i) = case_is_invalid(i)
     end do

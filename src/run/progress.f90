@@ -1,7 +1,8 @@
 !> Progress of a campaign on stderr: cases done/total, cases per second and
 !> the time left. On a terminal one refreshing line, at most once a second;
 !> in a log (a batch job's stderr) a full line, flushed, every 10 s and at
-!> each tenth of the cases, the last one with the totals.
+!> each tenth of the cases, the last one with the totals: cases per second
+!> and the time taken, never a time left.
 module ellroll_progress
   use, intrinsic :: iso_fortran_env, only: error_unit
   use, intrinsic :: iso_c_binding, only: c_int
@@ -23,6 +24,7 @@ module ellroll_progress
     integer(i8) :: total = 0, done = 0, resumed = 0
     integer(i8) :: clock_start = 0, clock_last = 0, clock_rate = 1
     logical :: quiet = .false., terminal = .false., printed = .false.
+    integer :: last_length = 0           !< of the line on the terminal, which the next overwrites
   contains
     procedure :: start
     procedure :: advance
@@ -80,12 +82,16 @@ contains
     line = 'ellroll: ' // itoa(self%done) // '/' // itoa(self%total) // ' cases (' // &
            itoa(100 * self%done / max(1_i8, self%total)) // '%), ' // &
            format_real(anint(10 * rate) / 10) // ' cases/s'
-    if (rate > 0 .and. self%done < self%total) then
+    if (self%done >= self%total) then
+      line = line // ', done in ' // clock_text(elapsed)
+    else if (rate > 0) then
       left = real(self%total - self%done, wp) / rate
       line = line // ', ETA ' // clock_text(left)
     end if
     if (self%terminal) then
-      write (error_unit, '(a)', advance='no') achar(13) // line // '   '
+      ! blanks over what is left of a longer line before it (an ETA)
+      write (error_unit, '(a)', advance='no') achar(13) // line // repeat(' ', max(0, self%last_length - len(line)))
+      self%last_length = len(line)
       flush (error_unit)
     else
       write (error_unit, '(a)') line

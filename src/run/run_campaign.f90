@@ -14,6 +14,7 @@
 !> (ellroll_resume).
 module ellroll_run_campaign
   !$ use omp_lib, only: omp_get_max_threads
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_interrupted
   use ellroll_strings, only: itoa
@@ -21,7 +22,7 @@ module ellroll_run_campaign
   use ellroll_cases, only: case_t
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t
-  use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
+  use ellroll_block_run, only: simulate_block, uses_batches, lanes
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, table_row
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
@@ -65,7 +66,6 @@ module ellroll_run_campaign
     type(error_t) :: first_err
     integer :: failed = 0
   contains
-    procedure :: in_lanes
     procedure :: global_index
     procedure :: record_failure
     procedure :: loop_failed
@@ -73,11 +73,12 @@ module ellroll_run_campaign
 
 contains
 
-  subroutine run_campaign(inp, opts, prov_in, err)
+  subroutine run_campaign(inp, opts, prov_in, err, ran)
     type(run_input_t), intent(in) :: inp
     type(run_options_t), intent(in) :: opts
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
+    integer(i8), intent(out), optional :: ran      !< the cases this call integrated
     character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
     logical :: resume, nothing_to_do
@@ -93,6 +94,7 @@ contains
     run%timings%checked = wall_clock()
     call refuse_invalid_cases(inp, invalid, messages, err)
     if (err%failed()) return
+    if (present(ran)) ran = 0
     call files%acquire('ellroll run ' // inp%path // trim(merge(' --resume', '         ', opts%resume)), err)
     if (err%failed()) return
     call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
@@ -102,12 +104,17 @@ contains
       call open_outputs(inp, opts%shard, prov_in, files, resume, run%out, run%journal, run%done, err)
       if (.not. err%failed()) then
         run%n_slots = size(run%done, kind=i8)
+        if (resume .and. .not. opts%quiet) write (error_unit, '(a)') 'ellroll: resuming ' // files%target // &
+            ': kept ' // itoa(count(run%done, kind=i8)) // ' of ' // itoa(run%n_slots) // &
+            ' cases from the journal; running ' // itoa(run%n_slots - count(run%done, kind=i8))
         call record_invalid(inp, invalid, run, err)
       end if
       if (err%failed()) then
         call abandon(run, files, err)
       else
+        if (present(ran)) ran = -count(run%done, kind=i8)
         call run_blocks(inp, opts, run)
+        if (present(ran)) ran = ran + run%progress%done
         call finish(run, files, opts, err)
       end if
     end if
@@ -143,14 +150,12 @@ contains
     !$ n_threads = omp_get_max_threads()
     if (opts%threads > 0) n_threads = opts%threads
     call run%progress%start(run%n_slots, count(run%done, kind=i8), opts%quiet)
-    ! In a campaign of at least `lanes` batchable cases, blocks of `lanes`
-    ! slots whose batchable cases run together across SIMD lanes (the others
-    ! one by one): whether cases share lanes depends on the campaign only,
-    ! never on threads, shards or resumption, so results stay bitwise the
-    ! same. Cases that run one by one may be grouped in any way: blocks of up
-    ! to `lanes` of them (the locks and writes taken once per block), fewer
+    ! In a campaign that batches (uses_batches), blocks of `lanes` slots
+    ! whose batchable cases run together across SIMD lanes (simulate_block).
+    ! Cases that run one by one may be grouped in any way: blocks of up to
+    ! `lanes` of them (the locks and writes taken once per block), fewer
     ! where that gives every thread at least four blocks.
-    run%use_batches = inp%campaign%n_cases() >= lanes .and. batchable(inp%campaign%base)
+    run%use_batches = uses_batches(inp%campaign)
     run%block_slots = lanes
     if (.not. run%use_batches) run%block_slots = max(1_i8, min(int(lanes, i8), run%n_slots / (4_i8 * n_threads)))
     run%timings%loop_started = wall_clock()
@@ -199,12 +204,11 @@ contains
     type(run_input_t), intent(in) :: inp
     integer(i8), intent(in) :: chunk
     type(case_t) :: cases(lanes)
-    type(case_result_t) :: results(lanes), batch_results(lanes)
+    type(case_result_t) :: results(lanes)
     type(error_t) :: case_err, write_err
     type(window_list_t) :: full
     integer(i8) :: slots(lanes), slot
-    integer :: n, n_done, j, in_batch(lanes), n_batch, first, run_start
-    logical :: waiting(lanes)
+    integer :: n, n_done, j, run_start
     integer(i8), allocatable :: records(:)    !< the journal records of the block, one after the other
     type(named_value_t), allocatable :: rows(:, :)
     real(wp) :: asked, taken
@@ -217,33 +221,7 @@ contains
       cases(n) = inp%campaign%case_at(run%global_index(slot))
     end do
     if (n == 0) return
-    ! one batch per method among the block's batchable cases
-    waiting(:n) = [(run%in_lanes(cases(j)), j = 1, n)]
-    do while (any(waiting(:n)))
-      first = findloc(waiting(:n), .true., dim=1)
-      n_batch = 0
-      do j = first, n
-        if (.not. waiting(j) .or. cases(j)%method /= cases(first)%method) cycle
-        n_batch = n_batch + 1
-        in_batch(n_batch) = j
-        waiting(j) = .false.
-      end do
-      if (n_batch == n) then           ! the whole block: no copy of the results
-        call simulate_batch(cases(:n), inp%plan, results(:n))
-      else
-        call simulate_batch(cases(in_batch(:n_batch)), inp%plan, batch_results(:n_batch))
-        results(in_batch(:n_batch)) = batch_results(:n_batch)
-      end if
-    end do
-    n_done = n
-    do j = 1, n
-      if (run%in_lanes(cases(j))) cycle
-      call simulate_case(cases(j), inp%plan, results(j), case_err)
-      if (case_err%failed()) then
-        n_done = j - 1
-        exit
-      end if
-    end do
+    call simulate_block(cases(:n), run%use_batches, inp%plan, results(:n), n_done, case_err)
     if (stop_signal() /= 0) return       ! cases cut short: the block runs again on --resume
     ! the trajectories go to their place in the file, one write per run of
     ! consecutive slots; records and table rows are built here: all outside the locks
@@ -307,14 +285,6 @@ contains
     call run%timings%tally(lock_keep, asked, taken)
     !$omp end critical (ellroll_keep)
   end subroutine run_block
-
-  !> A case of a small campaign (the paper's single case, say) runs alone:
-  !> a batch costs all its lanes whether they are filled or not.
-  pure logical function in_lanes(self, cs)
-    class(run_state_t), intent(in) :: self
-    type(case_t), intent(in) :: cs
-    in_lanes = self%use_batches .and. batchable(cs)
-  end function in_lanes
 
   !> Keep err as the loop's first error (if it is one and none came
   !> before), and tell the other blocks to stop.

@@ -1,20 +1,24 @@
 !> Advice on the step of a fixed-step campaign, before it runs: the cases
 !> whose dt is large against the fastest rate of their linearised motion at
-!> the start (spin and curvature), with a step that would do.
+!> the start (spin and curvature), with a step that would do; and, for an
+!> adaptive method, whether dt (its largest step) caps its steps.
 module ellroll_step_advice
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_strings, only: itoa, format_real
-  use ellroll_cases, only: case_t, case_problem, make_ball, adaptive_method, is_multiple
+  use ellroll_cases, only: case_t, output_plan_t, case_problem, make_ball, adaptive_method, is_multiple
+  use ellroll_results, only: case_result_t
+  use ellroll_status, only: status_completed
+  use ellroll_simulate, only: simulate_case
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
   use ellroll_input, only: run_input_t
-  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y
+  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol
   implicit none
   private
 
-  public :: step_size_advice
+  public :: step_size_advice, dt_cap_advice, dt_cap_after_run
 
 contains
 
@@ -100,6 +104,86 @@ contains
           one%param(p_omega_x:p_omega_z)), enough=warn_above / dt)
     end subroutine start_rate
   end subroutine step_size_advice
+
+  !> A warning (or '') when the method is adaptive and dt, its largest step,
+  !> caps its steps: where dt implies at least probe_from steps, the base
+  !> case runs a span of probe_spans steps of dt with dt lifted; when it
+  !> needs at most half as many steps there, the tolerance would choose
+  !> steps above dt, and dt, not rtol, sets the run's cost and accuracy.
+  subroutine dt_cap_advice(inp, message)
+    type(run_input_t), intent(in) :: inp
+    character(len=:), allocatable, intent(out) :: message
+    real(wp), parameter :: probe_from = 2000, probe_spans = 100
+    type(case_t) :: probe
+    type(output_plan_t) :: plan
+    type(case_result_t) :: res
+    type(error_t) :: err
+    real(wp) :: dt, steps
+    message = ''
+    probe = inp%campaign%base
+    if (.not. adaptive_method(probe%method)) return
+    if (inp%campaign%n_cases() > 0) probe = inp%campaign%case_at(0_i8)
+    if (case_problem(probe, inp%plan%interval) /= 0) return
+    dt = probe%param(p_dt)
+    if (.not. (probe%t_end >= probe_from * dt)) return
+    probe%t_end = probe_spans * dt
+    probe%param(p_dt) = probe%t_end
+    plan%interval = probe%t_end
+    plan%n_samples = 2
+    plan%fields = .false.
+    call simulate_case(probe, plan, res, err)
+    if (err%failed() .or. res%status /= status_completed) return
+    if (real(res%n_steps, wp) > probe_spans / 2) return
+    steps = probe%t_end / real(max(res%n_steps, 1_i8), wp)
+    call cap_message(inp%campaign%base, dt, nint(inp%campaign%base%t_end / dt, i8), ' (at rtol = ' // &
+        format_real(probe%param(p_rtol)) // ' its steps would be about ' // format_real(significant(steps)) // &
+        ' s at the start)', message)
+  end subroutine dt_cap_advice
+
+  !> After a run: a warning (or '') when most completed cases of an adaptive
+  !> method took (almost) t_end / dt steps: their steps were dt, the cap.
+  subroutine dt_cap_after_run(inp, case_index, status, n_steps, message)
+    type(run_input_t), intent(in) :: inp
+    integer(i8), intent(in) :: case_index(:), status(:), n_steps(:)
+    character(len=:), allocatable, intent(out) :: message
+    type(case_t) :: one
+    integer(i8) :: k, completed, capped
+    real(wp) :: most_steps
+    message = ''
+    if (.not. adaptive_method(inp%campaign%base%method)) return
+    completed = 0
+    capped = 0
+    do k = 1, size(status)
+      if (status(k) /= status_completed) cycle
+      completed = completed + 1
+      one = inp%campaign%case_at(case_index(k))
+      most_steps = one%t_end / one%param(p_dt)
+      if (most_steps >= 100 .and. real(n_steps(k), wp) >= 0.9_wp * most_steps) capped = capped + 1
+    end do
+    if (completed == 0 .or. 2 * capped <= completed) return
+    one = inp%campaign%base
+    call cap_message(one, one%param(p_dt), -1_i8, ' (' // itoa(capped) // ' of ' // itoa(completed) // &
+        ' completed cases took t_end / dt steps: their steps were dt)', message)
+  end subroutine dt_cap_after_run
+
+  subroutine cap_message(cs, dt, steps, why, message)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: dt
+    integer(i8), intent(in) :: steps           !< the least steps dt implies, or < 0 to leave them out
+    character(len=*), intent(in) :: why
+    character(len=:), allocatable, intent(out) :: message
+    message = 'ellroll: warning: dt = ' // format_real(dt) // ' caps ' // trim(cs%method) // '''s steps'
+    if (steps >= 0) message = message // ': it will take >= ' // itoa(steps) // ' steps whatever rtol'
+    message = message // why // '; raise dt (the largest step) to let rtol decide'
+  end subroutine cap_message
+
+  !> x to three significant digits, for a message.
+  real(wp) function significant(x)
+    real(wp), intent(in) :: x
+    real(wp) :: scale
+    scale = 10.0_wp**(2 - floor(log10(x)))
+    significant = anint(x * scale) / scale
+  end function significant
 
   !> The largest 1, 2 or 5 times a power of ten <= limit that divides interval
   !> (a power below 1 divided by, so that 5e-6 is the double nearest 5e-6).

@@ -216,10 +216,10 @@ def test_two_cases_run_on_two_threads(ellroll, tmp_path):
 
 
 def test_files_use_the_hdf5_1_10_format(paper_file):
-    """docs/output.md: files use the HDF5 1.10 format after a 512-byte user block: the
-    superblock (version 3, HDF5 1.10's) starts at byte 512."""
-    head = paper_file.read_bytes()[:1024]
-    assert head.find(b"\x89HDF\r\n\x1a\n") == 512 and head[512 + 8] == 3
+    """docs/output.md: files use the HDF5 1.10 format and start with the HDF5
+    signature (no user block): the superblock (version 3, HDF5 1.10's) at byte 0."""
+    head = paper_file.read_bytes()[:16]
+    assert head.startswith(b"\x89HDF\r\n\x1a\n") and head[8] == 3
 
 
 def test_the_sweep_figure_bands_the_middle_80_percent(ellroll, tmp_path):

@@ -375,7 +375,8 @@ def message_names_an_input(out, trial, stderr):
         out.failures.append(f"exit 2 without naming the file: {stderr[-1500:]}")
         return
     message = found[1] or found[2]
-    named = [f"&{g}: {k} = {collapse(v)}: " for g, k, v in trial.case.assignments()]
+    # 'NAME = VALUE: reason', or 'NAME = VALUE is not a number' (a value of the wrong type)
+    named = [f"&{g}: {k} = {collapse(v)}{end}" for g, k, v in trial.case.assignments() for end in [": ", " is not "]]
     ok = (any(n in message for n in named) or re.search(r"&\w+: \w+ \(default\): \S", message)
           or re.search(r"&\w+: \w+ is required but not given", message)
           or re.search(r"case \d+ \(.*\): \w+ = \S+: \S", message) or "group &" in message)

@@ -30,11 +30,12 @@ def test_layout_shapes_units_and_scales(paper_file):
             assert ds.shape == ((1, nt, 3) if ncomp == 3 else (1, nt)), name
             assert ds.attrs["units"] == units
             scales = [d[0].name for d in ds.dims]
-            assert scales == (["/trajectory/case", "/time", "/xyz"] if ncomp == 3
-                              else ["/trajectory/case", "/time"])
+            assert scales == (["/trajectory/case", "/trajectory/time", "/xyz"] if ncomp == 3
+                              else ["/trajectory/case", "/trajectory/time"])
             # uncompressed (the default; see test_compression): contiguous, each
             # case's samples in one piece, written in place by the thread that ran it
             assert ds.chunks is None and ds.compression is None
+        np.testing.assert_array_equal(f["trajectory/time"][:], f["time"][:])
         for name in SUMMARY:
             assert f["summary"][name].shape == (1,)
         for name in ["a", "b", "c", "radius", "mass", "g", "x", "y", "dt", "t_end", "method"]:
@@ -130,7 +131,7 @@ def test_fields_selects_what_is_stored(ellroll, tmp_path):
     write_input(tmp_path, [("interval = 0.01 /", "interval = 0.01, fields = 'nutation', 'contact' /")])
     assert run(ellroll, "run", "case.nml", "-o", "sel.h5", cwd=tmp_path).returncode == 0
     with h5py.File(tmp_path / "sel.h5", "r") as f:
-        assert sorted(k for k in f["trajectory"] if k != "case") == ["contact", "nutation"]
+        assert sorted(k for k in f["trajectory"] if k not in ("case", "time")) == ["contact", "nutation"]
         assert f["summary/theta_max"][0] > 0.2
 
 
@@ -213,6 +214,8 @@ def test_summary_command_formats(ellroll, paper_file):
     import io
     import json
     rows = list(csv.DictReader(io.StringIO(run(ellroll, "summary", paper_file, "--format", "csv").stdout)))
+    # the header's `name [units]` by name alone
+    rows = [{key.split(" [")[0]: value for key, value in row.items()} for row in rows]
     text = run(ellroll, "summary", paper_file, "--format", "json").stdout
     data = json.loads(text, parse_constant=lambda token: pytest.fail(f"not strict JSON: {token}"))
     with h5py.File(paper_file, "r") as f:
@@ -272,8 +275,8 @@ def summary_csv(ellroll, path):
 def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_file):
     import json
     fortran, python = summary_csv(ellroll, swept_file)
-    assert fortran[0] == python[0] and fortran[0][:4] == ["case", "omega_z", "radius", "status"]
-    assert "linear_periods_2" in fortran[0] and len(fortran) == len(python) == 5
+    assert fortran[0] == python[0] and fortran[0][:4] == ["case", "omega_z [rad/s]", "radius [m]", "status"]
+    assert "linear_periods_2 [s]" in fortran[0] and len(fortran) == len(python) == 5
     for row_f, row_p in zip(fortran[1:], python[1:]):
         assert [float(v) for v in row_f[4:]] == pytest.approx([float(v) for v in row_p[4:]], rel=0, abs=0,
                                                                 nan_ok=True)
@@ -299,7 +302,7 @@ def test_summary_of_a_file_without_coordinates_or_a_figure(ellroll, swept_file, 
     fortran, python = summary_csv(ellroll, older)
     assert len(fortran) == len(python) == 5
     assert fortran[0][:2] == ["case", "status"] and "horizontal_force_max" not in fortran[0]
-    assert python[0][:4] == ["case", "radius", "omega_z", "status"] and "horizontal_force_max" not in python[0]
+    assert python[0][:4] == ["case", "radius [m]", "omega_z [rad/s]", "status"] and "horizontal_force_max" not in python[0]
 
 
 def test_ncdump_reads_the_file(swept_file):

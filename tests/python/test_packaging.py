@@ -27,6 +27,7 @@ def test_one_version_everywhere(ellroll, paper_file, tmp_path):
     metadata = next(target.glob("ellroll_post-*.dist-info")) / "METADATA"
     assert f"Version: {CMAKE_VERSION}\n" in metadata.read_text()
     assert (target / "bin" / "ellroll-plot").exists()
+    assert (target / "ellroll" / "__init__.py").exists()        # the Python API, beside ellroll_post
     requires = [line for line in metadata.read_text().splitlines() if line.startswith("Requires-Dist")]
     assert requires and all(">=" in line for line in requires), requires
 

@@ -77,8 +77,8 @@ def test_nutation_reaction_energy_carry_the_file_data(paper_file):
         force, normal = f["trajectory/reaction"][0], f["trajectory/normal"][0]
         n_force = np.sum(force * normal, axis=1)
         lines = {line.get_label(): line for line in axes[0].get_lines()}
-        np.testing.assert_allclose(lines["normal force N"].get_ydata(), n_force)
-        assert lines["weight m g = 2620 N"].get_ydata()[0] == pytest.approx(2620)
+        np.testing.assert_allclose(lines[r"normal force $F_n = \mathbf{F} \cdot \mathbf{n}$"].get_ydata(), n_force)
+        assert lines["weight $m g$ = 2620 N"].get_ydata()[0] == pytest.approx(2620)
         friction = np.linalg.norm(force - n_force[:, None] * normal, axis=1)
         np.testing.assert_allclose(axes[1].get_lines()[0].get_ydata(), friction)    # on its own axis
         mu = axes[2].get_lines()[0].get_ydata()
@@ -140,14 +140,14 @@ def test_summary_formats(sweep_file):
     text = plot_cli("summary", sweep_file)
     assert text.returncode == 0 and "no_fit" in text.stdout and "omega_z" in text.stdout.splitlines()[0]
     rows = list(csv.DictReader(io.StringIO(plot_cli("summary", sweep_file, "--format", "csv").stdout)))
-    assert len(rows) == 6 and rows[2]["radius"] == "0.5" and rows[2]["status"] == "no_fit"
+    assert len(rows) == 6 and rows[2]["radius [m]"] == "0.5" and rows[2]["status"] == "no_fit"
     text = plot_cli("summary", sweep_file, "--format", "json").stdout
     data = json.loads(text, parse_constant=lambda token: pytest.fail(f"not strict JSON: {token}"))
     with h5py.File(sweep_file, "r") as f:
         assert [c["theta_max"] for c in data["cases"]] == list(f["summary/theta_max"][:])
         transmissibility = f["summary/transmissibility"][:]                  # NaN: no harmonic excitation
     assert np.all(np.isnan(transmissibility)) and all(c["transmissibility"] is None for c in data["cases"])
-    assert {"displacement_max", "residual_displacement", "absolute_acceleration_max"} <= set(rows[0])
+    assert {"displacement_max [m]", "residual_displacement [m]", "absolute_acceleration_max [m/s^2]"} <= set(rows[0])
 
 
 def test_workprecision_from_files_and_bench_csv(sweep_file, tmp_path):
@@ -318,5 +318,7 @@ def test_sweep_plots_of_a_sampled_campaign_stay_small(ellroll, tmp_path):
         plt.close(fig)
         fig = plt.figure()
         (ax,) = ellroll_post.plot_sweep(fig, run_, ["omega_z"], ["theta_max"])
-        assert len(ax.get_lines()) == 1 and len(ax.get_lines()[0].get_xdata()) == 400
+        lines = ax.get_lines()                 # the cases as points, the median of the completed ones
+        assert len(lines[0].get_xdata()) == 400 and [line.get_label() for line in lines[1:]] == [
+            "median of completed cases"]
         plt.close(fig)

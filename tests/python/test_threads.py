@@ -85,7 +85,8 @@ def file_contents(path):
                     continue
                 contents[f"{name}@{key}"] = np.asarray(value).tobytes() if not isinstance(value, str) else value
             if isinstance(obj, h5py.Dataset) and not name.endswith("wall_time"):
-                contents[name] = obj[()].tobytes()
+                contents[name] = (str(obj.asstr()[()]) if h5py.check_string_dtype(obj.dtype)
+                                  else obj[()].tobytes())
         f.visititems(visit)
         for key, value in f.attrs.items():
             if key not in TIME_ATTRIBUTES:

@@ -182,7 +182,8 @@ contains
     call remove(to_path)
   end subroutine move_between_stores
 
-  !> A labelled store of one field in a new file, just after the label.
+  !> A labelled store of one field in a new file: the label at an address
+  !> a resume finds by its marker, the field after it.
   subroutine start_store(store, store_path, n_cases, n_samples, fields, err)
     type(trajectory_store_t), intent(inout) :: store
     character(len=*), intent(in) :: store_path
@@ -193,8 +194,8 @@ contains
     integer :: unit
     open (newunit=unit, file=store_path, status='replace')
     close (unit)
-    address = merge(512_i8, -1_i8, fields)
-    call store%start(store_path, n_cases, n_samples, fields, address, err)
+    address = merge(1024_i8, -1_i8, fields)
+    call store%start(store_path, n_cases, n_samples, fields, address, 200_i8, err)
   end subroutine start_store
 
   subroutine remove(file)
