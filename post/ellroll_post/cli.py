@@ -12,6 +12,7 @@ from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, save_figure
 from .summary import format_summary
+from .suite import NoIntensityMeasure, format_fragility, format_suite, suite_statistics
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
@@ -102,6 +103,20 @@ def main(argv=None):
     p = sub.add_parser("suite", parents=[common],
                        help="a record suite: peak displacement and acceleration per scale, median and 84th percentile")
     p.add_argument("file")
+    p = sub.add_parser("fragility", help="a record suite: lognormal fragility of reaching a model limit (or a limit "
+                       "state) against the scale or an intensity measure, with a bootstrap band")
+    p.add_argument("file")
+    p.add_argument("--im", default="scale",
+                   help="intensity measure: scale (default), or one the file holds: PGA, Sa(T), Sa(1.0), sa_1.0")
+    p.add_argument("--bootstrap", type=int, default=200, help="bootstrap resamples for the intervals (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
+    p.add_argument("--limit-state", default="model_limit",
+                   help="the limit state drawn (default model_limit: rim, no_fit, slip, liftoff)")
+    p.add_argument("--format", default="png", choices=["png", "pdf", "svg", "table", "csv", "json"],
+                   help="a figure, or the fits (theta, beta, 5-95 %% intervals) printed as table, csv or json")
+    p.add_argument("--out", default=".", help="output folder (default: current)")
+    p.add_argument("-o", "--output", help="the figure's file (default: FILE_fragility.FORMAT in --out)")
+    p.add_argument("--overwrite", action="store_true", help="replace a figure already there")
     p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
     p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
@@ -113,7 +128,14 @@ def main(argv=None):
     p = sub.add_parser("summary", help="the summary table")
     p.add_argument("file")
     p.add_argument("--format", default="table", choices=["table", "csv", "json"])
+    p.add_argument("--suite", action="store_true",
+                   help="per stripe of a record suite: counts, fraction at a model limit, median and 16-84 %% of "
+                        "each response over the completed records")
+    p.add_argument("--percentiles", default="linear", choices=["linear", "lognormal"],
+                   help="with --suite: numpy's linear percentiles (default) or those of a fitted lognormal")
     args = parser.parse_args(argv)
+    if args.command == "fragility" and args.bootstrap < 0:
+        parser.error("--bootstrap must be 0 or more")
     if args.command == "report" and args.out == ".":
         args.out = str(pathlib.Path(args.file).with_suffix("")) + "_report"
 
@@ -124,7 +146,32 @@ def main(argv=None):
     try:
         if args.command == "summary":
             with open_run(args.file) as run:
-                sys.stdout.write(format_summary(run, args.format))
+                if args.suite:
+                    sys.stdout.write(format_suite(suite_statistics(run, percentiles=args.percentiles), args.format,
+                                                  args.file))
+                else:
+                    sys.stdout.write(format_summary(run, args.format))
+            return 0
+        if args.command == "fragility":
+            with open_run(args.file) as run:
+                if len(set(run.record_names()) - {""}) < 2:
+                    raise NotAnEllrollFile(f"{args.file}: not a record suite (give two or more &record groups)")
+                plots.intensity(run, args.im)           # a clear error before anything is written
+                if args.format in ("table", "csv", "json"):
+                    table, _ = plots.suite_fragility(run, args.im, args.bootstrap, args.seed)
+                    sys.stdout.write(format_fragility(table, args.format, args.file))
+                    return 0
+                path = pathlib.Path(args.output) if args.output else \
+                    pathlib.Path(args.out) / f"{figure_stem(run, 'fragility')}.{args.format}"
+                path.parent.mkdir(parents=True, exist_ok=True)
+                check_target(path, args.overwrite)
+                fig, ax = plt.subplots(figsize=(10, 4.8), layout="constrained")
+                try:
+                    plots.plot_fragility(ax, run, args.im, args.bootstrap, args.seed, args.limit_state)
+                    save_figure(fig, path, args.overwrite, args.format)
+                finally:
+                    plt.close(fig)
+            print(path)
             return 0
         out = pathlib.Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -169,7 +216,7 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
-    except (NotAnEllrollFile, OutputExists, OSError) as exc:
+    except (NotAnEllrollFile, NoIntensityMeasure, OutputExists, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
     for path in written:

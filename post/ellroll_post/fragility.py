@@ -13,7 +13,10 @@ dispersion beta. Two ways to fit it (Baker, Earthquake Spectra 31(1), 2015):
 
 An interval on theta and beta comes from a parametric bootstrap: the counts
 drawn again from the fitted curve (stripes) or the capacities resampled
-(incremental), the fit repeated."""
+(incremental), the fit repeated. A resample whose counts separate in the
+intensity (none exceeds below some level, all above, at most one level
+between) has no finite maximum: it counts as a step, beta = 0
+(separating_step)."""
 import math
 
 import numpy as np
@@ -24,9 +27,24 @@ class FragilityFit:
     """A fitted lognormal fragility: median theta (the IM's unit), dispersion
     beta, and their 5-95 % intervals from the bootstrap (NaN where none)."""
 
-    def __init__(self, theta, beta, theta_interval=(math.nan, math.nan), beta_interval=(math.nan, math.nan)):
+    def __init__(self, theta, beta, theta_interval=(math.nan, math.nan), beta_interval=(math.nan, math.nan),
+                 samples=None):
         self.theta, self.beta = float(theta), float(beta)
         self.theta_interval, self.beta_interval = tuple(theta_interval), tuple(beta_interval)
+        # the bootstrap's (theta, beta) pairs, for a band about the curve
+        self.samples = np.empty((0, 2)) if samples is None else np.asarray(samples, dtype=float)
+
+    def band(self, x, low=5, high=95):
+        """The low-high percentile band of P(exceed | IM = x) over the
+        bootstrap's fits (NaN without a bootstrap)."""
+        x = np.asarray(x, dtype=float)
+        if not len(self.samples):
+            return np.full(x.shape, np.nan), np.full(x.shape, np.nan)
+        theta, beta = self.samples[:, :1], self.samples[:, 1:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = stats.norm.cdf(np.log(x[None, :] / theta) / beta)
+        p = np.where(beta > 0, p, (x[None, :] > theta) + 0.5 * (x[None, :] == theta))   # a step: beta = 0
+        return np.percentile(p, low, axis=0), np.percentile(p, high, axis=0)
 
     def probability(self, x):
         """P(exceed | IM = x)."""
@@ -78,9 +96,27 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
             zb = rng.binomial(n.astype(int), p)
             if zb.sum() == 0 or (n - zb).sum() == 0:
                 continue
-            samples.append(_fit_once(np.log(x), n, zb))
+            samples.append(separating_step(x, n, zb) or _fit_once(np.log(x), n, zb))
         fit = _with_intervals(fit, samples)
     return fit
+
+
+def separating_step(x, n, z):
+    """(theta, 0) where the counts separate in the intensity (none exceeds
+    below some level, all above it, at most one level between with some
+    of each): the likelihood then grows without bound as beta -> 0, its
+    supremum a step at that one level, or anywhere between the last level
+    without exceedance and the first with only exceedances (taken at their
+    geometric mean). None where a finite maximum exists."""
+    x, n, z = (np.asarray(a, dtype=float) for a in (x, n, z))
+    order = np.argsort(x)
+    x, n, z = x[order], n[order], z[order]
+    mixed = (z > 0) & (z < n)
+    if mixed.sum() > 1 or np.any(np.diff(z / n) < 0) or z.sum() == 0 or z.sum() == n.sum():
+        return None
+    if mixed.any():
+        return float(x[mixed][0]), 0.0
+    return math.sqrt(x[z == 0].max() * x[z == n].min()), 0.0
 
 
 def _fit_once(log_x, n, z):
@@ -127,4 +163,4 @@ def _with_intervals(fit, samples):
         return fit
     samples = np.array(samples)
     return FragilityFit(fit.theta, fit.beta, tuple(np.percentile(samples[:, 0], [5, 95])),
-                        tuple(np.percentile(samples[:, 1], [5, 95])))
+                        tuple(np.percentile(samples[:, 1], [5, 95])), samples)

@@ -6,6 +6,7 @@ import numpy as np
 
 from .geometry import energy_bound, surface_residual
 from .reader import NotAnEllrollFile
+from .suite import MODEL_LIMIT_STATE, MODEL_LIMITS, PERCENTILE_TEXT, intensity, suite_fragility, suite_statistics
 
 # figure -> trajectory fields it cannot be drawn without
 FIELD_NEEDS = {"trace": ("contact",), "nutation": ("nutation",), "reaction": ("reaction", "normal"),
@@ -482,48 +483,211 @@ def plot_transmissibility(ax, run):
 
 
 SUITE_QUANTITIES = ("displacement_max", "absolute_acceleration_max")
+LIMIT_COLOUR = "C3"
 
 
-def suite_statistics(run, quantity):
-    """Per design point of a record suite (the swept inputs other than the
-    record, e.g. scale): the records, each one's value of the summary
-    `quantity`, and their median and 84th percentile (numpy's, linear)."""
-    records = np.array(run.record_names())
-    values = run.summary(quantity).astype(float)
-    others = run.swept_inputs()
-    keys = np.stack([run.input_column(n) for n in others], axis=1) if others else np.zeros((run.n_cases, 0))
-    points = []
-    for key in np.unique(keys, axis=0):
-        mask = np.all(keys == key, axis=1)
-        chosen = values[mask]
-        points.append(dict(inputs=dict(zip(others, key)), records=list(records[mask]), values=chosen,
-                           median=float(np.median(chosen)), p84=float(np.percentile(chosen, 84))))
-    return points
+def tex_units(units):
+    """A unit as mathtext where it needs it: m/s^2 -> m/s$^{2}$."""
+    return re.sub(r"\^(-?\d+)", r"$^{\1}$", str(units))
 
 
-def plot_suite(axes, run):
-    """Peak displacement and peak absolute acceleration over a record suite
-    against the scale (or the first other swept input): every record's
-    value faint, the median and the 84th percentile over the records."""
-    records = sorted(set(run.record_names()))
-    for ax, quantity in zip(axes, SUITE_QUANTITIES):
-        points = suite_statistics(run, quantity)
-        x_name = "scale" if "scale" in run.swept_inputs() else (run.swept_inputs() or [None])[0]
-        x = np.array([p["inputs"].get(x_name, 1.0) for p in points]) if x_name else np.ones(len(points))
-        order = np.argsort(x)
-        for p, xi in zip(points, x):
-            ax.plot(np.full(len(p["values"]), xi), p["values"], "o", ms=3, color="0.55", alpha=0.35)
-        ax.plot([], [], "o", ms=3, color="0.55", alpha=0.5, label=f"each record ({len(records)})")
-        ax.plot(x[order], np.array([p["median"] for p in points])[order], "o-", color="C0", lw=1.5,
-                label="median")
-        ax.plot(x[order], np.array([p["p84"] for p in points])[order], "s--", color="C3", lw=1.2,
-                label="84th percentile")
-        ax.set_xlabel(f"{x_name}, {run.input_units(x_name)}" if x_name else "")
-        ax.set_ylabel(f"{quantity}, {run.units(f'summary/{quantity}')}")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize="small", loc="upper left")
-    axes[0].set_title(f"Record suite: {len(records)} records, {run.n_cases} cases")
+def input_label(run, name):
+    """An axis label for an input: its name and unit; the dimensionless
+    scale of a suite is 'record scale factor'."""
+    if name == "scale":
+        return "record scale factor"
+    units = run.input_units(name)
+    return name if units in ("", "1") else f"{name}, {tex_units(units)}"
+
+
+def input_value_label(run, name, value):
+    """name = value unit, for a legend."""
+    units = run.input_units(name)
+    return f"{name} = {value:g}" + ("" if units in ("", "1") else f" {tex_units(units)}")
+
+
+def spans_decades(values):
+    """Whether positive values span more than a decade: a log axis then."""
+    values = np.asarray(values, dtype=float)
+    values = values[np.isfinite(values)]
+    return values.size > 1 and values.min() > 0 and values.max() > 10 * values.min()
+
+
+def suite_groups(run, table):
+    """The stripe input along the x axis (scale if swept, else the first;
+    None for a suite of one stripe), the other stripe inputs, and the groups
+    of the table's rows: {tuple of their values: row mask}."""
+    names = table.attrs["stripe_inputs"]
+    x_name = "scale" if "scale" in names else (names[0] if names else None)
+    others = [n for n in names if n != x_name]
+    keys = table[others].to_numpy(dtype=float) if others else np.zeros((len(table), 0))
+    groups = {tuple(k): np.all(keys == k, axis=1) for k in np.unique(keys, axis=0)} if len(table) else {}
+    return x_name, others, groups
+
+
+def plot_suite(axes, run, quantities=SUITE_QUANTITIES):
+    """A record suite's response per stripe (suite.suite_statistics), one
+    panel per figure in `quantities`: against the scale (or the first other
+    stripe input), one colour per value of the other swept design inputs
+    (labelled name = value unit): each completed record's value faint, the
+    median and the 16-84 % band over the completed records only; per stripe
+    the count of completed records over the cases (bottom), and where cases
+    ended at a model limit a red x at the top with their count."""
+    table = suite_statistics(run, figures=quantities)
+    x_name, others, groups = suite_groups(run, table)
+    status = np.array(run.status_names())
+    completed = status == "completed"
+    case_x = run.input_column(x_name).astype(float) if x_name else np.ones(run.n_cases)
+    case_keys = (np.stack([run.input_column(n).astype(float) for n in others], axis=1) if others
+                 else np.zeros((run.n_cases, 0)))
+    x_all = table[x_name].to_numpy(dtype=float) if x_name else np.ones(len(table))
+    records = sorted(set(run.record_names()) - {""})
+    for ax, quantity in zip(axes, quantities):
+        values = run.summary(quantity).astype(float)
+        for g, (key, rows) in enumerate(groups.items()):
+            colour = f"C{g % 10}" if len(groups) > 1 else "C0"
+            if colour == LIMIT_COLOUR:
+                colour = "C9"
+            label = ", ".join(input_value_label(run, n, v) for n, v in zip(others, key))
+            cases = completed & np.all(case_keys == np.array(key), axis=1)
+            ax.plot(case_x[cases], values[cases], "o", ms=3, color=colour, alpha=0.3, mew=0)
+            part = table[rows].sort_values(x_name) if x_name else table[rows]
+            x = part[x_name].to_numpy(dtype=float) if x_name else np.ones(len(part))
+            ax.plot(x, part[f"{quantity}_p50"], "o-", color=colour, lw=1.5, ms=4,
+                    label=(f"{label}: " if label else "") + "median")
+            ax.fill_between(x, part[f"{quantity}_p16"], part[f"{quantity}_p84"], color=colour, alpha=0.15, lw=0,
+                            label=(f"{label}: " if label else "") + "16-84 %")
+            _stripe_counts(ax, x, part, g, len(groups), colour)
+        ax.plot([], [], "o", ms=3, color="0.5", alpha=0.5, mew=0, label="each completed record")
+        limits = bool(table["n_limit"].any())
+        if limits:
+            ax.plot([], [], "x", color=LIMIT_COLOUR, mew=1.5, ls="none",
+                    label="ended at a model limit (n of the stripe's cases); peak left out")
+        _note(ax, "n/N at the foot: completed records / cases")
+        if not table[f"{quantity}_n"].any():
+            _note(ax, "no completed record: no median")
+        if x_name:
+            ax.set_xlabel(input_label(run, x_name))
+            if spans_decades(x_all):
+                ax.set_xscale("log")
+        else:
+            ax.set_xticks([1.0], ["all records"])
+        finite = values[completed & np.isfinite(values)]
+        if spans_decades(finite):
+            ax.set_yscale("log")
+        elif finite.size == 0:
+            ax.set_ylim(0, 1)
+        # room at the foot for the counts and at the top for the limit marks, one row a group
+        _make_room(ax, 0.05 * len(groups) + 0.01, (0.06 * len(groups) + 0.02) if limits else 0.02)
+        units = run.units(f"summary/{quantity}")
+        ax.set_ylabel(quantity if units in ("", "1") else f"{quantity}, {tex_units(units)}")
+        ax.grid(alpha=0.3, which="both" if ax.get_yscale() == "log" else "major")
+        if ax is axes[-1]:
+            _legend_beside(ax)
+    axes[0].set_title(f"Record suite: {len(records)} records, {run.n_cases} cases; median and 16-84 % of the "
+                      f"completed records ({PERCENTILE_TEXT[table.attrs['percentiles']].split(' (')[0]})",
+                      fontsize="medium", loc="left")
     return axes
+
+
+def _stripe_counts(ax, x, part, g, n_groups, colour):
+    """Per stripe: completed / cases at the foot of the axes; where cases
+    ended at a model limit, a red x at the top and their count below it,
+    one row per group (in its colour)."""
+    transform = ax.get_xaxis_transform()
+    foot, top = 0.01 + 0.05 * (n_groups - 1 - g), 0.98 - 0.06 * g
+    for xi, completed, cases, limit in zip(x, part["n_completed"], part["n_cases"], part["n_limit"]):
+        ax.text(xi, foot, f"{completed}/{cases}", transform=transform, color=colour, fontsize="x-small",
+                ha="center", va="bottom", gid="suite-count")
+        if limit:
+            ax.plot([xi], [top], "x", color=LIMIT_COLOUR, mew=1.5, ms=5, transform=transform, gid="suite-limit")
+            ax.text(xi, top - 0.015, f"{limit}/{cases}", transform=transform, color=colour, fontsize="xx-small",
+                    ha="center", va="top", gid="suite-limit-count")
+
+
+def _make_room(ax, foot, top):
+    """Widen the y limits so the data keep clear of the bottom `foot` and
+    the top `top` fractions of the axes."""
+    log = ax.get_yscale() == "log"
+    low, high = (np.log10(v) for v in ax.get_ylim()) if log else ax.get_ylim()
+    span = (high - low) / (1 - foot - top)
+    low, high = low - foot * span, high + top * span
+    ax.set_ylim(*((10**low, 10**high) if log else (low, high)))
+
+
+def plot_fragility(ax, run, im="scale", bootstrap=200, seed=0, limit_state=MODEL_LIMIT_STATE):
+    """The lognormal fragility of a suite (suite.suite_fragility) for one
+    limit state, one colour per value of the swept design inputs other than
+    the scale: the fitted curve, its 5-95 % bootstrap band, and the observed
+    fraction per stripe with its count (exceeded / cases with a physical
+    outcome) beside it; theta and beta with their intervals in the legend.
+    With an intensity measure other than the scale the cases of a stripe
+    have their own intensities: the fraction is drawn at their geometric
+    mean. Returns the fit table."""
+    table, details = suite_fragility(run, im, bootstrap, seed)
+    details = [d for d in details if d["row"]["limit_state"] == limit_state]
+    if not details:
+        states = ", ".join(sorted(set(table["limit_state"])))
+        raise NotAnEllrollFile(f"{run.path}: no limit state {limit_state} (known: {states})")
+    names, units = table.attrs["design_inputs"], table.attrs["units"]
+    im_name = table.attrs["im"]
+    status = np.array(run.status_names())
+    known = np.isin(status, ("completed",) + MODEL_LIMITS)
+    hit = np.isin(status, MODEL_LIMITS)
+    x_case = intensity(run, im)[1]
+    stripe = run.input_column("scale").astype(float) if "scale" in run.inputs else x_case
+    everywhere = np.concatenate([d["x"] for d in details])
+    for g, d in enumerate(details):
+        colour = f"C{g % 10}" if len(details) > 1 else "C0"
+        row, fit = d["row"], d["fit"]
+        label = ", ".join(input_value_label(run, n, row[n]) for n in names)
+        cases = d["cases"] & known & np.isfinite(x_case) & (x_case > 0)
+        exceeded = hit | (d["exceeded"] if d["exceeded"] is not None else False)
+        px, pn, pz = [], [], []
+        for level in np.unique(stripe[cases]):
+            at = cases & (stripe == level)
+            px.append(np.exp(np.mean(np.log(x_case[at]))))
+            pn.append(int(at.sum()))
+            pz.append(int(np.sum(at & exceeded)))
+        px, pn, pz = np.array(px), np.array(pn), np.array(pz)
+        ax.plot(px, pz / np.maximum(pn, 1), "o", color=colour, ms=5, mfc="none", mew=1.2, gid="fragility-points",
+                label=(f"{label}: " if label else "") + "observed fraction (exceeded/cases)")
+        for xi, zi, ni in zip(px, pz, pn):
+            up = zi / max(ni, 1) <= 0.5         # counts inside the axes: above low points, below high ones
+            ax.annotate(f"{zi}/{ni}", (xi, zi / max(ni, 1)), textcoords="offset points",
+                        xytext=(4, 4 + 9 * g) if up else (4, -12 - 9 * g),
+                        fontsize="x-small", color=colour, gid="fragility-count")
+        if fit is None:
+            _note(ax, (f"{label}: " if label else "") + row["note"])
+            continue
+        low, high = everywhere.min(), everywhere.max()
+        curve_x = np.geomspace(min(low, fit.theta) / 1.5, max(high, fit.theta) * 1.5, 200)
+        interval = ""
+        if np.isfinite(row["theta_low"]):
+            interval = f" [{row['theta_low']:.3g}, {row['theta_high']:.3g}]"
+        beta_interval = f" [{row['beta_low']:.2f}, {row['beta_high']:.2f}]" if np.isfinite(row["beta_low"]) else ""
+        unit = "" if units in ("", "1") else f" {tex_units(units)}"
+        ax.plot(curve_x, fit.probability(curve_x), "-", color=colour, lw=1.6, gid="fragility-curve",
+                label=(f"{label}: " if label else "") + rf"$\theta$ = {fit.theta:.3g}{interval}{unit}, "
+                      rf"$\beta$ = {fit.beta:.2f}{beta_interval}")
+        lo, hi = fit.band(curve_x)
+        if np.any(np.isfinite(lo)):
+            ax.fill_between(curve_x, lo, hi, color=colour, alpha=0.15, lw=0, gid="fragility-band",
+                            label=f"5-95 % band ({len(fit.samples)} bootstrap fits)" if g == 0 else None)
+        if row["note"]:
+            _note(ax, row["note"])
+    if spans_decades(everywhere) or im_name != "scale":
+        ax.set_xscale("log")
+    ax.set_xlabel(input_label(run, "scale") if im_name == "scale" else
+                  im_name + ("" if units in ("", "1") else f", {tex_units(units)}"))
+    what = ("reaching a model limit (" + ", ".join(m for m in MODEL_LIMITS if m != "lift_off") + ")"
+            if limit_state == MODEL_LIMIT_STATE else f"exceeding {limit_state}")
+    ax.set_ylabel(f"probability of {what}")
+    ax.set_ylim(-0.03, 1.03)
+    ax.grid(alpha=0.3, which="both")
+    ax.set_title(f"Fragility, {_file_label(run)}: lognormal, maximum likelihood over the stripes", fontsize="medium")
+    _legend_beside(ax)
+    return table
 
 
 def acceleration_spectra(run, case=0):

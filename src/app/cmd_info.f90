@@ -84,7 +84,8 @@ contains
       write (output_unit, '(a)') &
         'usage: ellroll summary OUT.h5 [--format table|csv|json]', &
         '', &
-        'table (the default): cases per status, steps, integration time, the slowest case.', &
+        'table (the default): cases per status, steps, integration time, the slowest case; of a', &
+        'campaign, each real figure''s min / median / max over its completed cases (6 digits).', &
         'csv, json: one row per case: case, the varied inputs, status by name and every figure of', &
         '/summary. The JSON is strict (NaN as null) and gives the units in its "units" object.'
     case ('modes')

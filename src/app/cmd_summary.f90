@@ -3,11 +3,11 @@
 !> printed at the end of a run), or one row per case as CSV or JSON.
 module ellroll_cmd_summary
   use, intrinsic :: iso_fortran_env, only: output_unit
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_strings, only: itoa, format_real, real_text
-  use ellroll_status, only: status_count, status_name, status_pending, status_invalid
+  use ellroll_status, only: status_count, status_name, status_pending, status_invalid, status_completed
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_results, only: case_result_t, summary_record
@@ -81,9 +81,8 @@ contains
       index = file%int_column('summary/case', err)
       wall = file%real_column('summary/wall_time', err)
       theta_max = file%real_column('summary/theta_max', err)
-    else
-      columns = summary_columns(file, err)
     end if
+    if (format /= 'table' .or. size(status) > 1) columns = summary_columns(file, err)
     call file%close()
     if (err%failed()) return
     select case (format)
@@ -93,6 +92,7 @@ contains
       call print_json(path, columns)
     case default
       call print_table(path, status, steps, index, wall, theta_max)
+      if (size(status) > 1) call print_spread(columns, status == status_completed)
     end select
   end subroutine print_summary
 
@@ -286,6 +286,67 @@ contains
     character(len=len(raw) + count_marks(raw, '\"', '\')) :: text
     text = marked(raw, '\"', '\')
   end function json_text
+
+  !> A campaign's figures over its completed cases: the smallest, the median
+  !> (of an even count, the mean of the middle two) and the largest, to six
+  !> significant digits; figures that are NaN in every completed case left out.
+  subroutine print_spread(columns, completed)
+    type(column_t), intent(in) :: columns(:)
+    logical, intent(in) :: completed(:)
+    real(wp), allocatable :: values(:)
+    character(len=:), allocatable :: name
+    character(len=40) :: label
+    integer :: k, first, n
+    first = findloc(columns%name, 'status', dim=1) + 1
+    if (first == 1 .or. count(completed) == 0) return
+    write (output_unit, '(a)') '  over the ' // itoa(count(completed)) // ' completed ' // &
+        trim(merge('case ', 'cases', count(completed) == 1)) // ':'
+    write (output_unit, '(a)') '    figure                                  min            median         max'
+    do k = first, size(columns)
+      if (.not. allocated(columns(k)%reals) .or. columns(k)%name == 'wall_time') cycle
+      values = pack(columns(k)%reals, completed .and. .not. ieee_is_nan(columns(k)%reals))
+      n = size(values)
+      if (n == 0) cycle
+      call sort(values)
+      name = trim(columns(k)%name)
+      if (columns(k)%units /= '1') name = name // ' [' // columns(k)%units // ']'
+      label = name
+      write (output_unit, '(a)') '    ' // label // cell(values(1)) // &
+          cell((values((n + 1) / 2) + values(n / 2 + 1)) / 2) // trim(cell(values(n)))
+    end do
+  contains
+    !> x to six significant digits, in a column 15 wide.
+    function cell(x) result(text)
+      real(wp), intent(in) :: x
+      character(len=15) :: text
+      character(len=24) :: rounded
+      real(wp) :: y
+      y = x
+      if (ieee_is_finite(x)) then
+        write (rounded, '(es24.5e3)') x
+        read (rounded, *) y
+      end if
+      text = format_real(y)
+    end function cell
+  end subroutine print_spread
+
+  !> values in ascending order (insertion sort: a campaign's few thousand
+  !> cases, once).
+  pure subroutine sort(values)
+    real(wp), intent(inout) :: values(:)
+    real(wp) :: v
+    integer :: i, j
+    do i = 2, size(values)
+      v = values(i)
+      j = i - 1
+      do while (j >= 1)
+        if (values(j) <= v) exit
+        values(j + 1) = values(j)
+        j = j - 1
+      end do
+      values(j + 1) = v
+    end do
+  end subroutine sort
 
   subroutine print_table(path, status, steps, index, wall, theta_max)
     character(len=*), intent(in) :: path

@@ -21,10 +21,10 @@ module ellroll_batch_run
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
-  use ellroll_adaptive_run, only: nutation_peak_t, step_control_t, last_step_clipped, project_with_rate, &
-      nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until, beyond_rim, slip_inside, &
-      round_off_step, cannot_follow, judged_norm
-  use ellroll_params, only: p_atol, p_dt, p_rolling_resistance, p_rtol
+  use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
+      stop_in_step, record_samples_until, beyond_rim, slip_inside
+  use ellroll_step_control, only: step_control_t, last_step_clipped, round_off_step, cannot_follow, judged_norm
+  use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none
   private
 
@@ -286,34 +286,16 @@ contains
     logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
     integer :: inside_status(lanes)
     real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
-    integer(i8) :: idle_rhs               ! RHS calls of idle lanes, counted nowhere
     integer(i8) :: attempt
-    integer :: i, round_off_attempts(lanes)
+    integer :: round_off_attempts(lanes)
     real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
     integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
       attempt_calls = pairs(1)%attempt_calls()      ! the lanes' pairs are of one type
       end_stage = pairs(1)%end_stage()
-      idle_rhs = 0
       t = 0
-      do l = 1, lanes
-        i = merge(l, donor, active(l))
-        pairs(l)%rtol = cases(i)%param(p_rtol)
-        pairs(l)%atol = cases(i)%param(p_atol)
-        control(l)%order = pairs(1)%control_order()
-        rtol(l) = cases(i)%param(p_rtol)
-        atol(l) = cases(i)%param(p_atol)
-        h_max(l) = cases(i)%param(p_dt)
-        t_end(l) = cases(i)%t_end
-        y_lane = y(l, :)
-        f_lane = f(l, :)
-        if (active(l)) then
-          call pairs(l)%initial_step(run(l)%ball, t(l), y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
-        else
-          call pairs(l)%initial_step(run(i)%ball, t(l), y_lane, f_lane, h_max(l), h(l), idle_rhs)
-        end if
-      end do
+      call start_pair_lanes(b, pairs, cases, control, rtol, atol, h_max, t_end, h, results)
       attempt = 0
       round_off_attempts = 0
       do while (any(active))
@@ -366,26 +348,8 @@ contains
         if (any(dense)) call lanes_pair_dense_stages(pairs(1), balls, y, h, k)
         ! the path past a limit inside the step (past the rim at a maximum of
         ! Theta, or slipping): the step's end is not the case's
-        inside_status = status_completed
-        do l = 1, n
-          if (.not. accepted(l)) cycle
-          if (dense(l)) call load_attempt(pairs(l), l, t(l), h(l), y, y_raw, k, error_norm(l))
-          if (out%status(l) /= status_completed) cycle
-          if (peak_inside(l)) then
-            call locate_nutation_peak(pairs(l), run(l)%ball, peaks(l), results(l)%n_rhs)
-            if (beyond_rim(peaks(l))) then
-              inside_status(l) = status_rim
-              passed(l) = peaks(l)%t - t(l)
-              cycle
-            end if
-          end if
-          if (balls%mu(l) > 0) then
-            y_lane = y(l, :)
-            f_lane = f(l, :)
-            call slip_inside(pairs(l), run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), inside_status(l), &
-                             passed(l), results(l)%n_rhs)
-          end if
-        end do
+        call limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, peak_inside, peaks, &
+                                 inside_status, passed, results)
         call summary%add(out, t + h, accepted .and. out%status == status_completed .and. inside_status == status_completed)
         do l = 1, n
           if (.not. accepted(l)) cycle
@@ -423,6 +387,82 @@ contains
       end do
     end associate
   end subroutine adaptive_lanes
+
+  !> The lanes' pairs and step controls with each case's tolerances and
+  !> largest step (an idle lane its donor's), and each lane's first step
+  !> (initial_step; an idle lane's RHS calls counted nowhere).
+  subroutine start_pair_lanes(b, pairs, cases, control, rtol, atol, h_max, t_end, h, results)
+    type(batch_t), intent(in) :: b
+    class(embedded_pair_t), intent(inout) :: pairs(lanes)
+    type(case_t), intent(in) :: cases(:)
+    type(step_control_t), intent(inout) :: control(lanes)
+    real(wp), dimension(lanes), intent(out) :: rtol, atol, h_max, t_end, h
+    type(case_result_t), intent(inout) :: results(:)
+    real(wp), dimension(state_size) :: y_lane, f_lane
+    integer(i8) :: idle_rhs
+    integer :: i, l
+    idle_rhs = 0
+    do l = 1, lanes
+      i = merge(l, b%donor, b%active(l))
+      pairs(l)%rtol = cases(i)%param(p_rtol)
+      pairs(l)%atol = cases(i)%param(p_atol)
+      control(l)%order = pairs(1)%control_order()
+      rtol(l) = cases(i)%param(p_rtol)
+      atol(l) = cases(i)%param(p_atol)
+      h_max(l) = cases(i)%param(p_dt)
+      t_end(l) = cases(i)%t_end
+      y_lane = b%y(l, :)
+      f_lane = b%f(l, :)
+      if (b%active(l)) then
+        call pairs(l)%initial_step(b%run(l)%ball, 0.0_wp, y_lane, f_lane, h_max(l), h(l), results(l)%n_rhs)
+      else
+        call pairs(l)%initial_step(b%run(i)%ball, 0.0_wp, y_lane, f_lane, h_max(l), h(l), idle_rhs)
+      end if
+    end do
+  end subroutine start_pair_lanes
+
+  !> The accepted lanes' attempts (from t, steps h) whose path passes a limit
+  !> inside the step though their end is inside the model (the one-case
+  !> code on the lane): past the rim at a maximum of Theta, or slipping
+  !> (inside_status, and passed: where the path is known past it). A lane
+  !> whose dense output is needed (dense) first takes its attempt into its
+  !> pair (load_attempt); peak_inside: the lanes with a maximum of Theta
+  !> inside, located into peaks.
+  subroutine limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, peak_inside, peaks, &
+                                 inside_status, passed, results)
+    type(batch_t), intent(inout) :: b
+    class(embedded_pair_t), intent(inout) :: pairs(lanes)
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), dimension(lanes), intent(in) :: t, h, error_norm
+    real(wp), intent(in) :: y_raw(lanes, state_size), k(lanes, state_size, max_pair_stages)
+    logical, dimension(lanes), intent(in) :: accepted, dense, peak_inside
+    type(nutation_peak_t), intent(inout) :: peaks(lanes)
+    integer, intent(out) :: inside_status(lanes)
+    real(wp), intent(inout) :: passed(lanes)
+    type(case_result_t), intent(inout) :: results(:)
+    real(wp), dimension(state_size) :: y_lane, f_lane
+    integer :: l
+    inside_status = status_completed
+    do l = 1, b%n
+      if (.not. accepted(l)) cycle
+      if (dense(l)) call load_attempt(pairs(l), l, t(l), h(l), b%y, y_raw, k, error_norm(l))
+      if (out%status(l) /= status_completed) cycle
+      if (peak_inside(l)) then
+        call locate_nutation_peak(pairs(l), b%run(l)%ball, peaks(l), results(l)%n_rhs)
+        if (beyond_rim(peaks(l))) then
+          inside_status(l) = status_rim
+          passed(l) = peaks(l)%t - t(l)
+          cycle
+        end if
+      end if
+      if (b%balls%mu(l) > 0) then
+        y_lane = b%y(l, :)
+        f_lane = b%f(l, :)
+        call slip_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), inside_status(l), &
+                         passed(l), results(l)%n_rhs)
+      end if
+    end do
+  end subroutine limits_inside_steps
 
   !> Lane l's last attempt (from t, step h: y -> y_raw, stages k with the
   !> dense-output ones) into its pair, as pair_ball_step leaves it, for its

@@ -8,16 +8,15 @@ module ellroll_fixed_step_run
   use ellroll_status, only: status_pending, status_completed, status_unstable
   use ellroll_ode, only: no_step_solution
   use ellroll_excitation, only: excitation_none, base_acceleration
-  use ellroll_events, only: root_search_t
+  use ellroll_events, only: event_search_t, max_event_trials
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      rolling_stops, rolling_part, come_to_rest, set_rolling_mode
+  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
   use ellroll_integrators, only: integrator_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
-  use ellroll_adaptive_run, only: follow_flow_to_limit, start_rest_search, max_rest_trials
+  use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
   private
@@ -41,13 +40,13 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    real(wp), intent(inout) :: y(:), f(:)
+    real(wp), intent(inout) :: y(state_size), f(state_size)
     type(case_result_t), intent(inout) :: res
     real(wp) :: y_new(state_size), f_new(state_size), t
     real(wp) :: y_checkpoint(state_size), y_older_checkpoint(state_size)
     type(observation_t) :: obs
     integer(i8) :: k, n_steps, every, sample
-    integer :: status
+    integer :: status, event
 
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
     every = steps_per_sample(cs, plan)
@@ -59,10 +58,12 @@ contains
         res%status = status_pending
         return
       end if
-      if (run%ball%rolling_resistance > 0) call set_rolling_mode(run%ball, y)
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
       call fixed_step(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
-      if (status == status_completed .and. rolling_stops(run%ball, y, y_new)) &
-        call step_through_rest(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
+      event = 0
+      if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
+      if (event /= 0) call step_through_event(integrator, run, event, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, &
+                                              res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%param(p_dt), &
             every, status, res, &
@@ -87,43 +88,41 @@ contains
     res%t_final = t
   end subroutine fixed_step_loop
 
-  !> A step of size h from (t, y, f) in which the rolling stops
-  !> (rolling_stops): it is cut where the rolling part of omega turns
-  !> against its direction at the start (root_search_t on the method's own
-  !> partial steps), the ball put at rest there (come_to_rest: the couple of
-  !> rolling resistance then holds it or lets it roll back), and the rest of
-  !> the step taken from there, so that the steps stay on the grid of dt.
-  subroutine step_through_rest(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+  !> A step of size h from (t, y, f) in which an event of the model happens
+  !> (event_crossed): it is cut where the event's function changes sign
+  !> (event_search_t on the method's own partial steps, a step that meets a
+  !> limit counting as past it), the model acts there (apply_event), and the
+  !> rest of the step is taken from there in the mode the model gives that
+  !> state (begin_step), so that the steps stay on the grid of dt.
+  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
+    integer, intent(in) :: event
     real(wp), intent(in) :: t, y(state_size), f(state_size), h
     real(wp), intent(out) :: y_new(state_size), f_new(state_size)
     type(observation_t), intent(out) :: obs
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: direction(3), y_rest(state_size), f_rest(state_size), offset, g
-    type(root_search_t) :: search
-    type(run_state_t) :: at_rest
+    real(wp) :: y_at(state_size), f_at(state_size), offset
+    type(event_search_t) :: search
+    type(run_state_t) :: after
     integer :: k
-    call start_rest_search(search, y, y_new, h, direction)
-    do k = 1, max_rest_trials
+    call search%begin(run%ball, event, y_new, h)
+    do k = 1, max_event_trials
       if (search%done()) exit
       offset = search%trial()
-      call fixed_step(integrator, run, t, y, f, offset, y_rest, f_rest, obs, status, n_rhs)
-      g = -1
-      if (status == status_completed) g = dot_product(rolling_part(y_rest), direction)
-      call search%report(offset, g)
+      call fixed_step(integrator, run, t, y, f, offset, y_at, f_at, obs, status, n_rhs)
+      call search%report_state(run%ball, offset, y_at, status == status_completed)
     end do
-    call fixed_step(integrator, run, t, y, f, search%high, y_rest, f_rest, obs, status, n_rhs)
+    call fixed_step(integrator, run, t, y, f, search%high, y_at, f_at, obs, status, n_rhs)
     if (status /= status_completed) return
-    call come_to_rest(y_rest)
-    at_rest = run
-    call set_rolling_mode(at_rest%ball, y_rest)
-    call ball_derivative(at_rest%ball, t + search%high, y_rest, f_rest)
+    after = run
+    call after%ball%apply_event(event, y_at)
+    call after%ball%begin_step(y_at)
+    call ball_derivative(after%ball, t + search%high, y_at, f_at)
     n_rhs = n_rhs + 1
-    call fixed_step(integrator, at_rest, t + search%high, y_rest, f_rest, h - search%high, y_new, f_new, obs, status, &
-                    n_rhs)
-  end subroutine step_through_rest
+    call fixed_step(integrator, after, t + search%high, y_at, f_at, h - search%high, y_new, f_new, obs, status, n_rhs)
+  end subroutine step_through_event
 
   !> The step at which the older of the two checkpoints lies after n_done
   !> steps: checkpoint_steps to 2 checkpoint_steps - 1 steps back, or the start.

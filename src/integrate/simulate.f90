@@ -16,7 +16,8 @@ module ellroll_simulate
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator
   use ellroll_case_run, only: run_state_t, start_case, finish_case
   use ellroll_fixed_step_run, only: fixed_step_loop
-  use ellroll_adaptive_run, only: adaptive_loop, reference_method, reference_rtol, reference_atol
+  use ellroll_adaptive_run, only: adaptive_loop
+  use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
   use ellroll_params, only: p_atol, p_dt, p_rtol
   implicit none

@@ -46,10 +46,10 @@ module ellroll_ball_lanes
 contains
 
   !> Whether a ball's scene runs in lanes: the kernels here hold a fixed cup
-  !> and the smooth model (no rolling resistance).
+  !> and the smooth model (no non-smooth laws: no events, no mode per step).
   pure logical function runs_in_lanes(ball)
     type(rolling_ball_t), intent(in) :: ball
-    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. ball%rolling_resistance > 0
+    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. ball%nonsmooth()
   end function runs_in_lanes
 
   !> Put a ball (on a fixed cup) into lane l.

@@ -9,7 +9,7 @@ module ellroll_linear
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan, ieee_is_finite
   use ellroll_kinds, only: wp, two_pi
   use ellroll_lapack, only: dgeev
-  use ellroll_rolling_ball, only: rolling_ball_t, state_size
+  use ellroll_rolling_ball, only: rolling_ball_t, state_size, smooth_part
   use ellroll_ellipsoid, only: bottom_radii
   implicit none
   private
@@ -19,8 +19,7 @@ module ellroll_linear
 contains
 
   !> d f / d y at y, by central differences (error ~ delta^2), of the
-  !> rolling without its resistance: that couple turns with the rolling and
-  !> has no derivative at rest; it takes energy, it sets no frequency.
+  !> model's smooth part (smooth_part: without its non-smooth laws).
   function jacobian(ball, y) result(jac)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(state_size)
@@ -28,8 +27,7 @@ contains
     real(wp) :: plus(state_size), minus(state_size), step(state_size), delta
     type(rolling_ball_t) :: smooth
     integer :: j
-    smooth = ball
-    smooth%rolling_resistance = 0
+    smooth = smooth_part(ball)
     do j = 1, state_size
       delta = epsilon(1.0_wp)**(1.0_wp / 3) * max(abs(y(j)), 1.0_wp)
       step = 0

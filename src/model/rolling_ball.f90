@@ -13,7 +13,7 @@
 module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
-  use ellroll_ode, only: limited_system_t
+  use ellroll_ode, only: hybrid_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
@@ -23,14 +23,20 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal, rolling_stops, rolling_part, come_to_rest, &
-            set_rolling_mode
+            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
   real(wp), parameter :: constraint_tolerance = 1.0e-10_wp
 
-  type, extends(limited_system_t) :: rolling_ball_t
+  !> The model's events (hybrid_system_t): the rolling stops (rolling
+  !> resistance; the ball at rest there).
+  integer, parameter, public :: event_rest = 1
+
+  !> Where the rolling stops inside a step is located to this part of the step.
+  real(wp), parameter :: rest_tolerance = 1.0e-12_wp
+
+  type, extends(hybrid_system_t) :: rolling_ball_t
     type(ellipsoid_t) :: cup
     real(wp) :: radius = 1
     real(wp) :: mass = 1
@@ -40,14 +46,22 @@ module ellroll_rolling_ball
     real(wp) :: fit_margin = 1.0e-6_wp    !< end when r_min / R - 1 falls to this
     type(excitation_t) :: excitation      !< translation of the cup
     real(wp) :: rolling_resistance = 0    !< delta: a couple delta N against the rolling, m
-    !> the direction of the rolling where the step started (set_rolling_mode):
+    !> the direction of the rolling where the step started (begin_step):
     !> a stage past the stop keeps the couple against it, so that the flow up
     !> to the stop stays smooth inside the step that is cut there
     real(wp) :: rolling_mode(3) = 0
+    real(wp) :: rolling_at_start(3) = 0   !< the rolling part of omega where the step started
   contains
     procedure :: rhs => ball_rhs
     procedure :: stage_status => ball_stage_status
     procedure :: reaction_limited
+    procedure :: nonsmooth => ball_nonsmooth
+    procedure :: begin_step => ball_begin_step
+    procedure :: event_crossed => ball_event_crossed
+    procedure :: event_start_value => ball_event_start_value
+    procedure :: event_value => ball_event_value
+    procedure, nopass :: event_tolerance => ball_event_tolerance
+    procedure :: apply_event => ball_apply_event
   end type rolling_ball_t
 
   !> Everything derived from one state and its time derivative (observe sets
@@ -207,6 +221,73 @@ contains
     omega_t = y(4:6) - dot_product(y(4:6), n) * n
   end function rolling_part
 
+  !> Whether the model has non-smooth laws (rolling resistance): a mode
+  !> per step and events (hybrid_system_t).
+  pure logical function ball_nonsmooth(self) result(nonsmooth)
+    class(rolling_ball_t), intent(in) :: self
+    nonsmooth = self%rolling_resistance > 0
+  end function ball_nonsmooth
+
+  !> The model without its non-smooth laws: their forces turn with the
+  !> motion and have no derivative where it stops; they take energy, they
+  !> set no frequency (ellroll_linear).
+  pure function smooth_part(ball) result(smooth)
+    type(rolling_ball_t), intent(in) :: ball
+    type(rolling_ball_t) :: smooth
+    smooth = ball
+    smooth%rolling_resistance = 0
+  end function smooth_part
+
+  !> The mode of a step from y: with rolling resistance, the direction of
+  !> the rolling there (set_rolling_mode).
+  pure subroutine ball_begin_step(self, y)
+    class(rolling_ball_t), intent(inout) :: self
+    real(wp), intent(in), contiguous :: y(:)
+    if (self%rolling_resistance > 0) call set_rolling_mode(self, y)
+  end subroutine ball_begin_step
+
+  !> event_rest where the rolling stops inside a step from y_start to y_end
+  !> (rolling_stops), else 0.
+  pure integer function ball_event_crossed(self, y_start, y_end) result(event)
+    class(rolling_ball_t), intent(in) :: self
+    real(wp), intent(in), contiguous :: y_start(:), y_end(:)
+    event = 0
+    if (rolling_stops(self, y_start, y_end)) event = event_rest
+  end function ball_event_crossed
+
+  !> event_rest's function at the step's start: the square of the rolling
+  !> part of omega there (begin_step), positive where the ball rolls.
+  pure real(wp) function ball_event_start_value(self, event) result(g)
+    class(rolling_ball_t), intent(in) :: self
+    integer, intent(in) :: event
+    g = 1
+    if (event == event_rest) g = dot_product(self%rolling_at_start, self%rolling_at_start)
+  end function ball_event_start_value
+
+  !> event_rest's function at y: the rolling part of omega along its value
+  !> at the step's start; it turns non-positive where the rolling stops.
+  pure real(wp) function ball_event_value(self, event, y) result(g)
+    class(rolling_ball_t), intent(in) :: self
+    integer, intent(in) :: event
+    real(wp), intent(in), contiguous :: y(:)
+    g = 1
+    if (event == event_rest) g = rolling_along(y, self%rolling_at_start)
+  end function ball_event_value
+
+  pure real(wp) function ball_event_tolerance(event) result(tolerance)
+    integer, intent(in) :: event
+    tolerance = 0                       ! (there is no other event)
+    if (event == event_rest) tolerance = rest_tolerance
+  end function ball_event_tolerance
+
+  !> event_rest: the ball at rest (come_to_rest).
+  pure subroutine ball_apply_event(self, event, y)
+    class(rolling_ball_t), intent(inout) :: self
+    integer, intent(in) :: event
+    real(wp), intent(inout), contiguous :: y(:)
+    if (event == event_rest .and. self%rolling_resistance > 0) call come_to_rest(y)
+  end subroutine ball_apply_event
+
   !> With rolling resistance, whether the rolling stops inside a step from
   !> y_start to y_end: it rolled at the start, and its rolling part turned
   !> by more than a right angle (where the couple turns against the motion,
@@ -222,6 +303,12 @@ contains
     rolling_stops = dot_product(start, rolling_part(y_end)) <= 0
   end function rolling_stops
 
+  !> The rolling part of the angular velocity at y along direction.
+  pure real(wp) function rolling_along(y, direction)
+    real(wp), intent(in) :: y(state_size), direction(3)
+    rolling_along = dot_product(rolling_part(y), direction)
+  end function rolling_along
+
   !> The direction of the rolling at y (zero at rest) as the ball's mode for
   !> a step from y.
   pure subroutine set_rolling_mode(ball, y)
@@ -229,6 +316,7 @@ contains
     real(wp), intent(in) :: y(state_size)
     real(wp) :: omega_t(3)
     omega_t = rolling_part(y)
+    ball%rolling_at_start = omega_t
     ball%rolling_mode = 0
     if (norm2(omega_t) > rest_rate(ball, y)) ball%rolling_mode = omega_t / norm2(omega_t)
   end subroutine set_rolling_mode

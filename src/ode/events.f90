@@ -1,13 +1,18 @@
 !> Locating where inside a step a model limit is first crossed, or where a
-!> continuous event function changes sign. Reverse communication: the
-!> caller asks for a trial offset, evaluates the state there, and reports
-!> back. The searches know nothing of what the limit or event means.
+!> continuous event function changes sign (a hybrid system's event:
+!> event_search_t). Reverse communication: the caller asks for a trial
+!> offset, evaluates the state there, and reports back. The searches know
+!> nothing of what the limit or event means.
 module ellroll_events
   use ellroll_kinds, only: wp
+  use ellroll_ode, only: hybrid_system_t
   implicit none
   private
 
-  public :: crossing_search_t, root_search_t
+  public :: crossing_search_t, root_search_t, event_search_t
+
+  !> An event search takes at most this many trial states.
+  integer, parameter, public :: max_event_trials = 60
 
   type :: crossing_search_t
     real(wp) :: valid = 0      !< largest offset known to be valid
@@ -34,6 +39,17 @@ module ellroll_events
     procedure :: report => report_root
     procedure :: done => root_done
   end type root_search_t
+
+  !> Where event `event` of a hybrid system happens inside a step of size h
+  !> from y_start: the root of its event function (g > 0 at the start,
+  !> g <= 0 at the step's end), to the event's tolerance, on the states the
+  !> caller computes at the trial offsets.
+  type, extends(root_search_t) :: event_search_t
+    integer :: event = 0
+  contains
+    procedure :: begin => begin_event_search
+    procedure :: report_state
+  end type event_search_t
 
 contains
 
@@ -103,4 +119,30 @@ contains
     class(root_search_t), intent(in) :: self
     root_done = self%high - self%low <= self%tolerance
   end function root_done
+
+  !> The search for `event` of sys (its mode set for the step: begin_step)
+  !> in the step of size h that ends at y_end.
+  pure subroutine begin_event_search(self, sys, event, y_end, h)
+    class(event_search_t), intent(inout) :: self
+    class(hybrid_system_t), intent(in) :: sys
+    integer, intent(in) :: event
+    real(wp), intent(in) :: h
+    real(wp), intent(in), contiguous :: y_end(:)
+    self%event = event
+    call self%start(sys%event_start_value(event), h, sys%event_value(event, y_end), sys%event_tolerance(event) * h)
+  end subroutine begin_event_search
+
+  !> The state y at offset from the step's start; not valid (a model limit
+  !> met on the way there): the event counts as passed.
+  pure subroutine report_state(self, sys, offset, y, valid)
+    class(event_search_t), intent(inout) :: self
+    class(hybrid_system_t), intent(in) :: sys
+    real(wp), intent(in) :: offset
+    real(wp), intent(in), contiguous :: y(:)
+    logical, intent(in) :: valid
+    real(wp) :: g
+    g = -1
+    if (valid) g = sys%event_value(self%event, y)
+    call self%report(offset, g)
+  end subroutine report_state
 end module ellroll_events

@@ -207,3 +207,23 @@ def test_csv_numbers_at_every_power_of_ten_read_back(ellroll, files):
             expected = chunk[j * n_cases:(j + 1) * n_cases]
             assert np.array_equal(np.array(written), expected), (name, [(w, e, row[column]) for w, e, row in
                                                                       zip(written, expected, rows[1:]) if w != e][:3])
+
+
+def test_summary_table_gives_each_figure_over_the_completed_cases(ellroll, files):
+    """`ellroll summary` of a campaign: per real figure, min / median / max
+    over the completed cases (not the invalid one), to six digits."""
+    table = run(ellroll, "summary", files["sweep"]).stdout
+    with h5py.File(files["sweep"], "r") as f:
+        status = f["summary/status"][()]
+        completed = status == list(f["summary/status"].attrs["flag_meanings"].split()).index("completed")
+        assert 0 < completed.sum() < len(status)
+        assert f"over the {completed.sum()} completed cases:" in table
+        rows = {line.split()[0]: line.split()[-3:] for line in table.splitlines() if line.startswith("    ")}
+        checked = 0
+        for name in ("theta_max", "displacement_max", "energy_drift", "reaction_normal_max"):
+            values = f["summary"][name][()][completed]
+            expected = [np.min(values), np.median(values), np.max(values)]
+            written = [float(v) for v in rows[name]]
+            assert np.allclose(written, expected, rtol=5e-6, atol=0), (name, written, expected)
+            checked += 1
+        assert checked == 4 and "wall_time" not in rows

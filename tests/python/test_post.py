@@ -242,21 +242,27 @@ def suite_file(ellroll, tmp_path_factory):
     return folder / "suite.h5"
 
 
-def test_suite_statistics_are_numpys_median_and_84th_percentile(suite_file):
+def test_suite_statistics_are_numpys_median_and_percentiles(suite_file):
     with h5py.File(suite_file, "r") as f:
         scale = f["case/scale"][:]
+        status = f["summary/status"][:]
         records = [n.decode().strip() for n in f["case/record"][:]]
         values = {q: f["summary"][q][:] for q in ("displacement_max", "absolute_acceleration_max")}
+    assert len(set(records)) == 3
     with ellroll_post.open(suite_file) as run_:
-        for quantity, column in values.items():
-            points = ellroll_post.plots.suite_statistics(run_, quantity)
-            assert sorted(p["inputs"]["scale"] for p in points) == [0.5, 1.0, 2.0]
-            for p in points:
-                chosen = column[scale == p["inputs"]["scale"]]
-                assert p["records"] == ["first", "second", "third"]
-                assert p["median"] == np.median(chosen) and p["p84"] == np.percentile(chosen, 84)
-                assert np.array_equal(p["values"], chosen)
-            assert len(set(records)) == 3
+        table = ellroll_post.suite_statistics(run_)
+        names = np.array(run_.status_names())
+    assert list(table["scale"]) == [0.5, 1.0, 2.0] and list(table["n_cases"]) == [3, 3, 3]
+    # the records that end at no_fit (their peaks taken on the approach to it) are left out
+    assert list(table["n_completed"]) == [3 - np.sum((scale == s) & (status != 1)) for s in (0.5, 1.0, 2.0)]
+    assert list(table["n_limit"]) == [np.sum((scale == s) & (names == "no_fit")) for s in (0.5, 1.0, 2.0)]
+    assert table["n_limit"].sum() > 0
+    for quantity, column in values.items():
+        for _, row in table.iterrows():
+            chosen = column[(scale == row["scale"]) & (status == 1)]
+            assert row[f"{quantity}_p50"] == np.median(chosen)
+            assert row[f"{quantity}_p16"] == np.percentile(chosen, 16)
+            assert row[f"{quantity}_p84"] == np.percentile(chosen, 84)
 
 
 def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
@@ -266,9 +272,9 @@ def test_suite_and_spectrum_figures(suite_file, paper_file, tmp_path):
     fig, axes = plt.subplots(1, 2)
     with ellroll_post.open(suite_file) as run_:
         ellroll_post.plots.plot_suite(axes, run_)
-        median = ellroll_post.plots.suite_statistics(run_, "displacement_max")
+        table = ellroll_post.suite_statistics(run_)
     line = [l for l in axes[0].get_lines() if l.get_label() == "median"][0]
-    assert np.array_equal(line.get_ydata(), [p["median"] for p in sorted(median, key=lambda p: p["inputs"]["scale"])])
+    assert np.array_equal(line.get_ydata(), table["displacement_max_p50"])
     plt.close(fig)
     result = plot_cli("spectrum", suite_file, "--case", "4", "--out", tmp_path)
     assert result.returncode == 0 and is_png(tmp_path / "suite_spectrum_case4.png"), result.stderr

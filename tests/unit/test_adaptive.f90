@@ -15,7 +15,7 @@ program test_adaptive
   use ellroll_cases, only: case_t, output_plan_t, field_contact, field_normal, field_omega
   use ellroll_results, only: case_result_t
   use ellroll_simulate, only: simulate_case, simulate_batch, lanes
-  use ellroll_adaptive_run, only: round_off_step, cannot_follow
+  use ellroll_step_control, only: round_off_step, cannot_follow
   use ellroll_integrators, only: methods
   use fixtures, only: paper_case, other_pair
   use testing

@@ -182,7 +182,8 @@ program test_integrators
   use ellroll_results, only: case_result_t
   use fixtures, only: paper_case, run_case, other_pair
   use ellroll_simulate, only: simulate_case
-  use ellroll_adaptive_run, only: step_control_t, reference_method
+  use ellroll_step_control, only: step_control_t
+  use ellroll_flow_to_limit, only: reference_method
   use vern9_conditions, only: vern9_order_conditions
   use testing
   use ellroll_params, only: p_atol, p_dt, p_rtol

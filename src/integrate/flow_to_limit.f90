@@ -1,0 +1,143 @@
+!> The exact flow of the model followed to where it meets a limit: from a
+!> fixed-step method's state, with the reference pair at its tight
+!> tolerances (follow_flow_to_limit), so that a case's end time has the
+!> method's error up to that state only. The reference method and
+!> tolerances are also those of the error figures (error_estimate).
+module ellroll_flow_to_limit
+  use ellroll_kinds, only: wp, i8
+  use ellroll_status, only: status_completed, status_no_fit, status_rim
+  use ellroll_cases, only: output_plan_t
+  use ellroll_results, only: case_result_t
+  use ellroll_rolling_ball, only: observation_t, state_size, ball_derivative
+  use ellroll_errors, only: error_t
+  use ellroll_integrators, only: embedded_pair_t, new_pair
+  use ellroll_case_run, only: run_state_t, limit_search_t, track
+  use ellroll_step_control, only: step_control_t, last_step_clipped, smallest_step_ulps
+  use ellroll_adaptive_run, only: nutation_peak_t, attempt_step, locate_crossing, record_samples_until, end_at_crossing, &
+      nutation_peak_inside, locate_nutation_peak, beyond_rim, slip_inside
+  implicit none
+  private
+
+  public :: follow_flow_to_limit, reference_method, reference_rtol, reference_atol
+
+  !> Method and tolerances of a reference solution: the run behind the error
+  !> figures (error_estimate), and the exact flow followed from a fixed-step
+  !> method's last state to the limit its step met. Verner's pair reaches
+  !> these tolerances in fewer RHS calls and less time than DOP853, with a
+  !> smaller error (bench/pairs.py).
+  character(len=*), parameter :: reference_method = 'vern9'
+  real(wp), parameter :: reference_rtol = 1.0e-12_wp, reference_atol = 1.0e-14_wp
+
+contains
+
+  !> The exact flow from a fixed-step method's state y_from at t_from,
+  !> followed with reference_method at reference_rtol, reference_atol up to t_until at
+  !> most, to where it first meets a model limit. met: a limit was met, the
+  !> case ends there (res%status, res%t_final), the flow's step ends after
+  !> t_tracked (the method's last state) are added to the summary, and so are
+  !> the output samples after t_tracked up to the end (run%next_sample, the
+  !> first of them, from the flow's dense output). Where the flow's steps
+  !> fall to the resolution of t, it has reached a singular point of the
+  !> equations, and their only one is det L = 0, where the ball stops
+  !> fitting: the fit limit's square-root singularity, so sharp there that
+  !> the margin is crossed within about 1e-15 s of it. The case ends with
+  !> 'no_fit' at the flow's last step. The flow can stay inside up to
+  !> t_until: met = .false., and nothing is added to the summary or the
+  !> samples. Its RHS calls count in the case's n_rhs (n_rejected is the
+  !> adaptive method's own).
+  subroutine follow_flow_to_limit(run, plan, t_from, y_from, t_tracked, t_until, res, met)
+    type(run_state_t), intent(inout) :: run
+    type(output_plan_t), intent(in) :: plan
+    real(wp), intent(in) :: t_from, y_from(state_size), t_tracked, t_until
+    type(case_result_t), intent(inout) :: res
+    logical, intent(out) :: met
+    class(embedded_pair_t), allocatable :: pair
+    type(error_t) :: err
+    type(step_control_t) :: control
+    type(limit_search_t) :: search
+    type(nutation_peak_t) :: peak
+    type(observation_t) :: obs
+    type(observation_t), allocatable :: untracked(:)
+    real(wp), allocatable :: untracked_t(:)
+    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed
+    integer :: status, n_untracked
+    integer(i8) :: n_recorded
+    met = .false.
+    n_recorded = res%n_recorded
+    call new_pair(reference_method, pair, err)      ! (a row of the method table: it cannot fail)
+    pair%rtol = reference_rtol
+    pair%atol = reference_atol
+    t_at = t_from
+    y_at = y_from
+    call ball_derivative(run%ball, t_at, y_at, f_at)
+    res%n_rhs = res%n_rhs + 1
+    control%order = pair%control_order()
+    call pair%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
+    allocate (untracked(64), untracked_t(64))
+    n_untracked = 0
+    do while (t_at < t_until)
+      if (t_until - t_at <= 16 * spacing(t_until)) exit
+      if (h <= 16 * spacing(t_until)) then          ! the fit limit's singularity (above)
+        met = .true.
+        call track_untracked()
+        res%status = status_no_fit
+        res%t_final = t_at
+        return
+      end if
+      h = last_step_clipped(t_at, h, t_until, control%after_rejection)
+      if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y_at)
+      call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
+      if (pair%error_norm > 1) cycle
+      if (status /= status_completed) then
+        met = .true.
+        call track_untracked()
+        call locate_crossing(pair, run, status, search, res%n_rhs)
+        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(pair, run, search, res)
+        return
+      end if
+      passed = -1
+      if (nutation_peak_inside(y_at, f_at, y_new, f_new)) then
+        call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
+        if (beyond_rim(peak)) then
+          status = status_rim
+          passed = peak%t - t_at
+        end if
+      end if
+      if (passed < 0 .and. run%ball%mu > 0) &
+        call slip_inside(pair, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
+      if (status /= status_completed) then        ! the path passed a limit inside the step
+        met = .true.
+        call track_untracked()
+        call locate_crossing(pair, run, status, search, res%n_rhs, passed)
+        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+        call end_at_crossing(pair, run, search, res)
+        return
+      end if
+      t_at = t_at + h
+      y_at = y_new
+      f_at = f_new
+      ! the summary takes these only once the flow is known to meet a limit
+      if (t_at > t_tracked) then
+        if (n_untracked == size(untracked)) then
+          untracked = [untracked, untracked]
+          untracked_t = [untracked_t, untracked_t]
+        end if
+        n_untracked = n_untracked + 1
+        untracked(n_untracked) = obs
+        untracked_t(n_untracked) = t_at
+        call record_samples_until(pair, run, plan, t_at, obs, res)
+      end if
+      call control%accept(h, pair%error_norm, t_until - t_from)
+    end do
+    res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
+  contains
+    subroutine track_untracked()
+      integer :: i
+      do i = 1, n_untracked
+        call track(run, res, untracked_t(i), untracked(i))
+      end do
+    end subroutine track_untracked
+  end subroutine follow_flow_to_limit
+end module ellroll_flow_to_limit

@@ -1,0 +1,351 @@
+"""Suite statistics that know failure, the suite figure and the fragility
+command, against independent truth: numpy's percentiles of the completed
+cases chosen by hand (cases at a model limit, with absurd peaks, never mixed
+in; two design values kept apart), the figure's artists (legend labels, log
+axes, counts, limit marks), a lognormal fragility drawn at random (seeded)
+and fitted back within its bootstrap interval, and the commands on a real
+small suite (input/isolator_fragility.nml: input/isolator_suite.nml at
+higher scales, where some records lift the ball off)."""
+import csv
+import io
+import json
+import math
+import shutil
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+from scipy import stats
+
+matplotlib = pytest.importorskip("matplotlib")
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+import ellroll_post  # noqa: E402
+from ellroll_post import cli, suite  # noqa: E402
+from ellroll_post.fragility import fit_stripes  # noqa: E402
+from conftest import ROOT, run  # noqa: E402
+
+SCALES = (40.0, 70.0, 80.0, 90.0, 120.0)
+
+
+def plot_cli(*args):
+    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def small_suite(ellroll, tmp_path_factory):
+    """input/isolator_fragility.nml: input/isolator_suite.nml's cup and 3
+    records x 2 rolling resistances at five scales, 12 s: the lower scales
+    complete, the higher lift the ball off."""
+    folder = tmp_path_factory.mktemp("small_suite")
+    shutil.copytree(ROOT / "input" / "records", folder / "records")
+    text = (ROOT / "input" / "isolator_fragility.nml").read_text()
+    suite_text = (ROOT / "input" / "isolator_suite.nml").read_text()
+    for group in ("&geometry", "&ball", "&record      name = 'SYN3'"):
+        assert [l for l in text.splitlines() if l.startswith(group)] == \
+            [l for l in suite_text.splitlines() if l.startswith(group)]
+    assert f"values = {', '.join(map(str, SCALES))} /" in text
+    (folder / "small.nml").write_text(text.replace("isolator_fragility.h5", "small.h5"))
+    start = time.perf_counter()
+    result = run(ellroll, "run", "small.nml", "-q", "--threads", "2", cwd=folder)
+    seconds = time.perf_counter() - start
+    assert result.returncode == 0, result.stderr
+    assert seconds < 10, f"the small suite took {seconds:.1f} s"
+    path = folder / "small.h5"
+    with ellroll_post.open(path) as f:
+        status = set(f.status_names())
+    assert "completed" in status and status & set(suite.MODEL_LIMITS), status
+    return path
+
+
+def constructed(source, target, status=None, values=None, scale=None, extra=None):
+    """A copy of an ellroll file with statuses, summary values, scales or
+    extra datasets set by hand."""
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        if status is not None:
+            codes = dict(zip(f["summary/status"].attrs["flag_meanings"].split(), f["summary/status"].attrs["flag_values"]))
+            f["summary/status"][...] = [codes[s] for s in status]
+        for name, column in (values or {}).items():
+            f[f"summary/{name}"][...] = column
+        if scale is not None:
+            f["case/scale"][...] = scale
+        for name, column in (extra or {}).items():
+            f.create_dataset(name, data=column)
+    return target
+
+
+# ---------------------------------------------------------------- statistics
+def table_of_cases():
+    """Two scales x two rolling resistances x five records; the limit cases
+    carry peaks of 1e6 (what a peak on the approach to no_fit looks like)."""
+    scale = np.repeat([1.0, 2.0], 10)
+    resistance = np.tile(np.repeat([1e-5, 1e-3], 5), 2)
+    status = np.array(["completed"] * 20, dtype=object)
+    status[[3, 4]] = ["rim", "no_fit"]                  # scale 1, 1e-5
+    status[[12, 13, 14]] = ["liftoff", "slip", "nonfinite"]   # scale 2, 1e-5
+    status[19] = "invalid"                              # scale 2, 1e-3
+    rng = np.random.default_rng(7)
+    displacement = rng.uniform(0.01, 0.2, 20)
+    displacement[np.isin(status, suite.MODEL_LIMITS)] = 1e6
+    displacement[5] = np.nan                            # a completed case without the figure
+    drift = displacement > 0.1
+    return scale, resistance, status.astype(str), displacement, drift
+
+
+def test_stripe_statistics_are_numpys_over_the_completed_cases_only():
+    scale, resistance, status, displacement, drift = table_of_cases()
+    table = suite.stripe_statistics({"scale": scale, "rolling_resistance": resistance}, status,
+                                    {"displacement_max": displacement}, {"drift": drift})
+    assert len(table) == 4
+    assert list(table["scale"]) == [1, 1, 2, 2] and list(table["rolling_resistance"]) == [1e-5, 1e-3] * 2
+    for _, row in table.iterrows():
+        cases = (scale == row["scale"]) & (resistance == row["rolling_resistance"])
+        done = cases & (status == "completed")
+        limit = cases & np.isin(status, ("rim", "no_fit", "slip", "liftoff"))
+        values = displacement[done & np.isfinite(displacement)]
+        assert row["n_cases"] == 5 and row["n_completed"] == done.sum() and row["n_limit"] == limit.sum()
+        assert row["n_unresolved"] == 5 - done.sum() - limit.sum()
+        assert row["fraction_limit"] == limit.sum() / (done.sum() + limit.sum())
+        assert row["n_drift"] == np.sum(done & drift) + limit.sum()
+        assert row["fraction_drift"] == row["n_drift"] / (done.sum() + limit.sum())
+        assert row["displacement_max_n"] == values.size
+        assert [row[f"displacement_max_p{q}"] for q in (16, 50, 84)] == list(np.percentile(values, [16, 50, 84]))
+        assert row["displacement_max_p84"] < 1            # no 1e6 peak of a limit case
+    first = table.iloc[0]                               # scale 1, 1e-5: 3 completed, rim, no_fit
+    assert (first["n_completed"], first["n_limit"], first["n_rim"], first["n_no_fit"]) == (3, 2, 1, 1)
+    third = table.iloc[2]                               # scale 2, 1e-5: nonfinite left out
+    assert (third["n_completed"], third["n_limit"], third["n_unresolved"]) == (2, 2, 1)
+    assert third["fraction_limit"] == 0.5
+    assert table.iloc[3]["n_unresolved"] == 1 and table.iloc[3]["fraction_limit"] == 0
+
+
+def test_lognormal_percentiles_are_the_fitted_lognormals():
+    values = np.array([0.05, 0.08, 0.11, 0.2])
+    table = suite.stripe_statistics({"scale": np.ones(4)}, ["completed"] * 4, {"d": values}, percentiles="lognormal")
+    mean, sd = np.log(values).mean(), np.log(values).std(ddof=1)
+    row = table.iloc[0]
+    assert row["d_p50"] == pytest.approx(math.exp(mean), rel=1e-14)
+    assert row["d_p16"] == pytest.approx(math.exp(mean - sd), rel=1e-14)
+    assert row["d_p84"] == pytest.approx(math.exp(mean + sd), rel=1e-14)
+    # p16 and p84 of the lognormal are its 15.87 % and 84.13 % quantiles
+    assert row["d_p84"] == pytest.approx(stats.lognorm(sd, scale=math.exp(mean)).ppf(stats.norm.cdf(1)), rel=1e-12)
+    with pytest.raises(ValueError, match="percentiles"):
+        suite.stripe_statistics({"scale": np.ones(4)}, ["completed"] * 4, {"d": values}, percentiles="nearest")
+
+
+def test_suite_statistics_of_a_file_keep_limit_cases_and_design_values_apart(small_suite, tmp_path):
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+        scale, resistance = f["case/scale"][:], f["case/rolling_resistance"][:]
+        factor = f["case/record_factor"][:]
+        force = f["summary/horizontal_force_max"][:]
+    status = ["completed"] * n
+    status[0], status[1] = "rim", "no_fit"
+    force = force.copy()
+    force[:2] = 1e9
+    path = constructed(small_suite, tmp_path / "c.h5", status=status, values={"horizontal_force_max": force},
+                       extra={"limit_state/drift": (np.arange(n) % 3 == 0).astype(np.int8)})
+    with ellroll_post.open(path) as f:
+        table = suite.suite_statistics(f)
+        assert set(factor) == {1.0, 1.5}                    # SYN3's factor: a record's, not a stripe
+        assert table.attrs["stripe_inputs"] == ["scale", "rolling_resistance"]
+        assert len(table) == len(SCALES) * 2
+        assert table.attrs["units"]["horizontal_force_max_p50"] == "N"
+        for _, row in table.iterrows():
+            cases = (scale == row["scale"]) & (resistance == row["rolling_resistance"])
+            done = cases & (np.array(status) == "completed")
+            assert row["n_cases"] == 3
+            assert row["horizontal_force_max_p50"] == np.median(force[done])
+            assert row["horizontal_force_max_p84"] == np.percentile(force[done], 84) < 1e9
+            drift = (np.arange(n) % 3 == 0)
+            assert row["n_drift"] == np.sum(done & drift) + np.sum(cases & ~(np.array(status) == "completed"))
+        text = suite.format_suite(table)
+        assert "rolling_resistance" in text.splitlines()[0] and "linear" in text
+        parsed = list(csv.DictReader(io.StringIO(suite.format_suite(table, "csv"))))
+        assert len(parsed) == len(table) and float(parsed[0]["displacement_max_p50"]) == table.iloc[0]["displacement_max_p50"]
+        data = json.loads(suite.format_suite(table, "json"))
+        assert data["percentiles"] == "linear" and data["units"]["displacement_max_p16"] == "m"
+    result = plot_cli("summary", path, "--suite", "--format", "csv")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == suite.format_suite(table, "csv")
+
+
+# --------------------------------------------------------------------- figure
+def suite_figure(path):
+    fig, axes = plt.subplots(1, 2)
+    with ellroll_post.open(path) as f:
+        ellroll_post.plot_suite(axes, f)
+        table = suite.suite_statistics(f, figures=("displacement_max", "absolute_acceleration_max"))
+    return fig, axes, table
+
+
+def test_suite_figure_labels_groups_counts_and_limit_cases(small_suite):
+    fig, axes, table = suite_figure(small_suite)
+    for ax in axes:
+        labels = [line.get_label() for line in ax.get_lines()]
+        assert "rolling_resistance = 1e-05 m: median" in labels and "rolling_resistance = 0.001 m: median" in labels
+        assert ax.get_xlabel() == "record scale factor" and ax.get_xscale() == "linear"
+        counts = sorted(t.get_text() for t in ax.texts if t.get_gid() == "suite-count")
+        assert counts == sorted(f"{r.n_completed}/{r.n_cases}" for r in table.itertuples())
+        marks = [line for line in ax.get_lines() if line.get_gid() == "suite-limit"]
+        assert sorted(m.get_xdata()[0] for m in marks) == sorted(table["scale"][table["n_limit"] > 0])
+        limits = sorted(t.get_text() for t in ax.texts if t.get_gid() == "suite-limit-count")
+        assert limits == sorted(f"{r.n_limit}/{r.n_cases}" for r in table.itertuples() if r.n_limit)
+        for colour_label in ("rolling_resistance = 1e-05 m: median", "rolling_resistance = 0.001 m: median"):
+            line = [l for l in ax.get_lines() if l.get_label() == colour_label][0]
+            rows = table[table["rolling_resistance"] == float(colour_label.split()[2])]
+            quantity = "displacement_max" if ax is axes[0] else "absolute_acceleration_max"
+            np.testing.assert_array_equal(line.get_ydata(), rows[f"{quantity}_p50"])
+    assert axes[1].get_ylabel() == "absolute_acceleration_max, m/s$^{2}$"
+    plt.close(fig)
+
+
+def test_suite_figure_takes_log_axes_over_decades_and_survives_all_or_no_failures(small_suite, tmp_path, capsys):
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+        scale = f["case/scale"][:]
+    spread = constructed(small_suite, tmp_path / "spread.h5", scale=10.0 ** (np.searchsorted(SCALES, scale) - 3),
+                         values={"displacement_max": np.linspace(1e-4, 1.0, n)}, status=["completed"] * n)
+    fig, axes, _ = suite_figure(spread)
+    assert axes[0].get_xscale() == "log" and axes[0].get_yscale() == "log"
+    plt.close(fig)
+    for name, status in (("none", ["completed"] * n), ("all", ["rim"] * n)):
+        path = constructed(small_suite, tmp_path / f"{name}.h5", status=status)
+        result = plot_cli("suite", path, "--out", tmp_path)
+        assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+        assert (tmp_path / f"{name}_suite.png").stat().st_size > 5000
+        fig, axes, table = suite_figure(path)
+        marks = [line for line in axes[0].get_lines() if line.get_gid() == "suite-limit"]
+        assert len(marks) == (0 if name == "none" else len(table))
+        plt.close(fig)
+        assert cli.main(["fragility", str(path), "--out", str(tmp_path), "--bootstrap", "10"]) == 0
+        capsys.readouterr()
+        assert cli.main(["fragility", str(path), "--format", "csv"]) == 0
+        rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+        assert all(r["theta"] == "nan" and ("no case exceeds" if name == "none" else "every case") in r["note"]
+                   for r in rows)
+
+
+# ------------------------------------------------------------------ fragility
+THETA, BETA = 0.8, 0.4
+
+
+def test_a_known_lognormal_fragility_is_fitted_back_within_its_bootstrap_interval():
+    """Cases at ten intensities, 30 records each; each ends at the rim with
+    the probability of the true fragility (seeded), a few never run.
+    fragility_points counts them, the fit finds theta and beta within its
+    5-95 % bootstrap interval."""
+    levels = np.array([0.2, 0.35, 0.5, 0.65, 0.8, 1.0, 1.25, 1.6, 2.0, 2.5])
+    rng = np.random.default_rng(11)
+    x = np.repeat(levels, 30)
+    p = stats.norm.cdf(np.log(x / THETA) / BETA)
+    status = np.where(rng.uniform(size=x.size) < p, "rim", "completed").astype(object)
+    status[::37] = "invalid"                   # never run: not counted
+    status = status.astype(str)
+    points, n, z = suite.fragility_points(x, status)
+    assert np.array_equal(points, levels)
+    for level, count, hits in zip(levels, n, z):
+        at = (x == level) & (status != "invalid")
+        assert count == at.sum() and hits == np.sum(at & (status == "rim"))
+    fit = fit_stripes(points, n, z, bootstrap=400, seed=3)
+    print(f"theta {fit.theta:.4f} {fit.theta_interval}, beta {fit.beta:.4f} {fit.beta_interval}")
+    assert fit.theta_interval[0] < THETA < fit.theta_interval[1]
+    assert fit.beta_interval[0] < BETA < fit.beta_interval[1]
+    assert abs(math.log(fit.theta / THETA)) < 0.1 and abs(fit.beta / BETA - 1) < 0.3
+    low, high = fit.band(np.array([THETA]))
+    assert low[0] < 0.5 < high[0]
+
+
+def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
+    assert cli.main(["fragility", str(small_suite), "--format", "csv", "--bootstrap", "100"]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    with ellroll_post.open(small_suite) as f:
+        table, details = suite.suite_fragility(f, bootstrap=100)
+        status = np.array(f.status_names())
+        scale = f.input_column("scale")
+        resistance = f.input_column("rolling_resistance")
+    assert [r["rolling_resistance"] for r in rows] == ["1e-05", "0.001"]
+    for row, detail in zip(rows, details):
+        cases = resistance == float(row["rolling_resistance"])
+        exceeded = np.isin(status, suite.MODEL_LIMITS)
+        expected = fit_stripes(np.array(SCALES), [np.sum(cases & (scale == s)) for s in SCALES],
+                               [np.sum(cases & exceeded & (scale == s)) for s in SCALES], bootstrap=100)
+        assert float(row["theta"]) == pytest.approx(expected.theta, rel=1e-12)
+        assert float(row["beta"]) == pytest.approx(expected.beta, rel=1e-12)
+        assert float(row["theta_low"]) < float(row["theta"]) < float(row["theta_high"])
+        assert SCALES[0] < float(row["theta"]) < SCALES[-1]
+        assert int(row["n_known"]) == cases.sum() and int(row["n_exceeded"]) == np.sum(cases & exceeded)
+    # docs/isolator.md's figures (200 resamples, seed 0)
+    with ellroll_post.open(small_suite) as f:
+        documented = suite.suite_fragility(f, bootstrap=200)[0].iloc[0]
+    assert [round(documented[k], 1) for k in ("theta", "theta_low", "theta_high")] == [74.3, 70.0, 81.0]
+    assert [round(documented[k], 2) for k in ("beta", "beta_low", "beta_high")] == [0.11, 0.0, 0.21]
+    result = plot_cli("fragility", small_suite, "-o", tmp_path / "f.png", "--bootstrap", "50")
+    assert result.returncode == 0 and (tmp_path / "f.png").stat().st_size > 5000, result.stderr
+    fig, ax = plt.subplots()
+    with ellroll_post.open(small_suite) as f:
+        ellroll_post.plot_fragility(ax, f, bootstrap=50)
+    labels = [line.get_label() for line in ax.get_lines()]
+    assert any(label.startswith("rolling_resistance = 1e-05 m: $\\theta$ = ") for label in labels), labels
+    counts = {t.get_text() for t in ax.texts if t.get_gid() == "fragility-count"}
+    assert "0/6" not in counts and {"0/3", "3/3"} <= counts
+    assert ax.get_xlabel() == "record scale factor"
+    plt.close(fig)
+    assert cli.main(["fragility", str(small_suite), "--im", "PGA", "--out", str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert "no intensity measure PGA" in error and "scale" in error and "Traceback" not in error
+    assert not (tmp_path / "small_fragility.png").exists()
+
+
+def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_path):
+    """A /case pga is each case's own; a /records sa_1.0 is the record's,
+    times the case's record factor and scale."""
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+        scale, factor = f["case/scale"][:], f["case/record_factor"][:]
+        records = [r.decode().strip() for r in f["case/record"][:]]
+    pga = scale * factor * np.array([{"SYN1": 0.05, "SYN2": 0.08, "SYN3": 0.03}[r] for r in records])
+    path = constructed(small_suite, tmp_path / "im.h5",
+                       extra={"case/pga": pga, "records/name": np.array([b"SYN1", b"SYN2", b"SYN3"]),
+                              "records/sa_1.0": np.array([0.1, 0.2, 0.3])})
+    with h5py.File(path, "r+") as f:
+        f["case/pga"].attrs["units"] = "m/s^2"
+        f["records/sa_1.0"].attrs["period"] = 1.0
+    with ellroll_post.open(path) as f:
+        name, values, units = suite.intensity(f, "PGA")
+        assert name == "pga" and units == "m/s^2" and np.array_equal(values, pga)
+        name, values, _ = suite.intensity(f, "Sa(1.0)")
+        sa = np.array([{"SYN1": 0.1, "SYN2": 0.2, "SYN3": 0.3}[r] for r in records]) * factor * scale
+        assert name == "sa_1.0" and np.allclose(values, sa, rtol=1e-15)
+        assert suite.intensity(f, "Sa(T)")[0] == "sa_1.0"
+        table, _ = suite.suite_fragility(f, "PGA")
+        assert table.iloc[0]["n_points"] == np.unique(pga[f.input_column("rolling_resistance") == 1e-5]).size
+    result = plot_cli("fragility", path, "--im", "PGA", "--out", tmp_path, "--bootstrap", "20")
+    assert result.returncode == 0, result.stderr
+    assert n == len(records)
+
+
+def test_counts_that_separate_in_the_intensity_are_a_step():
+    """Few records a stripe often separate (none exceeds below a level, all
+    above, one level between): the likelihood has no finite maximum there,
+    it grows as beta -> 0 towards the binomial likelihood of the observed
+    fractions, so the bootstrap counts such a resample as a step."""
+    from ellroll_post.fragility import _negative_log_likelihood, separating_step
+    x, n = np.array([40.0, 70.0, 80.0, 90.0, 120.0]), np.full(5, 3)
+    assert separating_step(x, n, [0, 0, 1, 3, 3]) == (80.0, 0.0)
+    assert separating_step(x, n, [0, 0, 3, 3, 3]) == pytest.approx((math.sqrt(70 * 80), 0.0))
+    for z in ([0, 1, 2, 3, 3], [0, 3, 0, 3, 3], [0, 0, 0, 0, 0]):
+        assert separating_step(x, n, z) is None
+    z = np.array([0, 0, 1, 3, 3])
+    supremum = -(1 * math.log(1 / 3) + 2 * math.log(2 / 3))
+    values = []
+    for beta in (0.3, 0.1, 0.03, 1e-3):
+        theta = 80 * math.exp(-beta * stats.norm.ppf(1 / 3))
+        values.append(_negative_log_likelihood([math.log(theta), math.log(beta)], np.log(x), n, z)[0])
+    assert np.all(np.diff(values) < 0) and values[0] > supremum + 0.1
+    assert values[-1] == pytest.approx(supremum, rel=1e-12)
