@@ -244,7 +244,7 @@ def test_the_sweep_figure_bands_the_middle_80_percent(ellroll, tmp_path):
     expected = np.array([np.percentile(theta[which == b], [10, 50, 90]) for b in range(30)])
     median = next(line for line in ax.get_lines() if line.get_label() == "median of completed cases")
     np.testing.assert_allclose(median.get_ydata(), expected[:, 1], rtol=1e-12)
-    band = next(c for c in ax.collections if c.get_label() == "10-90 % of completed cases")
+    band = next(c for c in ax.collections if c.get_label() == "10-90 % of completed cases (30 bins)")
     outline = band.get_paths()[0].vertices[:, 1]
     for q in (expected[:, 0], expected[:, 2]):
         assert np.all(np.min(np.abs(outline[None, :] - q[:, None]), axis=1) < 1e-12)
