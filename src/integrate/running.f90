@@ -28,6 +28,7 @@ module ellroll_running
     real(wp), dimension(1, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
     real(wp), dimension(1, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
     real(wp) :: last_time(1) = 0
+    logical :: counting(1) = .false.    !< some threshold is set: the times beyond are counted
   end type running_t
 
   !> The same for the lanes of a batch, a row per lane.
@@ -35,11 +36,20 @@ module ellroll_running
     real(wp), dimension(lanes, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
     real(wp), dimension(lanes, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
     real(wp) :: last_time(lanes) = 0
+    logical :: counting(lanes) = .false.
   end type running_lanes_t
 
   !> The threshold of an input left unset (NaN): no magnitude exceeds it,
   !> and its figure is NaN.
   real(wp), parameter :: unset = huge(1.0_wp)
+
+  integer :: k_        ! (of implied loops in constant expressions)
+  !> The quantities whose statistic each is kept of (constant lists: the
+  !> per-step work is fixed by the table, not looked up per step).
+  integer, parameter :: timed_list(*) = pack([(k_, k_ = 1, quantity_count)], timed), &
+      untimed_list(*) = pack([(k_, k_ = 1, quantity_count)], .not. timed), &
+      lasting_list(*) = pack([(k_, k_ = 1, quantity_count)], lasting), &
+      beyond_list(*) = pack([(k_, k_ = 1, quantity_count)], beyond)
 
   interface add_step_ends
     module procedure add_case_step_end, add_lanes_step_ends
@@ -62,6 +72,7 @@ contains
       i = f%quantity
       stats%threshold(1, i) = param(f%threshold)
       if (ieee_is_nan(stats%threshold(1, i))) stats%threshold(1, i) = unset
+      stats%counting(1) = stats%counting(1) .or. stats%threshold(1, i) < unset
       stats%root_before(1, i) = root(i, q(1, i))
     end do
   end subroutine start_running
@@ -74,63 +85,103 @@ contains
     if (quantities(i)%squared) root = sqrt(value)
   end function root
 
-  !> What an accepted step end at time t with quantities q adds to a case's statistics.
+  !> What an accepted step end at time t with quantities q adds to a case's
+  !> statistics: the quantities unrolled (constant tests), the statistics
+  !> no figure takes dropped; the times beyond only where a threshold is set.
   pure subroutine add_case_step_end(stats, q, t)
     type(running_t), intent(inout) :: stats
     real(wp), intent(in) :: q(1, quantity_count), t
-    call add_to(1, q, [t], [.true.], stats%start, stats%maximum, stats%maximum_time, stats%last, stats%last_time, &
-                stats%threshold, stats%root_before, stats%time_beyond)
+    real(wp) :: value
+    integer :: i
+!GCC$ unroll 16
+    do i = 1, quantity_count
+      value = q(1, i)
+      if (quantities(i)%change) value = abs(value - stats%start(1, i))
+      if (timed(i)) then
+        if (value > stats%maximum(1, i)) then
+          stats%maximum(1, i) = value
+          stats%maximum_time(1, i) = t
+        end if
+      else
+        stats%maximum(1, i) = max(stats%maximum(1, i), value)
+      end if
+      if (lasting(i)) stats%last(1, i) = q(1, i)
+    end do
+    if (stats%counting(1)) call add_beyond(1, q, [t], [.true.], stats%threshold, stats%root_before, stats%time_beyond, &
+                                           stats%last_time)
+    stats%last_time(1) = t
   end subroutine add_case_step_end
 
   !> What the accepted lanes' step ends (quantities q, a row per lane, at
-  !> times t) add to their statistics.
+  !> times t) add to their statistics: per statistic a loop over the lanes
+  !> (a quantity's column, contiguous), over the quantities it is kept of
+  !> (constant index lists), branch-free (merge); the times beyond only
+  !> where some lane's threshold is set. A maximum no time is kept of is
+  !> the intrinsic max of the values, which is the same number as the test
+  !> and pick of a timed one.
   pure subroutine add_lanes_step_ends(stats, q, t, accepted)
     type(running_lanes_t), intent(inout) :: stats
     real(wp), intent(in) :: q(lanes, quantity_count), t(lanes)
     logical, intent(in) :: accepted(lanes)
-    call add_to(lanes, q, t, accepted, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%last_time, &
-                stats%threshold, stats%root_before, stats%time_beyond)
-  end subroutine add_lanes_step_ends
-
-  !> The statistics of n cases at once (step ends at increasing times per
-  !> case): one loop over the cases, the quantities unrolled inside it with
-  !> the statistics no figure takes (constant tests) dropped, branch-free
-  !> (merge). A maximum no time is kept of is the intrinsic max of the
-  !> values, which is the same number as the test and pick of a timed one.
-  pure subroutine add_to(n, q, t, accepted, start, maximum, maximum_time, last, last_time, threshold, root_before, &
-                         time_beyond)
-    integer, intent(in) :: n
-    real(wp), intent(in) :: q(n, quantity_count), t(n)
-    logical, intent(in) :: accepted(n)
-    real(wp), intent(in) :: start(n, quantity_count), threshold(n, quantity_count)
-    real(wp), intent(inout), dimension(n, quantity_count) :: maximum, maximum_time, last, root_before, time_beyond
-    real(wp), intent(inout) :: last_time(n)
     real(wp) :: value
     logical :: higher
-    integer :: i, l
-    do l = 1, n
-!GCC$ unroll 16
-      do i = 1, quantity_count
+    integer :: i, j, l
+    do j = 1, size(timed_list)
+      i = timed_list(j)
+      do l = 1, lanes
         value = q(l, i)
-        if (quantities(i)%change) value = abs(value - start(l, i))
-        if (timed(i)) then
-          higher = accepted(l) .and. value > maximum(l, i)
-          maximum(l, i) = merge(value, maximum(l, i), higher)
-          maximum_time(l, i) = merge(t(l), maximum_time(l, i), higher)
-        else
-          maximum(l, i) = merge(max(maximum(l, i), value), maximum(l, i), accepted(l))
-        end if
-        if (lasting(i)) last(l, i) = merge(q(l, i), last(l, i), accepted(l))
-        if (beyond(i)) then
-          value = root(i, q(l, i))
-          time_beyond(l, i) = time_beyond(l, i) + merge(time_above(root_before(l, i), value, threshold(l, i), &
-                                                                 t(l) - last_time(l)), 0.0_wp, accepted(l))
-          root_before(l, i) = merge(value, root_before(l, i), accepted(l))
-        end if
+        if (quantities(i)%change) value = abs(value - stats%start(l, i))
+        higher = accepted(l) .and. value > stats%maximum(l, i)
+        stats%maximum(l, i) = merge(value, stats%maximum(l, i), higher)
+        stats%maximum_time(l, i) = merge(t(l), stats%maximum_time(l, i), higher)
       end do
-      last_time(l) = merge(t(l), last_time(l), accepted(l))
     end do
-  end subroutine add_to
+    do j = 1, size(untimed_list)
+      i = untimed_list(j)
+      if (quantities(i)%change) then
+        do l = 1, lanes
+          stats%maximum(l, i) = merge(max(stats%maximum(l, i), abs(q(l, i) - stats%start(l, i))), stats%maximum(l, i), &
+                                      accepted(l))
+        end do
+      else
+        do l = 1, lanes
+          stats%maximum(l, i) = merge(max(stats%maximum(l, i), q(l, i)), stats%maximum(l, i), accepted(l))
+        end do
+      end if
+    end do
+    do j = 1, size(lasting_list)
+      i = lasting_list(j)
+      do l = 1, lanes
+        stats%last(l, i) = merge(q(l, i), stats%last(l, i), accepted(l))
+      end do
+    end do
+    if (any(stats%counting)) call add_beyond(lanes, q, t, accepted, stats%threshold, stats%root_before, &
+                                             stats%time_beyond, stats%last_time)
+    do l = 1, lanes
+      stats%last_time(l) = merge(t(l), stats%last_time(l), accepted(l))
+    end do
+  end subroutine add_lanes_step_ends
+
+  !> What the accepted step ends of n cases add to their times beyond (an
+  !> unset threshold is huge: nothing is added); last_time: the previous
+  !> step ends' times.
+  pure subroutine add_beyond(n, q, t, accepted, threshold, root_before, time_beyond, last_time)
+    integer, intent(in) :: n
+    real(wp), intent(in) :: q(n, quantity_count), t(n), threshold(n, quantity_count), last_time(n)
+    logical, intent(in) :: accepted(n)
+    real(wp), intent(inout), dimension(n, quantity_count) :: root_before, time_beyond
+    real(wp) :: value
+    integer :: i, j, l
+    do j = 1, size(beyond_list)
+      i = beyond_list(j)
+      do l = 1, n
+        value = root(i, q(l, i))
+        time_beyond(l, i) = time_beyond(l, i) + merge(time_above(root_before(l, i), value, threshold(l, i), &
+                                                                 t(l) - last_time(l)), 0.0_wp, accepted(l))
+        root_before(l, i) = merge(value, root_before(l, i), accepted(l))
+      end do
+    end do
+  end subroutine add_beyond
 
   !> The time within a step of length dt that a magnitude going from r0 to
   !> r1, linearly in time, spends above the threshold c: all of it, none,
@@ -164,6 +215,7 @@ contains
     stats%root_before(1, :) = lane_stats%root_before(l, :)
     stats%time_beyond(1, :) = lane_stats%time_beyond(l, :)
     stats%last_time(1) = lane_stats%last_time(l)
+    stats%counting(1) = lane_stats%counting(l)
   end subroutine get_lane
 
   !> One case's statistics into lane l.
@@ -179,6 +231,7 @@ contains
     lane_stats%root_before(l, :) = stats%root_before(1, :)
     lane_stats%time_beyond(l, :) = stats%time_beyond(1, :)
     lane_stats%last_time(l) = stats%last_time(1)
+    lane_stats%counting(l) = stats%counting(1)
   end subroutine put_lane
 
   !> The figures made from a case's statistics into res, at the end of the
