@@ -44,12 +44,9 @@ module ellroll_running
   real(wp), parameter :: unset = huge(1.0_wp)
 
   integer :: k_        ! (of implied loops in constant expressions)
-  !> The quantities whose statistic each is kept of (constant lists: the
+  !> The quantities whose times beyond are kept (a constant list: the
   !> per-step work is fixed by the table, not looked up per step).
-  integer, parameter :: timed_list(*) = pack([(k_, k_ = 1, quantity_count)], timed), &
-      untimed_list(*) = pack([(k_, k_ = 1, quantity_count)], .not. timed), &
-      lasting_list(*) = pack([(k_, k_ = 1, quantity_count)], lasting), &
-      beyond_list(*) = pack([(k_, k_ = 1, quantity_count)], beyond)
+  integer, parameter :: beyond_list(*) = pack([(k_, k_ = 1, quantity_count)], beyond)
 
   interface add_step_ends
     module procedure add_case_step_end, add_lanes_step_ends
@@ -86,102 +83,68 @@ contains
   end function root
 
   !> What an accepted step end at time t with quantities q adds to a case's
-  !> statistics: the quantities unrolled (constant tests), the statistics
-  !> no figure takes dropped; the times beyond only where a threshold is set.
+  !> statistics (add_row).
   pure subroutine add_case_step_end(stats, q, t)
     type(running_t), intent(inout) :: stats
     real(wp), intent(in) :: q(1, quantity_count), t
-    real(wp) :: value
-    integer :: i
-!GCC$ unroll 16
-    do i = 1, quantity_count
-      value = q(1, i)
-      if (quantities(i)%change) value = abs(value - stats%start(1, i))
-      if (timed(i)) then
-        if (value > stats%maximum(1, i)) then
-          stats%maximum(1, i) = value
-          stats%maximum_time(1, i) = t
-        end if
-      else
-        stats%maximum(1, i) = max(stats%maximum(1, i), value)
-      end if
-      if (lasting(i)) stats%last(1, i) = q(1, i)
-    end do
-    if (stats%counting(1)) call add_beyond(1, q, [t], [.true.], stats%threshold, stats%root_before, stats%time_beyond, &
-                                           stats%last_time)
-    stats%last_time(1) = t
+    call add_row(1, 1, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
+                 stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t)
   end subroutine add_case_step_end
 
   !> What the accepted lanes' step ends (quantities q, a row per lane, at
-  !> times t) add to their statistics: per statistic a loop over the lanes
-  !> (a quantity's column, contiguous), over the quantities it is kept of
-  !> (constant index lists), branch-free (merge); the times beyond only
-  !> where some lane's threshold is set. A maximum no time is kept of is
-  !> the intrinsic max of the values, which is the same number as the test
-  !> and pick of a timed one.
+  !> times t) add to their statistics: one pass over the lanes, each
+  !> accepted one's statistics as one case's (add_row; a test per lane, not
+  !> per lane and statistic).
   pure subroutine add_lanes_step_ends(stats, q, t, accepted)
     type(running_lanes_t), intent(inout) :: stats
     real(wp), intent(in) :: q(lanes, quantity_count), t(lanes)
     logical, intent(in) :: accepted(lanes)
-    real(wp) :: value
-    logical :: higher
-    integer :: i, j, l
-    do j = 1, size(timed_list)
-      i = timed_list(j)
-      do l = 1, lanes
-        value = q(l, i)
-        if (quantities(i)%change) value = abs(value - stats%start(l, i))
-        higher = accepted(l) .and. value > stats%maximum(l, i)
-        stats%maximum(l, i) = merge(value, stats%maximum(l, i), higher)
-        stats%maximum_time(l, i) = merge(t(l), stats%maximum_time(l, i), higher)
-      end do
-    end do
-    do j = 1, size(untimed_list)
-      i = untimed_list(j)
-      if (quantities(i)%change) then
-        do l = 1, lanes
-          stats%maximum(l, i) = merge(max(stats%maximum(l, i), abs(q(l, i) - stats%start(l, i))), stats%maximum(l, i), &
-                                      accepted(l))
-        end do
-      else
-        do l = 1, lanes
-          stats%maximum(l, i) = merge(max(stats%maximum(l, i), q(l, i)), stats%maximum(l, i), accepted(l))
-        end do
-      end if
-    end do
-    do j = 1, size(lasting_list)
-      i = lasting_list(j)
-      do l = 1, lanes
-        stats%last(l, i) = merge(q(l, i), stats%last(l, i), accepted(l))
-      end do
-    end do
-    if (any(stats%counting)) call add_beyond(lanes, q, t, accepted, stats%threshold, stats%root_before, &
-                                             stats%time_beyond, stats%last_time)
+    integer :: l
     do l = 1, lanes
-      stats%last_time(l) = merge(t(l), stats%last_time(l), accepted(l))
+      if (.not. accepted(l)) cycle
+      call add_row(lanes, l, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
+                   stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t(l))
     end do
   end subroutine add_lanes_step_ends
 
-  !> What the accepted step ends of n cases add to their times beyond (an
-  !> unset threshold is huge: nothing is added); last_time: the previous
-  !> step ends' times.
-  pure subroutine add_beyond(n, q, t, accepted, threshold, root_before, time_beyond, last_time)
-    integer, intent(in) :: n
-    real(wp), intent(in) :: q(n, quantity_count), t(n), threshold(n, quantity_count), last_time(n)
-    logical, intent(in) :: accepted(n)
-    real(wp), intent(inout), dimension(n, quantity_count) :: root_before, time_beyond
+  !> What row l's accepted step end (quantities q(l, :), at time t) adds to
+  !> the statistics of n rows: the quantities unrolled (constant tests), the
+  !> statistics no figure takes dropped; the times beyond only where a
+  !> threshold is set (an unset one is huge: nothing is added).
+  pure subroutine add_row(n, l, start, maximum, maximum_time, last, threshold, root_before, time_beyond, last_time, &
+                          counting, q, t)
+    integer, intent(in) :: n, l
+    real(wp), intent(in), dimension(n, quantity_count) :: start, threshold, q
+    real(wp), intent(inout), dimension(n, quantity_count) :: maximum, maximum_time, last, root_before, time_beyond
+    real(wp), intent(inout) :: last_time(n)
+    logical, intent(in) :: counting(n)
+    real(wp), intent(in) :: t
     real(wp) :: value
-    integer :: i, j, l
-    do j = 1, size(beyond_list)
-      i = beyond_list(j)
-      do l = 1, n
-        value = root(i, q(l, i))
-        time_beyond(l, i) = time_beyond(l, i) + merge(time_above(root_before(l, i), value, threshold(l, i), &
-                                                                 t(l) - last_time(l)), 0.0_wp, accepted(l))
-        root_before(l, i) = merge(value, root_before(l, i), accepted(l))
-      end do
+    integer :: i, j
+!GCC$ unroll 16
+    do i = 1, quantity_count
+      value = q(l, i)
+      if (quantities(i)%change) value = abs(value - start(l, i))
+      if (timed(i)) then
+        if (value > maximum(l, i)) then
+          maximum(l, i) = value
+          maximum_time(l, i) = t
+        end if
+      else
+        maximum(l, i) = max(maximum(l, i), value)
+      end if
+      if (lasting(i)) last(l, i) = q(l, i)
     end do
-  end subroutine add_beyond
+    if (counting(l)) then
+      do j = 1, size(beyond_list)
+        i = beyond_list(j)
+        value = root(i, q(l, i))
+        time_beyond(l, i) = time_beyond(l, i) + time_above(root_before(l, i), value, threshold(l, i), t - last_time(l))
+        root_before(l, i) = value
+      end do
+    end if
+    last_time(l) = t
+  end subroutine add_row
 
   !> The time within a step of length dt that a magnitude going from r0 to
   !> r1, linearly in time, spends above the threshold c: all of it, none,
