@@ -129,7 +129,9 @@ class EllrollFile:
         swept = []
         for name in self.inputs:
             column = self.input_column(name)
-            if np.unique(column[np.isfinite(column)]).size > 1:
+            # NaN (an input left unset) is the same as NaN: unset in every case is not varied
+            same = (column == column[0]) | (np.isnan(column) & np.isnan(column[0]))
+            if not np.all(same):
                 swept.append(name)
         if "weight" in swept and "mass" in swept:
             swept.remove("mass" if np.unique(self.input_column("g")).size == 1 else "weight")

@@ -329,7 +329,9 @@ contains
     type(case_t), intent(in) :: cs
     integer, intent(in) :: p
     value = cs%param(p)
-    if (p == p_mu .and. value <= 0) value = ieee_value(value, ieee_quiet_nan)
+    if (p == p_mu) then         ! (apart: an unset input is NaN, which the builds that trap may not compare)
+      if (value <= 0) value = ieee_value(value, ieee_quiet_nan)
+    end if
     if (p == p_weight) then
       value = ieee_value(value, ieee_quiet_nan)
       if (abs(cs%param(p_mass)) <= huge(value) / max(abs(cs%param(p_g)), 1.0_wp)) &

@@ -87,7 +87,9 @@ module ellroll_params
       param_t('scale', 'excitation', 'scale', '1', 0.0_wp, 1.0e3_wp, .false., .false., 1.0_wp, .true., &
               'record: factor on the ground acceleration'), &
       param_t('rolling_resistance', 'ball', 'rolling_resistance', 'm', 0.0_wp, 0.1_wp, .false., .false., 0.0_wp, &
-              .true., 'delta: a couple delta N opposes the rolling')]
+              .true., 'delta: a couple delta N opposes the rolling'), &
+      param_t('capacity', 'output', 'capacity', 'm', least, length_max, .true., .false., none, .true., &
+              'displacement capacity of time_beyond_capacity (unset: NaN)')]
 
   integer, parameter :: param_count = size(params)
   !> The datasets of /case that hold rows (a vector's rows in one).
@@ -116,6 +118,7 @@ module ellroll_params
       p_excitation_amplitude_z = findloc(params%name, 'excitation_amplitude_z', dim=1)
   integer, parameter, public :: p_scale = findloc(params%name, 'scale', dim=1)
   integer, parameter, public :: p_rolling_resistance = findloc(params%name, 'rolling_resistance', dim=1)
+  integer, parameter, public :: p_capacity = findloc(params%name, 'capacity', dim=1)
 
 contains
 

@@ -10,6 +10,9 @@ module ellroll_batch_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
+  use ellroll_quantities, only: q_friction_needed, q_energy
+  use ellroll_figures, only: fig_theta_max
+  use ellroll_running, only: running_lanes_t, add_step_ends, get_lane, put_lane
   use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
   use ellroll_errors, only: error_t
   use ellroll_cases, only: make_ball
@@ -31,15 +34,13 @@ module ellroll_batch_run
   !> (lane_sample_block_t).
   integer, parameter :: block_samples = 128
 
-  !> The running summary of every lane of a batch (accumulate across lanes),
-  !> the squared maxima as run_state_t keeps them.
+  !> The running summary of every lane of a batch (accumulate across lanes):
+  !> the largest nutation angle, and the statistics of the step-end
+  !> quantities (ellroll_running), a row per lane.
   type :: lane_summary_t
-    real(wp), dimension(lanes) :: energy0 = 1, tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
-    real(wp), dimension(lanes) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, reaction_normal_max = 0, &
-                                  friction_needed_max = 0, energy_deviation_max = 0, constraint_error_max = 0
-    real(wp), dimension(lanes) :: displacement_sq_max_time = 0, horizontal_force_sq_max_time = 0, &
-                                  displacement_sq_last = 0
+    real(wp), dimension(lanes) :: tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
     logical :: theta_moved(lanes) = .false.
+    type(running_lanes_t) :: stats
   contains
     procedure :: load => load_summary
     procedure :: add => add_to_summary
@@ -122,7 +123,7 @@ contains
         y(l, :) = y_lane
         f(l, :) = f_lane
         call set_lane(balls, l, run(l)%ball)
-        call summary%load(l, run(l), results(l))
+        call summary%load(l, run(l))
         active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
       end do
       active(n + 1:) = .false.
@@ -254,8 +255,8 @@ contains
         passed(l) = .true.
         y_new(l, :) = y_new_lane
         f_new(l, :) = f_new_lane
-        call b%summary%load(l, b%run(l), results(l))
-        b%summary%theta_moved(l) = .false.       ! results(l)%theta_max holds the largest so far
+        call b%summary%load(l, b%run(l))
+        b%summary%theta_moved(l) = .false.       ! results(l) holds the largest theta so far
         samples%first(l) = results(l)%n_recorded + 1
       end do
       if (.not. any(passed)) return
@@ -457,8 +458,8 @@ contains
       if (b%balls%mu(l) > 0) then
         y_lane = b%y(l, :)
         f_lane = b%f(l, :)
-        call slip_inside(pairs(l), b%run(l), y_lane, f_lane, out%friction_needed(l), inside_status(l), passed(l), &
-                         results(l)%n_rhs)
+        call slip_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), inside_status(l), &
+                         passed(l), results(l)%n_rhs)
       end if
     end do
   end subroutine limits_inside_steps
@@ -491,27 +492,17 @@ contains
     obs%center = obs%contact + radius * obs%normal
     obs%lateral = out%lateral(l)
     obs%reaction = out%reaction(l, :)
-    obs%energy = out%energy(l)
+    obs%energy = out%quantity(l, q_energy)
     obs%base_acceleration = 0
   end function lane_observation
 
-  !> A case's running summary (accumulate), lane by lane.
-  pure subroutine load_summary(self, l, run, res)
+  !> A case's running summary (accumulate), into lane l.
+  pure subroutine load_summary(self, l, run)
     class(lane_summary_t), intent(inout) :: self
     integer, intent(in) :: l
     type(run_state_t), intent(in) :: run
-    type(case_result_t), intent(in) :: res
-    self%energy0(l) = run%energy0
     self%tan_max(l) = run%tan_theta_max
-    self%displacement_sq_max(l) = run%displacement_sq_max
-    self%horizontal_force_sq_max(l) = run%horizontal_force_sq_max
-    self%displacement_sq_max_time(l) = run%displacement_sq_max_time
-    self%horizontal_force_sq_max_time(l) = run%horizontal_force_sq_max_time
-    self%displacement_sq_last(l) = run%displacement_sq_last
-    self%reaction_normal_max(l) = res%reaction_normal_max
-    self%friction_needed_max(l) = res%friction_needed_max
-    self%energy_deviation_max(l) = run%energy_deviation_max
-    self%constraint_error_max(l) = res%constraint_error_max
+    call put_lane(self%stats, l, run%stats)
   end subroutine load_summary
 
   !> What the accepted lanes' new states (at times t) add to the summary
@@ -529,22 +520,8 @@ contains
       self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
       self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
       self%theta_moved(l) = self%theta_moved(l) .or. higher
-      self%displacement_sq_last(l) = merge(out%displacement_sq(l), self%displacement_sq_last(l), accepted(l))
-      higher = accepted(l) .and. out%displacement_sq(l) > self%displacement_sq_max(l)
-      self%displacement_sq_max(l) = merge(out%displacement_sq(l), self%displacement_sq_max(l), higher)
-      self%displacement_sq_max_time(l) = merge(t(l), self%displacement_sq_max_time(l), higher)
-      higher = accepted(l) .and. out%horizontal_force_sq(l) > self%horizontal_force_sq_max(l)
-      self%horizontal_force_sq_max(l) = merge(out%horizontal_force_sq(l), self%horizontal_force_sq_max(l), higher)
-      self%horizontal_force_sq_max_time(l) = merge(t(l), self%horizontal_force_sq_max_time(l), higher)
-      self%reaction_normal_max(l) = merge(max(self%reaction_normal_max(l), out%reaction_normal(l)), &
-                                          self%reaction_normal_max(l), accepted(l))
-      self%friction_needed_max(l) = merge(max(self%friction_needed_max(l), out%friction_needed(l)), &
-                                          self%friction_needed_max(l), accepted(l))
-      self%energy_deviation_max(l) = merge(max(self%energy_deviation_max(l), abs(out%energy(l) - self%energy0(l))), &
-                                           self%energy_deviation_max(l), accepted(l))
-      self%constraint_error_max(l) = merge(max(self%constraint_error_max(l), out%surface_residual(l)), &
-                                           self%constraint_error_max(l), accepted(l))
     end do
+    call add_step_ends(self%stats, out%quantity, t, accepted)
   end subroutine add_to_summary
 
   !> A nutation angle of lane l's case (tan Theta, and the lateral and
@@ -568,16 +545,8 @@ contains
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     run%tan_theta_max = self%tan_max(l)
-    if (self%theta_moved(l)) res%theta_max = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
-    run%displacement_sq_max = self%displacement_sq_max(l)
-    run%horizontal_force_sq_max = self%horizontal_force_sq_max(l)
-    run%displacement_sq_max_time = self%displacement_sq_max_time(l)
-    run%horizontal_force_sq_max_time = self%horizontal_force_sq_max_time(l)
-    run%displacement_sq_last = self%displacement_sq_last(l)
-    res%reaction_normal_max = self%reaction_normal_max(l)
-    res%friction_needed_max = self%friction_needed_max(l)
-    run%energy_deviation_max = self%energy_deviation_max(l)
-    res%constraint_error_max = self%constraint_error_max(l)
+    if (self%theta_moved(l)) res%reals(fig_theta_max) = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
+    call get_lane(self%stats, l, run%stats)
   end subroutine store_summary
 
   !> The values at one output sample of the lanes that take one (sampling)
@@ -598,7 +567,7 @@ contains
       if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(l, :, j) = out%normal(l, :)
       if (self%fields(field_nutation)) self%lateral(l, j) = out%lateral(l)
       if (self%fields(field_reaction)) self%reaction(l, :, j) = out%reaction(l, :)
-      if (self%fields(field_energy)) self%energy(l, j) = out%energy(l)
+      if (self%fields(field_energy)) self%energy(l, j) = out%quantity(l, q_energy)
     end do
   end subroutine add_lane_samples
 

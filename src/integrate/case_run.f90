@@ -1,8 +1,9 @@
 !> The running state of one case and everything its accepted points add to
-!> the result: the start and the end of a case, the summary's running maxima,
-!> the maxima of Theta, the transmissibility's Fourier sums, the output
-!> samples, and the search for where a step crossed a model limit. Shared by
-!> the one-case loops (fixed-step and adaptive) and the batches.
+!> the result: the start and the end of a case, the summary's step-end
+!> quantities (their statistics: ellroll_running), the maxima of Theta, the
+!> transmissibility's Fourier sums, the output samples, and the search for
+!> where a step crossed a model limit. Shared by the one-case loops
+!> (fixed-step and adaptive) and the batches.
 module ellroll_case_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8, two_pi
@@ -11,7 +12,12 @@ module ellroll_case_run
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
-  use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded
+  use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded, set_figure_values
+  use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
+      q_friction_needed, q_energy, q_surface_residual
+  use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
+      fig_linear_periods
+  use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle
   use ellroll_events, only: crossing_search_t
@@ -79,17 +85,12 @@ module ellroll_case_run
   type :: run_state_t
     type(rolling_ball_t) :: ball
     real(wp) :: start(state_size) = 0     !< the state at t = 0
-    real(wp) :: energy0 = 0
     type(maxima_t) :: maxima
     type(spectrum_t) :: spectrum
     real(wp) :: spin0 = 0                 !< omega . n at the start
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
-    !> maxima kept before the root or the division by |E0|, taken once in
-    !> finish_case: both are correctly rounded and monotonic, so the result
-    !> is the same number (the batch's lanes keep the same)
-    real(wp) :: displacement_sq_max = 0, horizontal_force_sq_max = 0, energy_deviation_max = 0
-    real(wp) :: displacement_sq_max_time = 0, horizontal_force_sq_max_time = 0   !< when they were reached
-    real(wp) :: displacement_sq_last = 0  !< at the last step end (the residual)
+    !> the statistics of the step-end quantities (the batch's lanes keep the same)
+    type(running_t) :: stats
     integer(i8) :: next_sample = 2        !< index of the next output sample
   end type run_state_t
 
@@ -108,17 +109,14 @@ contains
     ! where the running figures start (every other one is set at the end)
     res%t_final = 0
     res%wall_time = 0
-    res%theta_max = 0
-    res%reaction_normal_max = 0
-    res%friction_needed_max = 0
-    res%constraint_error_max = 0
+    res%reals(fig_theta_max) = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     run%start = y
     call ball_derivative(run%ball, 0.0_wp, y, f)
     res%n_rhs = 1
     call observe(run%ball, 0.0_wp, y, f, obs)
-    run%energy0 = obs%energy
+    call start_running(run%stats, step_quantities(obs), cs%param)
     run%spin0 = dot_product(cs%param(p_omega_x:p_omega_z), obs%normal)
     associate (frequency => cs%param(p_excitation_frequency))
       if (cs%excitation%kind == excitation_harmonic .and. frequency > 0) then
@@ -137,22 +135,12 @@ contains
     type(case_t), intent(in) :: cs
     type(run_state_t), intent(in) :: run
     type(case_result_t), intent(inout) :: res
-    res%nutation_maxima = run%maxima%count
-    res%nutation_period = run%maxima%mean_interval()
+    res%counts(fig_nutation_maxima) = run%maxima%count
+    res%reals(fig_nutation_period) = run%maxima%mean_interval()
     if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
-      res%transmissibility = run%spectrum%ratio()
-    res%displacement_max = sqrt(run%displacement_sq_max)
-    res%displacement_max_time = run%displacement_sq_max_time
-    res%residual_displacement = sqrt(run%displacement_sq_last)
-    res%horizontal_force_max = sqrt(run%horizontal_force_sq_max)
-    res%absolute_acceleration_max = res%horizontal_force_max / run%ball%mass
-    res%absolute_acceleration_max_time = run%horizontal_force_sq_max_time
-    ! relative to E0: undefined (NaN) where E0 = 0, a ball at rest without
-    ! gravity (the test is also false where the quotient would overflow)
-    res%energy_drift = ieee_value(0.0_wp, ieee_quiet_nan)
-    if (run%energy_deviation_max / huge(1.0_wp) < abs(run%energy0)) &
-      res%energy_drift = run%energy_deviation_max / abs(run%energy0)
-    res%linear_periods = oscillation_periods(run%ball, run%spin0)
+      res%reals(fig_transmissibility) = run%spectrum%ratio()
+    call finish_running(run%stats, run%ball%mass, res)
+    call set_figure_values(res, fig_linear_periods, oscillation_periods(run%ball, run%spin0))
     call fill_unrecorded(res)
   end subroutine finish_case
 
@@ -292,34 +280,34 @@ contains
     real(wp), intent(in) :: tan_nutation, lateral, normal_z
     if (tan_nutation > run%tan_theta_max) then
       run%tan_theta_max = tan_nutation
-      res%theta_max = nutation_angle(lateral, normal_z)
+      res%reals(fig_theta_max) = nutation_angle(lateral, normal_z)
     end if
   end subroutine note_nutation
 
+  !> What an accepted step end adds to the summary: the nutation angle, and
+  !> the step-end quantities to their statistics.
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    real(wp) :: horizontal_force_sq
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
-    ! the norms written out, as the batch path (ellroll_ball_lanes) computes
-    ! them; displacement: of the centre from the vertical through the lowest point
-    run%displacement_sq_last = obs%center(1)**2 + obs%center(2)**2
-    if (run%displacement_sq_last > run%displacement_sq_max) then
-      run%displacement_sq_max = run%displacement_sq_last
-      run%displacement_sq_max_time = t
-    end if
-    horizontal_force_sq = obs%reaction(1)**2 + obs%reaction(2)**2
-    if (horizontal_force_sq > run%horizontal_force_sq_max) then
-      run%horizontal_force_sq_max = horizontal_force_sq
-      run%horizontal_force_sq_max_time = t
-    end if
-    res%reaction_normal_max = max(res%reaction_normal_max, obs%reaction_normal)
-    res%friction_needed_max = max(res%friction_needed_max, obs%friction_needed)
-    run%energy_deviation_max = max(run%energy_deviation_max, abs(obs%energy - run%energy0))
-    res%constraint_error_max = max(res%constraint_error_max, obs%surface_residual)
+    call add_step_ends(run%stats, step_quantities(obs), t)
   end subroutine accumulate
+
+  !> The step-end quantities of an observation (the norms written out, as
+  !> the batch's lanes_observe computes them); displacement: of the centre
+  !> from the vertical through the lowest point.
+  pure function step_quantities(obs) result(q)
+    type(observation_t), intent(in) :: obs
+    real(wp) :: q(1, quantity_count)
+    q(1, q_displacement_sq) = obs%center(1)**2 + obs%center(2)**2
+    q(1, q_horizontal_force_sq) = obs%reaction(1)**2 + obs%reaction(2)**2
+    q(1, q_reaction_normal) = obs%reaction_normal
+    q(1, q_friction_needed) = obs%friction_needed
+    q(1, q_energy) = obs%energy
+    q(1, q_surface_residual) = obs%surface_residual
+  end function step_quantities
 
   !> Every stored field's values at one output sample (Theta from the
   !> lateral and vertical parts of the normal, only when it is stored).

@@ -11,6 +11,7 @@ module ellroll_simulate
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_nutation, field_energy
   use ellroll_results, only: case_result_t
+  use ellroll_figures, only: fig_error_contact, fig_error_theta, fig_error_energy, fig_n_rhs_reference
   use ellroll_rolling_ball, only: state_size
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator
   use ellroll_case_run, only: run_state_t, start_case, finish_case
@@ -50,16 +51,20 @@ contains
     reference_case%param(p_atol) = reference_atol
     reference_case%param(p_dt) = cs%t_end
     call integrate(reference_case, own_plan, reference, err)
-    res%error_contact = max_difference(res%fields(field_contact)%values, reference%fields(field_contact)%values)
-    res%error_theta = max_difference(res%fields(field_nutation)%values, reference%fields(field_nutation)%values)
+    res%reals(fig_error_contact) = max_difference(res%fields(field_contact)%values, &
+                                                  reference%fields(field_contact)%values)
+    res%reals(fig_error_theta) = max_difference(res%fields(field_nutation)%values, &
+                                                reference%fields(field_nutation)%values)
     ! relative to E0, as energy_drift: NaN where E0 = 0 (at rest, no gravity)
-    res%error_energy = max_difference(res%fields(field_energy)%values, reference%fields(field_energy)%values)
-    if (res%error_energy / huge(1.0_wp) < abs(reference%fields(field_energy)%values(1, 1))) then
-      res%error_energy = res%error_energy / abs(reference%fields(field_energy)%values(1, 1))
-    else
-      res%error_energy = ieee_value(0.0_wp, ieee_quiet_nan)
-    end if
-    res%n_rhs_reference = reference%n_rhs
+    associate (error_energy => res%reals(fig_error_energy), energy0 => reference%fields(field_energy)%values(1, 1))
+      error_energy = max_difference(res%fields(field_energy)%values, reference%fields(field_energy)%values)
+      if (error_energy / huge(1.0_wp) < abs(energy0)) then
+        error_energy = error_energy / abs(energy0)
+      else
+        error_energy = ieee_value(0.0_wp, ieee_quiet_nan)
+      end if
+    end associate
+    res%counts(fig_n_rhs_reference) = reference%n_rhs
     do f = 1, field_count
       if (.not. plan%fields(f) .and. allocated(res%fields(f)%values)) deallocate (res%fields(f)%values)
     end do

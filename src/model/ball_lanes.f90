@@ -10,6 +10,8 @@ module ellroll_ball_lanes
   use ellroll_kinds, only: wp
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
   use ellroll_excitation, only: excitation_none
+  use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
+      q_friction_needed, q_energy, q_surface_residual
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -33,11 +35,11 @@ module ellroll_ball_lanes
   type :: lane_outputs_t
     real(wp), dimension(lanes, 3) :: normal = 0, contact = 0, reaction = 0
     real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0
-    !> squared, so that no square root is taken per step: the summary keeps
-    !> their maxima and takes the root once (sqrt is monotonic and correctly
-    !> rounded, so the root of the maximum is the maximum of the roots)
-    real(wp), dimension(lanes) :: displacement_sq = 0, horizontal_force_sq = 0
-    real(wp), dimension(lanes) :: reaction_normal = 0, friction_needed = 0, energy = 0, surface_residual = 0
+    !> the step-end quantities (ellroll_quantities: the displacement and the
+    !> horizontal force squared, so that no square root is taken per step;
+    !> the normal force, the friction needed, the energy, the surface
+    !> residual), a column each
+    real(wp) :: quantity(lanes, quantity_count) = 0
     integer, dimension(lanes) :: status = status_completed
   end type lane_outputs_t
 
@@ -152,7 +154,7 @@ contains
     real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
     real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, inv_s2, trace, det, r, m, fr
-    real(wp) :: p3_lower, p3_upper, quotient, divisor
+    real(wp) :: p3_lower, p3_upper, quotient, divisor, friction_needed
     logical :: upright, pressed, finite, fits, slipping
     integer :: l, status
     do l = 1, lanes
@@ -184,7 +186,7 @@ contains
       out%lateral(l) = lateral
       out%normal(l, :) = [n1, n2, n3]
       out%contact(l, :) = [p1, p2, p3]
-      out%displacement_sq(l) = (p1 + r * n1)**2 + (p2 + r * n2)**2
+      out%quantity(l, q_displacement_sq) = (p1 + r * n1)**2 + (p2 + r * n2)**2
       ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
       nd1 = f(l, 1) * inv_length
       nd2 = f(l, 2) * inv_length
@@ -196,16 +198,17 @@ contains
       f2 = m * (ac2 + 0.0_wp)
       f3 = m * (ac3 + p%g(l))
       out%reaction(l, :) = [f1, f2, f3]
-      out%horizontal_force_sq(l) = f1**2 + f2**2
+      out%quantity(l, q_horizontal_force_sq) = f1**2 + f2**2
       normal_force = f1 * n1 + f2 * n2 + f3 * n3
-      out%reaction_normal(l) = normal_force
+      out%quantity(l, q_reaction_normal) = normal_force
       t1 = f1 - normal_force * n1
       t2 = f2 - normal_force * n2
       t3 = f3 - normal_force * n3
       pressed = normal_force > 0
       divisor = sqrt(t1**2 + t2**2 + t3**2)
       quotient = divisor / merge(normal_force, 1.0_wp, pressed)
-      out%friction_needed(l) = merge(quotient, huge(1.0_wp), pressed)
+      friction_needed = merge(quotient, huge(1.0_wp), pressed)
+      out%quantity(l, q_friction_needed) = friction_needed
       ! energy, with z_C - R written without cancellation
       v1 = r * (w2 * n3 - w3 * n2)
       v2 = r * (w3 * n1 - w1 * n3)
@@ -214,9 +217,9 @@ contains
       energy = 0.5_wp * p%inertia_factor(l) * m * r**2 * (w1 * w1 + w2 * w2 + w3 * w3) &
                + 0.5_wp * m * (v1 * v1 + v2 * v2 + v3 * v3) + m * p%g(l) * height
       energy = energy + m * p%g(l) * r
-      out%energy(l) = energy
+      out%quantity(l, q_energy) = energy
       residual = abs((p1 * p%inv_a(l))**2 + (p2 * p%inv_b(l))**2 + ((p3 - p%c(l)) * p%inv_c(l))**2 - 1)
-      out%surface_residual(l) = residual
+      out%quantity(l, q_surface_residual) = residual
       ! does the ball fit (R (1 + margin) below both principal radii)? K from
       ! the contact's s = sqrt(n . A n): no root or division of its own
       an1 = p%a2(l) * n1
@@ -233,7 +236,7 @@ contains
       ! valid state they are far from overflow).
       finite = abs(y(l, 1)) + abs(y(l, 2)) + abs(y(l, 3)) + abs(w1) + abs(w2) + abs(w3) &
                + abs(energy) + abs(f1) + abs(f2) + abs(f3) <= huge(1.0_wp)
-      slipping = out%friction_needed(l) > p%mu(l)
+      slipping = friction_needed > p%mu(l)
       slipping = merge(slipping, .false., p%mu(l) > 0)
       status = merge(status_slip, status_completed, slipping)
       status = merge(status_liftoff, status, .not. pressed)

@@ -235,6 +235,7 @@ contains
     res%status = int(int_buffer(1))
     rec = summary_record(res)
     do k = 1, size(rec)
+      if (.not. self%has('summary/' // trim(rec(k)%name))) cycle   ! a file of another version may lack it: NaN, 0
       if (rec(k)%kind == kind_int) then
         call self%read_slab('summary/' // trim(rec(k)%name), h5kind_to_type(i8, H5_INTEGER_KIND), &
                             c_loc(int_buffer), [slot], [1_i8], err)
@@ -249,7 +250,7 @@ contains
         end if
         rec(k)%reals = real_buffer
       end if
-      call set_summary_value(res, rec(k))
+      call set_summary_value(res, k, rec(k))
     end do
     do f = 1, field_count
       if (.not. self%has('trajectory/' // trim(field_names(f)))) cycle

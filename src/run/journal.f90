@@ -442,7 +442,7 @@ contains
       else
         rec(k)%reals = transfer(words(3 * k + 1:3 * k + 3), 0.0_wp, 3)
       end if
-      call set_summary_value(res, rec(k))
+      call set_summary_value(res, k, rec(k))
     end do
     at = 3 + 3 * size(rec) + 1
     in_place = words(at)

@@ -105,6 +105,23 @@ def test_case_subcommands_write_images(paper_file, tmp_path, figure, stem):
     assert result.returncode == 0 and (tmp_path / f"legeza1990_{stem}.svg").read_text().startswith("<?xml")
 
 
+def test_an_input_left_unset_is_not_varied_but_one_set_in_some_cases_is(sweep_file, tmp_path):
+    """&output capacity unset is NaN in every case: the same input, not a
+    varied one; NaN in one case and a number in another differ."""
+    import shutil
+    with ellroll_post.open(sweep_file) as runfile:
+        assert np.all(np.isnan(runfile.input_column("capacity")))
+        assert "capacity" not in runfile.swept_inputs()
+    changed = tmp_path / "changed.h5"
+    shutil.copy(sweep_file, changed)
+    with h5py.File(changed, "r+") as f:
+        capacity = f["case/capacity"][:]
+        capacity[1] = 0.1
+        f["case/capacity"][:] = capacity
+    with ellroll_post.open(changed) as runfile:
+        assert runfile.swept_inputs() == ["radius", "omega_z", "capacity"]
+
+
 def test_sweep_line_and_heat_map(sweep_file, tmp_path):
     result = plot_cli("sweep", sweep_file, "--x", "omega_z", "--y", "theta_max,nutation_period", "--out", tmp_path)
     assert result.returncode == 0, result.stderr

@@ -18,9 +18,10 @@ program test_batch
   use ellroll_errors, only: error_t
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_count, make_ball
-  use ellroll_results, only: case_result_t
+  use ellroll_results, only: case_result_t, figure_values
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, ball_derivative, observe
   use ellroll_ball_lanes, only: ball_lanes_t, lane_outputs_t, set_lane, lanes_derivative, lanes_observe
+  use ellroll_quantities, only: q_energy
   use ellroll_integrators, only: embedded_pair_t, methods, method_info_t, method_info, new_pair, max_pair_stages
   use ellroll_embedded_pair, only: width
   use ellroll_ball_steppers, only: pair_ball_step, lanes_pair_attempt
@@ -29,6 +30,9 @@ program test_batch
   use testing
   use ellroll_params, only: p_atol, p_dt, p_omega_x, p_omega_z, p_rtol, p_x, p_y, p_a, p_b, p_c, p_g, &
       p_inertia_factor, p_mass, p_mu, p_radius
+  use ellroll_figures, only: fig_constraint_error_max, fig_displacement_max, fig_energy_drift, &
+      fig_friction_needed_max, fig_horizontal_force_max, fig_linear_periods, fig_nutation_maxima, &
+      fig_nutation_period, fig_reaction_normal_max, fig_theta_max
   implicit none
   integer, parameter :: n_cases = lanes
   type(case_t) :: cases(n_cases)
@@ -119,7 +123,7 @@ contains
       call observe(ball(l), 0.0_wp, y_lane, f_lane, obs)
       observe_worst = max(observe_worst, maxval(abs(out%reaction(l, :) - obs%reaction)) / norm2(obs%reaction), &
                           maxval(abs(out%contact(l, :) - obs%contact)) / norm2(obs%contact), &
-                          abs(out%energy(l) - obs%energy) / abs(obs%energy))
+                          abs(out%quantity(l, q_energy) - obs%energy) / abs(obs%energy))
     end do
     call check_below(rhs_worst / epsilon(1.0_wp), 8.0_wp, 'one state: batch vs one case, right-hand side (eps)')
     call check_below(observe_worst / epsilon(1.0_wp), 8.0_wp, &
@@ -255,10 +259,10 @@ contains
       if (at_limit .and. adaptive) cycle       ! below
       same_steps = single(l)%n_steps == batch(l)%n_steps .and. single(l)%n_rhs == batch(l)%n_rhs &
                    .and. single(l)%n_rejected == batch(l)%n_rejected
-      same_counts = same_counts .and. same_steps .and. single(l)%nutation_maxima == batch(l)%nutation_maxima
+      same_counts = same_counts .and. same_steps .and. single(l)%counts(fig_nutation_maxima) == batch(l)%counts(fig_nutation_maxima)
       close_counts = close_counts .and. abs(single(l)%n_steps - batch(l)%n_steps) <= 1 + single(l)%n_steps / 50 &
                      .and. abs(single(l)%n_rejected - batch(l)%n_rejected) <= 2 + single(l)%n_steps / 50 &
-                     .and. abs(single(l)%nutation_maxima - batch(l)%nutation_maxima) <= 1
+                     .and. abs(single(l)%counts(fig_nutation_maxima) - batch(l)%counts(fig_nutation_maxima)) <= 1
       worst_located = max(worst_located, maxval(difference(located)) / allowed, maxval(difference(round_off)) / allowed)
       if (at_limit) then
         worst_at_limit = max(worst_at_limit, maxval(difference(forces)))
@@ -336,9 +340,11 @@ contains
   function figures(a) result(x)
     type(case_result_t), intent(in) :: a
     real(wp) :: x(11)
-    x = [a%t_final, a%theta_max, a%reaction_normal_max, a%friction_needed_max, a%energy_drift + 1, &
-         a%constraint_error_max + 1, a%nutation_period, a%linear_periods, a%displacement_max, &
-         a%horizontal_force_max]
+    x = [a%t_final, a%reals(fig_theta_max), a%reals(fig_reaction_normal_max), a%reals(fig_friction_needed_max), &
+        a%reals(fig_energy_drift) + 1, &
+         a%reals(fig_constraint_error_max) + 1, a%reals(fig_nutation_period), figure_values(a, &
+             fig_linear_periods), a%reals(fig_displacement_max), &
+         a%reals(fig_horizontal_force_max)]
     where (ieee_is_nan(x)) x = 0
   end function figures
 
@@ -364,9 +370,11 @@ contains
     type(case_result_t), intent(in) :: a, b
     integer :: f
     identical = a%status == b%status .and. a%n_steps == b%n_steps .and. a%n_rejected == b%n_rejected .and. &
-        same(a%t_final, b%t_final) .and. same(a%theta_max, b%theta_max) .and. &
-        same(a%energy_drift, b%energy_drift) .and. same(a%friction_needed_max, b%friction_needed_max) .and. &
-        same(a%displacement_max, b%displacement_max) .and. same(a%nutation_period, b%nutation_period)
+        same(a%t_final, b%t_final) .and. same(a%reals(fig_theta_max), b%reals(fig_theta_max)) .and. &
+        same(a%reals(fig_energy_drift), b%reals(fig_energy_drift)) .and. same(a%reals(fig_friction_needed_max), &
+            b%reals(fig_friction_needed_max)) .and. &
+        same(a%reals(fig_displacement_max), &
+            b%reals(fig_displacement_max)) .and. same(a%reals(fig_nutation_period), b%reals(fig_nutation_period))
     do f = 1, field_count
       if (allocated(a%fields(f)%values)) identical = identical .and. &
           all(transfer(a%fields(f)%values, 1_i8, size(a%fields(f)%values)) == &

@@ -8,7 +8,8 @@ program test_input
   use ellroll_exact, only: equals
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_cases, only: get_param, range_text
-  use ellroll_params, only: params, param_count, param_default, param_component, p_mass
+  use ellroll_params, only: params, param_count, param_default, param_component, param_unset_allowed, p_mass
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_strings, only: format_real
   use testing, only: check, finish
   implicit none
@@ -29,7 +30,11 @@ program test_input
   n_defaults = 0
   do p = 1, param_count
     if (params(p)%required .or. .not. params(p)%sweepable) cycle
-    if (equals(get_param(inp%campaign%base, p), param_default(p))) n_defaults = n_defaults + 1
+    if (param_unset_allowed(p)) then          ! unset: NaN
+      if (ieee_is_nan(get_param(inp%campaign%base, p))) n_defaults = n_defaults + 1
+    else if (equals(get_param(inp%campaign%base, p), param_default(p))) then
+      n_defaults = n_defaults + 1
+    end if
   end do
   call check(n_defaults == count(.not. params%required), 'every input not given takes its table default')
 

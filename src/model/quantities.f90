@@ -1,0 +1,32 @@
+!> The quantities of the ball's state at each accepted step end that the
+!> summary's figures accumulate (ellroll_figures): their names, named indices
+!> and how the figures take them. The one-case path takes them from an
+!> observation (ellroll_case_run), the batch's lanes_observe computes them in
+!> the same arithmetic, into one column each.
+module ellroll_quantities
+  implicit none
+  private
+
+  public :: quantity_t, quantities, quantity_count
+
+  type :: quantity_t
+    character(len=24) :: name
+    logical :: squared = .false.   !< the square of what it measures: no root per step (figures take the root)
+    logical :: change = .false.    !< the figures take its change from its value at t = 0, |q - q(0)|
+  end type quantity_t
+
+  type(quantity_t), parameter :: quantities(*) = [ &
+      quantity_t('displacement_sq', squared=.true.), &       ! |C_horizontal|^2, cup frame, m^2
+      quantity_t('horizontal_force_sq', squared=.true.), &   ! horizontal force of the cup on the ball, squared, N^2
+      quantity_t('reaction_normal'), &                       ! normal force, N
+      quantity_t('friction_needed'), &                       ! |F_t| / N
+      quantity_t('energy', change=.true.), &                 ! J
+      quantity_t('surface_residual')]                        ! of the contact point
+  integer, parameter :: quantity_count = size(quantities)
+  integer, parameter, public :: q_displacement_sq = findloc(quantities%name, 'displacement_sq', dim=1), &
+      q_horizontal_force_sq = findloc(quantities%name, 'horizontal_force_sq', dim=1), &
+      q_reaction_normal = findloc(quantities%name, 'reaction_normal', dim=1), &
+      q_friction_needed = findloc(quantities%name, 'friction_needed', dim=1), &
+      q_energy = findloc(quantities%name, 'energy', dim=1), &
+      q_surface_residual = findloc(quantities%name, 'surface_residual', dim=1)
+end module ellroll_quantities
