@@ -207,12 +207,19 @@ def test_two_cases_run_on_two_threads(ellroll, tmp_path):
     text = paper_with("method = 'rk4', dt = 1.0e-4", "interval = 0.01, fields = 'none'").replace(
         "t_end = 30.0", "t_end = 10.0") + "&sweep name = 'omega_z', values = 10.0, 80.0 /\n"
     (tmp_path / "two.nml").write_text(text)
-    result = run(ellroll, "run", "two.nml", "-q", "-o", "out.h5", "--threads", "2", "--timings", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
-    loop = float(re.search(r"([0-9.]+) s in the loop", result.stdout + result.stderr).group(1))
-    with h5py.File(tmp_path / "out.h5", "r") as f:
-        integration = float(np.sum(f["summary/wall_time"][:]))
-    assert integration > 1.5 * loop, (integration, loop)
+    # the best of three runs: a busy machine (the other test worker) can only
+    # lower the ratio, while one thread could never raise it above 1
+    ratios = []
+    for _ in range(3):
+        result = run(ellroll, "run", "two.nml", "-q", "-o", "out.h5", "--overwrite", "--threads", "2", "--timings",
+                     cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        loop = float(re.search(r"([0-9.]+) s in the loop", result.stdout + result.stderr).group(1))
+        with h5py.File(tmp_path / "out.h5", "r") as f:
+            ratios.append(float(np.sum(f["summary/wall_time"][:])) / loop)
+        if ratios[-1] > 1.5:
+            break
+    assert max(ratios) > 1.5, ratios
 
 
 def test_files_use_the_hdf5_1_10_format(paper_file):
