@@ -14,6 +14,7 @@ module ellroll_cmd_summary
   use ellroll_cli, only: cli_t
   use ellroll_errors, only: set_error, err_input
   use ellroll_files, only: path_kind, kind_folder
+  use ellroll_lapack, only: dlasrt
   implicit none
   private
 
@@ -296,9 +297,14 @@ contains
     real(wp), allocatable :: values(:)
     character(len=:), allocatable :: name
     character(len=40) :: label
-    integer :: k, first, n
-    first = findloc(columns%name, 'status', dim=1) + 1
-    if (first == 1 .or. count(completed) == 0) return
+    integer :: k, first, n, info
+    ! the figures follow the status column (a loop: findloc over the
+    ! components' strided names would copy them into a temporary)
+    first = 0
+    do k = 1, size(columns)
+      if (columns(k)%name == 'status') first = k + 1
+    end do
+    if (first == 0 .or. count(completed) == 0) return
     write (output_unit, '(a)') '  over the ' // itoa(count(completed)) // ' completed ' // &
         trim(merge('case ', 'cases', count(completed) == 1)) // ':'
     write (output_unit, '(a)') '    figure                                  min            median         max'
@@ -307,7 +313,7 @@ contains
       values = pack(columns(k)%reals, completed .and. .not. ieee_is_nan(columns(k)%reals))
       n = size(values)
       if (n == 0) cycle
-      call sort(values)
+      call dlasrt('I', n, values, info)            ! (values holds no NaN: packed out above)
       name = trim(columns(k)%name)
       if (columns(k)%units /= '1') name = name // ' [' // columns(k)%units // ']'
       label = name
@@ -329,24 +335,6 @@ contains
       text = format_real(y)
     end function cell
   end subroutine print_spread
-
-  !> values in ascending order (insertion sort: a campaign's few thousand
-  !> cases, once).
-  pure subroutine sort(values)
-    real(wp), intent(inout) :: values(:)
-    real(wp) :: v
-    integer :: i, j
-    do i = 2, size(values)
-      v = values(i)
-      j = i - 1
-      do while (j >= 1)
-        if (values(j) <= v) exit
-        values(j + 1) = values(j)
-        j = j - 1
-      end do
-      values(j + 1) = v
-    end do
-  end subroutine sort
 
   subroutine print_table(path, status, steps, index, wall, theta_max)
     character(len=*), intent(in) :: path

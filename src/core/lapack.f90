@@ -5,9 +5,19 @@ module ellroll_lapack
   implicit none
   private
 
-  public :: dgetrf, dgetrs, dgesv, dgeev, dsyev
+  public :: dgetrf, dgetrs, dgesv, dgeev, dsyev, dlasrt
 
   interface
+    !> Sort d(1:n) in increasing (id = 'I') or decreasing ('D') order
+    !> (introsort: O(n log n)); d must hold no NaN.
+    subroutine dlasrt(id, n, d, info)
+      import :: dp
+      character(len=1), intent(in) :: id
+      integer, intent(in) :: n
+      real(dp), intent(inout) :: d(*)
+      integer, intent(out) :: info
+    end subroutine dlasrt
+
     !> LU factorisation with partial pivoting of a general m x n matrix.
     subroutine dgetrf(m, n, a, lda, ipiv, info)
       import :: dp
