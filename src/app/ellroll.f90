@@ -53,7 +53,6 @@ program ellroll
       call modes_command(cli, err)
     end select
   end if
-  call ranks_stop()
   status = 0
   if (err%code > err_interrupted) then
     call resume_line(n_ranks, line)
@@ -63,6 +62,10 @@ program ellroll
     write (error_unit, '(a)') 'ellroll: error: ' // err%message
     status = exit_code(err)
   end if
+  ! every rank says why it stops before any leaves: mpirun ends the others
+  ! as soon as one exits with an error status
+  flush (error_unit)
+  call ranks_stop()
   ! freed before the exit, which would otherwise leave them to the system:
   ! a sanitizer build's leak check then reports only real leaks
   deallocate (cli%command, cli%output_path, cli%paths)
