@@ -12,7 +12,8 @@ module ellroll_ball_steppers
   use ellroll_integrator, only: integrator_t
   use ellroll_rk4, only: rk4_t
   use ellroll_embedded_pair, only: embedded_pair_t, width, max_pair_stages
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe, lanes_stage_reaction
+  use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_status, only: status_completed
   implicit none
   private
@@ -53,15 +54,16 @@ contains
 
   !> One step of a fixed-step method that batches (its row of the method
   !> table) across lanes: RK4's lanes_rk4_step.
-  pure subroutine lanes_fixed_step(integrator, p, y, f0, h, y_new, f_new, inside)
+  pure subroutine lanes_fixed_step(integrator, p, y, f0, h, y_new, f_new, inside, base_half, base_end)
     class(integrator_t), intent(in) :: integrator
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
     real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
     logical, intent(out), optional :: inside(lanes)
+    real(wp), dimension(lanes, 3), intent(in), optional :: base_half, base_end
     select type (integrator)
     type is (rk4_t)
-      call lanes_rk4_step(p, y, f0, h, y_new, f_new, inside)
+      call lanes_rk4_step(p, y, f0, h, y_new, f_new, inside, base_half, base_end)
     class default
       error stop 'lanes_fixed_step: a method marked as batching has no step across lanes'
     end select
@@ -151,35 +153,39 @@ contains
   !> One classical RK4 step of every lane (rk4_ball_step), the new normal
   !> projected to unit length, and f there; inside, when asked for, tells
   !> the lanes whose every stage lies where the equations hold (a lane
-  !> without is looked at with rk4_ball_step).
-  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new, inside)
+  !> without is looked at with rk4_ball_step). base_half and base_end, given
+  !> together where some lane's cup moves: the cups' accelerations at each
+  !> lane's t + h/2 and t + h (a moving cup's stages are checked for the
+  !> reaction's limits, as rk4_ball_step's).
+  pure subroutine lanes_rk4_step(p, y, f0, h, y_new, f_new, inside, base_half, base_end)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f0(lanes, state_size), h(lanes)
     real(wp), intent(out) :: y_new(lanes, state_size), f_new(lanes, state_size)
     logical, intent(out), optional :: inside(lanes)
+    real(wp), dimension(lanes, 3), intent(in), optional :: base_half, base_end
     logical :: reaction_limited
     real(wp) :: margin(lanes)
     real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
     real(wp) :: length
     integer :: i, l
     reaction_limited = .false.
-    if (present(inside)) reaction_limited = any(p%mu > 0)
+    if (present(inside)) reaction_limited = any(p%mu > 0) .or. (present(base_half) .and. any(p%moves > 0))
     margin = 1
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * f0(:, i)
     end do
-    call lanes_derivative(p, stage, k2, margin)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k2, margin)
+    call lanes_derivative(p, stage, k2, margin, base_half)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k2, margin, base_half)
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * k2(:, i)
     end do
-    call lanes_derivative(p, stage, k3, margin)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k3, margin)
+    call lanes_derivative(p, stage, k3, margin, base_half)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k3, margin, base_half)
     do i = 1, state_size
       stage(:, i) = y(:, i) + h * k3(:, i)
     end do
-    call lanes_derivative(p, stage, k4, margin)
-    if (reaction_limited) call lanes_check_reaction(p, stage, k4, margin)
+    call lanes_derivative(p, stage, k4, margin, base_end)
+    if (reaction_limited) call lanes_check_reaction(p, stage, k4, margin, base_end)
     do i = 1, state_size
       y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
     end do
@@ -187,64 +193,89 @@ contains
       length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
       y_new(l, 1:3) = y_new(l, 1:3) / length
     end do
-    call lanes_derivative(p, y_new, f_new)
+    call lanes_derivative(p, y_new, f_new, base=base_end)
     if (present(inside)) inside = margin > 0
   end subroutine lanes_rk4_step
 
-  !> A stage's friction limit in a batch (rk4_ball_step's stage_status): the
-  !> stage's whole limit status, as at a step's end; margin is set to -1
-  !> where a limit is met.
-  pure subroutine lanes_check_reaction(p, state, rate, margin)
+  !> A stage's reaction limits in a batch (rk4_ball_step's stage_status):
+  !> on a fixed cup with a friction limit the stage's whole limit status, as
+  !> at a step's end; on a moving cup (base given) the reaction's limits
+  !> (lanes_stage_reaction). margin is set to -1 where a limit is met.
+  pure subroutine lanes_check_reaction(p, state, rate, margin, base)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: state(lanes, state_size), rate(lanes, state_size)
     real(wp), intent(inout) :: margin(lanes)
+    real(wp), intent(in), optional :: base(lanes, 3)
     type(lane_outputs_t) :: out
-    call lanes_observe(p, state, rate, out)
-    where (out%status /= status_completed) margin = -1
+    if (.not. present(base)) then
+      call lanes_observe(p, state, rate, out)
+      where (out%status /= status_completed) margin = -1
+      return
+    end if
+    if (any(p%mu > 0 .and. .not. p%moves > 0)) then
+      call lanes_observe(p, state, rate, out, base)
+      where (.not. p%moves > 0 .and. out%status /= status_completed) margin = -1
+    end if
+    call lanes_stage_reaction(p, state, rate, base, margin)
   end subroutine lanes_check_reaction
 
   !> One attempt of the pair of every lane, each lane with its own h
   !> (pair_ball_step across lanes, the same sums in the same order): the
   !> stages k(:, :, 1:end_stage) (the last one f at the new point), the new
   !> point (not projected) and the error norm of the pair's finish_attempt.
-  pure subroutine lanes_pair_attempt(pair, p, y, f0, h, rtol, atol, k, y_new, error_norm)
+  !> exc and t, given together where some lane's cup moves: the lanes'
+  !> excitations and the attempts' start times.
+  pure subroutine lanes_pair_attempt(pair, p, y, f0, h, rtol, atol, k, y_new, error_norm, exc, t)
     class(embedded_pair_t), intent(in) :: pair
     type(ball_lanes_t), intent(in) :: p
     real(wp), dimension(lanes, state_size), intent(in) :: y, f0
     real(wp), dimension(lanes), intent(in) :: h, rtol, atol
     real(wp), intent(out) :: k(lanes, state_size, max_pair_stages), y_new(lanes, state_size), error_norm(lanes)
+    type(excitation_lanes_t), intent(inout), optional :: exc
+    real(wp), intent(in), optional :: t(lanes)
     k(:, :, 1) = f0
-    call lanes_stages(pair, p, 2, pair%end_stage(), y, h, k, y_new)   ! the last stage input is y_new
+    call lanes_stages(pair, p, 2, pair%end_stage(), y, h, k, y_new, exc, t)   ! the last stage input is y_new
     call pair%error_norms_across(state_size, k, y, y_new, h, rtol, atol, error_norm)
   end subroutine lanes_pair_attempt
 
   !> The dense-output stages k(:, :, end_stage + 1:) of every lane's last
   !> attempt from y with step h (pair_ball_dense across lanes).
-  pure subroutine lanes_pair_dense_stages(pair, p, y, h, k)
+  pure subroutine lanes_pair_dense_stages(pair, p, y, h, k, exc, t)
     class(embedded_pair_t), intent(in) :: pair
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), h(lanes)
     real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
+    type(excitation_lanes_t), intent(inout), optional :: exc
+    real(wp), intent(in), optional :: t(lanes)
     real(wp) :: stage(lanes, state_size)
-    call lanes_stages(pair, p, pair%end_stage() + 1, pair%end_stage() + pair%dense_calls(), y, h, k, stage)
+    call lanes_stages(pair, p, pair%end_stage() + 1, pair%end_stage() + pair%dense_calls(), y, h, k, stage, exc, t)
   end subroutine lanes_pair_dense_stages
 
   !> Stages first to last of the pair of every lane, from y with step h: f
   !> at each stage's input (held within +-stage_clamp) into k; stage: the
   !> last stage's input. The lanes are the pair's columns of `width` values
-  !> (ellroll_embedded_pair), one column per component.
-  pure subroutine lanes_stages(pair, p, first, last, y, h, k, stage)
+  !> (ellroll_embedded_pair), one column per component. exc and t: as
+  !> lanes_pair_attempt's (each stage's cup acceleration at t + c_s h).
+  pure subroutine lanes_stages(pair, p, first, last, y, h, k, stage, exc, t)
     class(embedded_pair_t), intent(in) :: pair
     type(ball_lanes_t), intent(in) :: p
     integer, intent(in) :: first, last
     real(wp), intent(in) :: y(lanes, state_size), h(lanes)
     real(wp), intent(inout) :: k(lanes, state_size, max_pair_stages)
     real(wp), intent(out) :: stage(lanes, state_size)
+    type(excitation_lanes_t), intent(inout), optional :: exc
+    real(wp), intent(in), optional :: t(lanes)
+    real(wp) :: base(lanes, 3)
     integer :: s
     do s = first, last
       call pair%stage_columns(s, state_size, k, y, h, stage)
       stage = min(max(stage, -stage_clamp), stage_clamp)
-      call lanes_derivative(p, stage, k(:, :, s))
+      if (present(exc) .and. present(t)) then
+        call exc%at(t + pair%node(s) * h, base)
+        call lanes_derivative(p, stage, k(:, :, s), base=base)
+      else
+        call lanes_derivative(p, stage, k(:, :, s))
+      end if
     end do
   end subroutine lanes_stages
 end module ellroll_ball_steppers

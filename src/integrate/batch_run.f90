@@ -1,8 +1,9 @@
-!> Batches of up to `lanes` cases on fixed cups, one per SIMD lane
+!> Batches of up to `lanes` cases, one per SIMD lane
 !> (ellroll_ball_lanes): the steps, the observations, the summary and
 !> the embedded pairs' dense-output stages of all lanes at once; what happens to one
 !> lane alone (its interpolant, a crossed limit, a maximum of Theta) is the
-!> one-case code on that lane.
+!> one-case code on that lane. A lane's cup may move: the cups'
+!> accelerations at each stage's time come from ellroll_excitation_lanes.
 module ellroll_batch_run
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
@@ -19,7 +20,8 @@ module ellroll_batch_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
   use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
-  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked
+  use ellroll_excitation_lanes, only: excitation_lanes_t
+  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, slip_inside
@@ -60,17 +62,19 @@ module ellroll_batch_run
     logical :: fields(field_count) = .false.
     real(wp), dimension(lanes, 3, block_samples) :: contact, center, omega, normal, reaction
     real(wp), dimension(lanes, block_samples) :: lateral, energy
+    real(wp), dimension(lanes, 3, block_samples) :: base     !< the cup's acceleration
   contains
     procedure :: add => add_lane_samples
     procedure :: flush => flush_lane_samples
   end type lane_sample_block_t
 
-  !> A batch's lanes: each lane's case state, the lanes' model, summary,
-  !> state and derivative, which lanes still run, how many hold a case and
-  !> the case that idle lanes copy.
+  !> A batch's lanes: each lane's case state, the lanes' model and cups'
+  !> motions, summary, state and derivative, which lanes still run, how
+  !> many hold a case and the case that idle lanes copy.
   type :: batch_t
     type(run_state_t) :: run(lanes)
     type(ball_lanes_t) :: balls
+    type(excitation_lanes_t) :: cups
     type(lane_summary_t) :: summary
     real(wp), dimension(lanes, state_size) :: y, f
     logical :: active(lanes) = .false.
@@ -123,6 +127,7 @@ contains
         y(l, :) = y_lane
         f(l, :) = f_lane
         call set_lane(balls, l, run(l)%ball)
+        call b%cups%set(l, run(l)%ball%excitation)
         call summary%load(l, run(l))
         active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
       end do
@@ -133,6 +138,7 @@ contains
         do l = 1, lanes
           if (active(l)) cycle
           call set_lane(balls, l, run(donor)%ball)
+          call b%cups%set(l, run(donor)%ball%excitation)
           y(l, :) = y(donor, :)
           f(l, :) = f(donor, :)
         end do
@@ -165,6 +171,7 @@ contains
     type(lane_outputs_t) :: out
     type(lane_sample_block_t) :: samples
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
+    real(wp), dimension(lanes, 3) :: base_half, base_end
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), every(lanes), step
     logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
@@ -181,20 +188,30 @@ contains
         if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
       end do
       samples%fields = plan%fields
+      base_end = 0
       step = 0
       y_checkpoint = y
       y_older_checkpoint = y
       do while (any(active))
         step = step + 1
         if (stop_asked(step)) exit
-        call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside)
-        call lanes_observe(balls, y_new, f_new, out)
+        if (b%cups%moving) then
+          ! each lane's step from t = (step - 1) h (the one-case loop's times)
+          call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
+          call b%cups%at(real(step - 1, wp) * h + h, base_end)
+          call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside, base_half, base_end)
+          call lanes_observe(balls, y_new, f_new, out, base_end)
+        else
+          call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside)
+          call lanes_observe(balls, y_new, f_new, out)
+        end if
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
         if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
+        if (b%cups%moving) call track_cups(b, out, base_end, step * h, accepted)
         sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
-        if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, sample_now)
+        if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, base_end, sample_now)
         do l = 1, n
           if (.not. active(l)) cycle
           if (.not. passed(l)) results(l)%n_rhs = results(l)%n_rhs + 4
@@ -260,7 +277,11 @@ contains
         samples%first(l) = results(l)%n_recorded + 1
       end do
       if (.not. any(passed)) return
-      call lanes_observe(b%balls, y_new, f_new, out)
+      if (b%cups%moving) then
+        call lanes_observe(b%balls, y_new, f_new, out, base_end)
+      else
+        call lanes_observe(b%balls, y_new, f_new, out)
+      end if
       accepted = accepted .or. passed
     end subroutine meet_limits
   end subroutine fixed_step_lanes
@@ -279,6 +300,7 @@ contains
     type(case_result_t), intent(inout) :: results(:)
     type(lane_outputs_t) :: out
     real(wp), dimension(lanes, state_size) :: y_raw, y_new, f_new
+    real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: k(lanes, state_size, max_pair_stages)
     real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
     type(nutation_peak_t) :: peaks(lanes)
@@ -295,6 +317,7 @@ contains
       attempt_calls = pairs(1)%attempt_calls()      ! the lanes' pairs are of one type
       end_stage = pairs(1)%end_stage()
       t = 0
+      base_end = 0
       call start_pair_lanes(b, pairs, cases, control, rtol, atol, h_max, t_end, h, results)
       attempt = 0
       round_off_attempts = 0
@@ -314,7 +337,11 @@ contains
           end if
         end do
         if (.not. any(active)) exit
-        call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        if (b%cups%moving) then
+          call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm, b%cups, t)
+        else
+          call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
+        end if
         accepted = .false.
         do l = 1, n
           if (.not. active(l)) cycle
@@ -334,7 +361,12 @@ contains
           y_new(l, :) = y_lane
           f_new(l, :) = f_lane
         end do
-        call lanes_observe(balls, y_new, f_new, out)
+        if (b%cups%moving) then
+          call b%cups%at(t + h, base_end)
+          call lanes_observe(balls, y_new, f_new, out, base_end)
+        else
+          call lanes_observe(balls, y_new, f_new, out)
+        end if
         ! a step with a sample, a maximum of Theta or a crossed limit inside
         ! needs its dense output: the stages for all lanes at once
         sample_inside = .false.
@@ -345,7 +377,13 @@ contains
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
         dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
-        if (any(dense)) call lanes_pair_dense_stages(pairs(1), balls, y, h, k)
+        if (any(dense)) then
+          if (b%cups%moving) then
+            call lanes_pair_dense_stages(pairs(1), balls, y, h, k, b%cups, t)
+          else
+            call lanes_pair_dense_stages(pairs(1), balls, y, h, k)
+          end if
+        end if
         ! the path past a limit inside the step (past the rim at a maximum of
         ! Theta, or slipping): the step's end is not the case's
         call limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, peak_inside, peaks, &
@@ -366,7 +404,8 @@ contains
             cycle
           end if
           if (sample_inside(l)) call record_samples_until(pairs(l), run(l), plan, t(l) + h(l), &
-                                                          lane_observation(out, y_new, l, run(l)%ball%radius), results(l))
+                                                          lane_observation(out, y_new, base_end, l, run(l)%ball%radius), &
+                                                          results(l))
           if (peak_inside(l)) then
             call run(l)%maxima%add_peak(peaks(l)%t)
             call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
@@ -374,6 +413,7 @@ contains
           if (.not. round_off_step(t(l), h(l))) round_off_attempts(l) = 0
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1
+          if (b%cups%moving) call track_cup_motion(run(l), t(l), out%center_acceleration(l, 1:2), base_end(l, 1:2))
           if (t(l) < t_end(l)) then
             y(l, :) = y_new(l, :)
             f(l, :) = f_new(l, :)
@@ -479,11 +519,11 @@ contains
     call pair%hold_attempt(t, h, y_lane, y_raw_lane, error_norm, dense_stages_ready=.true.)
   end subroutine load_attempt
 
-  !> Lane l's end-of-step observation, what an output sample stores (no base
-  !> acceleration: batches have fixed cups).
-  pure function lane_observation(out, y, l, radius) result(obs)
+  !> Lane l's end-of-step observation, what an output sample stores (base:
+  !> the cups' accelerations there).
+  pure function lane_observation(out, y, base, l, radius) result(obs)
     type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: y(lanes, state_size), radius
+    real(wp), intent(in) :: y(lanes, state_size), base(lanes, 3), radius
     integer, intent(in) :: l
     type(observation_t) :: obs
     obs%normal = out%normal(l, :)
@@ -493,8 +533,23 @@ contains
     obs%lateral = out%lateral(l)
     obs%reaction = out%reaction(l, :)
     obs%energy = out%quantity(l, q_energy)
-    obs%base_acceleration = 0
+    obs%base_acceleration = base(l, :)
+    obs%center_acceleration = out%center_acceleration(l, :)
   end function lane_observation
+
+  !> What the accepted lanes' new states (at times t) add to the summary of
+  !> a moving cup beyond the statistics (track_cup_motion, the one-case
+  !> code on each lane).
+  subroutine track_cups(b, out, base, t, accepted)
+    type(batch_t), intent(inout) :: b
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: base(lanes, 3), t(lanes)
+    logical, intent(in) :: accepted(lanes)
+    integer :: l
+    do l = 1, b%n
+      if (accepted(l)) call track_cup_motion(b%run(l), t(l), out%center_acceleration(l, 1:2), base(l, 1:2))
+    end do
+  end subroutine track_cups
 
   !> A case's running summary (accumulate), into lane l.
   pure subroutine load_summary(self, l, run)
@@ -551,10 +606,10 @@ contains
 
   !> The values at one output sample of the lanes that take one (sampling)
   !> into each one's next slot of the block.
-  pure subroutine add_lane_samples(self, out, y, radius, sampling)
+  pure subroutine add_lane_samples(self, out, y, radius, base, sampling)
     class(lane_sample_block_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: y(lanes, state_size), radius(lanes)
+    real(wp), intent(in) :: y(lanes, state_size), radius(lanes), base(lanes, 3)
     logical, intent(in) :: sampling(lanes)
     integer :: l, j
     do l = 1, lanes
@@ -568,12 +623,13 @@ contains
       if (self%fields(field_nutation)) self%lateral(l, j) = out%lateral(l)
       if (self%fields(field_reaction)) self%reaction(l, :, j) = out%reaction(l, :)
       if (self%fields(field_energy)) self%energy(l, j) = out%quantity(l, q_energy)
+      if (self%fields(field_base_acceleration)) self%base(l, :, j) = base(l, :)
     end do
   end subroutine add_lane_samples
 
   !> Lane l's samples held in the block into its result (Theta from the
-  !> lateral and vertical parts of the normal, as store_sample; a batch's
-  !> cup does not move), and the lane's slots free for the next ones.
+  !> lateral and vertical parts of the normal, as store_sample), and the
+  !> lane's slots free for the next ones.
   pure subroutine flush_lane_samples(self, l, res)
     class(lane_sample_block_t), intent(inout) :: self
     integer, intent(in) :: l
@@ -591,8 +647,7 @@ contains
     call put(res, field_reaction, self%reaction)
     if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, first:last))
     if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, first:last) = self%energy(l, :n)
-    if (allocated(res%fields(field_base_acceleration)%values)) &
-      res%fields(field_base_acceleration)%values(:, first:last) = 0
+    call put(res, field_base_acceleration, self%base)
     res%n_recorded = last
     self%first(l) = last + 1
     self%count(l) = 0

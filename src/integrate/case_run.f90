@@ -29,7 +29,7 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked
-  public :: track, track_step_end, note_nutation, accumulate, record_sample, record_geometry_sample
+  public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -241,9 +241,19 @@ contains
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
+
+  !> What a step's end point adds to the summary of a moving cup beyond the
+  !> step-end statistics (the transmissibility's Fourier sums), from the
+  !> horizontal absolute accelerations of the centre and of the cup (the
+  !> batches call it per lane).
+  pure subroutine track_cup_motion(run, t, center_acceleration, base)
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, center_acceleration(2), base(2)
+    if (run%spectrum%omega > 0) call run%spectrum%add(t, center_acceleration, base)
+  end subroutine track_cup_motion
 
   pure subroutine add_spectrum(self, t, ball, base)
     class(spectrum_t), intent(inout) :: self

@@ -1,11 +1,14 @@
-!> Several balls on fixed cups advanced together, one per SIMD lane: the
+!> Several balls advanced together, one per SIMD lane: the
 !> state is stored structure-of-arrays, y(lane, component), and every kernel
 !> is a loop over lanes of straight-line scalar code that the compiler
 !> vectorizes across cases. The arithmetic is that of the one-case path
 !> (ball_derivative, observe, limit_status), written out
 !> expression by expression in the same order; the batch is tested against
 !> it. Lanes never interact, so a case's result does not depend on which
-!> lane or which batch it runs in.
+!> lane or which batch it runs in. A lane's cup may move (ellroll_excitation):
+!> the kernels then take each lane's acceleration of the cup at its time
+!> (base, from ellroll_excitation_lanes), and a lane whose cup does not move
+!> computes bitwise what it computes in a batch of fixed cups.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
@@ -17,7 +20,8 @@ module ellroll_ball_lanes
   implicit none
   private
 
-  public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
+  public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe, &
+            lanes_stage_reaction
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -29,11 +33,17 @@ module ellroll_ball_lanes
     real(wp), dimension(lanes) :: axes2_sum = 3, det_axes2 = 1
     real(wp), dimension(lanes) :: radius = 1, mass = 1, g = 1, inertia_factor = 0.4_wp
     real(wp), dimension(lanes) :: g_over_r = 1, inv_one_plus_k = 1, fit_radius = 1, mu = -1
+    real(wp), dimension(lanes) :: base_divisor = 1      !< R (1 + k): the moving cup's couple over it
+    !> 1 where the lane's cup moves, else 0 (a mask of the data's width: a
+    !> logical's, narrower, keeps a merge from vectorizing)
+    real(wp) :: moves(lanes) = 0
   end type ball_lanes_t
 
   !> What the summary, the limits and the stored samples need of a state, per lane.
   type :: lane_outputs_t
     real(wp), dimension(lanes, 3) :: normal = 0, contact = 0, reaction = 0
+    !> the absolute acceleration of the centre (a_C + a_base, m/s^2)
+    real(wp), dimension(lanes, 3) :: center_acceleration = 0
     real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0
     !> the step-end quantities (ellroll_quantities: the displacement and the
     !> horizontal force squared, so that no square root is taken per step;
@@ -45,14 +55,15 @@ module ellroll_ball_lanes
 
 contains
 
-  !> Whether a ball's scene runs in lanes: the kernels here hold a fixed cup
-  !> and the smooth model (no non-smooth laws: no events, no mode per step).
+  !> Whether a ball's scene runs in lanes: the kernels here hold fixed and
+  !> moving cups and the smooth model (no non-smooth laws: no events, no
+  !> mode per step).
   pure logical function runs_in_lanes(ball)
     type(rolling_ball_t), intent(in) :: ball
-    runs_in_lanes = ball%excitation%kind == excitation_none .and. .not. ball%nonsmooth()
+    runs_in_lanes = .not. ball%nonsmooth()
   end function runs_in_lanes
 
-  !> Put a ball (on a fixed cup) into lane l.
+  !> Put a ball into lane l (its cup's motion: ellroll_excitation_lanes).
   pure subroutine set_lane(p, l, ball)
     type(ball_lanes_t), intent(inout) :: p
     integer, intent(in) :: l
@@ -74,6 +85,8 @@ contains
     p%inv_one_plus_k(l) = 1 / (1 + ball%inertia_factor)
     p%fit_radius(l) = ball%radius * (1 + ball%fit_margin)
     p%mu(l) = ball%mu
+    p%base_divisor(l) = ball%radius * (1 + ball%inertia_factor)
+    p%moves(l) = merge(1.0_wp, 0.0_wp, ball%excitation%kind /= excitation_none)
   end subroutine set_lane
 
   !> |n| of lane l's state (its first three components), 1/|n| and n/|n|.
@@ -88,16 +101,19 @@ contains
     n3 = y(l, 3) * inv_length
   end subroutine unit_normal
 
-  !> dy/dt of every lane (ball_derivative on a fixed cup); margin, when
+  !> dy/dt of every lane (ball_derivative); margin, when
   !> given, is lowered to the lane's n_z and fit_indicator where smaller:
   !> it stays positive while every y it saw lies where the equations hold
-  !> (ball_derivative's fits).
-  pure subroutine lanes_derivative(p, y, dydt, margin)
+  !> (ball_derivative's fits). base: the cup's acceleration of every lane
+  !> at its time, given when some lane's cup moves (a lane whose cup does
+  !> not move ignores it).
+  pure subroutine lanes_derivative(p, y, dydt, margin, base)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
     real(wp), intent(out) :: dydt(lanes, state_size)
     real(wp), intent(inout), optional :: margin(lanes)
-    real(wp) :: fits(lanes)
+    real(wp), intent(in), optional :: base(lanes, 3)
+    real(wp) :: fits(lanes), unit_scale(lanes), u1, u2, u3, c1, c2, c3
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
     real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity, r_fit_sigma, e_fit
     integer :: l
@@ -136,27 +152,91 @@ contains
       dydt(l, 3) = rate * x3
       spin_rate = (p%inv_one_plus_k(l) * (y(l, 4) * y(l, 1) + y(l, 5) * y(l, 2) + y(l, 6) * y(l, 3)) * inv_length2) &
                   * rate
-      gravity = p%g_over_r(l) * p%inv_one_plus_k(l) * (length * inv_length2)
+      unit_scale(l) = length * inv_length2
+      gravity = p%g_over_r(l) * p%inv_one_plus_k(l) * unit_scale(l)
       dydt(l, 4) = spin_rate * x1 + gravity * (-y(l, 2))
       dydt(l, 5) = spin_rate * x2 + gravity * y(l, 1)
       dydt(l, 6) = spin_rate * x3 + gravity * 0.0_wp
     end do
     if (present(margin)) margin = min(margin, fits)
+    if (.not. present(base)) return
+    ! a moving cup: g_vec - a_base in the cup's frame, omega' less
+    ! (n x a_base) / (R (1 + k)), n = y / |y| (ball_derivative's order)
+    do l = 1, lanes
+      u1 = y(l, 1) * unit_scale(l)
+      u2 = y(l, 2) * unit_scale(l)
+      u3 = y(l, 3) * unit_scale(l)
+      ! (both values computed, then one picked: a merge of values vectorizes)
+      c1 = dydt(l, 4) - (u2 * base(l, 3) - u3 * base(l, 2)) / p%base_divisor(l)
+      c2 = dydt(l, 5) - (u3 * base(l, 1) - u1 * base(l, 3)) / p%base_divisor(l)
+      c3 = dydt(l, 6) - (u1 * base(l, 2) - u2 * base(l, 1)) / p%base_divisor(l)
+      dydt(l, 4) = merge(c1, dydt(l, 4), p%moves(l) > 0)
+      dydt(l, 5) = merge(c2, dydt(l, 5), p%moves(l) > 0)
+      dydt(l, 6) = merge(c3, dydt(l, 6), p%moves(l) > 0)
+    end do
   end subroutine lanes_derivative
 
+  !> The reaction's limits at a stage of every lane whose cup moves
+  !> (stage_status where the ball fits: a non-finite force, lift-off, slip),
+  !> the force as reaction_force computes it; margin is set to -1 where one
+  !> is met (a lane whose cup does not move is left as it is).
+  pure subroutine lanes_stage_reaction(p, y, f, base, margin)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), base(lanes, 3)
+    real(wp), intent(inout) :: margin(lanes)
+    real(wp) :: inv_length, n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m
+    logical :: limit
+    integer :: l
+    do l = 1, lanes
+      r = p%radius(l)
+      m = p%mass(l)
+      ! (1/|y| once: the quotients differ from stage_status's in the last
+      ! bit, which moves a limit's decision only within round-off of it)
+      inv_length = 1 / sqrt(y(l, 1)**2 + y(l, 2)**2 + y(l, 3)**2)
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
+      nd1 = f(l, 1) * inv_length
+      nd2 = f(l, 2) * inv_length
+      nd3 = f(l, 3) * inv_length
+      f1 = m * ((r * ((f(l, 5) * n3 - f(l, 6) * n2) + (y(l, 5) * nd3 - y(l, 6) * nd2)) + 0.0_wp) + base(l, 1))
+      f2 = m * ((r * ((f(l, 6) * n1 - f(l, 4) * n3) + (y(l, 6) * nd1 - y(l, 4) * nd3)) + 0.0_wp) + base(l, 2))
+      f3 = m * ((r * ((f(l, 4) * n2 - f(l, 5) * n1) + (y(l, 4) * nd2 - y(l, 5) * nd1)) + p%g(l)) + base(l, 3))
+      normal_force = f1 * n1 + f2 * n2 + f3 * n3
+      t1 = f1 - normal_force * n1
+      t2 = f2 - normal_force * n2
+      t3 = f3 - normal_force * n3
+      quotient = sqrt(t1**2 + t2**2 + t3**2) / merge(normal_force, 1.0_wp, normal_force > 0)
+      ! (a sum of magnitudes is NaN or Inf when one of them is)
+      limit = .not. (abs(f1) + abs(f2) + abs(f3) <= huge(1.0_wp) .and. normal_force > 0 &
+                     .and. .not. (p%mu(l) > 0 .and. quotient > p%mu(l)))
+      margin(l) = merge(-1.0_wp, margin(l), p%moves(l) > 0 .and. limit)
+    end do
+  end subroutine lanes_stage_reaction
+
   !> The summary's quantities and the limit status of every lane's state y
-  !> with derivative f (observe and limit_status on a fixed cup). Branch-free
-  !> (merge with safe divisors instead of if), so that the loop vectorizes.
-  pure subroutine lanes_observe(p, y, f, out)
+  !> with derivative f (observe and limit_status); base, when given: the
+  !> cup's acceleration of every lane (0 where the cup does not move).
+  !> Branch-free (merge with safe divisors instead of if), so that the
+  !> loop vectorizes.
+  pure subroutine lanes_observe(p, y, f, out, base)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size)
     type(lane_outputs_t), intent(inout) :: out
+    real(wp), intent(in), optional :: base(lanes, 3)
+    real(wp) :: b(lanes, 3)
     real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
     real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, inv_s2, trace, det, r, m, fr
     real(wp) :: p3_lower, p3_upper, quotient, divisor, friction_needed
     logical :: upright, pressed, finite, fits, slipping
     integer :: l, status
+    ! (a fixed cup's 0 adds nothing: the reaction is bitwise that without it)
+    if (present(base)) then
+      b = base
+    else
+      b = 0
+    end if
     do l = 1, lanes
       r = p%radius(l)
       m = p%mass(l)
@@ -194,6 +274,10 @@ contains
       ac1 = r * ((f(l, 5) * n3 - f(l, 6) * n2) + (w2 * nd3 - w3 * nd2))
       ac2 = r * ((f(l, 6) * n1 - f(l, 4) * n3) + (w3 * nd1 - w1 * nd3))
       ac3 = r * ((f(l, 4) * n2 - f(l, 5) * n1) + (w1 * nd2 - w2 * nd1))
+      ac1 = ac1 + b(l, 1)
+      ac2 = ac2 + b(l, 2)
+      ac3 = ac3 + b(l, 3)
+      out%center_acceleration(l, :) = [ac1, ac2, ac3]
       f1 = m * (ac1 + 0.0_wp)
       f2 = m * (ac2 + 0.0_wp)
       f3 = m * (ac3 + p%g(l))

@@ -11,12 +11,16 @@
 !> its threshold; after it the two are runs of one method at one tolerance:
 !> the same status, step counts within 1 + 2 %, results within 100 rtol.
 !> A case's result does not depend on its lane or on the other cases of its
-!> batch (bitwise).
+!> batch (bitwise). The same holds for moving cups (harmonic and recorded
+!> excitations, each lane its own), with a fixed cup among them computing
+!> bitwise what it computes in a batch of fixed cups.
 program test_batch
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip
+  use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, status_liftoff
+  use ellroll_excitation, only: excitation_none, excitation_harmonic, set_record, base_acceleration
+  use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_cases, only: case_t, output_plan_t, field_count, make_ball
   use ellroll_results, only: case_result_t, figure_values
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, ball_derivative, observe
@@ -29,7 +33,8 @@ program test_batch
   use fixtures, only: paper_case
   use testing
   use ellroll_params, only: p_atol, p_dt, p_omega_x, p_omega_z, p_rtol, p_x, p_y, p_a, p_b, p_c, p_g, &
-      p_inertia_factor, p_mass, p_mu, p_radius
+      p_inertia_factor, p_mass, p_mu, p_radius, p_excitation_frequency, p_excitation_phase, &
+      p_excitation_amplitude_x, p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale
   use ellroll_figures, only: fig_constraint_error_max, fig_displacement_max, fig_energy_drift, &
       fig_friction_needed_max, fig_horizontal_force_max, fig_linear_periods, fig_nutation_maxima, &
       fig_nutation_period, fig_reaction_normal_max, fig_theta_max
@@ -73,6 +78,7 @@ program test_batch
     end if
   end do
   call parted_runs()
+  call moving_cups()
   call finish('test_batch')
 
 contains
@@ -214,9 +220,13 @@ contains
   !> results within that tolerance's error (the contact points apart by
   !> less than either's distance to a run at rtol 1e-13; here held to 100
   !> rtol, the accuracy test_integrators holds each pair to).
-  subroutine compare_paths(cases, label)
+  subroutine compare_paths(cases, label, designed_ends, reference)
     type(case_t), intent(in) :: cases(n_cases)
     character(len=*), intent(in) :: label
+    !> the statuses the cases are designed to end with (make_cases' when absent)
+    integer, intent(in), optional :: designed_ends(n_cases)
+    !> runs of the cases far more accurate than the pairs' (moving_cups)
+    type(case_result_t), intent(in), optional :: reference(n_cases)
     ! summary figures (as in figures()): those located independently of the
     ! steps, the round-off-sized ones, and those taken at step ends
     integer, parameter :: located(5) = [1, 2, 7, 8, 9], round_off(2) = [5, 6], at_step_ends(4) = [3, 4, 10, 11]
@@ -253,7 +263,16 @@ contains
       allowed = merge(100 * cases(l)%param(p_rtol), 1.0e-13_wp, adaptive)
       same_status = same_status .and. single(l)%status == batch(l)%status
       difference = abs(figures(single(l)) - figures(batch(l))) / max(abs(figures(batch(l))), tiny(1.0_wp))
-      worst_samples = max(worst_samples, sample_difference(single(l), batch(l)) / allowed)
+      if (present(reference) .and. adaptive) then
+        ! against a far more accurate run: the batch's samples no further
+        ! from it than twice the one-case path's, and 100 rtol (a record's
+        ! kinks, one at each of its samples, hold a pair's error above its
+        ! tolerance, and two parted runs may err on either side)
+        worst_samples = max(worst_samples, sample_difference(reference(l), batch(l)) / &
+                                           (2 * sample_difference(reference(l), single(l)) + allowed))
+      else
+        worst_samples = max(worst_samples, sample_difference(single(l), batch(l)) / allowed)
+      end if
       at_limit = single(l)%status == status_no_fit .or. single(l)%status == status_rim
       worst_end_time = max(worst_end_time, abs(single(l)%t_final - batch(l)%t_final) / merge(allowed, 1.0e-12_wp, adaptive))
       if (at_limit .and. adaptive) cycle       ! below
@@ -268,6 +287,9 @@ contains
         worst_at_limit = max(worst_at_limit, maxval(difference(forces)))
         difference(forces) = 0
       end if
+      ! at lift-off N falls to 0 and the friction needed, |F_t| / N, is
+      ! round-off over round-off at the last step
+      if (single(l)%status == status_liftoff) difference(4) = 0
       ! the figures taken at step ends sample the motion where each run's steps end
       if (same_steps) then
         worst_step_ends = max(worst_step_ends, maxval(difference(at_step_ends)))
@@ -287,8 +309,13 @@ contains
                      'drift (max rel. diff, in units of ' // trim(merge('100 rtol ', 'round-off', adaptive)) // ')')
     call check_below(worst_step_ends, step_ends_bound, label // ' batch vs one case, cases that took the same ' // &
                      'steps: maxima of forces and displacement (max rel. diff)')
-    call check_below(worst_samples, 1.0_wp, label // ' batch vs one case: stored samples (max rel. diff, in units ' // &
-                     'of ' // trim(merge('100 rtol ', 'round-off', adaptive)) // ')')
+    if (present(reference) .and. adaptive) then
+      call check_below(worst_samples, 1.0_wp, label // ' batch: stored samples'' distance from a vern9 run at ' // &
+                       'rtol 1e-13 (in units of twice the one-case path''s + 100 rtol)')
+    else
+      call check_below(worst_samples, 1.0_wp, label // ' batch vs one case: stored samples (max rel. diff, in units ' // &
+                       'of ' // trim(merge('100 rtol ', 'round-off', adaptive)) // ')')
+    end if
     call check_below(worst_end_time, 1.0_wp, label // ' batch vs one case: end time (in units of ' // &
                      trim(merge('100 rtol', '1e-12 s ', adaptive)) // ')')
     if (.not. adaptive) then
@@ -304,9 +331,13 @@ contains
       call check_below(worst_at_limit, 1.0e-6_wp, &
                        label // ' batch vs one case, cases ending at no_fit or rim: force maxima (max rel. diff)')
     end if
-    call check(count(batch%status == status_rim) == 1 .and. count(batch%status == status_no_fit) == 1 &
-                    .and. count(batch%status == status_slip) == 1 .and. count(batch%status == status_completed) == 5, &
-                    label // ': the cases end as designed (5 completed, rim, no_fit, slip)')
+    if (present(designed_ends)) then
+      call check(all(batch%status == designed_ends), label // ': the cases end as designed')
+    else
+      call check(count(batch%status == status_rim) == 1 .and. count(batch%status == status_no_fit) == 1 &
+                      .and. count(batch%status == status_slip) == 1 .and. count(batch%status == status_completed) == 5, &
+                      label // ': the cases end as designed (5 completed, rim, no_fit, slip)')
+    end if
 
     ! lanes are independent: reversed order, and each case alone in a batch
     order = [(n_cases + 1 - l, l = 1, n_cases)]
@@ -319,6 +350,158 @@ contains
     end do
     call check(lane_independent, label // ' batch: a result does not depend on its lane or its neighbours (bitwise)')
   end subroutine compare_paths
+
+  !> Moving cups in lanes: the cups' accelerations of the lanes against
+  !> base_acceleration's at random times (harmonic lanes to the vector
+  !> sine's few units of round-off, record lanes, whose cursors move back
+  !> and forth, bitwise); one state's right-hand side and observation
+  !> against the one-case path's (8 eps); then every batchable method's
+  !> batch of harmonic and record cases, with a fixed cup among them,
+  !> against the one-case path as compare_paths does (the same bounds as
+  !> for fixed cups), and the fixed cup's lane bitwise as in a batch of
+  !> fixed cups.
+  subroutine moving_cups()
+    type(case_t) :: cases(n_cases), fixed(n_cases), reference_cases(n_cases)
+    type(case_result_t) :: mixed(n_cases), fixed_results(n_cases), reference(n_cases)
+    type(error_t) :: err
+    type(rolling_ball_t) :: ball(lanes)
+    type(ball_lanes_t) :: balls
+    type(excitation_lanes_t) :: cups
+    type(lane_outputs_t) :: out
+    type(observation_t) :: obs
+    real(wp) :: t(lanes), base(lanes, 3), u(lanes), y(lanes, state_size), f_lanes(lanes, state_size)
+    real(wp) :: y_lane(state_size), f_lane(state_size), exact(3), harmonic_worst, record_worst, rhs_worst, observe_worst
+    integer :: designed(n_cases), l, j, row, seed_size
+    call random_seed(size=seed_size)
+    call random_seed(put=[(2024 + 7 * l, l = 1, seed_size)])
+    cases = moving_cases()
+    harmonic_worst = 0
+    record_worst = 0
+    do l = 1, lanes
+      ball(l) = make_ball(cases(l))
+      call set_lane(balls, l, ball(l))
+      call cups%set(l, ball(l)%excitation)
+    end do
+    do j = 1, 400                      ! times forwards and back, before and past the records
+      call random_number(u)
+      t = 5 * u - 0.5_wp
+      if (j > 200) t = 0.5_wp + 1.0e-3_wp * j + 1.0e-4_wp * u   ! close to the last ones
+      call cups%at(t, base)
+      do l = 1, lanes
+        exact = base_acceleration(ball(l)%excitation, t(l))
+        if (ball(l)%excitation%kind == excitation_harmonic) then
+          harmonic_worst = max(harmonic_worst, maxval(abs(base(l, :) - exact)) / maxval(abs(ball(l)%excitation%amplitude)))
+        else
+          record_worst = max(record_worst, maxval(abs(base(l, :) - exact)))
+        end if
+      end do
+    end do
+    call check_below(harmonic_worst / epsilon(1.0_wp), 8.0_wp, &
+                     'moving cups: harmonic lanes'' a_base vs base_acceleration (eps of the amplitude)')
+    call check(.not. record_worst > 0, 'moving cups: record lanes'' a_base equals base_acceleration''s (bitwise)')
+    ! one state each, the stages' times random
+    rhs_worst = 0
+    observe_worst = 0
+    call random_number(u)
+    t = 3 * u
+    call cups%at(t, base)
+    do l = 1, lanes
+      call random_number(y_lane)
+      y(l, :) = initial_state(ball(l), cases(l)%param(p_x), cases(l)%param(p_y), cases(l)%param(p_omega_x:p_omega_z))
+      y(l, 1:2) = y(l, 1:2) + 0.2_wp * (y_lane(1:2) - 0.5_wp)
+      y(l, 4:6) = y(l, 4:6) + 4 * (y_lane(4:6) - 0.5_wp)
+    end do
+    call lanes_derivative(balls, y, f_lanes, base=base)
+    call lanes_observe(balls, y, f_lanes, out, base)
+    do l = 1, lanes
+      y_lane = y(l, :)
+      call ball_derivative(ball(l), t(l), y_lane, f_lane)
+      rhs_worst = max(rhs_worst, maxval(abs(f_lanes(l, :) - f_lane)) / maxval(abs(f_lane)))
+      call observe(ball(l), t(l), y_lane, f_lane, obs)
+      observe_worst = max(observe_worst, maxval(abs(out%reaction(l, :) - obs%reaction)) / norm2(obs%reaction), &
+                          maxval(abs(out%center_acceleration(l, :) - obs%center_acceleration)) / &
+                          norm2(obs%center_acceleration), abs(out%quantity(l, q_energy) - obs%energy) / abs(obs%energy))
+    end do
+    call check_below(rhs_worst / epsilon(1.0_wp), 8.0_wp, 'moving cups, one state: batch vs one case, right-hand side (eps)')
+    call check_below(observe_worst / epsilon(1.0_wp), 8.0_wp, &
+                     'moving cups, one state: batch vs one case, reaction, centre acceleration, energy (eps)')
+
+    designed = status_completed
+    designed(6) = status_liftoff
+    do row = 1, size(methods)
+      if (.not. methods(row)%batches) cycle
+      cases = moving_cases()
+      cases%method = methods(row)%name
+      if (methods(row)%adaptive) then
+        do l = 1, n_cases
+          cases(l)%param(p_rtol) = 10.0_wp**(-6 - l / 2)
+          cases(l)%param(p_atol) = cases(l)%param(p_rtol) * 1.0e-3_wp
+        end do
+      end if
+      if (methods(row)%adaptive) then
+        do l = 1, n_cases
+          reference_cases(l) = cases(l)
+          reference_cases(l)%method = 'vern9'
+          reference_cases(l)%param(p_rtol) = 1.0e-13_wp
+          reference_cases(l)%param(p_atol) = 1.0e-16_wp
+          call simulate_case(reference_cases(l), plan, reference(l), err)
+        end do
+        call compare_paths(cases, trim(methods(row)%name) // ', moving cups', designed, reference)
+      else
+        call compare_paths(cases, trim(methods(row)%name) // ', moving cups', designed)
+      end if
+      ! the fixed cup (lane 1) computes in a batch of moving cups bitwise what
+      ! it computes in a batch of fixed cups
+      call simulate_batch(cases, plan, mixed)
+      fixed = cases(1)
+      fixed(1)%param(p_omega_z) = 40
+      call simulate_batch(fixed, plan, fixed_results)
+      call check(identical(mixed(1), fixed_results(2)), trim(methods(row)%name) // &
+                 ': a fixed cup in a batch of moving cups, bitwise as in a batch of fixed cups')
+    end do
+  end subroutine moving_cups
+
+  !> Harmonic cups (other frequencies, phases, amplitudes, one lifting the
+  !> ball off), cups following an even and an uneven record at two
+  !> scales, and a fixed cup: one batch.
+  function moving_cases() result(cs)
+    type(case_t) :: cs(n_cases)
+    integer, parameter :: n_even = 401, n_uneven = 300
+    real(wp) :: times(n_even), values(3, n_even), uneven(n_uneven), jitter(n_uneven)
+    integer :: k
+    cs = paper_case(1.0e-3_wp, 3.0_wp)
+    do k = 1, 5
+      cs(k)%excitation%kind = excitation_harmonic
+      cs(k)%param(p_excitation_frequency) = 0.4_wp + 0.3_wp * k
+      cs(k)%param(p_excitation_phase) = 0.7_wp * k
+      cs(k)%param(p_excitation_amplitude_x) = 0.3_wp * k
+      cs(k)%param(p_excitation_amplitude_y) = 0.2_wp * (3 - k)
+      cs(k)%param(p_excitation_amplitude_z) = 0.5_wp
+    end do
+    cs(2)%param(p_omega_x:p_omega_z) = [1.0_wp, -3.0_wp, 45.0_wp]
+    cs(3)%param(p_dt) = 2.0e-3_wp; cs(3)%t_end = 2.0_wp                 ! another step and length
+    cs(4)%param(p_a) = 0.8_wp; cs(4)%param(p_b) = 0.5_wp; cs(4)%param(p_c) = 0.3_wp
+    cs(4)%param(p_x) = 0.05_wp; cs(4)%param(p_y) = -0.03_wp
+    cs(5)%param(p_excitation_amplitude_z) = -3.0_wp
+    cs(6) = cs(1)                                                     ! the cup drops faster than g
+    cs(6)%param(p_excitation_amplitude_z) = 12.0_wp
+    cs(6)%param(p_excitation_frequency) = 2.0_wp
+    do k = 1, n_even
+      times(k) = (k - 1) * 0.01_wp
+      values(:, k) = [0.8_wp * sin(3.1_wp * times(k)) + 0.3_wp * cos(17.0_wp * times(k)), &
+                      0.5_wp * cos(2.3_wp * times(k)), 0.2_wp * sin(9.0_wp * times(k))]
+    end do
+    call random_number(jitter)
+    uneven = [(0.0135_wp * (k - 1) + 0.006_wp * jitter(k), k = 1, n_uneven)]
+    uneven(1) = 0
+    call set_record(cs(7)%excitation, times, values)
+    cs(7)%param(p_scale) = 1.5_wp
+    call set_record(cs(8)%excitation, uneven, values(:, :n_uneven))
+    cs(8)%param(p_scale) = 0.7_wp
+    cs(8)%param(p_omega_x:p_omega_z) = [2.0_wp, 1.0_wp, 30.0_wp]
+    cs(1)%excitation%kind = excitation_none                            ! a fixed cup among them
+    cs(1)%param(p_excitation_amplitude_x:p_excitation_amplitude_z) = 0
+  end function moving_cases
 
   function make_cases() result(cs)
     type(case_t) :: cs(n_cases)

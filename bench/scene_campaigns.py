@@ -1,0 +1,95 @@
+#!/usr/bin/env python3
+"""What a moving cup costs in a campaign: harmonic and record campaigns against
+the same campaign on a fixed cup, per case-step, for each build given, side by
+side in one run.
+
+Three campaigns of the paper's cup and ball, RK4 at dt = 1e-3, summary only
+(fields = 'none'), one thread, in SIMD batches where the build batches them:
+  spin sweep      32 spins omega_z = 5..36 rad/s over 60 s, on a fixed cup
+  harmonic sweep  the same 32 cases, the cup shaken along x and y (0.3 m/s^2,
+                  0.5 Hz)
+  record suite    the six synthetic records of input/records at scales 0.5,
+                  1 and 1.5 ... (15 cases, 40 s) against the same 15 cases on
+                  a fixed cup
+Each build's campaigns run in turns (--rounds times, best wall time of each),
+so that every build sees the same machine. Printed: ns per case-step of each
+campaign and the ratios harmonic / fixed and record suite / fixed, per build.
+
+    python bench/scene_campaigns.py --exe build/ellroll [--exe OTHER/ellroll ...] [--rounds 3]
+"""
+import argparse
+import os
+import pathlib
+import subprocess
+import tempfile
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+CUP = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.05, y = 0.02, omega = -2.0, 2.0, 20.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = {t_end} /
+&output file = 'out.h5', interval = 0.01, fields = 'none' /
+"""
+SPINS = ", ".join(str(5 + k) for k in range(32))
+RECORDS = ["SYN1_H1", "SYN1_H2", "SYN2_H1", "SYN2_H2", "SYN3_H1"]
+SCALES = [0.5, 1.0, 1.5]
+
+
+def campaigns(quick):
+    """name: (namelist text, cases, steps per case)."""
+    t_spin, t_suite = (2.0, 2.0) if quick else (60.0, 40.0)
+    sweep = f"&sweep name = 'omega_z', values = {SPINS} /\n"
+    harmonic = "&excitation kind = 'harmonic', amplitude = 0.3, 0.3, 0.0, frequency = 0.5 /\n"
+    records = "".join(f"&record name = '{r}', record_file = '{ROOT / 'input' / 'records' / (r + '.AT2')}' /\n"
+                      for r in RECORDS)
+    scales = "&sweep name = 'scale', values = " + ", ".join(map(str, SCALES)) + " /\n"
+    suite_fixed = "&sweep name = 'omega_z', values = " + ", ".join(str(5 + k) for k in range(15)) + " /\n"
+    n_spin, n_suite = round(t_spin / 1e-3), round(t_suite / 1e-3)
+    return {
+        "spin sweep, fixed cup": (CUP.format(t_end=t_spin) + sweep, 32, n_spin),
+        "spin sweep, harmonic cup": (CUP.format(t_end=t_spin) + harmonic + sweep, 32, n_spin),
+        "15 cases, fixed cup": (CUP.format(t_end=t_suite) + suite_fixed, 15, n_suite),
+        "record suite, 15 cases": (CUP.format(t_end=t_suite) + "&excitation kind = 'record' /\n" + records + scales,
+                                   15, n_suite),
+    }
+
+
+def wall(exe, namelist, folder):
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    start = time.perf_counter()
+    subprocess.run([str(exe), "run", str(namelist), "--threads", "1", "--overwrite", "-o", str(folder / "out.h5")],
+                   check=True, capture_output=True, env=env, cwd=folder)
+    return time.perf_counter() - start
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--exe", action="append", required=True, help="an ellroll binary (repeat to compare)")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", default=os.environ.get("ELLROLL_BENCH_QUICK") == "1")
+    args = parser.parse_args()
+    runs = campaigns(args.quick)
+    best = {(exe, name): float("inf") for exe in args.exe for name in runs}
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = pathlib.Path(tmp)
+        for name, (text, _, _) in runs.items():
+            (folder / (name.replace(" ", "_").replace(",", "") + ".nml")).write_text(text)
+        for _ in range(1 if args.quick else args.rounds):
+            for exe in args.exe:
+                for name in runs:
+                    namelist = folder / (name.replace(" ", "_").replace(",", "") + ".nml")
+                    best[exe, name] = min(best[exe, name], wall(exe, namelist, folder))
+    print("RK4 at dt = 1e-3, summary only, one thread, best of rounds: ns per case-step (process wall time)")
+    print(f"{'campaign':>26} {'cases':>6} " + " ".join(f"{pathlib.Path(e).parent.parent.name[:14]:>14}" for e in args.exe))
+    for name, (_, cases, steps) in runs.items():
+        print(f"{name:>26} {cases:6d} " + " ".join(f"{1e9 * best[e, name] / (cases * steps):14.1f}" for e in args.exe))
+    for label, moving, fixed in [("harmonic / fixed cup", "spin sweep, harmonic cup", "spin sweep, fixed cup"),
+                                 ("record suite / fixed cup", "record suite, 15 cases", "15 cases, fixed cup")]:
+        ratios = [best[e, moving] / runs[moving][1] / runs[moving][2] / (best[e, fixed] / runs[fixed][1] / runs[fixed][2])
+                  for e in args.exe]
+        print(f"{label:>26} {'':6} " + " ".join(f"{r:13.2f}x" for r in ratios) + "   (target <= 1.3x)")
+
+
+if __name__ == "__main__":
+    main()
