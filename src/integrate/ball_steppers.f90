@@ -12,7 +12,7 @@ module ellroll_ball_steppers
   use ellroll_integrator, only: integrator_t
   use ellroll_rk4, only: rk4_t
   use ellroll_embedded_pair, only: embedded_pair_t, width, max_pair_stages
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe, lanes_stage_reaction
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_status, only: status_completed
   implicit none
@@ -169,7 +169,8 @@ contains
     real(wp) :: length
     integer :: i, l
     reaction_limited = .false.
-    if (present(inside)) reaction_limited = any(p%mu > 0) .or. (present(base_half) .and. any(p%moves > 0))
+    ! (a moving cup's reaction is checked with the stage's derivative: lanes_derivative)
+    if (present(inside)) reaction_limited = any(p%mu > 0 .and. .not. p%moves > 0)
     margin = 1
     do i = 1, state_size
       stage(:, i) = y(:, i) + (h/2) * f0(:, i)
@@ -197,26 +198,18 @@ contains
     if (present(inside)) inside = margin > 0
   end subroutine lanes_rk4_step
 
-  !> A stage's reaction limits in a batch (rk4_ball_step's stage_status):
-  !> on a fixed cup with a friction limit the stage's whole limit status, as
-  !> at a step's end; on a moving cup (base given) the reaction's limits
-  !> (lanes_stage_reaction). margin is set to -1 where a limit is met.
+  !> A stage's friction limit on a fixed cup in a batch (rk4_ball_step's
+  !> stage_status): the stage's whole limit status, as at a step's end;
+  !> margin is set to -1 where a limit is met (a lane whose cup moves is
+  !> checked by lanes_derivative).
   pure subroutine lanes_check_reaction(p, state, rate, margin, base)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: state(lanes, state_size), rate(lanes, state_size)
     real(wp), intent(inout) :: margin(lanes)
     real(wp), intent(in), optional :: base(lanes, 3)
     type(lane_outputs_t) :: out
-    if (.not. present(base)) then
-      call lanes_observe(p, state, rate, out)
-      where (out%status /= status_completed) margin = -1
-      return
-    end if
-    if (any(p%mu > 0 .and. .not. p%moves > 0)) then
-      call lanes_observe(p, state, rate, out, base)
-      where (.not. p%moves > 0 .and. out%status /= status_completed) margin = -1
-    end if
-    call lanes_stage_reaction(p, state, rate, base, margin)
+    call lanes_observe(p, state, rate, out, base)
+    where (.not. p%moves > 0 .and. out%status /= status_completed) margin = -1
   end subroutine lanes_check_reaction
 
   !> One attempt of the pair of every lane, each lane with its own h

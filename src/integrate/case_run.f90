@@ -63,6 +63,7 @@ module ellroll_case_run
     real(wp) :: start = huge(1.0_wp)      !< window start, s
     complex(wp) :: ball(2) = 0, base(2) = 0
     real(wp) :: t_prev = 0, ball_prev(2) = 0, base_prev(2) = 0
+    complex(wp) :: phase_prev = 1         !< exp(-i omega t_prev): each step's phase is taken once
     logical :: has_prev = .false.
   contains
     procedure :: add => add_spectrum
@@ -258,14 +259,14 @@ contains
   pure subroutine add_spectrum(self, t, ball, base)
     class(spectrum_t), intent(inout) :: self
     real(wp), intent(in) :: t, ball(2), base(2)
-    complex(wp) :: phase_prev, phase_now
+    complex(wp) :: phase_now
     if (t < self%start) return
+    phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
     if (self%has_prev) then       ! trapezoid rule on (t_prev, t]
-      phase_prev = exp(cmplx(0.0_wp, -self%omega * self%t_prev, wp))
-      phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
-      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * phase_prev + ball * phase_now)
-      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * phase_prev + base * phase_now)
+      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * self%phase_prev + ball * phase_now)
+      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * self%phase_prev + base * phase_now)
     end if
+    self%phase_prev = phase_now
     self%t_prev = t
     self%ball_prev = ball
     self%base_prev = base

@@ -20,8 +20,7 @@ module ellroll_ball_lanes
   implicit none
   private
 
-  public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe, &
-            lanes_stage_reaction
+  public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -106,7 +105,10 @@ contains
   !> it stays positive while every y it saw lies where the equations hold
   !> (ball_derivative's fits). base: the cup's acceleration of every lane
   !> at its time, given when some lane's cup moves (a lane whose cup does
-  !> not move ignores it).
+  !> not move ignores it); with margin, a moving cup's lane also has its
+  !> margin set to -1 where the reaction meets a limit (stage_status's
+  !> lift-off, slip or a non-finite force, from the step's own n and rates:
+  !> a stage's whole check).
   pure subroutine lanes_derivative(p, y, dydt, margin, base)
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size)
@@ -174,31 +176,32 @@ contains
       dydt(l, 5) = merge(c2, dydt(l, 5), p%moves(l) > 0)
       dydt(l, 6) = merge(c3, dydt(l, 6), p%moves(l) > 0)
     end do
+    if (present(margin)) call lanes_stage_reaction(p, y, dydt, unit_scale, base, margin)
   end subroutine lanes_derivative
 
   !> The reaction's limits at a stage of every lane whose cup moves
   !> (stage_status where the ball fits: a non-finite force, lift-off, slip),
-  !> the force as reaction_force computes it; margin is set to -1 where one
-  !> is met (a lane whose cup does not move is left as it is).
-  pure subroutine lanes_stage_reaction(p, y, f, base, margin)
+  !> the force as reaction_force computes it; inv_length: 1/|y| of each
+  !> lane (lanes_derivative's). margin is set to -1 where one is met (a
+  !> lane whose cup does not move is left as it is).
+  pure subroutine lanes_stage_reaction(p, y, f, inv_length, base, margin)
     type(ball_lanes_t), intent(in) :: p
-    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), base(lanes, 3)
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), inv_length(lanes), base(lanes, 3)
     real(wp), intent(inout) :: margin(lanes)
-    real(wp) :: inv_length, n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m
+    real(wp) :: n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m
     logical :: limit
     integer :: l
     do l = 1, lanes
       r = p%radius(l)
       m = p%mass(l)
-      ! (1/|y| once: the quotients differ from stage_status's in the last
+      ! (times 1/|y|: the quotients differ from stage_status's in the last
       ! bit, which moves a limit's decision only within round-off of it)
-      inv_length = 1 / sqrt(y(l, 1)**2 + y(l, 2)**2 + y(l, 3)**2)
-      n1 = y(l, 1) * inv_length
-      n2 = y(l, 2) * inv_length
-      n3 = y(l, 3) * inv_length
-      nd1 = f(l, 1) * inv_length
-      nd2 = f(l, 2) * inv_length
-      nd3 = f(l, 3) * inv_length
+      n1 = y(l, 1) * inv_length(l)
+      n2 = y(l, 2) * inv_length(l)
+      n3 = y(l, 3) * inv_length(l)
+      nd1 = f(l, 1) * inv_length(l)
+      nd2 = f(l, 2) * inv_length(l)
+      nd3 = f(l, 3) * inv_length(l)
       f1 = m * ((r * ((f(l, 5) * n3 - f(l, 6) * n2) + (y(l, 5) * nd3 - y(l, 6) * nd2)) + 0.0_wp) + base(l, 1))
       f2 = m * ((r * ((f(l, 6) * n1 - f(l, 4) * n3) + (y(l, 6) * nd1 - y(l, 4) * nd3)) + 0.0_wp) + base(l, 2))
       f3 = m * ((r * ((f(l, 4) * n2 - f(l, 5) * n1) + (y(l, 4) * nd2 - y(l, 5) * nd1)) + p%g(l)) + base(l, 3))
