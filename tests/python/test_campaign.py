@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import ROOT, run
 
 BASE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
 &ball        radius = 0.2, weight = 2620.0 /
@@ -593,3 +593,75 @@ def test_error_figures_are_the_distance_to_a_vern9_run(ellroll, tmp_path):
         theta = np.abs(e["trajectory/nutation"][0] - r["trajectory/nutation"][0]).max()
         assert e["summary/error_theta"][0] == pytest.approx(theta, rel=1e-12, abs=1e-17)
         assert 1e-13 < distance < 1e-10         # RK4 at dt = 1e-3 over 2 s: 1.6e-12 m
+
+
+# Moving cups run in SIMD lanes too: a harmonic sweep and a suite of records
+# (each lane its own record and scale), 12 cases, on 1, 2 and 3 threads and
+# in 3 shards, bitwise the same; and a case of each from the batch against
+# the same case alone (the one-case path) to round-off (rk4).
+def moving_campaign(kind):
+    if kind == "harmonic":
+        return ("&excitation kind = 'harmonic', amplitude = 0.3, 0.2, 0.1, frequency = 0.6, phase = 0.4 /\n"
+                "&sweep name = 'excitation_frequency', start = 0.2, stop = 2.0, count = 4, spacing = 'log' /\n"
+                "&sweep name = 'omega_z', values = 5, 20, 40 /\n")
+    records = ROOT / "input" / "records"
+    return ("&excitation kind = 'record' /\n"
+            + "".join(f"&record name = '{n}', record_file = '{records / (n + '.AT2')}' /\n"
+                      for n in ("SYN1_H1", "SYN2_H1", "SYN3_H2"))
+            + "&sweep name = 'scale', values = 0.5, 1.0, 2.0, 3.0 /\n")
+
+
+@pytest.mark.parametrize("kind", ["harmonic", "record"])
+def test_moving_cups_in_lanes_are_the_same_on_any_threads_and_shards(ellroll, tmp_path, kind):
+    name = write(tmp_path, moving_campaign(kind), t_end=2.0)
+    for threads, out in [("1", "t1.h5"), ("2", "t2.h5"), ("3", "t3.h5")]:
+        assert run(ellroll, "run", name, "-q", "--threads", threads, "-o", out, cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "t1.h5", "r") as f:
+        assert f["summary/status"].shape == (12,) and np.all(f["summary/n_steps"][:] == 2000)
+    assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t2.h5")
+    assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t3.h5")
+    for i in range(3):
+        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    result = run(ellroll, "merge", "merged.h5", "shard_0.h5", "shard_1.h5", "shard_2.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "t1.h5", tmp_path / "merged.h5")
+
+
+@pytest.mark.parametrize("kind", ["harmonic", "record"])
+def test_batched_moving_cups_equal_the_same_cases_run_alone(ellroll, tmp_path, kind):
+    """rk4 takes the same steps in a batch and alone: samples (the cup's
+    acceleration among them) and summary figures to 1e-12 relative."""
+    extra = moving_campaign(kind)
+    (tmp_path / "camp.nml").write_text(BASE.format(t_end=2.0).replace("interval = 0.01 /", "interval = 0.01, "
+                                       "fields = 'contact', 'omega', 'reaction', 'base_acceleration' /") + extra)
+    assert run(ellroll, "run", "camp.nml", "-q", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
+    index = 9
+    with h5py.File(tmp_path / "campaign.h5", "r") as c:
+        if kind == "harmonic":
+            frequency, spin = float(c["case/excitation_frequency"][index]), float(c["case/omega"][index][2])
+            alone = (extra.split("&sweep")[0].replace("frequency = 0.6", f"frequency = {frequency!r}"),
+                     f"omega = -2.0, 2.0, {spin!r}")
+        else:
+            record = c["case/record"][index].decode().strip()
+            scale = float(c["case/scale"][index])
+    if kind == "harmonic":
+        text = BASE.format(t_end=2.0).replace("omega = -2.0, 2.0, 20.0", alone[1]) + alone[0]
+    else:
+        assert record == "SYN3_H2"
+        text = (BASE.format(t_end=2.0) + "&excitation kind = 'record', record_file = '"
+                + str(ROOT / "input" / "records" / (record + ".AT2")) + f"' /\n&sweep name = 'scale', values = {scale!r} /\n")
+    text = text.replace("interval = 0.01 /", "interval = 0.01, fields = 'contact', 'omega', 'reaction', "
+                        "'base_acceleration' /")
+    (tmp_path / "alone.nml").write_text(text)
+    assert run(ellroll, "run", "alone.nml", "-q", "-o", "alone.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "campaign.h5", "r") as c, h5py.File(tmp_path / "alone.h5", "r") as a:
+        assert c["summary/n_steps"][index] == a["summary/n_steps"][0] == 2000
+        for field in ("contact", "omega", "reaction", "base_acceleration"):
+            expected = a[f"trajectory/{field}"][0]
+            np.testing.assert_allclose(c[f"trajectory/{field}"][index], expected, rtol=1e-12,
+                                       atol=1e-12 * np.max(np.abs(expected)))
+        assert np.max(np.abs(c["trajectory/base_acceleration"][index])) > 0
+        for figure in ("theta_max", "reaction_normal_max", "horizontal_force_max", "displacement_max",
+                       "energy_drift", "transmissibility"):
+            np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=1e-10)
