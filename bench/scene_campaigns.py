@@ -1,7 +1,17 @@
 #!/usr/bin/env python3
-"""What a moving cup costs in a campaign: harmonic and record campaigns against
-the same campaign on a fixed cup, per case-step, for each build given, side by
-side in one run.
+"""What a scene and the summary cost (the ratios of issue #44), for each build
+given, side by side in one run: the kernels' paths (bench_throughput), one
+case's scenes (bench_scene_cost) and harmonic and record campaigns against the
+same campaign on a fixed cup, per case-step.
+
+From bench_throughput and bench_scene_cost beside each ellroll (the same build
+folder), best ns/step of --rounds runs each:
+  batch summary / integrate   a batch of 8 keeping the summary over integrating only
+  one case summary / integrate
+  batch of 1 / one case       a case alone in a batch over the one-case path (both
+                              summary only)
+  full output / summary       one case and a batch of 8
+  record, uneven, harmonic, rolling resistance / fixed cup   one case each
 
 Three campaigns of the paper's cup and ball, RK4 at dt = 1e-3, summary only
 (fields = 'none'), one thread, in SIMD batches where the build batches them:
@@ -11,15 +21,24 @@ Three campaigns of the paper's cup and ball, RK4 at dt = 1e-3, summary only
   record suite    the six synthetic records of input/records at scales 0.5,
                   1 and 1.5 ... (15 cases, 40 s) against the same 15 cases on
                   a fixed cup
-Each build's campaigns run in turns (--rounds times, best wall time of each),
-so that every build sees the same machine. Printed: ns per case-step of each
-campaign and the ratios harmonic / fixed and record suite / fixed, per build.
+Each build's runs take turns (--rounds times, best of each), so that every
+build sees the same machine. Printed: the ratios above, ns per case-step of
+each campaign and the ratios harmonic / fixed and record suite / fixed, per
+build.
 
-    python bench/scene_campaigns.py --exe build/ellroll [--exe OTHER/ellroll ...] [--rounds 3]
+    python bench/scene_campaigns.py --exe build/ellroll [--exe OTHER/ellroll ...] [--revision REV]
+                                    [--revision-build DIR] [--rounds 3] [--quick]
+
+--revision REV builds git revision REV's Release ellroll and benches in a
+temporary worktree and puts it first (--revision-build DIR: REV's build folder,
+already built). --quick (or ELLROLL_BENCH_QUICK=1): 2 s campaigns, one round,
+no revision built (a smoke test).
 """
 import argparse
 import os
 import pathlib
+import re
+import shutil
 import subprocess
 import tempfile
 import time
@@ -63,25 +82,102 @@ def wall(exe, namelist, folder):
     return time.perf_counter() - start
 
 
+ROW = re.compile(r"^\s*(\S.*?)\s+([0-9.]+)\.?\s+([0-9.]+)\s+([0-9.]+)x$")
+
+
+def bench_rows(binary, repeats):
+    """path: ns/step of a bench binary's table (bench_throughput, bench_scene_cost)."""
+    out = subprocess.run([str(binary), str(repeats)], check=True, capture_output=True, text=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        m = ROW.match(line)
+        if m:
+            rows[m.group(1)] = float(m.group(3))
+        else:
+            m = re.match(r"^(\S.*?)\s+([0-9.]+)\s+([0-9.]+)x$", line)      # bench_scene_cost: name, ns, ratio
+            if m:
+                rows[m.group(1)] = float(m.group(2))
+    return rows
+
+
+KERNEL_RATIOS = [
+    ("batch summary / integrate", "batch of 8, summary only", "batch of 8, integrate only", "<= 1.3x"),
+    ("one case summary / integrate", "ellroll, summary only", "ellroll, integrate only", "<= 1.2x"),
+    ("batch of 1 / one case", "batch of 1, summary only", "ellroll, summary only", "<= 1.0x"),
+    ("one case full / summary", "ellroll, full output 100 Hz", "ellroll, summary only", ""),
+    ("batch full / summary", "batch of 8, full output", "batch of 8, summary only", ""),
+    ("record / fixed cup", "record", "fixed cup", "<= 1.1x"),
+    ("record, uneven / fixed cup", "record, uneven times", "fixed cup", "<= 1.1x"),
+    ("harmonic / fixed cup", "harmonic", "fixed cup", "<= 1.1x"),
+    ("rolling resistance / fixed", "rolling resistance", "fixed cup", "<= 1.1x"),
+]
+
+
+def build_revision(revision, workdir):
+    """REV's Release build of ellroll and the benches, in a worktree under workdir."""
+    tree = workdir / "tree"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(tree), revision],
+                   check=True, capture_output=True)
+    subprocess.run(["cmake", "-S", str(tree), "-B", str(tree / "build"), "-DCMAKE_BUILD_TYPE=Release"],
+                   check=True, capture_output=True)
+    subprocess.run(["cmake", "--build", str(tree / "build"), "-j2", "--target", "ellroll", "bench_throughput",
+                    "bench_scene_cost"], check=True, capture_output=True)
+    return tree
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--exe", action="append", required=True, help="an ellroll binary (repeat to compare)")
+    parser.add_argument("--revision", help="a git revision to build and compare with")
+    parser.add_argument("--revision-build", help="that revision's build folder, already built")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--quick", action="store_true", default=os.environ.get("ELLROLL_BENCH_QUICK") == "1")
     args = parser.parse_args()
+    workdir = pathlib.Path(tempfile.mkdtemp())
+    tree = None
+    labels = {exe: "this tree" if pathlib.Path(exe).resolve().is_relative_to(ROOT)
+              else pathlib.Path(exe).resolve().parent.parent.name[:14] for exe in args.exe}
+    try:
+        if args.revision and not args.quick:
+            if args.revision_build:
+                build = pathlib.Path(args.revision_build)
+            else:
+                tree = build_revision(args.revision, workdir)
+                build = tree / "build"
+            args.exe.insert(0, str(build / "ellroll"))
+            labels[args.exe[0]] = args.revision[:14]
+        measure(args, labels)
+    finally:
+        if tree is not None:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], capture_output=True)
+        shutil.rmtree(workdir, ignore_errors=True)
+
+
+def measure(args, labels):
     runs = campaigns(args.quick)
     best = {(exe, name): float("inf") for exe in args.exe for name in runs}
+    kernels = {exe: {} for exe in args.exe}
+    repeats = 1 if args.quick else 5
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
         for name, (text, _, _) in runs.items():
             (folder / (name.replace(" ", "_").replace(",", "") + ".nml")).write_text(text)
         for _ in range(1 if args.quick else args.rounds):
             for exe in args.exe:
+                for binary in ("bench_throughput", "bench_scene_cost"):
+                    for path, ns in bench_rows(pathlib.Path(exe).parent / binary, repeats).items():
+                        kernels[exe][path] = min(kernels[exe].get(path, float("inf")), ns)
                 for name in runs:
                     namelist = folder / (name.replace(" ", "_").replace(",", "") + ".nml")
                     best[exe, name] = min(best[exe, name], wall(exe, namelist, folder))
-    print("RK4 at dt = 1e-3, summary only, one thread, best of rounds: ns per case-step (process wall time)")
-    print(f"{'campaign':>26} {'cases':>6} " + " ".join(f"{pathlib.Path(e).parent.parent.name[:14]:>14}" for e in args.exe))
+    names = " ".join(f"{labels[e]:>14}" for e in args.exe)
+    print("Kernels (bench_throughput, bench_scene_cost: RK4, 30 s at dt = 1e-3), best of rounds, ratios of ns/step")
+    print(f"{'ratio':>33} " + names + "   target")
+    for label, top, bottom, target in KERNEL_RATIOS:
+        print(f"{label:>33} " + " ".join(f"{kernels[e][top] / kernels[e][bottom]:13.2f}x" for e in args.exe)
+              + f"   {target}")
+    print("Campaigns: RK4 at dt = 1e-3, summary only, one thread, best of rounds: ns per case-step (process wall time)")
+    print(f"{'campaign':>26} {'cases':>6} " + names)
     for name, (_, cases, steps) in runs.items():
         print(f"{name:>26} {cases:6d} " + " ".join(f"{1e9 * best[e, name] / (cases * steps):14.1f}" for e in args.exe))
     for label, moving, fixed in [("harmonic / fixed cup", "spin sweep, harmonic cup", "spin sweep, fixed cup"),
