@@ -133,6 +133,7 @@ def main():
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--quick", action="store_true", default=os.environ.get("ELLROLL_BENCH_QUICK") == "1")
     args = parser.parse_args()
+    args.exe = [str(pathlib.Path(exe).resolve()) for exe in args.exe]     # (the runs' folder is a temporary one)
     workdir = pathlib.Path(tempfile.mkdtemp())
     tree = None
     labels = {exe: "this tree" if pathlib.Path(exe).resolve().is_relative_to(ROOT)
