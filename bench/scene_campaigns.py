@@ -171,13 +171,16 @@ def measure(args, labels):
                 for name in runs:
                     namelist = folder / (name.replace(" ", "_").replace(",", "") + ".nml")
                     best[exe, name] = min(best[exe, name], wall(exe, namelist, folder))
-    names = " ".join(f"{labels[e]:>14}" for e in args.exe)
-    print("Kernels (bench_throughput, bench_scene_cost: RK4, 30 s at dt = 1e-3), best of rounds, ratios of ns/step")
-    print(f"{'ratio':>33} " + names + "   target")
+    rounds = 1 if args.quick else args.rounds
+    builds = ", ".join(f"build {k + 1}: {labels[e]}" for k, e in enumerate(args.exe))
+    names = " ".join(f"{'build ' + str(k + 1):>14}" for k in range(len(args.exe)))
+    print(f"Kernels (bench_throughput, bench_scene_cost: RK4, 30 s at dt = 1e-3), best of {rounds} rounds; {builds}")
+    print(f"{'ratio of ns/step':>33} " + names + "   target")
     for label, top, bottom, target in KERNEL_RATIOS:
         print(f"{label:>33} " + " ".join(f"{kernels[e][top] / kernels[e][bottom]:13.2f}x" for e in args.exe)
               + f"   {target}")
-    print("Campaigns: RK4 at dt = 1e-3, summary only, one thread, best of rounds: ns per case-step (process wall time)")
+    print(f"Campaigns (RK4 at dt = 1e-3, summary only, one thread): ns per case-step, process wall time, best of "
+          f"{rounds} rounds")
     print(f"{'campaign':>26} {'cases':>6} " + names)
     for name, (_, cases, steps) in runs.items():
         print(f"{name:>26} {cases:6d} " + " ".join(f"{1e9 * best[e, name] / (cases * steps):14.1f}" for e in args.exe))
