@@ -44,7 +44,8 @@ def benches(build, quick):
          [str(build / "bench_scene_cost"), "2" if quick else "5"]),
         ("Scenes and the summary against revision e61ab12: kernels, one case's scenes, harmonic and record "
          "campaigns against a fixed cup",
-         [python, "bench/scene_campaigns.py", "--exe", exe, "--revision", "e61ab12", *(["--quick"] if quick else [])]),
+         [python, "bench/scene_campaigns.py", "--exe", exe, "--revision", "e61ab12", "--rounds", "7",
+          *(["--quick"] if quick else [])]),
         ("The journal's checksum per record",
          [str(build / "bench_journal_checksum")]),
         ("Campaign throughput on 1 and 2 threads, and peak memory against the number of cases",

@@ -5,7 +5,8 @@ case's scenes (bench_scene_cost) and harmonic and record campaigns against the
 same campaign on a fixed cup, per case-step.
 
 From bench_throughput and bench_scene_cost beside each ellroll (the same build
-folder), best ns/step of --rounds runs each:
+folder), each ratio from one run of the binary (its two paths measured
+moments apart), the median over --rounds runs:
   batch summary / integrate   a batch of 8 keeping the summary over integrating only
   one case summary / integrate
   batch of 1 / one case       a case alone in a batch over the one-case path (both
@@ -41,6 +42,7 @@ import pathlib
 import re
 import resource
 import shutil
+import statistics
 import subprocess
 import tempfile
 
@@ -161,7 +163,7 @@ def main():
 def measure(args, labels):
     runs = campaigns(args.quick)
     best = {(exe, name): float("inf") for exe in args.exe for name in runs}
-    kernels = {exe: {} for exe in args.exe}
+    kernels = {exe: [] for exe in args.exe}
     repeats = 1 if args.quick else 5
     with tempfile.TemporaryDirectory() as tmp:
         folder = pathlib.Path(tmp)
@@ -169,19 +171,21 @@ def measure(args, labels):
             (folder / (name.replace(" ", "_").replace(",", "") + ".nml")).write_text(text)
         for _ in range(1 if args.quick else args.rounds):
             for exe in args.exe:
+                rows = {}
                 for binary in ("bench_throughput", "bench_scene_cost"):
-                    for path, ns in bench_rows(pathlib.Path(exe).parent / binary, repeats).items():
-                        kernels[exe][path] = min(kernels[exe].get(path, float("inf")), ns)
+                    rows.update(bench_rows(pathlib.Path(exe).parent / binary, repeats))
+                kernels[exe].append(rows)
                 for name in runs:
                     namelist = folder / (name.replace(" ", "_").replace(",", "") + ".nml")
                     best[exe, name] = min(best[exe, name], cpu_time(exe, namelist, folder))
     rounds = 1 if args.quick else args.rounds
     builds = ", ".join(f"build {k + 1}: {labels[e]}" for k, e in enumerate(args.exe))
     names = " ".join(f"{'build ' + str(k + 1):>14}" for k in range(len(args.exe)))
-    print(f"Kernels (bench_throughput, bench_scene_cost: RK4, 30 s at dt = 1e-3), best of {rounds} rounds; {builds}")
+    print(f"Kernels (bench_throughput, bench_scene_cost: RK4, 30 s at dt = 1e-3), median of {rounds} rounds; {builds}")
     print(f"{'ratio of ns/step':>33} " + names + "   target")
     for label, top, bottom, target in KERNEL_RATIOS:
-        print(f"{label:>33} " + " ".join(f"{kernels[e][top] / kernels[e][bottom]:13.2f}x" for e in args.exe)
+        print(f"{label:>33} " + " ".join(f"{statistics.median(r[top] / r[bottom] for r in kernels[e]):13.2f}x"
+                                         for e in args.exe)
               + f"   {target}")
     print(f"Campaigns (RK4 at dt = 1e-3, summary only, one thread): ns per case-step, process CPU time, best of "
           f"{rounds} rounds")
