@@ -16,9 +16,9 @@ module ellroll_memory_run
   use ellroll_status, only: status_invalid, status_count
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, field_descriptions
-  use ellroll_results, only: case_result_t, field_buffer_t, summary_record
+  use ellroll_results, only: case_result_t, field_buffer_t
   use ellroll_campaign, only: coordinate_t
-  use ellroll_params, only: dataset_inputs
+  use ellroll_params, only: params, param_count, param_dataset
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_shards, only: campaign_id
@@ -196,9 +196,10 @@ contains
     type(coordinate_t), allocatable :: coords(:)
     integer(i8), allocatable :: indices(:)
     integer, allocatable :: where(:)          !< the dataset of each entry of a row
-    character(len=:), allocatable :: coordinate_names, meanings
+    character(len=:), allocatable :: coordinate_names, meanings, input_names
+    character(len=len(params%name)) :: row_datasets(param_count)
     integer(i8) :: i, n_cases, n_samples
-    integer :: k, f, d, n_case_entries
+    integer :: k, p, f, d, n_case_entries
     n_cases = inp%campaign%n_cases()
     n_samples = inp%plan%n_samples
     out%n_samples = n_samples
@@ -207,11 +208,14 @@ contains
       indices(i) = i - 1
     end do
     coords = inp%campaign%coordinates(indices)
+    ! a row: the case's inputs (/case), its summary and its status (/summary)
+    allocate (row, source=table_row(inp%campaign%base, case_result_t()))
+    n_case_entries = size(case_record(inp%campaign%base))
     ! the root's 3 scales; /case: its scale and inputs; /trajectory: its
     ! scale, the coordinates and the fields; /summary: its scale, the
     ! coordinates, the status and the figures
-    allocate (out%datasets(3 + size(case_record(inp%campaign%base)) + 1 + 1 + size(coords) + &
-                           count(inp%plan%fields) + 1 + size(coords) + 1 + size(summary_record(case_result_t()))))
+    allocate (out%datasets(3 + n_case_entries + 1 + 1 + size(coords) + count(inp%plan%fields) + 1 + size(coords) + &
+                           (size(row) - n_case_entries)))
     out%n = 0
     coordinate_names = ''
     do k = 1, size(coords)
@@ -221,17 +225,21 @@ contains
 
     call lay_out_root(inp, out, n_cases, n_samples)
 
-    ! a row: the case's inputs (/case), its summary and its status (/summary)
-    allocate (row, source=table_row(inp%campaign%base, case_result_t()))
-    n_case_entries = size(case_record(inp%campaign%base))
     allocate (where(size(row)))
 
-    ! /case: the resolved inputs
+    ! /case: the resolved inputs, each with the names of the inputs it holds
+    ! (ellroll_params' dataset_inputs, from a table of every row's dataset
+    ! made once: a search of the parameter table per dataset costs more
+    ! than the rest of the lay-out)
+    row_datasets = [(param_dataset(k), k = 1, param_count)]
     call case_scale('case')
     do k = 1, n_case_entries
       where(k) = add_entry('case', row(k))
-      if (len_trim(dataset_inputs(row(k)%name)) > 0) call add_attribute(out%datasets(where(k)), 'input_names', &
-                                                                       trim(dataset_inputs(row(k)%name)))
+      input_names = ''
+      do p = 1, param_count
+        if (row_datasets(p) == row(k)%name) input_names = input_names // ' ' // trim(params(p)%name)
+      end do
+      if (len(input_names) > 0) call add_attribute(out%datasets(where(k)), 'input_names', input_names(2:))
     end do
     ! /trajectory: the stored fields
     call case_scale('trajectory')
@@ -394,24 +402,38 @@ contains
       associate (ds => out%datasets(d))
         itemsize = 8
         if (ds%kind == kind_text) itemsize = text_width
-        call append(trim(ds%group) // field_end // trim(ds%name) // field_end // trim(ds%units) // field_end // &
-                    trim(ds%long_name) // field_end // trim(ds%dims(1)))
+        ! (piece by piece, and substrings rather than trim(): a concatenation
+        ! or a trim would allocate a temporary each)
+        call append(ds%group(:len_trim(ds%group)), field_end)
+        call append(ds%name(:len_trim(ds%name)), field_end)
+        call append(ds%units(:len_trim(ds%units)), field_end)
+        call append(ds%long_name(:len_trim(ds%long_name)), field_end)
+        call append(ds%dims(1)(:len_trim(ds%dims(1))))
         do k = 2, ds%ndim
-          call append(' ' // trim(ds%dims(k)))
+          call append(' ', ds%dims(k)(:len_trim(ds%dims(k))))
         end do
-        call append(field_end // decimal_digits(int(ds%kind, i8)) // field_end // &
-                    decimal_digits(int(itemsize, i8)) // field_end // decimal_digits(ds%shape(1)))
+        call append(field_end, decimal_digits(int(ds%kind, i8)))
+        call append(field_end, decimal_digits(int(itemsize, i8)))
+        call append(field_end, decimal_digits(ds%shape(1)))
         do k = 2, ds%ndim
-          call append(' ' // decimal_digits(ds%shape(k)))
+          call append(' ', decimal_digits(ds%shape(k)))
         end do
         call append(field_end)
         if (allocated(ds%attributes)) call append(ds%attributes)
-        call append(field_end // record_end)
+        call append(field_end, record_end)
       end associate
     end do
     out%catalog = out%catalog(:n)
   contains
-    subroutine append(piece)
+    !> piece, then second (if given), at the end of the catalog
+    subroutine append(piece, second)
+      character(len=*), intent(in) :: piece
+      character(len=*), intent(in), optional :: second
+      call append_one(piece)
+      if (present(second)) call append_one(second)
+    end subroutine append
+
+    subroutine append_one(piece)
       character(len=*), intent(in) :: piece
       character(len=:), allocatable :: grown
       if (n + len(piece) > len(out%catalog)) then
@@ -421,7 +443,7 @@ contains
       end if
       out%catalog(n + 1:n + len(piece)) = piece
       n = n + len(piece)
-    end subroutine append
+    end subroutine append_one
   end subroutine write_catalog
 
   !> A count's decimal digits.
