@@ -118,6 +118,8 @@ def _lib():
                 "ellroll_dataset_read": (c_int, [handle, c_int, ctypes.c_void_p, i64]),
                 "ellroll_catalog": (i64, [handle, ctypes.c_void_p, i64]),
                 "ellroll_read_all": (c_int, [handle, c_int, ctypes.c_void_p]),
+                "ellroll_views": (c_int, [handle, c_int, ctypes.c_void_p]),
+                "ellroll_release": (None, [handle, c_int]),
             }
             for name, (restype, argtypes) in signatures.items():
                 function = getattr(lib, name)
@@ -255,18 +257,54 @@ def _address(array):
     return array.__array_interface__["data"][0]
 
 
-def _values(lib, handle):
-    """Every dataset of a finished run, in one call into the library: their
-    _Layout and values (numpy arrays, in the catalog's order)."""
-    layout = _layout(_text(lib.ellroll_catalog, handle, size=16384, decode=False))
+class _Run:
+    """A run's handle in the library: freed when the last view of its values goes (at once, without views)."""
+    __slots__ = ("lib", "handle")
+
+    def __init__(self, lib, handle):
+        self.lib, self.handle = lib, handle
+
+    def __del__(self):
+        self.lib.ellroll_free(self.handle)
+
+
+class _View:
+    """A dataset's values where the library holds them, as numpy's base of
+    the array over them: they are freed when the array (and every view of
+    it) goes, and the run's handle with the last of them."""
+    __slots__ = ("run", "index", "__array_interface__")
+
+    def __init__(self, run, index, address, entry):
+        self.run, self.index = run, index
+        self.__array_interface__ = {"data": (address, False), "shape": entry.shape, "typestr": entry.dtype.str,
+                                    "version": 3}
+
+    def __del__(self):
+        self.run.lib.ellroll_release(self.run.handle, self.index)
+
+
+def _values(lib, run):
+    """Every dataset of a finished run: their _Layout and values (numpy
+    arrays, in the catalog's order). A large dataset the library holds as
+    the array lays it out (one case's trajectories, long columns) is read in
+    place; the others are copied out in one call."""
+    layout = _layout(_text(lib.ellroll_catalog, run.handle, size=16384, decode=False))
+    n = len(layout.entries)
     block = np.empty(layout.block_bytes, dtype=np.uint8)
     addresses = np.where(layout.in_block, layout.offsets + np.uint64(_address(block)), np.uint64(0))
-    values = [None] * len(layout.entries)
-    for i in layout.own:
-        entry = layout.entries[i]
-        values[i] = np.empty(entry.shape, dtype=entry.dtype)
-        addresses[i] = _address(values[i])
-    if lib.ellroll_read_all(handle, len(layout.entries), _address(addresses)) != 0:
+    values = [None] * n
+    if layout.own:
+        views = np.zeros(n, dtype=np.uint64)
+        if lib.ellroll_views(run.handle, n, _address(views)) != 0:
+            raise Error("libellroll: cannot read the datasets")
+        for i in layout.own:
+            entry = layout.entries[i]
+            if views[i]:
+                values[i] = np.asarray(_View(run, i, int(views[i]), entry))
+            else:
+                values[i] = np.empty(entry.shape, dtype=entry.dtype)
+                addresses[i] = _address(values[i])
+    if lib.ellroll_read_all(run.handle, n, _address(addresses)) != 0:
         raise Error("libellroll: cannot read the datasets")
     for i, entry in enumerate(layout.entries):
         if entry.offset is not None:
@@ -278,13 +316,13 @@ def _values(lib, handle):
     return layout, values
 
 
-def _datasets(lib, handle):
+def _datasets(lib, run):
     """Every dataset of a finished run: {group: [(name, dims, values, attrs), ...]}, and the root's attributes."""
-    layout, values = _values(lib, handle)
+    layout, values = _values(lib, run)
     groups = {}
     for entry, array in zip(layout.entries, values):
         groups.setdefault(entry.group, []).append((entry.name, entry.dims, array, entry.fresh_attrs()))
-    return groups, _attributes(_text(lib.ellroll_dataset_text, handle, -1, 5))
+    return groups, _attributes(_text(lib.ellroll_dataset_text, run.handle, -1, 5))
 
 
 def _attributes(lines):
@@ -372,7 +410,7 @@ def run(inputs, threads=None, *, path=None):
 
 
 def _run_inputs(inputs, threads, path, results):
-    """The library's run of an input, its results as results(lib, handle) reads them."""
+    """The library's run of an input, its results as results(lib, run) reads them."""
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
@@ -401,7 +439,7 @@ def _with_record_files(groups, folder):
 
 
 def _run_text(text, threads, path, results):
-    """The library's run of a namelist text, its results as results(lib, handle) reads them."""
+    """The library's run of a namelist text, its results as results(lib, run) reads them."""
     if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
         raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
     lib = _library or _lib()
@@ -410,11 +448,10 @@ def _run_text(text, threads, path, results):
     handle = lib.ellroll_run(encoded, len(encoded), label, len(label), int(threads or 0))
     if not handle:
         raise Error("libellroll: out of memory")
-    try:
-        code = lib.ellroll_error_code(handle)
-        if code != 0:
-            message = _text(lib.ellroll_error_message, handle)
-            raise (InputError if code == _INPUT else Error)(message, code)
-        return results(lib, handle)
-    finally:
-        lib.ellroll_free(handle)
+    run = _Run(lib, handle)
+    code = lib.ellroll_error_code(handle)
+    if code != 0:
+        message = _text(lib.ellroll_error_message, handle)
+        del run                         # (freed now, not when the exception goes)
+        raise (InputError if code == _INPUT else Error)(message, code)
+    return results(lib, run)

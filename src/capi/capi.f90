@@ -16,6 +16,8 @@
 !>   int ellroll_dataset_info(void *h, int i, int *kind, int *itemsize, int *ndim, int64_t shape[3]);
 !>   int ellroll_dataset_read(void *h, int i, void *buffer, int64_t size);
 !>   int ellroll_read_all(void *h, int n, void *const *addresses);
+!>   int ellroll_views(void *h, int n, void **addresses);
+!>   void ellroll_release(void *h, int i);
 !>   void ellroll_free(void *h);
 !>   void ellroll_init(void);
 !>
@@ -25,10 +27,13 @@
 !> (space-separated), 5 other attributes (a line 'NAME<tab>TYPE<tab>VALUE'
 !> each, TYPE str, i4 or i8); i = -1 with what = 5: the root's attributes.
 !> kind: 1 float64, 2 int64, 3 text (itemsize bytes each, blank-padded);
-!> values in C order, shape[0] cases (or samples, components) first.
+!> values in C order, shape[0] cases (or samples, components) first. A
+!> caller may read values in place (ellroll_views) instead of copying them,
+!> and free each such dataset's values alone when done (ellroll_release):
+!> the handle and any other dataset stay valid.
 module ellroll_capi
   use, intrinsic :: iso_c_binding, only: c_ptr, c_associated, c_loc, c_f_pointer, c_int, c_int64_t, &
-      c_char, c_double, c_null_char
+      c_char, c_double, c_null_char, c_null_ptr
   use ellroll_kinds, only: i8
   use ellroll_errors, only: err_none
   use ellroll_records, only: kind_real, kind_int, kind_text
@@ -37,7 +42,8 @@ module ellroll_capi
   private
 
   public :: ellroll_run, ellroll_error_code, ellroll_error_message, ellroll_dataset_count, ellroll_dataset_text, &
-            ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog, ellroll_read_all
+            ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog, ellroll_read_all, &
+            ellroll_views, ellroll_release
 
   interface
     subroutine crc32c_init() bind(c, name='ellroll_crc32c_init')
@@ -189,7 +195,7 @@ contains
     status = -1
     if (.not. output_of(handle, out)) return
     if (i < 0 .or. i >= out%n .or. .not. c_associated(buffer)) return
-    if (size /= dataset_bytes(out%datasets(i + 1))) return
+    if (size /= dataset_bytes(out%datasets(i + 1)) .or. out%datasets(i + 1)%released) return
     call fill(out, i + 1, buffer, .false.)
     status = 0
   end function ellroll_dataset_read
@@ -209,10 +215,72 @@ contains
     if (.not. output_of(handle, out)) return
     if (n /= out%n) return
     do d = 1, out%n
+      if (c_associated(addresses(d)) .and. out%datasets(d)%released) return
+    end do
+    do d = 1, out%n
       if (c_associated(addresses(d))) call fill(out, d, addresses(d), .true.)
     end do
     status = 0
   end function ellroll_read_all
+
+  !> Where each dataset's values sit in the library, laid out as
+  !> ellroll_dataset_read would copy them, into addresses[i], for a caller
+  !> that reads them in place; NULL for a dataset whose values are put
+  !> together only when copied out (a trajectory of several cases, a text).
+  !> They stay there until ellroll_release(h, i) or ellroll_free(h).
+  !> n: the dataset count (else -1).
+  integer(c_int) function ellroll_views(handle, n, addresses) result(status) bind(c, name='ellroll_views')
+    type(c_ptr), value, intent(in) :: handle
+    integer(c_int), value, intent(in) :: n
+    type(c_ptr), intent(out) :: addresses(*)
+    type(memory_output_t), pointer :: out
+    integer :: d
+    status = -1
+    if (.not. output_of(handle, out)) return
+    if (n /= out%n) return
+    ! (out, a pointer, makes its parts targets: the associate names below
+    ! are not)
+    do d = 1, out%n
+      addresses(d) = c_null_ptr
+      associate (ds => out%datasets(d))
+        if (ds%released) cycle
+        select case (ds%kind)
+        case (kind_real)
+          if (ds%field == 0) then
+            if (allocated(ds%reals)) addresses(d) = c_loc(out%datasets(d)%reals)
+          else if (size(out%results) == 1) then
+            ! (one case: its trajectory is the dataset)
+            if (allocated(out%results(0)%fields(ds%field)%values)) &
+              addresses(d) = c_loc(out%results(0)%fields(ds%field)%values)
+          end if
+        case (kind_int)
+          if (allocated(ds%ints)) addresses(d) = c_loc(out%datasets(d)%ints)
+        end select
+      end associate
+    end do
+    status = 0
+  end function ellroll_views
+
+  !> Free dataset i's values now (a caller done with its view of them);
+  !> the dataset then reads as nothing (ellroll_dataset_read and
+  !> ellroll_read_all: -1). Releases of different datasets may run at the
+  !> same time.
+  subroutine ellroll_release(handle, i) bind(c, name='ellroll_release')
+    type(c_ptr), value, intent(in) :: handle
+    integer(c_int), value, intent(in) :: i
+    type(memory_output_t), pointer :: out
+    if (.not. output_of(handle, out)) return
+    if (i < 0 .or. i >= out%n) return
+    associate (ds => out%datasets(i + 1))
+      ds%released = .true.
+      if (allocated(ds%reals)) deallocate (ds%reals)
+      if (allocated(ds%ints)) deallocate (ds%ints)
+      if (allocated(ds%texts)) deallocate (ds%texts)
+      if (ds%field /= 0 .and. size(out%results) == 1) then
+        if (allocated(out%results(0)%fields(ds%field)%values)) deallocate (out%results(0)%fields(ds%field)%values)
+      end if
+    end associate
+  end subroutine ellroll_release
 
   pure integer(i8) function dataset_bytes(ds) result(bytes)
     type(memory_dataset_t), intent(in) :: ds

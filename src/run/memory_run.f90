@@ -15,8 +15,9 @@ module ellroll_memory_run
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_invalid, status_count
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
-  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, field_descriptions
+  use ellroll_cases, only: case_t, field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, field_buffer_t
+  use ellroll_figures, only: figure_count
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: params, param_count, param_dataset
   use ellroll_input, only: run_input_t, read_input_text
@@ -54,6 +55,7 @@ module ellroll_memory_run
     !> or i4 / i8 for a list of 4- / 8-byte integers)
     character(len=:), allocatable :: attributes
     integer :: field = 0                     !< a trajectory: its field, read from the cases' results
+    logical :: released = .false.            !< its values freed (ellroll_release): nothing to read
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
     character(len=text_width), allocatable :: texts(:)
@@ -208,9 +210,15 @@ contains
       indices(i) = i - 1
     end do
     coords = inp%campaign%coordinates(indices)
-    ! a row: the case's inputs (/case), its summary and its status (/summary)
-    allocate (row, source=table_row(inp%campaign%base, case_result_t()))
-    n_case_entries = size(case_record(inp%campaign%base))
+    ! a row: the case's inputs (/case), its figures and its status
+    ! (/summary); the first case's, which fill_columns takes as it is
+    ! (every row has the same entries)
+    if (n_cases > 0) then
+      allocate (row, source=table_row(inp%campaign%case_at(0_i8), out%results(0)))
+    else
+      allocate (row, source=table_row(inp%campaign%base, case_result_t()))
+    end if
+    n_case_entries = size(row) - figure_count - 1
     ! the root's 3 scales; /case: its scale and inputs; /trajectory: its
     ! scale, the coordinates and the fields; /summary: its scale, the
     ! coordinates, the status and the figures
@@ -323,7 +331,11 @@ contains
     integer(i8) :: i
     integer :: d
     d = add(out, '', time_entry, kind_real, ['time'], [n_samples])
-    out%datasets(d)%reals = [(real(i, wp) * inp%plan%interval, i = 0, n_samples - 1)]    ! (as open_outputs)
+    ! (as open_outputs; a loop, not an array constructor, which grows a temporary)
+    allocate (out%datasets(d)%reals(n_samples))
+    do i = 0, n_samples - 1
+      out%datasets(d)%reals(i + 1) = real(i, wp) * inp%plan%interval
+    end do
     d = add(out, '', xyz_entry, kind_text, ['xyz'], [3_i8])
     out%datasets(d)%texts = [character(len=text_width) :: 'x', 'y', 'z']
     d = add(out, '', mode_entry, kind_int, ['mode'], [2_i8])
@@ -357,7 +369,8 @@ contains
       end associate
     end do
     do i = 0, n_cases - 1
-      row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
+      ! (row: case 0's already)
+      if (i > 0) row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
       do k = 1, size(row)
         associate (ds => out%datasets(where(k)))
           select case (ds%kind)
@@ -502,6 +515,7 @@ contains
     to%dims = from%dims
     if (allocated(from%attributes)) call move_alloc(from%attributes, to%attributes)
     to%field = from%field
+    to%released = from%released
     call move_alloc(from%reals, to%reals)
     call move_alloc(from%ints, to%ints)
     call move_alloc(from%texts, to%texts)
