@@ -118,8 +118,8 @@ def _lib():
                 "ellroll_dataset_read": (c_int, [handle, c_int, ctypes.c_void_p, i64]),
                 "ellroll_catalog": (i64, [handle, ctypes.c_void_p, i64]),
                 "ellroll_read_all": (c_int, [handle, c_int, ctypes.c_void_p]),
-                "ellroll_views": (c_int, [handle, c_int, ctypes.c_void_p]),
-                "ellroll_release": (None, [handle, c_int]),
+                "ellroll_take": (c_int, [handle, c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]),
+                "ellroll_free_values": (None, [handle]),
             }
             for name, (restype, argtypes) in signatures.items():
                 function = getattr(lib, name)
@@ -237,6 +237,9 @@ class _Layout:
         self.offsets = np.array([e.offset if e.offset is not None else 0 for e in self.entries], dtype=np.uint64)
         self.in_block = np.array([e.offset is not None for e in self.entries])
         self.own = [i for i in own if self.entries[i].nbytes > 0]
+        # (ellroll_take's: the datasets worth taking out rather than copying)
+        self.want = np.zeros(len(self.entries), dtype=np.intc)
+        self.want[self.own] = 1
 
 
 _layouts = {}
@@ -257,54 +260,44 @@ def _address(array):
     return array.__array_interface__["data"][0]
 
 
-class _Run:
-    """A run's handle in the library: freed when the last view of its values goes (at once, without views)."""
-    __slots__ = ("lib", "handle")
+class _Values:
+    """A dataset's values taken out of their run (ellroll_take), as numpy's
+    base of the array over them: freed when the array, and every view of
+    it, goes."""
+    __slots__ = ("lib", "owner", "__array_interface__")
 
-    def __init__(self, lib, handle):
-        self.lib, self.handle = lib, handle
-
-    def __del__(self):
-        self.lib.ellroll_free(self.handle)
-
-
-class _View:
-    """A dataset's values where the library holds them, as numpy's base of
-    the array over them: they are freed when the array (and every view of
-    it) goes, and the run's handle with the last of them."""
-    __slots__ = ("run", "index", "__array_interface__")
-
-    def __init__(self, run, index, address, entry):
-        self.run, self.index = run, index
+    def __init__(self, lib, owner, address, entry):
+        self.lib, self.owner = lib, owner
         self.__array_interface__ = {"data": (address, False), "shape": entry.shape, "typestr": entry.dtype.str,
                                     "version": 3}
 
     def __del__(self):
-        self.run.lib.ellroll_release(self.run.handle, self.index)
+        self.lib.ellroll_free_values(self.owner)
 
 
-def _values(lib, run):
+def _values(lib, handle):
     """Every dataset of a finished run: their _Layout and values (numpy
     arrays, in the catalog's order). A large dataset the library holds as
-    the array lays it out (one case's trajectories, long columns) is read in
-    place; the others are copied out in one call."""
-    layout = _layout(_text(lib.ellroll_catalog, run.handle, size=16384, decode=False))
+    the array lays it out (one case's trajectories, long columns) is taken
+    from it as it is, without a copy; the others are copied out in one
+    call."""
+    layout = _layout(_text(lib.ellroll_catalog, handle, size=16384, decode=False))
     n = len(layout.entries)
     block = np.empty(layout.block_bytes, dtype=np.uint8)
     addresses = np.where(layout.in_block, layout.offsets + np.uint64(_address(block)), np.uint64(0))
     values = [None] * n
     if layout.own:
-        views = np.zeros(n, dtype=np.uint64)
-        if lib.ellroll_views(run.handle, n, _address(views)) != 0:
+        owners, taken = np.empty(n, dtype=np.uint64), np.empty(n, dtype=np.uint64)
+        if lib.ellroll_take(handle, n, _address(layout.want), _address(owners), _address(taken)) != 0:
             raise Error("libellroll: cannot read the datasets")
         for i in layout.own:
             entry = layout.entries[i]
-            if views[i]:
-                values[i] = np.asarray(_View(run, i, int(views[i]), entry))
+            if owners[i]:
+                values[i] = np.asarray(_Values(lib, int(owners[i]), int(taken[i]), entry))
             else:
                 values[i] = np.empty(entry.shape, dtype=entry.dtype)
                 addresses[i] = _address(values[i])
-    if lib.ellroll_read_all(run.handle, n, _address(addresses)) != 0:
+    if lib.ellroll_read_all(handle, n, _address(addresses)) != 0:
         raise Error("libellroll: cannot read the datasets")
     for i, entry in enumerate(layout.entries):
         if entry.offset is not None:
@@ -316,13 +309,13 @@ def _values(lib, run):
     return layout, values
 
 
-def _datasets(lib, run):
+def _datasets(lib, handle):
     """Every dataset of a finished run: {group: [(name, dims, values, attrs), ...]}, and the root's attributes."""
-    layout, values = _values(lib, run)
+    layout, values = _values(lib, handle)
     groups = {}
     for entry, array in zip(layout.entries, values):
         groups.setdefault(entry.group, []).append((entry.name, entry.dims, array, entry.fresh_attrs()))
-    return groups, _attributes(_text(lib.ellroll_dataset_text, run.handle, -1, 5))
+    return groups, _attributes(_text(lib.ellroll_dataset_text, handle, -1, 5))
 
 
 def _attributes(lines):
@@ -410,7 +403,7 @@ def run(inputs, threads=None, *, path=None):
 
 
 def _run_inputs(inputs, threads, path, results):
-    """The library's run of an input, its results as results(lib, run) reads them."""
+    """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
@@ -439,7 +432,7 @@ def _with_record_files(groups, folder):
 
 
 def _run_text(text, threads, path, results):
-    """The library's run of a namelist text, its results as results(lib, run) reads them."""
+    """The library's run of a namelist text, its results as results(lib, handle) reads them."""
     if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
         raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
     lib = _library or _lib()
@@ -448,10 +441,11 @@ def _run_text(text, threads, path, results):
     handle = lib.ellroll_run(encoded, len(encoded), label, len(label), int(threads or 0))
     if not handle:
         raise Error("libellroll: out of memory")
-    run = _Run(lib, handle)
-    code = lib.ellroll_error_code(handle)
-    if code != 0:
-        message = _text(lib.ellroll_error_message, handle)
-        del run                         # (freed now, not when the exception goes)
-        raise (InputError if code == _INPUT else Error)(message, code)
-    return results(lib, run)
+    try:
+        code = lib.ellroll_error_code(handle)
+        if code != 0:
+            message = _text(lib.ellroll_error_message, handle)
+            raise (InputError if code == _INPUT else Error)(message, code)
+        return results(lib, handle)
+    finally:
+        lib.ellroll_free(handle)

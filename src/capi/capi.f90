@@ -16,8 +16,8 @@
 !>   int ellroll_dataset_info(void *h, int i, int *kind, int *itemsize, int *ndim, int64_t shape[3]);
 !>   int ellroll_dataset_read(void *h, int i, void *buffer, int64_t size);
 !>   int ellroll_read_all(void *h, int n, void *const *addresses);
-!>   int ellroll_views(void *h, int n, void **addresses);
-!>   void ellroll_release(void *h, int i);
+!>   int ellroll_take(void *h, int n, const int *want, void **owners, void **addresses);
+!>   void ellroll_free_values(void *owner);
 !>   void ellroll_free(void *h);
 !>   void ellroll_init(void);
 !>
@@ -28,9 +28,9 @@
 !> each, TYPE str, i4 or i8); i = -1 with what = 5: the root's attributes.
 !> kind: 1 float64, 2 int64, 3 text (itemsize bytes each, blank-padded);
 !> values in C order, shape[0] cases (or samples, components) first. A
-!> caller may read values in place (ellroll_views) instead of copying them,
-!> and free each such dataset's values alone when done (ellroll_release):
-!> the handle and any other dataset stay valid.
+!> caller may take a dataset's values out of the run instead of copying
+!> them (ellroll_take), and free them on their own, before or after the
+!> handle (ellroll_free_values).
 module ellroll_capi
   use, intrinsic :: iso_c_binding, only: c_ptr, c_associated, c_loc, c_f_pointer, c_int, c_int64_t, &
       c_char, c_double, c_null_char, c_null_ptr
@@ -43,7 +43,14 @@ module ellroll_capi
 
   public :: ellroll_run, ellroll_error_code, ellroll_error_message, ellroll_dataset_count, ellroll_dataset_text, &
             ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog, ellroll_read_all, &
-            ellroll_views, ellroll_release
+            ellroll_take, ellroll_free_values
+
+  !> A dataset's values taken out of its run (ellroll_take): one of them allocated.
+  type :: taken_t
+    real(c_double), allocatable :: field(:, :)      !< a trajectory, (components, samples)
+    real(c_double), allocatable :: reals(:)
+    integer(c_int64_t), allocatable :: ints(:)
+  end type taken_t
 
   interface
     subroutine crc32c_init() bind(c, name='ellroll_crc32c_init')
@@ -195,7 +202,7 @@ contains
     status = -1
     if (.not. output_of(handle, out)) return
     if (i < 0 .or. i >= out%n .or. .not. c_associated(buffer)) return
-    if (size /= dataset_bytes(out%datasets(i + 1)) .or. out%datasets(i + 1)%released) return
+    if (size /= dataset_bytes(out%datasets(i + 1)) .or. out%datasets(i + 1)%taken) return
     call fill(out, i + 1, buffer, .false.)
     status = 0
   end function ellroll_dataset_read
@@ -215,7 +222,7 @@ contains
     if (.not. output_of(handle, out)) return
     if (n /= out%n) return
     do d = 1, out%n
-      if (c_associated(addresses(d)) .and. out%datasets(d)%released) return
+      if (c_associated(addresses(d)) .and. out%datasets(d)%taken) return
     end do
     do d = 1, out%n
       if (c_associated(addresses(d))) call fill(out, d, addresses(d), .true.)
@@ -223,64 +230,63 @@ contains
     status = 0
   end function ellroll_read_all
 
-  !> Where each dataset's values sit in the library, laid out as
-  !> ellroll_dataset_read would copy them, into addresses[i], for a caller
-  !> that reads them in place; NULL for a dataset whose values are put
-  !> together only when copied out (a trajectory of several cases, a text).
-  !> They stay there until ellroll_release(h, i) or ellroll_free(h).
-  !> n: the dataset count (else -1).
-  integer(c_int) function ellroll_views(handle, n, addresses) result(status) bind(c, name='ellroll_views')
+  !> Values taken out of a run (ellroll_take), each freed on its own.
+  !> Where each dataset wanted (want[i] /= 0) keeps its values in the
+  !> library laid out as ellroll_dataset_read copies them, move them out of
+  !> the run into an owner of their own, freed by ellroll_free_values(owner)
+  !> and by nothing else: owners[i] the owner, addresses[i] the values,
+  !> which a caller reads in place, as long as it likes. NULL in both for a
+  !> dataset not taken (not wanted, a text, a trajectory of several cases,
+  !> which exists only when copied out). A dataset taken reads as nothing
+  !> after (ellroll_dataset_read and ellroll_read_all: -1). n: the dataset
+  !> count (else -1, and nothing taken).
+  integer(c_int) function ellroll_take(handle, n, want, owners, addresses) result(status) bind(c, name='ellroll_take')
     type(c_ptr), value, intent(in) :: handle
     integer(c_int), value, intent(in) :: n
-    type(c_ptr), intent(out) :: addresses(*)
+    integer(c_int), intent(in) :: want(*)
+    type(c_ptr), intent(out) :: owners(*), addresses(*)
     type(memory_output_t), pointer :: out
-    integer :: d
+    type(taken_t), pointer :: taken
+    integer :: d, f
     status = -1
     if (.not. output_of(handle, out)) return
     if (n /= out%n) return
-    ! (out, a pointer, makes its parts targets: the associate names below
-    ! are not)
     do d = 1, out%n
+      owners(d) = c_null_ptr
       addresses(d) = c_null_ptr
-      associate (ds => out%datasets(d))
-        if (ds%released) cycle
-        select case (ds%kind)
-        case (kind_real)
-          if (ds%field == 0) then
-            if (allocated(ds%reals)) addresses(d) = c_loc(out%datasets(d)%reals)
-          else if (size(out%results) == 1) then
-            ! (one case: its trajectory is the dataset)
-            if (allocated(out%results(0)%fields(ds%field)%values)) &
-              addresses(d) = c_loc(out%results(0)%fields(ds%field)%values)
-          end if
-        case (kind_int)
-          if (allocated(ds%ints)) addresses(d) = c_loc(out%datasets(d)%ints)
-        end select
-      end associate
+      if (want(d) == 0 .or. out%datasets(d)%taken) cycle
+      f = out%datasets(d)%field
+      if (f /= 0) then
+        ! (one case: its trajectory is the dataset)
+        if (size(out%results) /= 1) cycle
+        if (.not. allocated(out%results(0)%fields(f)%values)) cycle
+        allocate (taken)
+        call move_alloc(out%results(0)%fields(f)%values, taken%field)
+        addresses(d) = c_loc(taken%field)
+      else if (allocated(out%datasets(d)%reals)) then
+        allocate (taken)
+        call move_alloc(out%datasets(d)%reals, taken%reals)
+        addresses(d) = c_loc(taken%reals)
+      else if (allocated(out%datasets(d)%ints)) then
+        allocate (taken)
+        call move_alloc(out%datasets(d)%ints, taken%ints)
+        addresses(d) = c_loc(taken%ints)
+      else
+        cycle
+      end if
+      out%datasets(d)%taken = .true.
+      owners(d) = c_loc(taken)
     end do
     status = 0
-  end function ellroll_views
+  end function ellroll_take
 
-  !> Free dataset i's values now (a caller done with its view of them);
-  !> the dataset then reads as nothing (ellroll_dataset_read and
-  !> ellroll_read_all: -1). Releases of different datasets may run at the
-  !> same time.
-  subroutine ellroll_release(handle, i) bind(c, name='ellroll_release')
-    type(c_ptr), value, intent(in) :: handle
-    integer(c_int), value, intent(in) :: i
-    type(memory_output_t), pointer :: out
-    if (.not. output_of(handle, out)) return
-    if (i < 0 .or. i >= out%n) return
-    associate (ds => out%datasets(i + 1))
-      ds%released = .true.
-      if (allocated(ds%reals)) deallocate (ds%reals)
-      if (allocated(ds%ints)) deallocate (ds%ints)
-      if (allocated(ds%texts)) deallocate (ds%texts)
-      if (ds%field /= 0 .and. size(out%results) == 1) then
-        if (allocated(out%results(0)%fields(ds%field)%values)) deallocate (out%results(0)%fields(ds%field)%values)
-      end if
-    end associate
-  end subroutine ellroll_release
+  subroutine ellroll_free_values(owner) bind(c, name='ellroll_free_values')
+    type(c_ptr), value, intent(in) :: owner
+    type(taken_t), pointer :: taken
+    if (.not. c_associated(owner)) return
+    call c_f_pointer(owner, taken)
+    deallocate (taken)
+  end subroutine ellroll_free_values
 
   pure integer(i8) function dataset_bytes(ds) result(bytes)
     type(memory_dataset_t), intent(in) :: ds

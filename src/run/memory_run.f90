@@ -55,7 +55,7 @@ module ellroll_memory_run
     !> or i4 / i8 for a list of 4- / 8-byte integers)
     character(len=:), allocatable :: attributes
     integer :: field = 0                     !< a trajectory: its field, read from the cases' results
-    logical :: released = .false.            !< its values freed (ellroll_release): nothing to read
+    logical :: taken = .false.               !< its values taken out (ellroll_take): nothing to read
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
     character(len=text_width), allocatable :: texts(:)
@@ -515,7 +515,7 @@ contains
     to%dims = from%dims
     if (allocated(from%attributes)) call move_alloc(from%attributes, to%attributes)
     to%field = from%field
-    to%released = from%released
+    to%taken = from%taken
     call move_alloc(from%reals, to%reals)
     call move_alloc(from%ints, to%ints)
     call move_alloc(from%texts, to%texts)
