@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, PAPER_INPUT, run
+from conftest import ROOT, PAPER_INPUT, SANITIZED, run
 
 sys.path.insert(0, str(ROOT / "post"))
 import ellroll  # noqa: E402  (the checkout's package, whatever .venv holds)
@@ -405,23 +405,26 @@ def test_memory_stays_bounded_over_many_calls():
     within a few MB (a run's handle or its trajectories not freed would add
     some 200 kB per call here: 400 MB); keeping one trajectory of each of
     300 runs keeps that dataset alone (24 kB each), not its run (some
-    250 kB with its other trajectories and its handle)."""
+    250 kB with its other trajectories and its handle). (On a library
+    built with the address sanitizer, which keeps freed memory aside to
+    find its later use, the calls run and the sizes are not judged.)"""
     for _ in range(100):
         ellroll.run_arrays(VIEWED, threads=1)
     gc.collect()
     before = resident_bytes()
-    for _ in range(2000):
+    for _ in range(200 if SANITIZED else 2000):
         arrays, attributes = ellroll.run_arrays(VIEWED, threads=1)
         assert arrays["summary"]["status"][0] == 1
     del arrays, attributes
     gc.collect()
     grown = resident_bytes() - before
-    assert grown < 8e6, grown
     kept = [ellroll.run_arrays(VIEWED, threads=1)[0]["trajectory"]["contact"] for _ in range(300)]
     gc.collect()
     held = resident_bytes() - before - grown
     assert all(isinstance(k.base, ellroll._Values) for k in kept)
-    assert held < 300 * 2 * kept[0].nbytes, (held, kept[0].nbytes)
+    if not SANITIZED:
+        assert grown < 8e6, grown
+        assert held < 300 * 2 * kept[0].nbytes, (held, kept[0].nbytes)
 
 
 def test_runs_in_threads_read_in_place_are_each_right():
