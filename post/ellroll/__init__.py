@@ -225,14 +225,22 @@ class _Layout:
 
     def __init__(self, catalog):
         self.entries = [_Entry(*record.split("\x1f")[:9]) for record in catalog.split("\x1e")[:-1]]
-        self.block_bytes = 0
-        own = []
+        own, kinds = [], {}
         for i, entry in enumerate(self.entries):
             if entry.nbytes >= _OWN_ARRAY_BYTES and entry.text_dtype is None:      # (texts: copied as strings)
                 own.append(i)
             elif entry.nbytes > 0:
-                entry.offset = self.block_bytes
-                self.block_bytes += entry.nbytes          # (8-byte values: each stays aligned)
+                kinds.setdefault((entry.dtype, entry.shape), []).append(i)
+        # the block: the datasets of a type and shape one after another (8
+        # bytes a value: each stays aligned), made into arrays together
+        self.block_bytes = 0
+        self.stacks = []                      # (indices, dtype, shape of the stack, offset, text dtype)
+        for (dtype, shape), indices in kinds.items():
+            for i in indices:
+                self.entries[i].offset = self.block_bytes
+                self.block_bytes += self.entries[i].nbytes
+            self.stacks.append((indices, dtype, (len(indices), *shape), self.entries[indices[0]].offset,
+                                self.entries[indices[0]].text_dtype))
         # the addresses of the block's datasets, less the block's; 0: none, or an array of its own
         self.offsets = np.array([e.offset if e.offset is not None else 0 for e in self.entries], dtype=np.uint64)
         self.in_block = np.array([e.offset is not None for e in self.entries])
@@ -240,6 +248,7 @@ class _Layout:
         # (ellroll_take's: the datasets worth taking out rather than copying)
         self.want = np.zeros(len(self.entries), dtype=np.intc)
         self.want[self.own] = 1
+        self.empty = [i for i, e in enumerate(self.entries) if e.nbytes == 0]
 
 
 _layouts = {}
@@ -299,13 +308,14 @@ def _values(lib, handle):
                 addresses[i] = _address(values[i])
     if lib.ellroll_read_all(handle, n, _address(addresses)) != 0:
         raise Error("libellroll: cannot read the datasets")
-    for i, entry in enumerate(layout.entries):
-        if entry.offset is not None:
-            values[i] = np.ndarray(entry.shape, dtype=entry.dtype, buffer=block, offset=entry.offset)
-        elif values[i] is None:
-            values[i] = np.empty(entry.shape, dtype=entry.dtype)
-        if entry.text_dtype is not None:
-            values[i] = values[i].astype(entry.text_dtype)
+    for indices, dtype, shape, offset, text_dtype in layout.stacks:
+        stack = np.ndarray(shape, dtype=dtype, buffer=block, offset=offset)
+        if text_dtype is not None:
+            stack = stack.astype(text_dtype)
+        for i, array in zip(indices, stack):              # (each a view of its row)
+            values[i] = array
+    for i in layout.empty:
+        values[i] = np.empty(layout.entries[i].shape, dtype=layout.entries[i].dtype)
     return layout, values
 
 
@@ -367,7 +377,9 @@ def run_arrays(inputs, threads=None, *, path=None):
     and flag_values / flag_meanings where the file has them}), returned as
     (arrays, attributes). For calls in a loop (an optimisation), where
     building an xarray.DataTree (milliseconds) would cost more than the
-    integration.
+    integration. The arrays are the caller's: a large one (one case's
+    trajectories) is the library's memory handed over without a copy and
+    freed when the array goes; keeping one keeps nothing else of the run.
     """
     layout, values = _run_inputs(inputs, threads, path, _values)
     arrays, attributes = {}, {}
