@@ -350,7 +350,8 @@ def _dataset(xr, variables, extra_coords=()):
             coordinate_names.add(name)
     data_vars, coords = {}, {}
     for name, dims, values, attrs in variables:
-        (coords if name in coordinate_names else data_vars)[name] = xr.Variable(dims, values, attrs)
+        # (fastpath: the values are numpy arrays already, which xarray need not check)
+        (coords if name in coordinate_names else data_vars)[name] = xr.Variable(dims, values, attrs, fastpath=True)
     return xr.Dataset(data_vars, coords)
 
 
