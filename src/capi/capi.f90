@@ -211,7 +211,8 @@ contains
   !> dataset by dataset): dataset i into addresses[i], which holds the
   !> bytes its catalog entry's shape and item size make, or nothing for a
   !> NULL there; texts as C strings, without their trailing white space and
-  !> NUL after. n: the dataset count (else -1, and nothing copied).
+  !> NUL after. -1, and nothing copied, for n not the dataset count or an
+  !> address given for a dataset taken (ellroll_take).
   integer(c_int) function ellroll_read_all(handle, n, addresses) result(status) bind(c, name='ellroll_read_all')
     type(c_ptr), value, intent(in) :: handle
     integer(c_int), value, intent(in) :: n
@@ -230,16 +231,15 @@ contains
     status = 0
   end function ellroll_read_all
 
-  !> Values taken out of a run (ellroll_take), each freed on its own.
-  !> Where each dataset wanted (want[i] /= 0) keeps its values in the
-  !> library laid out as ellroll_dataset_read copies them, move them out of
-  !> the run into an owner of their own, freed by ellroll_free_values(owner)
-  !> and by nothing else: owners[i] the owner, addresses[i] the values,
-  !> which a caller reads in place, as long as it likes. NULL in both for a
-  !> dataset not taken (not wanted, a text, a trajectory of several cases,
-  !> which exists only when copied out). A dataset taken reads as nothing
-  !> after (ellroll_dataset_read and ellroll_read_all: -1). n: the dataset
-  !> count (else -1, and nothing taken).
+  !> Values handed over without a copy. Where a dataset wanted (want[i]
+  !> /= 0) keeps its values in the library laid out as ellroll_dataset_read
+  !> copies them, move them out of the run into an owner of their own,
+  !> freed by ellroll_free_values(owner) and by nothing else: owners[i] the
+  !> owner, addresses[i] the values, which a caller reads in place as long
+  !> as it likes. NULL in both for a dataset not taken (not wanted, empty,
+  !> a text, a trajectory of several cases, which exists only when copied
+  !> out). A dataset taken reads as nothing after (ellroll_dataset_read and
+  !> ellroll_read_all: -1). n: the dataset count (else -1, nothing taken).
   integer(c_int) function ellroll_take(handle, n, want, owners, addresses) result(status) bind(c, name='ellroll_take')
     type(c_ptr), value, intent(in) :: handle
     integer(c_int), value, intent(in) :: n
@@ -264,10 +264,12 @@ contains
         call move_alloc(out%results(0)%fields(f)%values, taken%field)
         addresses(d) = c_loc(taken%field)
       else if (allocated(out%datasets(d)%reals)) then
+        if (size(out%datasets(d)%reals) == 0) cycle       ! (no address to give)
         allocate (taken)
         call move_alloc(out%datasets(d)%reals, taken%reals)
         addresses(d) = c_loc(taken%reals)
       else if (allocated(out%datasets(d)%ints)) then
+        if (size(out%datasets(d)%ints) == 0) cycle
         allocate (taken)
         call move_alloc(out%datasets(d)%ints, taken%ints)
         addresses(d) = c_loc(taken%ints)
