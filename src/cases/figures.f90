@@ -93,7 +93,7 @@ module ellroll_figures
       figure_t('absolute_acceleration_max_time', 's', 'time of absolute_acceleration_max', kind_real, 1, &
                from_maximum_time, q_horizontal_force_sq), &
       figure_t('transmissibility', '1', 'harmonic: horizontal |a_C,absolute| / |a_base| at the forcing frequency, ' // &
-               'last whole periods (NaN: n/a)', kind_real, 1, from_run), &
+               'free modes fitted out (NaN: n/a)', kind_real, 1, from_run), &
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
                kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity)]

@@ -1,7 +1,7 @@
 !> The running state of one case and everything its accepted points add to
 !> the result: the start and the end of a case, the summary's step-end
 !> quantities (their statistics: ellroll_running), the maxima of Theta, the
-!> transmissibility's Fourier sums, the output samples, and the search for
+!> transmissibility's fit, the output samples, and the search for
 !> where a step crossed a model limit. Shared by the one-case loops
 !> (fixed-step and adaptive) and the batches.
 module ellroll_case_run
@@ -22,6 +22,7 @@ module ellroll_case_run
       limit_status, ball_derivative, nutation_angle
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
+  use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_system, only: stop_signal
   use ellroll_params, only: p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y
@@ -53,22 +54,6 @@ module ellroll_case_run
     procedure :: mean_interval
   end type maxima_t
 
-  !> Fourier components at the forcing frequency of the horizontal absolute
-  !> acceleration of the ball and of the cup, over the last whole forcing
-  !> periods (at least half the run): their ratio is the transmissibility.
-  !> The model has no damping, so free oscillations never decay; projecting
-  !> on the forcing frequency over whole periods separates them out.
-  type :: spectrum_t
-    real(wp) :: omega = 0                 !< 2 pi f
-    real(wp) :: start = huge(1.0_wp)      !< window start, s
-    complex(wp) :: ball(2) = 0, base(2) = 0
-    real(wp) :: t_prev = 0, ball_prev(2) = 0, base_prev(2) = 0
-    logical :: has_prev = .false.
-  contains
-    procedure :: add => add_spectrum
-    procedure :: ratio => spectrum_ratio
-  end type spectrum_t
-
   !> The search for where a step crossed a model limit, keeping the last
   !> valid observation and the status of the limit met.
   type, extends(crossing_search_t) :: limit_search_t
@@ -86,7 +71,8 @@ module ellroll_case_run
     type(rolling_ball_t) :: ball
     real(wp) :: start(state_size) = 0     !< the state at t = 0
     type(maxima_t) :: maxima
-    type(spectrum_t) :: spectrum
+    !> harmonic forcing: the steady response at the forcing frequency (the transmissibility)
+    type(harmonic_fit_t) :: fit
     real(wp) :: spin0 = 0                 !< omega . n at the start
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
     !> the statistics of the step-end quantities (the batch's lanes keep the same)
@@ -118,17 +104,28 @@ contains
     call observe(run%ball, 0.0_wp, y, f, obs)
     call start_running(run%stats, step_quantities(obs), cs%param)
     run%spin0 = dot_product(cs%param(p_omega_x:p_omega_z), obs%normal)
-    associate (frequency => cs%param(p_excitation_frequency))
-      if (cs%excitation%kind == excitation_harmonic .and. frequency > 0) then
-        run%spectrum%omega = two_pi * frequency
-        if (floor(0.5_wp * cs%t_end * frequency) >= 1) run%spectrum%start = &
-            cs%t_end - floor(0.5_wp * cs%t_end * frequency) / frequency
-      end if
-    end associate
+    call start_fit(cs, run)
     call track(run, res, 0.0_wp, obs)
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)
   end subroutine start_case
+
+  !> Harmonic forcing: the fit of the steady response at the forcing
+  !> frequency (ellroll_harmonic_fit) over the last whole forcing periods
+  !> (at least half the run), beside the free oscillation at the linear
+  !> modes' frequencies about the bottom (those of the case's spin).
+  subroutine start_fit(cs, run)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    real(wp) :: start, periods(2)
+    associate (frequency => cs%param(p_excitation_frequency))
+      if (cs%excitation%kind /= excitation_harmonic .or. .not. frequency > 0) return
+      if (floor(0.5_wp * cs%t_end * frequency) < 1) return
+      start = cs%t_end - floor(0.5_wp * cs%t_end * frequency) / frequency
+      periods = oscillation_periods(run%ball, run%spin0)
+      call run%fit%begin(two_pi * frequency, two_pi / periods, start, cs%t_end - start)
+    end associate
+  end subroutine start_fit
 
   !> The figures made from the whole run.
   subroutine finish_case(cs, run, res)
@@ -137,8 +134,7 @@ contains
     type(case_result_t), intent(inout) :: res
     res%counts(fig_nutation_maxima) = run%maxima%count
     res%reals(fig_nutation_period) = run%maxima%mean_interval()
-    if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
-      res%reals(fig_transmissibility) = run%spectrum%ratio()
+    if (res%status == status_completed .and. run%fit%start < cs%t_end) res%reals(fig_transmissibility) = run%fit%ratio()
     call finish_running(run%stats, run%ball%mass, res)
     call set_figure_values(res, fig_linear_periods, oscillation_periods(run%ball, run%spin0))
     call fill_unrecorded(res)
@@ -241,36 +237,9 @@ contains
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    if (run%spectrum%omega > 0) call run%spectrum%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    if (run%fit%n_basis > 0) call run%fit%add(t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
-
-  pure subroutine add_spectrum(self, t, ball, base)
-    class(spectrum_t), intent(inout) :: self
-    real(wp), intent(in) :: t, ball(2), base(2)
-    complex(wp) :: phase_prev, phase_now
-    if (t < self%start) return
-    if (self%has_prev) then       ! trapezoid rule on (t_prev, t]
-      phase_prev = exp(cmplx(0.0_wp, -self%omega * self%t_prev, wp))
-      phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
-      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * phase_prev + ball * phase_now)
-      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * phase_prev + base * phase_now)
-    end if
-    self%t_prev = t
-    self%ball_prev = ball
-    self%base_prev = base
-    self%has_prev = .true.
-  end subroutine add_spectrum
-
-  !> NaN when the cup does not move horizontally (undefined, not infinite).
-  pure real(wp) function spectrum_ratio(self)
-    class(spectrum_t), intent(in) :: self
-    if (sum(abs(self%base)**2) > 0) then
-      spectrum_ratio = sqrt(sum(abs(self%ball)**2) / sum(abs(self%base)**2))
-    else
-      spectrum_ratio = ieee_value(0.0_wp, ieee_quiet_nan)
-    end if
-  end function spectrum_ratio
 
   !> A nutation angle (tan Theta, and the lateral and vertical components of
   !> the unit normal) for the largest Theta; one nutation_angle per new maximum only.
