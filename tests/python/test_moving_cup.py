@@ -94,9 +94,11 @@ def test_transmissibility_follows_the_linear_model(ellroll, tmp_path, method):
                       excitation="kind = 'harmonic', amplitude = 0.001, 0.0, 0.0, frequency = 0.2")
     text += f"&sweep name = 'excitation_frequency', values = {', '.join(repr(r * F_N) for r in ratios)} /\n"
     (tmp_path / "five.nml").write_text(text)
-    assert run(ellroll, "run", "five.nml", "-q", cwd=tmp_path).returncode == 0
-    with h5py.File(tmp_path / "out.h5", "r") as f:
+    assert run(ellroll, "run", "five.nml", "-q", "--threads", "1", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", "five.nml", "-q", "--threads", "2", "-o", "two.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f, h5py.File(tmp_path / "two.h5", "r") as g:
         measured = f["summary/transmissibility"][:]
+        assert g["summary/transmissibility"][:].tobytes() == measured.tobytes()     # each case's own sums
     linear = np.array([linear_transmissibility(r) for r in ratios])
     assert np.abs(measured / linear - 1).max() < 1e-5
 
