@@ -197,3 +197,18 @@ def test_a_csv_and_an_at2_record_end_at_rest_alike(ellroll, tmp_path):
     csv, at2 = results
     assert abs(csv["rest_time"] - at2["rest_time"]) < 1e-9
     assert abs(csv["residual_displacement"] - at2["residual_displacement"]) < 1e-12
+
+
+def test_settle_leaves_the_step_advice_as_it_is(ellroll, tmp_path):
+    """The warning that dt caps an adaptive method's steps comes from a probe
+    over the first 100 dt: settle does not run the probe on to the rest."""
+    messages = []
+    for settle in (None, 200.0):
+        text = CUP.format(resistance=f", rolling_resistance = {DELTA!r}", x=0.052,
+                          integration="method = 'dop853', rtol = 1.0e-6, dt = 1.0e-3", t_end=10.0,
+                          settle=f", settle = {settle!r}" if settle else "", excitation="")
+        (tmp_path / "cup.nml").write_text(text)
+        result = run(ellroll, "run", "cup.nml", "-q", "--overwrite", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        messages.append(result.stderr)
+    assert "caps dop853's steps" in messages[0] and messages[1] == messages[0]
