@@ -33,7 +33,7 @@ program record_read
     call cpu_time(cpu_start)
     call system_clock(start, rate)
     do f = 1, size(paths)
-      call load_ground_motion(paths(f:f), 0.0_wp, 1.0_wp, times, values, reason)
+      call load_ground_motion(paths(f:f), 1.0_wp, times, values, reason)
       if (len(reason) > 0) then
         write (error_unit, '(a)') reason
         stop 1

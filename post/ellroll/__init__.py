@@ -117,6 +117,9 @@ def _lib():
                                                  ctypes.POINTER(c_int), ctypes.POINTER(i64)]),
                 "ellroll_dataset_read": (c_int, [handle, c_int, ctypes.c_void_p, i64]),
                 "ellroll_catalog": (i64, [handle, ctypes.c_void_p, i64]),
+                "ellroll_read_all": (c_int, [handle, c_int, ctypes.c_void_p]),
+                "ellroll_take": (c_int, [handle, c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]),
+                "ellroll_free_values": (None, [handle]),
             }
             for name, (restype, argtypes) in signatures.items():
                 function = getattr(lib, name)
@@ -126,7 +129,7 @@ def _lib():
     return _library
 
 
-def _text(function, *args, size=256):
+def _text(function, *args, size=256, decode=True):
     """A text the library copies out: asked once with a buffer, again if it was short."""
     while True:
         buffer = ctypes.create_string_buffer(size)
@@ -134,7 +137,8 @@ def _text(function, *args, size=256):
         if length < 0:
             raise Error(f"libellroll: {function.__name__}{args[1:]} failed")
         if length <= size:
-            return buffer.raw[:length].decode()
+            text = ctypes.string_at(buffer, length)
+            return text.decode() if decode else text
         size = length
 
 
@@ -186,23 +190,141 @@ def namelist(groups):
 # ------------------------------------------------------------- the results
 
 
+class _Entry:
+    """A dataset as the catalog describes it: where it goes, its type and shape, its attributes."""
+    __slots__ = ("group", "name", "dims", "shape", "dtype", "text_dtype", "nbytes", "attrs", "deep", "offset")
+
+    def __init__(self, group, name, units, long_name, dims, kind, itemsize, shape, other):
+        self.group, self.name, self.dims = group, name, tuple(dims.split())
+        self.shape = tuple(int(n) for n in shape.split())
+        kind, itemsize = int(kind), int(itemsize)
+        self.dtype = np.dtype({_REAL: np.float64, _INT: np.int64, _TEXT: f"S{itemsize}"}[kind])
+        # texts: the C strings the library writes, as Python strings of as many characters
+        self.text_dtype = np.dtype(f"U{itemsize}") if kind == _TEXT else None
+        self.nbytes = int(np.prod(self.shape, dtype=np.int64)) * self.dtype.itemsize
+        self.attrs = {"units": units, "long_name": long_name, **_attributes(other)}
+        # (an attribute that is an array is copied for each run, as a dict is)
+        self.deep = any(isinstance(v, np.ndarray) for v in self.attrs.values())
+        self.offset = None                  # in the block of small datasets, or None: an array of its own
+
+    def fresh_attrs(self):
+        if self.deep:
+            return {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.attrs.items()}
+        return dict(self.attrs)
+
+
+# A dataset of this many bytes or more gets an array of its own; the smaller
+# ones are views of one block (an array each would cost more than their
+# values), which a view kept alive keeps whole: at most some 60 times this
+# (texts go through the block, and become strings of their own).
+_OWN_ARRAY_BYTES = 16384
+
+
+class _Layout:
+    """The datasets of a catalog, parsed once: the calls of a loop give the same catalog each time."""
+
+    def __init__(self, catalog):
+        self.entries = [_Entry(*record.split("\x1f")[:9]) for record in catalog.split("\x1e")[:-1]]
+        own, kinds = [], {}
+        for i, entry in enumerate(self.entries):
+            if entry.nbytes >= _OWN_ARRAY_BYTES and entry.text_dtype is None:      # (texts: copied as strings)
+                own.append(i)
+            elif entry.nbytes > 0:
+                kinds.setdefault((entry.dtype, entry.shape), []).append(i)
+        # the block: the datasets of a type and shape one after another (8
+        # bytes a value: each stays aligned), made into arrays together
+        self.block_bytes = 0
+        self.stacks = []                      # (indices, dtype, shape of the stack, offset, text dtype)
+        for (dtype, shape), indices in kinds.items():
+            for i in indices:
+                self.entries[i].offset = self.block_bytes
+                self.block_bytes += self.entries[i].nbytes
+            self.stacks.append((indices, dtype, (len(indices), *shape), self.entries[indices[0]].offset,
+                                self.entries[indices[0]].text_dtype))
+        # the addresses of the block's datasets, less the block's; 0: none, or an array of its own
+        self.offsets = np.array([e.offset if e.offset is not None else 0 for e in self.entries], dtype=np.uint64)
+        self.in_block = np.array([e.offset is not None for e in self.entries])
+        self.own = [i for i in own if self.entries[i].nbytes > 0]
+        # (ellroll_take's: the datasets worth taking out rather than copying)
+        self.want = np.zeros(len(self.entries), dtype=np.intc)
+        self.want[self.own] = 1
+        self.empty = [i for i, e in enumerate(self.entries) if e.nbytes == 0]
+
+
+_layouts = {}
+_LAYOUTS_KEPT = 64
+
+
+def _layout(catalog):
+    layout = _layouts.get(catalog)
+    if layout is None:
+        layout = _Layout(catalog.decode())
+        if len(_layouts) >= _LAYOUTS_KEPT:
+            _layouts.clear()
+        _layouts[catalog] = layout
+    return layout
+
+
+def _address(array):
+    return array.__array_interface__["data"][0]
+
+
+class _Values:
+    """A dataset's values taken out of their run (ellroll_take), as numpy's
+    base of the array over them: freed when the array, and every view of
+    it, goes."""
+    __slots__ = ("lib", "owner", "__array_interface__")
+
+    def __init__(self, lib, owner, address, entry):
+        self.lib, self.owner = lib, owner
+        self.__array_interface__ = {"data": (address, False), "shape": entry.shape, "typestr": entry.dtype.str,
+                                    "version": 3}
+
+    def __del__(self):
+        self.lib.ellroll_free_values(self.owner)
+
+
+def _values(lib, handle):
+    """Every dataset of a finished run: their _Layout and values (numpy
+    arrays, in the catalog's order). A large dataset the library holds as
+    the array lays it out (one case's trajectories, long columns) is taken
+    from it as it is, without a copy; the others are copied out in one
+    call."""
+    layout = _layout(_text(lib.ellroll_catalog, handle, size=16384, decode=False))
+    n = len(layout.entries)
+    block = np.empty(layout.block_bytes, dtype=np.uint8)
+    addresses = np.where(layout.in_block, layout.offsets + np.uint64(_address(block)), np.uint64(0))
+    values = [None] * n
+    if layout.own:
+        owners, taken = np.empty(n, dtype=np.uint64), np.empty(n, dtype=np.uint64)
+        if lib.ellroll_take(handle, n, _address(layout.want), _address(owners), _address(taken)) != 0:
+            raise Error("libellroll: cannot read the datasets")
+        for i in layout.own:
+            entry = layout.entries[i]
+            if owners[i]:
+                values[i] = np.asarray(_Values(lib, int(owners[i]), int(taken[i]), entry))
+            else:
+                values[i] = np.empty(entry.shape, dtype=entry.dtype)
+                addresses[i] = _address(values[i])
+    if lib.ellroll_read_all(handle, n, _address(addresses)) != 0:
+        raise Error("libellroll: cannot read the datasets")
+    for indices, dtype, shape, offset, text_dtype in layout.stacks:
+        stack = np.ndarray(shape, dtype=dtype, buffer=block, offset=offset)
+        if text_dtype is not None:
+            stack = stack.astype(text_dtype)
+        for i, array in zip(indices, stack):              # (each a view of its row)
+            values[i] = array
+    for i in layout.empty:
+        values[i] = np.empty(layout.entries[i].shape, dtype=layout.entries[i].dtype)
+    return layout, values
+
+
 def _datasets(lib, handle):
     """Every dataset of a finished run: {group: [(name, dims, values, attrs), ...]}, and the root's attributes."""
+    layout, values = _values(lib, handle)
     groups = {}
-    # one text describes them all (ellroll_catalog): a record per dataset,
-    # fields ended by ASCII's unit separator
-    for i, record in enumerate(_text(lib.ellroll_catalog, handle, size=65536).split("\x1e")[:-1]):
-        group, name, units, long_name, dims, kind, itemsize, shape, other, _ = record.split("\x1f")
-        kind = int(kind)
-        values = np.empty(tuple(int(n) for n in shape.split()),
-                          dtype={_REAL: np.float64, _INT: np.int64, _TEXT: f"S{itemsize}"}[kind])
-        if lib.ellroll_dataset_read(handle, i, values.ctypes.data, values.nbytes) != 0:
-            raise Error(f"libellroll: cannot read dataset {group}/{name}")
-        if kind == _TEXT:
-            values = np.char.rstrip(values).astype(str)
-        attrs = {"units": units, "long_name": long_name}
-        attrs.update(_attributes(other))
-        groups.setdefault(group, []).append((name, tuple(dims.split()), values, attrs))
+    for entry, array in zip(layout.entries, values):
+        groups.setdefault(entry.group, []).append((entry.name, entry.dims, array, entry.fresh_attrs()))
     return groups, _attributes(_text(lib.ellroll_dataset_text, handle, -1, 5))
 
 
@@ -228,7 +350,8 @@ def _dataset(xr, variables, extra_coords=()):
             coordinate_names.add(name)
     data_vars, coords = {}, {}
     for name, dims, values, attrs in variables:
-        (coords if name in coordinate_names else data_vars)[name] = xr.Variable(dims, values, attrs)
+        # (fastpath: the values are numpy arrays already, which xarray need not check)
+        (coords if name in coordinate_names else data_vars)[name] = xr.Variable(dims, values, attrs, fastpath=True)
     return xr.Dataset(data_vars, coords)
 
 
@@ -255,12 +378,17 @@ def run_arrays(inputs, threads=None, *, path=None):
     and flag_values / flag_meanings where the file has them}), returned as
     (arrays, attributes). For calls in a loop (an optimisation), where
     building an xarray.DataTree (milliseconds) would cost more than the
-    integration.
+    integration. The arrays are the caller's: a large one (one case's
+    trajectories) is the library's memory handed over without a copy and
+    freed when the array goes; keeping one keeps nothing else of the run.
     """
-    groups, _ = _run_groups(inputs, threads, path)
-    arrays = {group: {name: values for name, _, values, _ in items} for group, items in groups.items()}
-    attributes = {group: {name: {"dims": dims, **attrs} for name, dims, _, attrs in items}
-                  for group, items in groups.items()}
+    layout, values = _run_inputs(inputs, threads, path, _values)
+    arrays, attributes = {}, {}
+    for entry, array in zip(layout.entries, values):
+        if entry.group not in arrays:
+            arrays[entry.group], attributes[entry.group] = {}, {}
+        arrays[entry.group][entry.name] = array
+        attributes[entry.group][entry.name] = {"dims": entry.dims, **entry.fresh_attrs()}
     return arrays, attributes
 
 
@@ -284,15 +412,15 @@ def run(inputs, threads=None, *, path=None):
     runs may go at the same time. run_arrays() gives the same results as
     numpy arrays, without xarray's cost.
     """
-    return _tree(*_run_groups(inputs, threads, path))
+    return _tree(*_run_inputs(inputs, threads, path, _datasets))
 
 
-def _run_groups(inputs, threads, path):
-    """The library's run of an input: its datasets by group, and the root's attributes."""
+def _run_inputs(inputs, threads, path, results):
+    """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
-        return _run_text(inputs, threads, path)
+        return _run_text(inputs, threads, path, results)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
-        return _run_text(namelist(_with_record_files(inputs, pathlib.Path(folder))), threads, path)
+        return _run_text(namelist(_with_record_files(inputs, pathlib.Path(folder))), threads, path, results)
 
 
 def _with_record_files(groups, folder):
@@ -316,11 +444,11 @@ def _with_record_files(groups, folder):
             for name, contents in groups.items()}
 
 
-def _run_text(text, threads, path):
-    """The library's run of a namelist text."""
+def _run_text(text, threads, path, results):
+    """The library's run of a namelist text, its results as results(lib, handle) reads them."""
     if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
         raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
-    lib = _lib()
+    lib = _library or _lib()
     label = (path if path is not None else "<input>").encode()
     encoded = text.encode()
     handle = lib.ellroll_run(encoded, len(encoded), label, len(label), int(threads or 0))
@@ -331,7 +459,6 @@ def _run_text(text, threads, path):
         if code != 0:
             message = _text(lib.ellroll_error_message, handle)
             raise (InputError if code == _INPUT else Error)(message, code)
-        groups, root_attrs = _datasets(lib, handle)
+        return results(lib, handle)
     finally:
         lib.ellroll_free(handle)
-    return groups, root_attrs

@@ -15,6 +15,9 @@
 !>   int64_t ellroll_catalog(void *h, char *buffer, int64_t size);
 !>   int ellroll_dataset_info(void *h, int i, int *kind, int *itemsize, int *ndim, int64_t shape[3]);
 !>   int ellroll_dataset_read(void *h, int i, void *buffer, int64_t size);
+!>   int ellroll_read_all(void *h, int n, void *const *addresses);
+!>   int ellroll_take(void *h, int n, const int *want, void **owners, void **addresses);
+!>   void ellroll_free_values(void *owner);
 !>   void ellroll_free(void *h);
 !>   void ellroll_init(void);
 !>
@@ -24,19 +27,30 @@
 !> (space-separated), 5 other attributes (a line 'NAME<tab>TYPE<tab>VALUE'
 !> each, TYPE str, i4 or i8); i = -1 with what = 5: the root's attributes.
 !> kind: 1 float64, 2 int64, 3 text (itemsize bytes each, blank-padded);
-!> values in C order, shape[0] cases (or samples, components) first.
+!> values in C order, shape[0] cases (or samples, components) first. A
+!> caller may take a dataset's values out of the run instead of copying
+!> them (ellroll_take), and free them on their own, before or after the
+!> handle (ellroll_free_values).
 module ellroll_capi
   use, intrinsic :: iso_c_binding, only: c_ptr, c_associated, c_loc, c_f_pointer, c_int, c_int64_t, &
-      c_char, c_double
+      c_char, c_double, c_null_char, c_null_ptr
   use ellroll_kinds, only: i8
   use ellroll_errors, only: err_none
   use ellroll_records, only: kind_real, kind_int, kind_text
-  use ellroll_memory_run, only: memory_output_t, run_in_memory, text_width
+  use ellroll_memory_run, only: memory_output_t, memory_dataset_t, run_in_memory, text_width
   implicit none
   private
 
   public :: ellroll_run, ellroll_error_code, ellroll_error_message, ellroll_dataset_count, ellroll_dataset_text, &
-            ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog
+            ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog, ellroll_read_all, &
+            ellroll_take, ellroll_free_values
+
+  !> A dataset's values taken out of its run (ellroll_take): one of them allocated.
+  type :: taken_t
+    real(c_double), allocatable :: field(:, :)      !< a trajectory, (components, samples)
+    real(c_double), allocatable :: reals(:)
+    integer(c_int64_t), allocatable :: ints(:)
+  end type taken_t
 
   interface
     subroutine crc32c_init() bind(c, name='ellroll_crc32c_init')
@@ -185,32 +199,147 @@ contains
     type(c_ptr), value, intent(in) :: buffer
     integer(c_int64_t), value, intent(in) :: size
     type(memory_output_t), pointer :: out
-    real(c_double), pointer :: reals(:)
-    integer(c_int64_t), pointer :: ints(:)
-    character(kind=c_char, len=text_width), pointer :: texts(:)
-    integer(i8) :: n
     status = -1
     if (.not. output_of(handle, out)) return
     if (i < 0 .or. i >= out%n .or. .not. c_associated(buffer)) return
-    associate (ds => out%datasets(i + 1))
+    if (size /= dataset_bytes(out%datasets(i + 1)) .or. out%datasets(i + 1)%taken) return
+    call fill(out, i + 1, buffer, .false.)
+    status = 0
+  end function ellroll_dataset_read
+
+  !> Every dataset's values in one call (what ellroll_dataset_read gives,
+  !> dataset by dataset): dataset i into addresses[i], which holds the
+  !> bytes its catalog entry's shape and item size make, or nothing for a
+  !> NULL there; texts as C strings, without their trailing white space and
+  !> NUL after. -1, and nothing copied, for n not the dataset count or an
+  !> address given for a dataset taken (ellroll_take).
+  integer(c_int) function ellroll_read_all(handle, n, addresses) result(status) bind(c, name='ellroll_read_all')
+    type(c_ptr), value, intent(in) :: handle
+    integer(c_int), value, intent(in) :: n
+    type(c_ptr), intent(in) :: addresses(*)
+    type(memory_output_t), pointer :: out
+    integer :: d
+    status = -1
+    if (.not. output_of(handle, out)) return
+    if (n /= out%n) return
+    do d = 1, out%n
+      if (c_associated(addresses(d)) .and. out%datasets(d)%taken) return
+    end do
+    do d = 1, out%n
+      if (c_associated(addresses(d))) call fill(out, d, addresses(d), .true.)
+    end do
+    status = 0
+  end function ellroll_read_all
+
+  !> Values handed over without a copy. Where a dataset wanted (want[i]
+  !> /= 0) keeps its values in the library laid out as ellroll_dataset_read
+  !> copies them, move them out of the run into an owner of their own,
+  !> freed by ellroll_free_values(owner) and by nothing else: owners[i] the
+  !> owner, addresses[i] the values, which a caller reads in place as long
+  !> as it likes. NULL in both for a dataset not taken (not wanted, empty,
+  !> a text, a trajectory of several cases, which exists only when copied
+  !> out). A dataset taken reads as nothing after (ellroll_dataset_read and
+  !> ellroll_read_all: -1). n: the dataset count (else -1, nothing taken).
+  integer(c_int) function ellroll_take(handle, n, want, owners, addresses) result(status) bind(c, name='ellroll_take')
+    type(c_ptr), value, intent(in) :: handle
+    integer(c_int), value, intent(in) :: n
+    integer(c_int), intent(in) :: want(*)
+    type(c_ptr), intent(out) :: owners(*), addresses(*)
+    type(memory_output_t), pointer :: out
+    type(taken_t), pointer :: taken
+    integer :: d, f
+    status = -1
+    if (.not. output_of(handle, out)) return
+    if (n /= out%n) return
+    do d = 1, out%n
+      owners(d) = c_null_ptr
+      addresses(d) = c_null_ptr
+      if (want(d) == 0 .or. out%datasets(d)%taken) cycle
+      f = out%datasets(d)%field
+      if (f /= 0) then
+        ! (one case: its trajectory is the dataset)
+        if (size(out%results) /= 1) cycle
+        if (.not. allocated(out%results(0)%fields(f)%values)) cycle
+        allocate (taken)
+        call move_alloc(out%results(0)%fields(f)%values, taken%field)
+        addresses(d) = c_loc(taken%field)
+      else if (allocated(out%datasets(d)%reals)) then
+        if (size(out%datasets(d)%reals) == 0) cycle       ! (no address to give)
+        allocate (taken)
+        call move_alloc(out%datasets(d)%reals, taken%reals)
+        addresses(d) = c_loc(taken%reals)
+      else if (allocated(out%datasets(d)%ints)) then
+        if (size(out%datasets(d)%ints) == 0) cycle
+        allocate (taken)
+        call move_alloc(out%datasets(d)%ints, taken%ints)
+        addresses(d) = c_loc(taken%ints)
+      else
+        cycle
+      end if
+      out%datasets(d)%taken = .true.
+      owners(d) = c_loc(taken)
+    end do
+    status = 0
+  end function ellroll_take
+
+  subroutine ellroll_free_values(owner) bind(c, name='ellroll_free_values')
+    type(c_ptr), value, intent(in) :: owner
+    type(taken_t), pointer :: taken
+    if (.not. c_associated(owner)) return
+    call c_f_pointer(owner, taken)
+    deallocate (taken)
+  end subroutine ellroll_free_values
+
+  pure integer(i8) function dataset_bytes(ds) result(bytes)
+    type(memory_dataset_t), intent(in) :: ds
+    bytes = product(ds%shape(:ds%ndim))
+    if (ds%kind == kind_text) then
+      bytes = bytes * text_width
+    else
+      bytes = bytes * 8
+    end if
+  end function dataset_bytes
+
+  !> Dataset d's values into the buffer at `address`, which holds them all
+  !> (dataset_bytes); texts blank-padded, or as C strings.
+  subroutine fill(out, d, address, c_strings)
+    type(memory_output_t), intent(in) :: out
+    integer, intent(in) :: d
+    type(c_ptr), intent(in) :: address
+    logical, intent(in) :: c_strings
+    real(c_double), pointer :: reals(:)
+    integer(c_int64_t), pointer :: ints(:)
+    character(kind=c_char, len=text_width), pointer :: texts(:)
+    integer(i8) :: n, k
+    integer :: last
+    associate (ds => out%datasets(d))
       n = product(ds%shape(:ds%ndim))
       select case (ds%kind)
       case (kind_real)
-        if (size /= 8 * n) return
-        call c_f_pointer(buffer, reals, [n])
-        call out%read_reals(i + 1, reals)
+        call c_f_pointer(address, reals, [n])
+        call out%read_reals(d, reals)
       case (kind_int)
-        if (size /= 8 * n) return
-        call c_f_pointer(buffer, ints, [n])
+        call c_f_pointer(address, ints, [n])
         ints = ds%ints
       case (kind_text)
-        if (size /= text_width * n) return
-        call c_f_pointer(buffer, texts, [n])
-        texts = ds%texts
+        call c_f_pointer(address, texts, [n])
+        if (.not. c_strings) then
+          texts = ds%texts
+          return
+        end if
+        do k = 1, n
+          ! (white space as C's isspace: blank, tab, newline, VT, FF, CR)
+          last = text_width
+          do while (last > 0)
+            if (all(ds%texts(k)(last:last) /= [' ', achar(9), achar(10), achar(11), achar(12), achar(13)])) exit
+            last = last - 1
+          end do
+          texts(k) = ds%texts(k)(:last)
+          texts(k)(last + 1:) = repeat(c_null_char, text_width - last)
+        end do
       end select
     end associate
-    status = 0
-  end function ellroll_dataset_read
+  end subroutine fill
 
   logical function output_of(handle, out)
     type(c_ptr), intent(in) :: handle

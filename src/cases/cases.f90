@@ -9,7 +9,7 @@ module ellroll_cases
       param_dataset_description, param_datasets, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
           p_inertia_factor, p_g, p_x, p_y, &
       p_omega_x, p_omega_z, p_dt, p_fit_margin, p_excitation_frequency, p_excitation_phase, &
-      p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance
+      p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance, p_settle
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
@@ -148,8 +148,14 @@ contains
     case (problem_dt_above_t_end)
       reason = 'must not exceed t_end = ' // format_real(cs%t_end) // ' s'
     case (problem_too_many_steps)
-      reason = 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
-               format_real(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
+      if (cs%param(p_settle) > 0) then
+        reason = 'must be at least (t_end + settle) / ' // format_real(max_steps) // ' = ' // &
+                 format_real((cs%t_end + cs%param(p_settle)) / max_steps) // ' s: no case takes more than ' // &
+                 format_real(max_steps) // ' steps'
+      else
+        reason = 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
+                 format_real(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
+      end if
     case (problem_interval)
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
     case (problem_outside)
@@ -201,7 +207,7 @@ contains
     problem = problem_dt_above_t_end
     if (cs%param(p_dt) > cs%t_end) return
     problem = problem_too_many_steps
-    if (cs%t_end > max_steps * cs%param(p_dt)) return      ! (not t_end / dt: it may overflow)
+    if (cs%t_end + cs%param(p_settle) > max_steps * cs%param(p_dt)) return      ! (not t_end / dt: it may overflow)
     problem = problem_interval
     if (.not. adaptive_method(cs%method) .and. .not. is_multiple(interval, cs%param(p_dt))) return
     level = start_level(cs)

@@ -83,8 +83,12 @@ module ellroll_figures
       figure_t('displacement_max_time', 's', 'time of displacement_max', kind_real, 1, from_maximum_time, &
                q_displacement_sq), &
       figure_t('residual_displacement', 'm', &
-               "horizontal distance of the centre from the cup's lowest point at t_final", kind_real, 1, from_last, &
-               q_displacement_sq, finish_root), &
+               "horizontal distance of the centre from the cup's lowest point where it came to rest (NaN: not at rest)", &
+               kind_real, 1, from_run), &
+      figure_t('rest_time', 's', 'time the ball came to rest for good: at rest from then to t_final, the excitation ' // &
+               'over (NaN: not)', kind_real, 1, from_run), &
+      figure_t('at_rest', '1', '1: at rest for good at t_final (rest_time), 0: moving, or no rolling resistance, ' // &
+               'or the cup still moves', kind_int, 1, from_run), &
       figure_t('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball (step ends)', kind_real, &
                1, from_maximum, q_horizontal_force_sq, finish_root), &
       figure_t('absolute_acceleration_max', 'm/s^2', &
@@ -93,7 +97,7 @@ module ellroll_figures
       figure_t('absolute_acceleration_max_time', 's', 'time of absolute_acceleration_max', kind_real, 1, &
                from_maximum_time, q_horizontal_force_sq), &
       figure_t('transmissibility', '1', 'harmonic: horizontal |a_C,absolute| / |a_base| at the forcing frequency, ' // &
-               'last whole periods (NaN: n/a)', kind_real, 1, from_run), &
+               'free modes fitted out (NaN: n/a)', kind_real, 1, from_run), &
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
                kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity)]
@@ -115,6 +119,9 @@ module ellroll_figures
       fig_n_rhs_reference = findloc(figures%name, 'n_rhs_reference', dim=1), &
       fig_linear_periods = findloc(figures%name, 'linear_periods', dim=1), &
       fig_transmissibility = findloc(figures%name, 'transmissibility', dim=1), &
+      fig_residual_displacement = findloc(figures%name, 'residual_displacement', dim=1), &
+      fig_rest_time = findloc(figures%name, 'rest_time', dim=1), &
+      fig_at_rest = findloc(figures%name, 'at_rest', dim=1), &
       fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &

@@ -74,6 +74,8 @@ module ellroll_params
               'relative tolerance (adaptive method)'), &
       param_t('atol', 'integration', 'atol', '1', 0.0_wp, 1.0_wp, .false., .false., 1.0e-12_wp, .true., &
               'absolute tolerance (adaptive method)'), &
+      param_t('settle', 'integration', 'settle', 's', 0.0_wp, 1.0e9_wp, .false., .false., 0.0_wp, .true., &
+              'past t_end, on until the ball is at rest, at most this long'), &
       param_t('excitation_frequency', 'excitation', 'frequency', 'Hz', 0.0_wp, 1.0e6_wp, .false., .false., 0.0_wp, &
               .true., 'harmonic: frequency'), &
       param_t('excitation_phase', 'excitation', 'phase', 'rad', -1.0e3_wp, 1.0e3_wp, .false., .false., 0.0_wp, &
@@ -111,6 +113,7 @@ module ellroll_params
   integer, parameter, public :: p_fit_margin = findloc(params%name, 'fit_margin', dim=1)
   integer, parameter, public :: p_rtol = findloc(params%name, 'rtol', dim=1)
   integer, parameter, public :: p_atol = findloc(params%name, 'atol', dim=1)
+  integer, parameter, public :: p_settle = findloc(params%name, 'settle', dim=1)
   integer, parameter, public :: p_excitation_frequency = findloc(params%name, 'excitation_frequency', dim=1)
   integer, parameter, public :: p_excitation_phase = findloc(params%name, 'excitation_phase', dim=1)
   integer, parameter, public :: p_excitation_amplitude_x = findloc(params%name, 'excitation_amplitude_x', dim=1), &

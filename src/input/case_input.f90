@@ -226,7 +226,7 @@ contains
       end if
       if (.not. record_files(rd, gi, v%record_file, paths)) return
       allocate (fingerprints(size(paths)))
-      call load_ground_motion(paths, cs%t_end, 1.0_wp, times, values, reason, fingerprints)
+      call load_ground_motion(paths, 1.0_wp, times, values, reason, fingerprints)
       if (len(reason) > 0) then
         call rd%fail_value(gi, 'record_file', reason)
         return

@@ -121,7 +121,9 @@ contains
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
         if (.not. names_known(rd, gi)) return
-        v%name = ''; v%values = nan(); v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
+        v%name = ''; v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
+        ! (max_values of them: only the groups that read them set them)
+        if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = nan()
         v%low = nan(); v%high = nan()
         if (grp%name == 'record') then       ! (its record_file is not &excitation's)
           excitation_files = v%record_file

@@ -25,12 +25,13 @@ contains
   !> or blanks; '#' comments and a header line allowed; '# units: g' before
   !> the first sample gives the unit of the accelerations, else m/s^2).
   !> reason = '' when it is usable: finite values within their bounds,
-  !> times increasing from 0 or before. Past its last sample, when that
-  !> comes before t_end, the record falls to zero over one more step (its
-  !> last) and stays there, as an AT2 file does.
-  subroutine load_csv(file, t_end, factor, times, values, reason)
+  !> times increasing from 0 or before. Past its last sample the record
+  !> falls to zero over one more step (its last) and stays there, as an
+  !> AT2 file does, whatever t_end: a case that runs past it (settle) sees
+  !> the ground at rest.
+  subroutine load_csv(file, factor, times, values, reason)
     type(text_file_t), intent(inout) :: file
-    real(wp), intent(in) :: t_end, factor
+    real(wp), intent(in) :: factor
     real(wp), allocatable, intent(out) :: times(:), values(:, :)
     character(len=:), allocatable, intent(out) :: reason
     integer :: first, last, hash, n, columns, width, rows, word_first, word_last, code, word_at(2, 4)
@@ -106,7 +107,7 @@ contains
       values(:, n) = row(2:4)
     end do
     if (len(reason) > 0) return
-    call end_at_rest(file%path, t_end, n, times, values, reason)
+    call end_at_rest(file%path, n, times, values, reason)
   end subroutine load_csv
 
   !> A '#' comment of a CSV: one units line ('# units: g') before the
@@ -205,12 +206,11 @@ contains
   end subroutine beyond_row
 
   !> The record's n samples checked as a whole (two at least, from t = 0
-  !> or before), and, when they end before t_end, a sample of zero one
-  !> step past the last (the step of a uniform grid, else the last one);
-  !> times and values cut to the samples.
-  subroutine end_at_rest(path, t_end, n, times, values, reason)
+  !> or before), and a sample of zero one step past the last (the step of
+  !> a uniform grid, else the last one); times and values cut to the
+  !> samples.
+  subroutine end_at_rest(path, n, times, values, reason)
     character(len=*), intent(in) :: path
-    real(wp), intent(in) :: t_end
     integer, intent(inout) :: n
     real(wp), allocatable, intent(inout) :: times(:), values(:, :)
     character(len=:), allocatable, intent(inout) :: reason
@@ -223,15 +223,13 @@ contains
       reason = path // ': the record starts at ' // format_real(times(1)) // ' s; it must cover t = 0'
       return
     end if
-    if (times(n) < t_end) then            ! at rest one step past its end
-      step = times(2)
-      do k = 1, n
-        if (.not. equals(times(k), real(k - 1, wp) * step)) step = 0
-      end do
-      n = n + 1
-      times(n) = merge(real(n - 1, wp) * step, times(n - 1) + (times(n - 1) - times(n - 2)), step > 0)
-      values(:, n) = 0
-    end if
+    step = times(2)                       ! at rest one step past its end
+    do k = 1, n
+      if (.not. equals(times(k), real(k - 1, wp) * step)) step = 0
+    end do
+    n = n + 1
+    times(n) = merge(real(n - 1, wp) * step, times(n - 1) + (times(n - 1) - times(n - 2)), step > 0)
+    values(:, n) = 0
     times = times(:n)
     values = values(:, :n)
   end subroutine end_at_rest

@@ -20,13 +20,15 @@ module ellroll_record_file
 contains
 
   !> The ground acceleration of a record on one time grid: a CSV file (time
-  !> and two or three components), or one AT2 file per axis (x, y[, z]).
+  !> and two or three components), or one AT2 file per axis (x, y[, z]),
+  !> at rest past its end: it falls to zero over one more sample step (of
+  !> the CSV, of each AT2 axis) and stays there.
   !> Every sample is checked against max_record_acceleration as read and
   !> times `factor` (the record's, applied by the caller). reason = '' when
   !> it is usable.
-  subroutine load_ground_motion(paths, t_end, factor, times, values, reason, fingerprints)
+  subroutine load_ground_motion(paths, factor, times, values, reason, fingerprints)
     character(len=*), intent(in) :: paths(:)
-    real(wp), intent(in) :: t_end, factor
+    real(wp), intent(in) :: factor
     real(wp), allocatable, intent(out) :: times(:), values(:, :)
     character(len=:), allocatable, intent(out) :: reason
     !> each file's size and CRC-32C ('1234 bytes, crc32c 0a1b2c3d'): what a
@@ -44,7 +46,7 @@ contains
       if (len(reason) > 0) return
       if (.not. is_at2(file)) then
         if (size(paths) == 1) then
-          call load_csv(file, t_end, factor, times, values, reason)
+          call load_csv(file, factor, times, values, reason)
         else
           reason = file%path // ': not a PEER .AT2 file (its fourth line gives no NPTS); a CSV record holds ' // &
                    'every axis, so give it alone'

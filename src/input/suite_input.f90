@@ -101,7 +101,7 @@ contains
     do k = 1, size(specs)
       if (allocated(fingerprints)) deallocate (fingerprints)
       allocate (fingerprints(size(specs(k)%files)))
-      call load_ground_motion(specs(k)%files, base%t_end, specs(k)%factor, times, values, reason, fingerprints)
+      call load_ground_motion(specs(k)%files, specs(k)%factor, times, values, reason, fingerprints)
       if (len(reason) > 0) then
         call rd%fail_value(specs(k)%group, 'record_file', reason)
         return

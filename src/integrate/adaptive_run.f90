@@ -17,7 +17,7 @@ module ellroll_adaptive_run
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
-      accumulate, record_sample, record_geometry_sample
+      accumulate, record_sample, record_geometry_sample, latest_end, settled
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, last_step_clipped
   use ellroll_params, only: p_dt
   implicit none
@@ -49,6 +49,7 @@ contains
     real(wp), intent(inout) :: y(state_size), f(state_size)
     type(case_result_t), intent(inout) :: res
     real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max
+    real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     type(observation_t) :: obs
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
@@ -61,12 +62,21 @@ contains
     h_max = cs%param(p_dt)
     control%order = pair%control_order()
     call pair%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
-    do while (t < cs%t_end)
+    t_stop = cs%t_end
+    do
+      if (.not. t < t_stop) then
+        ! past t_end (settle): on until the ball is at rest
+        if (t_stop < latest_end(cs, run) .and. .not. settled(run, t)) then
+          t_stop = latest_end(cs, run)
+        else
+          exit
+        end if
+      end if
       if (stop_asked(res%n_steps + res%n_rejected)) then
         res%status = status_pending
         return
       end if
-      h = last_step_clipped(t, h, cs%t_end, control%after_rejection)
+      h = last_step_clipped(t, h, t_stop, control%after_rejection)
       if (round_off_step(t, h)) round_off_attempts = round_off_attempts + 1
       if (cannot_follow(h, round_off_attempts, res%n_steps + res%n_rejected)) then
         res%status = status_unstable
@@ -110,8 +120,14 @@ contains
       res%n_steps = res%n_steps + 1
       call track_step_end(run, res, t, obs)
       call control%accept(h, pair%error_norm, h_max)
+      if (t_stop > cs%t_end) then
+        if (settled(run, t)) then
+          res%t_final = t
+          return
+        end if
+      end if
     end do
-    res%t_final = cs%t_end
+    res%t_final = t_stop
   end subroutine adaptive_loop
 
   !> One attempt of size h from (t, y, f), its RHS calls counted in

@@ -1,14 +1,14 @@
 !> The running state of one case and everything its accepted points add to
 !> the result: the start and the end of a case, the summary's step-end
 !> quantities (their statistics: ellroll_running), the maxima of Theta, the
-!> transmissibility's Fourier sums, the output samples, and the search for
+!> transmissibility's fit, the output samples, and the search for
 !> where a step crossed a model limit. Shared by the one-case loops
 !> (fixed-step and adaptive) and the batches.
 module ellroll_case_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8, two_pi
   use ellroll_exact, only: is_zero
-  use ellroll_excitation, only: excitation_harmonic
+  use ellroll_excitation, only: excitation_harmonic, excitation_end
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
@@ -16,19 +16,20 @@ module ellroll_case_run
   use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
       q_friction_needed, q_energy, q_surface_residual
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
-      fig_linear_periods
+      fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
-      limit_status, ball_derivative, nutation_angle
+      limit_status, ball_derivative, nutation_angle, at_rest
   use ellroll_events, only: crossing_search_t
   use ellroll_linear, only: oscillation_periods
+  use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_system, only: stop_signal
-  use ellroll_params, only: p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y
+  use ellroll_params, only: p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y, p_settle
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked
+  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked, latest_end, settled
   public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
@@ -53,23 +54,6 @@ module ellroll_case_run
     procedure :: mean_interval
   end type maxima_t
 
-  !> Fourier components at the forcing frequency of the horizontal absolute
-  !> acceleration of the ball and of the cup, over the last whole forcing
-  !> periods (at least half the run): their ratio is the transmissibility.
-  !> The model has no damping, so free oscillations never decay; projecting
-  !> on the forcing frequency over whole periods separates them out.
-  type :: spectrum_t
-    real(wp) :: omega = 0                 !< 2 pi f
-    real(wp) :: start = huge(1.0_wp)      !< window start, s
-    complex(wp) :: ball(2) = 0, base(2) = 0
-    real(wp) :: t_prev = 0, ball_prev(2) = 0, base_prev(2) = 0
-    complex(wp) :: phase_prev = 1         !< exp(-i omega t_prev): each step's phase is taken once
-    logical :: has_prev = .false.
-  contains
-    procedure :: add => add_spectrum
-    procedure :: ratio => spectrum_ratio
-  end type spectrum_t
-
   !> The search for where a step crossed a model limit, keeping the last
   !> valid observation and the status of the limit met.
   type, extends(crossing_search_t) :: limit_search_t
@@ -87,12 +71,21 @@ module ellroll_case_run
     type(rolling_ball_t) :: ball
     real(wp) :: start(state_size) = 0     !< the state at t = 0
     type(maxima_t) :: maxima
-    type(spectrum_t) :: spectrum
+    !> harmonic forcing: the steady response at the forcing frequency (the transmissibility)
+    type(harmonic_fit_t) :: fit
     real(wp) :: spin0 = 0                 !< omega . n at the start
     real(wp) :: tan_theta_max = -1        !< largest tan Theta so far
     !> the statistics of the step-end quantities (the batch's lanes keep the same)
     type(running_t) :: stats
     integer(i8) :: next_sample = 2        !< index of the next output sample
+    !> with rolling resistance: whether the ball is at rest at the last step
+    !> end (at_rest), since when, and its centre's horizontal distance from
+    !> the cup's lowest point there (held: it stays)
+    logical :: resting = .false.
+    real(wp) :: rest_since = 0, rest_displacement = 0
+    !> where the rest event of the step just taken was located inside it
+    !> (a fixed step: it ends on the grid past it; < 0: none)
+    real(wp) :: stopped_at = -1
   end type run_state_t
 
 contains
@@ -119,17 +112,28 @@ contains
     call observe(run%ball, 0.0_wp, y, f, obs)
     call start_running(run%stats, step_quantities(obs), cs%param)
     run%spin0 = dot_product(cs%param(p_omega_x:p_omega_z), obs%normal)
-    associate (frequency => cs%param(p_excitation_frequency))
-      if (cs%excitation%kind == excitation_harmonic .and. frequency > 0) then
-        run%spectrum%omega = two_pi * frequency
-        if (floor(0.5_wp * cs%t_end * frequency) >= 1) run%spectrum%start = &
-            cs%t_end - floor(0.5_wp * cs%t_end * frequency) / frequency
-      end if
-    end associate
+    call start_fit(cs, run)
     call track(run, res, 0.0_wp, obs)
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)
   end subroutine start_case
+
+  !> Harmonic forcing: the fit of the steady response at the forcing
+  !> frequency (ellroll_harmonic_fit) over the last whole forcing periods
+  !> (at least half the run), beside the free oscillation at the linear
+  !> modes' frequencies about the bottom (those of the case's spin).
+  subroutine start_fit(cs, run)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    real(wp) :: start, periods(2)
+    associate (frequency => cs%param(p_excitation_frequency))
+      if (cs%excitation%kind /= excitation_harmonic .or. .not. frequency > 0) return
+      if (floor(0.5_wp * cs%t_end * frequency) < 1) return
+      start = cs%t_end - floor(0.5_wp * cs%t_end * frequency) / frequency
+      periods = oscillation_periods(run%ball, run%spin0)
+      call run%fit%begin(two_pi * frequency, two_pi / periods, start, cs%t_end - start)
+    end associate
+  end subroutine start_fit
 
   !> The figures made from the whole run.
   subroutine finish_case(cs, run, res)
@@ -138,12 +142,38 @@ contains
     type(case_result_t), intent(inout) :: res
     res%counts(fig_nutation_maxima) = run%maxima%count
     res%reals(fig_nutation_period) = run%maxima%mean_interval()
-    if (res%status == status_completed .and. run%spectrum%has_prev .and. run%spectrum%start < cs%t_end) &
-      res%reals(fig_transmissibility) = run%spectrum%ratio()
+    if (res%status == status_completed .and. run%fit%start < cs%t_end) res%reals(fig_transmissibility) = run%fit%ratio()
+    if (res%status == status_completed .and. settled(run, res%t_final)) then
+      res%reals(fig_residual_displacement) = run%rest_displacement
+      res%reals(fig_rest_time) = run%rest_since
+      res%counts(fig_at_rest) = 1
+    end if
     call finish_running(run%stats, run%ball%mass, res)
     call set_figure_values(res, fig_linear_periods, oscillation_periods(run%ball, run%spin0))
     call fill_unrecorded(res)
   end subroutine finish_case
+
+  !> The latest time case cs runs to: t_end, or t_end + settle where the
+  !> ball can come to rest for good (rolling resistance, and a cup that
+  !> comes to rest: a record, or none); it then ends where it is at rest
+  !> past t_end (settled).
+  pure real(wp) function latest_end(cs, run)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    latest_end = cs%t_end
+    if (cs%param(p_settle) > 0 .and. run%ball%rolling_resistance > 0 .and. &
+        excitation_end(run%ball%excitation) < huge(1.0_wp)) latest_end = cs%t_end + cs%param(p_settle)
+  end function latest_end
+
+  !> Whether the ball is at rest for good at the step end t just tracked:
+  !> at rest, and the cup at rest for ever from t on (a ball held while the
+  !> cup moves may start again).
+  pure logical function settled(run, t)
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t
+    settled = run%resting
+    if (settled) settled = t >= excitation_end(run%ball%excitation)
+  end function settled
 
   !> Whether the run was asked to stop, looked at once in stop_poll_steps
   !> steps: the case is then dropped (its result is never written).
@@ -243,45 +273,39 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    if (run%ball%rolling_resistance > 0) call note_rest(run, t, obs)
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
 
   !> What a step's end point adds to the summary of a moving cup beyond the
-  !> step-end statistics (the transmissibility's Fourier sums), from the
-  !> horizontal absolute accelerations of the centre and of the cup (the
-  !> batches call it per lane).
+  !> step-end statistics (the transmissibility's fit), from the horizontal
+  !> absolute accelerations of the centre and of the cup (the batches call
+  !> it per lane; their scenes have no rolling resistance).
   pure subroutine track_cup_motion(run, t, center_acceleration, base)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, center_acceleration(2), base(2)
-    if (run%spectrum%omega > 0) call run%spectrum%add(t, center_acceleration, base)
+    if (run%fit%n_basis > 0) call run%fit%add(t, center_acceleration, base)
   end subroutine track_cup_motion
 
-  pure subroutine add_spectrum(self, t, ball, base)
-    class(spectrum_t), intent(inout) :: self
-    real(wp), intent(in) :: t, ball(2), base(2)
-    complex(wp) :: phase_now
-    if (t < self%start) return
-    phase_now = exp(cmplx(0.0_wp, -self%omega * t, wp))
-    if (self%has_prev) then       ! trapezoid rule on (t_prev, t]
-      self%ball = self%ball + (t - self%t_prev) / 2 * (self%ball_prev * self%phase_prev + ball * phase_now)
-      self%base = self%base + (t - self%t_prev) / 2 * (self%base_prev * self%phase_prev + base * phase_now)
-    end if
-    self%phase_prev = phase_now
-    self%t_prev = t
-    self%ball_prev = ball
-    self%base_prev = base
-    self%has_prev = .true.
-  end subroutine add_spectrum
-
-  !> NaN when the cup does not move horizontally (undefined, not infinite).
-  pure real(wp) function spectrum_ratio(self)
-    class(spectrum_t), intent(in) :: self
-    if (sum(abs(self%base)**2) > 0) then
-      spectrum_ratio = sqrt(sum(abs(self%ball)**2) / sum(abs(self%base)**2))
+  !> Whether the ball is at rest at a step end at time t, and where and
+  !> since when it rests: the rest event's time where the step located one
+  !> inside it (stopped_at), else t (an adaptive step ends at the event).
+  pure subroutine note_rest(run, t, obs)
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    if (at_rest(run%ball, t, [obs%normal, obs%omega])) then
+      if (.not. run%resting) then
+        run%resting = .true.
+        run%rest_since = t
+        if (run%stopped_at >= 0) run%rest_since = run%stopped_at
+        run%rest_displacement = sqrt(obs%center(1)**2 + obs%center(2)**2)
+      end if
     else
-      spectrum_ratio = ieee_value(0.0_wp, ieee_quiet_nan)
+      run%resting = .false.
     end if
-  end function spectrum_ratio
+    run%stopped_at = -1
+  end subroutine note_rest
 
   !> A nutation angle (tan Theta, and the lateral and vertical components of
   !> the unit normal) for the largest Theta; one nutation_angle per new maximum only.

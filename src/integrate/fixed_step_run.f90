@@ -15,7 +15,7 @@ module ellroll_fixed_step_run
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
   use ellroll_integrators, only: integrator_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, latest_end, settled
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -42,18 +42,20 @@ contains
     type(run_state_t), intent(inout) :: run
     real(wp), intent(inout) :: y(state_size), f(state_size)
     type(case_result_t), intent(inout) :: res
-    real(wp) :: y_new(state_size), f_new(state_size), t
+    real(wp) :: y_new(state_size), f_new(state_size), t, t_event
     real(wp) :: y_checkpoint(state_size), y_older_checkpoint(state_size)
     type(observation_t) :: obs
-    integer(i8) :: k, n_steps, every, sample
+    integer(i8) :: k, n_steps, n_last, every, sample
     integer :: status, event
 
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
+    n_last = n_steps           ! past t_end (settle): on until the ball is at rest
+    if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_steps)
     every = steps_per_sample(cs, plan)
     t = 0
     y_checkpoint = y
     y_older_checkpoint = y
-    do k = 1, n_steps
+    do k = 1, n_last
       if (stop_asked(k)) then
         res%status = status_pending
         return
@@ -63,7 +65,8 @@ contains
       event = 0
       if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
       if (event /= 0) call step_through_event(integrator, run, event, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, &
-                                              res%n_rhs)
+                                              res%n_rhs, t_event)
+      if (event /= 0) run%stopped_at = t_event
       if (status /= status_completed) then
         call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%param(p_dt), &
             every, status, res, &
@@ -84,6 +87,9 @@ contains
       call track(run, res, t, obs)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_sample(res, sample, obs)
+      if (k >= n_steps .and. n_last > n_steps) then
+        if (settled(run, t)) exit
+      end if
     end do
     res%t_final = t
   end subroutine fixed_step_loop
@@ -94,7 +100,7 @@ contains
   !> limit counting as past it), the model acts there (apply_event), and the
   !> rest of the step is taken from there in the mode the model gives that
   !> state (begin_step), so that the steps stay on the grid of dt.
-  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: event
@@ -103,6 +109,7 @@ contains
     type(observation_t), intent(out) :: obs
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(out) :: t_event       !< where the model acted (< 0: a limit met first)
     real(wp) :: y_at(state_size), f_at(state_size), offset
     type(event_search_t) :: search
     type(run_state_t) :: after
@@ -114,8 +121,10 @@ contains
       call fixed_step(integrator, run, t, y, f, offset, y_at, f_at, obs, status, n_rhs)
       call search%report_state(run%ball, offset, y_at, status == status_completed)
     end do
+    t_event = -1
     call fixed_step(integrator, run, t, y, f, search%high, y_at, f_at, obs, status, n_rhs)
     if (status /= status_completed) return
+    t_event = t + search%high
     after = run
     call after%ball%apply_event(event, y_at)
     call after%ball%begin_step(y_at)

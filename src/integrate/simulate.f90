@@ -19,7 +19,7 @@ module ellroll_simulate
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
-  use ellroll_params, only: p_atol, p_dt, p_rtol
+  use ellroll_params, only: p_atol, p_dt, p_rtol, p_settle
   implicit none
   private
 
@@ -50,6 +50,7 @@ contains
     reference_case%param(p_rtol) = reference_rtol
     reference_case%param(p_atol) = reference_atol
     reference_case%param(p_dt) = cs%t_end
+    reference_case%param(p_settle) = 0       ! the error figures compare the samples, all up to t_end
     call integrate(reference_case, own_plan, reference, err)
     res%reals(fig_error_contact) = max_difference(res%fields(field_contact)%values, &
                                                   reference%fields(field_contact)%values)

@@ -2,11 +2,11 @@
 !> cup's frame this replaces g_vec by g_vec - a_base(t) (docs/model.md).
 module ellroll_excitation
   use ellroll_kinds, only: wp, two_pi
-  use ellroll_exact, only: equals
+  use ellroll_exact, only: equals, is_zero
   implicit none
   private
 
-  public :: excitation_t, base_acceleration, set_record
+  public :: excitation_t, base_acceleration, set_record, excitation_end
   public :: excitation_none, excitation_harmonic, excitation_record, excitation_kind_names
 
   integer, parameter :: excitation_none = 0, excitation_harmonic = 1, excitation_record = 2
@@ -39,6 +39,22 @@ contains
       if (.not. equals(times(k), real(k - 1, wp) * exc%step)) exc%step = 0
     end do
   end subroutine set_record
+
+  !> The time from which the cup is at rest for ever: 0 for a fixed cup, the
+  !> last sample of a record (records end at rest: ellroll_record_file),
+  !> never (huge) for a harmonic forcing, 0 for one of zero amplitude.
+  pure real(wp) function excitation_end(exc) result(t)
+    type(excitation_t), intent(in) :: exc
+    select case (exc%kind)
+    case (excitation_harmonic)
+      t = merge(0.0_wp, huge(1.0_wp), all(is_zero(exc%amplitude)))
+    case (excitation_record)
+      t = huge(1.0_wp)
+      if (all(is_zero(exc%values(:, size(exc%times))))) t = exc%times(size(exc%times))
+    case default
+      t = 0
+    end select
+  end function excitation_end
 
   !> a_base(t): amplitude sin(2 pi f t + phase), or scale times the record
   !> interpolated linearly.

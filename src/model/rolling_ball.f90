@@ -13,6 +13,7 @@
 module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
+  use ellroll_exact, only: is_zero
   use ellroll_ode, only: hybrid_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
@@ -23,7 +24,7 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part
+            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -212,6 +213,22 @@ contains
     real(wp), intent(in) :: y(state_size)
     rest_rate = 1.0e-12_wp * (sqrt(ball%g / ball%radius) + norm2(y(4:6)))
   end function rest_rate
+
+  !> Whether the ball is at rest on the cup at time t, state y: with
+  !> rolling resistance, no rolling (the spin about the normal is free), as
+  !> come_to_rest leaves it, and held there by the couple (resist_rolling:
+  !> the state constant), not at a turn it rolls back from. Without it the
+  !> ball has no rest but the bottom's unstable balance of round-off: false.
+  pure logical function at_rest(ball, t, y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, y(state_size)
+    real(wp) :: dydt(state_size)
+    at_rest = .false.
+    if (.not. ball%rolling_resistance > 0) return
+    if (norm2(rolling_part(y)) > rest_rate(ball, y)) return
+    call ball_derivative(ball, t, y, dydt)
+    at_rest = all(is_zero(dydt))
+  end function at_rest
 
   !> The rolling part of the angular velocity at state y.
   pure function rolling_part(y) result(omega_t)

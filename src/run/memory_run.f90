@@ -15,10 +15,11 @@ module ellroll_memory_run
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_invalid, status_count
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
-  use ellroll_cases, only: case_t, case_record, field_count, field_names, field_units, field_ncomp, field_descriptions
-  use ellroll_results, only: case_result_t, field_buffer_t, summary_record
+  use ellroll_cases, only: case_t, field_count, field_names, field_units, field_ncomp, field_descriptions
+  use ellroll_results, only: case_result_t, field_buffer_t
+  use ellroll_figures, only: figure_count
   use ellroll_campaign, only: coordinate_t
-  use ellroll_params, only: dataset_inputs
+  use ellroll_params, only: params, param_count, param_dataset
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_shards, only: campaign_id
@@ -54,6 +55,7 @@ module ellroll_memory_run
     !> or i4 / i8 for a list of 4- / 8-byte integers)
     character(len=:), allocatable :: attributes
     integer :: field = 0                     !< a trajectory: its field, read from the cases' results
+    logical :: taken = .false.               !< its values taken out (ellroll_take): nothing to read
     real(wp), allocatable :: reals(:)
     integer(i8), allocatable :: ints(:)
     character(len=text_width), allocatable :: texts(:)
@@ -196,9 +198,10 @@ contains
     type(coordinate_t), allocatable :: coords(:)
     integer(i8), allocatable :: indices(:)
     integer, allocatable :: where(:)          !< the dataset of each entry of a row
-    character(len=:), allocatable :: coordinate_names, meanings
+    character(len=:), allocatable :: coordinate_names, meanings, input_names
+    character(len=len(params%name)) :: row_datasets(param_count)
     integer(i8) :: i, n_cases, n_samples
-    integer :: k, f, d, n_case_entries
+    integer :: k, p, f, d, n_case_entries
     n_cases = inp%campaign%n_cases()
     n_samples = inp%plan%n_samples
     out%n_samples = n_samples
@@ -207,11 +210,20 @@ contains
       indices(i) = i - 1
     end do
     coords = inp%campaign%coordinates(indices)
+    ! a row: the case's inputs (/case), its figures and its status
+    ! (/summary); the first case's, which fill_columns takes as it is
+    ! (every row has the same entries)
+    if (n_cases > 0) then
+      allocate (row, source=table_row(inp%campaign%case_at(0_i8), out%results(0)))
+    else
+      allocate (row, source=table_row(inp%campaign%base, case_result_t()))
+    end if
+    n_case_entries = size(row) - figure_count - 1
     ! the root's 3 scales; /case: its scale and inputs; /trajectory: its
     ! scale, the coordinates and the fields; /summary: its scale, the
     ! coordinates, the status and the figures
-    allocate (out%datasets(3 + size(case_record(inp%campaign%base)) + 1 + 1 + size(coords) + &
-                           count(inp%plan%fields) + 1 + size(coords) + 1 + size(summary_record(case_result_t()))))
+    allocate (out%datasets(3 + n_case_entries + 1 + 1 + size(coords) + count(inp%plan%fields) + 1 + size(coords) + &
+                           (size(row) - n_case_entries)))
     out%n = 0
     coordinate_names = ''
     do k = 1, size(coords)
@@ -221,17 +233,21 @@ contains
 
     call lay_out_root(inp, out, n_cases, n_samples)
 
-    ! a row: the case's inputs (/case), its summary and its status (/summary)
-    allocate (row, source=table_row(inp%campaign%base, case_result_t()))
-    n_case_entries = size(case_record(inp%campaign%base))
     allocate (where(size(row)))
 
-    ! /case: the resolved inputs
+    ! /case: the resolved inputs, each with the names of the inputs it holds
+    ! (ellroll_params' dataset_inputs, from a table of every row's dataset
+    ! made once: a search of the parameter table per dataset costs more
+    ! than the rest of the lay-out)
+    row_datasets = [(param_dataset(k), k = 1, param_count)]
     call case_scale('case')
     do k = 1, n_case_entries
       where(k) = add_entry('case', row(k))
-      if (len_trim(dataset_inputs(row(k)%name)) > 0) call add_attribute(out%datasets(where(k)), 'input_names', &
-                                                                       trim(dataset_inputs(row(k)%name)))
+      input_names = ''
+      do p = 1, param_count
+        if (row_datasets(p) == row(k)%name) input_names = input_names // ' ' // trim(params(p)%name)
+      end do
+      if (len(input_names) > 0) call add_attribute(out%datasets(where(k)), 'input_names', input_names(2:))
     end do
     ! /trajectory: the stored fields
     call case_scale('trajectory')
@@ -315,7 +331,11 @@ contains
     integer(i8) :: i
     integer :: d
     d = add(out, '', time_entry, kind_real, ['time'], [n_samples])
-    out%datasets(d)%reals = [(real(i, wp) * inp%plan%interval, i = 0, n_samples - 1)]    ! (as open_outputs)
+    ! (as open_outputs; a loop, not an array constructor, which grows a temporary)
+    allocate (out%datasets(d)%reals(n_samples))
+    do i = 0, n_samples - 1
+      out%datasets(d)%reals(i + 1) = real(i, wp) * inp%plan%interval
+    end do
     d = add(out, '', xyz_entry, kind_text, ['xyz'], [3_i8])
     out%datasets(d)%texts = [character(len=text_width) :: 'x', 'y', 'z']
     d = add(out, '', mode_entry, kind_int, ['mode'], [2_i8])
@@ -349,7 +369,8 @@ contains
       end associate
     end do
     do i = 0, n_cases - 1
-      row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
+      ! (row: case 0's already)
+      if (i > 0) row(:) = table_row(inp%campaign%case_at(i), out%results(i))      ! (every row has the same entries)
       do k = 1, size(row)
         associate (ds => out%datasets(where(k)))
           select case (ds%kind)
@@ -394,24 +415,38 @@ contains
       associate (ds => out%datasets(d))
         itemsize = 8
         if (ds%kind == kind_text) itemsize = text_width
-        call append(trim(ds%group) // field_end // trim(ds%name) // field_end // trim(ds%units) // field_end // &
-                    trim(ds%long_name) // field_end // trim(ds%dims(1)))
+        ! (piece by piece, and substrings rather than trim(): a concatenation
+        ! or a trim would allocate a temporary each)
+        call append(ds%group(:len_trim(ds%group)), field_end)
+        call append(ds%name(:len_trim(ds%name)), field_end)
+        call append(ds%units(:len_trim(ds%units)), field_end)
+        call append(ds%long_name(:len_trim(ds%long_name)), field_end)
+        call append(ds%dims(1)(:len_trim(ds%dims(1))))
         do k = 2, ds%ndim
-          call append(' ' // trim(ds%dims(k)))
+          call append(' ', ds%dims(k)(:len_trim(ds%dims(k))))
         end do
-        call append(field_end // decimal_digits(int(ds%kind, i8)) // field_end // &
-                    decimal_digits(int(itemsize, i8)) // field_end // decimal_digits(ds%shape(1)))
+        call append(field_end, decimal_digits(int(ds%kind, i8)))
+        call append(field_end, decimal_digits(int(itemsize, i8)))
+        call append(field_end, decimal_digits(ds%shape(1)))
         do k = 2, ds%ndim
-          call append(' ' // decimal_digits(ds%shape(k)))
+          call append(' ', decimal_digits(ds%shape(k)))
         end do
         call append(field_end)
         if (allocated(ds%attributes)) call append(ds%attributes)
-        call append(field_end // record_end)
+        call append(field_end, record_end)
       end associate
     end do
     out%catalog = out%catalog(:n)
   contains
-    subroutine append(piece)
+    !> piece, then second (if given), at the end of the catalog
+    subroutine append(piece, second)
+      character(len=*), intent(in) :: piece
+      character(len=*), intent(in), optional :: second
+      call append_one(piece)
+      if (present(second)) call append_one(second)
+    end subroutine append
+
+    subroutine append_one(piece)
       character(len=*), intent(in) :: piece
       character(len=:), allocatable :: grown
       if (n + len(piece) > len(out%catalog)) then
@@ -421,7 +456,7 @@ contains
       end if
       out%catalog(n + 1:n + len(piece)) = piece
       n = n + len(piece)
-    end subroutine append
+    end subroutine append_one
   end subroutine write_catalog
 
   !> A count's decimal digits.
@@ -480,6 +515,7 @@ contains
     to%dims = from%dims
     if (allocated(from%attributes)) call move_alloc(from%attributes, to%attributes)
     to%field = from%field
+    to%taken = from%taken
     call move_alloc(from%reals, to%reals)
     call move_alloc(from%ints, to%ints)
     call move_alloc(from%texts, to%texts)

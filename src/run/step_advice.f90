@@ -14,7 +14,7 @@ module ellroll_step_advice
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
   use ellroll_input, only: run_input_t
-  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol
+  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol, p_settle
   implicit none
   private
 
@@ -128,6 +128,7 @@ contains
     if (.not. (probe%t_end >= probe_from * dt)) return
     probe%t_end = probe_spans * dt
     probe%param(p_dt) = probe%t_end
+    probe%param(p_settle) = 0                ! the probe's span only
     plan%interval = probe%t_end
     plan%n_samples = 2
     plan%fields = .false.

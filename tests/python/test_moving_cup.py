@@ -82,14 +82,25 @@ def test_constant_horizontal_acceleration_tilts_gravity(ellroll, tmp_path):
         assert x_center.min() < 1.5 * x_eq           # it does swing past the equilibrium
 
 
-@pytest.mark.parametrize("ratio", [0.3, 1.5, 4.0])
-def test_transmissibility_follows_the_linear_model(ellroll, tmp_path, ratio):
-    name = write(tmp_path, integration="method = 'dop853', rtol = 1e-10", t_end=400.0, interval=0.1,
-                 excitation=f"kind = 'harmonic', amplitude = 0.001, 0.0, 0.0, frequency = {ratio * F_N!r}")
-    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
-    with h5py.File(tmp_path / "out.h5", "r") as f:
-        measured = f["summary/transmissibility"][0]
-    assert measured == pytest.approx(linear_transmissibility(ratio), rel=0.01)
+@pytest.mark.parametrize("method", ["dop853", "rk4"])
+def test_transmissibility_follows_the_linear_model(ellroll, tmp_path, method):
+    """Five frequencies away from resonance, below and above it, at an amplitude
+    small enough for the linear model (0.7 mm at most): the fit of the steady
+    state beside the free oscillation, which never decays, agrees with T(r) to
+    2e-6 (a Fourier projection over whole forcing periods, which keeps a leak of
+    the free oscillation, is off by 0.3, 0.6, 7.3, 0.3 and 0.002 %)."""
+    ratios = [0.3, 0.6, 1.5, 2.5, 4.0]
+    text = CUP.format(x=0.0, integration=f"method = '{method}', rtol = 1e-10, dt = 0.01", t_end=200.0, interval=0.1,
+                      excitation="kind = 'harmonic', amplitude = 0.001, 0.0, 0.0, frequency = 0.2")
+    text += f"&sweep name = 'excitation_frequency', values = {', '.join(repr(r * F_N) for r in ratios)} /\n"
+    (tmp_path / "five.nml").write_text(text)
+    assert run(ellroll, "run", "five.nml", "-q", "--threads", "1", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", "five.nml", "-q", "--threads", "2", "-o", "two.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f, h5py.File(tmp_path / "two.h5", "r") as g:
+        measured = f["summary/transmissibility"][:]
+        assert g["summary/transmissibility"][:].tobytes() == measured.tobytes()     # each case's own sums
+    linear = np.array([linear_transmissibility(r) for r in ratios])
+    assert np.abs(measured / linear - 1).max() < 1e-5
 
 
 def test_resonance_peak_at_the_linear_frequency(ellroll, tmp_path):

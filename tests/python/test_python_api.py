@@ -3,6 +3,8 @@ file's datasets bit for bit, with its names, units and statuses; a dict
 gives what its namelist text gives; bad input raises with the program's
 message; runs in threads at once, and on any thread count, agree."""
 import concurrent.futures
+import ctypes
+import gc
 import os
 import pathlib
 import sys
@@ -14,7 +16,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, PAPER_INPUT, run
+from conftest import ROOT, PAPER_INPUT, SANITIZED, run
 
 sys.path.insert(0, str(ROOT / "post"))
 import ellroll  # noqa: E402  (the checkout's package, whatever .venv holds)
@@ -313,3 +315,171 @@ def _with_names(groups, names):
     def members(group):
         return {k: value(v) for k, v in group.items()}
     return {g: ([members(x) for x in c] if isinstance(c, list) else members(c)) for g, c in groups.items()}
+
+
+# A case whose trajectories (1001 samples of 3 components, 24 kB each) the
+# package reads in place, where the library holds them, rather than copying.
+VIEWED = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0").replace("interval = 0.01", "interval = 0.001")
+
+
+def resident_bytes():
+    return int(pathlib.Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def read_one(text, group, name):
+    """Dataset group/name of a run of text, copied out of the library alone (ellroll_dataset_read)."""
+    lib, encoded = ellroll._lib(), text.encode()
+    handle = lib.ellroll_run(encoded, len(encoded), b"<input>", 7, 1)
+    try:
+        for i in range(lib.ellroll_dataset_count(handle)):
+            if (ellroll._text(lib.ellroll_dataset_text, handle, i, 0),
+                    ellroll._text(lib.ellroll_dataset_text, handle, i, 1)) == (group, name):
+                kind, itemsize, ndim = ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
+                shape = (ctypes.c_int64 * 3)()
+                assert lib.ellroll_dataset_info(handle, i, kind, itemsize, ndim, shape) == 0 and kind.value == 1
+                values = np.empty(tuple(shape[:ndim.value]))
+                assert lib.ellroll_dataset_read(handle, i, values.ctypes.data, values.nbytes) == 0
+                return values
+    finally:
+        lib.ellroll_free(handle)
+    raise KeyError((group, name))
+
+
+def test_one_call_reads_what_a_read_per_dataset_gives():
+    """run_arrays (one call for the small datasets, the large ones read in
+    place) gives each dataset's values as ellroll_dataset_read copies them
+    one by one, texts without their padding."""
+    # (the trajectories of one case are read in place; of several, copied)
+    for text, in_place in ((VIEWED, True), (VIEWED + "&sweep name = 'omega_z', values = 5, 10, 15 /\n", False)):
+        arrays, attributes = ellroll.run_arrays(text, threads=1)
+        assert isinstance(arrays["trajectory"]["contact"].base, ellroll._Values) == in_place
+        lib, encoded = ellroll._lib(), text.encode()
+        handle = lib.ellroll_run(encoded, len(encoded), b"<input>", 7, 1)
+        try:
+            for i in range(lib.ellroll_dataset_count(handle)):
+                group = ellroll._text(lib.ellroll_dataset_text, handle, i, 0)
+                name = ellroll._text(lib.ellroll_dataset_text, handle, i, 1)
+                kind, itemsize, ndim = ctypes.c_int(), ctypes.c_int(), ctypes.c_int()
+                shape = (ctypes.c_int64 * 3)()
+                assert lib.ellroll_dataset_info(handle, i, kind, itemsize, ndim, shape) == 0
+                dtype = {1: np.float64, 2: np.int64, 3: f"S{itemsize.value}"}[kind.value]
+                values = np.empty(tuple(shape[:ndim.value]), dtype=dtype)
+                assert lib.ellroll_dataset_read(handle, i, values.ctypes.data, values.nbytes) == 0
+                if kind.value == 3:
+                    values = np.char.rstrip(values).astype(str)
+                if name != "wall_time":
+                    assert same_bits(arrays[group][name], values), (group, name)
+                assert arrays[group][name].dtype == values.dtype and attributes[group][name]["dims"]
+        finally:
+            lib.ellroll_free(handle)
+
+
+def test_arrays_outlive_their_run_and_later_runs():
+    """An array read in place stays whole after the rest of its results are
+    dropped and the library has run other inputs (which reuse the memory
+    freed), in run_arrays' dicts and in run's DataTree."""
+    expected, expected_center = (read_one(VIEWED, "trajectory", name) for name in ("contact", "center"))
+    arrays, _ = ellroll.run_arrays(VIEWED, threads=1)
+    contact = arrays["trajectory"]["contact"]
+    assert isinstance(contact.base, ellroll._Values)          # read in place
+    tree = ellroll.run(VIEWED, threads=1)
+    center = tree["trajectory"]["center"].values
+    del arrays, tree
+    gc.collect()
+    other = VIEWED.replace("omega = -2.0, 2.0, 20.0", "omega = 3.0, -1.0, 15.0")
+    for _ in range(20):
+        again, _ = ellroll.run_arrays(other, threads=1)
+        assert not np.array_equal(again["trajectory"]["contact"], expected)
+    del again
+    gc.collect()
+    assert same_bits(contact, expected) and same_bits(center, expected_center)
+    view = contact[:, 10:20]                                # a view of the view keeps it too
+    del contact
+    gc.collect()
+    ellroll.run_arrays(other, threads=1)
+    assert same_bits(view, expected[:, 10:20])
+
+
+def test_memory_stays_bounded_over_many_calls():
+    """2000 calls, each dropping its results, keep the resident memory
+    within a few MB (a run's handle or its trajectories not freed would add
+    some 200 kB per call here: 400 MB); keeping one trajectory of each of
+    300 runs keeps that dataset alone (24 kB each), not its run (some
+    250 kB with its other trajectories and its handle). (On a library
+    built with the address sanitizer, which keeps freed memory aside to
+    find its later use, the calls run and the sizes are not judged.)"""
+    for _ in range(100):
+        ellroll.run_arrays(VIEWED, threads=1)
+    gc.collect()
+    before = resident_bytes()
+    for _ in range(200 if SANITIZED else 2000):
+        arrays, attributes = ellroll.run_arrays(VIEWED, threads=1)
+        assert arrays["summary"]["status"][0] == 1
+    del arrays, attributes
+    gc.collect()
+    grown = resident_bytes() - before
+    kept = [ellroll.run_arrays(VIEWED, threads=1)[0]["trajectory"]["contact"] for _ in range(300)]
+    gc.collect()
+    held = resident_bytes() - before - grown
+    assert all(isinstance(k.base, ellroll._Values) for k in kept)
+    if not SANITIZED:
+        assert grown < 8e6, grown
+        assert held < 300 * 2 * kept[0].nbytes, (held, kept[0].nbytes)
+
+
+def test_runs_in_threads_read_in_place_are_each_right():
+    """Several threads run and drop results at once, arrays made in one
+    thread freed in another: each run's arrays equal the same input's
+    run alone, bit for bit."""
+    texts = [VIEWED.replace("omega = -2.0, 2.0, 20.0", f"omega = -2.0, 2.0, {w}") for w in (10.0, 20.0, 30.0)]
+    alone = [ellroll.run_arrays(t, threads=1)[0]["trajectory"] for t in texts]
+    handed = []
+
+    def work(k):
+        for j in range(12):
+            arrays, _ = ellroll.run_arrays(texts[(k + j) % 3], threads=1)
+            trajectory = arrays["trajectory"]
+            for name, values in alone[(k + j) % 3].items():
+                assert same_bits(trajectory[name], values), (k, j, name)
+            handed.append(trajectory)                     # dropped by another thread
+            if len(handed) > 4:
+                handed.pop(0)
+        return k
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        assert sorted(pool.map(work, range(4))) == [0, 1, 2, 3]
+
+
+def test_values_taken_out_of_a_run_outlive_it():
+    """The C interface: a dataset's values taken out of its run
+    (ellroll_take) stay readable after the run's handle is freed, until
+    freed on their own; the dataset then cannot be copied out of the run
+    (-1), while its other datasets can; texts are never taken."""
+    lib, encoded = ellroll._lib(), VIEWED.encode()
+    handle = lib.ellroll_run(encoded, len(encoded), b"<input>", 7, 1)
+    n = lib.ellroll_dataset_count(handle)
+    names = [(ellroll._text(lib.ellroll_dataset_text, handle, i, 0), ellroll._text(lib.ellroll_dataset_text, handle, i, 1))
+             for i in range(n)]
+    contact, center, xyz = names.index(("trajectory", "contact")), names.index(("trajectory", "center")), \
+        names.index(("", "xyz"))
+    expected = np.empty((1, 1001, 3))
+    assert lib.ellroll_dataset_read(handle, contact, expected.ctypes.data, expected.nbytes) == 0
+    want = (ctypes.c_int * n)()
+    want[contact] = want[xyz] = 1
+    owners, addresses = (ctypes.c_void_p * n)(), (ctypes.c_void_p * n)()
+    assert lib.ellroll_take(handle, n, want, owners, addresses) == 0
+    assert owners[contact] and addresses[contact] and not owners[xyz] and not owners[center]
+    owner = owners[contact]
+    values = np.empty((1, 1001, 3))
+    assert lib.ellroll_dataset_read(handle, contact, values.ctypes.data, values.nbytes) == -1
+    copies = (ctypes.c_void_p * n)()
+    copies[contact] = values.ctypes.data
+    assert lib.ellroll_read_all(handle, n, copies) == -1
+    assert lib.ellroll_take(handle, n, want, owners, (ctypes.c_void_p * n)()) == 0 and not owners[contact]
+    assert lib.ellroll_dataset_read(handle, center, values.ctypes.data, values.nbytes) == 0
+    assert np.all(np.isfinite(values)) and not np.array_equal(values, expected)
+    lib.ellroll_free(handle)
+    taken = np.ctypeslib.as_array((ctypes.c_double * expected.size).from_address(addresses[contact]))
+    assert same_bits(taken, expected.ravel())
+    del taken
+    lib.ellroll_free_values(owner)

@@ -1,0 +1,214 @@
+"""Where and when the ball comes to rest for good (/summary residual_displacement,
+rest_time, at_rest) and &integration settle: against the Coulomb-damped planar
+swing of docs/model.md and a reference run, with every method; NaN while the ball
+moves, without rolling resistance and while the cup still moves; independent of
+t_end once the ball is at rest."""
+import math
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT, run
+
+RHO, RADIUS, DELTA, G, K = 1.0**2 / 0.2, 0.2, 2.0e-4, 9.81, 0.4
+HALF_PERIOD = math.pi * math.sqrt((1 + K) * (RHO - RADIUS) / G)      # linearised x-z swing, 2.6002 s
+
+CUP = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0{resistance} /
+&initial x = {x}, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration {integration}, t_end = {t_end}{settle} /
+{excitation}&output file = 'out.h5', interval = 1.0e-2 /
+"""
+METHODS = {"rk4": "method = 'rk4', dt = 1.0e-3", "gauss4": "method = 'gauss4', dt = 1.0e-3",
+           "dop853": "method = 'dop853', rtol = 1.0e-10", "vern9": "method = 'vern9', rtol = 1.0e-10"}
+REFERENCE = "method = 'vern9', rtol = 1.0e-13, atol = 1.0e-16"
+FIGURES = ("residual_displacement", "rest_time", "at_rest", "t_final")
+
+
+def run_cup(ellroll, folder, integration=METHODS["rk4"], delta=DELTA, x=0.052, t_end=30.0, settle=None,
+            excitation=""):
+    text = CUP.format(resistance=f", rolling_resistance = {delta!r}" if delta else "", x=x,
+                      integration=integration, t_end=t_end, settle=f", settle = {settle!r}" if settle else "",
+                      excitation=excitation)
+    (folder / "cup.nml").write_text(text)
+    result = run(ellroll, "run", "cup.nml", "-q", "--overwrite", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(folder / "out.h5", "r") as f:
+        figures = {name: f["summary/" + name][0] for name in FIGURES}
+        figures["status"] = f["summary/status"][0]
+        figures["center"] = f["trajectory/center"][0]
+        figures["time"] = f["time"][()]
+    return figures
+
+
+@pytest.fixture(scope="module")
+def reference(ellroll, tmp_path_factory):
+    return run_cup(ellroll, tmp_path_factory.mktemp("reference"), REFERENCE)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_rest_of_the_planar_swing(ellroll, tmp_path, reference, method):
+    """From x = 0.052 m with delta = 2e-4 m the swing loses 2 rho delta / R =
+    0.010 m of contact amplitude each half period and stops at the fifth turn,
+    contact -0.002 m (centre 0.002 (1 - R / rho) = 1.92 mm from the axis):
+    the linear theory to its own accuracy (the ball rests at contact -0.002021 m,
+    docs/model.md: 2e-5 m of the centre; the half period of the swing of 0.05 m
+    is 2.5e-3 s shorter over five), and a reference run to 1e-8 s and 1e-11 m."""
+    got = run_cup(ellroll, tmp_path, METHODS[method])
+    assert got["at_rest"] == 1 and reference["at_rest"] == 1
+    assert got["rest_time"] == pytest.approx(5 * HALF_PERIOD, rel=5e-4)
+    assert abs(got["residual_displacement"] - 0.002 * (1 - RADIUS / RHO)) < 3e-5
+    assert abs(got["rest_time"] - reference["rest_time"]) < 1e-8
+    assert abs(got["residual_displacement"] - reference["residual_displacement"]) < 1e-11
+    # where it rests, the trajectory stays: the figure is its centre's distance there
+    assert got["residual_displacement"] == math.hypot(*got["center"][-1, :2])
+    resting = got["time"] >= got["rest_time"]
+    assert np.all(got["center"][resting] == got["center"][-1])
+    assert np.any(got["center"][got["time"] < got["rest_time"] - 0.02] != got["center"][-1])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_settle_runs_on_until_the_ball_is_at_rest(ellroll, tmp_path, reference, method):
+    """t_end = 10 s: still rolling, so NaN and at_rest 0; settle = 60 s runs on
+    to the rest (t_final there, the trajectory still to t_end), with the rest
+    time and place of the run to 30 s; settle = 2 s is not enough: t_end + 2."""
+    moving = run_cup(ellroll, tmp_path, METHODS[method], t_end=10.0)
+    assert moving["at_rest"] == 0 and moving["t_final"] == 10.0
+    assert np.isnan(moving["residual_displacement"]) and np.isnan(moving["rest_time"])
+    settled = run_cup(ellroll, tmp_path, METHODS[method], t_end=10.0, settle=60.0)
+    assert settled["status"] == 1 and settled["at_rest"] == 1
+    assert settled["rest_time"] <= settled["t_final"] < settled["rest_time"] + 1.0e-3
+    assert len(settled["time"]) == 1001 and settled["time"][-1] == 10.0
+    assert abs(settled["rest_time"] - reference["rest_time"]) < 1e-8
+    assert abs(settled["residual_displacement"] - reference["residual_displacement"]) < 1e-11
+    short = run_cup(ellroll, tmp_path, METHODS[method], t_end=10.0, settle=2.0)
+    assert short["at_rest"] == 0 and short["t_final"] == 12.0 and np.isnan(short["residual_displacement"])
+
+
+def test_no_rest_without_rolling_resistance(ellroll, tmp_path):
+    """Without rolling resistance the ball never stops: NaN, and settle does
+    not extend the case."""
+    free = run_cup(ellroll, tmp_path, delta=None, t_end=20.0, settle=60.0)
+    assert free["at_rest"] == 0 and free["t_final"] == 20.0
+    assert np.isnan(free["residual_displacement"]) and np.isnan(free["rest_time"])
+
+
+def test_held_on_a_moving_cup_is_not_at_rest_for_good(ellroll, tmp_path):
+    """At rest at the bottom, held by the couple under a harmonic base
+    acceleration below delta g / R = 0.0098 m/s^2 (test_rolling_resistance.py):
+    the state stays constant, but the cup never stops moving, so no rest for
+    good; settle does not extend a harmonic case."""
+    held = run_cup(ellroll, tmp_path, x=0.0, t_end=20.0, settle=60.0,
+                   excitation="&excitation kind = 'harmonic', amplitude = 0.0095, 0.0, 0.0, frequency = 0.5 /\n")
+    assert np.all(held["center"] == held["center"][0])
+    assert held["at_rest"] == 0 and held["t_final"] == 20.0 and np.isnan(held["residual_displacement"])
+
+
+RECORD = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, rolling_resistance = 1.0e-4 /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = {t_end}{settle} /
+&excitation kind = 'record', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2', scale = {scale} /
+&output file = 'out.h5', interval = 0.01, fields = 'omega', 'normal' /
+"""
+
+
+def run_record(ellroll, folder, t_end, scale=30.0, settle=None):
+    (folder / "record.nml").write_text(RECORD.format(t_end=t_end, scale=scale,
+                                                     settle=f", settle = {settle!r}" if settle else ""))
+    result = run(ellroll, "run", "record.nml", "-q", "--overwrite", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(folder / "out.h5", "r") as f:
+        figures = {name: f["summary/" + name][0] for name in FIGURES}
+        omega, normal = f["trajectory/omega"][0][-1], f["trajectory/normal"][0][-1]
+    figures["rolling"] = np.linalg.norm(omega - np.dot(omega, normal) * normal)
+    return figures
+
+
+def test_residual_displacement_after_a_record(ellroll, tmp_path):
+    """A 20 s record (SYN1 at scale 30, 6.8 cm peak) with rolling resistance
+    1e-4 m: at t_end = 40-43 s the ball still rolls, so the residual
+    displacement is NaN (the displacement at t_end varies from 3.1 to 1.5 cm
+    there); with settle it comes to rest at one time and place for every t_end,
+    bitwise (the steps are the same)."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    ends = (40.0, 41.0, 42.0, 43.0)
+    for t_end in ends:
+        moving = run_record(ellroll, tmp_path, t_end)
+        assert moving["rolling"] > 0.1 and moving["at_rest"] == 0
+        assert np.isnan(moving["residual_displacement"]) and np.isnan(moving["rest_time"])
+    settled = [run_record(ellroll, tmp_path, t_end, settle=120.0) for t_end in ends]
+    for case in settled:
+        assert case["at_rest"] == 1 and case["rolling"] > 0.1          # rolling at t_end, at rest at t_final
+        assert 20.0 < case["rest_time"] <= case["t_final"] < case["rest_time"] + 1.0e-3
+        for name in FIGURES:
+            assert case[name].tobytes() == settled[0][name].tobytes(), name
+    assert 0 < settled[0]["residual_displacement"] < 2 * RHO * 1.0e-4 / RADIUS   # inside the band it can rest in
+
+
+def test_held_through_the_end_of_a_record(ellroll, tmp_path):
+    """SYN1 at scale 1 moves the ball by 1.9 mm; it stops at 14.7 s, held while
+    the record goes on to its end (19.98 s, at rest from 20.0 s): at rest for
+    good from its stop, when t_end reaches the record's padded end, not before."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    during = run_record(ellroll, tmp_path, 19.0, scale=1.0)
+    assert during["at_rest"] == 0 and np.isnan(during["rest_time"])
+    after = run_record(ellroll, tmp_path, 20.0, scale=1.0)
+    assert after["at_rest"] == 1 and 14.0 < after["rest_time"] < 15.0
+    later = run_record(ellroll, tmp_path, 30.0, scale=1.0)
+    assert later["rest_time"] == after["rest_time"]
+    assert later["residual_displacement"] == after["residual_displacement"]
+
+
+def test_settle_is_checked(ellroll, tmp_path):
+    text = CUP.format(resistance="", x=0.0, integration="method = 'rk4', dt = 1.0e-3", t_end=1.0,
+                      settle=", settle = -1.0", excitation="")
+    (tmp_path / "bad.nml").write_text(text)
+    result = run(ellroll, "run", "bad.nml", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "bad.nml:4: &integration: settle = -1.0: must be between 0 and" in result.stderr
+    (tmp_path / "bad.nml").write_text(text.replace("dt = 1.0e-3", "dt = 1.0e-9").replace("-1.0", "1.0e9"))
+    result = run(ellroll, "run", "bad.nml", cwd=tmp_path)
+    assert result.returncode == 2 and "must be at least (t_end + settle) / 1e+12" in result.stderr
+
+
+def test_a_csv_and_an_at2_record_end_at_rest_alike(ellroll, tmp_path):
+    """Both formats fall to zero one step past their last sample, whatever
+    t_end: a 3 s record run to t_end = 1 s with settle comes to rest for good
+    after the record's end, at the same time and place from a CSV as from
+    AT2 files of the same samples (to the round-off of the CSV's decimal
+    times)."""
+    from test_records import ground, write_at2
+    dt, n = 0.02, 150
+    x, y = ground(21, n, dt), ground(22, n, dt)
+    write_at2(tmp_path / "H1.AT2", x, dt)
+    write_at2(tmp_path / "H2.AT2", y, dt)
+    rows = "".join(f"{k * dt!r}, {float(a)!r}, {float(b)!r}\n" for k, (a, b) in enumerate(zip(x, y)))
+    (tmp_path / "ground.csv").write_text("# units: g\n" + rows)
+    results = []
+    for files in ("'ground.csv'", "'H1.AT2', 'H2.AT2'"):
+        got = run_cup(ellroll, tmp_path, delta=1.0e-4, x=0.0, t_end=1.0, settle=400.0,
+                      excitation=f"&excitation kind = 'record', record_file = {files} /\n")
+        assert got["status"] == 1 and got["at_rest"] == 1
+        assert n * dt < got["rest_time"] <= got["t_final"] < 1.0 + 400.0
+        results.append(got)
+    csv, at2 = results
+    assert abs(csv["rest_time"] - at2["rest_time"]) < 1e-9
+    assert abs(csv["residual_displacement"] - at2["residual_displacement"]) < 1e-12
+
+
+def test_settle_leaves_the_step_advice_as_it_is(ellroll, tmp_path):
+    """The warning that dt caps an adaptive method's steps comes from a probe
+    over the first 100 dt: settle does not run the probe on to the rest."""
+    messages = []
+    for settle in (None, 200.0):
+        text = CUP.format(resistance=f", rolling_resistance = {DELTA!r}", x=0.052,
+                          integration="method = 'dop853', rtol = 1.0e-6, dt = 1.0e-3", t_end=10.0,
+                          settle=f", settle = {settle!r}" if settle else "", excitation="")
+        (tmp_path / "cup.nml").write_text(text)
+        result = run(ellroll, "run", "cup.nml", "-q", "--overwrite", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        messages.append(result.stderr)
+    assert "caps dop853's steps" in messages[0] and messages[1] == messages[0]
