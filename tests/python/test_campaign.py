@@ -183,7 +183,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # (src/cases/results.f90: wall_time is the 5th), the checksum of the
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
-SUMMARY_ENTRIES, WALL_TIME_ENTRY = 25, 4
+SUMMARY_ENTRIES, WALL_TIME_ENTRY = 27, 4
 # magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
 # input's files (empty without records) and its checksum
 JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8 + 1) + 8 + 8
@@ -194,6 +194,18 @@ def record_bytes(samples_in_record=0):
     """The size of a journal record holding `samples_in_record` trajectory
     values (samples x components of the compressed fields)."""
     return 8 * (3 + 3 * SUMMARY_ENTRIES + 1 + samples_in_record + 1)
+
+
+def test_the_journal_record_layout_here_is_the_programs(ellroll, tmp_path):
+    """The summary entries a journal record holds are the /summary figures
+    (the datasets on the case coordinate, status aside): the record sizes the
+    tests below compute follow the figure table."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n")
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        figures = [k for k, v in f["summary"].items() if "coordinates" in v.attrs and k != "status"]
+        assert len(figures) == SUMMARY_ENTRIES, figures
+        assert figures[WALL_TIME_ENTRY] == "wall_time"
 
 
 def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
