@@ -413,7 +413,7 @@ contains
           if (.not. round_off_step(t(l), h(l))) round_off_attempts(l) = 0
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1
-          if (b%cups%moving) call track_cup_motion(run(l), t(l), out%center_acceleration(l, 1:2), base_end(l, 1:2))
+          if (b%cups%moving) call track_cups(b, out, base_end, t, lane_only(l))
           if (t(l) < t_end(l)) then
             y(l, :) = y_new(l, :)
             f(l, :) = f_new(l, :)
@@ -545,11 +545,23 @@ contains
     type(lane_outputs_t), intent(in) :: out
     real(wp), intent(in) :: base(lanes, 3), t(lanes)
     logical, intent(in) :: accepted(lanes)
+    real(wp) :: center_acceleration(2), base_lane(2)   ! contiguous rows for track_cup_motion
     integer :: l
     do l = 1, b%n
-      if (accepted(l)) call track_cup_motion(b%run(l), t(l), out%center_acceleration(l, 1:2), base(l, 1:2))
+      if (.not. accepted(l)) cycle
+      center_acceleration = out%center_acceleration(l, 1:2)
+      base_lane = base(l, 1:2)
+      call track_cup_motion(b%run(l), t(l), center_acceleration, base_lane)
     end do
   end subroutine track_cups
+
+  !> The mask of lane l alone.
+  pure function lane_only(l) result(mask)
+    integer, intent(in) :: l
+    logical :: mask(lanes)
+    integer :: j
+    mask = [(j == l, j = 1, lanes)]
+  end function lane_only
 
   !> A case's running summary (accumulate), into lane l.
   pure subroutine load_summary(self, l, run)
