@@ -97,6 +97,8 @@ module ellroll_figures
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
                kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity), &
+      figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over the step ends ' // &
+               'clear of its singular approach', kind_int, 1, from_run), &
       figure_t('sa_linear_periods', 'm/s^2', 'record: 5 %-damped pseudo-spectral acceleration (RotD100) of the ' // &
                'scaled record at linear_periods (NaN: none)', kind_real, 2, from_run)]
   integer, parameter :: figure_count = size(figures)
@@ -118,7 +120,8 @@ module ellroll_figures
       fig_linear_periods = findloc(figures%name, 'linear_periods', dim=1), &
       fig_transmissibility = findloc(figures%name, 'transmissibility', dim=1), &
       fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1), &
-      fig_sa_linear_periods = findloc(figures%name, 'sa_linear_periods', dim=1)
+      fig_sa_linear_periods = findloc(figures%name, 'sa_linear_periods', dim=1), &
+      fig_peaks_truncated = findloc(figures%name, 'peaks_truncated', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &
       fig_friction_needed_max = findloc(figures%name, 'friction_needed_max', dim=1), &

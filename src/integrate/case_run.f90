@@ -15,7 +15,7 @@ module ellroll_case_run
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded, set_figure_values
   use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
-      q_friction_needed, q_energy, q_surface_residual
+      q_friction_needed, q_energy, q_surface_residual, q_fit_clearance
   use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
       fig_linear_periods
@@ -329,6 +329,7 @@ contains
     q(1, q_friction_needed) = obs%friction_needed
     q(1, q_energy) = obs%energy
     q(1, q_surface_residual) = obs%surface_residual
+    q(1, q_fit_clearance) = obs%fit_clearance
   end function step_quantities
 
   !> Every stored field's values at one output sample (Theta from the
