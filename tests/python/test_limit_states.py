@@ -125,3 +125,46 @@ def test_bad_limit_states(ellroll, tmp_path, group, words):
     assert result.returncode == 2, result.stderr
     assert "suite.nml:" in result.stderr and "&limit_state" in result.stderr and words in result.stderr, \
         result.stderr
+
+
+def test_ellroll_summary_suite_equals_the_python_statistics(ellroll, whole):
+    """`ellroll summary --suite` (JSON and CSV): the columns of
+    ellroll_post.suite.suite_statistics in its order, every number the same
+    (the percentiles in numpy's arithmetic)."""
+    import csv
+    import io
+    import json
+    import math
+    with ellroll_post.open(whole) as f:
+        table = suite.suite_statistics(f)
+    result = run(ellroll, "summary", whole, "--suite", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["stripe_inputs"] == ["scale", "rolling_resistance"] and report["percentiles"] == "linear"
+    assert list(report["stripes"][0]) == list(table.columns)
+    assert report["units"]["displacement_max_p50"] == "m" and report["units"]["n_drift"] == "1"
+    rows = list(csv.DictReader(io.StringIO(run(ellroll, "summary", whole, "--suite", "--format", "csv").stdout)))
+    assert len(report["stripes"]) == len(rows) == len(table) == 6
+    checked = 0
+    for stripe, row, (_, expected) in zip(report["stripes"], rows, table.iterrows()):
+        for name, value in expected.items():
+            for got in (stripe[name], row[name]):
+                got = math.nan if got is None or got == "nan" else float(got)
+                assert (math.isnan(got) and math.isnan(value)) or got == value, (name, got, value)
+                checked += 1
+    assert checked > 400
+    assert any(math.isnan(v) for v in table["displacement_max_p50"]) or table["n_completed"].min() < 3
+    text = run(ellroll, "summary", whole, "--suite")
+    assert text.returncode == 0 and "6 stripes" in text.stdout and "fraction_drift" in text.stdout
+
+
+def test_ellroll_summary_suite_in_the_debug_build(ellroll_debug, whole, paper_file):
+    """The Debug build (bounds checks, FP traps) prints every format, also of
+    a file with no varied input (one stripe) and one case."""
+    import json
+    for path in (whole, paper_file):
+        for fmt in ("table", "csv", "json"):
+            result = run(ellroll_debug, "summary", path, "--suite", "--format", fmt)
+            assert result.returncode == 0, result.stderr
+        stripes = json.loads(result.stdout)["stripes"]
+        assert len(stripes) == (6 if path == whole else 1)
