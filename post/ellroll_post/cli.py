@@ -107,7 +107,8 @@ def main(argv=None):
                        "state) against the scale or an intensity measure, with a bootstrap band")
     p.add_argument("file")
     p.add_argument("--im", default="scale",
-                   help="intensity measure: scale (default), or one the file holds: PGA, Sa(T), Sa(1.0), sa_1.0")
+                   help="intensity measure: scale (default), or one the file holds: PGA, PGV, PGD, Sa(T) (at the "
+                        "isolator's first period; Sa(T2) its second), Sa(1.0), sa_1")
     p.add_argument("--bootstrap", type=int, default=200, help="bootstrap resamples for the intervals (default 200)")
     p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
     p.add_argument("--limit-state", default="model_limit",

@@ -64,8 +64,11 @@ def limit_state_columns(run):
     with h5py.File(run.path, "r") as f:
         group = f.get("limit_state")
         if isinstance(group, h5py.Group):
+            # the group's case scale and coordinates (scale, record, ...) are not limit states
+            coordinates = {c for item in group.values() for c in _text(item.attrs.get("coordinates", "")).split()}
             for name, item in group.items():
-                if isinstance(item, h5py.Dataset) and item.shape == (run.n_cases,):
+                if isinstance(item, h5py.Dataset) and item.shape == (run.n_cases,) and name not in coordinates \
+                        and _text(item.attrs.get("CLASS", "")) != "DIMENSION_SCALE":
                     columns[name] = _exceeded(item[()])
         for name, item in f["summary"].items():
             if not isinstance(item, h5py.Dataset) or item.shape != (run.n_cases,):
@@ -75,6 +78,10 @@ def limit_state_columns(run):
             elif name.endswith("_exceeded"):
                 columns[name[:-len("_exceeded")]] = _exceeded(item[()])
     return columns
+
+
+def _text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _exceeded(values):
@@ -236,7 +243,9 @@ class NoIntensityMeasure(ValueError):
 def intensity_measures(run):
     """{name: (per-case value, units)} of the intensity measures a file
     holds besides the scale: /case datasets named pga, pgv, pgd or sa_*
-    (one value per case: the case's own, scaled motion), and /records
+    (one value per case: the case's own, scaled motion), the columns of
+    /summary/sa_linear_periods (sa_linear_periods_1, _2: Sa at the case's
+    own periods), and /records
     datasets of those names (one value per record, named by /records/name
     or /records/record: the unscaled record's, so times the case's
     record_factor and scale, as PGA and Sa scale with the motion)."""
@@ -246,6 +255,11 @@ def intensity_measures(run):
         for name, item in (case.items() if isinstance(case, h5py.Group) else []):
             if _is_im(name) and isinstance(item, h5py.Dataset) and item.shape == (run.n_cases,):
                 found[name] = (item[()].astype(float), _units(item))
+        # Sa at each case's own small-oscillation periods: one column per mode
+        item = f.get("summary/sa_linear_periods")
+        if isinstance(item, h5py.Dataset) and item.shape == (run.n_cases, 2):
+            for mode in range(2):
+                found[f"sa_linear_periods_{mode + 1}"] = (item[:, mode].astype(float), _units(item))
         group = f.get("records")
         if isinstance(group, h5py.Group):
             key = next((k for k in ("name", "record") if k in group), None)
@@ -279,8 +293,10 @@ def _units(item):
 def intensity(run, im="scale"):
     """(name, per-case value, units) of the intensity measure `im`: 'scale'
     (the record scale factor), or one the file holds by its name (pga,
-    sa_1.0; any case), 'PGA', 'Sa(T)' (the file's one Sa) or 'Sa(1.0)' (the
-    Sa whose name or 'period' attribute gives that period). Raises
+    sa_1.0; any case), 'PGA', 'Sa(T)' (Sa at the case's own first period,
+    sa_linear_periods_1, where the file has it; else the file's one Sa),
+    'Sa(T2)' (at its second) or 'Sa(1.0)' (the Sa whose name or 'period'
+    attribute gives that period). Raises
     NoIntensityMeasure naming what the file has."""
     if im.lower() == "scale":
         if "scale" not in run.inputs:
@@ -293,11 +309,15 @@ def intensity(run, im="scale"):
     if name is None and wanted.startswith("sa"):
         sa = [n for n in found if n.lower().startswith("sa")]
         period = wanted[2:].strip("_()")
-        if period in ("", "t"):
+        own = {"": "sa_linear_periods_1", "t": "sa_linear_periods_1", "t1": "sa_linear_periods_1",
+               "t2": "sa_linear_periods_2"}
+        if period in own and own[period] in found:
+            name = own[period]
+        elif period in ("", "t"):
             name = sa[0] if len(sa) == 1 else None
         else:
             name = next((n for n in sa if _period(run, n) == _number(period)
-                         or n.lower()[3:].replace("p", ".").rstrip(")") == period), None)
+                         or _number(n.lower()[3:].rstrip(")")) == _number(period)), None)
     if name is None:
         have = ", ".join(["scale"] + sorted(found))
         raise NoIntensityMeasure(

@@ -18,13 +18,14 @@ module ellroll_cli
       'run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes', 'help', 'version']
   character(len=*), parameter :: options(*) = [character(len=11) :: &
       '--output', '--threads', '--shard', '--format', '--overwrite', '--resume', '--quiet', '--timings', &
-      '--help', '--version']
+      '--suite', '--help', '--version']
 
   !> What the command line asks for.
   type :: cli_t
     character(len=:), allocatable :: command              !< run, check, ..., help or version
     character(len=:), allocatable :: output_path          !< -o, --output; '' when not given
     character(len=5) :: summary_format = 'table'          !< ellroll summary --format: table, csv or json
+    logical :: suite = .false.                            !< ellroll summary --suite: the statistics per stripe
     character(len=8) :: help_topic = ''                   !< ellroll COMMAND --help: that command's help
     character(len=1024), allocatable :: paths(:)          !< the files after the command
     type(run_options_t) :: opts
@@ -71,6 +72,8 @@ contains
         cli%opts%quiet = .true.
       case ('--timings')
         cli%opts%timings = .true.
+      case ('--suite')
+        cli%suite = .true.
       case ('run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes')
         if (len(cli%command) > 0) then
           call usage_error(err, 'more than one command given (' // cli%command // ', ' // arg // ')')

@@ -82,12 +82,15 @@ contains
         'to the file of the same run unsharded.'
     case ('summary')
       write (output_unit, '(a)') &
-        'usage: ellroll summary OUT.h5 [--format table|csv|json]', &
+        'usage: ellroll summary OUT.h5 [--suite] [--format table|csv|json]', &
         '', &
         'table (the default): cases per status, steps, integration time, the slowest case; of a', &
         'campaign, each real figure''s min / median / max over its completed cases (6 digits).', &
         'csv, json: one row per case: case, the varied inputs, status by name and every figure of', &
-        '/summary. The JSON is strict (NaN as null) and gives the units in its "units" object.'
+        '/summary. The JSON is strict (NaN as null) and gives the units in its "units" object.', &
+        '--suite: one row per stripe (the cases that share every varied input but the record):', &
+        'counts, the fraction at a model limit and past each /limit_state, and each response', &
+        'figure''s 16th, 50th and 84th percentile over the completed cases (docs/isolator.md).'
     case ('modes')
       write (output_unit, '(a)') &
         'usage: ellroll modes FILE.nml', &

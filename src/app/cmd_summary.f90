@@ -15,6 +15,7 @@ module ellroll_cmd_summary
   use ellroll_errors, only: set_error, err_input
   use ellroll_files, only: path_kind, kind_folder
   use ellroll_lapack, only: dlasrt
+  use ellroll_cmd_suite, only: print_suite
   implicit none
   private
 
@@ -36,7 +37,12 @@ contains
     type(cli_t), intent(in) :: cli
     type(error_t), intent(inout) :: err
     call check_readable(trim(cli%paths(1)), err)
-    if (.not. err%failed()) call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
+    if (err%failed()) return
+    if (cli%suite) then
+      call print_suite(trim(cli%paths(1)), trim(cli%summary_format), err)
+    else
+      call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
+    end if
   end subroutine summary_command
 
   !> A folder, or a file this user may not read, is bad input: said so

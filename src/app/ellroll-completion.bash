@@ -26,7 +26,7 @@ _ellroll() {
                               --help" -- "$current")) ;;
             check|modes) COMPREPLY=($(compgen -W "-o --output --help" -- "$current")) ;;
             merge) COMPREPLY=($(compgen -W "--overwrite --help" -- "$current")) ;;
-            summary) COMPREPLY=($(compgen -W "--format --help" -- "$current")) ;;
+            summary) COMPREPLY=($(compgen -W "--format --suite --help" -- "$current")) ;;
             *) COMPREPLY=($(compgen -W "--help" -- "$current")) ;;
         esac
         return

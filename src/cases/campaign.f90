@@ -7,6 +7,7 @@ module ellroll_campaign
   use ellroll_cases, only: case_t, set_param, get_param, finalize_case
   use ellroll_params, only: params
   use ellroll_excitation, only: excitation_t
+  use ellroll_intensity, only: record_intensity_t
   implicit none
   private
 
@@ -36,6 +37,7 @@ module ellroll_campaign
     character(len=32) :: name = ''
     real(wp) :: factor = 1
     type(excitation_t) :: motion
+    type(record_intensity_t) :: intensity    !< of motion (the factor in, no scale)
   end type suite_record_t
 
   !> An input that varies between the cases of a campaign (a swept or
@@ -169,6 +171,7 @@ contains
     cs%excitation%step = rec%motion%step
     cs%record_name = rec%name
     cs%record_factor = rec%factor
+    cs%intensity = rec%intensity
   end subroutine use_record
 
   !> A uniform number in [0, 1) from (seed, index, stream): a counter-based

@@ -14,7 +14,9 @@ module ellroll_cases
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
-  use ellroll_excitation, only: excitation_t, excitation_kind_names
+  use ellroll_excitation, only: excitation_t, excitation_kind_names, excitation_record
+  use ellroll_intensity, only: record_intensity_t, damping_ratio
+  use ellroll_limit_states, only: limit_state_t
   use ellroll_integrators, only: method_info_t, method_info
   implicit none
   private
@@ -42,6 +44,11 @@ module ellroll_cases
     type(excitation_t) :: excitation
     character(len=32) :: record_name = '' !< a suite's record (&record name)
     real(wp) :: record_factor = 1         !< its factor (in excitation%values)
+    !> the record's intensity measures (its factor in, the scale not: /case
+    !> stores them times the scale); unset without a record
+    type(record_intensity_t) :: intensity
+    !> the user's limit states (&limit_state), stored per case in /limit_state
+    type(limit_state_t), allocatable :: limit_states(:)
   end type case_t
 
   ! what find_problem found: one code a message of check_case
@@ -326,7 +333,37 @@ contains
                  excitation_kind_names(cs%excitation%kind)), &
       text_value('record', 'record of a suite (&record name; blank: none)', cs%record_name), &
       real_value('record_factor', '1', 'factor of that record (&record factor)', cs%record_factor)]
+    if (cs%excitation%kind == excitation_record .and. allocated(cs%intensity%sa)) &
+      rec = [rec, intensity_record(cs%intensity, cs%param(p_scale))]
   end function case_record
+
+  !> The intensity measures of a case shaken by a record (its values times
+  !> `scale`, as the cup moves): PGA, PGV, PGD of the horizontal motion (the
+  !> peak of the vector of both components) and Sa at the user's periods.
+  pure function intensity_record(im, scale) result(rec)
+    type(record_intensity_t), intent(in) :: im
+    real(wp), intent(in) :: scale
+    type(named_value_t) :: rec(3 + size(im%sa))
+    integer :: k
+    rec(1) = real_value('pga', 'm/s^2', 'peak horizontal ground acceleration (of both components together)', &
+                        scale * im%pga)
+    rec(2) = real_value('pgv', 'm/s', 'peak horizontal ground velocity (of both components together)', &
+                        scale * im%pgv)
+    rec(3) = real_value('pgd', 'm', 'peak horizontal ground displacement (of both components together)', &
+                        scale * im%pgd)
+    do k = 1, size(im%sa)
+      rec(3 + k) = real_value(sa_name(im%periods(k)), 'm/s^2', 'pseudo-spectral acceleration (RotD100), ' // &
+                              format_real(100 * damping_ratio) // ' % damping, at period ' // &
+                              format_real(im%periods(k)) // ' s', scale * im%sa(k))
+    end do
+  end function intensity_record
+
+  !> The /case name of Sa at period t (s): sa_ and its shortest text, sa_0.5, sa_2.
+  pure function sa_name(t) result(name)
+    real(wp), intent(in) :: t
+    character(len=3 + len(format_real(t))) :: name
+    name = 'sa_' // format_real(t)
+  end function sa_name
 
   !> Row p's value as /case stores it: the input, but mu 0 (no limit) as NaN
   !> and the weight as m g, also where the mass was given (NaN where it

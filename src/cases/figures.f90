@@ -100,7 +100,11 @@ module ellroll_figures
                'free modes fitted out (NaN: n/a)', kind_real, 1, from_run), &
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
-               kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity)]
+               kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity), &
+      figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over the step ends ' // &
+               'clear of its singular approach', kind_int, 1, from_run), &
+      figure_t('sa_linear_periods', 'm/s^2', 'record: 5 %-damped pseudo-spectral acceleration (RotD100) of the ' // &
+               'scaled record at linear_periods (NaN: none)', kind_real, 2, from_run)]
   integer, parameter :: figure_count = size(figures)
 
   ! Each row's named index, found by its name (0 if misspelt: the Debug
@@ -122,7 +126,9 @@ module ellroll_figures
       fig_residual_displacement = findloc(figures%name, 'residual_displacement', dim=1), &
       fig_rest_time = findloc(figures%name, 'rest_time', dim=1), &
       fig_at_rest = findloc(figures%name, 'at_rest', dim=1), &
-      fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1)
+      fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1), &
+      fig_sa_linear_periods = findloc(figures%name, 'sa_linear_periods', dim=1), &
+      fig_peaks_truncated = findloc(figures%name, 'peaks_truncated', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &
       fig_friction_needed_max = findloc(figures%name, 'friction_needed_max', dim=1), &

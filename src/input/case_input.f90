@@ -14,6 +14,7 @@ module ellroll_case_input
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields
   use ellroll_suggest, only: did_you_mean
+  use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
   use ellroll_suite_input, only: record_spec_t, load_suite, record_files, note_files
   use ellroll_params, only: params, param_count, param_component, param_width, p_radius, p_weight, p_mass, p_dt, &
@@ -46,6 +47,8 @@ contains
     call build_excitation(rd, v, size(suite) > 0, campaign%base, input_files)
     if (rd%err%failed()) return
     call load_suite(rd, suite, campaign%base, campaign%records, input_files)
+    if (rd%err%failed()) return
+    call set_intensities(rd, v, campaign)
     if (rd%err%failed()) return
     call build_plan(rd, v, output_override, campaign%base, plan)
     if (rd%err%failed()) return
@@ -239,13 +242,57 @@ contains
     end select
   end subroutine build_excitation
 
+  !> The intensity measures of each record (the suite's, or the single
+  !> one), at the periods of &excitation sa_periods: given, each finite,
+  !> in (0, max_sa_period] s, increasing.
+  subroutine set_intensities(rd, v, campaign)
+    type(reader_t), intent(inout) :: rd
+    type(namelist_values_t), intent(in) :: v
+    type(campaign_t), intent(inout) :: campaign
+    real(wp), parameter :: max_sa_period = 1.0e3_wp
+    integer :: gi, n, k
+    gi = rd%group('excitation', .false.)
+    n = 0
+    do k = 1, size(v%sa_periods)
+      if (.not. ieee_is_nan(v%sa_periods(k))) n = k
+    end do
+    do k = 1, n
+      if (.not. ieee_is_finite(v%sa_periods(k))) then
+        call rd%fail_value(gi, 'sa_periods', 'each period must be a finite number (s)')
+        return
+      else if (v%sa_periods(k) <= 0 .or. v%sa_periods(k) > max_sa_period) then
+        call rd%fail_value(gi, 'sa_periods', 'period ' // format_real(v%sa_periods(k)) // &
+                           ' s is outside (0, ' // format_real(max_sa_period) // '] s')
+        return
+      else if (v%sa_periods(k) <= v%sa_periods(max(1, k - 1)) .and. k > 1) then
+        call rd%fail_value(gi, 'sa_periods', 'the periods must increase (' // format_real(v%sa_periods(k)) // &
+                           ' s follows ' // format_real(v%sa_periods(max(1, k - 1))) // ' s)')
+        return
+      end if
+    end do
+    if (campaign%base%excitation%kind /= excitation_record) return
+    if (allocated(campaign%records)) then
+      if (size(campaign%records) > 0) then
+        do k = 1, size(campaign%records)
+          associate (motion => campaign%records(k)%motion)
+            campaign%records(k)%intensity = intensity_of(motion%times, motion%values, v%sa_periods(:n))
+          end associate
+        end do
+        campaign%base%intensity = campaign%records(1)%intensity
+        return
+      end if
+    end if
+    campaign%base%intensity = intensity_of(campaign%base%excitation%times, campaign%base%excitation%values, &
+                                           v%sa_periods(:n))
+  end subroutine set_intensities
+
   !> The inputs of &excitation that belong to another kind are refused.
   logical function only_for_kind(rd, gi, kind) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: kind
     character(len=*), parameter :: harmonic_inputs(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
-    character(len=*), parameter :: record_inputs(2) = [character(len=11) :: 'record_file', 'scale']
+    character(len=*), parameter :: record_inputs(3) = [character(len=11) :: 'record_file', 'scale', 'sa_periods']
     integer :: k
     ok = .false.
     do k = 1, size(harmonic_inputs)

@@ -16,9 +16,12 @@ module ellroll_input
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
   use ellroll_campaign_input, only: add_sweep, add_sample
   use ellroll_suite_input, only: record_spec_t, add_record_group
+  use ellroll_limit_state_input, only: add_limit_state
+  use ellroll_limit_states, only: limit_state_t
   use ellroll_case_input, only: build_input
   use ellroll_params, only: params, param_count, param_default, param_component, param_width
   use ellroll_suggest, only: did_you_mean
+  use ellroll_intensity, only: max_sa_periods
   implicit none
   private
 
@@ -35,9 +38,12 @@ module ellroll_input
     character(len=:), allocatable :: input_files
   end type run_input_t
 
-  character(len=*), parameter :: known_groups(11) = [character(len=12) :: &
+  character(len=*), parameter :: known_groups(12) = [character(len=12) :: &
       'geometry', 'ball', 'environment', 'initial', 'integration', 'output', 'excitation', 'campaign', &
-      'sweep', 'sample', 'record']
+      'sweep', 'sample', 'record', 'limit_state']
+  !> the groups a file may give more than once
+  character(len=*), parameter :: repeated_groups(4) = [character(len=11) :: 'sweep', 'sample', 'record', &
+      'limit_state']
 contains
 
   subroutine read_input(path, output_override, inp, err)
@@ -76,7 +82,7 @@ contains
             call did_you_mean(grp%name, known_groups, '&', hint)
             call rd%fail_at(grp%line, 'unknown group &' // grp%name // hint // ' (known groups: ' // &
                             join(known_groups) // ')')
-          else if (all(grp%name /= [character(len=6) :: 'sweep', 'sample', 'record'])) then
+          else if (all(grp%name /= repeated_groups)) then
             first = rd%file%group_index(grp%name)
             if (first /= k) call rd%fail_at(grp%line, '&' // grp%name // ' appears twice (first at line ' // &
                                             itoa(rd%file%groups(first)%line) // '); give each group once')
@@ -109,14 +115,16 @@ contains
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
     type(record_spec_t), allocatable :: suite(:)
+    type(limit_state_t), allocatable :: states(:)
+    integer, allocatable :: state_lines(:)
     character(len=:), allocatable :: reason
 
     v%param = [(param_default(k), k = 1, param_count)]     ! NaN: required
     v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'
     v%file = ''; v%interval = nan(); v%fields = ''; v%compression = 0
     v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
-    v%kind = 'none'; v%record_file = ''; v%factor = 1
-    allocate (sweeps(0), draws(0), suite(0))
+    v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = nan()
+    allocate (sweeps(0), draws(0), suite(0), states(0), state_lines(0))
 
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
@@ -124,7 +132,7 @@ contains
         v%name = ''; v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
         ! (max_values of them: only the groups that read them set them)
         if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = nan()
-        v%low = nan(); v%high = nan()
+        v%low = nan(); v%high = nan(); v%figure = ''; v%limit_capacity = nan()
         if (grp%name == 'record') then       ! (its record_file is not &excitation's)
           excitation_files = v%record_file
           v%record_file = ''
@@ -153,10 +161,12 @@ contains
           call add_record_group(rd, v, gi, suite)
           v%record_file = excitation_files
         end if
+        if (grp%name == 'limit_state') call add_limit_state(rd, v, gi, states, state_lines)
         if (rd%err%failed()) return
       end associate
     end do
     call build_input(rd, v, output_override, sweeps, draws, suite, inp%campaign, inp%plan, inp%input_files)
+    if (.not. rd%err%failed()) inp%campaign%base%limit_states = states
   end subroutine read_groups
 
   !> Read assignment k of a group alone: into the parameter table's values,
@@ -200,6 +210,7 @@ contains
     case ('campaign'); call read_campaign()
     case ('sweep', 'sample'); call read_sweep_or_sample()
     case ('record'); call read_record_group()
+    case ('limit_state'); call read_limit_state()
     end select
   contains
     subroutine read_integration()
@@ -225,10 +236,11 @@ contains
     subroutine read_excitation()
       character(len=len(v%kind)) :: kind
       character(len=len(v%record_file)) :: record_file(size(v%record_file))
-      namelist /excitation/ kind, record_file
-      kind = v%kind; record_file = v%record_file
+      real(wp) :: sa_periods(size(v%sa_periods))
+      namelist /excitation/ kind, record_file, sa_periods
+      kind = v%kind; record_file = v%record_file; sa_periods = v%sa_periods
       read (text, nml=excitation, iostat=ios, iomsg=msg)
-      v%kind = kind; v%record_file = record_file
+      v%kind = kind; v%record_file = record_file; v%sa_periods = sa_periods
     end subroutine read_excitation
 
     subroutine read_campaign()
@@ -267,6 +279,16 @@ contains
       read (text, nml=record, iostat=ios, iomsg=msg)
       v%name = name; v%record_file = record_file; v%factor = factor
     end subroutine read_record_group
+
+    subroutine read_limit_state()
+      character(len=len(v%name)) :: name
+      character(len=len(v%figure)) :: figure
+      real(wp) :: capacity
+      namelist /limit_state/ name, figure, capacity
+      name = v%name; figure = v%figure; capacity = v%limit_capacity
+      read (text, nml=limit_state, iostat=ios, iomsg=msg)
+      v%name = name; v%figure = figure; v%limit_capacity = capacity
+    end subroutine read_limit_state
   end subroutine read_namelist
 
   !> Why a value that Fortran's namelist read refused is wrong, for the
@@ -351,11 +373,12 @@ contains
     integer, intent(out) :: capacity
     capacity = 1
     select case (base)
-    case ('t_end', 'interval', 'start', 'stop', 'low', 'high', 'factor'); kind = 'r'
+    case ('t_end', 'interval', 'start', 'stop', 'low', 'high', 'factor', 'capacity'); kind = 'r'
     case ('values'); kind = 'r'; capacity = max_values
     case ('compression', 'count', 'samples', 'seed'); kind = 'i'
     case ('fields'); kind = 't'; capacity = max_fields
     case ('record_file'); kind = 't'; capacity = 3
+    case ('sa_periods'); kind = 'r'; capacity = max_sa_periods
     case default; kind = 't'
     end select
   end subroutine own_variable_shape
@@ -372,6 +395,7 @@ contains
     case ('record_file'); text_length = len(v%record_file)
     case ('combine', 'invalid', 'spacing'); text_length = len(v%combine)
     case ('name'); text_length = len(v%name)
+    case ('figure'); text_length = len(v%figure)
     case default; text_length = 0
     end select
   end function text_length
@@ -450,11 +474,12 @@ contains
     select case (group)
     case ('integration'); names = [character(len=len(names)) :: 'method', 't_end', 'error_estimate']
     case ('output'); names = [character(len=len(names)) :: 'file', 'interval', 'fields', 'compression']
-    case ('excitation'); names = [character(len=len(names)) :: 'kind', 'record_file']
+    case ('excitation'); names = [character(len=len(names)) :: 'kind', 'record_file', 'sa_periods']
     case ('campaign'); names = [character(len=len(names)) :: 'combine', 'samples', 'seed', 'invalid']
     case ('sweep'); names = [character(len=len(names)) :: 'name', 'values', 'start', 'stop', 'count', 'spacing']
     case ('sample'); names = [character(len=len(names)) :: 'name', 'low', 'high', 'spacing']
     case ('record'); names = [character(len=len(names)) :: 'name', 'record_file', 'factor']
+    case ('limit_state'); names = [character(len=len(names)) :: 'name', 'figure', 'capacity']
     case default; allocate (names(0))
     end select
   end function own_variables

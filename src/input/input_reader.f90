@@ -10,6 +10,7 @@ module ellroll_input_reader
   use ellroll_strings, only: itoa, join
   use ellroll_params, only: param_count, params
   use ellroll_suggest, only: did_you_mean
+  use ellroll_intensity, only: max_sa_periods
   implicit none
   private
 
@@ -42,9 +43,12 @@ module ellroll_input_reader
     character(len=16) :: kind
     character(len=1024) :: record_file(3)
     real(wp) :: factor
+    real(wp) :: sa_periods(max_sa_periods)  !< &excitation: periods of the stored Sa (NaN: not given)
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
     character(len=32) :: name
+    character(len=32) :: figure                 !< &limit_state
+    real(wp) :: limit_capacity                  !< &limit_state capacity
     real(wp) :: values(max_values), start, stop, low, high
     integer :: count
   end type namelist_values_t

@@ -5,16 +5,18 @@
 !> where a step crossed a model limit. Shared by the one-case loops
 !> (fixed-step and adaptive) and the batches.
 module ellroll_case_run
-  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8, two_pi
   use ellroll_exact, only: is_zero
-  use ellroll_excitation, only: excitation_harmonic, excitation_end
+  use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
+  use ellroll_intensity, only: pseudo_spectral_acceleration, damping_ratio
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded, set_figure_values
   use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
-      q_friction_needed, q_energy, q_surface_residual
+      q_friction_needed, q_energy, q_surface_residual, q_fit_clearance
+  use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
       fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
@@ -25,7 +27,7 @@ module ellroll_case_run
   use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_system, only: stop_signal
-  use ellroll_params, only: p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y, p_settle
+  use ellroll_params, only: p_scale, p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y, p_settle
   implicit none
   private
 
@@ -140,6 +142,8 @@ contains
     type(case_t), intent(in) :: cs
     type(run_state_t), intent(in) :: run
     type(case_result_t), intent(inout) :: res
+    real(wp) :: periods(2)
+    integer :: k
     res%counts(fig_nutation_maxima) = run%maxima%count
     res%reals(fig_nutation_period) = run%maxima%mean_interval()
     if (res%status == status_completed .and. run%fit%start < cs%t_end) res%reals(fig_transmissibility) = run%fit%ratio()
@@ -149,7 +153,14 @@ contains
       res%counts(fig_at_rest) = 1
     end if
     call finish_running(run%stats, run%ball%mass, res)
-    call set_figure_values(res, fig_linear_periods, oscillation_periods(run%ball, run%spin0))
+    periods = oscillation_periods(run%ball, run%spin0)
+    call set_figure_values(res, fig_linear_periods, periods)
+    if (cs%excitation%kind == excitation_record) then
+      do k = 1, 2          ! (NaN apart: a mode that does not oscillate)
+        if (ieee_is_finite(periods(k))) res%reals(figure_slots(fig_sa_linear_periods)) = &
+            spectral_at(cs, periods(k), k, res%reals(figure_slots(fig_sa_linear_periods)))
+      end do
+    end if
     call fill_unrecorded(res)
   end subroutine finish_case
 
@@ -174,6 +185,17 @@ contains
     settled = run%resting
     if (settled) settled = t >= excitation_end(run%ball%excitation)
   end function settled
+
+  !> Sa of the case's scaled record at `period`, put at component k of `sa`.
+  pure function spectral_at(cs, period, k, sa) result(next)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: period, sa(2)
+    integer, intent(in) :: k
+    real(wp) :: next(2), one(1)
+    next = sa
+    one = pseudo_spectral_acceleration(cs%excitation%times, cs%excitation%values, [period], damping_ratio)
+    next(k) = cs%param(p_scale) * one(1)
+  end function spectral_at
 
   !> Whether the run was asked to stop, looked at once in stop_poll_steps
   !> steps: the case is then dropped (its result is never written).
@@ -342,6 +364,7 @@ contains
     q(1, q_friction_needed) = obs%friction_needed
     q(1, q_energy) = obs%energy
     q(1, q_surface_residual) = obs%surface_residual
+    q(1, q_fit_clearance) = obs%fit_clearance
   end function step_quantities
 
   !> Every stored field's values at one output sample (Theta from the

@@ -6,10 +6,12 @@
 module ellroll_running
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use ellroll_kinds, only: wp
-  use ellroll_quantities, only: quantities, quantity_count
+  use ellroll_kinds, only: i8
+  use ellroll_quantities, only: quantities, quantity_count, q_fit_clearance
+  use ellroll_limit_states, only: is_model_limit
   use ellroll_figures, only: figure_t, figures, figure_count, timed, lasting, beyond, from_counter, &
       from_run, from_maximum, from_maximum_time, from_last, from_time_beyond, finish_none, finish_root, &
-      finish_root_per_mass, finish_per_start
+      finish_root_per_mass, finish_per_start, fig_peaks_truncated
   use ellroll_ball_lanes, only: lanes
   use ellroll_results, only: case_result_t
   implicit none
@@ -24,9 +26,15 @@ module ellroll_running
   !> quantity's root at the last step end (from t = 0 on) and the time so
   !> far; and the last step end's time. The same arrays as a batch's with
   !> one row.
+  !> The maxima and their times also over the step ends clear of the cup's
+  !> curvature alone (fit_clearance > 0; ellroll_quantities' peak_clearance),
+  !> with the counts of step ends clear and not: a case that ends at a model
+  !> limit takes its peaks from those.
   type :: running_t
     real(wp), dimension(1, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
     real(wp), dimension(1, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
+    real(wp), dimension(1, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
+    integer(i8) :: n_clear(1) = 0, n_unclear(1) = 0
     real(wp) :: last_time(1) = 0
     logical :: counting(1) = .false.    !< some threshold is set: the times beyond are counted
   end type running_t
@@ -35,6 +43,8 @@ module ellroll_running
   type :: running_lanes_t
     real(wp), dimension(lanes, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
     real(wp), dimension(lanes, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
+    real(wp), dimension(lanes, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
+    integer(i8) :: n_clear(lanes) = 0, n_unclear(lanes) = 0
     real(wp) :: last_time(lanes) = 0
     logical :: counting(lanes) = .false.
   end type running_lanes_t
@@ -89,6 +99,8 @@ contains
     real(wp), intent(in) :: q(1, quantity_count), t
     call add_row(1, 1, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
                  stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t)
+    call add_clear(1, 1, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, stats%n_unclear, &
+                   q, t)
   end subroutine add_case_step_end
 
   !> What the accepted lanes' step ends (quantities q, a row per lane, at
@@ -104,8 +116,36 @@ contains
       if (.not. accepted(l)) cycle
       call add_row(lanes, l, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
                    stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t(l))
+      call add_clear(lanes, l, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, &
+                     stats%n_unclear, q, t(l))
     end do
   end subroutine add_lanes_step_ends
+
+  !> Row l's maxima (and their times) over the step ends clear of the
+  !> cup's curvature (fit_clearance > 0), taken as add_row takes them over
+  !> every step end; the step ends clear and not counted.
+  pure subroutine add_clear(n, l, start, clear_maximum, clear_maximum_time, n_clear, n_unclear, q, t)
+    integer, intent(in) :: n, l
+    real(wp), intent(in), dimension(n, quantity_count) :: start, q
+    real(wp), intent(inout), dimension(n, quantity_count) :: clear_maximum, clear_maximum_time
+    integer(i8), intent(inout) :: n_clear(n), n_unclear(n)
+    real(wp), intent(in) :: t
+    real(wp) :: value
+    integer :: i
+    if (q(l, q_fit_clearance) > 0) then
+      do i = 1, quantity_count
+        value = q(l, i)
+        if (quantities(i)%change) value = abs(value - start(l, i))
+        if (value > clear_maximum(l, i)) then
+          clear_maximum(l, i) = value
+          clear_maximum_time(l, i) = t
+        end if
+      end do
+      n_clear(l) = n_clear(l) + 1
+    else
+      n_unclear(l) = n_unclear(l) + 1
+    end if
+  end subroutine add_clear
 
   !> What row l's accepted step end (quantities q(l, :), at time t) adds to
   !> the statistics of n rows: the quantities unrolled (constant tests), the
@@ -177,6 +217,10 @@ contains
     stats%threshold(1, :) = lane_stats%threshold(l, :)
     stats%root_before(1, :) = lane_stats%root_before(l, :)
     stats%time_beyond(1, :) = lane_stats%time_beyond(l, :)
+    stats%clear_maximum(1, :) = lane_stats%clear_maximum(l, :)
+    stats%clear_maximum_time(1, :) = lane_stats%clear_maximum_time(l, :)
+    stats%n_clear(1) = lane_stats%n_clear(l)
+    stats%n_unclear(1) = lane_stats%n_unclear(l)
     stats%last_time(1) = lane_stats%last_time(l)
     stats%counting(1) = lane_stats%counting(l)
   end subroutine get_lane
@@ -193,6 +237,10 @@ contains
     lane_stats%threshold(l, :) = stats%threshold(1, :)
     lane_stats%root_before(l, :) = stats%root_before(1, :)
     lane_stats%time_beyond(l, :) = stats%time_beyond(1, :)
+    lane_stats%clear_maximum(l, :) = stats%clear_maximum(1, :)
+    lane_stats%clear_maximum_time(l, :) = stats%clear_maximum_time(1, :)
+    lane_stats%n_clear(l) = stats%n_clear(1)
+    lane_stats%n_unclear(l) = stats%n_unclear(1)
     lane_stats%last_time(l) = stats%last_time(1)
     lane_stats%counting(l) = stats%counting(1)
   end subroutine put_lane
@@ -201,20 +249,36 @@ contains
   !> case, whose ball has this mass. The roots and quotients are taken of
   !> the maxima kept: both are correctly rounded and monotonic, so the
   !> result is the same number as the maximum of the roots or quotients.
+  !> A case that ended at a model limit (res%status) after step ends not
+  !> clear of the cup's curvature takes its maxima over the clear ones
+  !> (NaN where none was) and is marked peaks_truncated.
   pure subroutine finish_running(stats, mass, res)
     type(running_t), intent(in) :: stats
     real(wp), intent(in) :: mass
     type(case_result_t), intent(inout) :: res
     type(figure_t) :: f
     real(wp) :: value, start
+    real(wp), dimension(quantity_count) :: maximum, maximum_time
     integer :: k
+    maximum = stats%maximum(1, :)
+    maximum_time = stats%maximum_time(1, :)
+    res%counts(fig_peaks_truncated) = 0
+    if (is_model_limit(res%status) .and. stats%n_unclear(1) > 0) then
+      res%counts(fig_peaks_truncated) = 1
+      maximum = stats%clear_maximum(1, :)
+      maximum_time = stats%clear_maximum_time(1, :)
+      if (stats%n_clear(1) == 0) then
+        maximum = ieee_value(value, ieee_quiet_nan)
+        maximum_time = maximum
+      end if
+    end if
     do k = 1, figure_count
       f = figures(k)        ! (a copy: gfortran 12 misreads an associate name of a constant's element)
       select case (f%source)
       case (from_maximum)
-        value = stats%maximum(1, f%quantity)
+        value = maximum(f%quantity)
       case (from_maximum_time)
-        value = stats%maximum_time(1, f%quantity)
+        value = maximum_time(f%quantity)
       case (from_last)
         value = stats%last(1, f%quantity)
       case (from_time_beyond)
@@ -236,7 +300,8 @@ contains
         ! without gravity (the test is also false where the quotient would
         ! overflow)
         start = abs(stats%start(1, f%quantity))
-        if (value / huge(1.0_wp) < start) then
+        if (ieee_is_nan(value)) then      ! (no clear step end: NaN is not compared, for the builds that trap)
+        else if (value / huge(1.0_wp) < start) then
           value = value / start
         else
           value = ieee_value(value, ieee_quiet_nan)

@@ -14,7 +14,7 @@ module ellroll_ball_lanes
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
   use ellroll_excitation, only: excitation_none
   use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
-      q_friction_needed, q_energy, q_surface_residual
+      q_friction_needed, q_energy, q_surface_residual, q_fit_clearance, peak_clearance
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
   implicit none
@@ -318,6 +318,8 @@ contains
       fr = p%fit_radius(l)
       ! (both > 0) as min(...) > 0; trace - 2 fr has the sign of the exact difference
       fits = min(fr * (fr - trace) + det, trace - 2 * fr) > 0
+      out%quantity(l, q_fit_clearance) = min(r * (1 + peak_clearance) * (r * (1 + peak_clearance) - trace) + det, &
+                                             trace - 2 * (r * (1 + peak_clearance)))
       ! the limits of limit_status, the first match winning: applied last to
       ! first. A sum of magnitudes is NaN or Inf when one of them is (in a
       ! valid state they are far from overflow).

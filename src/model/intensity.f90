@@ -19,7 +19,14 @@ module ellroll_intensity
   implicit none
   private
 
-  public :: record_intensity_t, record_intensity, pseudo_spectral_acceleration, refinement
+  public :: record_intensity_t, record_intensity, pseudo_spectral_acceleration, refinement, intensity_of, &
+            damping_ratio, max_sa_periods
+
+  !> The damping ratio of the spectral accelerations stored (the 5 % of the
+  !> design spectra of ASCE 7 and Eurocode 8).
+  real(wp), parameter :: damping_ratio = 0.05_wp
+  !> The most user-given periods of Sa (&excitation sa_periods).
+  integer, parameter :: max_sa_periods = 16
 
   !> Points per sample step at which the peaks are taken (the solution is
   !> exact there): a peak between them is missed by at most about
@@ -30,16 +37,27 @@ module ellroll_intensity
     real(wp) :: pga = 0     !< m/s^2, peak of |a_g| (horizontal)
     real(wp) :: pgv = 0     !< m/s
     real(wp) :: pgd = 0     !< m
+    real(wp), allocatable :: periods(:)   !< s, of sa
+    real(wp), allocatable :: sa(:)        !< m/s^2, at damping_ratio
   end type record_intensity_t
 
 contains
+
+  !> Every intensity measure of the record: PGA, PGV, PGD and Sa at `periods`.
+  pure function intensity_of(times, values, periods) result(im)
+    real(wp), intent(in) :: times(:), values(:, :), periods(:)
+    type(record_intensity_t) :: im
+    im = record_intensity(times, values)
+    im%periods = periods
+    im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
+  end function intensity_of
 
   !> PGA, PGV and PGD of the horizontal components (rows 1 and 2 of values,
   !> m/s^2, at times, s), from rest at the first sample.
   pure function record_intensity(times, values) result(im)
     real(wp), intent(in) :: times(:), values(:, :)
     type(record_intensity_t) :: im
-    real(wp) :: v(2), d(2), v_next(2), d_next(2), a0(2), a1(2), h, s
+    real(wp) :: v(2), d(2), v_next(2), d_next(2), v_start(2), d_start(2), a0(2), a1(2), h, s, s_prev
     integer :: k, j
     v = 0
     d = 0
@@ -50,15 +68,20 @@ contains
       a1 = values(1:2, k + 1)
       ! |a| is convex on the step: its peak is at a sample
       im%pga = max(im%pga, norm2(a1))
+      v_start = v
+      d_start = d
       do j = 1, refinement
         s = h * j / refinement
-        v_next = v + a0 * s + (a1 - a0) * s**2 / (2 * h)
-        d_next = d + v * s + a0 * s**2 / 2 + (a1 - a0) * s**3 / (6 * h)
-        im%pgv = max(im%pgv, norm2(v_next))
-        im%pgd = max(im%pgd, norm2(d_next))
+        s_prev = h * (j - 1) / refinement
+        v_next = v_start + a0 * s + (a1 - a0) * s**2 / (2 * h)
+        d_next = d_start + v_start * s + a0 * s**2 / 2 + (a1 - a0) * s**3 / (6 * h)
+        ! v is quadratic and d cubic in s: Hermite's cubic on a sub-step is exact
+        im%pgv = max(im%pgv, norm2(v_next), &
+                     hermite_peak(v, a0 + (a1 - a0) * (s_prev / h), v_next, a0 + (a1 - a0) * (s / h), s - s_prev))
+        im%pgd = max(im%pgd, norm2(d_next), hermite_peak(d, v, d_next, v_next, s - s_prev))
+        v = v_next
+        d = d_next
       end do
-      v = v_next
-      d = d_next
     end do
   end function record_intensity
 
@@ -67,7 +90,7 @@ contains
   pure function pseudo_spectral_acceleration(times, values, periods, zeta) result(sa)
     real(wp), intent(in) :: times(:), values(:, :), periods(:), zeta
     real(wp) :: sa(size(periods))
-    real(wp) :: omega, peak, x(2, 2), h, h_step, f0(2), f1(2), slope(2), propagator(4, 4)
+    real(wp) :: omega, peak, x(2, 2), x_prev(2, 2), h, h_step, f0(2), f1(2), slope(2), propagator(4, 4)
     integer :: p, k, j
     do p = 1, size(periods)
       omega = 8 * atan(1.0_wp) / periods(p)
@@ -84,13 +107,61 @@ contains
         f1 = -values(1:2, k + 1)
         slope = (f1 - f0) / (times(k + 1) - times(k))
         do j = 1, refinement
+          x_prev = x
           x = advance(propagator, x, f0 + slope * (h * (j - 1)), slope)
-          peak = max(peak, hypot(x(1, 1), x(1, 2)))
+          ! between the exact states: Hermite's cubic of u from u and u'
+          ! (error of order (omega h)^4 of the peak)
+          peak = max(peak, hypot(x(1, 1), x(1, 2)), hermite_peak(x_prev(1, :), x_prev(2, :), x(1, :), x(2, :), h))
         end do
       end do
       sa(p) = omega**2 * peak
     end do
   end function pseudo_spectral_acceleration
+
+  !> The largest |p(s)| inside [0, delta] of the cubic Hermite interpolant
+  !> of a plane vector p with values p0, p1 and derivatives q0, q1 at the
+  !> ends, where |p| has a maximum inside (d|p|^2/ds falls from > 0 to
+  !> <= 0); else 0 (the ends are taken apart). A golden-section search: |p|
+  !> is unimodal on a sub-step that short.
+  pure real(wp) function hermite_peak(p0, q0, p1, q1, delta) result(peak)
+    real(wp), intent(in) :: p0(2), q0(2), p1(2), q1(2), delta
+    real(wp), parameter :: ratio = 0.6180339887498949_wp
+    real(wp) :: low, high, s1, s2, f1, f2
+    integer :: it
+    peak = 0
+    if (.not. (dot_product(p0, q0) > 0 .and. dot_product(p1, q1) <= 0)) return
+    low = 0
+    high = 1
+    s1 = high - ratio * (high - low)
+    s2 = low + ratio * (high - low)
+    f1 = at(s1)
+    f2 = at(s2)
+    do it = 1, 60
+      if (f1 < f2) then
+        low = s1
+        s1 = s2
+        f1 = f2
+        s2 = low + ratio * (high - low)
+        f2 = at(s2)
+      else
+        high = s2
+        s2 = s1
+        f2 = f1
+        s1 = high - ratio * (high - low)
+        f1 = at(s1)
+      end if
+    end do
+    peak = sqrt(max(f1, f2))
+  contains
+    !> |p|^2 at the fraction t of the sub-step
+    pure real(wp) function at(t)
+      real(wp), intent(in) :: t
+      real(wp) :: p(2)
+      p = (2 * t**3 - 3 * t**2 + 1) * p0 + (t**3 - 2 * t**2 + t) * delta * q0 + (-2 * t**3 + 3 * t**2) * p1 + &
+          (t**3 - t**2) * delta * q1
+      at = dot_product(p, p)
+    end function at
+  end function hermite_peak
 
   !> The state (u, v) of each component after one sub-step, from its start
   !> x with forcing f there and slope df/dt.

@@ -4,10 +4,18 @@
 !> observation (ellroll_case_run), the batch's lanes_observe computes them in
 !> the same arithmetic, into one column each.
 module ellroll_quantities
+  use ellroll_kinds, only: wp
   implicit none
   private
 
-  public :: quantity_t, quantities, quantity_count
+  public :: quantity_t, quantities, quantity_count, peak_clearance
+
+  !> The peaks of a case that ends at a model limit are taken over the step
+  !> ends where both principal radii of curvature of the cup at the contact
+  !> exceed R (1 + peak_clearance): the approach to no_fit (r_min -> R) is
+  !> singular, its forces grow as 1 / (r_min - R) to a size set by
+  !> fit_margin alone.
+  real(wp), parameter :: peak_clearance = 0.05_wp
 
   type :: quantity_t
     character(len=24) :: name
@@ -21,12 +29,14 @@ module ellroll_quantities
       quantity_t('reaction_normal'), &                       ! normal force, N
       quantity_t('friction_needed'), &                       ! |F_t| / N
       quantity_t('energy', change=.true.), &                 ! J
-      quantity_t('surface_residual')]                        ! of the contact point
+      quantity_t('surface_residual'), &                      ! of the contact point
+      quantity_t('fit_clearance')]                           ! > 0: both principal radii above R (1 + peak_clearance)
   integer, parameter :: quantity_count = size(quantities)
   integer, parameter, public :: q_displacement_sq = findloc(quantities%name, 'displacement_sq', dim=1), &
       q_horizontal_force_sq = findloc(quantities%name, 'horizontal_force_sq', dim=1), &
       q_reaction_normal = findloc(quantities%name, 'reaction_normal', dim=1), &
       q_friction_needed = findloc(quantities%name, 'friction_needed', dim=1), &
       q_energy = findloc(quantities%name, 'energy', dim=1), &
-      q_surface_residual = findloc(quantities%name, 'surface_residual', dim=1)
+      q_surface_residual = findloc(quantities%name, 'surface_residual', dim=1), &
+      q_fit_clearance = findloc(quantities%name, 'fit_clearance', dim=1)
 end module ellroll_quantities

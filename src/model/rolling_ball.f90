@@ -19,6 +19,7 @@ module ellroll_rolling_ball
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
+  use ellroll_quantities, only: peak_clearance
   implicit none
   private
 
@@ -81,6 +82,7 @@ module ellroll_rolling_ball
     real(wp) :: energy_of_motion     !< energy - m g R (the bottom at rest is 0)
     real(wp) :: surface_residual
     logical :: fits            !< r_min > R (1 + fit_margin): the ball fits the cup here
+    real(wp) :: fit_clearance  !< > 0 where r_min > R (1 + peak_clearance) (ellroll_quantities)
     real(wp) :: base_acceleration(3) !< acceleration of the cup, m/s^2
     real(wp) :: center_acceleration(3)  !< absolute acceleration of the centre, m/s^2
   end type observation_t
@@ -509,6 +511,8 @@ contains
     det = ball%cup%det_axes2 * inv_s2 * inv_s2
     fit_radius = r * (1 + ball%fit_margin)
     obs%fits = min(fit_radius * (fit_radius - trace) + det, trace - 2 * fit_radius) > 0
+    fit_radius = r * (1 + peak_clearance)
+    obs%fit_clearance = min(fit_radius * (fit_radius - trace) + det, trace - 2 * fit_radius)
   end subroutine observe
 
   !> The nutation angle Theta, between n and the vertical (rad), from the

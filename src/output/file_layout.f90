@@ -5,16 +5,19 @@
 !> writer and the in-memory results of the C interface both lay out from
 !> here, so that their names cannot drift apart.
 module ellroll_file_layout
-  use ellroll_kinds, only: i8
+  use ellroll_kinds, only: wp, i8
   use ellroll_records, only: named_value_t, int_value
   use ellroll_status, only: status_count, status_name
   use ellroll_cases, only: case_t, case_record
-  use ellroll_results, only: case_result_t, summary_record
+  use ellroll_results, only: case_result_t, summary_record, figure_values
+  use ellroll_limit_states, only: exceeded_flag
+  use ellroll_figures, only: figures
+  use ellroll_strings, only: format_real
   implicit none
   private
 
   public :: time_entry, xyz_entry, mode_entry, case_entry, status_entry, file_title, file_references
-  public :: table_row, status_flag_meanings
+  public :: table_row, file_row, limit_state_row, status_flag_meanings
 
   !> the shared dimension scales (at the root), each group's case index,
   !> and /summary/status
@@ -39,6 +42,36 @@ contains
     type(named_value_t), allocatable :: row(:)
     row = [case_record(cs), summary_record(res), int_value('status', '', '', int(res%status, i8))]
   end function table_row
+
+  !> A case's row of the output file: table_row, then its /limit_state
+  !> flags (the C interface's results hold table_row alone).
+  function file_row(cs, res) result(row)
+    type(case_t), intent(in) :: cs
+    type(case_result_t), intent(in) :: res
+    type(named_value_t), allocatable :: row(:)
+    row = [table_row(cs, res), limit_state_row(cs, res)]
+  end function file_row
+
+  !> Whether the case exceeded each of its limit states (1) or not (0).
+  function limit_state_row(cs, res) result(row)
+    type(case_t), intent(in) :: cs
+    type(case_result_t), intent(in) :: res
+    type(named_value_t), allocatable :: row(:)
+    integer :: k, n
+    real(wp), allocatable :: value(:)
+    n = 0
+    if (allocated(cs%limit_states)) n = size(cs%limit_states)
+    allocate (row(n))
+    do k = 1, n
+      associate (state => cs%limit_states(k))
+        value = figure_values(res, state%figure)
+        row(k) = int_value(trim(state%name), '1', '1: ' // trim(figures(state%figure)%name) // ' > ' // &
+                           format_real(state%capacity) // ' ' // trim(figures(state%figure)%unit) // &
+                           ', or a model limit; 0: not exceeded or no outcome (see status)', &
+                           exceeded_flag(state, res%status, value(1)))
+      end associate
+    end do
+  end function limit_state_row
 
   !> CF's flag_meanings of the status: its names, in the order of its values 0, 1, ...
   subroutine status_flag_meanings(meanings)

@@ -12,12 +12,14 @@ module ellroll_hdf5_groups
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: dataset_inputs
+  use ellroll_limit_states, only: limit_state_t
+  use ellroll_figures, only: figures
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
   implicit none
   private
 
-  public :: shared_scales, case_group, trajectory_group, trajectory_label
+  public :: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group
 
   !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
   integer, parameter :: max_chunk_bytes = 2**20
@@ -135,6 +137,37 @@ contains
     call lay%close_dataset(scale)
     call lay%close_group(group)
   end subroutine case_group
+
+  !> /limit_state: a flag per case (int8: 1 exceeded, 0 not) per limit
+  !> state, named by it, its figure, capacity and the capacity's units as
+  !> attributes; `rec` gives the names and long names (file_layout's
+  !> limit_state_row).
+  subroutine limit_state_group(lay, indices, states, rec, coords)
+    type(layout_t), intent(inout) :: lay
+    integer(i8), intent(in) :: indices(:)
+    type(limit_state_t), intent(in) :: states(:)
+    type(named_value_t), intent(in) :: rec(:)
+    type(coordinate_t), intent(in) :: coords(:)
+    integer(hid_t) :: group, scale, dset
+    integer :: k
+    group = lay%new_group('limit_state')
+    scale = case_scale(lay, group, indices)
+    call coordinate_datasets(lay, group, scale, coords)
+    do k = 1, size(states)
+      if (lay%err%failed()) exit
+      dset = lay%int_dataset(group, trim(rec(k)%name), size(indices, kind=i8), '1', trim(rec(k)%description), &
+                             small=.true.)
+      call lay%attach(dset, scale, 0)
+      call lay%text_attribute(dset, 'figure', trim(figures(states(k)%figure)%name))
+      call lay%real_attribute(dset, 'capacity', states(k)%capacity)
+      call lay%text_attribute(dset, 'capacity_units', trim(figures(states(k)%figure)%unit))
+      call lay%text_attribute(dset, 'flag_meanings', 'not_exceeded exceeded')
+      call name_coordinates(lay, dset, coords)
+      call lay%close_dataset(dset)
+    end do
+    call lay%close_dataset(scale)
+    call lay%close_group(group)
+  end subroutine limit_state_group
 
   !> The group's own 'case' scale, holding the global case indices.
   integer(hid_t) function case_scale(lay, group, indices) result(id)

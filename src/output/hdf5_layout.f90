@@ -29,6 +29,7 @@ module ellroll_hdf5_layout
     procedure :: new_group
     procedure :: text_attribute
     procedure :: int_attribute
+    procedure :: real_attribute
     procedure :: real_dataset
     procedure :: int_dataset
     procedure :: text_dataset
@@ -107,6 +108,17 @@ contains
     call self%check(min(hdferr, code), 'write attribute ' // name)
   end subroutine int_attribute
 
+  subroutine real_attribute(self, loc, name, value)
+    class(layout_t), intent(inout) :: self
+    integer(hid_t), intent(in) :: loc
+    character(len=*), intent(in) :: name
+    real(wp), intent(in) :: value
+    integer :: hdferr
+    if (self%err%failed()) return
+    call h5ltset_attribute_double_f(loc, '.', name, [value], 1_size_t, hdferr)
+    call self%check(hdferr, 'write attribute ' // name)
+  end subroutine real_attribute
+
   !> A dataset of reals, NaN until written, with its units and long name:
   !> chunked (and deflated at the layout's level) when `chunk` is given;
   !> contiguous, allocated now and never filled when `in_place`.
@@ -165,13 +177,16 @@ contains
     end if
   end function real_dataset
 
-  integer(hid_t) function int_dataset(self, loc, name, n, units, description, fill) result(dset)
+  !> A dataset of integers (64-bit; 8-bit where `small`: flags), written
+  !> from 64-bit values.
+  integer(hid_t) function int_dataset(self, loc, name, n, units, description, fill, small) result(dset)
     class(layout_t), intent(inout) :: self
     integer(hid_t), intent(in) :: loc
     character(len=*), intent(in) :: name, units, description
     integer(i8), intent(in) :: n
     integer(i8), intent(in), optional, target :: fill
-    integer(hid_t) :: space, dcpl
+    logical, intent(in), optional :: small
+    integer(hid_t) :: space, dcpl, file_type
     integer :: hdferr
     dset = -1
     if (self%err%failed()) return
@@ -183,7 +198,11 @@ contains
       call h5pset_fill_value_f(dcpl, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(fill), hdferr)
       call self%check(hdferr, 'set a fill value')
     end if
-    if (.not. self%err%failed()) call h5dcreate_f(loc, name, H5T_STD_I64LE, space, dset, hdferr, dcpl_id=dcpl)
+    file_type = H5T_STD_I64LE
+    if (present(small)) then
+      if (small) file_type = H5T_STD_I8LE
+    end if
+    if (.not. self%err%failed()) call h5dcreate_f(loc, name, file_type, space, dset, hdferr, dcpl_id=dcpl)
     call self%check(hdferr, 'create dataset ' // name)
     call h5pclose_f(dcpl, hdferr)
     call self%check(hdferr, 'close a property list')

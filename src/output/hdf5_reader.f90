@@ -41,6 +41,7 @@ module ellroll_hdf5_reader
     procedure :: open => open_input
     procedure :: close => close_input
     procedure :: has
+    procedure :: members
     procedure :: dataset_length
     procedure :: text_attribute
     procedure :: real_column
@@ -106,6 +107,33 @@ contains
     call h5lexists_f(self%file, name, has, hdferr)
     if (hdferr < 0) has = .false.
   end function has
+
+  !> The names of the members of a group, in their creation order (none
+  !> where it is absent).
+  subroutine members(self, group, names)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: group
+    character(len=64), allocatable, intent(out) :: names(:)
+    integer(hid_t) :: gid
+    integer :: hdferr, storage, n_links, max_order, k
+    integer(size_t) :: length
+    allocate (names(0))
+    if (.not. self%has(group)) return
+    call h5gopen_f(self%file, group, gid, hdferr)
+    if (hdferr < 0) return
+    call h5gget_info_f(gid, storage, n_links, max_order, hdferr)
+    if (hdferr >= 0) then
+      deallocate (names)
+      allocate (names(n_links))
+      names = ''
+      do k = 1, n_links
+        call h5lget_name_by_idx_f(gid, '.', H5_INDEX_CRT_ORDER_F, H5_ITER_INC_F, int(k - 1, hsize_t), names(k), &
+                                  hdferr, length)
+        if (hdferr < 0) names(k) = ''
+      end do
+    end if
+    call h5gclose_f(gid, hdferr)
+  end subroutine members
 
   integer(i8) function dataset_length(self, name) result(n)
     class(h5_input_t), intent(in) :: self

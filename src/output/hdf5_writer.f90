@@ -20,12 +20,12 @@ module ellroll_hdf5_writer
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
-  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label
-  use ellroll_file_layout, only: table_row, file_title, file_references
+  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group
+  use ellroll_file_layout, only: table_row, file_row, limit_state_row, file_title, file_references
   implicit none
   private
 
-  public :: h5_output_t, provenance_t, window_list_t, table_row, written_in_place
+  public :: h5_output_t, provenance_t, window_list_t, table_row, file_row, written_in_place
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
@@ -93,7 +93,7 @@ module ellroll_hdf5_writer
     type(window_list_t) :: spare                     !< written windows, their buffers kept for reuse
     integer(i8) :: windows_opened = 0
     integer :: window_rows = 1                       !< cases per window
-    character(len=8), allocatable :: row_groups(:)   !< the group of each row entry
+    character(len=11), allocatable :: row_groups(:)  !< the group of each row entry
   contains
     procedure :: create
     procedure :: keep_case
@@ -123,7 +123,7 @@ contains
     type(layout_t) :: lay
     integer(i8) :: address(field_count), label_address
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
-    type(named_value_t), allocatable :: inputs(:), figures(:)
+    type(named_value_t), allocatable :: inputs(:), figures(:), states(:)
 
     lay%path = path
     if (present(compression)) lay%deflate_level = compression
@@ -142,8 +142,11 @@ contains
     call case_group(lay, 'case', indices, inputs, coords(:0))
     call trajectory_group(lay, self%fields, self%in_windows, times, indices, coords, address)
     call case_group(lay, 'summary', indices, figures, coords)
-    ! a row (table_row): the inputs, the figures, the status
-    self%row_groups = [spread('case    ', 1, size(inputs)), spread('summary ', 1, size(figures) + 1)]
+    states = limit_state_row(template, case_result_t())
+    if (size(states) > 0) call limit_state_group(lay, indices, template%limit_states, states, coords)
+    ! a row (file_row): the inputs, the figures, the status, the limit states
+    self%row_groups = [character(len=11) :: spread('case', 1, size(inputs)), &
+                       spread('summary', 1, size(figures) + 1), spread('limit_state', 1, size(states))]
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)
@@ -254,7 +257,7 @@ contains
     else
       call self%put_trajectories(icase, [res], err)
     end if
-    call self%keep_case(icase, table_row(cs, res), res, full)
+    call self%keep_case(icase, file_row(cs, res), res, full)
     call self%write_windows(full, err)
     call self%recycle(full)
   end subroutine write_case

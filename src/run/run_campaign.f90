@@ -23,7 +23,7 @@ module ellroll_run_campaign
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
-  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, table_row
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, file_row
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
@@ -236,10 +236,10 @@ contains
     end do
     if (n_done > 0) call run%timings%add_write(writes_trajectories, asked)
     record_size = run%journal%record_words + 1
-    allocate (records(record_size * n_done), rows(size(table_row(cases(1), results(1))), n_done))
+    allocate (records(record_size * n_done), rows(size(file_row(cases(1), results(1))), n_done))
     do j = 1, n_done
       records((j - 1) * record_size + 1:j * record_size) = run%journal%record(slots(j), results(j))
-      rows(:, j) = table_row(cases(j), results(j))
+      rows(:, j) = file_row(cases(j), results(j))
     end do
     ! the journal: places taken under its lock, the records written there
     ! outside it, after the trajectories (a resume takes a journaled case's

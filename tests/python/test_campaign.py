@@ -183,7 +183,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # (src/cases/results.f90: wall_time is the 5th), the checksum of the
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
-SUMMARY_ENTRIES, WALL_TIME_ENTRY = 27, 4
+SUMMARY_ENTRIES, WALL_TIME_ENTRY = 29, 4
 # magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
 # input's files (empty without records) and its checksum
 JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8 + 1) + 8 + 8
@@ -518,7 +518,7 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
                 # undefined (no reference run, no excitation, no capacity set)
                 assert np.all(np.isfinite(values[0])) or name in (
                     "nutation_period", "transmissibility", "error_contact", "error_theta", "error_energy",
-                    "time_beyond_capacity", "residual_displacement", "rest_time"), name
+                    "time_beyond_capacity", "residual_displacement", "rest_time", "sa_linear_periods"), name
             else:
                 assert np.all(values[[1, 3]] == 0), name
     table = run(ellroll, "summary", "out.h5", "--format", "csv", cwd=tmp_path).stdout.splitlines()

@@ -165,3 +165,48 @@ def test_both_pairs_end_each_hard_case_as_it_states(ellroll, ellroll_debug, tmp_
     for case, outcome in enumerate(own):
         if outcome != "completed":
             assert abs(ends["dop853"][case] - ends["vern9"][case]) < 1e-9, (outcome, ends)
+
+
+def principal_radii(point, a, b, c):
+    """Both principal radii of curvature of the cup (x/a)^2 + (y/b)^2 +
+    ((z - c)/c)^2 = 1 at a point of it: the inverse eigenvalues of the
+    shape operator P H P / |grad F| on the tangent plane."""
+    d = np.diag([1 / a**2, 1 / b**2, 1 / c**2])
+    x = np.array([point[0], point[1], point[2] - c])
+    grad = 2 * d @ x
+    n = grad / np.linalg.norm(grad)
+    p = np.eye(3) - np.outer(n, n)
+    shape = p @ (2 * d) @ p / np.linalg.norm(grad)
+    curvatures = sorted(np.linalg.eigvalsh(shape))[1:]       # the normal direction's 0 left out
+    return 1 / np.array(curvatures)
+
+
+def test_peaks_at_no_fit_are_taken_clear_of_its_singular_approach(ellroll, tmp_path):
+    """The peaks of a case that ends at no_fit are those of the step ends where
+    both radii of curvature at the contact exceed 1.05 R: numpy's maximum over
+    the samples (one per step) chosen so, the same bits for any fit_margin
+    (the singular peak grows as 1 / fit_margin without the cut), of the size
+    of the last samples."""
+    peaks = {}
+    for margin in ("1.0e-3", "1.0e-9"):
+        f, _ = run_hard(ellroll, tmp_path, "reaches_no_fit.nml",
+                        edits=[("t_end = 1.0 /", f"t_end = 1.0, fit_margin = {margin} /"),
+                               ("interval = 1.0e-3", "interval = 1.0e-4")])
+        with f:
+            assert status(f) == "no_fit" and f["summary/peaks_truncated"][0] == 1
+            peaks[margin] = {n: f[f"summary/{n}"][0] for n in (
+                "absolute_acceleration_max", "absolute_acceleration_max_time", "horizontal_force_max",
+                "reaction_normal_max", "displacement_max")}
+            t, contact = f["time"][:], f["trajectory/contact"][0]
+            force = np.hypot(*f["trajectory/reaction"][0, :, :2].T)
+            done = np.isfinite(force)
+            clear = np.array([np.all(principal_radii(p, 1.0, 0.4, 0.2) > 1.05 * 0.7) if ok else False
+                              for p, ok in zip(contact, done)])
+            assert 0 < clear.sum() < done.sum()             # the cut leaves some samples out
+            mass = 100.0 / 9.81
+            k = np.argmax(np.where(clear, force, -1.0))
+            assert peaks[margin]["horizontal_force_max"] == pytest.approx(force[k], rel=1e-12)
+            assert peaks[margin]["absolute_acceleration_max_time"] == pytest.approx(t[k], abs=1e-12)
+            last = force[done][-1] / mass
+            assert 0.1 * last < peaks[margin]["absolute_acceleration_max"] < 10 * last
+    assert peaks["1.0e-3"] == peaks["1.0e-9"]

@@ -1,0 +1,170 @@
+"""User limit states (&limit_state): /limit_state/NAME per case equals what
+numpy finds from /summary and the status (exceeded: ended at a model limit,
+or completed with the figure above the capacity), the same bits after
+shards are merged and after a killed run is resumed, read by
+ellroll_post.suite's statistics; bad groups are refused with the file,
+group, variable and value."""
+import shutil
+
+import h5py
+import numpy as np
+import pytest
+
+import ellroll_post
+from ellroll_post import suite
+from conftest import ROOT, run
+from test_campaign import assert_same_datasets, kill_after_records, record_bytes
+
+SUITE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
+&ball        radius = 0.2, weight = 2620.0 /
+&initial     x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 12.0 /
+&excitation  kind = 'record' /
+&record      name = 'SYN1', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /
+&record      name = 'SYN2', record_file = 'records/SYN2_H1.AT2', 'records/SYN2_H2.AT2' /
+&record      name = 'SYN3', record_file = 'records/SYN3_H1.AT2', 'records/SYN3_H2.AT2', factor = 1.5 /
+&sweep       name = 'scale', values = 40.0, 70.0, 90.0 /
+&sweep       name = 'rolling_resistance', values = 1.0e-5, 1.0e-3 /
+&output      file = 'out.h5', interval = 0.1, fields = 'center' /
+&limit_state name = 'drift', figure = 'displacement_max', capacity = 0.1 /
+&limit_state name = 'shock', figure = 'Absolute_acceleration_max', capacity = 14.0 /
+"""
+STATES = {"drift": ("displacement_max", 0.1, "m"), "shock": ("absolute_acceleration_max", 14.0, "m/s^2")}
+
+
+def write(folder, text=SUITE):
+    if not (folder / "records").exists():
+        shutil.copytree(ROOT / "input" / "records", folder / "records")
+    (folder / "suite.nml").write_text(text)
+    return "suite.nml"
+
+
+@pytest.fixture(scope="module")
+def whole(ellroll, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("limit_states")
+    name = write(folder)
+    result = run(ellroll, "run", name, "-q", "--threads", "2", "-o", "whole.h5", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    return folder / "whole.h5"
+
+
+def test_flags_equal_the_status_and_the_figures(whole):
+    with h5py.File(whole, "r") as f:
+        status = f["summary/status"]
+        names = np.array(status.attrs["flag_meanings"].split())[status[()]]
+        assert {"completed", "liftoff"} <= set(names)
+        at_limit = np.isin(names, ["rim", "no_fit", "slip", "liftoff"])
+        for state, (figure, capacity, units) in STATES.items():
+            flags = f[f"limit_state/{state}"]
+            assert flags.dtype == np.int8 and flags.shape == names.shape
+            assert flags.attrs["figure"] == figure and flags.attrs["capacity"] == capacity
+            assert flags.attrs["capacity_units"] == units and flags.attrs["units"] == "1"
+            expected = at_limit | ((names == "completed") & (f[f"summary/{figure}"][()] > capacity))
+            assert np.array_equal(flags[()], expected.astype(np.int8)), state
+            # both kinds occur among the completed cases: the test can fail
+            completed = names == "completed"
+            assert 0 < np.sum(flags[()][completed]) < np.sum(completed), state
+
+
+def test_suite_statistics_read_the_flags(whole):
+    with ellroll_post.open(whole) as f:
+        assert sorted(suite.limit_state_columns(f)) == ["drift", "shock"]
+        table = suite.suite_statistics(f)
+        status = np.array(f.status_names())
+        displacement = f.summary("displacement_max")
+    assert {"n_drift", "fraction_drift", "n_shock", "fraction_shock"} <= set(table.columns)
+    row = table[(table["scale"] == 40.0) & (table["rolling_resistance"] == 1e-5)].iloc[0]
+    with ellroll_post.open(whole) as f:
+        cases = (f.input_column("scale") == 40.0) & (f.input_column("rolling_resistance") == 1e-5)
+    hit = np.sum(cases & (status == "completed") & (displacement > 0.1)) + np.sum(cases & (status == "liftoff"))
+    assert row["n_drift"] == hit and row["fraction_drift"] == hit / cases.sum()
+
+
+def test_shards_merge_and_a_resume_give_the_same_flags(ellroll, whole):
+    folder = whole.parent
+    name = "suite.nml"
+    for i in range(2):
+        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/2", "-o", f"shard_{i}.h5", cwd=folder)
+        assert result.returncode == 0, result.stderr
+    result = run(ellroll, "merge", "merged.h5", "shard_1.h5", "shard_0.h5", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(whole, folder / "merged.h5")
+    journal = folder / "out.h5.journal"
+    # 18 cases of about 17 ms on one thread: killed after the second
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], folder, journal, 2,
+                              record_bytes())
+    assert journal.exists() and not (folder / "out.h5").exists()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(whole, folder / "out.h5")
+    with h5py.File(folder / "out.h5", "r") as f:
+        assert sorted(f["limit_state"]) == sorted(["case", "scale", "rolling_resistance", "record", "drift", "shock"])
+
+
+def test_a_file_without_limit_states_has_no_group(paper_file):
+    with h5py.File(paper_file, "r") as f:
+        assert "limit_state" not in f
+
+
+@pytest.mark.parametrize("group, words", [
+    ("name = '1x', figure = 'displacement_max', capacity = 0.1", "name = '1x': must be an identifier"),
+    ("name = 'd', figure = 'displacment_max', capacity = 0.1",
+     "figure = 'displacment_max': unknown figure 'displacment_max'; did you mean displacement_max?"),
+    ("name = 'd', figure = 'linear_periods', capacity = 1", "unknown figure 'linear_periods'"),
+    ("name = 'd', figure = 'wall_time', capacity = 1", "unknown figure 'wall_time'"),
+    ("name = 'd', figure = 'displacement_max'", "capacity is required but not given"),
+    ("name = 'd', figure = 'displacement_max', capacity = 1e400", "capacity = 1e400: must be a finite number"),
+    ("figure = 'theta_max', capacity = 0.1", "name is required but not given"),
+    ("name = 'd', capacity = 0.1", "figure is required but not given"),
+    ("name = 'drift', figure = 'theta_max', capacity = 0.1", "name = 'drift': already names the &limit_state at"),
+    ("name = 'd', figure = 'theta_max', capacity = 0.1, margin = 2", "unknown variable margin = 2"),
+])
+def test_bad_limit_states(ellroll, tmp_path, group, words):
+    name = write(tmp_path, SUITE + f"&limit_state {group} /\n")
+    result = run(ellroll, "check", name, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "suite.nml:" in result.stderr and "&limit_state" in result.stderr and words in result.stderr, \
+        result.stderr
+
+
+def test_ellroll_summary_suite_equals_the_python_statistics(ellroll, whole):
+    """`ellroll summary --suite` (JSON and CSV): the columns of
+    ellroll_post.suite.suite_statistics in its order, every number the same
+    (the percentiles in numpy's arithmetic)."""
+    import csv
+    import io
+    import json
+    import math
+    with ellroll_post.open(whole) as f:
+        table = suite.suite_statistics(f)
+    result = run(ellroll, "summary", whole, "--suite", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["stripe_inputs"] == ["scale", "rolling_resistance"] and report["percentiles"] == "linear"
+    assert list(report["stripes"][0]) == list(table.columns)
+    assert report["units"]["displacement_max_p50"] == "m" and report["units"]["n_drift"] == "1"
+    rows = list(csv.DictReader(io.StringIO(run(ellroll, "summary", whole, "--suite", "--format", "csv").stdout)))
+    assert len(report["stripes"]) == len(rows) == len(table) == 6
+    checked = 0
+    for stripe, row, (_, expected) in zip(report["stripes"], rows, table.iterrows()):
+        for name, value in expected.items():
+            for got in (stripe[name], row[name]):
+                got = math.nan if got is None or got == "nan" else float(got)
+                assert (math.isnan(got) and math.isnan(value)) or got == value, (name, got, value)
+                checked += 1
+    assert checked > 400
+    assert any(math.isnan(v) for v in table["displacement_max_p50"]) or table["n_completed"].min() < 3
+    text = run(ellroll, "summary", whole, "--suite")
+    assert text.returncode == 0 and "6 stripes" in text.stdout and "fraction_drift" in text.stdout
+
+
+def test_ellroll_summary_suite_in_the_debug_build(ellroll_debug, whole, paper_file):
+    """The Debug build (bounds checks, FP traps) prints every format, also of
+    a file with no varied input (one stripe) and one case."""
+    import json
+    for path in (whole, paper_file):
+        for fmt in ("table", "csv", "json"):
+            result = run(ellroll_debug, "summary", path, "--suite", "--format", fmt)
+            assert result.returncode == 0, result.stderr
+        stripes = json.loads(result.stdout)["stripes"]
+        assert len(stripes) == (6 if path == whole else 1)
