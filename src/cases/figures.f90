@@ -96,7 +96,14 @@ module ellroll_figures
                'last whole periods (NaN: n/a)', kind_real, 1, from_run), &
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
-               kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity)]
+               kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity), &
+      figure_t('sliding_time', 's', "time the ball slid (slip = 'slide'; 0: it rolled throughout)", kind_real, 1, &
+               from_run), &
+      figure_t('slip_episodes', '1', 'times the ball began to slide', kind_int, 1, from_run), &
+      figure_t('friction_energy', 'J', 'energy the sliding friction dissipated, integral of mu N |u| dt', kind_real, &
+               1, from_run), &
+      figure_t('slip_speed_max', 'm/s', 'largest slip speed |u| of the contact point (step ends)', kind_real, 1, &
+               from_run)]
   integer, parameter :: figure_count = size(figures)
 
   ! Each row's named index, found by its name (0 if misspelt: the Debug
@@ -115,7 +122,11 @@ module ellroll_figures
       fig_n_rhs_reference = findloc(figures%name, 'n_rhs_reference', dim=1), &
       fig_linear_periods = findloc(figures%name, 'linear_periods', dim=1), &
       fig_transmissibility = findloc(figures%name, 'transmissibility', dim=1), &
-      fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1)
+      fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1), &
+      fig_sliding_time = findloc(figures%name, 'sliding_time', dim=1), &
+      fig_slip_episodes = findloc(figures%name, 'slip_episodes', dim=1), &
+      fig_friction_energy = findloc(figures%name, 'friction_energy', dim=1), &
+      fig_slip_speed_max = findloc(figures%name, 'slip_speed_max', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &
       fig_friction_needed_max = findloc(figures%name, 'friction_needed_max', dim=1), &

@@ -143,6 +143,18 @@ contains
       call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
       return
     end select
+    ! 'end' by default: a case whose friction falls short ends with status
+    ! slip, as the rolling model states; sliding is a regime asked for
+    gi = rd%group('ball', .true.)
+    if (gi == 0) return
+    select case (lower(adjustl(v%slip)))
+    case ('end'); cs%slide = .false.
+    case ('slide'); cs%slide = .true.
+    case default
+      call rd%fail_value(gi, 'slip', "must be 'end' or 'slide'")
+      return
+    end select
+    gi = rd%group('integration', .true.)
     if (v%t_end <= 0 .or. v%t_end > 1.0e9_wp) then
       call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
       return
