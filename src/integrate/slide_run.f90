@@ -18,8 +18,8 @@ module ellroll_slide_run
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
-  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, &
-      observe_sliding, slip_velocity
+  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
+      observe_sliding, slip_velocity, stick
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due
   use ellroll_fixed_step_run, only: fixed_step
@@ -32,6 +32,10 @@ module ellroll_slide_run
   !> A step in which the regime switches more often than this ends the case
   !> with status slip: the motion chatters between the regimes there.
   integer, parameter :: max_switches_per_step = 64
+
+  !> The slip has stopped where it has fallen to this part of its value at
+  !> the start of the piece of step in which it turned by a right angle.
+  real(wp), parameter :: stick_fraction = 0.05_wp
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -161,7 +165,7 @@ contains
     type(case_result_t), intent(inout) :: res
     type(regime_state_t) :: trial
     real(wp) :: t, h, h_max, t_next, next_sample_time, factor
-    integer :: status
+    integer :: status, stalled
     integer(i8) :: attempts
     logical :: ended
     h_max = min(cs%t_end, cs%param(p_dt))
@@ -173,6 +177,7 @@ contains
     end if
     t = 0
     attempts = 0
+    stalled = 0
     do while (t < cs%t_end)
       attempts = attempts + 1
       if (stop_asked(attempts)) then
@@ -203,6 +208,12 @@ contains
       call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next)
       res%n_steps = res%n_steps + 1
       if (ended) return
+      stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
+      if (stalled > max_switches_per_step) then
+        res%status = status_slip               ! switches that no longer move on: chattering
+        res%t_final = t
+        return
+      end if
       t = t_next
       call track(run, res, t, now%obs)
       if (sample_due(run, plan, t)) then
@@ -397,9 +408,13 @@ contains
     tally%episodes = tally%episodes + 1
   end subroutine start_sliding
 
-  !> The slip of sliding state now has stopped: the ball rolls on from there
-  !> where rolling's friction is within mu N, else slides on in the
-  !> direction that friction gives.
+  !> The slip of sliding state now has turned by a right angle since the
+  !> piece's start. Where it has stopped (|u| at most stick_fraction of its
+  !> value at the start; the stop's location leaves a slip of round-off
+  !> size, stopped by an impulse: stick, its work added to the friction's),
+  !> the ball rolls on from there where rolling's friction is within mu N,
+  !> else slides on in the direction that friction gives. Where the slip has
+  !> only turned, the ball slides on against its new direction.
   subroutine stop_sliding(rolling, sb, t, now, res, tally)
     type(run_state_t), intent(in) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
@@ -408,12 +423,17 @@ contains
     type(case_result_t), intent(inout) :: res
     type(slide_tally_t), intent(inout) :: tally
     type(regime_state_t) :: rolled
+    if (now%slip_speed > stick_fraction * norm2(sb%slip_at_start)) then
+      call sb%begin_step(now%s)
+      return
+    end if
     rolled%sliding = .false.
-    rolled%y = rolling_from_sliding(now%s)
+    rolled%y = stick(sb%ball, now%s)
     call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
     call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
     res%n_rhs = res%n_rhs + 1
     rolled%slip_speed = 0
+    tally%friction_energy = tally%friction_energy + (now%obs%energy - rolled%obs%energy)
     now = rolled
     if (rolled%obs%friction_needed > sb%ball%mu) then
       call start_sliding(sb, t, now, res, tally)

@@ -25,7 +25,7 @@ module ellroll_sliding_ball
   implicit none
   private
 
-  public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, sliding_derivative, &
+  public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, center_velocity, friction_direction
 
   integer, parameter :: slide_state_size = 8
@@ -97,6 +97,22 @@ contains
     real(wp) :: y(state_size)
     y = s(1:6)
   end function rolling_from_sliding
+
+  !> The rolling state where the slip u of sliding state s is stopped by an
+  !> impulse P of the cup at A (the stop located to round-off leaves a
+  !> slip of that size): m dV_C = P, J d omega = -R n x P and dV_C -
+  !> R d omega x n = -u give P = -u / (1/m + R^2/J); the angular momentum
+  !> about A is kept, and the energy falls by |u|^2 / (2 (1/m + R^2/J)),
+  !> the friction's work in that impulse.
+  pure function stick(ball, s) result(y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: s(slide_state_size)
+    real(wp) :: y(state_size), impulse(3), n(3)
+    n = s(1:3) / norm2(s(1:3))
+    impulse = -slip_velocity(ball, s) / (1 / ball%mass + 1 / (ball%inertia_factor * ball%mass))
+    y(1:3) = s(1:3)
+    y(4:6) = s(4:6) - cross(n, impulse) / (ball%inertia_factor * ball%mass * ball%radius)
+  end function stick
 
   !> The direction of the friction at slip u for a step whose slip mode is
   !> `mode`: against u while u is along the mode (or no mode is set), else
