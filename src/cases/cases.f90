@@ -238,7 +238,9 @@ contains
     problem = problem_velocity_rolls
     if (.not. cs%slide .and. .not. ieee_is_nan(cs%param(p_velocity_x))) return
     problem = problem_velocity_tangent
-    if (abs(start_normal_velocity(cs)) > 1.0e-9_wp * norm2(cs%param(p_velocity_x:p_velocity_z))) return
+    if (.not. ieee_is_nan(cs%param(p_velocity_x))) then    ! (an unset velocity compares with nothing)
+      if (abs(start_normal_velocity(cs)) > 1.0e-9_wp * norm2(cs%param(p_velocity_x:p_velocity_z))) return
+    end if
     param = 0
     problem = 0
   end subroutine find_problem

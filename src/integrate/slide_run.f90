@@ -19,7 +19,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick
+      observe_sliding, slip_velocity, stick, stick_level
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due
   use ellroll_fixed_step_run, only: fixed_step
@@ -32,10 +32,6 @@ module ellroll_slide_run
   !> A step in which the regime switches more often than this ends the case
   !> with status slip: the motion chatters between the regimes there.
   integer, parameter :: max_switches_per_step = 64
-
-  !> The slip has stopped where it has fallen to this part of its value at
-  !> the start of the piece of step in which it turned by a right angle.
-  real(wp), parameter :: stick_fraction = 0.05_wp
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -55,6 +51,7 @@ module ellroll_slide_run
     integer(i8) :: episodes = 0
     real(wp) :: friction_energy = 0
     real(wp) :: slip_speed_max = 0
+    real(wp) :: episode_slip_max = 0      !< the largest slip speed of the episode under way
   end type slide_tally_t
 
 contains
@@ -91,6 +88,7 @@ contains
         res%n_rhs = res%n_rhs + 1
         tally%episodes = 1
         tally%slip_speed_max = now%slip_speed
+        tally%episode_slip_max = now%slip_speed
         call restart_samples(run, res, now%obs)
       end if
     end if
@@ -274,7 +272,7 @@ contains
     logical, intent(out) :: ended
     real(wp), intent(out) :: t_stop
     type(regime_state_t) :: new
-    real(wp) :: t_at, remaining, offset
+    real(wp) :: t_at, remaining, offset, slip_before
     integer :: status, switches
     ended = .false.
     t_at = t
@@ -290,7 +288,19 @@ contains
       end if
       if (.not. switch_crossed(sb, now, new)) then
         call add_sliding(sb, remaining, now, new, tally)
+        slip_before = now%slip_speed
         now = new
+        if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
+          ! a slip that the friction removes within a fixed step, and that
+          ! did not fall over this one: the method's stages around u = 0 do
+          ! not resolve its stop (the friction's direction turns there), and
+          ! it jitters at the size of a step's friction impulse: it stops
+          ! here where rolling can go on (the stop then has an error of up
+          ! to a step or two)
+          if (now%slip_speed <= sb%ball%mu * now%obs%reaction_normal * remaining &
+              * (1 / sb%ball%mass + 1 / (sb%ball%inertia_factor * sb%ball%mass))) &
+            call stop_sliding(rolling, sb, t_at + remaining, now, res, tally, at_rest_only=.true.)
+        end if
         return
       end if
       call switch_inside(integrator, run, rolling, sb, t_at, remaining, now, tally, res, offset, ended)
@@ -406,24 +416,34 @@ contains
     call observe_sliding(sb, t, now%s, now%obs, now%slip_speed, now%fs)
     res%n_rhs = res%n_rhs + 1
     tally%episodes = tally%episodes + 1
+    tally%episode_slip_max = 0
   end subroutine start_sliding
 
-  !> The slip of sliding state now has turned by a right angle since the
-  !> piece's start. Where it has stopped (|u| at most stick_fraction of its
-  !> value at the start; the stop's location leaves a slip of round-off
-  !> size, stopped by an impulse: stick, its work added to the friction's),
+  !> The slip of sliding state now has fallen to stick_level of its value
+  !> at the piece's start, or turned by a right angle. Where it has stopped
+  !> (the first, or the slip is below stick_level of the episode's largest:
+  !> where rolling's friction is close to mu N the slip spirals into zero,
+  !> turning by a right angle ever more often; the rest of the slip is
+  !> stopped by an impulse, stick, its work added to the friction's),
   !> the ball rolls on from there where rolling's friction is within mu N,
   !> else slides on in the direction that friction gives. Where the slip has
   !> only turned, the ball slides on against its new direction.
-  subroutine stop_sliding(rolling, sb, t, now, res, tally)
+  subroutine stop_sliding(rolling, sb, t, now, res, tally, at_rest_only)
     type(run_state_t), intent(in) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t
     type(regime_state_t), intent(inout) :: now
     type(case_result_t), intent(inout) :: res
     type(slide_tally_t), intent(inout) :: tally
+    logical, intent(in), optional :: at_rest_only   !< stop it only where rolling goes on (a slip not located)
     type(regime_state_t) :: rolled
-    if (now%slip_speed > stick_fraction * norm2(sb%slip_at_start)) then
+    if (present(at_rest_only)) then
+      rolled%y = stick(sb%ball, now%s)
+      call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
+      call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
+      res%n_rhs = res%n_rhs + 1
+      if (rolled%obs%friction_needed > sb%ball%mu) return
+    else if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) then
       call sb%begin_step(now%s)
       return
     end if
@@ -454,6 +474,7 @@ contains
     tally%friction_energy = tally%friction_energy + 0.5_wp * h * sb%ball%mu &
         * (from%obs%reaction_normal * from%slip_speed + to%obs%reaction_normal * to%slip_speed)
     tally%slip_speed_max = max(tally%slip_speed_max, to%slip_speed)
+    tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
   end subroutine add_sliding
 
   !> The step h from (t, now) met a limit: the case ends where the method's

@@ -33,6 +33,13 @@ module ellroll_sliding_ball
   !> The event of the sliding regime: the slip stops.
   integer, parameter, public :: event_stick = 1
 
+  !> The slip counts as stopped where it has fallen to this part of its
+  !> value at the start of the piece of step (a stopping impulse takes the
+  !> rest: stick). Near the stop the slip's direction turns ever faster
+  !> (at a rate proportional to 1 / |u|), so the stop is located on |u|,
+  !> which falls at a rate bounded away from zero, not on the direction.
+  real(wp), parameter, public :: stick_level = 1.0e-6_wp
+
   !> Where the slip stops inside a step is located to this part of the step.
   real(wp), parameter :: stick_tolerance = 1.0e-12_wp
 
@@ -244,8 +251,8 @@ contains
     if (norm2(u) > 0) self%slip_mode = u / norm2(u)
   end subroutine sliding_begin_step
 
-  !> event_stick where the slip, nonzero at the step's start, has turned by
-  !> a right angle or more at its end.
+  !> event_stick where the slip, nonzero at the step's start, has fallen to
+  !> stick_level of it or turned by a right angle or more at its end.
   pure integer function sliding_event_crossed(self, y_start, y_end) result(event)
     class(sliding_ball_t), intent(in) :: self
     real(wp), intent(in), contiguous :: y_start(:), y_end(:)
@@ -253,7 +260,7 @@ contains
     event = 0
     start = slip_velocity(self%ball, y_start)
     if (norm2(start) <= 0) return
-    if (dot_product(start, slip_velocity(self%ball, y_end)) <= 0) event = event_stick
+    if (stick_value(slip_velocity(self%ball, y_end), start) <= 0) event = event_stick
   end function sliding_event_crossed
 
   !> event_stick's function at the step's start: |u|^2 there.
@@ -264,15 +271,25 @@ contains
     if (event == event_stick) g = dot_product(self%slip_at_start, self%slip_at_start)
   end function sliding_event_start_value
 
-  !> event_stick's function at y: the slip along its value at the step's
-  !> start (linear in time through the stop, unlike |u|).
+  !> event_stick's function at y: stick_value of the slip there.
   pure real(wp) function sliding_event_value(self, event, y) result(g)
     class(sliding_ball_t), intent(in) :: self
     integer, intent(in) :: event
     real(wp), intent(in), contiguous :: y(:)
     g = 1
-    if (event == event_stick) g = dot_product(slip_velocity(self%ball, y), self%slip_at_start)
+    if (event == event_stick) g = stick_value(slip_velocity(self%ball, y), self%slip_at_start)
   end function sliding_event_value
+
+  !> The lesser of |u| - stick_level |u_start| (it falls through zero just
+  !> before the stop, at a rate bounded away from zero) and the slip along
+  !> u_start (it falls through zero where the slip has turned by a right
+  !> angle), times |u_start|: positive at the start, continuous.
+  pure real(wp) function stick_value(u, start) result(g)
+    real(wp), intent(in) :: u(3), start(3)
+    real(wp) :: size_start
+    size_start = norm2(start)
+    g = min(size_start * (norm2(u) - stick_level * size_start), dot_product(u, start))
+  end function stick_value
 
   pure real(wp) function sliding_event_tolerance(event) result(tolerance)
     integer, intent(in) :: event

@@ -75,9 +75,10 @@ TRIAXIAL = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 
 
 def test_the_friction_work_is_the_energy_lost(ellroll, tmp_path):
-    """The paper's case with mu = 0.05: it slides from the start, rolls,
-    slides again; E(t_end) - E(0) against the friction's work mu N |u|
-    integrated along the steps (and the stopping impulses)."""
+    """The paper's case with mu = 0.05: it slides from the start, rolls
+    at 3.0 s, slides again at 4.19 s and rolls at 4.37 s; E(t_end) - E(0)
+    against the friction's work mu N |u| integrated along the steps (and
+    the stopping impulses)."""
     with run_text(ellroll, tmp_path, TRIAXIAL.format(mu=0.05, slip="slide", dt=5e-5)) as f:
         energy = f["trajectory/energy"][0]
         work = f["summary/friction_energy"][0]
@@ -85,7 +86,9 @@ def test_the_friction_work_is_the_energy_lost(ellroll, tmp_path):
         status = f["summary/status"][0]
     assert status == 1 and episodes == 2
     assert work > 80                                         # J, of E0 - m g R = 524 J
-    assert abs(energy[-1] - energy[0] + work) < 2e-6 * work   # 1.6e-6 measured
+    # 1.1e-7 measured: the fixed step stops the slip within a step or two
+    # of its end (its stages do not resolve the turning friction at u = 0)
+    assert abs(energy[-1] - energy[0] + work) < 2e-7 * work
 
 
 def test_a_mu_never_reached_gives_the_rolling_run_bit_for_bit(ellroll, tmp_path):
