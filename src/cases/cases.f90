@@ -9,7 +9,8 @@ module ellroll_cases
       param_dataset_description, param_datasets, p_a, p_b, p_c, p_radius, p_weight, p_mass, p_mu, &
           p_inertia_factor, p_g, p_x, p_y, &
       p_omega_x, p_omega_z, p_dt, p_fit_margin, p_excitation_frequency, p_excitation_phase, &
-      p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance, p_settle
+      p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance, p_settle, &
+      p_velocity_x, p_velocity_z
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
   use ellroll_strings, only: format_real
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
@@ -38,6 +39,7 @@ module ellroll_cases
     character(len=32) :: method = 'rk4'
     real(wp) :: t_end = 0
     logical :: error_estimate = .false.   !< also run the reference and store error figures
+    logical :: slide = .false.            !< &ball slip = 'slide': the ball slides where rolling needs more than mu
     !> the cup's motion: its kind and a record's samples (the harmonic's
     !> amplitude, frequency and phase and the record's scale are rows of
     !> param, which make_ball puts in)
@@ -54,7 +56,8 @@ module ellroll_cases
   ! what find_problem found: one code a message of check_case
   integer, parameter :: problem_not_finite = 1, problem_range = 2, problem_weight_without_g = 3, &
       problem_weight_mass = 4, problem_dt_above_t_end = 5, problem_too_many_steps = 6, problem_interval = 7, &
-      problem_outside = 8, problem_no_fit = 9
+      problem_outside = 8, problem_no_fit = 9, problem_slide_mu = 10, problem_velocity_rolls = 11, &
+      problem_velocity_tangent = 12, problem_slide_resistance = 13, problem_velocity_partial = 14
 
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
@@ -174,6 +177,17 @@ contains
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
                format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
                ' m, and radius must be below ' // format_real(radii(1)) // ' m'
+    case (problem_slide_mu)
+      reason = "slip = 'slide' needs a friction coefficient mu > 0"
+    case (problem_slide_resistance)
+      reason = "slip = 'slide' does not take rolling resistance (rolling_resistance must be 0)"
+    case (problem_velocity_partial)
+      reason = 'the initial velocity needs all three components (vx, vy, vz in m/s)'
+    case (problem_velocity_rolls)
+      reason = "an initial velocity starts the ball sliding: it needs &ball slip = 'slide'"
+    case (problem_velocity_tangent)
+      reason = 'must be tangent to the cup at the start: its component along the normal there is ' // &
+               format_real(start_normal_velocity(cs)) // ' m/s'
     end select
   end subroutine check_case
 
@@ -225,9 +239,36 @@ contains
     param = p_radius
     problem = problem_no_fit
     if (radii(1) / cs%param(p_radius) - 1 <= cs%param(p_fit_margin)) return
+    param = p_mu
+    problem = problem_slide_mu
+    if (cs%slide .and. .not. cs%param(p_mu) > 0) return
+    param = p_rolling_resistance
+    problem = problem_slide_resistance
+    if (cs%slide .and. cs%param(p_rolling_resistance) > 0) return
+    param = p_velocity_x
+    problem = problem_velocity_partial
+    if (any(ieee_is_nan(cs%param(p_velocity_x:p_velocity_z))) .and. &
+        .not. all(ieee_is_nan(cs%param(p_velocity_x:p_velocity_z)))) return
+    problem = problem_velocity_rolls
+    if (.not. cs%slide .and. .not. ieee_is_nan(cs%param(p_velocity_x))) return
+    problem = problem_velocity_tangent
+    if (.not. ieee_is_nan(cs%param(p_velocity_x))) then    ! (an unset velocity compares with nothing)
+      if (abs(start_normal_velocity(cs)) > 1.0e-9_wp * norm2(cs%param(p_velocity_x:p_velocity_z))) return
+    end if
     param = 0
     problem = 0
   end subroutine find_problem
+
+  !> V . n of the start's velocity (0 when it is unset).
+  pure real(wp) function start_normal_velocity(cs)
+    type(case_t), intent(in) :: cs
+    start_normal_velocity = 0
+    if (ieee_is_nan(cs%param(p_velocity_x))) return
+    associate (cup => new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c)))
+      start_normal_velocity = dot_product(cs%param(p_velocity_x:p_velocity_z), &
+                                          normal_from_contact(cup, cs%param(p_x), cs%param(p_y)))
+    end associate
+  end function start_normal_velocity
 
   !> (x/a)^2 + (y/b)^2 of the start: below 1 inside the cup.
   pure real(wp) function start_level(cs)

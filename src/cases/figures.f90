@@ -104,7 +104,14 @@ module ellroll_figures
       figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over the step ends ' // &
                'clear of its singular approach', kind_int, 1, from_run), &
       figure_t('sa_linear_periods', 'm/s^2', 'record: 5 %-damped pseudo-spectral acceleration (RotD100) of the ' // &
-               'scaled record at linear_periods (NaN: none)', kind_real, 2, from_run)]
+               'scaled record at linear_periods (NaN: none)', kind_real, 2, from_run), &
+      figure_t('sliding_time', 's', "time the ball slid (slip = 'slide'; 0: it rolled throughout)", kind_real, 1, &
+               from_run), &
+      figure_t('slip_episodes', '1', 'times the ball began to slide', kind_int, 1, from_run), &
+      figure_t('friction_energy', 'J', 'energy the sliding friction dissipated, integral of mu N |u| dt', kind_real, &
+               1, from_run), &
+      figure_t('slip_speed_max', 'm/s', 'largest slip speed |u| of the contact point (step ends)', kind_real, 1, &
+               from_run)]
   integer, parameter :: figure_count = size(figures)
 
   ! Each row's named index, found by its name (0 if misspelt: the Debug
@@ -128,7 +135,11 @@ module ellroll_figures
       fig_at_rest = findloc(figures%name, 'at_rest', dim=1), &
       fig_time_beyond_capacity = findloc(figures%name, 'time_beyond_capacity', dim=1), &
       fig_sa_linear_periods = findloc(figures%name, 'sa_linear_periods', dim=1), &
-      fig_peaks_truncated = findloc(figures%name, 'peaks_truncated', dim=1)
+      fig_peaks_truncated = findloc(figures%name, 'peaks_truncated', dim=1), &
+      fig_sliding_time = findloc(figures%name, 'sliding_time', dim=1), &
+      fig_slip_episodes = findloc(figures%name, 'slip_episodes', dim=1), &
+      fig_friction_energy = findloc(figures%name, 'friction_energy', dim=1), &
+      fig_slip_speed_max = findloc(figures%name, 'slip_speed_max', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &
       fig_friction_needed_max = findloc(figures%name, 'friction_needed_max', dim=1), &

@@ -66,6 +66,12 @@ module ellroll_params
               'initial angular velocity, y component'), &
       param_t('omega_z', 'initial', 'omega', 'rad/s', -1.0e6_wp, 1.0e6_wp, .false., .true., 0.0_wp, .true., &
               'initial angular velocity, z component'), &
+      param_t('velocity_x', 'initial', 'velocity', 'm/s', -1.0e6_wp, 1.0e6_wp, .false., .false., none, .true., &
+              'initial velocity of the centre, x (unset: a rolling start)'), &
+      param_t('velocity_y', 'initial', 'velocity', 'm/s', -1.0e6_wp, 1.0e6_wp, .false., .false., none, .true., &
+              'initial velocity of the centre, y (unset: a rolling start)'), &
+      param_t('velocity_z', 'initial', 'velocity', 'm/s', -1.0e6_wp, 1.0e6_wp, .false., .false., none, .true., &
+              'initial velocity of the centre, z (unset: a rolling start)'), &
       param_t('dt', 'integration', 'dt', 's', least, 1.0e9_wp, .true., .true., 0.0_wp, .true., &
               'integration step'), &
       param_t('fit_margin', 'integration', 'fit_margin', '1', 0.0_wp, 0.5_wp, .false., .false., 1.0e-6_wp, .true., &
@@ -109,6 +115,8 @@ module ellroll_params
   integer, parameter, public :: p_x = findloc(params%name, 'x', dim=1), p_y = findloc(params%name, 'y', dim=1)
   integer, parameter, public :: p_omega_x = findloc(params%name, 'omega_x', dim=1), &
       p_omega_y = findloc(params%name, 'omega_y', dim=1), p_omega_z = findloc(params%name, 'omega_z', dim=1)
+  integer, parameter, public :: p_velocity_x = findloc(params%name, 'velocity_x', dim=1), &
+      p_velocity_z = findloc(params%name, 'velocity_z', dim=1)
   integer, parameter, public :: p_dt = findloc(params%name, 'dt', dim=1)
   integer, parameter, public :: p_fit_margin = findloc(params%name, 'fit_margin', dim=1)
   integer, parameter, public :: p_rtol = findloc(params%name, 'rtol', dim=1)

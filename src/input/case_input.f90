@@ -17,8 +17,8 @@ module ellroll_case_input
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
   use ellroll_suite_input, only: record_spec_t, load_suite, record_files, note_files
-  use ellroll_params, only: params, param_count, param_component, param_width, p_radius, p_weight, p_mass, p_dt, &
-      p_scale
+  use ellroll_params, only: params, param_count, param_component, param_width, param_unset_allowed, p_radius, &
+      p_weight, p_mass, p_dt, p_scale
   implicit none
   private
 
@@ -82,7 +82,8 @@ contains
         call rd%fail_missing(gi, variable, 'add ' // variable // ' = <x>, <y>, <z> (' // units // ') to &' // &
                              trim(params(p)%group))
       end if
-    else if (.not. all(ieee_is_finite(table_values(p:p + width - 1)))) then
+    else if (.not. all(ieee_is_finite(table_values(p:p + width - 1))) .and. &
+             .not. (param_unset_allowed(p) .and. any(out_of_range(p, width, table_values)))) then
       if (width == 1) then
         call rd%fail_value(gi, variable, 'must be a finite number')
       else
@@ -90,6 +91,7 @@ contains
       end if
     else
       do k = p, p + width - 1
+        if (.not. out_of_range_one(k, table_values(k))) cycle
         if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
           if (params(k)%positive .and. table_values(k) > 0 .and. table_values(k) < params(k)%low) then
             call rd%fail_value(gi, variable, 'is below ' // format_real(params(k)%low) // &
@@ -103,6 +105,26 @@ contains
       ok = .true.
     end if
   end function check_variable
+
+  !> Whether each component of row p's variable (width rows) holds a finite
+  !> value outside its range: a vector that may be left unset is judged on
+  !> the components given before it is asked for all three.
+  pure function out_of_range(p, width, table_values) result(outside)
+    integer, intent(in) :: p, width
+    real(wp), intent(in) :: table_values(:)
+    logical :: outside(width)
+    integer :: k
+    do k = 1, width
+      outside(k) = out_of_range_one(p + k - 1, table_values(p + k - 1))
+    end do
+  end function out_of_range
+
+  pure logical function out_of_range_one(k, value)
+    integer, intent(in) :: k
+    real(wp), intent(in) :: value
+    out_of_range_one = .false.
+    if (ieee_is_finite(value)) out_of_range_one = value < params(k)%low .or. value > params(k)%high
+  end function out_of_range_one
 
   !> The rows of the parameter table given directly: every required one is
   !> there (weight or mass, and dt unless the method is adaptive), all are
@@ -146,6 +168,18 @@ contains
       call rd%fail_value(gi, 'error_estimate', "must be 'none' or 'reference'")
       return
     end select
+    ! 'end' by default: a case whose friction falls short ends with status
+    ! slip, as the rolling model states; sliding is a regime asked for
+    gi = rd%group('ball', .true.)
+    if (gi == 0) return
+    select case (lower(adjustl(v%slip)))
+    case ('end'); cs%slide = .false.
+    case ('slide'); cs%slide = .true.
+    case default
+      call rd%fail_value(gi, 'slip', "must be 'end' or 'slide'")
+      return
+    end select
+    gi = rd%group('integration', .true.)
     if (v%t_end <= 0 .or. v%t_end > 1.0e9_wp) then
       call rd%fail_value(gi, 't_end', 'must be > 0 and <= 1e9 s')
       return

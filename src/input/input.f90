@@ -120,7 +120,7 @@ contains
     character(len=:), allocatable :: reason
 
     v%param = [(param_default(k), k = 1, param_count)]     ! NaN: required
-    v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'
+    v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'; v%slip = 'end'
     v%file = ''; v%interval = nan(); v%fields = ''; v%compression = 0
     v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
     v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = nan()
@@ -205,6 +205,7 @@ contains
     ios = 0
     select case (group)
     case ('integration'); call read_integration()
+    case ('ball'); call read_ball()
     case ('output'); call read_output()
     case ('excitation'); call read_excitation()
     case ('campaign'); call read_campaign()
@@ -221,6 +222,14 @@ contains
       read (text, nml=integration, iostat=ios, iomsg=msg)
       v%method = method; v%t_end = t_end; v%error_estimate = error_estimate
     end subroutine read_integration
+
+    subroutine read_ball()
+      character(len=len(v%slip)) :: slip
+      namelist /ball/ slip
+      slip = v%slip
+      read (text, nml=ball, iostat=ios, iomsg=msg)
+      v%slip = slip
+    end subroutine read_ball
 
     subroutine read_output()
       character(len=len(v%file)) :: file
@@ -389,6 +398,7 @@ contains
     character(len=*), intent(in) :: base
     select case (base)
     case ('method', 'error_estimate'); text_length = len(v%method)
+    case ('slip'); text_length = len(v%slip)
     case ('file'); text_length = len(v%file)
     case ('fields'); text_length = len(v%fields)
     case ('kind'); text_length = len(v%kind)
@@ -473,6 +483,7 @@ contains
     character(len=len(params%variable)), allocatable :: names(:)
     select case (group)
     case ('integration'); names = [character(len=len(names)) :: 'method', 't_end', 'error_estimate']
+    case ('ball'); names = [character(len=len(names)) :: 'slip']
     case ('output'); names = [character(len=len(names)) :: 'file', 'interval', 'fields', 'compression']
     case ('excitation'); names = [character(len=len(names)) :: 'kind', 'record_file', 'sa_periods']
     case ('campaign'); names = [character(len=len(names)) :: 'combine', 'samples', 'seed', 'invalid']

@@ -35,7 +35,7 @@ module ellroll_input_reader
   !> (NaN where required) where the input says nothing.
   type :: namelist_values_t
     real(wp) :: param(param_count)         !< the rows of the parameter table
-    character(len=32) :: method, error_estimate
+    character(len=32) :: method, error_estimate, slip
     real(wp) :: t_end, interval
     character(len=1024) :: file
     character(len=32) :: fields(max_fields)

@@ -84,14 +84,15 @@ module ellroll_batch_run
 contains
 
   !> Whether a case runs in a batch (simulate_batch): its method batches
-  !> (the method table), its model runs in lanes (runs_in_lanes), and it
-  !> has no reference run; a property of the case alone, so that every run
+  !> (the method table), its model runs in lanes (runs_in_lanes), it has
+  !> no reference run and it does not go on sliding (the sliding regime runs
+  !> one case at a time); a property of the case alone, so that every run
   !> and every shard takes the same path for it.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
     type(method_info_t) :: method
     method = method_info(cs%method)
-    batchable = method%batches .and. .not. cs%error_estimate
+    batchable = method%batches .and. .not. (cs%error_estimate .or. cs%slide)
     if (batchable) batchable = runs_in_lanes(make_ball(cs))
   end function batchable
 

@@ -18,7 +18,8 @@ module ellroll_case_run
       q_friction_needed, q_energy, q_surface_residual, q_fit_clearance
   use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
-      fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest
+      fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest, fig_sliding_time, &
+      fig_friction_energy, fig_slip_speed_max
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest
@@ -106,6 +107,8 @@ contains
     res%t_final = 0
     res%wall_time = 0
     res%reals(fig_theta_max) = 0
+    ! rolling throughout unless the slide loop says otherwise
+    res%reals([fig_sliding_time, fig_friction_energy, fig_slip_speed_max]) = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     run%start = y

@@ -21,7 +21,7 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit
+  public :: fixed_step_loop, end_at_limit, fixed_step
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.

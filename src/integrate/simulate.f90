@@ -8,7 +8,7 @@ module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_status, only: status_completed
+  use ellroll_status, only: status_completed, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_nutation, field_energy
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_error_contact, fig_error_theta, fig_error_energy, fig_n_rhs_reference
@@ -17,6 +17,7 @@ module ellroll_simulate
   use ellroll_case_run, only: run_state_t, start_case, finish_case
   use ellroll_fixed_step_run, only: fixed_step_loop
   use ellroll_adaptive_run, only: adaptive_loop
+  use ellroll_slide_run, only: slide_loop
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
   use ellroll_batch_run, only: lanes, batchable, simulate_batch
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_settle
@@ -97,7 +98,14 @@ contains
     call new_integrator(trim(cs%method), integrator, err)
     if (err%failed()) return
     call start_case(cs, plan, run, res, y, f)
-    if (res%status == status_completed) then
+    if (cs%slide .and. (res%status == status_completed .or. res%status == status_slip)) then
+      select type (integrator)
+      class is (embedded_pair_t)
+        integrator%rtol = cs%param(p_rtol)
+        integrator%atol = cs%param(p_atol)
+      end select
+      call slide_loop(integrator, cs, plan, run, y, f, res)
+    else if (res%status == status_completed) then
       select type (integrator)
       class is (embedded_pair_t)
         integrator%rtol = cs%param(p_rtol)

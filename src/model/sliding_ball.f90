@@ -1,0 +1,309 @@
+!> The ball sliding on the cup with Coulomb friction (docs/model.md,
+!> "Sliding with Coulomb friction"): the regime a case with `slip = 'slide'`
+!> enters where the friction that rolling needs reaches mu N, and leaves
+!> where the slip stops and rolling's friction is within mu N.
+!>
+!> State y = (n, omega, V_x, V_y): the inward normal at the contact point
+!> (|y(1:3)| = L drifts like rolling's), the angular velocity, and the
+!> horizontal part of the centre's velocity relative to the cup; its
+!> vertical part follows from V_C . n = 0 (n_z > 0 in the lower half).
+!> Seven degrees of freedom in eight numbers (the embedded pairs hold
+!> eight equations). With g_eff = g_vec - a_base:
+!>   u        = V_C - R omega x n                  slip velocity at A
+!>   F        = -mu N u / |u|                      Coulomb friction
+!>   m V_C'   = N n + F + m g_eff
+!>   J omega' = -R n x F
+!>   N        = -m (V_C . n' + g_eff . n)          (d/dt V_C . n = 0)
+!>   n'       = (R I - K)^-1 V_C                   (as rolling's, with V_C)
+module ellroll_sliding_ball
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp
+  use ellroll_ode, only: hybrid_system_t
+  use ellroll_excitation, only: excitation_none, base_acceleration
+  use ellroll_status, only: status_liftoff, status_nonfinite, status_rim, status_no_fit
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative
+  implicit none
+  private
+
+  public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
+            observe_sliding, slip_velocity, center_velocity, friction_direction
+
+  integer, parameter :: slide_state_size = 8
+
+  !> The event of the sliding regime: the slip stops.
+  integer, parameter, public :: event_stick = 1
+
+  !> The slip counts as stopped where it has fallen to this part of its
+  !> value at the start of the piece of step (a stopping impulse takes the
+  !> rest: stick). Near the stop the slip's direction turns ever faster
+  !> (at a rate proportional to 1 / |u|), so the stop is located on |u|,
+  !> which falls at a rate bounded away from zero, not on the direction.
+  real(wp), parameter, public :: stick_level = 1.0e-6_wp
+
+  !> Where the slip stops inside a step is located to this part of the step.
+  real(wp), parameter :: stick_tolerance = 1.0e-12_wp
+
+  type, extends(hybrid_system_t) :: sliding_ball_t
+    type(rolling_ball_t) :: ball
+    !> the slip direction where the step started (begin_step), or, where the
+    !> slip is zero there (the switch from rolling), the direction it grows:
+    !> a stage past the stop keeps the friction against it, so that the flow
+    !> up to the stop stays smooth inside the step that is cut there
+    real(wp) :: slip_mode(3) = 0
+    real(wp) :: slip_at_start(3) = 0
+  contains
+    procedure :: rhs => sliding_rhs
+    procedure :: stage_status => sliding_stage_status
+    procedure :: nonsmooth => sliding_nonsmooth
+    procedure :: begin_step => sliding_begin_step
+    procedure :: event_crossed => sliding_event_crossed
+    procedure :: event_start_value => sliding_event_start_value
+    procedure :: event_value => sliding_event_value
+    procedure, nopass :: event_tolerance => sliding_event_tolerance
+    procedure :: apply_event => sliding_apply_event
+  end type sliding_ball_t
+
+contains
+
+  pure function cross(u, v) result(w)
+    real(wp), intent(in) :: u(3), v(3)
+    real(wp) :: w(3)
+    w = [u(2)*v(3) - u(3)*v(2), u(3)*v(1) - u(1)*v(3), u(1)*v(2) - u(2)*v(1)]
+  end function cross
+
+  !> The centre's velocity (cup frame) of sliding state y: its horizontal
+  !> part from y, its vertical part from V_C . n = 0.
+  pure function center_velocity(y) result(v)
+    real(wp), intent(in) :: y(slide_state_size)
+    real(wp) :: v(3)
+    v = [y(7), y(8), -(y(1) * y(7) + y(2) * y(8)) / y(3)]
+  end function center_velocity
+
+  !> The slip velocity u = V_C - R omega x n at sliding state y.
+  pure function slip_velocity(ball, y) result(u)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(slide_state_size)
+    real(wp) :: u(3)
+    u = center_velocity(y) - ball%radius * cross(y(4:6), y(1:3)) / norm2(y(1:3))
+  end function slip_velocity
+
+  !> The sliding state at rolling state y (u = 0 there).
+  pure function sliding_from_rolling(ball, y) result(s)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(state_size)
+    real(wp) :: s(slide_state_size), v(3)
+    v = ball%radius * cross(y(4:6), y(1:3)) / norm2(y(1:3))
+    s(1:6) = y
+    s(7:8) = v(1:2)
+  end function sliding_from_rolling
+
+  !> The rolling state at sliding state s where the slip has stopped: the
+  !> normal and omega kept (V_C is then R omega x n).
+  pure function rolling_from_sliding(s) result(y)
+    real(wp), intent(in) :: s(slide_state_size)
+    real(wp) :: y(state_size)
+    y = s(1:6)
+  end function rolling_from_sliding
+
+  !> The rolling state where the slip u of sliding state s is stopped by an
+  !> impulse P of the cup at A (the stop located to round-off leaves a
+  !> slip of that size): m dV_C = P, J d omega = -R n x P and dV_C -
+  !> R d omega x n = -u give P = -u / (1/m + R^2/J); the angular momentum
+  !> about A is kept, and the energy falls by |u|^2 / (2 (1/m + R^2/J)),
+  !> the friction's work in that impulse.
+  pure function stick(ball, s) result(y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: s(slide_state_size)
+    real(wp) :: y(state_size), impulse(3), n(3)
+    n = s(1:3) / norm2(s(1:3))
+    impulse = -slip_velocity(ball, s) / (1 / ball%mass + 1 / (ball%inertia_factor * ball%mass))
+    y(1:3) = s(1:3)
+    y(4:6) = s(4:6) - cross(n, impulse) / (ball%inertia_factor * ball%mass * ball%radius)
+  end function stick
+
+  !> The direction of the friction at slip u for a step whose slip mode is
+  !> `mode`: against u while u is along the mode (or no mode is set), else
+  !> against the mode (past the stop, inside the step cut there).
+  pure function friction_direction(u, mode) result(e)
+    real(wp), intent(in) :: u(3), mode(3)
+    real(wp) :: e(3), size_u
+    size_u = norm2(u)
+    if (size_u > 0 .and. (dot_product(u, mode) > 0 .or. .not. dot_product(mode, mode) > 0)) then
+      e = -u / size_u
+    else
+      e = -mode
+    end if
+  end function friction_direction
+
+  !> The sliding right-hand side (the equations above), with N and the
+  !> friction force where asked.
+  pure subroutine sliding_derivative(sb, t, y, dydt, normal_force, friction, base)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp), intent(out) :: dydt(slide_state_size)
+    real(wp), intent(out), optional :: normal_force, friction(3)
+    real(wp), intent(in), optional :: base(3)
+    real(wp) :: length, n(3), v(3), g_eff(3), rolling(state_size), rate(state_size), n_dot(3), u(3), force(3)
+    real(wp) :: big_n, v_dot(3), r
+    associate (ball => sb%ball)
+      r = ball%radius
+      length = norm2(y(1:3))
+      n = y(1:3) / length
+      v = center_velocity(y)
+      ! n' from rolling's kinematics with omega such that R omega x n = V_C:
+      ! omega = n x V_C / R (its part along n does not move n)
+      rolling(1:3) = y(1:3)
+      rolling(4:6) = cross(n, v) / r
+      call ball_derivative(ball, t, rolling, rate)     ! (only its n' is used)
+      dydt(1:3) = rate(1:3)
+      n_dot = rate(1:3) / length
+      g_eff = [0.0_wp, 0.0_wp, -ball%g]
+      if (present(base)) then
+        g_eff = g_eff - base
+      else if (ball%excitation%kind /= excitation_none) then
+        g_eff = g_eff - base_acceleration(ball%excitation, t)
+      end if
+      big_n = -ball%mass * (dot_product(v, n_dot) + dot_product(g_eff, n))
+      u = v - r * cross(y(4:6), n)
+      force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
+      v_dot = (big_n * n + force) / ball%mass + g_eff
+      dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
+      dydt(7:8) = v_dot(1:2)
+      if (present(normal_force)) normal_force = big_n
+      if (present(friction)) friction = force
+    end associate
+  end subroutine sliding_derivative
+
+  pure subroutine sliding_rhs(self, t, y, dydt)
+    class(sliding_ball_t), intent(in) :: self
+    real(wp), intent(in) :: t
+    real(wp), intent(in) :: y(:)
+    real(wp), intent(out) :: dydt(:)
+    call sliding_derivative(self, t, y, dydt)
+  end subroutine sliding_rhs
+
+  !> Every derived output of sliding state y (observe's, with the sliding
+  !> reaction N n + F, the friction ratio mu, the energy with V_C) and the
+  !> slip speed |u|.
+  pure subroutine observe_sliding(sb, t, y, obs, slip_speed, dydt)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    type(observation_t), intent(out) :: obs
+    real(wp), intent(out) :: slip_speed
+    real(wp), intent(out) :: dydt(slide_state_size)
+    real(wp) :: big_n, force(3), rolling_rate(state_size), v(3), n(3), height
+    call sliding_derivative(sb, t, y, dydt, big_n, force)
+    rolling_rate(1:3) = dydt(1:3)
+    rolling_rate(4:6) = dydt(4:6)
+    call observe(sb%ball, t, y(1:6), rolling_rate, obs)
+    n = obs%normal
+    obs%reaction = big_n * n + force
+    obs%reaction_normal = big_n
+    obs%friction_needed = huge(1.0_wp)
+    if (big_n > 0) obs%friction_needed = norm2(force) / big_n
+    obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
+    v = center_velocity(y)
+    height = obs%contact(3) - sb%ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
+    associate (m => sb%ball%mass, r => sb%ball%radius)
+      obs%energy_of_motion = 0.5_wp * sb%ball%inertia_factor * m * r**2 * dot_product(y(4:6), y(4:6)) &
+                             + 0.5_wp * m * dot_product(v, v) + m * sb%ball%g * height
+      obs%energy = obs%energy_of_motion + m * sb%ball%g * r
+    end associate
+    slip_speed = norm2(slip_velocity(sb%ball, y))
+  end subroutine observe_sliding
+
+  !> The limits of a sliding stage: the ball fits the cup short of the rim,
+  !> the normal force pushes.
+  pure integer function sliding_stage_status(self, t, y, dydt) result(status)
+    class(sliding_ball_t), intent(in) :: self
+    real(wp), intent(in) :: t, y(:), dydt(:)
+    real(wp) :: scratch(state_size), rolling(state_size), big_n, stage_rate(slide_state_size)
+    logical :: fits
+    status = 0
+    if (.not. (all(ieee_is_finite(y)) .and. all(ieee_is_finite(dydt)))) then
+      status = status_nonfinite
+      return
+    end if
+    rolling = y(1:6)
+    call ball_derivative(self%ball, t, rolling, scratch, fits)
+    if (.not. fits) then
+      status = status_no_fit
+      if (y(3) <= 0) status = status_rim
+      return
+    end if
+    call sliding_derivative(self, t, y, stage_rate, big_n)
+    if (big_n <= 0) status = status_liftoff
+  end function sliding_stage_status
+
+  pure logical function sliding_nonsmooth(self) result(nonsmooth)
+    class(sliding_ball_t), intent(in) :: self
+    nonsmooth = self%ball%mu > 0
+  end function sliding_nonsmooth
+
+  !> The slip mode for a step from y: the slip direction there (kept where
+  !> the slip is zero: the direction set by the switch into sliding).
+  pure subroutine sliding_begin_step(self, y)
+    class(sliding_ball_t), intent(inout) :: self
+    real(wp), intent(in), contiguous :: y(:)
+    real(wp) :: u(3)
+    u = slip_velocity(self%ball, y)
+    self%slip_at_start = u
+    if (norm2(u) > 0) self%slip_mode = u / norm2(u)
+  end subroutine sliding_begin_step
+
+  !> event_stick where the slip, nonzero at the step's start, has fallen to
+  !> stick_level of it or turned by a right angle or more at its end.
+  pure integer function sliding_event_crossed(self, y_start, y_end) result(event)
+    class(sliding_ball_t), intent(in) :: self
+    real(wp), intent(in), contiguous :: y_start(:), y_end(:)
+    real(wp) :: start(3)
+    event = 0
+    start = slip_velocity(self%ball, y_start)
+    if (norm2(start) <= 0) return
+    if (stick_value(slip_velocity(self%ball, y_end), start) <= 0) event = event_stick
+  end function sliding_event_crossed
+
+  !> event_stick's function at the step's start: |u|^2 there.
+  pure real(wp) function sliding_event_start_value(self, event) result(g)
+    class(sliding_ball_t), intent(in) :: self
+    integer, intent(in) :: event
+    g = 1
+    if (event == event_stick) g = dot_product(self%slip_at_start, self%slip_at_start)
+  end function sliding_event_start_value
+
+  !> event_stick's function at y: stick_value of the slip there.
+  pure real(wp) function sliding_event_value(self, event, y) result(g)
+    class(sliding_ball_t), intent(in) :: self
+    integer, intent(in) :: event
+    real(wp), intent(in), contiguous :: y(:)
+    g = 1
+    if (event == event_stick) g = stick_value(slip_velocity(self%ball, y), self%slip_at_start)
+  end function sliding_event_value
+
+  !> The lesser of |u| - stick_level |u_start| (it falls through zero just
+  !> before the stop, at a rate bounded away from zero) and the slip along
+  !> u_start (it falls through zero where the slip has turned by a right
+  !> angle), times |u_start|: positive at the start, continuous.
+  pure real(wp) function stick_value(u, start) result(g)
+    real(wp), intent(in) :: u(3), start(3)
+    real(wp) :: size_start
+    size_start = norm2(start)
+    g = min(size_start * (norm2(u) - stick_level * size_start), dot_product(u, start))
+  end function stick_value
+
+  pure real(wp) function sliding_event_tolerance(event) result(tolerance)
+    integer, intent(in) :: event
+    tolerance = 0
+    if (event == event_stick) tolerance = stick_tolerance
+  end function sliding_event_tolerance
+
+  !> event_stick: the slip at zero (V_C set to R omega x n); whether the
+  !> ball rolls on from there is the run's to decide (the friction rolling
+  !> needs there).
+  pure subroutine sliding_apply_event(self, event, y)
+    class(sliding_ball_t), intent(inout) :: self
+    integer, intent(in) :: event
+    real(wp), intent(inout), contiguous :: y(:)
+    if (event == event_stick) y = sliding_from_rolling(self%ball, rolling_from_sliding(y))
+  end subroutine sliding_apply_event
+end module ellroll_sliding_ball
