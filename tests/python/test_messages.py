@@ -96,7 +96,7 @@ def known_variables(ellroll, tmp_path):
     """Each group's variables, as the unknown-variable message lists them."""
     groups = {}
     for group in ["geometry", "ball", "environment", "initial", "integration", "output", "excitation",
-                  "campaign", "sweep", "sample", "record"]:
+                  "campaign", "sweep", "sample", "record", "limit_state"]:
         nml = dict(BASE)
         nml[group] = (nml.get(group, "") + ", zzzzzzzz = 1").lstrip(", ")
         result = run(ellroll, "check", write(tmp_path, nml), cwd=tmp_path)
@@ -107,9 +107,9 @@ def known_variables(ellroll, tmp_path):
 
 
 TEXT_VARIABLES = {"method", "error_estimate", "file", "fields", "kind", "record_file", "combine", "invalid",
-                  "name", "spacing"}
+                  "name", "spacing", "slip", "figure"}
 INTEGER_VARIABLES = {"compression", "count", "samples", "seed"}
-VECTORS = {"omega": 3, "excitation_amplitude": 3}
+VECTORS = {"omega": 3, "excitation_amplitude": 3, "velocity": 3}
 
 
 def with_value(group, variable, value):
