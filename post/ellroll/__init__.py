@@ -341,28 +341,42 @@ def _attributes(lines):
     return attrs
 
 
-def _dataset(xr, variables, extra_coords=()):
-    """An xarray.Dataset of a group: its scales and its `coordinates` as coordinates."""
-    coordinate_names = set(extra_coords)
-    for name, dims, values, attrs in variables:
-        coordinate_names.update(attrs.pop("coordinates", "").split())
+def _dataset(xr, variables, attrs=None):
+    """An xarray.Dataset of a group: its scales and its `coordinates` as coordinates.
+
+    Made as xr.Coordinates of every variable (an index for each scale),
+    turned into a Dataset whose data variables reset_coords sets apart:
+    xarray checks the dimensions' sizes but merges and aligns nothing, which
+    xr.Dataset(data_vars, coords) does, at twice the cost, for variables that
+    the library lays out consistent already.
+    """
+    coordinate_names = set()
+    for name, dims, values, var_attrs in variables:
+        coordinate_names.update(var_attrs.pop("coordinates", "").split())
         if dims == (name,):                  # a dimension scale: case, time, xyz, mode
             coordinate_names.add(name)
-    data_vars, coords = {}, {}
-    for name, dims, values, attrs in variables:
-        # (fastpath: the values are numpy arrays already, which xarray need not check)
-        (coords if name in coordinate_names else data_vars)[name] = xr.Variable(dims, values, attrs, fastpath=True)
-    return xr.Dataset(data_vars, coords)
+    # the data variables first, then the coordinates: the order of xr.Dataset(data_vars, coords)
+    data_names = [name for name, _, _, _ in variables if name not in coordinate_names]
+    ordered = sorted(variables, key=lambda variable: variable[0] in coordinate_names)
+    # (fastpath: the values are numpy arrays already, which xarray need not check)
+    dataset = xr.Coordinates({name: xr.Variable(dims, values, var_attrs, fastpath=True)
+                              for name, dims, values, var_attrs in ordered}).to_dataset().reset_coords(data_names)
+    if attrs:
+        dataset.attrs = attrs
+    return dataset
 
 
 def _tree(groups, root_attrs):
     import xarray as xr
-    root = _dataset(xr, groups.get("", []))
-    root.attrs.update(root_attrs)
+    root = _dataset(xr, groups.get("", []), root_attrs)
     datasets = {name: _dataset(xr, groups.get(name, [])) for name in ("case", "summary", "trajectory")}
     if hasattr(xr, "DataTree"):
-        # the root's scales (time, xyz, mode) are inherited by the groups
-        return xr.DataTree.from_dict({"/": root, **{f"/{name}": ds for name, ds in datasets.items()}})
+        # the root's scales (time, xyz, mode) are inherited by the groups; the
+        # children set on the root as made (DataTree.from_dict, or children=,
+        # would copy each node once more before xarray checks their alignment)
+        tree = xr.DataTree(root)
+        tree.children = {name: xr.DataTree(ds) for name, ds in datasets.items()}
+        return tree
     datasets["trajectory"] = datasets["trajectory"].assign_coords(
         {name: root[name] for name in ("time", "xyz") if name in root.coords})
     return {"/": root, **datasets}

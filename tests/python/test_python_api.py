@@ -272,6 +272,54 @@ def test_run_arrays_are_the_trees_values():
             assert attributes[group][name]["units"] == node[name].attrs["units"], (group, name)
 
 
+def plain_tree(groups, root_attrs):
+    """The DataTree as xarray's plain constructors make it: a Dataset(data_vars, coords) per
+    group (its scales and its `coordinates` as coordinates), joined by DataTree.from_dict."""
+    import xarray as xr
+    datasets = {}
+    for group in ("", "case", "summary", "trajectory"):
+        variables = groups.get(group, [])
+        coordinates = {name for name, dims, _, _ in variables if dims == (name,)}
+        for _, _, _, attrs in variables:
+            coordinates.update(attrs.get("coordinates", "").split())
+        made = {name: xr.Variable(dims, values, {k: v for k, v in attrs.items() if k != "coordinates"})
+                for name, dims, values, attrs in variables}
+        datasets["/" + group] = xr.Dataset({n: v for n, v in made.items() if n not in coordinates},
+                                           {n: v for n, v in made.items() if n in coordinates})
+    datasets["/"].attrs.update(root_attrs)
+    return xr.DataTree.from_dict(datasets)
+
+
+@pytest.mark.parametrize("relative", ["input/legeza1990.nml", "input/spin_sweep.nml", "input/isolator_suite.nml",
+                                      "input/hard/slip.nml"])
+def test_the_tree_is_what_xarrays_plain_constructors_make(relative, monkeypatch):
+    """run()'s DataTree, made without xarray's merges, is identical() to the one
+    Dataset(data_vars, coords) and DataTree.from_dict make of the same run's datasets:
+    values, attributes, coordinates, indexes, and the order of variables and dimensions."""
+    xr = pytest.importorskip("xarray")
+    if not hasattr(xr, "DataTree"):
+        pytest.skip("xarray without DataTree")
+    monkeypatch.chdir(ROOT)              # records are relative to the input's folder, named from here
+    lib, encoded, label = ellroll._lib(), (ROOT / relative).read_text().encode(), relative.encode()
+    handle = lib.ellroll_run(encoded, len(encoded), label, len(label), 2)
+    try:
+        assert lib.ellroll_error_code(handle) == 0
+        groups, root_attrs = ellroll._datasets(lib, handle)
+    finally:
+        lib.ellroll_free(handle)
+    expected = plain_tree(groups, root_attrs)
+    tree = ellroll._tree({g: [(n, d, v, dict(a)) for n, d, v, a in vs] for g, vs in groups.items()}, root_attrs)
+    assert tree.identical(expected)
+    assert repr(tree) == repr(expected)
+    for node, other in zip(tree.subtree, expected.subtree, strict=True):
+        assert node.path == other.path
+        assert list(node.variables) == list(other.variables), node.path
+        assert list(node.dims) == list(other.dims), node.path
+        assert list(node.xindexes) == list(other.xindexes), node.path
+        assert all(type(node.variables[n]) is type(other.variables[n]) for n in node.variables), node.path
+    assert "case" in tree["summary"].xindexes and list(tree.xindexes) == ["time", "xyz", "mode"]
+
+
 def test_a_record_given_as_arrays_runs_as_its_csv(program, tmp_path):
     """ellroll.Record: arrays in a dict input give the results of the same
     record read from its CSV file by `ellroll run`, bit for bit; a single
