@@ -25,7 +25,7 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest
+            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.

@@ -21,7 +21,7 @@ module ellroll_sliding_ball
   use ellroll_ode, only: hybrid_system_t
   use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_status, only: status_liftoff, status_nonfinite, status_rim, status_no_fit
-  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, cross
   implicit none
   private
 
@@ -64,12 +64,6 @@ module ellroll_sliding_ball
   end type sliding_ball_t
 
 contains
-
-  pure function cross(u, v) result(w)
-    real(wp), intent(in) :: u(3), v(3)
-    real(wp) :: w(3)
-    w = [u(2)*v(3) - u(3)*v(2), u(3)*v(1) - u(1)*v(3), u(1)*v(2) - u(2)*v(1)]
-  end function cross
 
   !> The centre's velocity (cup frame) of sliding state y: its horizontal
   !> part from y, its vertical part from V_C . n = 0.
