@@ -59,6 +59,16 @@ def small_suite(ellroll, tmp_path_factory):
     with ellroll_post.open(path) as f:
         status = set(f.status_names())
     assert "completed" in status and status & set(suite.MODEL_LIMITS), status
+    # the input's comment: settle = 20 brings every completed case at 1e-3 m to rest, none at 1e-5 m
+    with h5py.File(path, "r") as f:
+        done = f["summary/status"][:] == 1
+        resistance, at_rest = f["case/rolling_resistance"][:], f["summary/at_rest"][:]
+        residual, t_final = f["summary/residual_displacement"][:], f["summary/t_final"][:]
+        assert sorted(k for k in f["case"] if k.startswith("sa_")) == ["sa_0.2", "sa_1"]
+    upper, lower = done & (resistance == 1e-3), done & (resistance == 1e-5)
+    assert upper.sum() == lower.sum() == 6
+    assert np.all(at_rest[upper] == 1) and np.all(np.isfinite(residual[upper])) and t_final[upper].max() < 32
+    assert np.all(at_rest[lower] == 0) and np.all(np.isnan(residual[lower])) and np.all(t_final[lower] == 32)
     return path
 
 
@@ -229,8 +239,11 @@ def test_suite_figure_takes_log_axes_over_decades_and_survives_all_or_no_failure
         capsys.readouterr()
         assert cli.main(["fragility", str(path), "--format", "csv"]) == 0
         rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+        # (a user limit state keeps the run's own /limit_state flags: only a model limit exceeds them all)
+        checked = [r for r in rows if r["limit_state"] == "model_limit" or name == "all"]
+        assert len(checked) == (2 if name == "none" else 6)
         assert all(r["theta"] == "nan" and ("no case exceeds" if name == "none" else "every case") in r["note"]
-                   for r in rows)
+                   for r in checked)
 
 
 # ------------------------------------------------------------------ fragility
@@ -271,10 +284,19 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
         status = np.array(f.status_names())
         scale = f.input_column("scale")
         resistance = f.input_column("rolling_resistance")
-    assert [r["rolling_resistance"] for r in rows] == ["1e-05", "0.001"]
+    with h5py.File(small_suite, "r") as h:
+        summary = {name: h[f"summary/{name}"][:] for name in ("displacement_max", "absolute_acceleration_max")}
+    # input/isolator_fragility.nml's limit states, recomputed from the /summary figures
+    capacities = {"model_limit": None, "drift": ("displacement_max", 0.15),
+                  "acceleration": ("absolute_acceleration_max", 9.81)}
+    assert [(r["limit_state"], r["rolling_resistance"]) for r in rows] == \
+        [(state, d) for state in capacities for d in ("1e-05", "0.001")]
     for row, detail in zip(rows, details):
         cases = resistance == float(row["rolling_resistance"])
         exceeded = np.isin(status, suite.MODEL_LIMITS)
+        if capacities[row["limit_state"]] is not None:
+            figure, capacity = capacities[row["limit_state"]]
+            exceeded = exceeded | ((status == "completed") & (summary[figure] > capacity))
         expected = fit_stripes(np.array(SCALES), [np.sum(cases & (scale == s)) for s in SCALES],
                                [np.sum(cases & exceeded & (scale == s)) for s in SCALES], bootstrap=100)
         assert float(row["theta"]) == pytest.approx(expected.theta, rel=1e-12)
@@ -306,7 +328,8 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
 
 
 def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_path):
-    """A /case pga is each case's own; a /records sa_1.0 is the record's,
+    """A /case pga is each case's own; a /records sa_3.0 (a period the
+    file has no /case/sa_ for) is the record's,
     times the case's record factor and scale."""
     with h5py.File(small_suite, "r") as f:
         n = f["summary/status"].shape[0]
@@ -315,16 +338,16 @@ def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_
     pga = scale * factor * np.array([{"SYN1": 0.05, "SYN2": 0.08, "SYN3": 0.03}[r] for r in records])
     path = constructed(small_suite, tmp_path / "im.h5",
                        extra={"case/pga": pga, "records/name": np.array([b"SYN1", b"SYN2", b"SYN3"]),
-                              "records/sa_1.0": np.array([0.1, 0.2, 0.3])})
+                              "records/sa_3.0": np.array([0.1, 0.2, 0.3])})
     with h5py.File(path, "r+") as f:
         f["case/pga"].attrs["units"] = "m/s^2"
-        f["records/sa_1.0"].attrs["period"] = 1.0
+        f["records/sa_3.0"].attrs["period"] = 3.0
     with ellroll_post.open(path) as f:
         name, values, units = suite.intensity(f, "PGA")
         assert name == "pga" and units == "m/s^2" and np.array_equal(values, pga)
-        name, values, _ = suite.intensity(f, "Sa(1.0)")
+        name, values, _ = suite.intensity(f, "Sa(3.0)")
         sa = np.array([{"SYN1": 0.1, "SYN2": 0.2, "SYN3": 0.3}[r] for r in records]) * factor * scale
-        assert name == "sa_1.0" and np.allclose(values, sa, rtol=1e-15)
+        assert name == "sa_3.0" and np.allclose(values, sa, rtol=1e-15)
         # Sa(T): at the isolator's own first period, which ellroll stores per case
         name, values, units = suite.intensity(f, "Sa(T)")
         assert name == "sa_linear_periods_1" and units == "m/s^2"
