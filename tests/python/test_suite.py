@@ -378,3 +378,57 @@ def test_counts_that_separate_in_the_intensity_are_a_step():
         values.append(_negative_log_likelihood([math.log(theta), math.log(beta)], np.log(x), n, z)[0])
     assert np.all(np.diff(values) < 0) and values[0] > supremum + 0.1
     assert values[-1] == pytest.approx(supremum, rel=1e-12)
+
+
+def summary_fragility(ellroll, path):
+    result = run(ellroll, "summary", path, "--suite", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)["fragility"]
+
+
+def assert_fortran_fits_are_pythons(ellroll, path):
+    """`ellroll summary --suite --format json`'s fragility rows against
+    suite.suite_fragility (no bootstrap) on the same file: theta and beta to
+    1e-6 where a finite maximum exists, the step of separating_step where the
+    counts separate. Returns the number of finite fits compared."""
+    from ellroll_post.fragility import separating_step
+    fortran = summary_fragility(ellroll, path)
+    with ellroll_post.open(path) as f:
+        table, details = suite.suite_fragility(f, bootstrap=0)
+    assert len(fortran) == len(table)
+    finite = 0
+    for row, (_, expected), detail in zip(fortran, table.iterrows(), details):
+        assert row["limit_state"] == expected["limit_state"] and row["note"] == expected["note"]
+        assert [row[k] for k in ("n_points", "n_known", "n_exceeded")] == \
+            [expected[k] for k in ("n_points", "n_known", "n_exceeded")]
+        if detail["fit"] is None:
+            assert row["theta"] is None and row["beta"] is None
+        elif expected["note"]:
+            assert (row["theta"], row["beta"]) == separating_step(detail["x"], detail["n"], detail["z"])
+        else:
+            assert row["theta"] == pytest.approx(expected["theta"], rel=1e-6)
+            assert row["beta"] == pytest.approx(expected["beta"], rel=1e-6)
+            finite += 1
+    return finite
+
+
+def test_summary_json_fragility_is_the_python_fit(ellroll, small_suite, tmp_path):
+    """The Fortran maximum likelihood fit (src/app/fragility_mle.f90) equals
+    ellroll_post's on the shipped example (lift-off: theta 74.26, beta 0.107)
+    and on counts drawn from a known lognormal (theta 75, beta 0.3; seeded):
+    30 cases at 10 scales, one design value."""
+    assert assert_fortran_fits_are_pythons(ellroll, small_suite) == 2
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+    rng = np.random.default_rng(42)
+    finite = 0
+    for draw in range(6):
+        scale = np.repeat(np.geomspace(40, 140, 10), n // 10)
+        exceeded = rng.uniform(size=n) < stats.norm.cdf(np.log(scale / 75.0) / 0.3)
+        status = np.where(exceeded, "liftoff", "completed")
+        path = constructed(small_suite, tmp_path / f"draw{draw}.h5", status=status, scale=scale,
+                           values={"scale": scale, "rolling_resistance": np.full(n, 1e-5)})
+        with h5py.File(path, "r+") as f:
+            f["case/rolling_resistance"][...] = 1e-5
+        finite += assert_fortran_fits_are_pythons(ellroll, path)
+    assert finite >= 6        # the lift-off fits at least (every limit state is compared)
