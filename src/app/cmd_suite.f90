@@ -147,6 +147,7 @@ contains
           call fit_stripes(levels, n, z, theta, beta, separated)
           note = ''
           if (separated) note = 'the outcomes separate in the intensity: no finite maximum, beta -> 0'
+          if (ieee_is_nan(theta)) note = 'no finite maximum: the exceedances do not grow with the intensity'
         end if
         row = ' {'
         do k = 1, size(inputs)

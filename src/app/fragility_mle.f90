@@ -8,7 +8,10 @@
 !> Counts that separate in the intensity (none exceeds below a level, all
 !> above, at most one level with some of each) have no finite maximum: the
 !> result is the step there (beta = 0), as separating_step gives it.
+!> Counts whose likelihood has its supremum at beta -> infinity (exceedances
+!> that do not grow with the intensity) give NaN.
 module ellroll_fragility_mle
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp
   implicit none
   private
@@ -61,7 +64,13 @@ contains
       now = trial
       if (abs(scale * step_a) <= 1e-14_wp * max(1.0_wp, abs(a)) .and. &
           abs(scale * step_b) <= 1e-14_wp * max(1.0_wp, abs(b))) exit
+      ! counts that fall with the intensity push b to 0, near-separated ones to infinity
+      if (b < 1e-8_wp .or. b > 1e100_wp .or. abs(a) > 1e100_wp) exit
     end do
+    theta = ieee_value(theta, ieee_quiet_nan)
+    beta = theta
+    ! no fragility a number can hold (beta above 1e8: a flat curve); the caller says so
+    if (b < 1e-8_wp .or. b > 1e100_wp .or. abs(a / b) > 700) return
     theta = exp(-a / b)
     beta = 1 / b
   contains

@@ -432,3 +432,31 @@ def test_summary_json_fragility_is_the_python_fit(ellroll, small_suite, tmp_path
             f["case/rolling_resistance"][...] = 1e-5
         finite += assert_fortran_fits_are_pythons(ellroll, path)
     assert finite >= 6        # the lift-off fits at least (every limit state is compared)
+
+
+@pytest.mark.parametrize("pattern", ["falling", "near_step", "one_level"])
+def test_summary_json_fragility_of_degenerate_counts_ends_cleanly(ellroll_debug, small_suite, tmp_path, pattern):
+    """Counts with no sensible fragility (exceedances that fall with the
+    scale, a near step, every case at one scale) on the Debug build
+    (floating-point traps): the command ends normally, each fit a number or
+    null, never a signal."""
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+    scale = np.repeat(np.geomspace(40, 140, 10), n // 10)
+    exceeded = {"falling": scale < 70, "near_step": (scale > 70) | (np.arange(n) == 14),
+                "one_level": np.arange(n) % 2 == 0}[pattern]
+    if pattern == "one_level":
+        scale = np.full(n, 80.0)
+    path = constructed(small_suite, tmp_path / f"{pattern}.h5", status=np.where(exceeded, "liftoff", "completed"),
+                       scale=scale, values={"scale": scale, "rolling_resistance": np.full(n, 1e-5)})
+    with h5py.File(path, "r+") as f:
+        f["case/rolling_resistance"][...] = 1e-5
+    rows = summary_fragility(ellroll_debug, path)
+    assert rows and rows[0]["limit_state"] == "model_limit"
+    for row in rows:
+        assert row["theta"] is None or (math.isfinite(row["theta"]) and row["theta"] > 0)
+        assert row["beta"] is None or (math.isfinite(row["beta"]) and row["beta"] >= 0)
+    if pattern == "one_level":
+        assert (rows[0]["theta"], rows[0]["beta"]) == (80.0, 0.0)      # one mixed level: the step there
+    if pattern == "falling":
+        assert rows[0]["theta"] is None and "do not grow" in rows[0]["note"]
