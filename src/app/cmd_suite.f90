@@ -15,6 +15,7 @@ module ellroll_cmd_suite
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_lapack, only: dlasrt
   use ellroll_exact, only: equals
+  use ellroll_fragility_mle, only: fit_stripes
   implicit none
   private
 
@@ -40,7 +41,7 @@ contains
     character(len=*), intent(in) :: path, format
     type(error_t), intent(inout) :: err
     type(h5_input_t) :: file
-    character(len=:), allocatable :: coordinates, units
+    character(len=:), allocatable :: coordinates, units, fragility
     character(len=64), allocatable :: inputs(:), states(:), members(:), figures(:)
     character(len=16), allocatable :: input_units(:), figure_units(:)
     real(wp), allocatable :: keys(:, :), values(:, :)
@@ -89,9 +90,114 @@ contains
     end do
     call file%close()
     if (err%failed()) return
+    call fragility_json(inputs, keys, int(status), states, flags, fragility)
     call print_columns(path, format, inputs, stripe_columns(inputs, input_units, keys, int(status), states, flags, &
-                                                            figures, figure_units, values))
+                                                            figures, figure_units, values), fragility)
   end subroutine print_suite
+
+  !> The lognormal fragilities in the scale (ellroll_post.suite.suite_fragility
+  !> without its bootstrap): per limit state (the model's, then each user
+  !> limit state) and per value of the other varied inputs, the maximum
+  !> likelihood theta and beta over the stripes, as JSON objects; none
+  !> without a scale among the varied inputs.
+  subroutine fragility_json(inputs, keys, status, states, flags, text)
+    character(len=*), intent(in) :: inputs(:), states(:)
+    real(wp), intent(in) :: keys(:, :)
+    integer, intent(in) :: status(:)
+    integer(i8), intent(in) :: flags(:, :)
+    character(len=:), allocatable, intent(out) :: text
+    integer, allocatable :: order(:)
+    integer :: i_scale, k, j, g, m, state
+    logical :: known(size(status)), hit(size(status)), group(size(status)), limit(size(status))
+    real(wp), allocatable :: levels(:), other(:, :)
+    integer, allocatable :: n(:), z(:)
+    real(wp) :: theta, beta, nan
+    logical :: separated
+    character(len=:), allocatable :: row, note, a, b
+    nan = ieee_value(nan, ieee_quiet_nan)
+    text = ''
+    i_scale = findloc([(trim(inputs(k)) == 'scale', k = 1, size(inputs))], .true., dim=1)
+    if (i_scale == 0) return
+    other = keys(:, pack([(k, k = 1, size(inputs))], [(k /= i_scale, k = 1, size(inputs))]))
+    call sort_cases(other, order)
+    limit = [(any(status(j) == model_limits), j = 1, size(status))]
+    known = (limit .or. status == status_completed) .and. ieee_is_finite(keys(:, i_scale)) .and. keys(:, i_scale) > 0
+    do state = 0, size(states)
+      hit = limit
+      if (state > 0) hit = hit .or. flags(:, max(state, 1)) /= 0
+      do g = 1, size(order)
+        if (g > 1) then
+          if (same_key(other(order(g), :), other(order(g - 1), :))) cycle
+        end if
+        group = [(same_key(other(j, :), other(order(g), :)), j = 1, size(status))]
+        levels = pack(keys(:, i_scale), group .and. known)
+        call sorted_unique(levels)
+        n = [(count(group .and. known .and. equals(keys(:, i_scale), levels(m))), m = 1, size(levels))]
+        z = [(count(group .and. known .and. hit .and. equals(keys(:, i_scale), levels(m))), m = 1, size(levels))]
+        theta = nan
+        beta = nan
+        separated = .false.
+        if (sum(n) == 0) then
+          note = 'no case with a physical outcome'
+        else if (sum(z) == 0) then
+          note = 'no case exceeds: no fit'
+        else if (sum(z) == sum(n)) then
+          note = 'every case exceeds: no fit'
+        else
+          call fit_stripes(levels, n, z, theta, beta, separated)
+          note = ''
+          if (separated) note = 'the outcomes separate in the intensity: no finite maximum, beta -> 0'
+          if (ieee_is_nan(theta)) note = 'no finite maximum: the exceedances do not grow with the intensity'
+        end if
+        row = ' {'
+        do k = 1, size(inputs)
+          if (k == i_scale) cycle
+          call number(keys(order(g), k), a)
+          row = row // '"' // trim(inputs(k)) // '": ' // a // ', '
+        end do
+        if (state == 0) then
+          row = row // '"limit_state": "model_limit", '
+        else
+          row = row // '"limit_state": "' // trim(states(max(state, 1))) // '", '
+        end if
+        call number(theta, a)
+        call number(beta, b)
+        row = row // '"im": "scale", "theta": ' // a // ', "beta": ' // b // &
+            ', "n_points": ' // itoa(size(levels)) // ', "n_known": ' // itoa(sum(n)) // &
+            ', "n_exceeded": ' // itoa(sum(z)) // ', "note": "' // note // '"}'
+        if (len(text) > 0) text = text // ',' // new_line('a')
+        text = text // row
+      end do
+    end do
+  contains
+    subroutine number(value, out)
+      real(wp), intent(in) :: value
+      character(len=:), allocatable, intent(out) :: out
+      character(len=40) :: buffer
+      integer :: length
+      if (ieee_is_nan(value)) then
+        out = 'null'
+      else
+        call real_text(value, buffer, length)
+        out = buffer(:length)
+      end if
+    end subroutine number
+  end subroutine fragility_json
+
+  !> values sorted increasing, each once.
+  subroutine sorted_unique(values)
+    real(wp), allocatable, intent(inout) :: values(:)
+    integer :: info, j, kept
+    if (size(values) > 1) call dlasrt('I', size(values), values, info)
+    kept = min(size(values), 1)
+    do j = 2, size(values)
+      if (.not. equals(values(j), values(kept))) then
+        kept = kept + 1
+        values(kept) = values(j)
+      end if
+    end do
+    values = values(:kept)
+  end subroutine sorted_unique
 
   !> The table, a column per statistic and a value per stripe (the order of
   !> suite_statistics's DataFrame).
@@ -268,8 +374,8 @@ contains
   !> The columns as text (a row per stripe), CSV (a header row, NaN as nan)
   !> or strict JSON ({file, percentiles, stripe_inputs, units, stripes}, NaN
   !> as null).
-  subroutine print_columns(path, format, inputs, columns)
-    character(len=*), intent(in) :: path, format
+  subroutine print_columns(path, format, inputs, columns, fragility)
+    character(len=*), intent(in) :: path, format, fragility
     character(len=*), intent(in) :: inputs(:)
     type(column_t), intent(in) :: columns(:)
     character(len=:), allocatable :: line, text
@@ -298,6 +404,9 @@ contains
         end do
         write (output_unit, '(a)') line // trim(merge('}, ', '}  ', s < n))
       end do
+      ! the fragilities: maximum likelihood theta and beta in the scale, no bootstrap
+      write (output_unit, '(a)') '], "fragility": ['
+      if (len(fragility) > 0) write (output_unit, '(a)') fragility
       write (output_unit, '(a)') ']}'
     case ('csv')
       line = ''

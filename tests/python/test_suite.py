@@ -59,6 +59,16 @@ def small_suite(ellroll, tmp_path_factory):
     with ellroll_post.open(path) as f:
         status = set(f.status_names())
     assert "completed" in status and status & set(suite.MODEL_LIMITS), status
+    # the input's comment: settle = 20 brings every completed case at 1e-3 m to rest, none at 1e-5 m
+    with h5py.File(path, "r") as f:
+        done = f["summary/status"][:] == 1
+        resistance, at_rest = f["case/rolling_resistance"][:], f["summary/at_rest"][:]
+        residual, t_final = f["summary/residual_displacement"][:], f["summary/t_final"][:]
+        assert sorted(k for k in f["case"] if k.startswith("sa_")) == ["sa_0.2", "sa_1"]
+    upper, lower = done & (resistance == 1e-3), done & (resistance == 1e-5)
+    assert upper.sum() == lower.sum() == 6
+    assert np.all(at_rest[upper] == 1) and np.all(np.isfinite(residual[upper])) and t_final[upper].max() < 32
+    assert np.all(at_rest[lower] == 0) and np.all(np.isnan(residual[lower])) and np.all(t_final[lower] == 32)
     return path
 
 
@@ -229,8 +239,11 @@ def test_suite_figure_takes_log_axes_over_decades_and_survives_all_or_no_failure
         capsys.readouterr()
         assert cli.main(["fragility", str(path), "--format", "csv"]) == 0
         rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+        # (a user limit state keeps the run's own /limit_state flags: only a model limit exceeds them all)
+        checked = [r for r in rows if r["limit_state"] == "model_limit" or name == "all"]
+        assert len(checked) == (2 if name == "none" else 6)
         assert all(r["theta"] == "nan" and ("no case exceeds" if name == "none" else "every case") in r["note"]
-                   for r in rows)
+                   for r in checked)
 
 
 # ------------------------------------------------------------------ fragility
@@ -271,10 +284,19 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
         status = np.array(f.status_names())
         scale = f.input_column("scale")
         resistance = f.input_column("rolling_resistance")
-    assert [r["rolling_resistance"] for r in rows] == ["1e-05", "0.001"]
+    with h5py.File(small_suite, "r") as h:
+        summary = {name: h[f"summary/{name}"][:] for name in ("displacement_max", "absolute_acceleration_max")}
+    # input/isolator_fragility.nml's limit states, recomputed from the /summary figures
+    capacities = {"model_limit": None, "drift": ("displacement_max", 0.15),
+                  "acceleration": ("absolute_acceleration_max", 9.81)}
+    assert [(r["limit_state"], r["rolling_resistance"]) for r in rows] == \
+        [(state, d) for state in capacities for d in ("1e-05", "0.001")]
     for row, detail in zip(rows, details):
         cases = resistance == float(row["rolling_resistance"])
         exceeded = np.isin(status, suite.MODEL_LIMITS)
+        if capacities[row["limit_state"]] is not None:
+            figure, capacity = capacities[row["limit_state"]]
+            exceeded = exceeded | ((status == "completed") & (summary[figure] > capacity))
         expected = fit_stripes(np.array(SCALES), [np.sum(cases & (scale == s)) for s in SCALES],
                                [np.sum(cases & exceeded & (scale == s)) for s in SCALES], bootstrap=100)
         assert float(row["theta"]) == pytest.approx(expected.theta, rel=1e-12)
@@ -306,7 +328,8 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
 
 
 def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_path):
-    """A /case pga is each case's own; a /records sa_1.0 is the record's,
+    """A /case pga is each case's own; a /records sa_3.0 (a period the
+    file has no /case/sa_ for) is the record's,
     times the case's record factor and scale."""
     with h5py.File(small_suite, "r") as f:
         n = f["summary/status"].shape[0]
@@ -315,16 +338,16 @@ def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_
     pga = scale * factor * np.array([{"SYN1": 0.05, "SYN2": 0.08, "SYN3": 0.03}[r] for r in records])
     path = constructed(small_suite, tmp_path / "im.h5",
                        extra={"case/pga": pga, "records/name": np.array([b"SYN1", b"SYN2", b"SYN3"]),
-                              "records/sa_1.0": np.array([0.1, 0.2, 0.3])})
+                              "records/sa_3.0": np.array([0.1, 0.2, 0.3])})
     with h5py.File(path, "r+") as f:
         f["case/pga"].attrs["units"] = "m/s^2"
-        f["records/sa_1.0"].attrs["period"] = 1.0
+        f["records/sa_3.0"].attrs["period"] = 3.0
     with ellroll_post.open(path) as f:
         name, values, units = suite.intensity(f, "PGA")
         assert name == "pga" and units == "m/s^2" and np.array_equal(values, pga)
-        name, values, _ = suite.intensity(f, "Sa(1.0)")
+        name, values, _ = suite.intensity(f, "Sa(3.0)")
         sa = np.array([{"SYN1": 0.1, "SYN2": 0.2, "SYN3": 0.3}[r] for r in records]) * factor * scale
-        assert name == "sa_1.0" and np.allclose(values, sa, rtol=1e-15)
+        assert name == "sa_3.0" and np.allclose(values, sa, rtol=1e-15)
         # Sa(T): at the isolator's own first period, which ellroll stores per case
         name, values, units = suite.intensity(f, "Sa(T)")
         assert name == "sa_linear_periods_1" and units == "m/s^2"
@@ -355,3 +378,85 @@ def test_counts_that_separate_in_the_intensity_are_a_step():
         values.append(_negative_log_likelihood([math.log(theta), math.log(beta)], np.log(x), n, z)[0])
     assert np.all(np.diff(values) < 0) and values[0] > supremum + 0.1
     assert values[-1] == pytest.approx(supremum, rel=1e-12)
+
+
+def summary_fragility(ellroll, path):
+    result = run(ellroll, "summary", path, "--suite", "--format", "json")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)["fragility"]
+
+
+def assert_fortran_fits_are_pythons(ellroll, path):
+    """`ellroll summary --suite --format json`'s fragility rows against
+    suite.suite_fragility (no bootstrap) on the same file: theta and beta to
+    1e-6 where a finite maximum exists, the step of separating_step where the
+    counts separate. Returns the number of finite fits compared."""
+    from ellroll_post.fragility import separating_step
+    fortran = summary_fragility(ellroll, path)
+    with ellroll_post.open(path) as f:
+        table, details = suite.suite_fragility(f, bootstrap=0)
+    assert len(fortran) == len(table)
+    finite = 0
+    for row, (_, expected), detail in zip(fortran, table.iterrows(), details):
+        assert row["limit_state"] == expected["limit_state"] and row["note"] == expected["note"]
+        assert [row[k] for k in ("n_points", "n_known", "n_exceeded")] == \
+            [expected[k] for k in ("n_points", "n_known", "n_exceeded")]
+        if detail["fit"] is None:
+            assert row["theta"] is None and row["beta"] is None
+        elif expected["note"]:
+            assert (row["theta"], row["beta"]) == separating_step(detail["x"], detail["n"], detail["z"])
+        else:
+            assert row["theta"] == pytest.approx(expected["theta"], rel=1e-6)
+            assert row["beta"] == pytest.approx(expected["beta"], rel=1e-6)
+            finite += 1
+    return finite
+
+
+def test_summary_json_fragility_is_the_python_fit(ellroll, small_suite, tmp_path):
+    """The Fortran maximum likelihood fit (src/app/fragility_mle.f90) equals
+    ellroll_post's on the shipped example (lift-off: theta 74.26, beta 0.107)
+    and on counts drawn from a known lognormal (theta 75, beta 0.3; seeded):
+    30 cases at 10 scales, one design value."""
+    assert assert_fortran_fits_are_pythons(ellroll, small_suite) == 2
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+    rng = np.random.default_rng(42)
+    finite = 0
+    for draw in range(6):
+        scale = np.repeat(np.geomspace(40, 140, 10), n // 10)
+        exceeded = rng.uniform(size=n) < stats.norm.cdf(np.log(scale / 75.0) / 0.3)
+        status = np.where(exceeded, "liftoff", "completed")
+        path = constructed(small_suite, tmp_path / f"draw{draw}.h5", status=status, scale=scale,
+                           values={"scale": scale, "rolling_resistance": np.full(n, 1e-5)})
+        with h5py.File(path, "r+") as f:
+            f["case/rolling_resistance"][...] = 1e-5
+        finite += assert_fortran_fits_are_pythons(ellroll, path)
+    assert finite >= 6        # the lift-off fits at least (every limit state is compared)
+
+
+@pytest.mark.parametrize("pattern", ["falling", "near_step", "one_level"])
+def test_summary_json_fragility_of_degenerate_counts_ends_cleanly(ellroll_debug, small_suite, tmp_path, pattern):
+    """Counts with no sensible fragility (exceedances that fall with the
+    scale, a near step, every case at one scale) on the Debug build
+    (floating-point traps): the command ends normally, each fit a number or
+    null, never a signal."""
+    with h5py.File(small_suite, "r") as f:
+        n = f["summary/status"].shape[0]
+    scale = np.repeat(np.geomspace(40, 140, 10), n // 10)
+    exceeded = {"falling": scale < 70, "near_step": (scale > 70) | (np.arange(n) == 14),
+                "one_level": np.arange(n) % 2 == 0}[pattern]
+    if pattern == "one_level":
+        scale = np.full(n, 80.0)
+    path = constructed(small_suite, tmp_path / f"{pattern}.h5", status=np.where(exceeded, "liftoff", "completed"),
+                       scale=scale, values={"scale": scale, "rolling_resistance": np.full(n, 1e-5)})
+    with h5py.File(path, "r+") as f:
+        f["case/rolling_resistance"][...] = 1e-5
+    rows = summary_fragility(ellroll_debug, path)
+    assert rows and rows[0]["limit_state"] == "model_limit"
+    for row in rows:
+        assert row["theta"] is None or (math.isfinite(row["theta"]) and row["theta"] > 0)
+        assert row["beta"] is None or (math.isfinite(row["beta"]) and row["beta"] >= 0)
+    if pattern == "one_level":
+        assert (rows[0]["theta"], rows[0]["beta"]) == (80.0, 0.0)      # one mixed level: the step there
+    if pattern == "falling":
+        assert rows[0]["theta"] is None and "do not grow" in rows[0]["note"]
