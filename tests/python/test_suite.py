@@ -276,6 +276,39 @@ def test_a_known_lognormal_fragility_is_fitted_back_within_its_bootstrap_interva
     assert low[0] < 0.5 < high[0]
 
 
+def probit_glm(x, n, z, iterations=100):
+    """The binomial GLM with the probit link on log x, fitted by iteratively
+    reweighted least squares (Fisher scoring), as statsmodels' GLM does:
+    P = Phi(a + b ln x) gives theta = exp(-a / b), beta = 1 / b."""
+    design = np.column_stack([np.ones_like(x), np.log(x)])
+    coef = np.array([0.0, 1.0])
+    for _ in range(iterations):
+        eta = design @ coef
+        p = np.clip(stats.norm.cdf(eta), 1e-300, 1 - 1e-16)
+        density = stats.norm.pdf(eta)
+        weight = n * density**2 / (p * (1 - p))
+        working = eta + (z / n - p) / density
+        step = np.linalg.solve(design.T @ (weight[:, None] * design), design.T @ (weight * working))
+        if np.allclose(step, coef, rtol=1e-14, atol=0):
+            coef = step
+            break
+        coef = step
+    return math.exp(-coef[0] / coef[1]), 1 / coef[1]
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_the_fragility_fit_is_the_probit_glms(seed):
+    """Counts drawn from a known lognormal (seeded): fit_stripes' maximum
+    likelihood equals a probit GLM fitted independently by IRLS."""
+    rng = np.random.default_rng(100 + seed)
+    levels = np.geomspace(0.2, 2.5, 8)
+    n = rng.integers(10, 40, size=levels.size)
+    z = rng.binomial(n, stats.norm.cdf(np.log(levels / THETA) / BETA))
+    fit = fit_stripes(levels, n, z)
+    theta, beta = probit_glm(levels, n.astype(float), z.astype(float))
+    assert fit.theta == pytest.approx(theta, rel=1e-6) and fit.beta == pytest.approx(beta, rel=1e-6)
+
+
 def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
     assert cli.main(["fragility", str(small_suite), "--format", "csv", "--bootstrap", "100"]) == 0
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
