@@ -11,8 +11,10 @@
 !>                          [0, 0, 0, 1], [0, 0, 0, 0]] (u, v, f, f'),
 !> f = -a_g linear over the step (Nigam and Jennings' recurrence, in matrix
 !> form); velocity and displacement are the exact integrals of the linear
-!> acceleration. The peaks are taken on the exact solution at `refinement`
-!> points per sample step.
+!> acceleration. The peaks of PGV and PGD are taken on the exact solution at
+!> `refinement` points per sample step, those of Sa at points at most
+!> max_phase_step of the oscillator's phase apart, with the Hermite cubic's
+!> peak between them.
 module ellroll_intensity
   use ellroll_kinds, only: wp
   use ellroll_exact, only: equals
@@ -28,10 +30,14 @@ module ellroll_intensity
   !> The most user-given periods of Sa (&excitation sa_periods).
   integer, parameter :: max_sa_periods = 16
 
-  !> Points per sample step at which the peaks are taken (the solution is
-  !> exact there): a peak between them is missed by at most about
+  !> Points per sample step at which the peaks of velocity and displacement
+  !> are taken (the solution is exact there): a peak between them is missed
+  !> by at most about
   !> (w h / refinement)^2 / 8 of itself, h the sample step.
   integer, parameter :: refinement = 16
+  !> Largest phase step (omega h, rad) between the exact points of Sa's
+  !> oscillator (oscillator_sub_steps).
+  real(wp), parameter :: max_phase_step = 0.05_wp
 
   type :: record_intensity_t
     real(wp) :: pga = 0     !< m/s^2, peak of |a_g| (horizontal)
@@ -91,14 +97,15 @@ contains
     real(wp), intent(in) :: times(:), values(:, :), periods(:), zeta
     real(wp) :: sa(size(periods))
     real(wp) :: omega, peak, x(2, 2), x_prev(2, 2), h, h_step, f0(2), f1(2), slope(2), propagator(4, 4)
-    integer :: p, k, j
+    integer :: p, k, j, sub_steps
     do p = 1, size(periods)
       omega = 8 * atan(1.0_wp) / periods(p)
       x = 0                                 ! (u, v) of each horizontal component
       peak = 0
       h_step = -1
       do k = 1, size(times) - 1
-        h = (times(k + 1) - times(k)) / refinement
+        sub_steps = oscillator_sub_steps(omega, times(k + 1) - times(k))
+        h = (times(k + 1) - times(k)) / sub_steps
         if (.not. equals(h, h_step)) then   ! (records on an even grid: once)
           propagator = exponential(oscillator(omega, zeta) * h)
           h_step = h
@@ -106,7 +113,7 @@ contains
         f0 = -values(1:2, k)
         f1 = -values(1:2, k + 1)
         slope = (f1 - f0) / (times(k + 1) - times(k))
-        do j = 1, refinement
+        do j = 1, sub_steps
           x_prev = x
           x = advance(propagator, x, f0 + slope * (h * (j - 1)), slope)
           ! between the exact states: Hermite's cubic of u from u and u'
@@ -117,6 +124,15 @@ contains
       sa(p) = omega**2 * peak
     end do
   end function pseudo_spectral_acceleration
+
+  !> Exact points per sample step of length h for the oscillator of angular
+  !> frequency omega: at most max_phase_step radians apart, so that the
+  !> Hermite cubic between them misses a peak by less than about
+  !> max_phase_step^4 / 384 of it (2e-8); at least one.
+  pure integer function oscillator_sub_steps(omega, h)
+    real(wp), intent(in) :: omega, h
+    oscillator_sub_steps = max(1, ceiling(omega * h / max_phase_step))
+  end function oscillator_sub_steps
 
   !> The largest |p(s)| inside [0, delta] of the cubic Hermite interpolant
   !> of a plane vector p with values p0, p1 and derivatives q0, q1 at the
