@@ -7,7 +7,8 @@ module ellroll_case_input
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: lower, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
+      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple, &
+      field_regime, field_slip_speed
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names, methods
@@ -388,6 +389,8 @@ contains
 
     ! the cup's acceleration is stored only when the cup moves
     plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
+    ! the regime and the slip speed only when the ball may slide
+    plan%fields([field_regime, field_slip_speed]) = cs%slide
     if (rd%given(gi, 'fields')) then
       plan%fields = .false.
       do k = 1, max_fields
