@@ -189,6 +189,14 @@ contains
       if (params(p)%group /= 'excitation' .and. p /= p_weight .and. p /= p_mass) call set_param(cs, p, v%param(p))
     end do
     cs%method = v%method; cs%t_end = v%t_end
+    ! gauss4's simplified Newton takes its Jacobian by differences at the
+    ! step's start: where the slip is zero (the switch into sliding) the
+    ! friction's direction turns over the difference, and no stage converges
+    if (cs%slide .and. lower(adjustl(cs%method)) == 'gauss4') then
+      call rd%fail_value(rd%group('ball', .true.), 'slip', &
+                         "does not run with &integration method = 'gauss4': use rk4, dop853 or vern9")
+      return
+    end if
     call finalize_case(cs)
   end subroutine build_base
 

@@ -115,6 +115,17 @@ def test_unknown_slip_is_refused(ellroll, tmp_path, change, message):
     assert "slip" in result.stderr and "'end' or 'slide'" in result.stderr
 
 
+def test_gauss4_is_refused_for_sliding(ellroll, tmp_path):
+    """gauss4's Newton iteration does not converge at the switch into
+    sliding: the input check names &ball slip and the method."""
+    text = PLATE.format(omega="0, 10, 0", velocity="0, 0, 0", integration="method = 'gauss4', dt = 1e-3")
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll, "run", "case.nml", "-q", "--overwrite", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "case.nml:2: &ball: slip = 'slide': does not run with &integration method = 'gauss4'" in result.stderr
+    assert not (tmp_path / "out.h5").exists()
+
+
 @pytest.mark.parametrize("velocity,slip,words", [
     ("1.0, 0, 0.1", "slide", "tangent"),
     ("1.0, 0, 0", "end", "slip = 'slide'"),
