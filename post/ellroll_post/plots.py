@@ -98,7 +98,8 @@ def energy_bound_level(run, case=0):
 
 
 def plot_trace(ax, run, case=0):
-    """Fig. 2: the contact point's trace in the XY plane, the cup's rim, the
+    """Fig. 2: the contact point's trace in the XY plane (coloured by regime,
+    rolling or sliding, when the field regime is stored), the cup's rim, the
     energy bound (the curve the ball does not cross; on a fixed cup, with
     the fields energy, omega and normal stored: otherwise a note says why
     it is left out), start and end."""
@@ -120,7 +121,10 @@ def plot_trace(ax, run, case=0):
             ax.plot(bx, by, color="C1", lw=1, ls="--", label="energy bound (spin about n kept)")
         else:
             _note(ax, "no energy bound: the energy reaches the rim")
-    ax.plot(x, y, lw=0.7, color="C0", label="contact point")
+    if "regime" in run.fields:
+        _plot_by_regime(ax, x, y, run.trajectory("regime", case)[valid])
+    else:
+        ax.plot(x, y, lw=0.7, color="C0", label="contact point")
     ax.plot(x[:1], y[:1], "o", color="C2", label="start")
     ax.plot(x[-1:], y[-1:], "s", color="C3", label=f"end S, t = {run.time[valid][-1]:g} s")
     ax.set_aspect("equal")
@@ -129,6 +133,21 @@ def plot_trace(ax, run, case=0):
     ax.set_title(f"Contact point trace ({_case_label(run, case)})")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=3, fontsize="small", frameon=False)
     return ax
+
+
+REGIME_COLOURS = {0: ("C0", "contact point, rolling"), 1: ("C4", "contact point, sliding")}
+
+
+def _plot_by_regime(ax, x, y, regime):
+    """The trace in one colour per regime (the field regime: 0 rolling, 1
+    sliding); each piece runs on to the first sample of the next, so that
+    the path stays whole where the regime turns."""
+    for value, (colour, label) in REGIME_COLOURS.items():
+        inside = regime == value
+        inside[1:] |= inside[:-1]
+        if np.any(regime == value):
+            ax.plot(np.ma.masked_where(~inside, x), np.ma.masked_where(~inside, y), lw=0.7, color=colour,
+                    label=label)
 
 
 def plot_nutation(ax, run, case=0):

@@ -27,7 +27,7 @@ module ellroll_cases
   public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
-            field_reaction, field_energy, field_base_acceleration
+            field_reaction, field_energy, field_base_acceleration, field_regime, field_slip_speed
 
   !> A case: every input of the parameter table at its row (param(p_radius),
   !> ...; the row's default until the input sets it), and the others.
@@ -63,14 +63,16 @@ module ellroll_cases
   ! days at a million steps per second.
   real(wp), parameter :: max_steps = 1.0e12_wp   !< also the most samples a case stores
 
-  integer, parameter :: field_count = 8
+  integer, parameter :: field_count = 10
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
-                        field_nutation = 5, field_reaction = 6, field_energy = 7, field_base_acceleration = 8
+                        field_nutation = 5, field_reaction = 6, field_energy = 7, field_base_acceleration = 8, &
+                        field_regime = 9, field_slip_speed = 10
   character(len=*), parameter :: field_names(field_count) = [character(len=17) :: &
-      'contact', 'center', 'omega', 'normal', 'nutation', 'reaction', 'energy', 'base_acceleration']
+      'contact', 'center', 'omega', 'normal', 'nutation', 'reaction', 'energy', 'base_acceleration', &
+      'regime', 'slip_speed']
   character(len=*), parameter :: field_units(field_count) = [character(len=5) :: &
-      'm', 'm', 'rad/s', '1', 'rad', 'N', 'J', 'm/s^2']
-  integer, parameter :: field_ncomp(field_count) = [3, 3, 3, 3, 1, 3, 1, 3]
+      'm', 'm', 'rad/s', '1', 'rad', 'N', 'J', 'm/s^2', '1', 'm/s']
+  integer, parameter :: field_ncomp(field_count) = [3, 3, 3, 3, 1, 3, 1, 3, 1, 1]
   character(len=*), parameter :: field_descriptions(field_count) = [character(len=80) :: &
       'contact point A of the ball on the cup', &
       'centre C of the ball', &
@@ -79,7 +81,9 @@ module ellroll_cases
       'nutation angle Theta between the normal and the vertical', &
       'force of the cup on the ball at A (normal force plus friction)', &
       'total energy J|w|^2/2 + m|V_C|^2/2 + m g z_C, z from the cup bottom (cup frame)', &
-      'acceleration of the cup (inertial frame)']
+      'acceleration of the cup (inertial frame)', &
+      'regime at the sample: 0 rolling, 1 sliding', &
+      'slip speed |u| of the ball at A on the cup (0 while rolling)']
 
   !> What a run writes: shared by all its cases.
   type :: output_plan_t

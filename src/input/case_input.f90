@@ -7,7 +7,8 @@ module ellroll_case_input
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: lower, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple
+      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple, &
+      field_regime, field_slip_speed
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names, methods
@@ -188,6 +189,14 @@ contains
       if (params(p)%group /= 'excitation' .and. p /= p_weight .and. p /= p_mass) call set_param(cs, p, v%param(p))
     end do
     cs%method = v%method; cs%t_end = v%t_end
+    ! gauss4's simplified Newton takes its Jacobian by differences at the
+    ! step's start: where the slip is zero (the switch into sliding) the
+    ! friction's direction turns over the difference, and no stage converges
+    if (cs%slide .and. lower(adjustl(cs%method)) == 'gauss4') then
+      call rd%fail_value(rd%group('ball', .true.), 'slip', &
+                         "does not run with &integration method = 'gauss4': use rk4, dop853 or vern9")
+      return
+    end if
     call finalize_case(cs)
   end subroutine build_base
 
@@ -388,6 +397,8 @@ contains
 
     ! the cup's acceleration is stored only when the cup moves
     plan%fields(field_base_acceleration) = cs%excitation%kind /= excitation_none
+    ! the regime and the slip speed only when the ball may slide
+    plan%fields([field_regime, field_slip_speed]) = cs%slide
     if (rd%given(gi, 'fields')) then
       plan%fields = .false.
       do k = 1, max_fields

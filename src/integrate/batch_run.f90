@@ -9,7 +9,8 @@ module ellroll_batch_run
   use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
-      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
+      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
+      field_regime, field_slip_speed
   use ellroll_results, only: case_result_t
   use ellroll_quantities, only: q_friction_needed, q_energy
   use ellroll_figures, only: fig_theta_max
@@ -661,6 +662,9 @@ contains
     if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, first:last))
     if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, first:last) = self%energy(l, :n)
     call put(res, field_base_acceleration, self%base)
+    ! the lanes roll (a case that may slide never runs in them)
+    if (allocated(res%fields(field_regime)%values)) res%fields(field_regime)%values(1, first:last) = 0
+    if (allocated(res%fields(field_slip_speed)%values)) res%fields(field_slip_speed)%values(1, first:last) = 0
     res%n_recorded = last
     self%first(l) = last + 1
     self%count(l) = 0

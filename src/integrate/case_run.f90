@@ -12,7 +12,8 @@ module ellroll_case_run
   use ellroll_intensity, only: pseudo_spectral_acceleration, damping_ratio
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
-      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration
+      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
+      field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded, set_figure_values
   use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
       q_friction_needed, q_energy, q_surface_residual, q_fit_clearance
@@ -33,7 +34,7 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked, latest_end, settled
-  public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample
+  public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -384,8 +385,18 @@ contains
     call put(res, sample, field_reaction, obs%reaction)
     if (stored(res, field_energy)) res%fields(field_energy)%values(1, sample) = obs%energy
     call put(res, sample, field_base_acceleration, obs%base_acceleration)
+    call record_rolling(res, sample)
     res%n_recorded = sample
   end subroutine record_sample
+
+  !> A rolling sample's regime (0) and slip speed (0), where they are stored;
+  !> the sliding run writes its own over them.
+  pure subroutine record_rolling(res, sample)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    if (stored(res, field_regime)) res%fields(field_regime)%values(1, sample) = 0
+    if (stored(res, field_slip_speed)) res%fields(field_slip_speed)%values(1, sample) = 0
+  end subroutine record_rolling
 
   !> An output sample of the state y (normal not projected) that stores only
   !> its geometry (contact point, centre, omega, normal, Theta), each figure
@@ -409,6 +420,7 @@ contains
       if (stored(res, field_nutation)) &
         res%fields(field_nutation)%values(1, sample) = nutation_angle(sqrt(normal(1)**2 + normal(2)**2), normal(3))
     end if
+    call record_rolling(res, sample)
     res%n_recorded = sample
   end subroutine record_geometry_sample
 

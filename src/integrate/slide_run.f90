@@ -14,14 +14,14 @@ module ellroll_slide_run
   use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
-  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
+  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
       observe_sliding, slip_velocity, stick, stick_level
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
@@ -89,10 +89,13 @@ contains
         tally%episodes = 1
         tally%slip_speed_max = now%slip_speed
         tally%episode_slip_max = now%slip_speed
-        call restart_samples(run, res, now%obs)
+        call restart_samples(run, res, now)
       end if
     end if
-    if (.not. now%sliding .and. res%status == status_slip) call start_sliding(sb, 0.0_wp, now, res, tally)
+    if (.not. now%sliding .and. res%status == status_slip) then
+      call start_sliding(sb, 0.0_wp, now, res, tally)
+      call record_regime_sample(res, 1_i8, now)         ! the start slides from t = 0
+    end if
     res%status = status_completed
     select type (integrator)
     class is (embedded_pair_t)
@@ -107,13 +110,25 @@ contains
   end subroutine slide_loop
 
   !> The first sample and the summary's start again from the sliding start.
-  pure subroutine restart_samples(run, res, obs)
+  pure subroutine restart_samples(run, res, now)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
-    type(observation_t), intent(in) :: obs
-    call record_sample(res, 1_i8, obs)
-    call track(run, res, 0.0_wp, obs)
+    type(regime_state_t), intent(in) :: now
+    call record_regime_sample(res, 1_i8, now)
+    call track(run, res, 0.0_wp, now%obs)
   end subroutine restart_samples
+
+  !> Every stored field's values at one output sample, the regime and the
+  !> slip speed with them (a sliding observation's friction is mu N).
+  pure subroutine record_regime_sample(res, sample, now)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    type(regime_state_t), intent(in) :: now
+    call record_sample(res, sample, now%obs)
+    if (.not. now%sliding) return
+    if (stored(res, field_regime)) res%fields(field_regime)%values(1, sample) = 1
+    if (stored(res, field_slip_speed)) res%fields(field_slip_speed)%values(1, sample) = now%slip_speed
+  end subroutine record_regime_sample
 
   !> Fixed steps of dt, each from the state at its start to the grid point
   !> after it, through the switches inside it (advance).
@@ -144,7 +159,7 @@ contains
       t = k * cs%param(p_dt)
       call track(run, res, t, now%obs)
       sample = k / every + 1
-      if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_sample(res, sample, now%obs)
+      if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
     end do
     res%t_final = t
   end subroutine fixed_slide
@@ -215,7 +230,7 @@ contains
       t = t_next
       call track(run, res, t, now%obs)
       if (sample_due(run, plan, t)) then
-        call record_sample(res, run%next_sample, now%obs)
+        call record_regime_sample(res, run%next_sample, now)
         run%next_sample = run%next_sample + 1
       end if
       h = h * factor

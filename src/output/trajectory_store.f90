@@ -33,7 +33,7 @@ module ellroll_trajectory_store
   integer, parameter :: label_bytes = 512               !< the label's text, NUL padded
   integer, parameter :: label_search_bytes = 65536      !< where a resume looks for it
   character(len=*), parameter :: label_marker = 'ellroll trajectories:'
-  integer(i8), parameter :: label_version = 2           !< 1: binary, in the user block
+  integer(i8), parameter :: label_version = 3           !< 1: binary, in the user block; 2: 8 fields
   integer, parameter :: label_words = 3 + field_count + 1     !< version, counts, addresses, checksum
 
   type :: trajectory_store_t

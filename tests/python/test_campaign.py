@@ -186,7 +186,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 33, 4
 # magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
 # input's files (empty without records) and its checksum
-JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 8 + 1) + 8 + 8
+JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 10 + 1) + 8 + 8
 RECORD_MARKER = 7310312871522813004
 
 
@@ -429,8 +429,8 @@ def trajectory_label(path):
     head = path.read_bytes()[:65536]
     at = head.index(b"ellroll trajectories: ")
     words = [int(w) for w in head[at:at + 512].split(b"\0")[0].split()[2:]]
-    assert words[0] == 2 and len(words) == 12
-    return words[1], words[2], words[3:11]
+    assert words[0] == 3 and len(words) == 14
+    return words[1], words[2], words[3:13]
 
 
 def test_resume_runs_again_a_case_whose_trajectories_are_damaged(ellroll, tmp_path):

@@ -400,3 +400,27 @@ def test_every_ellroll_plot_command_of_the_docs_runs_on_the_shipped_inputs(ellro
         code, stdout, err = cli(*args, *out)
         assert code == 0, (command, err)
         assert stdout.strip(), command
+
+
+def test_trace_colours_the_path_by_regime(ellroll, tmp_path):
+    """A case that slides twice (the paper's cup, mu = 0.05): the trace has a
+    rolling and a sliding line, each drawn exactly on its regime's samples
+    and the one after (where the regime turns)."""
+    (tmp_path / "slide.nml").write_text(
+        "&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0, mu = 0.05, slip = 'slide' /\n"
+        "&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /\n"
+        "&integration method = 'rk4', dt = 1e-3, t_end = 5.0 /\n&output file = 'slide.h5', interval = 1e-2 /\n")
+    assert run(ellroll, "run", "slide.nml", "-q", cwd=tmp_path).returncode == 0
+    with ellroll_post.open(tmp_path / "slide.h5") as run_:
+        regime = run_.trajectory("regime", 0)
+        fig, ax = plt.subplots()
+        plots.plot_trace(ax, run_)
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        for value, name in [(0, "contact point, rolling"), (1, "contact point, sliding")]:
+            drawn = ~np.ma.getmaskarray(lines[name].get_xdata())
+            expected = regime == value
+            expected[1:] |= expected[:-1]
+            assert np.array_equal(drawn, expected), name
+        assert lines["contact point, rolling"].get_color() != lines["contact point, sliding"].get_color()
+        assert 0 < np.count_nonzero(regime == 1) < regime.size and "contact point" not in lines
+        plt.close(fig)

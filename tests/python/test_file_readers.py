@@ -51,7 +51,7 @@ def test_hdf5_signature_at_the_start(files, kind):
     assert files[kind].read_bytes()[:8] == b"\x89HDF\r\n\x1a\n"
     with h5py.File(files[kind], "r") as f:
         assert f.userblock_size == 0
-        assert f["trajectory_label"][()].startswith(b"ellroll trajectories: 2 ")
+        assert f["trajectory_label"][()].startswith(b"ellroll trajectories: 3 ")
 
 
 @pytest.mark.parametrize("engine", [None, "h5netcdf", "netcdf4"])

@@ -115,6 +115,17 @@ def test_unknown_slip_is_refused(ellroll, tmp_path, change, message):
     assert "slip" in result.stderr and "'end' or 'slide'" in result.stderr
 
 
+def test_gauss4_is_refused_for_sliding(ellroll, tmp_path):
+    """gauss4's Newton iteration does not converge at the switch into
+    sliding: the input check names &ball slip and the method."""
+    text = PLATE.format(omega="0, 10, 0", velocity="0, 0, 0", integration="method = 'gauss4', dt = 1e-3")
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll, "run", "case.nml", "-q", "--overwrite", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "case.nml:2: &ball: slip = 'slide': does not run with &integration method = 'gauss4'" in result.stderr
+    assert not (tmp_path / "out.h5").exists()
+
+
 @pytest.mark.parametrize("velocity,slip,words", [
     ("1.0, 0, 0.1", "slide", "tangent"),
     ("1.0, 0, 0", "end", "slip = 'slide'"),
@@ -150,3 +161,60 @@ def test_a_sweep_of_sliding_cases_gives_each_cases_own_run(ellroll, tmp_path, th
             for k in ("sliding_time", "slip_episodes", "friction_energy"):
                 assert f["summary"][k][i] == alone[mu][k], (i, k)
             assert np.array_equal(f["trajectory/omega"][i], alone[mu]["omega"]), i
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("omega, velocity, u0", [("0, 10, 0", "0, 0, 0", R * 10.0), ("0, 0, 0", "1.0, 0, 0", 1.0)])
+def test_the_regime_and_slip_speed_follow_the_closed_form(ellroll, tmp_path, method, omega, velocity, u0):
+    """Per sample on the flat plate: the slip speed |u| = |u0| - (7/2) mu g t
+    while sliding (regime 1), 0 while rolling (regime 0); the regime turns at
+    /summary's sliding_time; the friction stored while sliding is mu N."""
+    with run_text(ellroll, tmp_path, PLATE.format(omega=omega, velocity=velocity,
+                                                  integration=METHODS[method])) as f:
+        regime = f["trajectory/regime"][0]
+        slip = f["trajectory/slip_speed"][0]
+        reaction = f["trajectory/reaction"][0]
+        normal = f["trajectory/normal"][0]
+        sliding_time = f["summary/sliding_time"][0]
+        t = f["time"][()]
+    t_slide = 2 * u0 / (7 * MU * G)
+    sliding = t < t_slide - 1e-9
+    rolling = t > t_slide + 1e-9
+    assert set(np.unique(regime)) == {0.0, 1.0}
+    assert np.array_equal(regime[sliding | rolling], sliding[sliding | rolling].astype(float))
+    assert np.all(t[regime == 1] <= sliding_time) and np.all(t[regime == 0] >= sliding_time)
+    # 1e-6 of |u0|, as the speeds above (near its end |u| is a difference of terms
+    # of size |u0|; 1.7e-7 |u0| measured with rk4 at dt 1e-3)
+    assert slip[sliding] == pytest.approx(u0 - 3.5 * MU * G * t[sliding], rel=1e-6, abs=1e-6 * u0)
+    assert np.all(slip[rolling] == 0)
+    n = np.einsum("ij,ij->i", reaction, normal)
+    tangential = np.linalg.norm(reaction - n[:, None] * normal, axis=1)
+    assert tangential[sliding] / n[sliding] == pytest.approx(MU, rel=1e-12)
+    assert np.all(tangential[rolling] / n[rolling] < 1e-6)    # the plate's slope: rolling needs no friction
+
+
+def test_the_regime_samples_add_up_to_the_sliding_time(ellroll, tmp_path):
+    """Several episodes in a triaxial cup: the samples flagged sliding, each
+    standing for one output interval, add up to /summary's sliding_time
+    within one interval per switch; |u| > 0 exactly where the flag is 1."""
+    interval = 1e-2
+    with run_text(ellroll, tmp_path, TRIAXIAL.format(mu=0.05, slip="slide", dt=5e-5)) as f:
+        regime = f["trajectory/regime"][0]
+        slip = f["trajectory/slip_speed"][0]
+        sliding_time = f["summary/sliding_time"][0]
+        episodes = f["summary/slip_episodes"][0]
+    assert episodes == 2
+    assert abs(np.count_nonzero(regime == 1) * interval - sliding_time) <= 2 * episodes * interval
+    starts = np.count_nonzero(np.diff(regime) == 1) + (regime[0] == 1)
+    assert starts == episodes
+    assert np.all(slip[regime == 0] == 0) and np.all(slip[regime == 1][1:] > 0)
+
+
+def test_a_rolling_case_stores_no_regime_unless_asked(ellroll, tmp_path):
+    text = TRIAXIAL.format(mu=0.05, slip="end", dt=1e-3)
+    with run_text(ellroll, tmp_path, text) as f:
+        assert "regime" not in f["trajectory"] and "slip_speed" not in f["trajectory"]
+    asked = text.replace("interval = 1e-2", "interval = 1e-2, fields = 'all'")
+    with run_text(ellroll, tmp_path, asked) as f:
+        assert np.all(f["trajectory/regime"][0][np.isfinite(f["trajectory/regime"][0])] == 0)
+        assert f["trajectory/slip_speed"].attrs["units"] in (b"m/s", "m/s")
