@@ -116,6 +116,7 @@ contains
     character(len=:), allocatable :: row, note, a, b
     nan = ieee_value(nan, ieee_quiet_nan)
     text = ''
+    note = ''
     i_scale = findloc([(trim(inputs(k)) == 'scale', k = 1, size(inputs))], .true., dim=1)
     if (i_scale == 0) return
     other = keys(:, pack([(k, k = 1, size(inputs))], [(k /= i_scale, k = 1, size(inputs))]))
