@@ -96,6 +96,7 @@ contains
     real(wp), intent(in) :: times(:), values(:, :), periods(:), zeta
     real(wp) :: sa(size(periods))
     real(wp) :: omega, peak, x(2, 2), x_prev(2, 2), h, h_step, f0(2), f1(2), slope(2), propagator(4, 4)
+    real(wp) :: u_prev(2), v_prev(2), u_now(2), v_now(2)
     integer :: p, k, j, sub_steps
     do p = 1, size(periods)
       omega = 8 * atan(1.0_wp) / periods(p)
@@ -120,7 +121,11 @@ contains
           x = advance(propagator, x, f0 + slope * (h * (j - 1)), slope)
           ! between the exact states: Hermite's cubic of u from u and u'
           ! (error of order (omega h)^4 of the peak)
-          peak = max(peak, hypot(x(1, 1), x(1, 2)), hermite_peak(x_prev(1, :), x_prev(2, :), x(1, :), x(2, :), h))
+          u_prev = x_prev(1, :)      ! (contiguous: no array temporaries)
+          v_prev = x_prev(2, :)
+          u_now = x(1, :)
+          v_now = x(2, :)
+          peak = max(peak, hypot(x(1, 1), x(1, 2)), hermite_peak(u_prev, v_prev, u_now, v_now, h))
         end do
       end do
       sa(p) = omega**2 * peak

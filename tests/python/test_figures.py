@@ -6,6 +6,7 @@ no traceback) where a figure cannot be drawn."""
 import contextlib
 import io
 import re
+import shlex
 import shutil
 
 import numpy as np
@@ -378,7 +379,7 @@ def docs_plot_commands():
         for line in page.read_text().splitlines():
             match = re.match(r"^\.venv/bin/ellroll-plot\s+(.*?)\s*(#.*)?$", line.strip())
             if match:
-                commands.append(match.group(1).split())
+                commands.append(shlex.split(match.group(1)))   # as the shell reads it
     return commands
 
 
