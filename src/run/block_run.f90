@@ -35,6 +35,7 @@ contains
     integer, intent(out) :: n_done
     type(error_t), intent(inout) :: err
     type(case_result_t) :: batch_results(lanes)
+    type(case_t), allocatable :: batch_cases(:)
     integer :: n, j, in_batch(lanes), n_batch, first
     logical :: waiting(lanes)
     n = size(cases)
@@ -51,7 +52,10 @@ contains
       if (n_batch == n) then           ! the whole block: no copy of the results
         call simulate_batch(cases, plan, results(:n))
       else
-        call simulate_batch(cases(in_batch(:n_batch)), plan, batch_results(:n_batch))
+        ! a named copy: gfortran 12 leaks the allocatable components of a
+        ! vector-subscripted actual argument's temporary
+        batch_cases = cases(in_batch(:n_batch))
+        call simulate_batch(batch_cases, plan, batch_results(:n_batch))
         results(in_batch(:n_batch)) = batch_results(:n_batch)
       end if
     end do
