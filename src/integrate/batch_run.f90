@@ -8,20 +8,16 @@ module ellroll_batch_run
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
-  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_count, field_contact, field_center, field_omega, &
-      field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
-      field_regime, field_slip_speed
+  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, make_ball
   use ellroll_results, only: case_result_t
   use ellroll_quantities, only: q_friction_needed, q_energy
-  use ellroll_figures, only: fig_theta_max
-  use ellroll_running, only: running_lanes_t, add_step_ends, get_lane, put_lane
-  use ellroll_rolling_ball, only: observation_t, state_size, nutation_angle
+  use ellroll_rolling_ball, only: observation_t, state_size
   use ellroll_errors, only: error_t
-  use ellroll_cases, only: make_ball
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
   use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
   use ellroll_excitation_lanes, only: excitation_lanes_t
+  use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
@@ -32,42 +28,6 @@ module ellroll_batch_run
   private
 
   public :: lanes, batchable, simulate_batch
-
-  !> Output samples held per batch lane between flushes into the results
-  !> (lane_sample_block_t).
-  integer, parameter :: block_samples = 128
-
-  !> The running summary of every lane of a batch (accumulate across lanes):
-  !> the largest nutation angle, and the statistics of the step-end
-  !> quantities (ellroll_running), a row per lane.
-  type :: lane_summary_t
-    real(wp), dimension(lanes) :: tan_max = -1, lateral_at_max = 0, normal_z_at_max = 1
-    logical :: theta_moved(lanes) = .false.
-    type(running_lanes_t) :: stats
-  contains
-    procedure :: load => load_summary
-    procedure :: add => add_to_summary
-    procedure :: note_nutation => note_lane_nutation
-    procedure :: store => store_summary
-  end type lane_summary_t
-
-  !> Output samples of a batch's RK4 lanes, held a block at a time: each
-  !> lane's samples (every steps_per_sample of its own dt) go to its next
-  !> slot, and its result takes them from the block in one pass (flush).
-  !> Stored lane by lane into the eight results, a sample cost about 90 ns
-  !> per case; long blocks give each of the 40 streams a flush writes runs
-  !> that the prefetcher follows. The block is 139 kB.
-  type :: lane_sample_block_t
-    integer :: count(lanes) = 0           !< samples held per lane
-    integer(i8) :: first(lanes) = 2       !< output sample index of each lane's first one held
-    logical :: fields(field_count) = .false.
-    real(wp), dimension(lanes, 3, block_samples) :: contact, center, omega, normal, reaction
-    real(wp), dimension(lanes, block_samples) :: lateral, energy
-    real(wp), dimension(lanes, 3, block_samples) :: base     !< the cup's acceleration
-  contains
-    procedure :: add => add_lane_samples
-    procedure :: flush => flush_lane_samples
-  end type lane_sample_block_t
 
   !> A batch's lanes: each lane's case state, the lanes' model and cups'
   !> motions, summary, state and derivative, which lanes still run, how
@@ -173,7 +133,7 @@ contains
     type(lane_outputs_t) :: out
     type(lane_sample_block_t) :: samples
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
-    real(wp), dimension(lanes, 3) :: base_half, base_end
+    real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), every(lanes), step
     logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
@@ -197,16 +157,7 @@ contains
       do while (any(active))
         step = step + 1
         if (stop_asked(step)) exit
-        if (b%cups%moving) then
-          ! each lane's step from t = (step - 1) h (the one-case loop's times)
-          call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
-          call b%cups%at(real(step - 1, wp) * h + h, base_end)
-          call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside, base_half, base_end)
-          call lanes_observe(balls, y_new, f_new, out, base_end)
-        else
-          call lanes_fixed_step(integrator, balls, y, f, h, y_new, f_new, inside)
-          call lanes_observe(balls, y_new, f_new, out)
-        end if
+        call step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
         if (any(active .and. .not. accepted)) call meet_limits()
@@ -229,17 +180,7 @@ contains
             call samples%flush(l, results(l))
           end if
         end do
-        if (all(accepted)) then             ! the rule: whole vectors, no test per lane
-          y = y_new
-          f = f_new
-        else
-          do i = 1, state_size
-            where (accepted)
-              y(:, i) = y_new(:, i)
-              f(:, i) = f_new(:, i)
-            end where
-          end do
-        end if
+        call keep_accepted(y, f, y_new, f_new, accepted)
         if (mod(step, checkpoint_steps) == 0) then
           y_older_checkpoint = y_checkpoint
           y_checkpoint = y
@@ -288,6 +229,49 @@ contains
     end subroutine meet_limits
   end subroutine fixed_step_lanes
 
+  !> Every lane's fixed step number `step` (steps h, from t = (step - 1) h,
+  !> the one-case loop's times) and the observation of its end (base_end:
+  !> the cups' accelerations there, when they move).
+  subroutine step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
+    type(batch_t), intent(inout) :: b
+    class(integrator_t), intent(in) :: integrator
+    integer(i8), intent(in) :: step
+    real(wp), intent(in) :: h(lanes)
+    real(wp), dimension(lanes, state_size), intent(out) :: y_new, f_new
+    logical, intent(out) :: inside(lanes)
+    type(lane_outputs_t), intent(inout) :: out
+    real(wp), intent(inout) :: base_end(lanes, 3)
+    real(wp) :: base_half(lanes, 3)
+    if (b%cups%moving) then
+      call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
+      call b%cups%at(real(step - 1, wp) * h + h, base_end)
+      call lanes_fixed_step(integrator, b%balls, b%y, b%f, h, y_new, f_new, inside, base_half, base_end)
+      call lanes_observe(b%balls, y_new, f_new, out, base_end)
+    else
+      call lanes_fixed_step(integrator, b%balls, b%y, b%f, h, y_new, f_new, inside)
+      call lanes_observe(b%balls, y_new, f_new, out)
+    end if
+  end subroutine step_lanes
+
+  !> The accepted lanes' new states and derivatives taken as theirs.
+  pure subroutine keep_accepted(y, f, y_new, f_new, accepted)
+    real(wp), dimension(lanes, state_size), intent(inout) :: y, f
+    real(wp), dimension(lanes, state_size), intent(in) :: y_new, f_new
+    logical, intent(in) :: accepted(lanes)
+    integer :: i
+    if (all(accepted)) then             ! the rule: whole vectors, no test per lane
+      y = y_new
+      f = f_new
+    else
+      do i = 1, state_size
+        where (accepted)
+          y(:, i) = y_new(:, i)
+          f(:, i) = f_new(:, i)
+        end where
+      end do
+    end if
+  end subroutine keep_accepted
+
   !> An embedded pair with each case's tolerances (adaptive_loop across
   !> lanes): the attempts of all lanes together, the step control of each
   !> lane its own. An attempt, with the dense-output stages computed for all
@@ -312,7 +296,6 @@ contains
     real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
     integer(i8) :: attempt
     integer :: round_off_attempts(lanes)
-    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
     integer :: l, attempt_calls, end_stage
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
@@ -326,43 +309,16 @@ contains
       do while (any(active))
         attempt = attempt + 1
         if (stop_asked(attempt)) exit
-        do l = 1, lanes
-          if (.not. active(l)) cycle
-          h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
-          if (round_off_step(t(l), h(l))) round_off_attempts(l) = round_off_attempts(l) + 1
-          if (cannot_follow(h(l), round_off_attempts(l), results(l)%n_steps + results(l)%n_rejected)) then
-            results(l)%status = status_unstable          ! (adaptive_loop)
-            results(l)%t_final = t(l)
-            call summary%store(l, run(l), results(l))
-            active(l) = .false.
-            h(l) = max(h(l), tiny(1.0_wp))     ! idle: a round-off step from a valid state, never 0 (0 / 0)
-          end if
-        end do
+        call next_steps(b, control, t, t_end, h, round_off_attempts, results)
         if (.not. any(active)) exit
         if (b%cups%moving) then
           call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm, b%cups, t)
         else
           call lanes_pair_attempt(pairs(1), balls, y, f, h, rtol, atol, k, y_raw, error_norm)
         end if
-        accepted = .false.
-        do l = 1, n
-          if (.not. active(l)) cycle
-          results(l)%n_rhs = results(l)%n_rhs + attempt_calls
-          error_norm(l) = judged_norm(error_norm(l), h(l), is_zero(atol(l)))
-          accepted(l) = error_norm(l) <= 1
-          if (.not. accepted(l)) then
-            call control(l)%reject(h(l), error_norm(l))
-            results(l)%n_rejected = results(l)%n_rejected + 1
-          end if
-        end do
+        call judge_attempts(b, control, h, atol, attempt_calls, error_norm, accepted, results)
         if (.not. any(accepted)) cycle
-        do l = 1, lanes
-          y_lane = y_raw(l, :)
-          rate_lane = k(l, :, end_stage)
-          call project_with_rate(y_lane, rate_lane, f_lane)
-          y_new(l, :) = y_lane
-          f_new(l, :) = f_lane
-        end do
+        call project_lanes(y_raw, k(:, :, end_stage), y_new, f_new)
         if (b%cups%moving) then
           call b%cups%at(t + h, base_end)
           call lanes_observe(balls, y_new, f_new, out, base_end)
@@ -429,6 +385,71 @@ contains
       end do
     end associate
   end subroutine adaptive_lanes
+
+  !> Each active lane's next attempt from t (h clipped to its t_end and to
+  !> its step control); a lane whose steps have shrunk to round-off ends as
+  !> unstable (adaptive_loop) and idles.
+  subroutine next_steps(b, control, t, t_end, h, round_off_attempts, results)
+    type(batch_t), intent(inout) :: b
+    type(step_control_t), intent(in) :: control(lanes)
+    real(wp), dimension(lanes), intent(in) :: t, t_end
+    real(wp), intent(inout) :: h(lanes)
+    integer, intent(inout) :: round_off_attempts(lanes)
+    type(case_result_t), intent(inout) :: results(:)
+    integer :: l
+    do l = 1, lanes
+      if (.not. b%active(l)) cycle
+      h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
+      if (round_off_step(t(l), h(l))) round_off_attempts(l) = round_off_attempts(l) + 1
+      if (cannot_follow(h(l), round_off_attempts(l), results(l)%n_steps + results(l)%n_rejected)) then
+        results(l)%status = status_unstable
+        results(l)%t_final = t(l)
+        call b%summary%store(l, b%run(l), results(l))
+        b%active(l) = .false.
+        h(l) = max(h(l), tiny(1.0_wp))     ! idle: a round-off step from a valid state, never 0 (0 / 0)
+      end if
+    end do
+  end subroutine next_steps
+
+  !> Each active lane's attempt (steps h) judged by its error norm (the
+  !> one-case rule); a rejected one shrinks its step.
+  subroutine judge_attempts(b, control, h, atol, attempt_calls, error_norm, accepted, results)
+    type(batch_t), intent(in) :: b
+    type(step_control_t), intent(inout) :: control(lanes)
+    real(wp), intent(inout) :: h(lanes), error_norm(lanes)
+    real(wp), intent(in) :: atol(lanes)
+    integer, intent(in) :: attempt_calls
+    logical, intent(out) :: accepted(lanes)
+    type(case_result_t), intent(inout) :: results(:)
+    integer :: l
+    accepted = .false.
+    do l = 1, b%n
+      if (.not. b%active(l)) cycle
+      results(l)%n_rhs = results(l)%n_rhs + attempt_calls
+      error_norm(l) = judged_norm(error_norm(l), h(l), is_zero(atol(l)))
+      accepted(l) = error_norm(l) <= 1
+      if (.not. accepted(l)) then
+        call control(l)%reject(h(l), error_norm(l))
+        results(l)%n_rejected = results(l)%n_rejected + 1
+      end if
+    end do
+  end subroutine judge_attempts
+
+  !> Every lane's attempt's end y_raw back onto the model's manifold, with
+  !> its rate from the end stage (project_with_rate, the one-case code).
+  pure subroutine project_lanes(y_raw, rate, y_new, f_new)
+    real(wp), dimension(lanes, state_size), intent(in) :: y_raw, rate
+    real(wp), dimension(lanes, state_size), intent(out) :: y_new, f_new
+    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
+    integer :: l
+    do l = 1, lanes
+      y_lane = y_raw(l, :)
+      rate_lane = rate(l, :)
+      call project_with_rate(y_lane, rate_lane, f_lane)
+      y_new(l, :) = y_lane
+      f_new(l, :) = f_lane
+    end do
+  end subroutine project_lanes
 
   !> The lanes' pairs and step controls with each case's tolerances and
   !> largest step (an idle lane its donor's), and each lane's first step
@@ -564,145 +585,5 @@ contains
     integer :: j
     mask = [(j == l, j = 1, lanes)]
   end function lane_only
-
-  !> A case's running summary (accumulate), into lane l.
-  pure subroutine load_summary(self, l, run)
-    class(lane_summary_t), intent(inout) :: self
-    integer, intent(in) :: l
-    type(run_state_t), intent(in) :: run
-    self%tan_max(l) = run%tan_theta_max
-    call put_lane(self%stats, l, run%stats)
-  end subroutine load_summary
-
-  !> What the accepted lanes' new states (at times t) add to the summary
-  !> (accumulate); branch-free (merge), so that the loop vectorizes.
-  pure subroutine add_to_summary(self, out, t, accepted)
-    class(lane_summary_t), intent(inout) :: self
-    type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: t(lanes)
-    logical, intent(in) :: accepted(lanes)
-    logical :: higher
-    integer :: l
-    do l = 1, lanes
-      higher = accepted(l) .and. out%tan_nutation(l) > self%tan_max(l)
-      self%tan_max(l) = merge(out%tan_nutation(l), self%tan_max(l), higher)
-      self%lateral_at_max(l) = merge(out%lateral(l), self%lateral_at_max(l), higher)
-      self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
-      self%theta_moved(l) = self%theta_moved(l) .or. higher
-    end do
-    call add_step_ends(self%stats, out%quantity, t, accepted)
-  end subroutine add_to_summary
-
-  !> A nutation angle of lane l's case (tan Theta, and the lateral and
-  !> vertical components of the unit normal) for the largest Theta.
-  pure subroutine note_lane_nutation(self, l, tan_nutation, lateral, normal_z)
-    class(lane_summary_t), intent(inout) :: self
-    integer, intent(in) :: l
-    real(wp), intent(in) :: tan_nutation, lateral, normal_z
-    if (tan_nutation > self%tan_max(l)) then
-      self%tan_max(l) = tan_nutation
-      self%lateral_at_max(l) = lateral
-      self%normal_z_at_max(l) = normal_z
-      self%theta_moved(l) = .true.
-    end if
-  end subroutine note_lane_nutation
-
-  !> Lane l's running summary into its result (and run state).
-  pure subroutine store_summary(self, l, run, res)
-    class(lane_summary_t), intent(in) :: self
-    integer, intent(in) :: l
-    type(run_state_t), intent(inout) :: run
-    type(case_result_t), intent(inout) :: res
-    run%tan_theta_max = self%tan_max(l)
-    if (self%theta_moved(l)) res%reals(fig_theta_max) = nutation_angle(self%lateral_at_max(l), self%normal_z_at_max(l))
-    call get_lane(self%stats, l, run%stats)
-  end subroutine store_summary
-
-  !> The values at one output sample of the lanes that take one (sampling)
-  !> into each one's next slot of the block.
-  pure subroutine add_lane_samples(self, out, y, radius, base, sampling)
-    class(lane_sample_block_t), intent(inout) :: self
-    type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: y(lanes, state_size), radius(lanes), base(lanes, 3)
-    logical, intent(in) :: sampling(lanes)
-    integer :: l, j
-    do l = 1, lanes
-      if (.not. sampling(l)) cycle
-      self%count(l) = self%count(l) + 1
-      j = self%count(l)
-      if (self%fields(field_contact)) self%contact(l, :, j) = out%contact(l, :)
-      if (self%fields(field_center)) self%center(l, :, j) = out%contact(l, :) + radius(l) * out%normal(l, :)
-      if (self%fields(field_omega)) self%omega(l, :, j) = y(l, 4:6)
-      if (self%fields(field_normal) .or. self%fields(field_nutation)) self%normal(l, :, j) = out%normal(l, :)
-      if (self%fields(field_nutation)) self%lateral(l, j) = out%lateral(l)
-      if (self%fields(field_reaction)) self%reaction(l, :, j) = out%reaction(l, :)
-      if (self%fields(field_energy)) self%energy(l, j) = out%quantity(l, q_energy)
-      if (self%fields(field_base_acceleration)) self%base(l, :, j) = base(l, :)
-    end do
-  end subroutine add_lane_samples
-
-  !> Lane l's samples held in the block into its result (Theta from the
-  !> lateral and vertical parts of the normal, as store_sample), and the
-  !> lane's slots free for the next ones.
-  pure subroutine flush_lane_samples(self, l, res)
-    class(lane_sample_block_t), intent(inout) :: self
-    integer, intent(in) :: l
-    type(case_result_t), intent(inout) :: res
-    integer(i8) :: first, last
-    integer :: n
-    n = self%count(l)
-    if (n <= 0) return
-    first = self%first(l)
-    last = first + n - 1
-    call put(res, field_contact, self%contact)
-    call put(res, field_center, self%center)
-    call put(res, field_omega, self%omega)
-    call put(res, field_normal, self%normal)
-    call put(res, field_reaction, self%reaction)
-    if (allocated(res%fields(field_nutation)%values)) call put_nutation(res%fields(field_nutation)%values(1, first:last))
-    if (allocated(res%fields(field_energy)%values)) res%fields(field_energy)%values(1, first:last) = self%energy(l, :n)
-    call put(res, field_base_acceleration, self%base)
-    ! the lanes roll (a case that may slide never runs in them)
-    if (allocated(res%fields(field_regime)%values)) res%fields(field_regime)%values(1, first:last) = 0
-    if (allocated(res%fields(field_slip_speed)%values)) res%fields(field_slip_speed)%values(1, first:last) = 0
-    res%n_recorded = last
-    self%first(l) = last + 1
-    self%count(l) = 0
-  contains
-    pure subroutine put(res, field, values)
-      type(case_result_t), intent(inout) :: res
-      integer, intent(in) :: field
-      real(wp), intent(in) :: values(lanes, 3, block_samples)
-      if (allocated(res%fields(field)%values)) call copy_lane(values, res%fields(field)%values(:, first:last))
-    end subroutine put
-    !> Theta of lane l's samples: a loop the compiler vectorizes, with the
-    !> vector atan2 of the C library's libmvec where there is one (within a
-    !> few units of round-off of the scalar atan2, which took 3 % of a batch
-    !> storing every field).
-    pure subroutine put_nutation(stored)
-      real(wp), intent(inout) :: stored(n)
-      real(wp) :: lateral(n), normal_z(n)
-      integer :: j
-      do j = 1, n
-        lateral(j) = self%lateral(l, j)
-        normal_z(j) = self%normal(l, 3, j)
-      end do
-      do j = 1, n
-        stored(j) = nutation_angle(lateral(j), normal_z(j))
-      end do
-    end subroutine put_nutation
-    !> Lane l's vectors, explicit loops on explicit shapes: the array
-    !> assignment on the strided section was a slow generic loop.
-    pure subroutine copy_lane(values, stored)
-      real(wp), intent(in) :: values(lanes, 3, block_samples)
-      real(wp), intent(inout) :: stored(3, n)
-      integer :: j
-      do j = 1, n
-        stored(1, j) = values(l, 1, j)
-        stored(2, j) = values(l, 2, j)
-        stored(3, j) = values(l, 3, j)
-      end do
-    end subroutine copy_lane
-  end subroutine flush_lane_samples
 
 end module ellroll_batch_run

@@ -240,9 +240,9 @@ contains
     ! made once: a search of the parameter table per dataset costs more
     ! than the rest of the lay-out)
     row_datasets = [(param_dataset(k), k = 1, param_count)]
-    call case_scale('case')
+    call case_scale(out, 'case', indices)
     do k = 1, n_case_entries
-      where(k) = add_entry('case', row(k))
+      where(k) = add_entry(out, 'case', row(k), n_cases)
       input_names = ''
       do p = 1, param_count
         if (row_datasets(p) == row(k)%name) input_names = input_names // ' ' // trim(params(p)%name)
@@ -250,8 +250,8 @@ contains
       if (len(input_names) > 0) call add_attribute(out%datasets(where(k)), 'input_names', input_names(2:))
     end do
     ! /trajectory: the stored fields
-    call case_scale('trajectory')
-    call coordinate_datasets('trajectory')
+    call case_scale(out, 'trajectory', indices)
+    call coordinate_datasets(out, 'trajectory', coords, n_cases)
     do f = 1, field_count
       if (.not. inp%plan%fields(f)) cycle
       if (field_ncomp(f) == 1) then
@@ -262,66 +262,81 @@ contains
                 [character(len=8) :: 'case', 'time', 'xyz'], [n_cases, n_samples, 3_i8])
       end if
       out%datasets(d)%field = f
-      call name_coordinates(out%datasets(d))
+      call name_coordinates(out%datasets(d), coordinate_names)
     end do
     ! /summary: the status, then the figures
-    call case_scale('summary')
-    call coordinate_datasets('summary')
+    call case_scale(out, 'summary', indices)
+    call coordinate_datasets(out, 'summary', coords, n_cases)
     where(size(row)) = add(out, 'summary', status_entry, kind_int, ['case'], [n_cases])
     call status_flag_meanings(meanings)
     call add_attribute(out%datasets(where(size(row))), 'flag_values', &
                        int_list([(int(k, i8), k = 0, status_count - 1)]), 'i8')
     call add_attribute(out%datasets(where(size(row))), 'flag_meanings', meanings)
-    call name_coordinates(out%datasets(where(size(row))))
+    call name_coordinates(out%datasets(where(size(row))), coordinate_names)
     do k = n_case_entries + 1, size(row) - 1
-      where(k) = add_entry('summary', row(k))
-      call name_coordinates(out%datasets(where(k)))
+      where(k) = add_entry(out, 'summary', row(k), n_cases)
+      call name_coordinates(out%datasets(where(k)), coordinate_names)
     end do
 
     call fill_columns(inp, out, row, where)
     call write_catalog(out)
-  contains
-    integer function add_entry(group, entry) result(d)
-      character(len=*), intent(in) :: group
-      type(named_value_t), intent(in) :: entry
-      select case (entry%ncomp)
-      case (1)
-        d = add(out, group, entry, entry%kind, ['case'], [n_cases])
-      case (2)
-        d = add(out, group, entry, entry%kind, [character(len=8) :: 'case', 'mode'], [n_cases, 2_i8])
-      case default
-        d = add(out, group, entry, entry%kind, [character(len=8) :: 'case', 'xyz'], [n_cases, 3_i8])
-      end select
-    end function add_entry
-
-    subroutine case_scale(group)
-      character(len=*), intent(in) :: group
-      d = add(out, group, case_entry, kind_int, ['case'], [n_cases])
-      out%datasets(d)%ints = indices
-    end subroutine case_scale
-
-    subroutine coordinate_datasets(group)
-      character(len=*), intent(in) :: group
-      integer :: c
-      do c = 1, size(coords)
-        if (allocated(coords(c)%values)) then
-          d = add(out, group, named_value_t(coords(c)%name, coords(c)%unit, coords(c)%description), kind_real, &
-                  ['case'], [n_cases])
-          out%datasets(d)%reals = coords(c)%values
-        else
-          d = add(out, group, named_value_t(coords(c)%name, '1', coords(c)%description), kind_text, ['case'], &
-                  [n_cases])
-          allocate (out%datasets(d)%texts(n_cases))
-          out%datasets(d)%texts(:) = coords(c)%texts
-        end if
-      end do
-    end subroutine coordinate_datasets
-
-    subroutine name_coordinates(ds)
-      type(memory_dataset_t), intent(inout) :: ds
-      if (len(coordinate_names) > 0) call add_attribute(ds, 'coordinates', coordinate_names)
-    end subroutine name_coordinates
   end subroutine lay_out
+
+  !> A /case or /summary entry of a row as a dataset of `group`: one value,
+  !> one per mode or an xyz vector per case.
+  integer function add_entry(out, group, entry, n_cases) result(d)
+    type(memory_output_t), intent(inout) :: out
+    character(len=*), intent(in) :: group
+    type(named_value_t), intent(in) :: entry
+    integer(i8), intent(in) :: n_cases
+    select case (entry%ncomp)
+    case (1)
+      d = add(out, group, entry, entry%kind, ['case'], [n_cases])
+    case (2)
+      d = add(out, group, entry, entry%kind, [character(len=8) :: 'case', 'mode'], [n_cases, 2_i8])
+    case default
+      d = add(out, group, entry, entry%kind, [character(len=8) :: 'case', 'xyz'], [n_cases, 3_i8])
+    end select
+  end function add_entry
+
+  !> A group's case scale (the cases' indices).
+  subroutine case_scale(out, group, indices)
+    type(memory_output_t), intent(inout) :: out
+    character(len=*), intent(in) :: group
+    integer(i8), intent(in) :: indices(:)
+    integer :: d
+    d = add(out, group, case_entry, kind_int, ['case'], [size(indices, kind=i8)])
+    out%datasets(d)%ints = indices
+  end subroutine case_scale
+
+  !> A group's datasets of the campaign's coordinates (a swept input's
+  !> value, or a suite's record name, per case).
+  subroutine coordinate_datasets(out, group, coords, n_cases)
+    type(memory_output_t), intent(inout) :: out
+    character(len=*), intent(in) :: group
+    type(coordinate_t), intent(in) :: coords(:)
+    integer(i8), intent(in) :: n_cases
+    integer :: c, d
+    do c = 1, size(coords)
+      if (allocated(coords(c)%values)) then
+        d = add(out, group, named_value_t(coords(c)%name, coords(c)%unit, coords(c)%description), kind_real, &
+                ['case'], [n_cases])
+        out%datasets(d)%reals = coords(c)%values
+      else
+        d = add(out, group, named_value_t(coords(c)%name, '1', coords(c)%description), kind_text, ['case'], &
+                [n_cases])
+        allocate (out%datasets(d)%texts(n_cases))
+        out%datasets(d)%texts(:) = coords(c)%texts
+      end if
+    end do
+  end subroutine coordinate_datasets
+
+  !> The CF attribute naming a dataset's auxiliary coordinates, if any.
+  subroutine name_coordinates(ds, coordinate_names)
+    type(memory_dataset_t), intent(inout) :: ds
+    character(len=*), intent(in) :: coordinate_names
+    if (len(coordinate_names) > 0) call add_attribute(ds, 'coordinates', coordinate_names)
+  end subroutine name_coordinates
 
   !> The root's shared dimension scales and its attributes (as the file's).
   subroutine lay_out_root(inp, out, n_cases, n_samples)

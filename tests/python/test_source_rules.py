@@ -49,3 +49,50 @@ def test_no_function_returns_a_deferred_length_character():
         found += [f"{path.relative_to(ROOT)}:{line}: {name}"
                   for name, line in deferred_length_functions(path.read_text())]
     assert found == []
+
+
+# Sizes that keep a unit readable in one sitting (docs/design.md): a source
+# file of at most 700 lines, a routine (its internal procedures counted) of at
+# most 120.
+MAX_FILE_LINES = 700
+MAX_ROUTINE_LINES = 120
+
+ROUTINE_START = re.compile(r"^\s*(?:(?:pure|elemental|impure|recursive|module|non_overridable)\s+)*"
+                           r"(?:(?:integer|real|logical|character|type|class|complex)[\w()=,*:\s]*?\s+)?"
+                           r"(subroutine|function)\s+(\w+)", re.I)
+ROUTINE_END = re.compile(r"^\s*end\s+(subroutine|function)\b", re.I)
+
+
+def routine_lengths(text):
+    """(name, first line, lines) of each subroutine and function, internal
+    procedures counted in their host's lines."""
+    found, open_routines = [], []
+    for number, line in enumerate(text.splitlines(), 1):
+        code = line.split("!")[0]
+        if ROUTINE_END.match(code):
+            if open_routines:
+                name, first = open_routines.pop()
+                found.append((name, first, number - first + 1))
+        elif ROUTINE_START.match(code) and not re.match(r"\s*(module\s+)?procedure\b", code, re.I):
+            open_routines.append((ROUTINE_START.match(code).group(2), number))
+    return found
+
+
+def test_the_routine_measure_counts_internal_procedures_in_the_host():
+    sample = ("  pure real(wp) function f(x) result(y)\n    y = x\n  end function f\n"
+              "  subroutine host(a)\n    a = 1\n  contains\n    subroutine inner()\n    end subroutine inner\n"
+              "  end subroutine host\n  module procedure g\n")
+    assert routine_lengths(sample) == [("f", 1, 3), ("inner", 7, 2), ("host", 4, 6)]
+
+
+def test_no_source_file_or_routine_is_longer_than_the_rule():
+    too_long = []
+    for path in sorted((ROOT / "src").rglob("*.f90")) + sorted((ROOT / "src").rglob("*.c")):
+        text = path.read_text()
+        lines = len(text.splitlines())
+        if lines > MAX_FILE_LINES:
+            too_long.append(f"{path.relative_to(ROOT)}: {lines} lines")
+        if path.suffix == ".f90":
+            too_long += [f"{path.relative_to(ROOT)}:{first}: {name} {length} lines"
+                         for name, first, length in routine_lengths(text) if length > MAX_ROUTINE_LINES]
+    assert too_long == []
