@@ -249,6 +249,7 @@ class _Layout:
         self.want = np.zeros(len(self.entries), dtype=np.intc)
         self.want[self.own] = 1
         self.empty = [i for i, e in enumerate(self.entries) if e.nbytes == 0]
+        self.template = None                  # run()'s _Template, made by its first call
 
 
 _layouts = {}
@@ -319,10 +320,16 @@ def _values(lib, handle):
     return layout, values
 
 
+class _Groups(dict):
+    """_datasets' {group: [(name, dims, values, attrs), ...]}, with the _Layout they were read by."""
+    __slots__ = ("layout",)
+
+
 def _datasets(lib, handle):
     """Every dataset of a finished run: {group: [(name, dims, values, attrs), ...]}, and the root's attributes."""
     layout, values = _values(lib, handle)
-    groups = {}
+    groups = _Groups()
+    groups.layout = layout
     for entry, array in zip(layout.entries, values):
         groups.setdefault(entry.group, []).append((entry.name, entry.dims, array, entry.fresh_attrs()))
     return groups, _attributes(_text(lib.ellroll_dataset_text, handle, -1, 5))
@@ -366,20 +373,85 @@ def _dataset(xr, variables, attrs=None):
     return dataset
 
 
+_GROUPS = ("", "case", "summary", "trajectory")
+
+
+class _Template:
+    """The Datasets of a tree's nodes for one layout of the results (made
+    once, by _dataset), which each call copies and puts its values in.
+
+    Made from its arrays, a node costs some 15-20 us a variable through
+    xarray's public constructors (xr.Coordinates copies each variable
+    twice, reset_coords and DataTree(dataset) once more each, and each
+    scale gets a pandas index). A call here makes each node of its
+    template Dataset (DataTree copies each variable and index: the node's
+    own Variables and attribute dicts) and sets each variable's data to
+    its run's values, some 5 us a variable. The scales (the indexed
+    coordinates: time, xyz, mode, case) keep the values they were made
+    with: a call whose scales differ (fits) makes its own _Template.
+    """
+
+    def __init__(self, xr, groups):
+        # (group, Dataset, [(position, name)] to fill, [(position, name)] with array attributes)
+        self.nodes = []
+        self.scales = []         # (group, position, the scale's bytes)
+        for group in _GROUPS:
+            variables = groups.get(group, [])
+            made, fill, deep = [], [], []
+            for position, (name, dims, values, attrs) in enumerate(variables):
+                if dims == (name,):
+                    self.scales.append((group, position, values.tobytes()))
+                    made.append((name, dims, values.copy(), dict(attrs)))
+                else:
+                    # (a stand-in of the shape and type, no memory: every call sets its own values)
+                    fill.append((position, name))
+                    made.append((name, dims, np.broadcast_to(np.zeros((), values.dtype), values.shape), dict(attrs)))
+                if any(isinstance(value, np.ndarray) for value in attrs.values()):
+                    deep.append((position, name))
+            dataset = _dataset(xr, made)
+            if set(dataset.xindexes) != {name for name, dims, _, _ in variables if dims == (name,)}:
+                raise Error(f"libellroll: the scales of group {group!r} are not its indexes")
+            self.nodes.append((group, dataset, fill, deep))
+
+    def fits(self, groups):
+        """Whether the scales of groups are, bit for bit, those the template's indexes hold."""
+        return all(groups[group][position][2].tobytes() == values for group, position, values in self.scales)
+
+    def tree(self, xr, groups, root_attrs):
+        """The DataTree of groups (a run of this layout) and root_attrs."""
+        nodes = {}
+        for group, dataset, fill, deep in self.nodes:
+            node = xr.DataTree(dataset)            # (a copy: the node's own Variables and attribute dicts)
+            own = node.variables
+            variables = groups.get(group, [])
+            for position, name in fill:
+                own[name].data = variables[position][2]
+            for position, name in deep:            # (the run's own arrays, not the template's)
+                own[name].attrs = {k: v for k, v in variables[position][3].items() if k != "coordinates"}
+            nodes[group] = node
+        tree = nodes.pop("")
+        tree.attrs = root_attrs
+        # the root's scales (time, xyz, mode) are inherited by the groups; each
+        # group joins the tree once (xarray checks its alignment with the root)
+        tree.children = nodes
+        return tree
+
+
 def _tree(groups, root_attrs):
     import xarray as xr
-    root = _dataset(xr, groups.get("", []), root_attrs)
-    datasets = {name: _dataset(xr, groups.get(name, [])) for name in ("case", "summary", "trajectory")}
-    if hasattr(xr, "DataTree"):
-        # the root's scales (time, xyz, mode) are inherited by the groups; the
-        # children set on the root as made (DataTree.from_dict, or children=,
-        # would copy each node once more before xarray checks their alignment)
-        tree = xr.DataTree(root)
-        tree.children = {name: xr.DataTree(ds) for name, ds in datasets.items()}
-        return tree
-    datasets["trajectory"] = datasets["trajectory"].assign_coords(
-        {name: root[name] for name in ("time", "xyz") if name in root.coords})
-    return {"/": root, **datasets}
+    if not hasattr(xr, "DataTree"):
+        root = _dataset(xr, groups.get("", []), root_attrs)
+        datasets = {name: _dataset(xr, groups.get(name, [])) for name in _GROUPS[1:]}
+        datasets["trajectory"] = datasets["trajectory"].assign_coords(
+            {name: root[name] for name in ("time", "xyz") if name in root.coords})
+        return {"/": root, **datasets}
+    layout = getattr(groups, "layout", None)
+    template = layout.template if layout is not None else None
+    if template is None or not template.fits(groups):
+        template = _Template(xr, groups)
+        if layout is not None:
+            layout.template = template
+    return template.tree(xr, groups, root_attrs)
 
 
 def run_arrays(inputs, threads=None, *, path=None):

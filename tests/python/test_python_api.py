@@ -320,6 +320,79 @@ def test_the_tree_is_what_xarrays_plain_constructors_make(relative, monkeypatch)
     assert "case" in tree["summary"].xindexes and list(tree.xindexes) == ["time", "xyz", "mode"]
 
 
+def run_groups(text):
+    """A run's datasets as run() reads them (ellroll._datasets), and its root attributes."""
+    lib, encoded = ellroll._lib(), text.encode()
+    handle = lib.ellroll_run(encoded, len(encoded), b"<input>", 7, 1)
+    try:
+        assert lib.ellroll_error_code(handle) == 0
+        return ellroll._datasets(lib, handle)
+    finally:
+        lib.ellroll_free(handle)
+
+
+def assert_same_attributes(a, b, where):
+    """The same attribute names in the same order, each of the same type (and dtype) and value."""
+    assert list(a) == list(b), where
+    for key, value in a.items():
+        assert type(value) is type(b[key]), (where, key)
+        if isinstance(value, np.ndarray):
+            assert value.dtype == b[key].dtype and same_bits(value, b[key]), (where, key)
+        else:
+            assert value == b[key], (where, key)
+
+
+def test_runs_of_one_layout_each_get_their_own_tree():
+    """run() makes the nodes of a layout of datasets once and puts each
+    call's values into copies of them: runs with the same datasets, shapes
+    and attributes but other values (other initial spins; a time scale of
+    as many samples at another interval, so other index values) each give
+    the tree xarray's plain constructors make of their own datasets, with
+    its indexes and the types of its attributes; a tree changed in place
+    (values, attributes, a scale's attributes) leaves the next run's as it
+    was."""
+    xr = pytest.importorskip("xarray")
+    if not hasattr(xr, "DataTree"):
+        pytest.skip("xarray without DataTree")
+    base = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 2.0")
+    other = base.replace("omega = -2.0, 2.0, 20.0", "omega = 3.0, -1.0, 15.0")
+    stretched = base.replace("t_end = 2.0", "t_end = 4.0").replace("interval = 0.01", "interval = 0.02")
+    layouts = set()
+    for text in (base, other, stretched, base):
+        groups, root_attrs = run_groups(text)
+        layouts.add(id(groups.layout))
+        expected = plain_tree(groups, root_attrs)
+        tree = ellroll._tree(groups, root_attrs)
+        assert tree.identical(expected)
+        for node, plain in zip(tree.subtree, expected.subtree, strict=True):
+            assert list(node.variables) == list(plain.variables), node.path
+            assert list(node.xindexes) == list(plain.xindexes), node.path
+            for name, variable in node.variables.items():
+                assert variable.dtype == plain.variables[name].dtype, (node.path, name)
+                assert same_bits(variable.values, plain.variables[name].values), (node.path, name)
+                assert_same_attributes(variable.attrs, plain.variables[name].attrs, (node.path, name))
+        assert_same_attributes(tree.attrs, expected.attrs, "/")
+        end = float(groups[""][0][2][-1])
+        last = float(expected["trajectory"]["nutation"][0, -1])
+        assert float(tree["trajectory"]["nutation"].sel(time=end)[0]) == last      # (the index of this run's time)
+    assert len(layouts) == 1                      # (one layout: each run after the first reuses its nodes)
+
+    arrays, attributes = ellroll.run_arrays(base, threads=1)
+    first = ellroll.run(base, threads=1)
+    first["summary"]["status"].attrs["flag_values"][:] = -7
+    first["summary"]["theta_max"].attrs["units"] = "deg"
+    first["summary"]["case"].attrs["long_name"] = "changed"
+    first["trajectory"]["nutation"].values[:] = 0.0
+    first.attrs["n_cases_total"][:] = 9
+    second = ellroll.run(base, threads=1)
+    summary = second["summary"]
+    assert same_bits(summary["status"].attrs["flag_values"], attributes["summary"]["status"]["flag_values"])
+    assert summary["theta_max"].attrs["units"] == "rad"
+    assert summary["case"].attrs["long_name"] == attributes["summary"]["case"]["long_name"]
+    assert same_bits(second["trajectory"]["nutation"].values, arrays["trajectory"]["nutation"])
+    assert list(second.attrs["n_cases_total"]) == [1]
+
+
 def test_a_record_given_as_arrays_runs_as_its_csv(program, tmp_path):
     """ellroll.Record: arrays in a dict input give the results of the same
     record read from its CSV file by `ellroll run`, bit for bit; a single
