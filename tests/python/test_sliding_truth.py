@@ -18,7 +18,7 @@ FULL = os.environ.get("ELLROLL_SLIDE_FULL", "0") not in ("", "0")
 A, B, C, R, K, G = 1.0, 0.4, 0.2, 0.2, 0.4, 9.81          # the paper's cup and ball, J = K m R^2
 
 CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
-&ball radius = 0.2, mass = 1.0, mu = {mu}, slip = '{slip}' /
+&ball radius = 0.2, mass = 1.0, mu = {mu}, slip = '{slip}'{ball} /
 &initial x = 0.0, y = 0.0, omega = {omega} /
 &integration {integration}, t_end = {t_end} /
 {excitation}
@@ -28,6 +28,7 @@ CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 
 def run_case(ellroll, folder, name, **values):
     values.setdefault("slip", "slide")
+    values.setdefault("ball", "")
     values.setdefault("omega", "0.0, 0.0, 0.0")
     values.setdefault("fields", "'center', 'energy', 'base_acceleration'")
     values.setdefault("interval", 1e-2)
@@ -36,7 +37,8 @@ def run_case(ellroll, folder, name, **values):
     assert result.returncode == 0, result.stderr
     with h5py.File(folder / f"{name}.h5", "r") as f:
         out = {k: f["summary"][k][0] for k in ("status", "t_final", "friction_energy", "slip_episodes",
-                                                "friction_needed_max", "sliding_time")}
+                                                "friction_needed_max", "sliding_time",
+                                                "rolling_resistance_energy")}
         out["t"] = f["time"][()]
         for k in f["trajectory"]:
             out[k] = f["trajectory"][k][0]
@@ -269,3 +271,115 @@ def test_dop853_energy_per_cycle_matches_the_reference(ellroll, tmp_path, refere
     within the references' own spread (1e-4)."""
     value = energy_per_cycle(ellroll, tmp_path, "method = 'dop853', rtol = 1e-9")
     assert value == pytest.approx(reference_per_cycle, rel=2e-4)
+
+
+# ------------------------------------------------ rolling resistance while sliding
+# (docs/model.md, "Rolling resistance while sliding"). On the flat plate
+# (N = m g, slope below 1e-6) a ball launched at v0 with spin omega0 about y
+# slides with v' = -mu g and omega' = (R mu - delta sgn omega) g / (k R^2) (the
+# friction's couple R mu N, the resistance's delta N against the rolling), the
+# slip u = v - R omega falling until it stops; it then rolls, the couple a
+# force delta N / R against the centre: omega' = -delta g / ((1 + k) R^2).
+PLATE = """&geometry a = 1e6, b = 1e6, c = 1e6 /
+&ball radius = 0.1, mass = 1.0, mu = 0.2, slip = 'slide', rolling_resistance = {delta} /
+&environment g = 9.81 /
+&initial x = 0, y = 0, omega = 0, {omega0}, 0, velocity = 1.0, 0, 0 /
+&integration {integration}, t_end = 0.3 /
+&output file = 'out.h5', interval = 1e-3 /
+"""
+PLATE_METHODS = {"rk4": "method = 'rk4', dt = 1e-3", "dop853": "method = 'dop853', rtol = 1e-10",
+                 "vern9": "method = 'vern9', rtol = 1e-12"}
+
+
+def plate_closed_form(delta, omega0, t_end, r=0.1, mu=0.2, g=9.81, k=0.4, v0=1.0):
+    """Stop time, friction's and resistance's work, omega and x at t_end."""
+    back = (r * mu + delta) * g / (k * r * r)            # omega' while omega < 0
+    forward = (r * mu - delta) * g / (k * r * r)         # omega' while omega > 0
+    t_turn = -omega0 / back if omega0 < 0 else 0.0       # the spin passes zero while sliding
+    omega_turn = omega0 + back * t_turn
+    u_turn = v0 - mu * g * t_turn - r * omega_turn
+    t_stop = t_turn + u_turn / (mu * g + r * forward)
+    omega_stop = omega_turn + forward * (t_stop - t_turn)
+    slow = delta * g / ((1 + k) * r * r)
+    rest = t_end - t_stop
+    # mu N |u|, u piecewise linear: from v0 - R omega0 to u_turn, then to 0
+    friction = mu * g * ((v0 - r * omega0 + u_turn) / 2 * t_turn + u_turn / 2 * (t_stop - t_turn))
+    spin_integral = (abs(omega0) * t_turn / 2 + (omega_turn + omega_stop) / 2 * (t_stop - t_turn)
+                     + omega_stop * rest - slow * rest**2 / 2)
+    x_stop = v0 * t_stop - mu * g * t_stop**2 / 2
+    return dict(t_stop=t_stop, friction=friction, resistance=delta * g * spin_integral,
+                omega=omega_stop - slow * rest, x=x_stop + r * (omega_stop * rest - slow * rest**2 / 2))
+
+
+@pytest.mark.parametrize("method", PLATE_METHODS)
+@pytest.mark.parametrize("omega0", [0.0, -3.0])
+def test_rolling_resistance_while_sliding_follows_the_closed_form(ellroll, tmp_path, method, omega0):
+    """delta = 1e-3 m, R mu = 0.02 m: launched without spin the friction's
+    couple starts the rolling at once, against the resistance; with backspin
+    the spin passes zero while the ball slides (the couple turns there).
+    Both works and the state to 1e-6 (the plate's slope; 1.8e-7 measured; the
+    backspin with rk4 at dt = 1e-3: the turn of the couple is not located,
+    3.2e-5 of the stop), and the energy lost is their sum."""
+    (tmp_path / "case.nml").write_text(PLATE.format(delta=1e-3, omega0=omega0, integration=PLATE_METHODS[method]))
+    result = run(ellroll, "run", "case.nml", "-q", "--overwrite", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        s = {k: f["summary"][k][0] for k in ("status", "sliding_time", "slip_episodes", "friction_energy",
+                                             "rolling_resistance_energy")}
+        omega, center, energy = (f["trajectory"][k][0] for k in ("omega", "center", "energy"))
+        t = f["time"][()]
+    truth = plate_closed_form(1e-3, omega0, t[-1])
+    tolerance = 1e-6 if (omega0 == 0 or method != "rk4") else 5e-5
+    assert s["status"] == 1 and s["slip_episodes"] == 1
+    assert s["sliding_time"] == pytest.approx(truth["t_stop"], rel=tolerance)
+    assert s["friction_energy"] == pytest.approx(truth["friction"], rel=tolerance)
+    assert s["rolling_resistance_energy"] == pytest.approx(truth["resistance"], rel=tolerance)
+    assert omega[-1, 1] == pytest.approx(truth["omega"], rel=tolerance)
+    assert center[-1, 0] == pytest.approx(truth["x"], rel=tolerance)
+    lost = energy[0] - energy[-1]
+    assert abs(lost - s["friction_energy"] - s["rolling_resistance_energy"]) < 1e-6 * lost
+
+
+def both_laws_balance(ellroll, folder, delta, integration, interval, t_end, omega, mu):
+    """E - E0 - W_cup + friction_energy + rolling_resistance_energy over
+    their sum, on the harmonic cup of the balances above."""
+    amplitude, frequency = HARMONIC
+    excitation = (f"&excitation kind = 'harmonic', amplitude = 1.5, 0.5, 0.0, frequency = {frequency}, "
+                  "phase = 0.0 /")
+    out = run_case(ellroll, folder, "both", mu=mu, ball=f", rolling_resistance = {delta}", omega=omega,
+                   integration=integration, t_end=t_end, excitation=excitation, interval=interval)
+    assert out["status"] == 1
+    assert out["rolling_resistance_energy"] > 0.1 * out["friction_energy"] > 0
+    dissipated = out["friction_energy"] + out["rolling_resistance_energy"]
+    work = harmonic_work(out, amplitude, frequency)
+    return (out["energy"][-1] - out["energy"][0] - work + dissipated) / dissipated, out["slip_episodes"]
+
+
+SLIDING_THROUGHOUT = dict(t_end=2.0, mu=0.02, omega="0.0, 0.0, 3.0, velocity = 0.5, 0.2, 0")
+
+
+def test_both_laws_close_the_energy_balance_of_a_ball_sliding_on_a_moving_cup(ellroll, tmp_path):
+    """Launched sliding (0.5, 0.2 m/s, spinning at 3 rad/s about the
+    vertical, mu = 0.02) on the harmonic cup, delta = 1e-3 m: it slides the
+    whole 2 s (the friction takes 0.127 J, the resistance 0.015 J; omega_t
+    starts at 0, where the friction's couple starts the rolling). rk4's
+    balance, of their sum: 4.4e-7 and 1.1e-7 at dt = 2e-3 and 1e-3 s, order 2
+    (4.0 per halving: both works are trapezoidal sums)."""
+    residuals = []
+    for dt in (2e-3, 1e-3):
+        residual, episodes = both_laws_balance(ellroll, tmp_path, 1e-3, f"method = 'rk4', dt = {dt}", dt,
+                                               **SLIDING_THROUGHOUT)
+        assert episodes == 1
+        residuals.append(residual)
+    assert abs(residuals[1]) < 2e-7
+    assert abs(residuals[1]) < abs(residuals[0]) / 3.5
+
+
+@pytest.mark.xfail(strict=True, reason=DEFECT)
+@pytest.mark.parametrize("method", ["dop853", "vern9"])
+def test_both_laws_close_the_energy_balance_of_a_ball_sliding_on_a_moving_cup_adaptive(ellroll, tmp_path, method):
+    """As above at rtol 1e-10: 1.1e-7 of the dissipated energy at rtol 1e-8
+    and 1e-10 alike (the friction's trapezoidal sum on the adaptive steps)."""
+    residual, _ = both_laws_balance(ellroll, tmp_path, 1e-3, f"method = '{method}', rtol = 1e-10", 1e-3,
+                                    **SLIDING_THROUGHOUT)
+    assert abs(residual) < 1e-8
