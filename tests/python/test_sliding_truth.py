@@ -140,16 +140,16 @@ def test_rk4_closes_the_energy_balance_on_a_moving_cup_at_second_order(ellroll, 
 
 DEFECT = ("slide_run.f90: the adaptive methods' friction work is the trapezoidal rule over their long "
           "steps' pieces, cut at the output samples: the balance closes to 2e-6 of the friction's work at "
-          "any rtol (harmonic 2.2e-6, record 1.2e-6 at rtol 1e-10)")
+          "any rtol (harmonic 2.1e-6, record 1.2e-6 at rtol 1e-9; 2.2e-6, 1.2e-6 at 1e-10)")
 
 
 @pytest.mark.parametrize("excitation", ["harmonic", "record"])
 @pytest.mark.parametrize("method", [pytest.param("dop853", marks=pytest.mark.xfail(strict=True, reason=DEFECT)),
                                     pytest.param("vern9", marks=pytest.mark.xfail(strict=True, reason=DEFECT))])
 def test_an_adaptive_method_closes_the_energy_balance_on_a_moving_cup(ellroll, tmp_path, excitation, method):
-    """At rtol 1e-10 the energy itself is right to about 1e-10 J; the cup's
+    """At rtol 1e-9 the energy itself is right to about 1e-9 J; the cup's
     work from samples 1e-3 s apart to 1e-8 of the friction's work."""
-    residual, friction, episodes = balance(ellroll, tmp_path, excitation, f"method = '{method}', rtol = 1e-10", 1e-3)
+    residual, friction, episodes = balance(ellroll, tmp_path, excitation, f"method = '{method}', rtol = 1e-9", 1e-3)
     assert episodes >= 4
     assert abs(residual) < 1e-7 * friction
 
@@ -238,7 +238,7 @@ def energy_per_cycle(ellroll, folder, integration):
 @pytest.fixture(scope="module")
 def reference_per_cycle(ellroll, tmp_path_factory):
     folder = tmp_path_factory.mktemp("reference")
-    reference = energy_per_cycle(ellroll, folder, "method = 'dop853', rtol = 1e-11")
+    reference = energy_per_cycle(ellroll, folder, "method = 'dop853', rtol = 1e-10")
     if FULL:
         slow = energy_per_cycle(ellroll, folder, "method = 'vern9', rtol = 1e-12")
         assert slow == pytest.approx(reference, rel=1e-4)
@@ -267,7 +267,7 @@ def test_rk4_energy_per_cycle_converges_at_second_order(ellroll, tmp_path, refer
 
 
 def test_dop853_energy_per_cycle_matches_the_reference(ellroll, tmp_path, reference_per_cycle):
-    """dop853 at rtol 1e-9 against the reference at 1e-11: 6.7e-5 apart,
+    """dop853 at rtol 1e-9 against the reference at 1e-10: 3.0e-5 apart,
     within the references' own spread (1e-4)."""
     value = energy_per_cycle(ellroll, tmp_path, "method = 'dop853', rtol = 1e-9")
     assert value == pytest.approx(reference_per_cycle, rel=2e-4)
