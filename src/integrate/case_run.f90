@@ -20,11 +20,12 @@ module ellroll_case_run
   use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
       fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest, fig_sliding_time, &
-      fig_friction_energy, fig_slip_speed_max
+      fig_friction_energy, fig_slip_speed_max, fig_rolling_resistance_energy
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest
   use ellroll_events, only: crossing_search_t
+  use ellroll_sliding_ball, only: resistance_power
   use ellroll_linear, only: oscillation_periods
   use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
@@ -90,6 +91,10 @@ module ellroll_case_run
     !> where the rest event of the step just taken was located inside it
     !> (a fixed step: it ends on the grid past it; < 0: none)
     real(wp) :: stopped_at = -1
+    !> with rolling resistance: the time and the couple's power -delta N
+    !> |omega_t| of the last state tracked (its work is summed by the
+    !> trapezoidal rule over the states tracked: step ends and switches)
+    real(wp) :: resistance_time = 0, resistance_power = 0
   end type run_state_t
 
 contains
@@ -109,7 +114,7 @@ contains
     res%wall_time = 0
     res%reals(fig_theta_max) = 0
     ! rolling throughout unless the slide loop says otherwise
-    res%reals([fig_sliding_time, fig_friction_energy, fig_slip_speed_max]) = 0
+    res%reals([fig_sliding_time, fig_friction_energy, fig_slip_speed_max, fig_rolling_resistance_energy]) = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     run%start = y
@@ -299,9 +304,28 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    if (run%ball%rolling_resistance > 0) call note_rest(run, t, obs)
+    if (run%ball%rolling_resistance > 0) then
+      call note_rest(run, t, obs)
+      call add_resistance_work(run, res, t, obs)
+    end if
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
+
+  !> The rolling resistance's work from the last state tracked to this one
+  !> (trapezoidal rule; a state tracked again at the same time adds nothing).
+  pure subroutine add_resistance_work(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    real(wp) :: power
+    if (t < run%resistance_time) return
+    power = resistance_power(run%ball, obs%normal, obs%omega, obs%reaction_normal)
+    res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) &
+        - 0.5_wp * (t - run%resistance_time) * (run%resistance_power + power)
+    run%resistance_time = t
+    run%resistance_power = power
+  end subroutine add_resistance_work
 
   !> What a step's end point adds to the summary of a moving cup beyond the
   !> step-end statistics (the transmissibility's fit), from the horizontal
