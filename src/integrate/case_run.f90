@@ -33,7 +33,7 @@ module ellroll_case_run
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked, latest_end, settled
+  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
   public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
@@ -90,6 +90,9 @@ module ellroll_case_run
     !> where the rest event of the step just taken was located inside it
     !> (a fixed step: it ends on the grid past it; < 0: none)
     real(wp) :: stopped_at = -1
+    !> sliding: the friction's work so far, which the step ends' energy
+    !> adds to E (energy_drift: the residual of the balance E + W = E0)
+    real(wp) :: friction_work = 0
   end type run_state_t
 
 contains
@@ -123,6 +126,20 @@ contains
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)
   end subroutine start_case
+
+  !> The summary's statistics start again from observation obs at t = 0
+  !> (a start that slides: its centre's velocity is not rolling's, so
+  !> neither are E0 and the forces at t = 0).
+  pure subroutine restart_case(cs, run, res, obs)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    type(observation_t), intent(in) :: obs
+    type(running_t) :: fresh
+    run%stats = fresh
+    call start_running(run%stats, step_quantities(obs), cs%param)
+    call track(run, res, 0.0_wp, obs)
+  end subroutine restart_case
 
   !> Harmonic forcing: the fit of the steady response at the forcing
   !> frequency (ellroll_harmonic_fit) over the last whole forcing periods
@@ -346,14 +363,18 @@ contains
   end subroutine note_nutation
 
   !> What an accepted step end adds to the summary: the nutation angle, and
-  !> the step-end quantities to their statistics.
+  !> the step-end quantities to their statistics (the energy with the
+  !> friction's work so far).
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    real(wp) :: q(1, quantity_count)
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
-    call add_step_ends(run%stats, step_quantities(obs), t)
+    q = step_quantities(obs)
+    q(1, q_energy) = q(1, q_energy) + run%friction_work
+    call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 
   !> The step-end quantities of an observation (the norms written out, as

@@ -21,7 +21,7 @@ module ellroll_slide_run
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
       observe_sliding, slip_velocity, stick, stick_level
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due, stored
+  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
@@ -89,7 +89,7 @@ contains
         tally%episodes = 1
         tally%slip_speed_max = now%slip_speed
         tally%episode_slip_max = now%slip_speed
-        call restart_samples(run, res, now)
+        call restart_samples(cs, run, res, now)
       end if
     end if
     if (.not. now%sliding .and. res%status == status_slip) then
@@ -110,13 +110,25 @@ contains
   end subroutine slide_loop
 
   !> The first sample and the summary's start again from the sliding start.
-  pure subroutine restart_samples(run, res, now)
+  pure subroutine restart_samples(cs, run, res, now)
+    type(case_t), intent(in) :: cs
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     type(regime_state_t), intent(in) :: now
     call record_regime_sample(res, 1_i8, now)
-    call track(run, res, 0.0_wp, now%obs)
+    call restart_case(cs, run, res, now%obs)
   end subroutine restart_samples
+
+  !> A step end's track, its energy with the friction's work so far.
+  pure subroutine track_balance(run, res, t, obs, tally)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    type(slide_tally_t), intent(in) :: tally
+    run%friction_work = tally%friction_energy
+    call track(run, res, t, obs)
+  end subroutine track_balance
 
   !> Every stored field's values at one output sample, the regime and the
   !> slip speed with them (a sliding observation's friction is mu N).
@@ -157,7 +169,7 @@ contains
       res%n_steps = k
       if (ended) return
       t = k * cs%param(p_dt)
-      call track(run, res, t, now%obs)
+      call track_balance(run, res, t, now%obs, tally)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
     end do
@@ -228,7 +240,7 @@ contains
         return
       end if
       t = t_next
-      call track(run, res, t, now%obs)
+      call track_balance(run, res, t, now%obs, tally)
       if (sample_due(run, plan, t)) then
         call record_regime_sample(res, run%next_sample, now)
         run%next_sample = run%next_sample + 1
@@ -404,7 +416,7 @@ contains
     call add_sliding(sb, search%high, now, x, tally)
     t_at = t_at + search%high
     now = x
-    call track(run, res, t_at, now%obs)
+    call track_balance(run, res, t_at, now%obs, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
     else
@@ -524,7 +536,7 @@ contains
     end do
     if (search%valid > 0) then
       call add_sliding(sb, search%valid, now, last_valid, tally)
-      call track(run, res, t + search%valid, last_valid%obs)
+      call track_balance(run, res, t + search%valid, last_valid%obs, tally)
     end if
     if (crossed == status_completed) crossed = status_unstable
     res%status = crossed

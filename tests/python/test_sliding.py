@@ -218,3 +218,48 @@ def test_a_rolling_case_stores_no_regime_unless_asked(ellroll, tmp_path):
     with run_text(ellroll, tmp_path, asked) as f:
         assert np.all(f["trajectory/regime"][0][np.isfinite(f["trajectory/regime"][0])] == 0)
         assert f["trajectory/slip_speed"].attrs["units"] in (b"m/s", "m/s")
+
+
+LAUNCH = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, mu = {mu}, slip = 'slide', inertia_factor = {k} /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0, velocity = {v}, 0.0, 0.0 /
+&integration {integration}, t_end = {t_end} /
+&output file = 'out.h5', interval = {interval} /
+"""
+M_CUP = 2620.0 / 9.81
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_energy_drift_of_a_sliding_start_is_the_balance_residual(ellroll, tmp_path, method):
+    """A ball launched sliding: E0 holds the launch's kinetic energy, and
+    energy_drift is max |E - E0 + W| / |E0| over the step ends, W the
+    friction's work so far. Flat plate (m = 1): E0 = g R + v0^2 / 2, the
+    friction takes v0^2 / 7."""
+    v0 = 1.0
+    with run_text(ellroll, tmp_path, PLATE.format(omega="0, 0, 0", velocity="1.0, 0, 0",
+                                                  integration=METHODS[method])) as f:
+        energy = f["trajectory/energy"][0]
+        drift = f["summary/energy_drift"][0]
+        work = f["summary/friction_energy"][0]
+    e0 = G * R + v0**2 / 2
+    assert energy[0] == pytest.approx(e0, rel=1e-12)
+    assert energy[0] - energy[-1] == pytest.approx(v0**2 / 7, rel=1e-6)
+    assert abs(energy[-1] - energy[0] + work) / e0 <= drift
+    # 2.5e-9 measured with rk4 (the friction's work by the trapezoidal rule
+    # over the last piece of sliding); the loss itself is 0.096 of E0
+    assert drift < 1e-7
+
+
+def test_energy_drift_of_the_launch_in_the_cup(ellroll, tmp_path):
+    """The probe's triaxial launch (v0 = 0.5 m/s, mu = 0.1): E0 = m g R +
+    m v0^2 / 2 = 557.38 J, and the balance closes over the step ends."""
+    with run_text(ellroll, tmp_path, LAUNCH.format(mu=0.1, k=0.4, v=0.5, integration="method = 'rk4', dt = 1e-3",
+                                                   t_end=3.0, interval=0.01)) as f:
+        energy = f["trajectory/energy"][0]
+        drift = f["summary/energy_drift"][0]
+        work = f["summary/friction_energy"][0]
+        status = f["summary/status"][0]
+    assert status == 1
+    assert energy[0] == pytest.approx(2620.0 * 0.2 + M_CUP * 0.5**2 / 2, rel=1e-12)
+    assert 9.0 < work < 9.6                            # m v0^2 / 7 = 9.54 J on a plate
+    assert abs(energy[-1] - energy[0] + work) / energy[0] <= drift < 1e-7    # 3.7e-9 measured
