@@ -22,6 +22,7 @@ module ellroll_case_run
       fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest, fig_sliding_time, &
       fig_friction_energy, fig_slip_speed_max
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
+  use ellroll_limit_states, only: is_model_limit
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest
   use ellroll_events, only: crossing_search_t
@@ -91,8 +92,10 @@ module ellroll_case_run
     !> (a fixed step: it ends on the grid past it; < 0: none)
     real(wp) :: stopped_at = -1
     !> sliding: the friction's work so far, which the step ends' energy
-    !> adds to E (energy_drift: the residual of the balance E + W = E0)
-    real(wp) :: friction_work = 0
+    !> adds to E (energy_drift: the residual of the balance E + W = E0), and
+    !> its value at the last step end clear of the cup's curvature (where a
+    !> case that ends at a model limit cuts it, as its peaks)
+    real(wp) :: friction_work = 0, friction_work_clear = 0
   end type run_state_t
 
 contains
@@ -174,6 +177,12 @@ contains
       res%counts(fig_at_rest) = 1
     end if
     call finish_running(run%stats, run%ball%mass, res)
+    if (cs%slide .and. is_model_limit(res%status)) then
+      ! the friction's work up to the step ends the peaks take: near the
+      ! limit N grows without bound and a piece's quadrature with it
+      res%reals(fig_friction_energy) = ieee_value(res%reals(fig_friction_energy), ieee_quiet_nan)
+      if (run%stats%n_clear(1) > 0) res%reals(fig_friction_energy) = run%friction_work_clear
+    end if
     periods = oscillation_periods(run%ball, run%spin0)
     call set_figure_values(res, fig_linear_periods, periods)
     if (cs%excitation%kind == excitation_record) then
@@ -374,6 +383,7 @@ contains
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     q = step_quantities(obs)
     q(1, q_energy) = q(1, q_energy) + run%friction_work
+    if (obs%fit_clearance > 0) run%friction_work_clear = run%friction_work
     call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 
