@@ -19,7 +19,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level
+      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
@@ -299,7 +299,7 @@ contains
     logical, intent(out) :: ended
     real(wp), intent(out) :: t_stop
     type(regime_state_t) :: new
-    real(wp) :: t_at, remaining, offset, slip_before
+    real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
     ended = .false.
     t_at = t
@@ -307,9 +307,10 @@ contains
     t_stop = t + h_step
     do switches = 0, max_switches_per_step
       if (now%sliding) call sb%begin_step(now%s)
-      call take(integrator, rolling, sb, t_at, remaining, now, new, status, res%n_rhs)
+      piece = stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs)
+      call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, rolling, sb, t_at, remaining, now, tally, res)
+        call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
         ended = .true.
         return
       end if
@@ -330,7 +331,7 @@ contains
         end if
         return
       end if
-      call switch_inside(integrator, run, rolling, sb, t_at, remaining, now, tally, res, offset, ended)
+      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, tally, res, offset, ended)
       if (ended) return
       remaining = remaining - offset
       if (remaining <= 0 .or. stop_at_switch) then
@@ -342,6 +343,30 @@ contains
     res%t_final = t_at
     ended = .true.
   end subroutine advance
+
+  !> The piece of the step to take from (t_at, now): all that remains, or,
+  !> where the slip's time scale (slip_stop_time) puts its stop inside
+  !> it, twice that time where the slip has stopped by then (the stop is
+  !> searched for inside that): past a stop the method's stages throw the
+  !> slip the other way, by the remaining time over the stop's, which
+  !> overflows for a stiff slip (a large mu, a small inertia factor).
+  function stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs) result(piece)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t_at, remaining
+    type(regime_state_t), intent(in) :: now
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: piece, bracket
+    type(regime_state_t) :: trial
+    integer :: status
+    piece = remaining
+    if (.not. now%sliding) return
+    bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
+    if (.not. bracket < remaining) return
+    call take(integrator, rolling, sb, t_at, bracket, now, trial, status, n_rhs)
+    if (status == status_completed .and. switch_crossed(sb, now, trial)) piece = bracket
+  end function stop_bracket
 
   !> Whether the regime switches between now and new (one step apart):
   !> rolling needs more friction than mu N at new; or the slip, nonzero at

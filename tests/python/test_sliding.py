@@ -285,3 +285,47 @@ def test_the_friction_work_ends_where_a_case_ends_at_a_limit(ellroll, tmp_path, 
     # measured 5.2e-4, 1.3e-3, 2.0e-3: the trapezoidal rule over a step in
     # which N changes by several times its size (1.5e-4 for v0 = 100 at dt 1e-5)
     assert s["energy_drift"] < 5e-3
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_stiff_slip_stops_inside_a_step(ellroll_debug, tmp_path, method):
+    """A large mu or a small inertia factor stops the slip in
+    |u| / (mu g (1 + 1/k)) (5e-11 s at k = 1e-3, mu = 1e6, |u| = 0.5 m/s), far inside a
+    step: located there, it loses the stopping impulse's energy
+    m v0^2 k / (2 (1 + k)), on the Debug build (floating-point traps), for a
+    seeded grid of k and mu at and inside their bounds."""
+    rng = np.random.default_rng(20261126)
+    grid = [(1e-3, 1e6), (1e-3, 1e2), (0.4, 1e6), (2 / 3, 1e6)]
+    grid += [(10 ** rng.uniform(-3, np.log10(2 / 3)), 10 ** rng.uniform(2, 6)) for _ in range(3)]
+    integration = {"rk4": "method = 'rk4', dt = 1e-3", "dop853": "method = 'dop853', rtol = 1e-8",
+                   "vern9": "method = 'vern9', rtol = 1e-8"}[method]
+    for k, mu in grid:
+        v0 = rng.uniform(0.2, 1.0)
+        text = LAUNCH.format(mu=repr(mu), k=repr(k), v=repr(v0), integration=integration, t_end=0.3, interval=0.01)
+        with run_text(ellroll_debug, tmp_path, text) as f:
+            energy = f["trajectory/energy"][0]
+            s = {n: f["summary"][n][0] for n in ("status", "friction_energy", "sliding_time")}
+        loss = M_CUP * v0**2 / 2 * k / (1 + k)
+        case = (k, mu, v0)
+        assert s["status"] == 1, case
+        assert s["sliding_time"] < 1e-3, case
+        assert np.all(energy <= energy[0]), case
+        # the stop's loss to 2.6e-8 (1e-12 where the stop takes under 1e-6 s)
+        assert energy[0] - energy[1] == pytest.approx(loss, rel=1e-6), case
+        # the work is the trapezoidal rule over the piece of the stop, in which
+        # N changes with v^2 / rho by up to 1 %: 4.7e-3 measured
+        assert s["friction_energy"] == pytest.approx(loss, rel=1e-2), case
+
+
+@pytest.mark.parametrize("change, words", [
+    ("inertia_factor = 0.4", "inertia_factor = 1e-4: must be between 0.001 and"),
+    ("inertia_factor = 0.4", "inertia_factor = 1e-300: must be between 0.001 and"),
+    ("mu = 0.1", "mu = 1.0000001e6: must be between 0 and 1000000"),
+])
+def test_a_ball_beyond_the_bounds_is_refused(ellroll_debug, tmp_path, change, words):
+    given = words.split(":")[0]
+    text = LAUNCH.format(mu=0.1, k=0.4, v=0.5, integration="method = 'rk4', dt = 1e-3", t_end=0.1, interval=0.01)
+    (tmp_path / "case.nml").write_text(text.replace(change, given))
+    result = run(ellroll_debug, "run", "case.nml", "-q", "--overwrite", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "case.nml:2: &ball: " + words in result.stderr, result.stderr
