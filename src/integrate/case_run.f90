@@ -22,6 +22,7 @@ module ellroll_case_run
       fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest, fig_sliding_time, &
       fig_friction_energy, fig_slip_speed_max, fig_rolling_resistance_energy
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
+  use ellroll_limit_states, only: is_model_limit
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest
   use ellroll_events, only: crossing_search_t
@@ -34,7 +35,7 @@ module ellroll_case_run
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked, latest_end, settled
+  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
   public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
@@ -95,6 +96,11 @@ module ellroll_case_run
     !> |omega_t| of the last state tracked (its work is summed by the
     !> trapezoidal rule over the states tracked: step ends and switches)
     real(wp) :: resistance_time = 0, resistance_power = 0
+    !> sliding: the friction's work so far, which the step ends' energy
+    !> adds to E (energy_drift: the residual of the balance E + W = E0), and
+    !> its value at the last step end clear of the cup's curvature (where a
+    !> case that ends at a model limit cuts it, as its peaks)
+    real(wp) :: friction_work = 0, friction_work_clear = 0
   end type run_state_t
 
 contains
@@ -129,6 +135,20 @@ contains
     res%status = limit_status(run%ball, y, obs)
   end subroutine start_case
 
+  !> The summary's statistics start again from observation obs at t = 0
+  !> (a start that slides: its centre's velocity is not rolling's, so
+  !> neither are E0 and the forces at t = 0).
+  pure subroutine restart_case(cs, run, res, obs)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    type(observation_t), intent(in) :: obs
+    type(running_t) :: fresh
+    run%stats = fresh
+    call start_running(run%stats, step_quantities(obs), cs%param)
+    call track(run, res, 0.0_wp, obs)
+  end subroutine restart_case
+
   !> Harmonic forcing: the fit of the steady response at the forcing
   !> frequency (ellroll_harmonic_fit) over the last whole forcing periods
   !> (at least half the run), beside the free oscillation at the linear
@@ -162,6 +182,12 @@ contains
       res%counts(fig_at_rest) = 1
     end if
     call finish_running(run%stats, run%ball%mass, res)
+    if (cs%slide .and. is_model_limit(res%status)) then
+      ! the friction's work up to the step ends the peaks take: near the
+      ! limit N grows without bound and a piece's quadrature with it
+      res%reals(fig_friction_energy) = ieee_value(res%reals(fig_friction_energy), ieee_quiet_nan)
+      if (run%stats%n_clear(1) > 0) res%reals(fig_friction_energy) = run%friction_work_clear
+    end if
     periods = oscillation_periods(run%ball, run%spin0)
     call set_figure_values(res, fig_linear_periods, periods)
     if (cs%excitation%kind == excitation_record) then
@@ -370,14 +396,19 @@ contains
   end subroutine note_nutation
 
   !> What an accepted step end adds to the summary: the nutation angle, and
-  !> the step-end quantities to their statistics.
+  !> the step-end quantities to their statistics (the energy with the
+  !> friction's work so far).
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    real(wp) :: q(1, quantity_count)
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
-    call add_step_ends(run%stats, step_quantities(obs), t)
+    q = step_quantities(obs)
+    q(1, q_energy) = q(1, q_energy) + run%friction_work
+    if (obs%fit_clearance > 0) run%friction_work_clear = run%friction_work
+    call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 
   !> The step-end quantities of an observation (the norms written out, as

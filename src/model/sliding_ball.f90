@@ -29,7 +29,7 @@ module ellroll_sliding_ball
   private
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
-            observe_sliding, slip_velocity, center_velocity, friction_direction, resistance_power
+            observe_sliding, slip_velocity, center_velocity, friction_direction, resistance_power, slip_stop_time
 
   integer, parameter :: slide_state_size = 8
 
@@ -117,6 +117,22 @@ contains
     y(1:3) = s(1:3)
     y(4:6) = s(4:6) - cross(n, impulse) / (ball%inertia_factor * ball%mass * ball%radius)
   end function stick
+
+  !> The slip's time scale at sliding state y with normal force N: the
+  !> friction alone takes |u| at the rate mu N (1/m + R^2/J) (the part of
+  !> du/dt that the friction makes; docs/model.md), so the slip stops in
+  !> about |u| / (mu N (1/m + R^2/J)) where that rate outweighs the
+  !> others (a large mu, a small inertia factor: a stiff slip). Infinite
+  !> where the normal force does not push.
+  pure real(wp) function slip_stop_time(ball, y, normal_force) result(time)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(slide_state_size), normal_force
+    real(wp) :: rate, size_u
+    time = huge(1.0_wp)
+    rate = ball%mu * normal_force * (1 + 1 / ball%inertia_factor) / ball%mass
+    size_u = norm2(slip_velocity(ball, y))
+    if (rate > 0 .and. size_u / huge(1.0_wp) < rate) time = size_u / rate
+  end function slip_stop_time
 
   !> The direction of the friction at slip u for a step whose slip mode is
   !> `mode`: against u while u is along the mode (or no mode is set), else
