@@ -263,7 +263,11 @@ contains
       p3_upper = p%c(l) - p%c2(l) * n3 * inv_s
       p3 = merge(p3_lower, p3_upper, n3 > 0)
       lateral = sqrt(n1**2 + n2**2)
-      upright = n3 > lateral * tiny(1.0_wp)
+      ! upright: n3 > lateral tiny, with the product taken only where n3 is
+      ! within 2 tiny of 0 (lateral <= 1 elsewhere: the test holds); a
+      ! product in the subnormal range costs a microcode assist, about half
+      ! this routine's time
+      upright = n3 > merge(0.0_wp, lateral, n3 > 2 * tiny(1.0_wp) .and. lateral < 2) * tiny(1.0_wp)
       quotient = lateral / merge(n3, 1.0_wp, upright)
       out%tan_nutation(l) = merge(quotient, huge(1.0_wp), upright)
       out%lateral(l) = lateral
