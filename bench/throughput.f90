@@ -8,7 +8,7 @@
 !>   batch of 8       8 cases (the paper case with spins 20..27 rad/s) advanced
 !>                    together across SIMD lanes (simulate_batch), per case-step;
 !>                    integrate only, summary only and full output, and one case
-!>                    alone in a batch (it pays for all 8 lanes)
+!>                    alone in a batch (the kernels compute its lane alone)
 !> Each figure is the best of several repetitions; ratios are to the baseline
 !> and, for the output cost, to summary only. Usage: build/bench_throughput [repeats]
 program throughput
