@@ -19,7 +19,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time
+      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
@@ -32,6 +32,10 @@ module ellroll_slide_run
   !> A step in which the regime switches more often than this ends the case
   !> with status slip: the motion chatters between the regimes there.
   integer, parameter :: max_switches_per_step = 64
+  !> An embedded pair's steps in a row in which the slip stays at the size of
+  !> its error (hovering_slip) before the slip counts as stopped where rolling
+  !> can go on, and before the case ends as unstable where it cannot.
+  integer, parameter :: hover_steps = 64, max_hover_steps = 100000
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -190,7 +194,7 @@ contains
     type(case_result_t), intent(inout) :: res
     type(regime_state_t) :: trial
     real(wp) :: t, h, h_max, t_next, next_sample_time, factor
-    integer :: status, stalled
+    integer :: status, stalled, hovering
     integer(i8) :: attempts
     logical :: ended
     h_max = min(cs%t_end, cs%param(p_dt))
@@ -203,6 +207,7 @@ contains
     t = 0
     attempts = 0
     stalled = 0
+    hovering = 0
     do while (t < cs%t_end)
       attempts = attempts + 1
       if (stop_asked(attempts)) then
@@ -234,8 +239,14 @@ contains
       res%n_steps = res%n_steps + 1
       if (ended) return
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
-      if (stalled > max_switches_per_step) then
-        res%status = status_slip               ! switches that no longer move on: chattering
+      hovering = merge(hovering + 1, 0, now%sliding .and. hovering_slip(pair, sb, now))
+      if (hovering >= hover_steps .and. mod(hovering, hover_steps) == 0) then
+        ! the slip is zero to the pair's tolerance: it stops if rolling can go on
+        call stop_sliding(rolling, sb, t_next, now, res, tally, at_rest_only=.true.)
+        if (.not. now%sliding) hovering = 0
+      end if
+      if (stalled > max_switches_per_step .or. hovering > max_hover_steps) then
+        res%status = status_unstable           ! switches that no longer move on: chattering
         res%t_final = t
         return
       end if
@@ -315,7 +326,7 @@ contains
         return
       end if
       if (.not. switch_crossed(sb, now, new)) then
-        call add_sliding(sb, remaining, now, new, tally)
+        call add_sliding_step(integrator, sb, t_at, remaining, now, new, tally, res%n_rhs)
         slip_before = now%slip_speed
         now = new
         if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
@@ -339,10 +350,21 @@ contains
         return
       end if
     end do
-    res%status = status_slip
+    res%status = status_unstable          ! a step that switches on and on: chattering
     res%t_final = t_at
     ended = .true.
   end subroutine advance
+
+  !> Whether the slip at now is within the pair's tolerance of zero, measured
+  !> against the contact's speeds (|V_C| + R |omega|).
+  logical function hovering_slip(pair, sb, now) result(hovering)
+    class(embedded_pair_t), intent(in) :: pair
+    type(sliding_ball_t), intent(in) :: sb
+    type(regime_state_t), intent(in) :: now
+    real(wp) :: scale
+    scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
+    hovering = now%slip_speed <= 10 * (pair%atol + pair%rtol * scale)
+  end function hovering_slip
 
   !> The piece of the step to take from (t_at, now): all that remains, or,
   !> where the slip's time scale (slip_stop_time) puts its stop inside
@@ -438,7 +460,7 @@ contains
       ended = .true.
       return
     end if
-    call add_sliding(sb, search%high, now, x, tally)
+    call add_sliding_step(integrator, sb, t_at, search%high, now, x, tally, res%n_rhs)
     t_at = t_at + search%high
     now = x
     call track_balance(run, res, t_at, now%obs, tally)
@@ -513,18 +535,58 @@ contains
     end if
   end subroutine stop_sliding
 
+  !> The piece of step h from (t, from) to `to` that the integrator has just
+  !> taken adds to the sliding figures (add_sliding). An embedded pair's
+  !> friction work is the 3-point Gauss-Legendre rule on the piece's dense
+  !> output (exact to degree 5, its error far below the pair's own over
+  !> the long steps the pair takes; the trapezoidal rule's h^2 error there
+  !> does not fall with the tolerance); a fixed step's the trapezoidal rule.
+  subroutine add_sliding_step(integrator, sb, t, h, from, to, tally, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: from, to
+    type(slide_tally_t), intent(inout) :: tally
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), parameter :: offset = 0.3872983346207416885_wp      ! sqrt(15) / 10
+    real(wp), parameter :: nodes(3) = [0.5_wp - offset, 0.5_wp, 0.5_wp + offset]
+    real(wp), parameter :: weights(3) = [5.0_wp, 8.0_wp, 5.0_wp] / 18
+    real(wp) :: y(slide_state_size), rate(slide_state_size), big_n, work
+    integer :: i
+    if (.not. from%sliding) return
+    select type (integrator)
+    class is (embedded_pair_t)
+      work = 0
+      do i = 1, 3
+        call integrator%dense(sb, nodes(i), y, n_rhs)
+        call sliding_derivative(sb, t + nodes(i) * h, y, rate, big_n)
+        work = work + weights(i) * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
+      end do
+      n_rhs = n_rhs + 3
+      call add_sliding(sb, h, from, to, tally, h * sb%ball%mu * work)
+    class default
+      call add_sliding(sb, h, from, to, tally)
+    end select
+  end subroutine add_sliding_step
+
   !> A piece of step h from `from` to `to` adds to the sliding figures:
-  !> its time, the friction's work mu N |u| (trapezoidal rule over the
-  !> piece; the pieces end at the switches), the largest slip speed.
-  pure subroutine add_sliding(sb, h, from, to, tally)
+  !> its time, the friction's work mu N |u| (`work` where given, else the
+  !> trapezoidal rule over the piece; the pieces end at the switches), the
+  !> largest slip speed.
+  pure subroutine add_sliding(sb, h, from, to, tally, work)
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: h
     type(regime_state_t), intent(in) :: from, to
     type(slide_tally_t), intent(inout) :: tally
+    real(wp), intent(in), optional :: work
     if (.not. from%sliding) return
     tally%sliding_time = tally%sliding_time + h
-    tally%friction_energy = tally%friction_energy + 0.5_wp * h * sb%ball%mu &
-        * (from%obs%reaction_normal * from%slip_speed + to%obs%reaction_normal * to%slip_speed)
+    if (present(work)) then
+      tally%friction_energy = tally%friction_energy + work
+    else
+      tally%friction_energy = tally%friction_energy + 0.5_wp * h * sb%ball%mu &
+          * (from%obs%reaction_normal * from%slip_speed + to%obs%reaction_normal * to%slip_speed)
+    end if
     tally%slip_speed_max = max(tally%slip_speed_max, to%slip_speed)
     tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
   end subroutine add_sliding
