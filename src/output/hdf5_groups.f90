@@ -12,7 +12,7 @@ module ellroll_hdf5_groups
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: dataset_inputs
-  use ellroll_limit_states, only: limit_state_t
+  use ellroll_limit_states, only: limit_state_t, limit_state_flag_values, limit_state_flag_meanings
   use ellroll_figures, only: figures
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
@@ -138,7 +138,7 @@ contains
     call lay%close_group(group)
   end subroutine case_group
 
-  !> /limit_state: a flag per case (int8: 1 exceeded, 0 not) per limit
+  !> /limit_state: a flag per case (int8: 1 exceeded, 0 not, -1 undefined) per limit
   !> state, named by it, its figure, capacity and the capacity's units as
   !> attributes; `rec` gives the names and long names (file_layout's
   !> limit_state_row).
@@ -161,7 +161,8 @@ contains
       call lay%text_attribute(dset, 'figure', trim(figures(states(k)%figure)%name))
       call lay%real_attribute(dset, 'capacity', states(k)%capacity)
       call lay%text_attribute(dset, 'capacity_units', trim(figures(states(k)%figure)%unit))
-      call lay%text_attribute(dset, 'flag_meanings', 'not_exceeded exceeded')
+      call lay%int_attribute(dset, 'flag_values', limit_state_flag_values, small=.true.)
+      call lay%text_attribute(dset, 'flag_meanings', limit_state_flag_meanings)
       call name_coordinates(lay, dset, coords)
       call lay%close_dataset(dset)
     end do
