@@ -5,7 +5,7 @@ module ellroll_results
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_records, only: named_value_t, real_value, int_value, vector_value, kind_int
-  use ellroll_status, only: status_pending
+  use ellroll_status, only: status_pending, status_invalid
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_figures, only: figure_t, figures, figure_count, real_slots, figure_slots, from_counter, fig_t_final, fig_n_steps, &
       fig_n_rejected, fig_n_rhs, fig_wall_time
@@ -14,6 +14,10 @@ module ellroll_results
 
   public :: field_buffer_t, case_result_t, summary_record, set_summary_value, figure_values, set_figure_values, &
             allocate_fields, fill_unrecorded
+
+  !> A count (an integer figure) undefined for the case, as NaN is for a
+  !> real one: /summary's _FillValue of its integer figures
+  integer(i8), parameter, public :: count_undefined = -1
 
   !> A NaN for default initialisation (0/0 is not a constant expression).
   real(wp), parameter :: nan_value = transfer(9221120237041090560_i8, 1.0_wp)
@@ -74,7 +78,8 @@ contains
   end subroutine fill_unrecorded
 
   !> The per-case summary as stored under /summary/ (status is written
-  !> apart): every row of the summary table, in its order.
+  !> apart): every row of the summary table, in its order; a case never
+  !> run (pending, invalid) has its counts count_undefined, its reals NaN.
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
     type(named_value_t) :: rec(figure_count)
@@ -83,7 +88,11 @@ contains
     do k = 1, figure_count
       f = figures(k)        ! (a copy: gfortran 12 misreads an associate name of a constant's element)
       if (f%kind == kind_int) then
-        rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_count_value(res, k))
+        if (res%status == status_pending .or. res%status == status_invalid) then
+          rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), count_undefined)
+        else
+          rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_count_value(res, k))
+        end if
       else if (f%ncomp == 1) then
         rec(k) = real_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_value(res, k))
       else
