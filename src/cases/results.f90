@@ -8,7 +8,7 @@ module ellroll_results
   use ellroll_status, only: status_pending, status_invalid
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_figures, only: figure_t, figures, figure_count, real_slots, figure_slots, from_counter, fig_t_final, fig_n_steps, &
-      fig_n_rejected, fig_n_rhs, fig_wall_time
+      fig_n_rejected, fig_n_rhs, fig_wall_time, fig_n_rhs_reference
   implicit none
   private
 
@@ -19,6 +19,13 @@ module ellroll_results
   !> real one: /summary's _FillValue of its integer figures
   integer(i8), parameter, public :: count_undefined = -1
 
+  integer :: k        ! (of implied loops in constant expressions)
+
+  !> The counts' defaults: 0, counted up as the case runs, but
+  !> n_rhs_reference, which only a reference run (error_estimate) sets
+  integer(i8), parameter :: count_defaults(figure_count) = &
+      merge(count_undefined, 0_i8, [(k == fig_n_rhs_reference, k = 1, figure_count)])
+
   !> A NaN for default initialisation (0/0 is not a constant expression).
   real(wp), parameter :: nan_value = transfer(9221120237041090560_i8, 1.0_wp)
 
@@ -26,9 +33,9 @@ module ellroll_results
     real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
   end type field_buffer_t
 
-  !> A case's result. Every figure is NaN (a count 0) until the integration
-  !> sets it: a case never run (invalid, or pending) holds no number that
-  !> could pass for data.
+  !> A case's result. Every figure is NaN (a count 0, n_rhs_reference -1)
+  !> until the integration sets it: a case never run (invalid, or pending)
+  !> holds no number that could pass for data.
   type :: case_result_t
     integer :: status = status_pending
     ! the integration's counters (the summary table's rows from_counter),
@@ -42,7 +49,7 @@ module ellroll_results
     !> reals(k) (a per-mode one's further components at figure_slots(k)), a
     !> count at counts(k)
     real(wp) :: reals(real_slots) = nan_value
-    integer(i8) :: counts(figure_count) = 0
+    integer(i8) :: counts(figure_count) = count_defaults
     type(field_buffer_t) :: fields(field_count)
     integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)
   end type case_result_t
