@@ -10,8 +10,9 @@ def summary_frame(path):
     input names, `omega_z`; text as str), `status` by name (categorical,
     its categories the file's flag_meanings), then every figure of /summary
     (a value per mode as a column per mode, `linear_periods_1`, as in
-    `ellroll summary --format csv`). Units are in `frame.attrs["units"]`,
-    column by column."""
+    `ellroll summary --format csv`; a count as pandas' nullable Int64,
+    missing (<NA>) where it holds the dataset's _FillValue, -1: a case
+    never run). Units are in `frame.attrs["units"]`, column by column."""
     import pandas as pd
     with open_run(path) as run:
         h5 = run._h5
@@ -38,6 +39,10 @@ def summary_frame(path):
         units["status"] = "1"
         for name in run.summary_figures:
             values, unit = run.summary(name), run.units(f"summary/{name}")
+            fill = h5[f"summary/{name}"].attrs.get("_FillValue")
+            if values.dtype.kind in "iu" and fill is not None and values.ndim == 1:
+                values = pd.array(values, dtype="Int64")
+                values[np.asarray(values == np.asarray(fill).ravel()[0], dtype=bool)] = pd.NA
             if values.ndim == 1:
                 columns[name], units[name] = values, unit
             else:

@@ -6,7 +6,8 @@ import numpy as np
 
 from .geometry import energy_bound, surface_residual
 from .reader import NotAnEllrollFile
-from .suite import MODEL_LIMIT_STATE, MODEL_LIMITS, PERCENTILE_TEXT, intensity, suite_fragility, suite_statistics
+from .suite import MODEL_LIMIT_STATE, MODEL_LIMITS, PERCENTILE_TEXT, intensity, limit_state_flags, \
+    suite_fragility, suite_statistics
 
 # figure -> trajectory fields it cannot be drawn without
 FIELD_NEEDS = {"trace": ("contact",), "nutation": ("nutation",), "reaction": ("reaction", "normal"),
@@ -660,8 +661,10 @@ def plot_fragility(ax, run, im="scale", bootstrap=200, seed=0, limit_state=MODEL
         colour = f"C{g % 10}" if len(details) > 1 else "C0"
         row, fit = d["row"], d["fit"]
         label = ", ".join(input_value_label(run, n, row[n]) for n in names)
-        cases = d["cases"] & known & np.isfinite(x_case) & (x_case > 0)
-        exceeded = hit | (d["exceeded"] if d["exceeded"] is not None else False)
+        flags = limit_state_flags(d["exceeded"]) if d["exceeded"] is not None else np.zeros(status.shape)
+        # a completed case whose figure is undefined (NaN) has no outcome for the limit state
+        cases = d["cases"] & (hit | (known & ~np.isnan(flags))) & np.isfinite(x_case) & (x_case > 0)
+        exceeded = hit | (flags == 1)
         px, pn, pz = [], [], []
         for level in np.unique(stripe[cases]):
             at = cases & (stripe == level)

@@ -13,9 +13,13 @@ record. Per stripe:
   cases with a physical outcome that exceeded the isolator's capacity. The
   unresolved cases are left out of both counts: their outcome is unknown;
 - for each user limit state (an 'exceeded' column per case, see
-  limit_state_columns), fraction_NAME over the same cases; a case that ended
-  at a model limit counts as exceeding every limit state (the isolator's
-  capacity is gone);
+  limit_state_columns), n_NAME the cases that exceeded it, n_undefined_NAME
+  the completed cases whose figure is undefined (NaN: residual_displacement
+  while the ball still moves, transmissibility of a record run; /limit_state
+  flag -1), and fraction_NAME = n_NAME over the cases with a physical
+  outcome less the undefined ones: those have no outcome for this limit
+  state. A case that ended at a model limit counts as exceeding every limit
+  state (the isolator's capacity is gone);
 - for each response figure (displacement_max, ...), its median and 16th and
   84th percentiles (FIGURE_p50, FIGURE_p16, FIGURE_p84) over the completed
   cases only, with the number of finite values used (FIGURE_n). A peak of a
@@ -55,11 +59,12 @@ def stripe_inputs(run):
 
 
 def limit_state_columns(run):
-    """{name: per-case exceeded (bool)} of the user limit states a file
-    holds: each 1-D dataset of a /limit_state group (its name the limit
-    state's), and each /summary dataset named exceeded_NAME or NAME_exceeded;
-    a value counts as exceeded when it is nonzero and not NaN. Empty for a
-    file without limit states."""
+    """{name: per-case flag (float: 1 exceeded, 0 not, NaN undefined)} of
+    the user limit states a file holds: each 1-D dataset of a /limit_state
+    group (its name the limit state's; its flag -1, a figure undefined for
+    the case, is NaN), and each /summary dataset named exceeded_NAME or
+    NAME_exceeded (NaN undefined, any other nonzero value exceeded). Empty
+    for a file without limit states."""
     columns = {}
     with h5py.File(run.path, "r") as f:
         group = f.get("limit_state")
@@ -69,14 +74,14 @@ def limit_state_columns(run):
             for name, item in group.items():
                 if isinstance(item, h5py.Dataset) and item.shape == (run.n_cases,) and name not in coordinates \
                         and _text(item.attrs.get("CLASS", "")) != "DIMENSION_SCALE":
-                    columns[name] = _exceeded(item[()])
+                    columns[name] = limit_state_flags(item[()])
         for name, item in f["summary"].items():
             if not isinstance(item, h5py.Dataset) or item.shape != (run.n_cases,):
                 continue
             if name.startswith("exceeded_"):
-                columns[name[len("exceeded_"):]] = _exceeded(item[()])
+                columns[name[len("exceeded_"):]] = limit_state_flags(item[()])
             elif name.endswith("_exceeded"):
-                columns[name[:-len("_exceeded")]] = _exceeded(item[()])
+                columns[name[:-len("_exceeded")]] = limit_state_flags(item[()])
     return columns
 
 
@@ -84,11 +89,19 @@ def _text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def _exceeded(values):
+# /limit_state's flag of a case whose figure is undefined (its flag_values -1 0 1)
+UNDEFINED_FLAG = -1
+
+
+def limit_state_flags(values):
+    """Per-case flags as floats: 1 exceeded, 0 not, NaN undefined (a
+    float NaN, an integer UNDEFINED_FLAG); booleans as 1 and 0."""
     values = np.asarray(values)
     if values.dtype.kind == "f":
-        return np.nan_to_num(values, nan=0.0) != 0
-    return values.astype(bool)
+        return np.where(np.isnan(values), np.nan, (values != 0).astype(float))
+    if values.dtype.kind in "iu":
+        return np.where(values == UNDEFINED_FLAG, np.nan, (values != 0).astype(float))
+    return values.astype(bool).astype(float)
 
 
 def response_figures(run):
@@ -101,7 +114,8 @@ def suite_statistics(run, figures=None, exceeded=None, percentiles="linear"):
     """The per-stripe statistics of an ellroll file (see the module's text)
     as a DataFrame, one row per stripe, sorted by the stripe inputs.
     `figures`: the response figures (default: response_figures(run));
-    `exceeded`: {name: per-case bool} user limit states added to those in
+    `exceeded`: {name: per-case bool, or float with NaN where undefined}
+    user limit states added to those in
     the file (limit_state_columns). df.attrs holds 'units' (per column),
     'percentiles' (the definition) and 'stripe_inputs'."""
     figures = response_figures(run) if figures is None else list(figures)
@@ -120,13 +134,14 @@ def suite_statistics(run, figures=None, exceeded=None, percentiles="linear"):
 def stripe_statistics(inputs, status, figures, exceeded=None, percentiles="linear"):
     """The per-stripe statistics of a table of cases: `inputs` {name:
     per-case value} (the stripe inputs), `status` per-case names, `figures`
-    {name: per-case value}, `exceeded` {name: per-case bool}. Returns the
+    {name: per-case value}, `exceeded` {name: per-case bool, or 1/0/NaN
+    (NaN: the figure undefined for the case)}. Returns the
     DataFrame of suite_statistics (without units)."""
     if percentiles not in PERCENTILES:
         raise ValueError(f"percentiles must be one of {', '.join(PERCENTILES)}, not {percentiles!r}")
     status = np.asarray(status, dtype=str)
     n = status.size
-    exceeded = {k: np.asarray(v, dtype=bool) for k, v in (exceeded or {}).items()}
+    exceeded = {k: limit_state_flags(v) for k, v in (exceeded or {}).items()}
     figures = {k: np.asarray(v, dtype=float) for k, v in figures.items()}
     for what, columns in (("input", inputs), ("figure", figures), ("limit state", exceeded)):
         for name, column in columns.items():
@@ -148,9 +163,11 @@ def stripe_statistics(inputs, status, figures, exceeded=None, percentiles="linea
         row["n_unresolved"] = int(mask.sum() - known)
         row["fraction_limit"] = beyond.sum() / known if known else math.nan
         for name, flags in exceeded.items():
-            hit = int(np.sum(inside & flags) + beyond.sum())
+            hit = int(np.sum(inside & (flags == 1)) + beyond.sum())
+            undefined = int(np.sum(inside & np.isnan(flags)))
             row[f"n_{name}"] = hit
-            row[f"fraction_{name}"] = hit / known if known else math.nan
+            row[f"n_undefined_{name}"] = undefined
+            row[f"fraction_{name}"] = hit / (known - undefined) if known > undefined else math.nan
         for name, values in figures.items():
             chosen = values[inside]
             chosen = chosen[np.isfinite(chosen)]
@@ -214,7 +231,9 @@ def format_suite(table, fmt="table", path=""):
     notes = [f"each figure: median [16th, 84th percentile] (values used), {definition}, over the completed "
              "cases only;",
              "fraction_limit = n_limit / (n_completed + n_limit): cases that ended at a model limit "
-             "(rim, no_fit, slip, liftoff); n_unresolved (never run or a numerical failure) left out"]
+             "(rim, no_fit, slip, liftoff); n_unresolved (never run or a numerical failure) left out;",
+             "fraction_NAME = n_NAME / (n_completed + n_limit - n_undefined_NAME): a case whose figure is "
+             "undefined has no outcome for the limit state"]
     return "\n".join(lines + [""] + notes) + "\n"
 
 
@@ -348,12 +367,14 @@ def fragility_points(im_values, status, exceeded=None):
     distinct positive intensities x, the cases with a physical outcome at
     each (n: completed or at a model limit) and how many of them exceeded
     (z: ended at a model limit, or flagged in `exceeded`). Unresolved cases
-    (never run, numerical failure) and NaN intensities are left out."""
+    (never run, numerical failure), completed cases whose figure is
+    undefined (NaN in `exceeded`) and NaN intensities are left out."""
     x = np.asarray(im_values, dtype=float)
     status = np.asarray(status, dtype=str)
     limit = np.isin(status, MODEL_LIMITS)
-    known = (limit | (status == COMPLETED)) & np.isfinite(x) & (x > 0)
-    hit = limit | (np.asarray(exceeded, dtype=bool) if exceeded is not None else False)
+    flags = limit_state_flags(exceeded) if exceeded is not None else np.zeros(x.shape)
+    known = (limit | ((status == COMPLETED) & ~np.isnan(flags))) & np.isfinite(x) & (x > 0)
+    hit = limit | (flags == 1)
     levels = np.unique(x[known])
     n = np.array([np.sum(known & (x == v)) for v in levels])
     z = np.array([np.sum(known & hit & (x == v)) for v in levels])
@@ -367,7 +388,8 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
     limit state) and per value of the swept design inputs other than the
     scale. Returns (DataFrame, per-row details): the table has the design
     inputs, limit_state, im, units, theta and its interval, beta and its
-    interval, n_points, n_known, n_exceeded and a note where no fit exists
+    interval, n_points, n_known, n_exceeded, n_undefined (the completed
+    cases whose figure is undefined, left out) and a note where no fit exists
     (every case exceeds, none does) or says the outcomes separate;
     the details hold the points (x, n, z), the fit (or None) and the
     per-case masks for drawing."""
@@ -385,12 +407,17 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
         for key in np.unique(keys, axis=0):
             cases = np.all(keys == key, axis=1)
             levels, n, z = fragility_points(x[cases], status[cases], None if flags is None else flags[cases])
+            undefined = 0 if flags is None else int(np.sum(
+                cases & (status == COMPLETED) & np.isnan(limit_state_flags(flags)) & np.isfinite(x) & (x > 0)))
             row = dict(zip(names, (float(v) for v in key)))
             row.update(limit_state=state, im=im_name, units=units, theta=math.nan, theta_low=math.nan,
                        theta_high=math.nan, beta=math.nan, beta_low=math.nan, beta_high=math.nan,
-                       n_points=int(levels.size), n_known=int(n.sum()), n_exceeded=int(z.sum()), note="")
+                       n_points=int(levels.size), n_known=int(n.sum()), n_exceeded=int(z.sum()),
+                       n_undefined=undefined, note="")
             fit = None
-            if n.sum() == 0:
+            if n.sum() == 0 and undefined:
+                row["note"] = "no case with a defined figure"
+            elif n.sum() == 0:
                 row["note"] = "no case with a physical outcome"
             elif z.sum() == 0:
                 row["note"] = "no case exceeds: no fit"

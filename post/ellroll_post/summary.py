@@ -11,7 +11,8 @@ import numpy as np
 def summary_table(run):
     """{column: (units, values)}: the case index, the varied inputs, the
     status by name, then every figure of /summary (a value per mode: one
-    column per mode, NAME_1, NAME_2)."""
+    column per mode, NAME_1, NAME_2; a count at its _FillValue, -1, undefined
+    for the case, as NaN, as `ellroll summary` writes it)."""
     table = {"case": ("1", run.summary("case").tolist())}
     for name in run.varied_inputs():
         if name == "record":
@@ -21,7 +22,11 @@ def summary_table(run):
     table["status"] = ("1", run.status_names())
     for name in run.summary_figures:
         values, units = run.summary(name), run.units(f"summary/{name}")
-        if values.ndim == 1:
+        fill = run._h5[f"summary/{name}"].attrs.get("_FillValue")
+        if values.ndim == 1 and values.dtype.kind in "iu" and fill is not None:
+            missing = np.asarray(fill).ravel()[0]
+            table[name] = (units, [math.nan if v == missing else v for v in values.tolist()])
+        elif values.ndim == 1:
             table[name] = (units, values.tolist())
         else:
             for m in range(values.shape[1]):

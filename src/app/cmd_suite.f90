@@ -3,7 +3,8 @@
 !> ellroll_post.suite.suite_statistics computes them: the counts of cases,
 !> completed, at each model limit and unresolved, the fraction at a model
 !> limit and past each user limit state (of the cases with a physical
-!> outcome), and the 16th, 50th and 84th percentiles (numpy's linear ones)
+!> outcome; for a user limit state less those whose figure is undefined,
+!> flag -1, counted apart as n_undefined_NAME), and the 16th, 50th and 84th percentiles (numpy's linear ones)
 !> of each response figure over the completed cases.
 module ellroll_cmd_suite
   use, intrinsic :: iso_fortran_env, only: output_unit
@@ -16,6 +17,7 @@ module ellroll_cmd_suite
   use ellroll_lapack, only: dlasrt
   use ellroll_exact, only: equals
   use ellroll_fragility_mle, only: fit_stripes
+  use ellroll_limit_states, only: flag_exceeded, flag_undefined
   implicit none
   private
 
@@ -109,8 +111,10 @@ contains
     integer, allocatable :: order(:)
     integer :: i_scale, k, j, g, m, state
     logical :: known(size(status)), hit(size(status)), group(size(status)), limit(size(status))
+    logical :: defined(size(status))
     real(wp), allocatable :: levels(:), other(:, :)
     integer, allocatable :: n(:), z(:)
+    integer :: undefined
     real(wp) :: theta, beta, nan
     logical :: separated
     character(len=:), allocatable :: row, note, a, b
@@ -125,20 +129,29 @@ contains
     known = (limit .or. status == status_completed) .and. ieee_is_finite(keys(:, i_scale)) .and. keys(:, i_scale) > 0
     do state = 0, size(states)
       hit = limit
-      if (state > 0) hit = hit .or. flags(:, max(state, 1)) /= 0
+      defined = .true.
+      ! a completed case whose figure is undefined has no outcome for this limit state
+      if (state > 0) then
+        hit = hit .or. flags(:, state) == flag_exceeded
+        defined = flags(:, state) /= flag_undefined
+      end if
       do g = 1, size(order)
         if (g > 1) then
           if (same_key(other(order(g), :), other(order(g - 1), :))) cycle
         end if
         group = [(same_key(other(j, :), other(order(g), :)), j = 1, size(status))]
-        levels = pack(keys(:, i_scale), group .and. known)
+        undefined = count(group .and. known .and. .not. defined)
+        levels = pack(keys(:, i_scale), group .and. known .and. defined)
         call sorted_unique(levels)
-        n = [(count(group .and. known .and. equals(keys(:, i_scale), levels(m))), m = 1, size(levels))]
-        z = [(count(group .and. known .and. hit .and. equals(keys(:, i_scale), levels(m))), m = 1, size(levels))]
+        n = [(count(group .and. known .and. defined .and. equals(keys(:, i_scale), levels(m))), m = 1, size(levels))]
+        z = [(count(group .and. known .and. defined .and. hit .and. equals(keys(:, i_scale), levels(m))), &
+              m = 1, size(levels))]
         theta = nan
         beta = nan
         separated = .false.
-        if (sum(n) == 0) then
+        if (sum(n) == 0 .and. undefined > 0) then
+          note = 'no case with a defined figure'
+        else if (sum(n) == 0) then
           note = 'no case with a physical outcome'
         else if (sum(z) == 0) then
           note = 'no case exceeds: no fit'
@@ -165,7 +178,8 @@ contains
         call number(beta, b)
         row = row // '"im": "scale", "theta": ' // a // ', "beta": ' // b // &
             ', "n_points": ' // itoa(size(levels)) // ', "n_known": ' // itoa(sum(n)) // &
-            ', "n_exceeded": ' // itoa(sum(z)) // ', "note": "' // note // '"}'
+            ', "n_exceeded": ' // itoa(sum(z)) // ', "n_undefined": ' // itoa(undefined) // &
+            ', "note": "' // note // '"}'
         if (len(text) > 0) text = text // ',' // new_line('a')
         text = text // row
       end do
@@ -229,7 +243,7 @@ contains
     n_stripes = size(starts)
     starts = [starts, size(order) + 1]
     present_limits = [(any(status == model_limits(k)), k = 1, size(model_limits))]
-    allocate (columns(size(inputs) + 5 + count(present_limits) + 2 * size(states) + 4 * size(figures)))
+    allocate (columns(size(inputs) + 5 + count(present_limits) + 3 * size(states) + 4 * size(figures)))
     do k = 1, size(columns)
       allocate (columns(k)%values(n_stripes))
     end do
@@ -253,9 +267,13 @@ contains
       call put('n_unresolved', '1', .true., real(count(stripe), wp) - known)
       call put('fraction_limit', '1', .false., merge(real(count(beyond), wp) / max(known, 1.0_wp), nan, known > 0))
       do k = 1, size(states)
-        associate (hit => real(count(inside .and. flags(:, k) /= 0) + count(beyond), wp))
+        ! the completed cases whose figure is undefined (flag -1) have no outcome here
+        associate (hit => real(count(inside .and. flags(:, k) == flag_exceeded) + count(beyond), wp), &
+                   undefined => real(count(inside .and. flags(:, k) == flag_undefined), wp))
           call put('n_' // trim(states(k)), '1', .true., hit)
-          call put('fraction_' // trim(states(k)), '1', .false., merge(hit / max(known, 1.0_wp), nan, known > 0))
+          call put('n_undefined_' // trim(states(k)), '1', .true., undefined)
+          call put('fraction_' // trim(states(k)), '1', .false., &
+                   merge(hit / max(known - undefined, 1.0_wp), nan, known - undefined > 0))
         end associate
       end do
       do k = 1, size(figures)

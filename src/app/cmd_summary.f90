@@ -10,7 +10,7 @@ module ellroll_cmd_summary
   use ellroll_status, only: status_count, status_name, status_pending, status_invalid, status_completed
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t, kind_int
-  use ellroll_results, only: case_result_t, summary_record
+  use ellroll_results, only: case_result_t, summary_record, count_undefined
   use ellroll_cli, only: cli_t
   use ellroll_errors, only: set_error, err_input
   use ellroll_files, only: path_kind, kind_folder
@@ -244,7 +244,12 @@ contains
     character(len=40) :: number
     integer :: n
     if (allocated(column%ints)) then
-      line = line // itoa(column%ints(i))
+      ! a count undefined for the case (one never run) is missing, as a NaN real is
+      if (column%ints(i) == count_undefined .and. column%name /= 'case') then
+        line = line // trim(merge('null', 'NaN ', json))
+      else
+        line = line // itoa(column%ints(i))
+      end if
     else if (allocated(column%reals)) then
       if (json .and. .not. ieee_is_finite(column%reals(i))) then
         line = line // 'null'
@@ -358,7 +363,7 @@ contains
     ran = status /= status_pending .and. status /= status_invalid
     if (.not. any(ran)) return
     slowest = maxloc(wall, dim=1, mask=ran)
-    write (output_unit, '(a)') '  steps, all cases: ' // itoa(sum(steps)) // '; integration time ' // &
+    write (output_unit, '(a)') '  steps, all cases: ' // itoa(sum(steps, mask=ran)) // '; integration time ' // &
         format_real(real(nint(1000 * sum(wall, mask=ran)), wp) / 1000) // ' s (sum over cases)'
     write (output_unit, '(a)') '  slowest case: ' // itoa(index(slowest)) // ' (' // &
         format_real(real(nint(1.0e4_wp * wall(slowest)), wp) / 1.0e4_wp) // ' s, ' // &

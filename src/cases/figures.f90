@@ -73,7 +73,8 @@ module ellroll_figures
                kind_real, 1, from_run), &
       figure_t('error_theta', 'rad', 'max |Theta - Theta of the reference run| (NaN: none)', kind_real, 1, from_run), &
       figure_t('error_energy', '1', 'max |E - E of the reference run| / |E0| (NaN: none)', kind_real, 1, from_run), &
-      figure_t('n_rhs_reference', '1', 'right-hand side evaluations of the reference run', kind_int, 1, from_run), &
+      figure_t('n_rhs_reference', '1', 'right-hand side evaluations of the reference run (-1: none)', kind_int, 1, &
+               from_run), &
       figure_t('linear_periods', 's', &
                'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', kind_real, 2, &
                from_run), &

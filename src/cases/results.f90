@@ -5,15 +5,26 @@ module ellroll_results
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_records, only: named_value_t, real_value, int_value, vector_value, kind_int
-  use ellroll_status, only: status_pending
+  use ellroll_status, only: status_pending, status_invalid
   use ellroll_cases, only: field_count, field_ncomp
   use ellroll_figures, only: figure_t, figures, figure_count, real_slots, figure_slots, from_counter, fig_t_final, fig_n_steps, &
-      fig_n_rejected, fig_n_rhs, fig_wall_time
+      fig_n_rejected, fig_n_rhs, fig_wall_time, fig_n_rhs_reference
   implicit none
   private
 
   public :: field_buffer_t, case_result_t, summary_record, set_summary_value, figure_values, set_figure_values, &
             allocate_fields, fill_unrecorded
+
+  !> A count (an integer figure) undefined for the case, as NaN is for a
+  !> real one: /summary's _FillValue of its integer figures
+  integer(i8), parameter, public :: count_undefined = -1
+
+  integer :: k        ! (of implied loops in constant expressions)
+
+  !> The counts' defaults: 0, counted up as the case runs, but
+  !> n_rhs_reference, which only a reference run (error_estimate) sets
+  integer(i8), parameter :: count_defaults(figure_count) = &
+      merge(count_undefined, 0_i8, [(k == fig_n_rhs_reference, k = 1, figure_count)])
 
   !> A NaN for default initialisation (0/0 is not a constant expression).
   real(wp), parameter :: nan_value = transfer(9221120237041090560_i8, 1.0_wp)
@@ -22,9 +33,9 @@ module ellroll_results
     real(wp), allocatable :: values(:, :)    !< (ncomp, n_samples); NaN after the case ended
   end type field_buffer_t
 
-  !> A case's result. Every figure is NaN (a count 0) until the integration
-  !> sets it: a case never run (invalid, or pending) holds no number that
-  !> could pass for data.
+  !> A case's result. Every figure is NaN (a count 0, n_rhs_reference -1)
+  !> until the integration sets it: a case never run (invalid, or pending)
+  !> holds no number that could pass for data.
   type :: case_result_t
     integer :: status = status_pending
     ! the integration's counters (the summary table's rows from_counter),
@@ -38,7 +49,7 @@ module ellroll_results
     !> reals(k) (a per-mode one's further components at figure_slots(k)), a
     !> count at counts(k)
     real(wp) :: reals(real_slots) = nan_value
-    integer(i8) :: counts(figure_count) = 0
+    integer(i8) :: counts(figure_count) = count_defaults
     type(field_buffer_t) :: fields(field_count)
     integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)
   end type case_result_t
@@ -74,7 +85,8 @@ contains
   end subroutine fill_unrecorded
 
   !> The per-case summary as stored under /summary/ (status is written
-  !> apart): every row of the summary table, in its order.
+  !> apart): every row of the summary table, in its order; a case never
+  !> run (pending, invalid) has its counts count_undefined, its reals NaN.
   pure function summary_record(res) result(rec)
     type(case_result_t), intent(in) :: res
     type(named_value_t) :: rec(figure_count)
@@ -83,7 +95,11 @@ contains
     do k = 1, figure_count
       f = figures(k)        ! (a copy: gfortran 12 misreads an associate name of a constant's element)
       if (f%kind == kind_int) then
-        rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_count_value(res, k))
+        if (res%status == status_pending .or. res%status == status_invalid) then
+          rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), count_undefined)
+        else
+          rec(k) = int_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_count_value(res, k))
+        end if
       else if (f%ncomp == 1) then
         rec(k) = real_value(trim(f%name), trim(f%unit), trim(f%long_name), figure_value(res, k))
       else

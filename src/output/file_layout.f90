@@ -52,7 +52,8 @@ contains
     row = [table_row(cs, res), limit_state_row(cs, res)]
   end function file_row
 
-  !> Whether the case exceeded each of its limit states (1) or not (0).
+  !> Whether the case exceeded each of its limit states (1), not (0), or
+  !> its figure is undefined for it (-1).
   function limit_state_row(cs, res) result(row)
     type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
@@ -67,7 +68,8 @@ contains
         value = figure_values(res, state%figure)
         row(k) = int_value(trim(state%name), '1', '1: ' // trim(figures(state%figure)%name) // ' > ' // &
                            format_real(state%capacity) // ' ' // trim(figures(state%figure)%unit) // &
-                           ', or a model limit; 0: not exceeded or no outcome (see status)', &
+                           ', or a model limit; 0: not exceeded or no outcome (see status); -1: ' // &
+                           trim(figures(state%figure)%name) // ' undefined (NaN)', &
                            exceeded_flag(state, res%status, value(1)))
       end associate
     end do

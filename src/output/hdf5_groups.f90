@@ -12,7 +12,8 @@ module ellroll_hdf5_groups
   use ellroll_cases, only: field_count, field_names, field_units, field_ncomp, field_descriptions
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: dataset_inputs
-  use ellroll_limit_states, only: limit_state_t
+  use ellroll_results, only: count_undefined
+  use ellroll_limit_states, only: limit_state_t, limit_state_flag_values, limit_state_flag_meanings
   use ellroll_figures, only: figures
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
@@ -101,7 +102,9 @@ contains
     type(coordinate_t), intent(in) :: coords(:)
     integer(hid_t) :: group, scale, dset
     integer(i8) :: n_cases
+    integer(i8), target :: undefined_count
     integer :: k
+    undefined_count = count_undefined
     n_cases = size(indices, kind=i8)
     group = lay%new_group(name)
     scale = case_scale(lay, group, indices)
@@ -121,7 +124,15 @@ contains
           call lay%attach(dset, merge(lay%xyz_scale, lay%mode_scale, rec(k)%ncomp == 3), 1)
         end if
       case (kind_int)
-        dset = lay%int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
+        if (name == 'summary') then
+          ! a count undefined for the case (one never run) is -1, CF's
+          ! _FillValue: missing to netCDF readers and xarray
+          dset = lay%int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description, &
+                                 fill=undefined_count)
+          call lay%int_attribute(dset, '_FillValue', [count_undefined])
+        else
+          dset = lay%int_dataset(group, rec(k)%name, n_cases, rec(k)%units, rec(k)%description)
+        end if
         call lay%attach(dset, scale, 0)
       case (kind_text)
         dset = lay%text_dataset(group, rec(k)%name, n_cases, rec(k)%description)
@@ -138,7 +149,7 @@ contains
     call lay%close_group(group)
   end subroutine case_group
 
-  !> /limit_state: a flag per case (int8: 1 exceeded, 0 not) per limit
+  !> /limit_state: a flag per case (int8: 1 exceeded, 0 not, -1 undefined) per limit
   !> state, named by it, its figure, capacity and the capacity's units as
   !> attributes; `rec` gives the names and long names (file_layout's
   !> limit_state_row).
@@ -161,7 +172,8 @@ contains
       call lay%text_attribute(dset, 'figure', trim(figures(states(k)%figure)%name))
       call lay%real_attribute(dset, 'capacity', states(k)%capacity)
       call lay%text_attribute(dset, 'capacity_units', trim(figures(states(k)%figure)%unit))
-      call lay%text_attribute(dset, 'flag_meanings', 'not_exceeded exceeded')
+      call lay%int_attribute(dset, 'flag_values', limit_state_flag_values, small=.true.)
+      call lay%text_attribute(dset, 'flag_meanings', limit_state_flag_meanings)
       call name_coordinates(lay, dset, coords)
       call lay%close_dataset(dset)
     end do

@@ -87,18 +87,24 @@ contains
     call self%check(hdferr, 'write attribute ' // name)
   end subroutine text_attribute
 
-  !> An attribute of 64-bit integers, the type of the int datasets (CF asks
-  !> flag_values to have the type of its variable).
-  subroutine int_attribute(self, loc, name, values)
+  !> An attribute of 64-bit integers (8-bit where `small`), the type of the
+  !> int datasets (CF asks flag_values and _FillValue to have the type of
+  !> their variable).
+  subroutine int_attribute(self, loc, name, values, small)
     class(layout_t), intent(inout) :: self
     integer(hid_t), intent(in) :: loc
     character(len=*), intent(in) :: name
     integer(i8), intent(in), target :: values(:)
-    integer(hid_t) :: space, attr
+    logical, intent(in), optional :: small
+    integer(hid_t) :: space, attr, file_type
     integer :: hdferr, code
     if (self%err%failed()) return
+    file_type = H5T_STD_I64LE
+    if (present(small)) then
+      if (small) file_type = H5T_STD_I8LE
+    end if
     call h5screate_simple_f(1, [size(values, kind=hsize_t)], space, hdferr)
-    if (hdferr >= 0) call h5acreate_f(loc, name, H5T_STD_I64LE, space, attr, hdferr)
+    if (hdferr >= 0) call h5acreate_f(loc, name, file_type, space, attr, hdferr)
     if (hdferr >= 0) then
       call h5awrite_f(attr, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), hdferr)
       call h5aclose_f(attr, code)

@@ -16,7 +16,7 @@ module ellroll_memory_run
   use ellroll_status, only: status_invalid, status_count
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_cases, only: case_t, field_count, field_names, field_units, field_ncomp, field_descriptions
-  use ellroll_results, only: case_result_t, field_buffer_t
+  use ellroll_results, only: case_result_t, field_buffer_t, count_undefined
   use ellroll_figures, only: figure_count
   use ellroll_campaign, only: coordinate_t
   use ellroll_params, only: params, param_count, param_dataset
@@ -275,6 +275,9 @@ contains
     call name_coordinates(out%datasets(where(size(row))), coordinate_names)
     do k = n_case_entries + 1, size(row) - 1
       where(k) = add_entry(out, 'summary', row(k), n_cases)
+      ! as the file has it: an integer figure undefined for a case is -1
+      if (row(k)%kind == kind_int) &
+        call add_attribute(out%datasets(where(k)), '_FillValue', int_list([count_undefined]), 'i8')
       call name_coordinates(out%datasets(where(k)), coordinate_names)
     end do
 

@@ -507,7 +507,8 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
         assert [names[s] for s in status[:]] == ["completed", "invalid", "no_fit", "invalid"]
         assert np.all(np.isnan(f["trajectory/nutation"][1])) and np.all(np.isfinite(f["trajectory/nutation"][0]))
         # a case never run holds no number that could pass for data: every real
-        # figure is NaN, every count 0
+        # figure is NaN, every count -1, the _FillValue (of its type) that
+        # marks it missing to netCDF readers
         for name, dataset in f["summary"].items():
             if name in ("status", "case") or name in f["summary/status"].attrs["coordinates"].split():
                 continue
@@ -520,11 +521,49 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
                     "nutation_period", "transmissibility", "error_contact", "error_theta", "error_energy",
                     "time_beyond_capacity", "residual_displacement", "rest_time", "sa_linear_periods"), name
             else:
-                assert np.all(values[[1, 3]] == 0), name
+                # (no reference run: n_rhs_reference is undefined for every case)
+                assert np.all(values[[1, 3]] == -1), name
+                assert np.all(values[[0, 2]] >= 0) != (name == "n_rhs_reference"), name
+                fill = dataset.attrs["_FillValue"]
+                assert fill.dtype == dataset.dtype and list(fill) == [-1], name
     table = run(ellroll, "summary", "out.h5", "--format", "csv", cwd=tmp_path).stdout.splitlines()
     header = [name.split(" [")[0] for name in table[0].split(",")]
     invalid_row = dict(zip(header, table[2].split(",")))
     assert invalid_row["status"] == "invalid" and invalid_row["theta_max"] == "NaN", invalid_row
+    assert invalid_row["n_steps"] == invalid_row["slip_episodes"] == "NaN", invalid_row
+    steps = dict(zip(header, table[1].split(",")))["n_steps"]
+    assert int(steps) > 0
+    # the steps of all cases: the cases run (not the invalid ones' -1)
+    text = run(ellroll, "summary", "out.h5", cwd=tmp_path).stdout
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert f"steps, all cases: {f['summary/n_steps'][0] + f['summary/n_steps'][2]};" in text, text
+
+
+def test_invalid_cases_keep_their_undefined_counts_through_shards_merge_and_resume(ellroll, tmp_path):
+    """The counts of invalid cases (-1) are the same bits in a run, in its
+    shards merged and in a killed run resumed."""
+    name = write(tmp_path, "&campaign invalid = 'skip' /\n&sweep name = 'x', values = 0.0, 1.5, 0.1 /\n"
+                 "&sweep name = 'omega_z', start = 5, stop = 80, count = 40, spacing = 'linear' /\n", t_end=5.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "whole.h5", "r") as f:
+        invalid = f["summary/status"][()] == f["summary/status"].attrs["flag_meanings"].split().index("invalid")
+        assert invalid.sum() == 40
+        assert np.all(f["summary/n_steps"][()][invalid] == -1) and np.all(f["summary/n_steps"][()][~invalid] > 0)
+    for i in range(3):
+        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    result = run(ellroll, "merge", "merged.h5", "shard_2.h5", "shard_0.h5", "shard_1.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
+    with h5py.File(tmp_path / "merged.h5", "r") as f:
+        assert list(f["summary/slip_episodes"].attrs["_FillValue"]) == [-1]
+    journal = tmp_path / "out.h5.journal"
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], tmp_path, journal, 2,
+                              record_bytes())
+    assert journal.exists() and not (tmp_path / "out.h5").exists()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
 
 
 def test_the_step_advice_leaves_out_invalid_cases(ellroll, tmp_path):
@@ -600,6 +639,8 @@ def test_error_figures_are_the_distance_to_a_vern9_run(ellroll, tmp_path):
         assert run(ellroll, "run", name, "-q", "-o", name.replace(".nml", ".h5"), cwd=tmp_path).returncode == 0
     with h5py.File(tmp_path / "estimated.h5", "r") as e, h5py.File(tmp_path / "reference.h5", "r") as r:
         assert e["summary/n_rhs_reference"][0] == r["summary/n_rhs"][0] > 0
+        # a run without a reference run (the vern9 one, batched or not) has none: -1, not 0
+        assert r["summary/n_rhs_reference"][0] == -1 and np.isnan(r["summary/error_contact"][0])
         distance = np.linalg.norm(e["trajectory/contact"][0] - r["trajectory/contact"][0], axis=1).max()
         assert e["summary/error_contact"][0] == pytest.approx(distance, rel=1e-12, abs=1e-17)
         theta = np.abs(e["trajectory/nutation"][0] - r["trajectory/nutation"][0]).max()

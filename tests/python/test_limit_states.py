@@ -1,9 +1,13 @@
 """User limit states (&limit_state): /limit_state/NAME per case equals what
 numpy finds from /summary and the status (exceeded: ended at a model limit,
-or completed with the figure above the capacity), the same bits after
-shards are merged and after a killed run is resumed, read by
-ellroll_post.suite's statistics; bad groups are refused with the file,
-group, variable and value."""
+or completed with the figure above the capacity; undefined, -1: completed
+with the figure NaN), the same bits after shards are merged and after a
+killed run is resumed, read by ellroll_post.suite's statistics and
+fragility fits and by `ellroll summary --suite` alike (an undefined case
+counted apart, in no fraction or fit); bad groups are refused with the
+file, group, variable and value."""
+import json
+import math
 import shutil
 
 import h5py
@@ -28,6 +32,7 @@ SUITE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
 &output      file = 'out.h5', interval = 0.1, fields = 'center' /
 &limit_state name = 'drift', figure = 'displacement_max', capacity = 0.1 /
 &limit_state name = 'shock', figure = 'Absolute_acceleration_max', capacity = 14.0 /
+&limit_state name = 'rest', figure = 'residual_displacement', capacity = 0.001 /
 """
 STATES = {"drift": ("displacement_max", 0.1, "m"), "shock": ("absolute_acceleration_max", 14.0, "m/s^2")}
 
@@ -64,11 +69,18 @@ def test_flags_equal_the_status_and_the_figures(whole):
             # both kinds occur among the completed cases: the test can fail
             completed = names == "completed"
             assert 0 < np.sum(flags[()][completed]) < np.sum(completed), state
+        # no ball comes to rest by t_end = 12 s: residual_displacement is NaN
+        # for every completed case, which has no outcome for 'rest' (-1)
+        rest = f["limit_state/rest"]
+        assert np.all(np.isnan(f["summary/residual_displacement"][()][names == "completed"]))
+        assert np.array_equal(rest[()], np.where(at_limit, 1, np.where(names == "completed", -1, 0)))
+        assert rest.attrs["flag_meanings"] == "undefined not_exceeded exceeded"
+        assert rest.attrs["flag_values"].dtype == np.int8 and list(rest.attrs["flag_values"]) == [-1, 0, 1]
 
 
 def test_suite_statistics_read_the_flags(whole):
     with ellroll_post.open(whole) as f:
-        assert sorted(suite.limit_state_columns(f)) == ["drift", "shock"]
+        assert sorted(suite.limit_state_columns(f)) == ["drift", "rest", "shock"]
         table = suite.suite_statistics(f)
         status = np.array(f.status_names())
         displacement = f.summary("displacement_max")
@@ -78,6 +90,14 @@ def test_suite_statistics_read_the_flags(whole):
         cases = (f.input_column("scale") == 40.0) & (f.input_column("rolling_resistance") == 1e-5)
     hit = np.sum(cases & (status == "completed") & (displacement > 0.1)) + np.sum(cases & (status == "liftoff"))
     assert row["n_drift"] == hit and row["fraction_drift"] == hit / cases.sum()
+    # 'rest': the completed cases are undefined, counted apart; the limit cases exceed
+    completed = np.sum(cases & (status == "completed"))
+    assert completed > 0 and row["n_undefined_rest"] == completed and row["n_undefined_drift"] == 0
+    assert row["n_rest"] == np.sum(cases & (status == "liftoff"))
+    if row["n_rest"]:
+        assert row["fraction_rest"] == 1.0
+    else:
+        assert math.isnan(row["fraction_rest"])
 
 
 def test_shards_merge_and_a_resume_give_the_same_flags(ellroll, whole):
@@ -98,7 +118,9 @@ def test_shards_merge_and_a_resume_give_the_same_flags(ellroll, whole):
     assert result.returncode == 0, result.stderr
     assert_same_datasets(whole, folder / "out.h5")
     with h5py.File(folder / "out.h5", "r") as f:
-        assert sorted(f["limit_state"]) == sorted(["case", "scale", "rolling_resistance", "record", "drift", "shock"])
+        assert sorted(f["limit_state"]) == sorted(["case", "scale", "rolling_resistance", "record", "drift", "shock",
+                                                   "rest"])
+        assert -1 in f["limit_state/rest"][()] and 1 in f["limit_state/rest"][()]
 
 
 def test_a_file_without_limit_states_has_no_group(paper_file):
@@ -168,3 +190,93 @@ def test_ellroll_summary_suite_in_the_debug_build(ellroll_debug, whole, paper_fi
             assert result.returncode == 0, result.stderr
         stripes = json.loads(result.stdout)["stripes"]
         assert len(stripes) == (6 if path == whole else 1)
+
+
+REST = "&limit_state name = 'rest', figure = 'residual_displacement', capacity = 0.0015 /\n"
+
+
+@pytest.fixture(scope="module")
+def resting(ellroll, tmp_path_factory):
+    """input/isolator_fragility.nml and a limit state on residual_displacement:
+    defined (the ball came to rest) for the completed cases at rolling
+    resistance 1e-3 m, NaN for those at 1e-5 m (the ball never stops)."""
+    folder = tmp_path_factory.mktemp("resting")
+    text = (ROOT / "input" / "isolator_fragility.nml").read_text().replace("isolator_fragility.h5", "rest.h5")
+    result = run(ellroll, "run", write(folder, text + REST), "-q", "--threads", "2", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    return folder / "rest.h5"
+
+
+def test_an_undefined_figure_is_no_outcome_in_counts_and_fits(ellroll, resting):
+    """A completed case whose figure is NaN has flag -1 and no outcome for
+    the limit state: `ellroll summary --suite` and ellroll_post count it in
+    n_undefined_NAME, leave it out of fraction_NAME, and fit the fragility
+    over the defined cases only (the same maximum likelihood as
+    fragility.fit_stripes of the counts numpy finds without them)."""
+    from ellroll_post.fragility import fit_stripes
+    capacity = 0.0015
+    with h5py.File(resting, "r") as f:
+        status = f["summary/status"]
+        names = np.array(status.attrs["flag_meanings"].split())[status[()]]
+        residual = f["summary/residual_displacement"][()]
+        scale, resistance = f["summary/scale"][()], f["summary/rolling_resistance"][()]
+        flags = f["limit_state/rest"][()]
+    completed, limit = names == "completed", np.isin(names, ["rim", "no_fit", "slip", "liftoff"])
+    undefined = completed & np.isnan(residual)
+    exceeded = limit | (completed & (residual > capacity))
+    assert np.array_equal(flags, np.where(exceeded, 1, np.where(undefined, -1, 0)))
+    # each kind occurs: 6 undefined (1e-5 m), at 1e-3 m both sides of the capacity
+    assert undefined.sum() == 6 and np.sum(completed & (residual > capacity)) == 2
+    assert np.sum(completed & (residual <= capacity)) == 4
+    report = json.loads(run(ellroll, "summary", resting, "--suite", "--format", "json").stdout)
+    with ellroll_post.open(resting) as f:
+        table = suite.suite_statistics(f)
+        fits, _ = suite.suite_fragility(f, bootstrap=0)
+    assert len(report["stripes"]) == len(table) == 10
+    for stripe, (_, row) in zip(report["stripes"], table.iterrows()):
+        cases = (scale == row["scale"]) & (resistance == row["rolling_resistance"])
+        known = np.sum(cases & (completed | limit)) - np.sum(cases & undefined)
+        expected = {"n_rest": np.sum(cases & exceeded), "n_undefined_rest": np.sum(cases & undefined),
+                    "fraction_rest": np.sum(cases & exceeded) / known if known else math.nan}
+        for name, value in expected.items():
+            for got in (stripe[name], row[name]):
+                got = math.nan if got is None else got
+                assert got == value or (math.isnan(got) and math.isnan(value)), (name, got, value)
+    finite = 0
+    for value in (1e-5, 1e-3):
+        here = resistance == value
+        defined = here & (limit | (completed & ~undefined))
+        levels = np.unique(scale[defined])
+        n = np.array([np.sum(defined & (scale == x)) for x in levels])
+        z = np.array([np.sum(defined & exceeded & (scale == x)) for x in levels])
+        fortran = [r for r in report["fragility"] if r["limit_state"] == "rest" and r["rolling_resistance"] == value]
+        python = fits[(fits["limit_state"] == "rest") & (fits["rolling_resistance"] == value)]
+        assert len(fortran) == len(python) == 1
+        for row in (fortran[0], python.iloc[0]):
+            assert row["n_known"] == n.sum() and row["n_exceeded"] == z.sum(), row
+            assert row["n_undefined"] == np.sum(here & undefined) and row["n_points"] == levels.size
+        if 0 < z.sum() < n.sum():
+            fit = fit_stripes(levels, n, z, bootstrap=0)
+            for row in (fortran[0], python.iloc[0]):
+                assert row["note"] == ""
+                assert row["theta"] == pytest.approx(fit.theta, rel=1e-6)
+                assert row["beta"] == pytest.approx(fit.beta, rel=1e-6)
+            finite += 1
+        else:           # 1e-5 m: only the lift-offs are defined
+            assert fortran[0]["note"] == python.iloc[0]["note"] == "every case exceeds: no fit"
+    assert finite == 1
+
+
+def test_the_fragility_figure_counts_only_the_defined_cases(resting):
+    """ellroll-plot fragility's counts per stripe (exceeded/cases) leave the
+    undefined cases out: at 1e-5 m only the lift-offs count."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots()
+    with ellroll_post.open(resting) as f:
+        ellroll_post.plot_fragility(ax, f, bootstrap=20, limit_state="rest")
+    counts = sorted(t.get_text() for t in ax.texts if t.get_gid() == "fragility-count")
+    plt.close(fig)
+    # 1e-3 m: 40 1/3, 70 2/3, 80 2/3, 90 3/3, 120 3/3; 1e-5 m: 70 1/1, 80 2/2, 90 3/3, 120 3/3
+    assert counts == sorted(["1/3", "2/3", "2/3", "3/3", "3/3", "1/1", "2/2", "3/3", "3/3"])

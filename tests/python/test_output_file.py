@@ -347,9 +347,10 @@ def test_bash_completion_beside_the_binary(ellroll, tmp_path):
 
 
 def test_undefined_values_are_nan_and_marked_missing(ellroll, tmp_path):
-    """A case never run and the samples after an early end are NaN, and CF's
-    _FillValue (NaN, of the dataset's type) marks them missing for netCDF
-    readers; xarray gives NaN for them."""
+    """A case never run and the samples after an early end are NaN (a count
+    of /summary -1), and CF's _FillValue (NaN, -1; of the dataset's type)
+    marks them missing for netCDF readers: xarray gives NaN for them with
+    each of its engines, and summary_frame <NA> for the counts."""
     import xarray as xr
     (tmp_path / "c.nml").write_text(
         "&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
@@ -364,8 +365,30 @@ def test_undefined_values_are_nan_and_marked_missing(ellroll, tmp_path):
                     assert "_FillValue" in dataset.attrs and np.isnan(dataset.attrs["_FillValue"]), name
                     assert dataset.attrs["_FillValue"].dtype == dataset.dtype, name
         assert np.isnan(f["summary/theta_max"][1]) and np.all(np.isnan(f["trajectory/contact"][1]))
-    tree = xr.open_datatree(tmp_path / "out.h5", engine="h5netcdf")
-    assert np.isnan(tree["summary"]["theta_max"].values[1]) and np.isfinite(tree["summary"]["theta_max"].values[0])
+        counts = [name for name, dataset in f["summary"].items() if dataset.dtype.kind == "i"
+                  and name not in ("case", "status")]
+        assert {"n_steps", "slip_episodes", "at_rest", "peaks_truncated"} <= set(counts)
+        for name in counts:
+            dataset = f[f"summary/{name}"]
+            # (no reference run: n_rhs_reference is undefined for the case run too)
+            assert dataset[1] == -1 and (dataset[0] >= 0) != (name == "n_rhs_reference"), name
+            assert dataset.attrs["_FillValue"].dtype == dataset.dtype and list(dataset.attrs["_FillValue"]) == [-1]
+            assert dataset.fillvalue == -1, name
+        steps = f["summary/n_steps"][0]
+    for engine in (None, "h5netcdf", "netcdf4"):
+        tree = xr.open_datatree(tmp_path / "out.h5", engine=engine)
+        summary = tree["summary"]
+        assert np.isnan(summary["theta_max"].values[1]) and np.isfinite(summary["theta_max"].values[0]), engine
+        for name in counts:
+            assert np.isnan(summary[name].values[1]), (engine, name)
+            assert (summary[name].values[0] >= 0) != (name == "n_rhs_reference"), (engine, name)
+        assert summary["n_steps"].values[0] == steps
+        assert list(summary["status"].values) == [1, 8]      # no fill value: never masked
+        tree.close()
+    frame = ellroll_post.summary_frame(tmp_path / "out.h5")
+    for name in counts:
+        assert frame[name].isna().tolist() == [name == "n_rhs_reference", True], name
+    assert frame["n_steps"].iloc[0] == steps and frame["theta_max"].isna().tolist() == [False, True]
 
 
 def test_case_datasets_name_their_inputs(ellroll, paper_file):

@@ -87,11 +87,12 @@ def assert_tree_is_file(tree, path):
                 stored, memory = held[name], inherited[name]
                 assert memory.attrs["units"] == text(stored.attrs["units"]), (group, name)
                 assert memory.attrs["long_name"] == text(stored.attrs["long_name"]), (group, name)
-                for attribute in ("flag_values", "flag_meanings", "input_names"):
-                    if attribute in stored.attrs:
+                for attribute in ("flag_values", "flag_meanings", "input_names", "_FillValue"):
+                    # (a real dataset's NaN _FillValue is the file's alone: NaN is missing in memory)
+                    if attribute in stored.attrs and (attribute != "_FillValue" or stored.dtype.kind == "i"):
                         expected = text(stored.attrs[attribute])
                         assert same_bits(memory.attrs[attribute], expected), (group, name, attribute)
-                        if attribute == "flag_values":
+                        if attribute in ("flag_values", "_FillValue"):
                             assert memory.attrs[attribute].dtype == expected.dtype
                 if name == "wall_time":
                     assert memory.shape == stored.shape and memory.dtype == stored.dtype
@@ -125,6 +126,13 @@ def test_a_sweep_with_skipped_invalid_cases_is_the_file(program, tmp_path):
     status = tree["summary"]["status"]
     meanings = status.attrs["flag_meanings"].split()
     assert [meanings[s] for s in status.values] == ["completed", "invalid", "no_fit", "invalid"]
+    # an invalid case's counts: -1, the _FillValue, as in the file
+    for name in ("n_steps", "slip_episodes", "at_rest", "peaks_truncated"):
+        assert list(tree["summary"][name].values[[1, 3]]) == [-1, -1] and tree["summary"][name].values[0] >= 0
+        assert list(tree["summary"][name].attrs["_FillValue"]) == [-1]
+    arrays, attributes = ellroll.run_arrays(text, threads=2)
+    assert list(arrays["summary"]["n_steps"][[1, 3]]) == [-1, -1]
+    assert list(attributes["summary"]["n_steps"]["_FillValue"]) == [-1]
     assert np.all(np.isnan(tree["trajectory"]["nutation"].values[1]))
     assert list(tree["summary"]["radius"].values) == [0.2, 0.9, 0.5, 1.5]   # the sweep: a coordinate
     assert "radius" in tree["summary"].coords

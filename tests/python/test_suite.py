@@ -432,8 +432,8 @@ def assert_fortran_fits_are_pythons(ellroll, path):
     finite = 0
     for row, (_, expected), detail in zip(fortran, table.iterrows(), details):
         assert row["limit_state"] == expected["limit_state"] and row["note"] == expected["note"]
-        assert [row[k] for k in ("n_points", "n_known", "n_exceeded")] == \
-            [expected[k] for k in ("n_points", "n_known", "n_exceeded")]
+        assert [row[k] for k in ("n_points", "n_known", "n_exceeded", "n_undefined")] == \
+            [expected[k] for k in ("n_points", "n_known", "n_exceeded", "n_undefined")]
         if detail["fit"] is None:
             assert row["theta"] is None and row["beta"] is None
         elif expected["note"]:
