@@ -13,7 +13,7 @@ module ellroll_case_input
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names, methods
   use ellroll_record_file, only: load_ground_motion
-  use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
   use ellroll_suggest, only: did_you_mean
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
@@ -294,14 +294,13 @@ contains
     type(campaign_t), intent(inout) :: campaign
     real(wp), parameter :: max_sa_period = 1.0e3_wp
     integer :: gi, n, k
+    character(len=:), allocatable :: what
     gi = rd%group('excitation', .false.)
-    n = 0
-    do k = 1, size(v%sa_periods)
-      if (.not. ieee_is_nan(v%sa_periods(k))) n = k
-    end do
+    n = count_given(v%sa_periods)
     do k = 1, n
       if (.not. ieee_is_finite(v%sa_periods(k))) then
-        call rd%fail_value(gi, 'sa_periods', 'each period must be a finite number (s)')
+        call not_finite_entry(v%sa_periods, k, what)
+        call rd%fail_value(gi, 'sa_periods', what // ': each period must be a finite number (s)')
         return
       else if (v%sa_periods(k) <= 0 .or. v%sa_periods(k) > max_sa_period) then
         call rd%fail_value(gi, 'sa_periods', 'period ' // format_real(v%sa_periods(k)) // &

@@ -13,7 +13,7 @@ module ellroll_input
   use ellroll_strings, only: itoa, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, get_param
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given
   use ellroll_campaign_input, only: add_sweep, add_sample
   use ellroll_suite_input, only: record_spec_t, add_record_group
   use ellroll_limit_state_input, only: add_limit_state
@@ -123,7 +123,7 @@ contains
     v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'; v%slip = 'end'
     v%file = ''; v%interval = nan(); v%fields = ''; v%compression = 0
     v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
-    v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = nan()
+    v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = not_given()
     allocate (sweeps(0), draws(0), suite(0), states(0), state_lines(0))
 
     do gi = 1, size(rd%file%groups)
@@ -131,7 +131,7 @@ contains
         if (.not. names_known(rd, gi)) return
         v%name = ''; v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
         ! (max_values of them: only the groups that read them set them)
-        if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = nan()
+        if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = not_given()
         v%low = nan(); v%high = nan(); v%figure = ''; v%limit_capacity = nan()
         if (grp%name == 'record') then       ! (its record_file is not &excitation's)
           excitation_files = v%record_file

@@ -99,3 +99,84 @@ def test_empty_file(ellroll, tmp_path):
     (tmp_path / "empty.nml").write_text("")
     result = run(ellroll, "check", "empty.nml", cwd=tmp_path)
     assert result.returncode == 2 and "empty.nml:1: the file is empty" in result.stderr
+
+
+# Every list input of the namelist, a number that is not finite (each
+# spelling gfortran reads) at its first, a middle and its last place: the
+# list is refused, naming the value and its place. (A trailing NaN is where
+# a list that starts as NaN cannot tell it from an entry not given.)
+NOT_FINITE = ["NaN", "nan", "NaN()", "-NaN", "nan(0x7ff4)", "Inf", "-Infinity", "+inf"]
+LIST_BASE = {
+    "geometry": {"a": "1.0", "b": "0.4", "c": "0.2"},
+    "ball": {"radius": "0.2", "weight": "2620.0", "mu": "0.1", "slip": "'slide'"},
+    "initial": {"x": "0.0", "y": "0.0", "omega": "0.0, 0.0, 0.0", "velocity": "0.5, 0.0, 0.0"},
+    "integration": {"method": "'rk4'", "dt": "1.0e-3", "t_end": "1.0"},
+    "excitation": {"kind": "'record'", "record_file": "'{records}/SYN1_H1.AT2', '{records}/SYN1_H2.AT2'",
+                   "sa_periods": "0.2, 0.5, 1.0"},
+    "output": {"file": "'x.h5'", "interval": "0.01"},
+    "sweep": {"name": "'mu'", "values": "0.05, 0.1"},
+}
+# (group, variable, good values)
+LISTS = [
+    ("initial", "omega", ["0.0", "0.0", "0.0"]),
+    ("initial", "velocity", ["0.5", "0.0", "0.0"]),
+    ("excitation", "sa_periods", ["0.2", "0.5", "1.0", "2.0"]),
+    ("sweep", "values", ["0.05", "0.1", "0.2", "0.3"]),
+]
+RANDOM_LISTS = 4
+
+
+def list_inputs(rng):
+    """(group, variable, value text, place of the bad value) for every list
+    input, each bad spelling at its first, middle and last place, and lists
+    of random length with a bad value at a random place (seeded)."""
+    for group, variable, good in LISTS:
+        for place in (0, len(good) // 2, len(good) - 1):
+            for bad in NOT_FINITE:
+                values = list(good)
+                values[place] = bad
+                yield group, variable, ", ".join(values), place + 1
+        if variable in ("values", "sa_periods"):
+            for _ in range(RANDOM_LISTS):
+                n = rng.randint(1, 12)
+                values = [f"{0.05 * (k + 1):.3g}" for k in range(n)]
+                place = rng.randrange(n)
+                values[place] = rng.choice(NOT_FINITE)
+                yield group, variable, ", ".join(values), place + 1
+
+
+def test_a_list_with_a_value_not_finite_anywhere_is_refused(ellroll, tmp_path):
+    import random
+    rng = random.Random(8)
+    records = (PAPER_INPUT.parent / "records").resolve()
+    tried = 0
+    for group, variable, value, place in list_inputs(rng):
+        groups = {name: dict(body) for name, body in LIST_BASE.items()}
+        groups[group][variable] = value
+        text = "".join(f"&{name} " + ", ".join(f"{k} = {v}" for k, v in body.items()) + " /\n"
+                       for name, body in groups.items()).format(records=records)
+        (tmp_path / "case.nml").write_text(text)
+        result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+        context = f"{group} {variable} = {value}: {result.stderr}"
+        assert result.returncode == 2, context
+        line = list(groups).index(group) + 1
+        assert result.stderr.startswith(f"ellroll: error: case.nml:{line}: &{group}: {variable} = {value}: "), context
+        if variable in ("values", "sa_periods"):
+            assert f"value {place} is " in result.stderr, context
+        else:
+            assert "three finite numbers are needed" in result.stderr, context
+        tried += 1
+    assert tried == 3 * len(NOT_FINITE) * len(LISTS) + 2 * RANDOM_LISTS
+
+
+@pytest.mark.parametrize("assignment,words", [
+    ("values = 5.0, , 10.0", "value 2 is not given"),
+    ("values(3) = 2.0", "value 1 is not given"),
+    ("values = 2*NaN", "value 1 is NaN"),
+    ("values = 0.1, 2*Inf", "value 2 is Infinity"),
+])
+def test_a_gap_or_repeated_bad_value_in_a_sweep_is_named(ellroll, tmp_path, assignment, words):
+    text = PAPER_INPUT.read_text() + f"&sweep name = 'omega_z', {assignment} /\n"
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+    assert result.returncode == 2 and f"&sweep: {assignment}: {words}" in result.stderr, result.stderr
