@@ -180,3 +180,37 @@ def test_a_gap_or_repeated_bad_value_in_a_sweep_is_named(ellroll, tmp_path, assi
     (tmp_path / "case.nml").write_text(text)
     result = run(ellroll, "check", "case.nml", cwd=tmp_path)
     assert result.returncode == 2 and f"&sweep: {assignment}: {words}" in result.stderr, result.stderr
+
+
+def shard_specs(rng, n):
+    """n malformed --shard values (seeded): a well-formed I/N with text
+    before, inside or after it, and I/N outside 0 <= I < N."""
+    garbage = ["/3", "x", " ", ",", ",3", "/", ".0", "e0", "+", "-", "*", "0x", "\t", "/2/3"]
+    specs = ["1/2/3", "1/2x", "1/", "/2", "/", "", "1", "2/2", "3/2", "-1/2", "1/0", "99999999999/1",
+             "0/99999999999"]
+    while len(specs) < n:
+        count = rng.randint(1, 40)
+        index = rng.randrange(count)
+        where, piece = rng.randrange(4), rng.choice(garbage)
+        spec = [f"{piece}{index}/{count}", f"{index}{piece}/{count}", f"{index}/{piece}{count}",
+                f"{index}/{count}{piece}"][where]
+        specs.append(spec)
+    return specs
+
+
+def test_malformed_shards_are_refused_and_good_ones_taken(ellroll, tmp_path):
+    import random
+    rng = random.Random(12)
+    (tmp_path / "case.nml").write_text(PAPER_INPUT.read_text())
+    for spec in shard_specs(rng, 60):
+        result = run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path)
+        assert result.returncode == 2, spec
+        assert f"--shard needs I/N with 0 <= I < N, not {spec} " in result.stderr, (spec, result.stderr)
+    for _ in range(5):
+        count = rng.randint(1, 40)
+        spec = f"{rng.randrange(count)}/{count}"
+        assert run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path).returncode == 0, spec
+    for threads in ["2/3", "2 x", "1.5", "+2", "0x2", "99999999999", ""]:
+        result = run(ellroll, "check", "case.nml", "--threads", threads, cwd=tmp_path)
+        assert result.returncode == 2 and f"--threads needs a positive number, not {threads} " in result.stderr, \
+            (threads, result.stderr)
