@@ -23,7 +23,7 @@ module ellroll_cases
   private
 
   public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, case_problem, &
-            finalize_case, adaptive_method, is_multiple, range_text, max_steps
+            finalize_case, adaptive_method, is_multiple, range_text, out_of_range_reason, max_steps
   public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -151,9 +151,7 @@ contains
     case (problem_not_finite)
       reason = 'must be a finite number'
     case (problem_range)
-      reason = range_text(param)
-      if (params(param)%positive .and. value > 0 .and. value < params(param)%low) reason = 'is below ' // &
-          format_real(params(param)%low) // ', the least normal number; ' // reason
+      call out_of_range_reason(param, value, reason)
     case (problem_weight_without_g)
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
     case (problem_weight_mass)
@@ -245,7 +243,7 @@ contains
     if (radii(1) / cs%param(p_radius) - 1 <= cs%param(p_fit_margin)) return
     param = p_mu
     problem = problem_slide_mu
-    if (cs%slide .and. .not. cs%param(p_mu) > 0) return
+    if (cs%slide .and. ieee_is_nan(cs%param(p_mu))) return        ! (a given mu is > 0: checked above)
     param = p_rolling_resistance
     problem = problem_slide_resistance
     if (cs%slide .and. cs%param(p_rolling_resistance) > 0) return
@@ -314,6 +312,19 @@ contains
     text = range_opening(k) // format_real(params(k)%high) // unit_suffix(k)
   end function range_text
 
+  !> Why `value` of row k is outside the row's range: the range, after
+  !> 'is below the least normal number' for a positive row's subnormal, and
+  !> for mu = 0 that an unset mu is the unlimited friction.
+  pure subroutine out_of_range_reason(k, value, reason)
+    integer, intent(in) :: k
+    real(wp), intent(in) :: value
+    character(len=:), allocatable, intent(out) :: reason
+    reason = range_text(k)
+    if (params(k)%positive .and. value > 0 .and. value < params(k)%low) reason = 'is below ' // &
+        format_real(params(k)%low) // ', the least normal number; ' // reason
+    if (k == p_mu .and. is_zero(value)) reason = reason // ' (leave mu out for unlimited friction)'
+  end subroutine out_of_range_reason
+
   !> Methods whose step is chosen by error control (dt is then the largest step).
   logical pure function adaptive_method(method)
     character(len=*), intent(in) :: method
@@ -339,7 +350,8 @@ contains
     ball%mass = cs%param(p_mass)
     ball%g = cs%param(p_g)
     ball%inertia_factor = cs%param(p_inertia_factor)
-    ball%mu = cs%param(p_mu)
+    ball%mu = 0                      ! the model's 'not limited': mu unset
+    if (.not. ieee_is_nan(cs%param(p_mu))) ball%mu = cs%param(p_mu)
     ball%fit_margin = cs%param(p_fit_margin)
     ball%rolling_resistance = cs%param(p_rolling_resistance)
     ball%excitation = cs%excitation
@@ -410,16 +422,13 @@ contains
     name = 'sa_' // format_real(t)
   end function sa_name
 
-  !> Row p's value as /case stores it: the input, but mu 0 (no limit) as NaN
-  !> and the weight as m g, also where the mass was given (NaN where it
-  !> would overflow: an invalid case's record holds its inputs as given).
+  !> Row p's value as /case stores it: the input (NaN where unset), but the
+  !> weight as m g, also where the mass was given (NaN where it would
+  !> overflow: an invalid case's record holds its inputs as given).
   pure real(wp) function stored_value(cs, p) result(value)
     type(case_t), intent(in) :: cs
     integer, intent(in) :: p
     value = cs%param(p)
-    if (p == p_mu) then         ! (apart: an unset input is NaN, which the builds that trap may not compare)
-      if (value <= 0) value = ieee_value(value, ieee_quiet_nan)
-    end if
     if (p == p_weight) then
       value = ieee_value(value, ieee_quiet_nan)
       if (abs(cs%param(p_mass)) <= huge(value) / max(abs(cs%param(p_g)), 1.0_wp)) &

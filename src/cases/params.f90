@@ -50,7 +50,7 @@ module ellroll_params
               'ball weight m g'), &
       param_t('mass', 'ball', 'mass', 'kg', least, 1.0e12_wp, .true., .true., 0.0_wp, .true., &
               'ball mass m'), &
-      param_t('mu', 'ball', 'mu', '1', 0.0_wp, 1.0e6_wp, .false., .false., 0.0_wp, .true., &
+      param_t('mu', 'ball', 'mu', '1', least, 1.0e6_wp, .true., .false., none, .true., &
               'friction coefficient (NaN: not limited)'), &
       param_t('inertia_factor', 'ball', 'inertia_factor', '1', least, 2.0_wp / 3, .true., .false., 0.4_wp, .true., &
               'J / (m R^2); 0.4 for a homogeneous ball'), &

@@ -7,7 +7,7 @@ module ellroll_case_input
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: lower, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple, &
+      set_param, adaptive_method, out_of_range_reason, max_steps, field_base_acceleration, is_multiple, &
       field_regime, field_slip_speed
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
@@ -67,7 +67,7 @@ contains
     integer, intent(in) :: gi, p
     real(wp), intent(in) :: table_values(:)
     logical, intent(in) :: needed
-    character(len=:), allocatable :: variable, units
+    character(len=:), allocatable :: variable, units, reason
     integer :: width, k
     variable = trim(params(p)%variable)
     width = param_width(p)
@@ -94,12 +94,8 @@ contains
       do k = p, p + width - 1
         if (.not. out_of_range_one(k, table_values(k))) cycle
         if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
-          if (params(k)%positive .and. table_values(k) > 0 .and. table_values(k) < params(k)%low) then
-            call rd%fail_value(gi, variable, 'is below ' // format_real(params(k)%low) // &
-                               ', the least normal number; ' // range_text(k))
-          else
-            call rd%fail_value(gi, variable, range_text(k))
-          end if
+          call out_of_range_reason(k, table_values(k), reason)
+          call rd%fail_value(gi, variable, reason)
           return
         end if
       end do

@@ -214,3 +214,65 @@ def test_malformed_shards_are_refused_and_good_ones_taken(ellroll, tmp_path):
         result = run(ellroll, "check", "case.nml", "--threads", threads, cwd=tmp_path)
         assert result.returncode == 2 and f"--threads needs a positive number, not {threads} " in result.stderr, \
             (threads, result.stderr)
+
+
+# mu: unset is 'not limited'; a given mu must be > 0, whatever the slip
+# mode, and a 0 in a sweep makes that case invalid, with the same words.
+MU_ZERO = ["0", "0.0", "-0.0", "0e0", "0.000", "+0d0"]
+
+
+@pytest.mark.parametrize("slip", ["end", "slide"])
+def test_mu_zero_is_refused_with_the_way_to_unlimited_friction(ellroll, tmp_path, slip):
+    for zero in MU_ZERO:
+        text = PAPER_INPUT.read_text().replace("weight = 2620.0", f"weight = 2620.0, mu = {zero}, slip = '{slip}'")
+        (tmp_path / "case.nml").write_text(text)
+        for command in ("check", "run"):
+            result = run(ellroll, command, "case.nml", "-o", "x.h5", cwd=tmp_path)
+            assert result.returncode == 2, (zero, result.stderr)
+            assert result.stderr.startswith(f"ellroll: error: case.nml:5: &ball: mu = {zero}: must be > 0 and "
+                                            "<= 1000000 (leave mu out for unlimited friction)"), result.stderr
+        assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_sweep_of_mu_reaching_zero_makes_that_case_invalid(ellroll, tmp_path):
+    import random
+    import h5py
+    rng = random.Random(7)
+    for trial in range(3):
+        values = [round(rng.uniform(0.05, 0.5), 3) for _ in range(rng.randint(2, 5))]
+        zero = rng.randrange(len(values))
+        values[zero] = 0.0
+        sweep = f"&sweep name = 'mu', values = {', '.join(map(str, values))} /\n"
+        (tmp_path / "case.nml").write_text(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5") + sweep)
+        result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+        assert result.returncode == 2, result.stderr
+        assert f"case.nml: case {zero} (mu = 0): mu = 0: must be > 0 and <= 1000000 (leave mu out for " \
+               "unlimited friction)" in result.stderr, result.stderr
+        (tmp_path / "case.nml").write_text((tmp_path / "case.nml").read_text() + "&campaign invalid = 'skip' /\n")
+        result = run(ellroll, "run", "case.nml", "-q", "--overwrite", "-o", "x.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / "x.h5") as f:
+            meanings = f["summary/status"].attrs["flag_meanings"].split()
+            statuses = [meanings[s] for s in f["summary/status"][:]]
+            assert [s == "invalid" for s in statuses] == [k == zero for k in range(len(values))], statuses
+            assert list(f["case/mu"][:]) == values
+
+
+def test_mu_left_out_is_not_limited(ellroll, tmp_path):
+    """The paper's case needs up to 0.0759 of friction: unset, no limit
+    ends it, and /case/mu is NaN; mu just below what it needs ends it with slip."""
+    import h5py
+    import math
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0")
+    (tmp_path / "case.nml").write_text(text)
+    assert run(ellroll, "run", "case.nml", "-q", "-o", "free.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "free.h5") as f:
+        meanings = f["summary/status"].attrs["flag_meanings"].split()
+        assert meanings[f["summary/status"][0]] == "completed" and math.isnan(f["case/mu"][0])
+        needed = float(f["summary/friction_needed_max"][0])
+    assert needed > 0.01
+    (tmp_path / "case.nml").write_text(text.replace("weight = 2620.0", f"weight = 2620.0, mu = {needed * 0.9!r}"))
+    assert run(ellroll, "run", "case.nml", "-q", "-o", "slip.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "slip.h5") as f:
+        meanings = f["summary/status"].attrs["flag_meanings"].split()
+        assert meanings[f["summary/status"][0]] == "slip" and f["case/mu"][0] == needed * 0.9
