@@ -23,7 +23,7 @@ module ellroll_cases
   private
 
   public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, case_problem, &
-            finalize_case, adaptive_method, is_multiple, range_text, out_of_range_reason, max_steps
+            finalize_case, adaptive_method, is_multiple, range_text, out_of_range_reason, problem_setting, max_steps
   public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -62,6 +62,13 @@ module ellroll_cases
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
   real(wp), parameter :: max_steps = 1.0e12_wp   !< also the most samples a case stores
+  !> An initial velocity is tangent where |v . n| <= this times |v|: a test
+  !> of its direction, so relative to the speed (an absolute bound would
+  !> pass any direction at a small speed and fail rounding at a large
+  !> one). The sliding start takes vx and vy and the contact sets vz, so a
+  !> vz farther off would run another start than the one written; a vz
+  !> computed in double precision (the message gives it) is within 1e-15.
+  real(wp), parameter, public :: tangent_tolerance = 1.0e-9_wp
 
   integer, parameter :: field_count = 10
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
@@ -188,8 +195,9 @@ contains
     case (problem_velocity_rolls)
       reason = "an initial velocity starts the ball sliding: it needs &ball slip = 'slide'"
     case (problem_velocity_tangent)
-      reason = 'must be tangent to the cup at the start: its component along the normal there is ' // &
-               format_real(start_normal_velocity(cs)) // ' m/s'
+      reason = 'must be tangent to the cup at the start (|v . n| <= ' // format_real(tangent_tolerance) // &
+               ' |v|): its component along the normal n there is ' // format_real(start_normal_velocity(cs)) // &
+               ' m/s; with these vx, vy the tangent velocity has vz = ' // format_real(tangent_vz(cs)) // ' m/s'
     end select
   end subroutine check_case
 
@@ -255,7 +263,7 @@ contains
     if (.not. cs%slide .and. .not. ieee_is_nan(cs%param(p_velocity_x))) return
     problem = problem_velocity_tangent
     if (.not. ieee_is_nan(cs%param(p_velocity_x))) then    ! (an unset velocity compares with nothing)
-      if (abs(start_normal_velocity(cs)) > 1.0e-9_wp * norm2(cs%param(p_velocity_x:p_velocity_z))) return
+      if (abs(start_normal_velocity(cs)) > tangent_tolerance * norm2(cs%param(p_velocity_x:p_velocity_z))) return
     end if
     param = 0
     problem = 0
@@ -271,6 +279,37 @@ contains
                                           normal_from_contact(cup, cs%param(p_x), cs%param(p_y)))
     end associate
   end function start_normal_velocity
+
+  !> The vz that makes the start's velocity tangent with its vx, vy:
+  !> v . n = 0 (n_z > 0 at every point inside the cup's rim).
+  pure real(wp) function tangent_vz(cs)
+    type(case_t), intent(in) :: cs
+    real(wp) :: n(3)
+    associate (cup => new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c)))
+      n = normal_from_contact(cup, cs%param(p_x), cs%param(p_y))
+    end associate
+    tangent_vz = -(cs%param(p_velocity_x) * n(1) + cs%param(p_velocity_x + 1) * n(2)) / n(3)
+  end function tangent_vz
+
+  !> 'name = value' of the input a problem of check_case (param /= 0)
+  !> concerns: its row, or the whole initial velocity where the problem is
+  !> the vector's (given in part, without sliding, not tangent), not the
+  !> component the check stopped at.
+  subroutine problem_setting(cs, interval, param, text)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: interval
+    integer, intent(in) :: param
+    character(len=:), allocatable, intent(out) :: text
+    integer :: found, problem
+    call find_problem(cs, interval, found, problem)
+    if (found == param .and. any(problem == [problem_velocity_partial, problem_velocity_rolls, &
+                                             problem_velocity_tangent])) then
+      text = trim(params(p_velocity_x)%variable) // ' = ' // format_real(cs%param(p_velocity_x)) // ', ' // &
+             format_real(cs%param(p_velocity_x + 1)) // ', ' // format_real(cs%param(p_velocity_z))
+    else
+      text = trim(params(param)%name) // ' = ' // format_real(get_param(cs, param))
+    end if
+  end subroutine problem_setting
 
   !> (x/a)^2 + (y/b)^2 of the start: below 1 inside the cup.
   pure real(wp) function start_level(cs)

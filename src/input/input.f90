@@ -11,7 +11,7 @@ module ellroll_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, &
       scan_namelist_text
   use ellroll_strings, only: itoa, join, format_real
-  use ellroll_cases, only: case_t, output_plan_t, get_param
+  use ellroll_cases, only: case_t, output_plan_t, get_param, problem_setting
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given
   use ellroll_campaign_input, only: add_sweep, add_sample
@@ -505,7 +505,7 @@ contains
     integer, intent(in) :: param
     character(len=*), intent(in) :: reason
     character(len=:), allocatable, intent(out) :: text
-    character(len=:), allocatable :: varied
+    character(len=:), allocatable :: varied, subject
     integer :: k
     varied = ''
     do k = 1, size(inp%campaign%sweeps) + size(inp%campaign%samples)
@@ -514,7 +514,8 @@ contains
     end do
     text = inp%path // ': case ' // itoa(cs%index)
     if (len(varied) > 0) text = text // ' (' // varied // ')'
-    text = text // ': ' // setting(param) // ': ' // reason
+    call problem_setting(cs, inp%plan%interval, param, subject)
+    text = text // ': ' // subject // ': ' // reason
   contains
     integer function varied_param(k)
       integer, intent(in) :: k
