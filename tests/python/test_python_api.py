@@ -604,3 +604,50 @@ def test_values_taken_out_of_a_run_outlive_it():
     assert same_bits(taken, expected.ravel())
     del taken
     lib.ellroll_free_values(owner)
+
+
+INTERRUPTED = """
+import sys, threading, time
+sys.path.insert(0, sys.argv[1])
+import ellroll
+SHORT = sys.argv[2]
+LONG = SHORT.replace("t_end = 1.0", "t_end = 3000.0").replace("dt = 1.0e-3", "dt = 1.0e-4")
+run = ellroll.run_arrays if sys.argv[3] == "run_arrays" else ellroll.run
+before = ellroll.run_arrays(SHORT)[0]["summary"]["theta_max"].copy()
+print("started", flush=True)
+try:
+    run(LONG)
+    print("finished", flush=True)
+except KeyboardInterrupt:
+    print(f"interrupted {time.monotonic():.6f}", flush=True)
+after = ellroll.run_arrays(SHORT)[0]["summary"]["theta_max"]
+print("usable", bool(after.tobytes() == before.tobytes()), flush=True)
+"""
+
+
+@pytest.mark.parametrize("function", ["run_arrays", "run"])
+def test_ctrl_c_stops_a_run_promptly_and_leaves_the_library_usable(tmp_path, function):
+    """SIGINT during a run of some 30 s (3e7 rk4 steps): KeyboardInterrupt
+    within 0.5 s, and the next run gives the same bits as before."""
+    import signal
+    import subprocess
+    short = ("&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
+             "&initial omega = -2.0, 2.0, 20.0 /\n&integration method = 'rk4', dt = 1.0e-3, t_end = 1.0 /\n"
+             "&output interval = 1.0 /\n")
+    (tmp_path / "interrupted.py").write_text(INTERRUPTED)
+    child = subprocess.Popen([sys.executable, "interrupted.py", str(ROOT / "post"), short, function], cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=dict(os.environ, ELLROLL_LIB=str(ellroll.library_path())))
+    try:
+        assert child.stdout.readline().strip() == "started"
+        time.sleep(1.0)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        line = child.stdout.readline().split()
+        assert line and line[0] == "interrupted", (line, child.stderr.read() if not line else "")
+        delay = float(line[1]) - sent
+        assert delay < 0.5, delay
+        assert child.stdout.readline().split() == ["usable", "True"]
+        assert child.wait(timeout=60) == 0
+    finally:
+        child.kill()
