@@ -67,14 +67,18 @@ class Record:
     """
 
     def __init__(self, time, acceleration, name="record"):
+        if not isinstance(name, str):
+            raise InputError(f"Record name {name!r}: give a text (letters, digits, '_', '.', '-'; 1 to 32), "
+                             f"not {type(name).__name__}", _INPUT)
         self.time = np.asarray(time, dtype=np.float64)
         self.acceleration = np.asarray(acceleration, dtype=np.float64)
         if self.time.ndim != 1 or self.acceleration.ndim != 2 or \
                 self.acceleration.shape[0] != self.time.shape[0] or self.acceleration.shape[1] not in (2, 3):
             raise InputError(f"Record {name!r}: give time as n values and acceleration as n rows of 2 or 3 "
                              f"(x, y[, z]), not shapes {self.time.shape} and {self.acceleration.shape}", _INPUT)
-        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", name):
-            raise InputError(f"Record name {name!r}: letters, digits, '_', '.', '-' (1 to 64)", _INPUT)
+        # (as &record name: at most 32 characters)
+        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,32}", name):
+            raise InputError(f"Record name {name!r}: letters, digits, '_', '.', '-' (1 to 32)", _INPUT)
         self.name = name
 
     def csv_text(self):
@@ -171,6 +175,10 @@ def _literal(value, where):
                      "(numbers, logicals, texts or lists of them)", _INPUT)
 
 
+_GROUP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*", re.ASCII)
+_VARIABLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*(\([1-9][0-9]*\))?", re.ASCII)
+
+
 def namelist(groups):
     """The namelist text of a dict of groups: {'geometry': {'a': 1.0}, 'sweep': [{...}, {...}]}.
 
@@ -178,12 +186,22 @@ def namelist(groups):
     quoted, logicals .true./.false., lists comma-separated; a group given as
     a list of dicts is written once per dict (&sweep, &record).
     """
+    if not isinstance(groups, dict):
+        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
+                         f"{type(groups).__name__}", _INPUT)
     lines = []
     for group, contents in groups.items():
+        if not isinstance(group, str) or not _GROUP_NAME.fullmatch(group):
+            raise InputError(f"group name {group!r}: a namelist group is a name (a letter, then letters, digits "
+                             "or '_'), e.g. 'geometry'", _INPUT)
         for members in contents if isinstance(contents, (list, tuple)) else [contents]:
             if not isinstance(members, dict):
                 raise InputError(f"&{group}: give its variables as a dict (or a list of dicts), "
                                  f"not {type(members).__name__}", _INPUT)
+            for name in members:
+                if not isinstance(name, str) or not _VARIABLE_NAME.fullmatch(name):
+                    raise InputError(f"&{group}: variable name {name!r}: a name (a letter, then letters, digits "
+                                     "or '_'), or one element of it such as 'omega(3)'", _INPUT)
             lines.append(f"&{group}")
             lines += [f"  {name} = {_literal(value, f'&{group}: {name}')}" for name, value in members.items()]
             lines.append("/")
@@ -508,12 +526,34 @@ def _run_inputs(inputs, threads, path, results):
     """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
+    if not isinstance(inputs, dict):
+        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
+                         f"{type(inputs).__name__}", _INPUT)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
-        return _run_text(namelist(_with_record_files(inputs, pathlib.Path(folder))), threads, path, results)
+        records = {}
+        text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
+        try:
+            return _run_text(text, threads, path, results)
+        except Error as error:
+            message = _name_records(error.message, records)
+            if message == error.message:
+                raise
+            raise type(error)(message, error.code) from None
 
 
-def _with_record_files(groups, folder):
-    """groups with each Record value replaced by the path of its CSV file, written into folder."""
+def _name_records(message, records):
+    """message with each Record's CSV file (a temporary file) and line named
+    as the Record and its row (the file has a row a line, from row 0)."""
+    for path, record in records.items():
+        message = re.sub(re.escape(path) + r":(\d+)",
+                         lambda m: f"Record {record.name!r} row {int(m.group(1)) - 1}", message)
+        message = message.replace(f"'{path}'", f"Record {record.name!r}").replace(path, f"Record {record.name!r}")
+    return message
+
+
+def _with_record_files(groups, folder, records):
+    """groups with each Record value replaced by the path of its CSV file,
+    written into folder; records gets {path: Record}."""
     written = {}
 
     def file_of(value):
@@ -523,6 +563,7 @@ def _with_record_files(groups, folder):
             target = folder / f"{len(written) + 1}_{value.name}.csv"
             target.write_text(value.csv_text())
             written[id(value)] = str(target)
+            records[str(target)] = value
         return written[id(value)]
 
     def members(group):
@@ -594,8 +635,10 @@ def _interruptible_run(lib, *args):
 
 def _run_text(text, threads, path, results):
     """The library's run of a namelist text, its results as results(lib, handle) reads them."""
-    if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
-        raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
+    # (the bounds of `ellroll run --threads`: 1 to the largest C int)
+    if threads is not None and (isinstance(threads, (bool, np.bool_)) or not isinstance(threads, (int, np.integer))
+                                or not 1 <= threads <= 2**31 - 1):
+        raise InputError(f"threads = {threads!r}: give a count from 1 to {2**31 - 1}, or None", _INPUT)
     lib = _library or _lib()
     label = (path if path is not None else "<input>").encode()
     encoded = text.encode()
