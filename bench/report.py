@@ -46,6 +46,8 @@ def benches(build, quick):
          "campaigns against a fixed cup",
          [python, "bench/scene_campaigns.py", "--exe", exe, "--revision", "e61ab12", "--rounds", "7",
           *(["--quick"] if quick else [])]),
+        ("slip = 'slide' on cases that never slide, against slip = 'end'",
+         [python, "bench/slide_cost.py", "--exe", exe, "--rounds", "5", *(["--quick"] if quick else [])]),
         ("The journal's checksum per record",
          [str(build / "bench_journal_checksum")]),
         ("Campaign throughput on 1 and 2 threads, and peak memory against the number of cases",

@@ -111,7 +111,9 @@ module ellroll_figures
       figure_t('friction_energy', 'J', 'energy the sliding friction dissipated, integral of mu N |u| dt', kind_real, &
                1, from_run), &
       figure_t('slip_speed_max', 'm/s', 'largest slip speed |u| of the contact point (step ends)', kind_real, 1, &
-               from_run)]
+               from_run), &
+      figure_t('rolling_resistance_energy', 'J', 'energy the rolling resistance dissipated, integral of ' // &
+               'delta N |omega_t| dt', kind_real, 1, from_run)]
   integer, parameter :: figure_count = size(figures)
 
   ! Each row's named index, found by its name (0 if misspelt: the Debug
@@ -139,7 +141,8 @@ module ellroll_figures
       fig_sliding_time = findloc(figures%name, 'sliding_time', dim=1), &
       fig_slip_episodes = findloc(figures%name, 'slip_episodes', dim=1), &
       fig_friction_energy = findloc(figures%name, 'friction_energy', dim=1), &
-      fig_slip_speed_max = findloc(figures%name, 'slip_speed_max', dim=1)
+      fig_slip_speed_max = findloc(figures%name, 'slip_speed_max', dim=1), &
+      fig_rolling_resistance_energy = findloc(figures%name, 'rolling_resistance_energy', dim=1)
   ! the accumulated figures that the tests name
   integer, parameter, public :: fig_reaction_normal_max = findloc(figures%name, 'reaction_normal_max', dim=1), &
       fig_friction_needed_max = findloc(figures%name, 'friction_needed_max', dim=1), &

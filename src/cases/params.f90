@@ -52,7 +52,9 @@ module ellroll_params
               'ball mass m'), &
       param_t('mu', 'ball', 'mu', '1', least, 1.0e6_wp, .true., .false., none, .true., &
               'friction coefficient (NaN: not limited)'), &
-      param_t('inertia_factor', 'ball', 'inertia_factor', '1', least, 2.0_wp / 3, .true., .false., 0.4_wp, .true., &
+      ! (below 1e-3 a point mass, whose spin answers the friction
+      ! 1 / inertia_factor times as fast as its centre: docs/model.md)
+      param_t('inertia_factor', 'ball', 'inertia_factor', '1', 1.0e-3_wp, 2.0_wp / 3, .false., .false., 0.4_wp, .true., &
               'J / (m R^2); 0.4 for a homogeneous ball'), &
       param_t('g', 'environment', 'g', 'm/s^2', 0.0_wp, 1.0e4_wp, .false., .false., 9.81_wp, .true., &
               'gravitational acceleration'), &

@@ -190,7 +190,7 @@ contains
     do i = 1, state_size
       y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
     end do
-    do l = 1, lanes
+    do l = 1, p%width                 ! (the lanes past the width keep their finite sums)
       length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
       y_new(l, 1:3) = y_new(l, 1:3) / length
     end do

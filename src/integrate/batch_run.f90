@@ -94,6 +94,9 @@ contains
         active(l) = results(l)%status == status_completed .and. cases(l)%t_end > 0
       end do
       active(n + 1:) = .false.
+      ! a lone case: its lane alone computed (the idle lanes' work is a
+      ! batch of 1's whole cost otherwise)
+      if (n == 1) balls%width = 1
       ! idle lanes compute a valid case's steps alongside, never a state outside the model
       donor = findloc(active, .true., dim=1)
       if (donor > 0) then

@@ -20,11 +20,13 @@ module ellroll_case_run
   use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
       fig_linear_periods, fig_residual_displacement, fig_rest_time, fig_at_rest, fig_sliding_time, &
-      fig_friction_energy, fig_slip_speed_max
+      fig_friction_energy, fig_slip_speed_max, fig_rolling_resistance_energy
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
+  use ellroll_limit_states, only: is_model_limit
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest
   use ellroll_events, only: crossing_search_t
+  use ellroll_sliding_ball, only: resistance_power
   use ellroll_linear, only: oscillation_periods
   use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
@@ -33,7 +35,7 @@ module ellroll_case_run
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, finish_case, sample_due, stop_asked, latest_end, settled
+  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
   public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
@@ -90,6 +92,15 @@ module ellroll_case_run
     !> where the rest event of the step just taken was located inside it
     !> (a fixed step: it ends on the grid past it; < 0: none)
     real(wp) :: stopped_at = -1
+    !> with rolling resistance: the time and the couple's power -delta N
+    !> |omega_t| of the last state tracked (its work is summed by the
+    !> trapezoidal rule over the states tracked: step ends and switches)
+    real(wp) :: resistance_time = 0, resistance_power = 0
+    !> sliding: the friction's work so far, which the step ends' energy
+    !> adds to E (energy_drift: the residual of the balance E + W = E0), and
+    !> its value at the last step end clear of the cup's curvature (where a
+    !> case that ends at a model limit cuts it, as its peaks)
+    real(wp) :: friction_work = 0, friction_work_clear = 0
   end type run_state_t
 
 contains
@@ -109,7 +120,7 @@ contains
     res%wall_time = 0
     res%reals(fig_theta_max) = 0
     ! rolling throughout unless the slide loop says otherwise
-    res%reals([fig_sliding_time, fig_friction_energy, fig_slip_speed_max]) = 0
+    res%reals([fig_sliding_time, fig_friction_energy, fig_slip_speed_max, fig_rolling_resistance_energy]) = 0
     call allocate_fields(res, plan%fields, plan%n_samples)
     y = initial_state(run%ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     run%start = y
@@ -123,6 +134,20 @@ contains
     call record_sample(res, 1_i8, obs)
     res%status = limit_status(run%ball, y, obs)
   end subroutine start_case
+
+  !> The summary's statistics start again from observation obs at t = 0
+  !> (a start that slides: its centre's velocity is not rolling's, so
+  !> neither are E0 and the forces at t = 0).
+  pure subroutine restart_case(cs, run, res, obs)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    type(observation_t), intent(in) :: obs
+    type(running_t) :: fresh
+    run%stats = fresh
+    call start_running(run%stats, step_quantities(obs), cs%param)
+    call track(run, res, 0.0_wp, obs)
+  end subroutine restart_case
 
   !> Harmonic forcing: the fit of the steady response at the forcing
   !> frequency (ellroll_harmonic_fit) over the last whole forcing periods
@@ -157,6 +182,12 @@ contains
       res%counts(fig_at_rest) = 1
     end if
     call finish_running(run%stats, run%ball%mass, res)
+    if (cs%slide .and. is_model_limit(res%status)) then
+      ! the friction's work up to the step ends the peaks take: near the
+      ! limit N grows without bound and a piece's quadrature with it
+      res%reals(fig_friction_energy) = ieee_value(res%reals(fig_friction_energy), ieee_quiet_nan)
+      if (run%stats%n_clear(1) > 0) res%reals(fig_friction_energy) = run%friction_work_clear
+    end if
     periods = oscillation_periods(run%ball, run%spin0)
     call set_figure_values(res, fig_linear_periods, periods)
     if (cs%excitation%kind == excitation_record) then
@@ -299,9 +330,28 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    if (run%ball%rolling_resistance > 0) call note_rest(run, t, obs)
+    if (run%ball%rolling_resistance > 0) then
+      call note_rest(run, t, obs)
+      call add_resistance_work(run, res, t, obs)
+    end if
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
+
+  !> The rolling resistance's work from the last state tracked to this one
+  !> (trapezoidal rule; a state tracked again at the same time adds nothing).
+  pure subroutine add_resistance_work(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    real(wp) :: power
+    if (t < run%resistance_time) return
+    power = resistance_power(run%ball, obs%normal, obs%omega, obs%reaction_normal)
+    res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) &
+        - 0.5_wp * (t - run%resistance_time) * (run%resistance_power + power)
+    run%resistance_time = t
+    run%resistance_power = power
+  end subroutine add_resistance_work
 
   !> What a step's end point adds to the summary of a moving cup beyond the
   !> step-end statistics (the transmissibility's fit), from the horizontal
@@ -346,14 +396,19 @@ contains
   end subroutine note_nutation
 
   !> What an accepted step end adds to the summary: the nutation angle, and
-  !> the step-end quantities to their statistics.
+  !> the step-end quantities to their statistics (the energy with the
+  !> friction's work so far).
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    real(wp) :: q(1, quantity_count)
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
-    call add_step_ends(run%stats, step_quantities(obs), t)
+    q = step_quantities(obs)
+    q(1, q_energy) = q(1, q_energy) + run%friction_work
+    if (obs%fit_clearance > 0) run%friction_work_clear = run%friction_work
+    call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 
   !> The step-end quantities of an observation (the norms written out, as

@@ -19,9 +19,9 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level
+      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, sample_due, stored
+  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
@@ -89,7 +89,7 @@ contains
         tally%episodes = 1
         tally%slip_speed_max = now%slip_speed
         tally%episode_slip_max = now%slip_speed
-        call restart_samples(run, res, now)
+        call restart_samples(cs, run, res, now)
       end if
     end if
     if (.not. now%sliding .and. res%status == status_slip) then
@@ -110,13 +110,25 @@ contains
   end subroutine slide_loop
 
   !> The first sample and the summary's start again from the sliding start.
-  pure subroutine restart_samples(run, res, now)
+  pure subroutine restart_samples(cs, run, res, now)
+    type(case_t), intent(in) :: cs
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     type(regime_state_t), intent(in) :: now
     call record_regime_sample(res, 1_i8, now)
-    call track(run, res, 0.0_wp, now%obs)
+    call restart_case(cs, run, res, now%obs)
   end subroutine restart_samples
+
+  !> A step end's track, its energy with the friction's work so far.
+  pure subroutine track_balance(run, res, t, obs, tally)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    type(slide_tally_t), intent(in) :: tally
+    run%friction_work = tally%friction_energy
+    call track(run, res, t, obs)
+  end subroutine track_balance
 
   !> Every stored field's values at one output sample, the regime and the
   !> slip speed with them (a sliding observation's friction is mu N).
@@ -157,7 +169,7 @@ contains
       res%n_steps = k
       if (ended) return
       t = k * cs%param(p_dt)
-      call track(run, res, t, now%obs)
+      call track_balance(run, res, t, now%obs, tally)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
     end do
@@ -228,7 +240,7 @@ contains
         return
       end if
       t = t_next
-      call track(run, res, t, now%obs)
+      call track_balance(run, res, t, now%obs, tally)
       if (sample_due(run, plan, t)) then
         call record_regime_sample(res, run%next_sample, now)
         run%next_sample = run%next_sample + 1
@@ -287,7 +299,7 @@ contains
     logical, intent(out) :: ended
     real(wp), intent(out) :: t_stop
     type(regime_state_t) :: new
-    real(wp) :: t_at, remaining, offset, slip_before
+    real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
     ended = .false.
     t_at = t
@@ -295,9 +307,10 @@ contains
     t_stop = t + h_step
     do switches = 0, max_switches_per_step
       if (now%sliding) call sb%begin_step(now%s)
-      call take(integrator, rolling, sb, t_at, remaining, now, new, status, res%n_rhs)
+      piece = stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs)
+      call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, rolling, sb, t_at, remaining, now, tally, res)
+        call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
         ended = .true.
         return
       end if
@@ -318,7 +331,7 @@ contains
         end if
         return
       end if
-      call switch_inside(integrator, run, rolling, sb, t_at, remaining, now, tally, res, offset, ended)
+      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, tally, res, offset, ended)
       if (ended) return
       remaining = remaining - offset
       if (remaining <= 0 .or. stop_at_switch) then
@@ -330,6 +343,30 @@ contains
     res%t_final = t_at
     ended = .true.
   end subroutine advance
+
+  !> The piece of the step to take from (t_at, now): all that remains, or,
+  !> where the slip's time scale (slip_stop_time) puts its stop inside
+  !> it, twice that time where the slip has stopped by then (the stop is
+  !> searched for inside that): past a stop the method's stages throw the
+  !> slip the other way, by the remaining time over the stop's, which
+  !> overflows for a stiff slip (a large mu, a small inertia factor).
+  function stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs) result(piece)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t_at, remaining
+    type(regime_state_t), intent(in) :: now
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: piece, bracket
+    type(regime_state_t) :: trial
+    integer :: status
+    piece = remaining
+    if (.not. now%sliding) return
+    bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
+    if (.not. bracket < remaining) return
+    call take(integrator, rolling, sb, t_at, bracket, now, trial, status, n_rhs)
+    if (status == status_completed .and. switch_crossed(sb, now, trial)) piece = bracket
+  end function stop_bracket
 
   !> Whether the regime switches between now and new (one step apart):
   !> rolling needs more friction than mu N at new; or the slip, nonzero at
@@ -404,7 +441,7 @@ contains
     call add_sliding(sb, search%high, now, x, tally)
     t_at = t_at + search%high
     now = x
-    call track(run, res, t_at, now%obs)
+    call track_balance(run, res, t_at, now%obs, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
     else
@@ -524,7 +561,7 @@ contains
     end do
     if (search%valid > 0) then
       call add_sliding(sb, search%valid, now, last_valid, tally)
-      call track(run, res, t + search%valid, last_valid%obs)
+      call track_balance(run, res, t + search%valid, last_valid%obs, tally)
     end if
     if (crossed == status_completed) crossed = status_unstable
     res%status = crossed

@@ -33,6 +33,11 @@ module ellroll_ball_lanes
     real(wp), dimension(lanes) :: radius = 1, mass = 1, g = 1, inertia_factor = 0.4_wp
     real(wp), dimension(lanes) :: g_over_r = 1, inv_one_plus_k = 1, fit_radius = 1, mu = -1
     real(wp), dimension(lanes) :: base_divisor = 1      !< R (1 + k): the moving cup's couple over it
+    !> the kernels compute lanes 1 to width only (a lone case: 1; the lanes
+    !> past it hold 0 derivatives and their outputs as they were): a lane's
+    !> arithmetic is the same at every width (tested: a case alone in a
+    !> batch equals it among others bitwise)
+    integer :: width = lanes
     !> 1 where the lane's cup moves, else 0 (a mask of the data's width: a
     !> logical's, narrower, keeps a merge from vectorizing)
     real(wp) :: moves(lanes) = 0
@@ -119,7 +124,7 @@ contains
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
     real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity, r_fit_sigma, e_fit
     integer :: l
-    do l = 1, lanes
+    do l = 1, p%width
       r = p%radius(l)
       length2 = y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3)
       length = sqrt(length2)
@@ -160,11 +165,16 @@ contains
       dydt(l, 5) = spin_rate * x2 + gravity * y(l, 1)
       dydt(l, 6) = spin_rate * x3 + gravity * 0.0_wp
     end do
+    if (p%width < lanes) then
+      dydt(p%width + 1:, :) = 0
+      fits(p%width + 1:) = 1
+      unit_scale(p%width + 1:) = 1
+    end if
     if (present(margin)) margin = min(margin, fits)
     if (.not. present(base)) return
     ! a moving cup: g_vec - a_base in the cup's frame, omega' less
     ! (n x a_base) / (R (1 + k)), n = y / |y| (ball_derivative's order)
-    do l = 1, lanes
+    do l = 1, p%width
       u1 = y(l, 1) * unit_scale(l)
       u2 = y(l, 2) * unit_scale(l)
       u3 = y(l, 3) * unit_scale(l)
@@ -191,7 +201,7 @@ contains
     real(wp) :: n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m
     logical :: limit
     integer :: l
-    do l = 1, lanes
+    do l = 1, p%width
       r = p%radius(l)
       m = p%mass(l)
       ! (times 1/|y|: the quotients differ from stage_status's in the last
@@ -240,7 +250,7 @@ contains
     else
       b = 0
     end if
-    do l = 1, lanes
+    do l = 1, p%width
       r = p%radius(l)
       m = p%mass(l)
       call unit_normal(y, l, length, inv_length, n1, n2, n3)
@@ -263,7 +273,11 @@ contains
       p3_upper = p%c(l) - p%c2(l) * n3 * inv_s
       p3 = merge(p3_lower, p3_upper, n3 > 0)
       lateral = sqrt(n1**2 + n2**2)
-      upright = n3 > lateral * tiny(1.0_wp)
+      ! upright: n3 > lateral tiny, with the product taken only where n3 is
+      ! within 2 tiny of 0 (lateral <= 1 elsewhere: the test holds); a
+      ! product in the subnormal range costs a microcode assist, about half
+      ! this routine's time
+      upright = n3 > merge(0.0_wp, lateral, n3 > 2 * tiny(1.0_wp) .and. lateral < 2) * tiny(1.0_wp)
       quotient = lateral / merge(n3, 1.0_wp, upright)
       out%tan_nutation(l) = merge(quotient, huge(1.0_wp), upright)
       out%lateral(l) = lateral

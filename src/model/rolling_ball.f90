@@ -475,8 +475,15 @@ contains
     obs%contact = p
     obs%center = p + r * n
     obs%lateral = sqrt(n(1)**2 + n(2)**2)
+    ! tan Theta where it does not overflow, n_z > lateral tiny; the product is
+    ! taken only where n_z is within 2 tiny of 0 (lateral <= 1 elsewhere: the
+    ! test holds): one in the subnormal range costs a microcode assist
     obs%tan_nutation = huge(1.0_wp)
-    if (n(3) > obs%lateral * tiny(1.0_wp)) obs%tan_nutation = obs%lateral / n(3)
+    if (n(3) > 2 * tiny(1.0_wp) .and. obs%lateral < 2) then
+      obs%tan_nutation = obs%lateral / n(3)
+    else if (n(3) > obs%lateral * tiny(1.0_wp)) then
+      obs%tan_nutation = obs%lateral / n(3)
+    end if
     ! the force of the cup, m (a_C + a_base - g_vec), a_C = R (omega' x n + omega x n')
     n_dot = dydt(1:3) * inv_length
     a_center = r * (cross(dydt(4:6), n) + cross(obs%omega, n_dot))

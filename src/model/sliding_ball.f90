@@ -12,9 +12,12 @@
 !>   u        = V_C - R omega x n                  slip velocity at A
 !>   F        = -mu N u / |u|                      Coulomb friction
 !>   m V_C'   = N n + F + m g_eff
-!>   J omega' = -R n x F
+!>   J omega' = -R n x F + M
 !>   N        = -m (V_C . n' + g_eff . n)          (d/dt V_C . n = 0)
 !>   n'       = (R I - K)^-1 V_C                   (as rolling's, with V_C)
+!> M = -delta N omega_t / |omega_t| the couple of rolling resistance
+!> (&ball rolling_resistance = delta), omega_t = omega - (omega . n) n the
+!> rolling part of omega relative to the cup (resist_sliding).
 module ellroll_sliding_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
@@ -26,7 +29,7 @@ module ellroll_sliding_ball
   private
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
-            observe_sliding, slip_velocity, center_velocity, friction_direction
+            observe_sliding, slip_velocity, center_velocity, friction_direction, resistance_power, slip_stop_time
 
   integer, parameter :: slide_state_size = 8
 
@@ -115,6 +118,22 @@ contains
     y(4:6) = s(4:6) - cross(n, impulse) / (ball%inertia_factor * ball%mass * ball%radius)
   end function stick
 
+  !> The slip's time scale at sliding state y with normal force N: the
+  !> friction alone takes |u| at the rate mu N (1/m + R^2/J) (the part of
+  !> du/dt that the friction makes; docs/model.md), so the slip stops in
+  !> about |u| / (mu N (1/m + R^2/J)) where that rate outweighs the
+  !> others (a large mu, a small inertia factor: a stiff slip). Infinite
+  !> where the normal force does not push.
+  pure real(wp) function slip_stop_time(ball, y, normal_force) result(time)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(slide_state_size), normal_force
+    real(wp) :: rate, size_u
+    time = huge(1.0_wp)
+    rate = ball%mu * normal_force * (1 + 1 / ball%inertia_factor) / ball%mass
+    size_u = norm2(slip_velocity(ball, y))
+    if (rate > 0 .and. size_u / huge(1.0_wp) < rate) time = size_u / rate
+  end function slip_stop_time
+
   !> The direction of the friction at slip u for a step whose slip mode is
   !> `mode`: against u while u is along the mode (or no mode is set), else
   !> against the mode (past the stop, inside the step cut there).
@@ -129,8 +148,9 @@ contains
     end if
   end function friction_direction
 
-  !> The sliding right-hand side (the equations above), with N and the
-  !> friction force where asked.
+  !> The sliding right-hand side (the equations above) without the couple
+  !> of rolling resistance (sliding_rate adds it), with N and the friction
+  !> force where asked.
   pure subroutine sliding_derivative(sb, t, y, dydt, normal_force, friction, base)
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, y(slide_state_size)
@@ -168,12 +188,65 @@ contains
     end associate
   end subroutine sliding_derivative
 
+  !> The couple of rolling resistance while the ball slides (docs/model.md,
+  !> "Rolling resistance while sliding"): M = -delta N omega_t / |omega_t|
+  !> on omega (J omega' gains M; the centre's motion and N do not see a
+  !> couple). Where the ball does not roll (omega_t = 0, as a ball launched
+  !> without spin) the couple holds it up to delta N against the friction's
+  !> couple -R n x F that would start it rolling, and opposes that couple
+  !> beyond. omega_rate holds omega' without the couple.
+  pure subroutine resist_sliding(ball, n, omega, big_n, force, omega_rate)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: n(3), omega(3), big_n, force(3)
+    real(wp), intent(inout) :: omega_rate(3)
+    real(wp) :: omega_t(3), rate, resistance, inertia, drive(3), drive_size
+    resistance = ball%rolling_resistance * max(big_n, 0.0_wp)
+    inertia = ball%inertia_factor * ball%mass * ball%radius**2
+    omega_t = omega - dot_product(omega, n) * n
+    rate = norm2(omega_t)
+    if (rate > 1.0e-12_wp * (sqrt(ball%g / ball%radius) + norm2(omega))) then
+      omega_rate = omega_rate - (resistance / (rate * inertia)) * omega_t
+      return
+    end if
+    drive = -ball%radius * cross(n, force)
+    drive_size = norm2(drive)
+    if (drive_size <= resistance) then
+      omega_rate = omega_rate - drive / inertia          ! held: no rolling starts
+    else
+      omega_rate = omega_rate - (resistance / (drive_size * inertia)) * drive
+    end if
+  end subroutine resist_sliding
+
+  !> The power of the couple of rolling resistance at a state whose normal
+  !> force is big_n (either regime): -delta N |omega_t|.
+  pure real(wp) function resistance_power(ball, n, omega, big_n) result(power)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: n(3), omega(3), big_n
+    power = -ball%rolling_resistance * max(big_n, 0.0_wp) * norm2(omega - dot_product(omega, n) * n)
+  end function resistance_power
+
+  !> The sliding right-hand side with the couple of rolling resistance
+  !> where the ball has it (sliding_derivative's forces, resist_sliding).
+  pure subroutine sliding_rate(sb, t, y, dydt, normal_force, friction)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp), intent(out) :: dydt(slide_state_size), normal_force, friction(3)
+    call sliding_derivative(sb, t, y, dydt, normal_force, friction)
+    if (sb%ball%rolling_resistance > 0) &
+      call resist_sliding(sb%ball, y(1:3) / norm2(y(1:3)), y(4:6), normal_force, friction, dydt(4:6))
+  end subroutine sliding_rate
+
   pure subroutine sliding_rhs(self, t, y, dydt)
     class(sliding_ball_t), intent(in) :: self
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(:)
     real(wp), intent(out) :: dydt(:)
-    call sliding_derivative(self, t, y, dydt)
+    real(wp) :: big_n, force(3)
+    if (self%ball%rolling_resistance > 0) then
+      call sliding_rate(self, t, y, dydt, big_n, force)
+    else
+      call sliding_derivative(self, t, y, dydt)
+    end if
   end subroutine sliding_rhs
 
   !> Every derived output of sliding state y (observe's, with the sliding
@@ -186,7 +259,7 @@ contains
     real(wp), intent(out) :: slip_speed
     real(wp), intent(out) :: dydt(slide_state_size)
     real(wp) :: big_n, force(3), rolling_rate(state_size), v(3), n(3), height
-    call sliding_derivative(sb, t, y, dydt, big_n, force)
+    call sliding_rate(sb, t, y, dydt, big_n, force)
     rolling_rate(1:3) = dydt(1:3)
     rolling_rate(4:6) = dydt(4:6)
     call observe(sb%ball, t, y(1:6), rolling_rate, obs)

@@ -34,7 +34,7 @@ module ellroll_journal
 
   public :: journal_t, journal_header_t, journal_is_torn
 
-  character(len=8), parameter :: magic = 'ELLROLL5'
+  character(len=8), parameter :: magic = 'ELLROLL6'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
   !> The header: magic, then these words (the campaign id's 64 bytes, n_slots,
   !> n_samples, the shard's two numbers, a flag per field for the stored and

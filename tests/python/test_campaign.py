@@ -183,7 +183,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # (src/cases/results.f90: wall_time is the 5th), the checksum of the
 # trajectories written in place, the trajectories written through HDF5
 # (compressed), the record's checksum
-SUMMARY_ENTRIES, WALL_TIME_ENTRY = 33, 4
+SUMMARY_ENTRIES, WALL_TIME_ENTRY = 34, 4
 # magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
 # input's files (empty without records) and its checksum
 JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 10 + 1) + 8 + 8
