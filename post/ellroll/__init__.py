@@ -23,8 +23,10 @@ of the `ellroll` on PATH (cmake --install's layout).
 import ctypes
 import os
 import pathlib
+import queue
 import shutil
 import re
+import signal
 import tempfile
 import threading
 
@@ -65,14 +67,18 @@ class Record:
     """
 
     def __init__(self, time, acceleration, name="record"):
+        if not isinstance(name, str):
+            raise InputError(f"Record name {name!r}: give a text (letters, digits, '_', '.', '-'; 1 to 32), "
+                             f"not {type(name).__name__}", _INPUT)
         self.time = np.asarray(time, dtype=np.float64)
         self.acceleration = np.asarray(acceleration, dtype=np.float64)
         if self.time.ndim != 1 or self.acceleration.ndim != 2 or \
                 self.acceleration.shape[0] != self.time.shape[0] or self.acceleration.shape[1] not in (2, 3):
             raise InputError(f"Record {name!r}: give time as n values and acceleration as n rows of 2 or 3 "
                              f"(x, y[, z]), not shapes {self.time.shape} and {self.acceleration.shape}", _INPUT)
-        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", name):
-            raise InputError(f"Record name {name!r}: letters, digits, '_', '.', '-' (1 to 64)", _INPUT)
+        # (as &record name: at most 32 characters)
+        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,32}", name):
+            raise InputError(f"Record name {name!r}: letters, digits, '_', '.', '-' (1 to 32)", _INPUT)
         self.name = name
 
     def csv_text(self):
@@ -120,6 +126,7 @@ def _lib():
                 "ellroll_read_all": (c_int, [handle, c_int, ctypes.c_void_p]),
                 "ellroll_take": (c_int, [handle, c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]),
                 "ellroll_free_values": (None, [handle]),
+                "ellroll_stop": (None, [c_int]),
             }
             for name, (restype, argtypes) in signatures.items():
                 function = getattr(lib, name)
@@ -168,6 +175,10 @@ def _literal(value, where):
                      "(numbers, logicals, texts or lists of them)", _INPUT)
 
 
+_GROUP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*", re.ASCII)
+_VARIABLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*(\([1-9][0-9]*\))?", re.ASCII)
+
+
 def namelist(groups):
     """The namelist text of a dict of groups: {'geometry': {'a': 1.0}, 'sweep': [{...}, {...}]}.
 
@@ -175,12 +186,22 @@ def namelist(groups):
     quoted, logicals .true./.false., lists comma-separated; a group given as
     a list of dicts is written once per dict (&sweep, &record).
     """
+    if not isinstance(groups, dict):
+        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
+                         f"{type(groups).__name__}", _INPUT)
     lines = []
     for group, contents in groups.items():
+        if not isinstance(group, str) or not _GROUP_NAME.fullmatch(group):
+            raise InputError(f"group name {group!r}: a namelist group is a name (a letter, then letters, digits "
+                             "or '_'), e.g. 'geometry'", _INPUT)
         for members in contents if isinstance(contents, (list, tuple)) else [contents]:
             if not isinstance(members, dict):
                 raise InputError(f"&{group}: give its variables as a dict (or a list of dicts), "
                                  f"not {type(members).__name__}", _INPUT)
+            for name in members:
+                if not isinstance(name, str) or not _VARIABLE_NAME.fullmatch(name):
+                    raise InputError(f"&{group}: variable name {name!r}: a name (a letter, then letters, digits "
+                                     "or '_'), or one element of it such as 'omega(3)'", _INPUT)
             lines.append(f"&{group}")
             lines += [f"  {name} = {_literal(value, f'&{group}: {name}')}" for name, value in members.items()]
             lines.append("/")
@@ -505,12 +526,34 @@ def _run_inputs(inputs, threads, path, results):
     """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
+    if not isinstance(inputs, dict):
+        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
+                         f"{type(inputs).__name__}", _INPUT)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
-        return _run_text(namelist(_with_record_files(inputs, pathlib.Path(folder))), threads, path, results)
+        records = {}
+        text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
+        try:
+            return _run_text(text, threads, path, results)
+        except Error as error:
+            message = _name_records(error.message, records)
+            if message == error.message:
+                raise
+            raise type(error)(message, error.code) from None
 
 
-def _with_record_files(groups, folder):
-    """groups with each Record value replaced by the path of its CSV file, written into folder."""
+def _name_records(message, records):
+    """message with each Record's CSV file (a temporary file) and line named
+    as the Record and its row (the file has a row a line, from row 0)."""
+    for path, record in records.items():
+        message = re.sub(re.escape(path) + r":(\d+)",
+                         lambda m: f"Record {record.name!r} row {int(m.group(1)) - 1}", message)
+        message = message.replace(f"'{path}'", f"Record {record.name!r}").replace(path, f"Record {record.name!r}")
+    return message
+
+
+def _with_record_files(groups, folder, records):
+    """groups with each Record value replaced by the path of its CSV file,
+    written into folder; records gets {path: Record}."""
     written = {}
 
     def file_of(value):
@@ -520,6 +563,7 @@ def _with_record_files(groups, folder):
             target = folder / f"{len(written) + 1}_{value.name}.csv"
             target.write_text(value.csv_text())
             written[id(value)] = str(target)
+            records[str(target)] = value
         return written[id(value)]
 
     def members(group):
@@ -530,14 +574,75 @@ def _with_record_files(groups, folder):
             for name, contents in groups.items()}
 
 
+_flight_lock = threading.Lock()
+_in_flight = 0              # ellroll_run calls under way, in any thread
+_WAIT = 0.05                # s: how often the main thread looks up from a run
+_worker = None              # the main thread's runs: (thread, its queue of jobs)
+
+
+def _work(jobs):
+    while True:
+        function, args, box, done = jobs.get()
+        try:
+            box.append(function(*args))
+        finally:
+            done.set()
+
+
+def _interruptible_run(lib, *args):
+    """lib.ellroll_run(*args), stopped by Ctrl-C. From the main thread (where
+    Python takes SIGINT) the call runs in a worker thread while this one
+    waits in short steps: Ctrl-C asks the library to stop every run under
+    way (ellroll_stop, as `ellroll run` does on SIGINT), waits for the call
+    to return, frees its results and raises KeyboardInterrupt. The stop is
+    lifted when no call is under way. The worker is one thread for the
+    process's life: OpenMP keeps a team of threads for each thread that
+    starts parallel work, which a new thread per call would make anew
+    (some 0.6 ms a call measured)."""
+    global _in_flight, _worker
+    with _flight_lock:
+        _in_flight += 1
+    try:
+        if threading.current_thread() is not threading.main_thread():
+            return lib.ellroll_run(*args)
+        if _worker is None:
+            jobs = queue.SimpleQueue()
+            thread = threading.Thread(target=_work, args=(jobs,), name="ellroll-run", daemon=True)
+            thread.start()
+            _worker = (thread, jobs)
+        box, done = [], threading.Event()
+        _worker[1].put((lib.ellroll_run, args, box, done))
+        try:
+            while not done.wait(_WAIT):
+                pass
+        except KeyboardInterrupt:
+            lib.ellroll_stop(signal.SIGINT)
+            while not done.is_set():
+                try:
+                    done.wait()
+                except KeyboardInterrupt:     # (pressed again: the call still has to return)
+                    pass
+            if box:
+                lib.ellroll_free(box[0])
+            raise
+        return box[0]
+    finally:
+        with _flight_lock:
+            _in_flight -= 1
+            if _in_flight == 0:
+                lib.ellroll_stop(0)
+
+
 def _run_text(text, threads, path, results):
     """The library's run of a namelist text, its results as results(lib, handle) reads them."""
-    if threads is not None and (not isinstance(threads, (int, np.integer)) or threads < 1):
-        raise ValueError(f"threads = {threads!r}: give a count of at least 1, or None")
+    # (the bounds of `ellroll run --threads`: 1 to the largest C int)
+    if threads is not None and (isinstance(threads, (bool, np.bool_)) or not isinstance(threads, (int, np.integer))
+                                or not 1 <= threads <= 2**31 - 1):
+        raise InputError(f"threads = {threads!r}: give a count from 1 to {2**31 - 1}, or None", _INPUT)
     lib = _library or _lib()
     label = (path if path is not None else "<input>").encode()
     encoded = text.encode()
-    handle = lib.ellroll_run(encoded, len(encoded), label, len(label), int(threads or 0))
+    handle = _interruptible_run(lib, encoded, len(encoded), label, len(label), int(threads or 0))
     if not handle:
         raise Error("libellroll: out of memory")
     try:

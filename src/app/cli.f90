@@ -108,7 +108,8 @@ contains
     case ('-o', '--output')
       cli%output_path = value
     case ('--threads')
-      read (value, *, iostat=ios) cli%opts%threads
+      ios = 1
+      if (is_digits(value)) read (value, *, iostat=ios) cli%opts%threads
       if (ios /= 0 .or. cli%opts%threads < 1) &
         call usage_error(err, '--threads needs a positive number, not ' // value)
     case ('--format')
@@ -151,11 +152,20 @@ contains
     integer :: slash, ios1, ios2
     slash = index(text, '/')
     ok = .false.
+    ! digits alone on either side: a list-directed read would stop at a
+    ! second '/', a comma or a blank and take 1/2/3 as 1/2
     if (slash < 2 .or. slash == len(text)) return
+    if (.not. (is_digits(text(:slash-1)) .and. is_digits(text(slash+1:)))) return
     read (text(:slash-1), *, iostat=ios1) shard(1)
     read (text(slash+1:), *, iostat=ios2) shard(2)
     ok = ios1 == 0 .and. ios2 == 0 .and. shard(2) >= 1 .and. shard(1) >= 0 .and. shard(1) < shard(2)
   end function parse_shard
+
+  !> Whether text is one or more decimal digits and nothing else.
+  pure logical function is_digits(text)
+    character(len=*), intent(in) :: text
+    is_digits = len(text) > 0 .and. verify(text, '0123456789') == 0
+  end function is_digits
 
   subroutine usage_error(err, message)
     type(error_t), intent(inout) :: err

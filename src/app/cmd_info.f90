@@ -5,7 +5,7 @@ module ellroll_cmd_info
   use, intrinsic :: iso_fortran_env, only: output_unit
   use ellroll_strings, only: itoa, format_real
   use ellroll_cases, only: range_text
-  use ellroll_params, only: params, param_component
+  use ellroll_params, only: params, param_component, param_unset_allowed
   use ellroll_integrators, only: methods
   use ellroll_version, only: version_string
   implicit none
@@ -138,6 +138,7 @@ contains
       associate (p => params(k))
         default = format_real(p%default)
         if (p%required) default = 'required'
+        if (param_unset_allowed(k)) default = 'unset'
         variable = trim(p%variable)
         if (param_component(k) > 0) variable = variable // '(' // itoa(param_component(k)) // ')'
         write (output_unit, '(a)') '| `' // trim(p%name) // '` | `&' // trim(p%group) // '` | `' // variable // &

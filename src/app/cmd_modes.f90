@@ -7,7 +7,7 @@ module ellroll_cmd_modes
   use ellroll_errors, only: error_t
   use ellroll_strings, only: format_real
   use ellroll_input, only: run_input_t, read_input
-  use ellroll_cases, only: case_t, make_ball, get_param, check_case
+  use ellroll_cases, only: case_t, make_ball, check_case, problem_setting
   use ellroll_params, only: params, p_omega_x, p_omega_z, p_x, p_y
   use ellroll_ellipsoid, only: normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
@@ -32,7 +32,7 @@ contains
     integer(i8) :: i
     integer :: param
     character(len=160) :: line
-    character(len=:), allocatable :: reason
+    character(len=:), allocatable :: reason, subject
     call read_input(trim(cli%paths(1)), cli%output_path, inp, err)
     if (err%failed()) return
     write (output_unit, '(a)') '    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s'
@@ -42,8 +42,8 @@ contains
       call check_case(cs, inp%plan%interval, param, reason)
       if (param /= 0) then
         write (line, '(i8)') i
-        write (output_unit, '(a)') trim(line) // '  invalid: ' // trim(params(param)%name) // ' = ' // &
-            format_real(get_param(cs, param)) // ': ' // reason
+        call problem_setting(cs, inp%plan%interval, param, subject)
+        write (output_unit, '(a)') trim(line) // '  invalid: ' // subject // ': ' // reason
         cycle
       end if
       ball = make_ball(cs)

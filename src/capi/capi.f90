@@ -20,6 +20,7 @@
 !>   void ellroll_free_values(void *owner);
 !>   void ellroll_free(void *h);
 !>   void ellroll_init(void);
+!>   void ellroll_stop(int sig);
 !>
 !> Texts are copied into (buffer, size), cut to size, without a null; the
 !> functions return their full length. Datasets count from 0; `what`: 0
@@ -30,20 +31,24 @@
 !> values in C order, shape[0] cases (or samples, components) first. A
 !> caller may take a dataset's values out of the run instead of copying
 !> them (ellroll_take), and free them on their own, before or after the
-!> handle (ellroll_free_values).
+!> handle (ellroll_free_values). ellroll_stop(sig) asks every run of the
+!> process under way to stop, as `ellroll run` does on that signal (a
+!> caller's Ctrl-C): each returns soon with error code 128 + sig and no
+!> results; ellroll_stop(0), once none is under way, lets runs go on again.
 module ellroll_capi
   use, intrinsic :: iso_c_binding, only: c_ptr, c_associated, c_loc, c_f_pointer, c_int, c_int64_t, &
       c_char, c_double, c_null_char, c_null_ptr
   use ellroll_kinds, only: i8
   use ellroll_errors, only: err_none
   use ellroll_records, only: kind_real, kind_int, kind_text
+  use ellroll_system, only: request_stop
   use ellroll_memory_run, only: memory_output_t, memory_dataset_t, run_in_memory, text_width
   implicit none
   private
 
   public :: ellroll_run, ellroll_error_code, ellroll_error_message, ellroll_dataset_count, ellroll_dataset_text, &
             ellroll_dataset_info, ellroll_dataset_read, ellroll_free, ellroll_init, ellroll_catalog, ellroll_read_all, &
-            ellroll_take, ellroll_free_values
+            ellroll_take, ellroll_free_values, ellroll_stop
 
   !> A dataset's values taken out of its run (ellroll_take): one of them allocated.
   type :: taken_t
@@ -63,6 +68,12 @@ contains
   subroutine ellroll_init() bind(c, name='ellroll_init')
     call crc32c_init()
   end subroutine ellroll_init
+
+  !> Ask every run under way to stop as if signal sig had come; 0: go on again.
+  subroutine ellroll_stop(sig) bind(c, name='ellroll_stop')
+    integer(c_int), value, intent(in) :: sig
+    call request_stop(sig)
+  end subroutine ellroll_stop
 
   type(c_ptr) function ellroll_run(text, text_length, label, label_length, threads) result(handle) &
       bind(c, name='ellroll_run')

@@ -23,7 +23,7 @@ module ellroll_cases
   private
 
   public :: case_t, output_plan_t, steps_per_sample, case_record, make_ball, check_case, case_problem, &
-            finalize_case, adaptive_method, is_multiple, range_text, max_steps
+            finalize_case, adaptive_method, is_multiple, range_text, out_of_range_reason, problem_setting, max_steps
   public :: get_param, set_param
   public :: field_count, field_names, field_units, field_ncomp, field_descriptions
   public :: field_contact, field_center, field_omega, field_normal, field_nutation, &
@@ -62,6 +62,13 @@ module ellroll_cases
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
   real(wp), parameter :: max_steps = 1.0e12_wp   !< also the most samples a case stores
+  !> An initial velocity is tangent where |v . n| <= this times |v|: a test
+  !> of its direction, so relative to the speed (an absolute bound would
+  !> pass any direction at a small speed and fail rounding at a large
+  !> one). The sliding start takes vx and vy and the contact sets vz, so a
+  !> vz farther off would run another start than the one written; a vz
+  !> computed in double precision (the message gives it) is within 1e-15.
+  real(wp), parameter, public :: tangent_tolerance = 1.0e-9_wp
 
   integer, parameter :: field_count = 10
   integer, parameter :: field_contact = 1, field_center = 2, field_omega = 3, field_normal = 4, &
@@ -151,9 +158,7 @@ contains
     case (problem_not_finite)
       reason = 'must be a finite number'
     case (problem_range)
-      reason = range_text(param)
-      if (params(param)%positive .and. value > 0 .and. value < params(param)%low) reason = 'is below ' // &
-          format_real(params(param)%low) // ', the least normal number; ' // reason
+      call out_of_range_reason(param, value, reason)
     case (problem_weight_without_g)
       reason = 'a weight cannot give the mass when g = 0; give mass instead'
     case (problem_weight_mass)
@@ -188,8 +193,9 @@ contains
     case (problem_velocity_rolls)
       reason = "an initial velocity starts the ball sliding: it needs &ball slip = 'slide'"
     case (problem_velocity_tangent)
-      reason = 'must be tangent to the cup at the start: its component along the normal there is ' // &
-               format_real(start_normal_velocity(cs)) // ' m/s'
+      reason = 'must be tangent to the cup at the start (|v . n| <= ' // format_real(tangent_tolerance) // &
+               ' |v|): its component along the normal n there is ' // format_real(start_normal_velocity(cs)) // &
+               ' m/s; with these vx, vy the tangent velocity has vz = ' // format_real(tangent_vz(cs)) // ' m/s'
     end select
   end subroutine check_case
 
@@ -243,7 +249,7 @@ contains
     if (radii(1) / cs%param(p_radius) - 1 <= cs%param(p_fit_margin)) return
     param = p_mu
     problem = problem_slide_mu
-    if (cs%slide .and. .not. cs%param(p_mu) > 0) return
+    if (cs%slide .and. ieee_is_nan(cs%param(p_mu))) return        ! (a given mu is > 0: checked above)
     param = p_velocity_x
     problem = problem_velocity_partial
     if (any(ieee_is_nan(cs%param(p_velocity_x:p_velocity_z))) .and. &
@@ -252,7 +258,7 @@ contains
     if (.not. cs%slide .and. .not. ieee_is_nan(cs%param(p_velocity_x))) return
     problem = problem_velocity_tangent
     if (.not. ieee_is_nan(cs%param(p_velocity_x))) then    ! (an unset velocity compares with nothing)
-      if (abs(start_normal_velocity(cs)) > 1.0e-9_wp * norm2(cs%param(p_velocity_x:p_velocity_z))) return
+      if (abs(start_normal_velocity(cs)) > tangent_tolerance * norm2(cs%param(p_velocity_x:p_velocity_z))) return
     end if
     param = 0
     problem = 0
@@ -268,6 +274,37 @@ contains
                                           normal_from_contact(cup, cs%param(p_x), cs%param(p_y)))
     end associate
   end function start_normal_velocity
+
+  !> The vz that makes the start's velocity tangent with its vx, vy:
+  !> v . n = 0 (n_z > 0 at every point inside the cup's rim).
+  pure real(wp) function tangent_vz(cs)
+    type(case_t), intent(in) :: cs
+    real(wp) :: n(3)
+    associate (cup => new_ellipsoid(cs%param(p_a), cs%param(p_b), cs%param(p_c)))
+      n = normal_from_contact(cup, cs%param(p_x), cs%param(p_y))
+    end associate
+    tangent_vz = -(cs%param(p_velocity_x) * n(1) + cs%param(p_velocity_x + 1) * n(2)) / n(3)
+  end function tangent_vz
+
+  !> 'name = value' of the input a problem of check_case (param /= 0)
+  !> concerns: its row, or the whole initial velocity where the problem is
+  !> the vector's (given in part, without sliding, not tangent), not the
+  !> component the check stopped at.
+  subroutine problem_setting(cs, interval, param, text)
+    type(case_t), intent(in) :: cs
+    real(wp), intent(in) :: interval
+    integer, intent(in) :: param
+    character(len=:), allocatable, intent(out) :: text
+    integer :: found, problem
+    call find_problem(cs, interval, found, problem)
+    if (found == param .and. any(problem == [problem_velocity_partial, problem_velocity_rolls, &
+                                             problem_velocity_tangent])) then
+      text = trim(params(p_velocity_x)%variable) // ' = ' // format_real(cs%param(p_velocity_x)) // ', ' // &
+             format_real(cs%param(p_velocity_x + 1)) // ', ' // format_real(cs%param(p_velocity_z))
+    else
+      text = trim(params(param)%name) // ' = ' // format_real(get_param(cs, param))
+    end if
+  end subroutine problem_setting
 
   !> (x/a)^2 + (y/b)^2 of the start: below 1 inside the cup.
   pure real(wp) function start_level(cs)
@@ -309,6 +346,19 @@ contains
     text = range_opening(k) // format_real(params(k)%high) // unit_suffix(k)
   end function range_text
 
+  !> Why `value` of row k is outside the row's range: the range, after
+  !> 'is below the least normal number' for a positive row's subnormal, and
+  !> for mu = 0 that an unset mu is the unlimited friction.
+  pure subroutine out_of_range_reason(k, value, reason)
+    integer, intent(in) :: k
+    real(wp), intent(in) :: value
+    character(len=:), allocatable, intent(out) :: reason
+    reason = range_text(k)
+    if (params(k)%positive .and. value > 0 .and. value < params(k)%low) reason = 'is below ' // &
+        format_real(params(k)%low) // ', the least normal number; ' // reason
+    if (k == p_mu .and. is_zero(value)) reason = reason // ' (leave mu out for unlimited friction)'
+  end subroutine out_of_range_reason
+
   !> Methods whose step is chosen by error control (dt is then the largest step).
   logical pure function adaptive_method(method)
     character(len=*), intent(in) :: method
@@ -334,7 +384,8 @@ contains
     ball%mass = cs%param(p_mass)
     ball%g = cs%param(p_g)
     ball%inertia_factor = cs%param(p_inertia_factor)
-    ball%mu = cs%param(p_mu)
+    ball%mu = 0                      ! the model's 'not limited': mu unset
+    if (.not. ieee_is_nan(cs%param(p_mu))) ball%mu = cs%param(p_mu)
     ball%fit_margin = cs%param(p_fit_margin)
     ball%rolling_resistance = cs%param(p_rolling_resistance)
     ball%excitation = cs%excitation
@@ -405,16 +456,13 @@ contains
     name = 'sa_' // format_real(t)
   end function sa_name
 
-  !> Row p's value as /case stores it: the input, but mu 0 (no limit) as NaN
-  !> and the weight as m g, also where the mass was given (NaN where it
-  !> would overflow: an invalid case's record holds its inputs as given).
+  !> Row p's value as /case stores it: the input (NaN where unset), but the
+  !> weight as m g, also where the mass was given (NaN where it would
+  !> overflow: an invalid case's record holds its inputs as given).
   pure real(wp) function stored_value(cs, p) result(value)
     type(case_t), intent(in) :: cs
     integer, intent(in) :: p
     value = cs%param(p)
-    if (p == p_mu) then         ! (apart: an unset input is NaN, which the builds that trap may not compare)
-      if (value <= 0) value = ieee_value(value, ieee_quiet_nan)
-    end if
     if (p == p_weight) then
       value = ieee_value(value, ieee_quiet_nan)
       if (abs(cs%param(p_mass)) <= huge(value) / max(abs(cs%param(p_g)), 1.0_wp)) &

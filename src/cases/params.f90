@@ -50,7 +50,7 @@ module ellroll_params
               'ball weight m g'), &
       param_t('mass', 'ball', 'mass', 'kg', least, 1.0e12_wp, .true., .true., 0.0_wp, .true., &
               'ball mass m'), &
-      param_t('mu', 'ball', 'mu', '1', 0.0_wp, 1.0e6_wp, .false., .false., 0.0_wp, .true., &
+      param_t('mu', 'ball', 'mu', '1', least, 1.0e6_wp, .true., .false., none, .true., &
               'friction coefficient (NaN: not limited)'), &
       ! (below 1e-3 a point mass, whose spin answers the friction
       ! 1 / inertia_factor times as fast as its centre: docs/model.md)

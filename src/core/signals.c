@@ -34,8 +34,18 @@ void ellroll_catch_stop_signals(void)
     sigaction(SIGINT, &action, NULL);
 }
 
-/* The signal that asked the run to stop, or 0. */
+/* The signal that asked the run to stop, or 0. Read atomically: a
+ * library caller's thread may set it (ellroll_request_stop) while the
+ * run's threads poll it. */
 int ellroll_stop_signal(void)
 {
-    return stop_signal;
+    return __atomic_load_n(&stop_signal, __ATOMIC_RELAXED);
+}
+
+/* Ask every run of the process under way to stop as if sig had come (a
+ * library caller's Ctrl-C: the process's own handler is Python's), or,
+ * with 0, let runs go on again (when none is under way). */
+void ellroll_request_stop(int sig)
+{
+    __atomic_store_n(&stop_signal, sig, __ATOMIC_RELAXED);
 }

@@ -9,7 +9,7 @@ module ellroll_system
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
       system_error_text, open_regular_file, read_text, file_type_words
-  public :: catch_stop_signals, stop_signal, signal_name, exit_now
+  public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -54,6 +54,11 @@ module ellroll_system
     integer(c_int) function stop_signal() bind(c, name='ellroll_stop_signal')
       import :: c_int
     end function stop_signal
+    !> Ask the runs under way to stop as if signal sig had come; 0: go on again.
+    subroutine request_stop(sig) bind(c, name='ellroll_request_stop')
+      import :: c_int
+      integer(c_int), value :: sig
+    end subroutine request_stop
     ! positioned writes and reads (src/core/positioned_io.c)
     integer(c_int) function c_open_descriptor(path, writing) bind(c, name='ellroll_open_descriptor')
       import :: c_int, c_char

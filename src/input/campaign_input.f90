@@ -8,7 +8,7 @@ module ellroll_campaign_input
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, invalid_stop, &
       invalid_skip
   use ellroll_params, only: params, param_index, p_weight, p_mass
-  use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, max_values
+  use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, not_finite_entry, max_values
   use ellroll_suggest, only: did_you_mean
   implicit none
   private
@@ -28,6 +28,7 @@ contains
     type(sweep_t) :: sw
     integer :: n, k
     logical :: listed, ranged
+    character(len=:), allocatable :: what
     sw%line = rd%file%groups(gi)%line
     sw%param = swept_param(rd, v, gi, sweeps, draws)
     if (sw%param == 0) return
@@ -39,10 +40,16 @@ contains
     end if
     if (listed) then
       n = count_given(v%values)
-      if (n == 0 .or. .not. all(ieee_is_finite(v%values(:n)))) then
+      if (n == 0) then
         call rd%fail_value(gi, 'values', 'a list of finite numbers is needed')
         return
       end if
+      do k = 1, n
+        if (ieee_is_finite(v%values(k))) cycle
+        call not_finite_entry(v%values, k, what)
+        call rd%fail_value(gi, 'values', what // ': a list of finite numbers is needed')
+        return
+      end do
       sw%values = v%values(:n)
     else
       if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return

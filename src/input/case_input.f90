@@ -7,13 +7,13 @@ module ellroll_case_input
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: lower, join, format_real
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
-      set_param, adaptive_method, range_text, max_steps, field_base_acceleration, is_multiple, &
+      set_param, adaptive_method, out_of_range_reason, max_steps, field_base_acceleration, is_multiple, &
       field_regime, field_slip_speed
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
   use ellroll_integrators, only: method_names, methods
   use ellroll_record_file, only: load_ground_motion
-  use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
   use ellroll_suggest, only: did_you_mean
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
@@ -67,7 +67,7 @@ contains
     integer, intent(in) :: gi, p
     real(wp), intent(in) :: table_values(:)
     logical, intent(in) :: needed
-    character(len=:), allocatable :: variable, units
+    character(len=:), allocatable :: variable, units, reason
     integer :: width, k
     variable = trim(params(p)%variable)
     width = param_width(p)
@@ -94,12 +94,8 @@ contains
       do k = p, p + width - 1
         if (.not. out_of_range_one(k, table_values(k))) cycle
         if (table_values(k) < params(k)%low .or. table_values(k) > params(k)%high) then
-          if (params(k)%positive .and. table_values(k) > 0 .and. table_values(k) < params(k)%low) then
-            call rd%fail_value(gi, variable, 'is below ' // format_real(params(k)%low) // &
-                               ', the least normal number; ' // range_text(k))
-          else
-            call rd%fail_value(gi, variable, range_text(k))
-          end if
+          call out_of_range_reason(k, table_values(k), reason)
+          call rd%fail_value(gi, variable, reason)
           return
         end if
       end do
@@ -294,14 +290,13 @@ contains
     type(campaign_t), intent(inout) :: campaign
     real(wp), parameter :: max_sa_period = 1.0e3_wp
     integer :: gi, n, k
+    character(len=:), allocatable :: what
     gi = rd%group('excitation', .false.)
-    n = 0
-    do k = 1, size(v%sa_periods)
-      if (.not. ieee_is_nan(v%sa_periods(k))) n = k
-    end do
+    n = count_given(v%sa_periods)
     do k = 1, n
       if (.not. ieee_is_finite(v%sa_periods(k))) then
-        call rd%fail_value(gi, 'sa_periods', 'each period must be a finite number (s)')
+        call not_finite_entry(v%sa_periods, k, what)
+        call rd%fail_value(gi, 'sa_periods', what // ': each period must be a finite number (s)')
         return
       else if (v%sa_periods(k) <= 0 .or. v%sa_periods(k) > max_sa_period) then
         call rd%fail_value(gi, 'sa_periods', 'period ' // format_real(v%sa_periods(k)) // &

@@ -11,9 +11,9 @@ module ellroll_input
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, &
       scan_namelist_text
   use ellroll_strings, only: itoa, join, format_real
-  use ellroll_cases, only: case_t, output_plan_t, get_param
+  use ellroll_cases, only: case_t, output_plan_t, get_param, problem_setting
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given
   use ellroll_campaign_input, only: add_sweep, add_sample
   use ellroll_suite_input, only: record_spec_t, add_record_group
   use ellroll_limit_state_input, only: add_limit_state
@@ -123,7 +123,7 @@ contains
     v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'; v%slip = 'end'
     v%file = ''; v%interval = nan(); v%fields = ''; v%compression = 0
     v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
-    v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = nan()
+    v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = not_given()
     allocate (sweeps(0), draws(0), suite(0), states(0), state_lines(0))
 
     do gi = 1, size(rd%file%groups)
@@ -131,7 +131,7 @@ contains
         if (.not. names_known(rd, gi)) return
         v%name = ''; v%start = nan(); v%stop = nan(); v%count = 0; v%spacing = 'linear'
         ! (max_values of them: only the groups that read them set them)
-        if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = nan()
+        if (grp%name == 'sweep' .or. grp%name == 'sample') v%values = not_given()
         v%low = nan(); v%high = nan(); v%figure = ''; v%limit_capacity = nan()
         if (grp%name == 'record') then       ! (its record_file is not &excitation's)
           excitation_files = v%record_file
@@ -505,7 +505,7 @@ contains
     integer, intent(in) :: param
     character(len=*), intent(in) :: reason
     character(len=:), allocatable, intent(out) :: text
-    character(len=:), allocatable :: varied
+    character(len=:), allocatable :: varied, subject
     integer :: k
     varied = ''
     do k = 1, size(inp%campaign%sweeps) + size(inp%campaign%samples)
@@ -514,7 +514,8 @@ contains
     end do
     text = inp%path // ': case ' // itoa(cs%index)
     if (len(varied) > 0) text = text // ' (' // varied // ')'
-    text = text // ': ' // setting(param) // ': ' // reason
+    call problem_setting(cs, inp%plan%interval, param, subject)
+    text = text // ': ' // subject // ': ' // reason
   contains
     integer function varied_param(k)
       integer, intent(in) :: k

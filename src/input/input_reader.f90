@@ -3,20 +3,28 @@
 !> file, line, group, variable and value. Also the values read, as one
 !> record the builders of the case, plan and campaign take.
 module ellroll_input_reader
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_namelist_scan, only: nml_file_t, nml_assignment_t
-  use ellroll_strings, only: itoa, join
+  use ellroll_strings, only: itoa, join, format_real
   use ellroll_params, only: param_count, params
   use ellroll_suggest, only: did_you_mean
   use ellroll_intensity, only: max_sa_periods
   implicit none
   private
 
-  public :: reader_t, namelist_values_t, check_names, count_given, resolve_path, max_values, max_fields
+  public :: reader_t, namelist_values_t, check_names, count_given, is_not_given, not_given, not_finite_entry, resolve_path, &
+            max_values, max_fields
 
   integer, parameter :: max_values = 10000, max_fields = 32
+
+  !> The bits of what a list entry holds until the input gives it
+  !> (not_given): a quiet NaN whose payload no namelist read makes
+  !> (gfortran reads every spelling of NaN, NaN(...) included, as the
+  !> default NaN), so that a NaN the input writes, also as the list's last
+  !> value, is told apart from an entry not given.
+  integer(i8), parameter :: not_given_bits = 9221120240777019119_i8     ! z'7FF80000DEADBEEF'
 
   type :: reader_t
     type(nml_file_t) :: file
@@ -43,7 +51,7 @@ module ellroll_input_reader
     character(len=16) :: kind
     character(len=1024) :: record_file(3)
     real(wp) :: factor
-    real(wp) :: sa_periods(max_sa_periods)  !< &excitation: periods of the stored Sa (NaN: not given)
+    real(wp) :: sa_periods(max_sa_periods)  !< &excitation: periods of the stored Sa (not_given where not given)
     character(len=16) :: combine, invalid, spacing
     integer(i8) :: samples, seed
     character(len=32) :: name
@@ -209,15 +217,43 @@ contains
     end do
   end function require_all
 
-  !> Entries of a NaN-initialised list that were given.
+  !> Entries of a list that starts as not_given, up to the last given.
   pure integer function count_given(list)
     real(wp), intent(in) :: list(:)
     integer :: k
     count_given = 0
     do k = 1, size(list)
-      if (.not. ieee_is_nan(list(k))) count_given = k
+      if (.not. is_not_given(list(k))) count_given = k
     end do
   end function count_given
+
+  !> Why entry k of a list is not a finite number, for a message: 'value K
+  !> is NaN' (or Inf, -Inf), or 'value K is not given' for a gap (`1, , 3`).
+  subroutine not_finite_entry(list, k, text)
+    real(wp), intent(in) :: list(:)
+    integer, intent(in) :: k
+    character(len=:), allocatable, intent(out) :: text
+    if (is_not_given(list(k))) then
+      text = 'value ' // itoa(k) // ' is not given'
+    else
+      text = 'value ' // itoa(k) // ' is ' // format_real(list(k))
+    end if
+  end subroutine not_finite_entry
+
+  !> The value of a list entry not given (not_given_bits). A function of a
+  !> variable: gfortran folds the transfer of a constant into a real
+  !> constant without the NaN's payload.
+  pure real(wp) function not_given()
+    integer(i8) :: bits
+    bits = not_given_bits
+    not_given = transfer(bits, not_given)
+  end function not_given
+
+  !> Whether x is not_given, bit for bit (a comparison would not tell NaNs apart).
+  elemental logical function is_not_given(x)
+    real(wp), intent(in) :: x
+    is_not_given = transfer(x, 1_i8) == not_given_bits
+  end function is_not_given
   !> How much of input_path (its folder, with the '/') goes before path: none
   !> for an absolute path or an input in the current folder.
   pure integer function folder_prefix_length(path, input_path) result(n)

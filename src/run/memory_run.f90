@@ -11,7 +11,8 @@ module ellroll_memory_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   !$ use omp_lib, only: omp_get_max_threads, omp_set_num_threads
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t
+  use ellroll_errors, only: error_t, set_error, err_interrupted
+  use ellroll_system, only: stop_signal, signal_name
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_invalid, status_count
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
@@ -102,6 +103,7 @@ contains
     logical, allocatable :: invalid(:)
     character(len=:), allocatable :: messages
     integer(i8) :: i, n_cases
+    integer :: sig
     ! no file is written: a name for the plan, which then needs no &output file
     call read_input_text(label, text, '(memory)', inp, out%err)
     if (out%err%failed()) return
@@ -114,6 +116,10 @@ contains
       if (invalid(i)) out%results(i)%status = status_invalid
     end do
     call run_cases(inp, invalid, threads, out)
+    ! asked to stop (ellroll_stop): cases were cut short or never run
+    sig = stop_signal()
+    if (sig /= 0 .and. .not. out%err%failed()) &
+      call set_error(out%err, err_interrupted + sig, 'interrupted by ' // signal_name(sig))
     if (out%err%failed()) then
       deallocate (out%results)
       return
@@ -142,7 +148,9 @@ contains
     n_threads = int(min(int(n_threads, i8), (n_cases - 1) / block_slots + 1))
     !$omp parallel do schedule(dynamic, 1) num_threads(n_threads) default(shared) private(chunk)
     do chunk = 0, (n_cases - 1) / block_slots
-      if (.not. loop_failed()) call run_block(chunk)
+      if (.not. loop_failed()) then
+        if (stop_signal() == 0) call run_block(chunk)
+      end if
     end do
     !$omp end parallel do
   contains

@@ -99,3 +99,180 @@ def test_empty_file(ellroll, tmp_path):
     (tmp_path / "empty.nml").write_text("")
     result = run(ellroll, "check", "empty.nml", cwd=tmp_path)
     assert result.returncode == 2 and "empty.nml:1: the file is empty" in result.stderr
+
+
+# Every list input of the namelist, a number that is not finite (each
+# spelling gfortran reads) at its first, a middle and its last place: the
+# list is refused, naming the value and its place. (A trailing NaN is where
+# a list that starts as NaN cannot tell it from an entry not given.)
+NOT_FINITE = ["NaN", "nan", "NaN()", "-NaN", "nan(0x7ff4)", "Inf", "-Infinity", "+inf"]
+LIST_BASE = {
+    "geometry": {"a": "1.0", "b": "0.4", "c": "0.2"},
+    "ball": {"radius": "0.2", "weight": "2620.0", "mu": "0.1", "slip": "'slide'"},
+    "initial": {"x": "0.0", "y": "0.0", "omega": "0.0, 0.0, 0.0", "velocity": "0.5, 0.0, 0.0"},
+    "integration": {"method": "'rk4'", "dt": "1.0e-3", "t_end": "1.0"},
+    "excitation": {"kind": "'record'", "record_file": "'{records}/SYN1_H1.AT2', '{records}/SYN1_H2.AT2'",
+                   "sa_periods": "0.2, 0.5, 1.0"},
+    "output": {"file": "'x.h5'", "interval": "0.01"},
+    "sweep": {"name": "'mu'", "values": "0.05, 0.1"},
+}
+# (group, variable, good values)
+LISTS = [
+    ("initial", "omega", ["0.0", "0.0", "0.0"]),
+    ("initial", "velocity", ["0.5", "0.0", "0.0"]),
+    ("excitation", "sa_periods", ["0.2", "0.5", "1.0", "2.0"]),
+    ("sweep", "values", ["0.05", "0.1", "0.2", "0.3"]),
+]
+RANDOM_LISTS = 4
+
+
+def list_inputs(rng):
+    """(group, variable, value text, place of the bad value) for every list
+    input, each bad spelling at its first, middle and last place, and lists
+    of random length with a bad value at a random place (seeded)."""
+    for group, variable, good in LISTS:
+        for place in (0, len(good) // 2, len(good) - 1):
+            for bad in NOT_FINITE:
+                values = list(good)
+                values[place] = bad
+                yield group, variable, ", ".join(values), place + 1
+        if variable in ("values", "sa_periods"):
+            for _ in range(RANDOM_LISTS):
+                n = rng.randint(1, 12)
+                values = [f"{0.05 * (k + 1):.3g}" for k in range(n)]
+                place = rng.randrange(n)
+                values[place] = rng.choice(NOT_FINITE)
+                yield group, variable, ", ".join(values), place + 1
+
+
+def test_a_list_with_a_value_not_finite_anywhere_is_refused(ellroll, tmp_path):
+    import random
+    rng = random.Random(8)
+    records = (PAPER_INPUT.parent / "records").resolve()
+    tried = 0
+    for group, variable, value, place in list_inputs(rng):
+        groups = {name: dict(body) for name, body in LIST_BASE.items()}
+        groups[group][variable] = value
+        text = "".join(f"&{name} " + ", ".join(f"{k} = {v}" for k, v in body.items()) + " /\n"
+                       for name, body in groups.items()).format(records=records)
+        (tmp_path / "case.nml").write_text(text)
+        result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+        context = f"{group} {variable} = {value}: {result.stderr}"
+        assert result.returncode == 2, context
+        line = list(groups).index(group) + 1
+        assert result.stderr.startswith(f"ellroll: error: case.nml:{line}: &{group}: {variable} = {value}: "), context
+        if variable in ("values", "sa_periods"):
+            assert f"value {place} is " in result.stderr, context
+        else:
+            assert "three finite numbers are needed" in result.stderr, context
+        tried += 1
+    assert tried == 3 * len(NOT_FINITE) * len(LISTS) + 2 * RANDOM_LISTS
+
+
+@pytest.mark.parametrize("assignment,words", [
+    ("values = 5.0, , 10.0", "value 2 is not given"),
+    ("values(3) = 2.0", "value 1 is not given"),
+    ("values = 2*NaN", "value 1 is NaN"),
+    ("values = 0.1, 2*Inf", "value 2 is Infinity"),
+])
+def test_a_gap_or_repeated_bad_value_in_a_sweep_is_named(ellroll, tmp_path, assignment, words):
+    text = PAPER_INPUT.read_text() + f"&sweep name = 'omega_z', {assignment} /\n"
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+    assert result.returncode == 2 and f"&sweep: {assignment}: {words}" in result.stderr, result.stderr
+
+
+def shard_specs(rng, n):
+    """n malformed --shard values (seeded): a well-formed I/N with text
+    before, inside or after it, and I/N outside 0 <= I < N."""
+    garbage = ["/3", "x", " ", ",", ",3", "/", ".0", "e0", "+", "-", "*", "0x", "\t", "/2/3"]
+    specs = ["1/2/3", "1/2x", "1/", "/2", "/", "", "1", "2/2", "3/2", "-1/2", "1/0", "99999999999/1",
+             "0/99999999999"]
+    while len(specs) < n:
+        count = rng.randint(1, 40)
+        index = rng.randrange(count)
+        where, piece = rng.randrange(4), rng.choice(garbage)
+        spec = [f"{piece}{index}/{count}", f"{index}{piece}/{count}", f"{index}/{piece}{count}",
+                f"{index}/{count}{piece}"][where]
+        specs.append(spec)
+    return specs
+
+
+def test_malformed_shards_are_refused_and_good_ones_taken(ellroll, tmp_path):
+    import random
+    rng = random.Random(12)
+    (tmp_path / "case.nml").write_text(PAPER_INPUT.read_text())
+    for spec in shard_specs(rng, 60):
+        result = run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path)
+        assert result.returncode == 2, spec
+        assert f"--shard needs I/N with 0 <= I < N, not {spec} " in result.stderr, (spec, result.stderr)
+    for _ in range(5):
+        count = rng.randint(1, 40)
+        spec = f"{rng.randrange(count)}/{count}"
+        assert run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path).returncode == 0, spec
+    for threads in ["2/3", "2 x", "1.5", "+2", "0x2", "99999999999", ""]:
+        result = run(ellroll, "check", "case.nml", "--threads", threads, cwd=tmp_path)
+        assert result.returncode == 2 and f"--threads needs a positive number, not {threads} " in result.stderr, \
+            (threads, result.stderr)
+
+
+# mu: unset is 'not limited'; a given mu must be > 0, whatever the slip
+# mode, and a 0 in a sweep makes that case invalid, with the same words.
+MU_ZERO = ["0", "0.0", "-0.0", "0e0", "0.000", "+0d0"]
+
+
+@pytest.mark.parametrize("slip", ["end", "slide"])
+def test_mu_zero_is_refused_with_the_way_to_unlimited_friction(ellroll, tmp_path, slip):
+    for zero in MU_ZERO:
+        text = PAPER_INPUT.read_text().replace("weight = 2620.0", f"weight = 2620.0, mu = {zero}, slip = '{slip}'")
+        (tmp_path / "case.nml").write_text(text)
+        for command in ("check", "run"):
+            result = run(ellroll, command, "case.nml", "-o", "x.h5", cwd=tmp_path)
+            assert result.returncode == 2, (zero, result.stderr)
+            assert result.stderr.startswith(f"ellroll: error: case.nml:5: &ball: mu = {zero}: must be > 0 and "
+                                            "<= 1000000 (leave mu out for unlimited friction)"), result.stderr
+        assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_sweep_of_mu_reaching_zero_makes_that_case_invalid(ellroll, tmp_path):
+    import random
+    import h5py
+    rng = random.Random(7)
+    for trial in range(3):
+        values = [round(rng.uniform(0.05, 0.5), 3) for _ in range(rng.randint(2, 5))]
+        zero = rng.randrange(len(values))
+        values[zero] = 0.0
+        sweep = f"&sweep name = 'mu', values = {', '.join(map(str, values))} /\n"
+        (tmp_path / "case.nml").write_text(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5") + sweep)
+        result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+        assert result.returncode == 2, result.stderr
+        assert f"case.nml: case {zero} (mu = 0): mu = 0: must be > 0 and <= 1000000 (leave mu out for " \
+               "unlimited friction)" in result.stderr, result.stderr
+        (tmp_path / "case.nml").write_text((tmp_path / "case.nml").read_text() + "&campaign invalid = 'skip' /\n")
+        result = run(ellroll, "run", "case.nml", "-q", "--overwrite", "-o", "x.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / "x.h5") as f:
+            meanings = f["summary/status"].attrs["flag_meanings"].split()
+            statuses = [meanings[s] for s in f["summary/status"][:]]
+            assert [s == "invalid" for s in statuses] == [k == zero for k in range(len(values))], statuses
+            assert list(f["case/mu"][:]) == values
+
+
+def test_mu_left_out_is_not_limited(ellroll, tmp_path):
+    """The paper's case needs up to 0.0759 of friction: unset, no limit
+    ends it, and /case/mu is NaN; mu just below what it needs ends it with slip."""
+    import h5py
+    import math
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0")
+    (tmp_path / "case.nml").write_text(text)
+    assert run(ellroll, "run", "case.nml", "-q", "-o", "free.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "free.h5") as f:
+        meanings = f["summary/status"].attrs["flag_meanings"].split()
+        assert meanings[f["summary/status"][0]] == "completed" and math.isnan(f["case/mu"][0])
+        needed = float(f["summary/friction_needed_max"][0])
+    assert needed > 0.01
+    (tmp_path / "case.nml").write_text(text.replace("weight = 2620.0", f"weight = 2620.0, mu = {needed * 0.9!r}"))
+    assert run(ellroll, "run", "case.nml", "-q", "-o", "slip.h5", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "slip.h5") as f:
+        meanings = f["summary/status"].attrs["flag_meanings"].split()
+        assert meanings[f["summary/status"][0]] == "slip" and f["case/mu"][0] == needed * 0.9

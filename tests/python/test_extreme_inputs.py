@@ -16,7 +16,7 @@ EXTREMES = ["NaN", "Inf", "-Inf", "1e309", "-1e309", "1e300", "-1e300", "1e-300"
 # group: {variable: value in the base case}; the vectors' components one at a time
 BASE = {
     "geometry": {"a": "1.0", "b": "0.4", "c": "0.2"},
-    "ball": {"radius": "0.2", "weight": "2620.0", "inertia_factor": "0.4", "mu": "0", "mass": None},
+    "ball": {"radius": "0.2", "weight": "2620.0", "inertia_factor": "0.4", "mu": None, "mass": None},
     "environment": {"g": "9.81"},
     "initial": {"x": "0.0", "y": "0.0", "omega(1)": "-2.0", "omega(2)": "2.0", "omega(3)": "20.0"},
     "integration": {"method": "'rk4'", "dt": "1.0e-3", "t_end": "0.05", "fit_margin": "1e-6",

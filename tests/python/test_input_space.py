@@ -123,7 +123,7 @@ def table_rows(exe):
         assert between or positive, f"unparsed range of {name}: {valid}"
         low, high = (float(between[1]), float(between[2])) if between else (0.0, float(positive[1]))
         rows.append(Row(name, group.lstrip("&"), base[1], int(base[2] or 0), unit, valid, low, high,
-                        bool(positive), default == "required", NAN if default == "required" else float(default),
+                        bool(positive), default == "required", NAN if default in ("required", "unset") else float(default),
                         description))
     return rows
 

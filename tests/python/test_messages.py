@@ -415,3 +415,66 @@ def test_bash_completion_completes_paths(tmp_path):
     assert completion(tmp_path, "summary", "results/") == ["results/out.h5"]
     assert completion(tmp_path, "run", "inline.nml", "-o", "res") == ["results"]
     assert completion(tmp_path, "run", "--thr") == ["--threads"]
+
+
+def tangent_vz(a, b, c, x, y, vx, vy):
+    """The vz that makes (vx, vy, vz) tangent to the cup x^2/a^2 + y^2/b^2 +
+    (z - c)^2/c^2 = 1 at its point over (x, y) (independent of the Fortran)."""
+    import math
+    s = math.sqrt(1 - (x / a) ** 2 - (y / b) ** 2)
+    normal = (x / a**2, y / b**2, -s / c)          # the gradient there, (z - c) / c^2 = -s / c
+    return -(vx * normal[0] + vy * normal[1]) / normal[2]
+
+
+SLIDING_START = {
+    "geometry": "a = 1.0, b = 0.4, c = 0.2",
+    "ball": "radius = 0.05, weight = 2620.0, mu = 0.1, slip = 'slide'",
+    "integration": "method = 'rk4', dt = 1.0e-3, t_end = 0.1",
+    "output": "file = 'out.h5', interval = 0.01",
+}
+
+
+def test_a_velocity_not_tangent_is_refused_with_the_tangent_vz(ellroll, tmp_path):
+    """Seeded starts off the centre: a vz off by 1e-6 |v| is refused, and the
+    message gives the tolerance and the tangent vz to full precision (it
+    passes); one off by 1e-11 |v| is taken."""
+    import math
+    rng = random.Random(14)
+    for _ in range(6):
+        while True:
+            x, y = rng.uniform(-0.7, 0.7), rng.uniform(-0.28, 0.28)
+            if (x / 1.0) ** 2 + (y / 0.4) ** 2 < 0.5:
+                break
+        vx, vy = rng.uniform(-1, 1), rng.uniform(-1, 1)
+        vz = tangent_vz(1.0, 0.4, 0.2, x, y, vx, vy)
+        speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+
+        def check(vz_given):
+            groups = dict(SLIDING_START, initial=f"x = {x!r}, y = {y!r}, omega = 0.0, 0.0, 0.0, "
+                                                 f"velocity = {vx!r}, {vy!r}, {vz_given!r}")
+            return run(ellroll, "check", write(tmp_path, groups), cwd=tmp_path)
+
+        result = check(vz + 1e-6 * speed)
+        assert result.returncode == 2, result.stderr
+        assert "&initial: velocity = " in result.stderr and "(|v . n| <= 1e-09 |v|)" in result.stderr, result.stderr
+        given = float(re.search(r"tangent velocity has vz = (\S+) m/s", result.stderr).group(1))
+        assert abs(given - vz) <= 1e-14 * max(speed, 1e-300), (given, vz)
+        assert check(given).returncode == 0
+        assert check(vz + 1e-11 * speed).returncode == 0
+
+
+@pytest.mark.parametrize("component", ["x", "y", "z"])
+def test_a_swept_velocity_component_breaking_tangency_names_the_velocity(ellroll, tmp_path, component):
+    """The case names the swept component, the message the whole vector (not
+    the component the check looked at first) and the tangent vz."""
+    groups = dict(SLIDING_START, initial="x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0, velocity = 0.1, 0.2, 0.0",
+                  sweep=f"name = 'velocity_{component}', values = 0.0, 0.3")
+    result = run(ellroll, "check", write(tmp_path, groups), cwd=tmp_path)
+    velocity = {"x": [0.3, 0.2, 0.0], "y": [0.1, 0.3, 0.0], "z": [0.1, 0.2, 0.3]}[component]
+    if component != "z":                       # at the centre n = z: vx, vy do not break it
+        assert result.returncode == 0, result.stderr
+        return
+    assert result.returncode == 2, result.stderr
+    assert f"case.nml: case 1 (velocity_z = 0.3): velocity = {', '.join(f'{v:g}' for v in velocity)}: " \
+           "must be tangent" in result.stderr, result.stderr
+    assert "velocity_x = " not in result.stderr and "tangent velocity has vz = 0 m/s" in result.stderr

@@ -612,3 +612,140 @@ def test_values_taken_out_of_a_run_outlive_it():
     assert same_bits(taken, expected.ravel())
     del taken
     lib.ellroll_free_values(owner)
+
+
+INTERRUPTED = """
+import sys, threading, time
+sys.path.insert(0, sys.argv[1])
+import ellroll
+SHORT = sys.argv[2]
+LONG = SHORT.replace("t_end = 1.0", "t_end = 3000.0").replace("dt = 1.0e-3", "dt = 1.0e-4")
+run = ellroll.run_arrays if sys.argv[3] == "run_arrays" else ellroll.run
+before = ellroll.run_arrays(SHORT)[0]["summary"]["theta_max"].copy()
+print("started", flush=True)
+try:
+    run(LONG)
+    print("finished", flush=True)
+except KeyboardInterrupt:
+    print(f"interrupted {time.monotonic():.6f}", flush=True)
+after = ellroll.run_arrays(SHORT)[0]["summary"]["theta_max"]
+print("usable", bool(after.tobytes() == before.tobytes()), flush=True)
+"""
+
+
+@pytest.mark.parametrize("function", ["run_arrays", "run"])
+def test_ctrl_c_stops_a_run_promptly_and_leaves_the_library_usable(tmp_path, function):
+    """SIGINT during a run of some 30 s (3e7 rk4 steps): KeyboardInterrupt
+    within 0.5 s, and the next run gives the same bits as before."""
+    import signal
+    import subprocess
+    short = ("&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
+             "&initial omega = -2.0, 2.0, 20.0 /\n&integration method = 'rk4', dt = 1.0e-3, t_end = 1.0 /\n"
+             "&output interval = 1.0 /\n")
+    (tmp_path / "interrupted.py").write_text(INTERRUPTED)
+    child = subprocess.Popen([sys.executable, "interrupted.py", str(ROOT / "post"), short, function], cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             env=dict(os.environ, ELLROLL_LIB=str(ellroll.library_path())))
+    try:
+        assert child.stdout.readline().strip() == "started"
+        time.sleep(1.0)
+        sent = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        line = child.stdout.readline().split()
+        assert line and line[0] == "interrupted", (line, child.stderr.read() if not line else "")
+        delay = float(line[1]) - sent
+        assert delay < 0.5, delay
+        assert child.stdout.readline().split() == ["usable", "True"]
+        assert child.wait(timeout=60) == 0
+    finally:
+        child.kill()
+
+
+GOOD_GROUPS = {
+    "geometry": {"a": 1.0, "b": 0.4, "c": 0.2}, "ball": {"radius": 0.2, "weight": 2620.0},
+    "initial": {"omega": [-2.0, 2.0, 20.0]}, "integration": {"method": "rk4", "dt": 1e-3, "t_end": 0.1},
+    "output": {"interval": 0.01},
+}
+
+
+@pytest.mark.parametrize("inputs", [42, 4.2, b"&geometry a = 1.0 /\n", None, ["&geometry"], ("a",), {1, 2}])
+def test_an_input_neither_text_nor_dict_is_an_input_error_naming_its_type(inputs):
+    for function in (ellroll.run, ellroll.run_arrays, ellroll.namelist):
+        with pytest.raises(ellroll.InputError) as raised:
+            function(inputs)
+        assert type(inputs).__name__ in raised.value.message and raised.value.code == 2
+
+
+def bad_names(rng):
+    """Keys that are not namelist names (seeded): text that would be pasted
+    into the namelist as something else, non-ASCII letters, non-str keys."""
+    fixed = ["a=2, b", "a b", "ä", "", "1a", "_a", "a,", "a/", "a!", "a'", "a(0)", "a(", "a()", "a(1", "a)",
+             "a(-1)", "a(1,2)", " a", "a ", "a\n", "&a", 3, None, 1.5, ("a",)]
+    pieces = "= ,/!&'\"()$\t\n-+.*"
+    drawn = []
+    while len(drawn) < 20:
+        name = list("omega")
+        name.insert(rng.randrange(len(name) + 1), rng.choice(pieces))
+        drawn.append("".join(name))
+    return fixed + drawn
+
+
+def test_dict_group_and_variable_names_must_be_names(tmp_path):
+    import random
+    rng = random.Random(11)
+    for bad in bad_names(rng):
+        groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+        groups["geometry"][bad] = 1.0
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.namelist(groups)
+        assert "&geometry: variable name " + repr(bad) in raised.value.message, (bad, raised.value.message)
+        groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+        groups[bad] = {"a": 1.0}
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.run_arrays(groups)
+        assert "group name " + repr(bad) in raised.value.message, (bad, raised.value.message)
+    # a name and one element of a vector are taken
+    groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+    groups["initial"] = {"omega(1)": -2.0, "omega(2)": 2.0, "omega(3)": 20.0}
+    assert ellroll.run_arrays(groups)[0]["summary"]["status"].shape == (1,)
+
+
+@pytest.mark.parametrize("threads", [0, -1, 2**31, 2**40, 1.0, "2", True, None])
+def test_threads_within_the_programs_bounds(threads):
+    if threads is None:
+        assert ellroll.run_arrays(GOOD_GROUPS, threads=threads)[0]["summary"]["status"].shape == (1,)
+        return
+    with pytest.raises(ellroll.InputError) as raised:
+        ellroll.run_arrays(GOOD_GROUPS, threads=threads)
+    assert f"threads = {threads!r}: give a count from 1 to 2147483647" in raised.value.message
+
+
+def test_record_names_as_record_groups():
+    time = np.arange(5) * 0.01
+    acceleration = np.zeros((5, 2))
+    for name in ["r", "a" * 32, "SYN1_H1.x-y"]:
+        assert ellroll.Record(time, acceleration, name=name).name == name
+    for name in ["", "a" * 33, "a b", "ä", "a/b"]:
+        with pytest.raises(ellroll.InputError, match="1 to 32"):
+            ellroll.Record(time, acceleration, name=name)
+    for name in [None, 3, b"r"]:
+        with pytest.raises(ellroll.InputError, match="give a text"):
+            ellroll.Record(time, acceleration, name=name)
+
+
+def test_a_bad_record_array_is_named_by_its_record_and_row():
+    """The message names the Record and the row of the bad value, not its temporary file."""
+    import random
+    rng = random.Random(10)
+    for _ in range(3):
+        n = rng.randint(20, 60)
+        time = np.arange(n) * 0.01
+        acceleration = np.array([[rng.uniform(-1, 1), rng.uniform(-1, 1)] for _ in range(n)])
+        row = rng.randrange(n)
+        acceleration[row, rng.randrange(2)] = rng.choice([np.nan, np.inf])
+        groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+        groups["excitation"] = {"kind": "record", "record_file": ellroll.Record(time, acceleration, name="quake")}
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.run_arrays(groups)
+        message = raised.value.message
+        assert f"Record 'quake' row {row}" in message and "ellroll-records-" not in message, message

@@ -349,7 +349,8 @@ def test_a_stiff_slip_stops_inside_a_step(ellroll_debug, tmp_path, method):
 @pytest.mark.parametrize("change, words", [
     ("inertia_factor = 0.4", "inertia_factor = 1e-4: must be between 0.001 and"),
     ("inertia_factor = 0.4", "inertia_factor = 1e-300: must be between 0.001 and"),
-    ("mu = 0.1", "mu = 1.0000001e6: must be between 0 and 1000000"),
+    ("mu = 0.1", "mu = 1.0000001e6: must be > 0 and <= 1000000"),
+    ("mu = 0.1", "mu = 0.0: must be > 0 and <= 1000000 (leave mu out for unlimited friction)"),
 ])
 def test_a_ball_beyond_the_bounds_is_refused(ellroll_debug, tmp_path, change, words):
     given = words.split(":")[0]
