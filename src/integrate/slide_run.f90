@@ -239,7 +239,15 @@ contains
       res%n_steps = res%n_steps + 1
       if (ended) return
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
-      hovering = merge(hovering + 1, 0, now%sliding .and. hovering_slip(pair, sb, now))
+      if (now%sliding) then
+        if (hovering_slip(pair, sb, now)) then
+          hovering = hovering + 1
+        else
+          hovering = 0
+        end if
+      else
+        hovering = 0
+      end if
       if (hovering >= hover_steps .and. mod(hovering, hover_steps) == 0) then
         ! the slip is zero to the pair's tolerance: it stops if rolling can go on
         call stop_sliding(rolling, sb, t_next, now, res, tally, at_rest_only=.true.)

@@ -273,7 +273,9 @@ def test_energy_drift_of_a_sliding_start_is_the_balance_residual(ellroll, tmp_pa
     e0 = G * R + v0**2 / 2
     assert energy[0] == pytest.approx(e0, rel=1e-12)
     assert energy[0] - energy[-1] == pytest.approx(v0**2 / 7, rel=1e-6)
-    assert abs(energy[-1] - energy[0] + work) / e0 <= drift
+    # (the last sample's E and the step end's E + W are summed apart: a few
+    # units of round-off between them)
+    assert abs(energy[-1] - energy[0] + work) / e0 <= drift + 8 * np.finfo(float).eps
     # 2.5e-9 measured with rk4 (the friction's work by the trapezoidal rule
     # over the last piece of sliding); the loss itself is 0.096 of E0
     assert drift < 1e-7
@@ -359,3 +361,24 @@ def test_a_ball_beyond_the_bounds_is_refused(ellroll_debug, tmp_path, change, wo
     result = run(ellroll_debug, "run", "case.nml", "-q", "--overwrite", cwd=tmp_path)
     assert result.returncode == 2
     assert "case.nml:2: &ball: " + words in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize("integration", ["method = 'dop853', rtol = 1e-8", "method = 'dop853', rtol = 1e-9",
+                                         "method = 'vern9', rtol = 1e-8", "method = 'vern9', rtol = 1e-10"])
+def test_a_slip_that_stops_where_rolling_needs_nearly_mu_ends_once(ellroll, tmp_path, integration):
+    """The triaxial cup at mu = 0.05 over 5 s: the second episode's slip
+    falls to zero (about 4.370 s) where rolling's friction is close to mu N,
+    and hovers there at the size of the pair's error; once it has for 64
+    steps it counts as stopped. The sliding time is 3.181279 s (dop853 at
+    rtol 1e-10 and vern9 at 1e-12 agree to 1e-9 s); without the rule the
+    pairs took 16 to 48 million right-hand sides (dop853) or minutes (vern9)
+    and gave 3.2267 s at dop853's rtol 1e-8."""
+    text = TRIAXIAL.replace("method = 'rk4', dt = {dt}", integration).format(mu=0.05, slip="slide")
+    with run_text(ellroll, tmp_path, text) as f:
+        status = f["summary/status"][0]
+        sliding_time = f["summary/sliding_time"][0]
+        episodes = f["summary/slip_episodes"][0]
+        n_rhs = f["summary/n_rhs"][0]
+    assert status == 1 and episodes == 2
+    assert sliding_time == pytest.approx(3.181279, abs=3e-5)
+    assert n_rhs < 3_000_000        # 86k (dop853, 1e-8) to 1.6M (vern9, 1e-10)
