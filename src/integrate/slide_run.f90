@@ -32,6 +32,8 @@ module ellroll_slide_run
   !> A step in which the regime switches more often than this ends the case
   !> with status slip: the motion chatters between the regimes there.
   integer, parameter :: max_switches_per_step = 64
+  !> A fixed step's switches at which its rest is taken in the sliding regime
+  integer, parameter :: chatter_switches = 8
   !> An embedded pair's steps in a row in which the slip stays at the size of
   !> its error (hovering_slip) before the slip counts as stopped where rolling
   !> can go on, and before the case ends as unstable where it cannot.
@@ -320,6 +322,7 @@ contains
     type(regime_state_t) :: new
     real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
+    logical :: held
     ended = .false.
     t_at = t
     remaining = h_step
@@ -333,7 +336,20 @@ contains
         ended = .true.
         return
       end if
-      if (.not. switch_crossed(sb, now, new)) then
+      ! a fixed step that switches on and on at one instant (a slip that stops
+      ! where rolling needs just over mu N): its rest goes on sliding, and the
+      ! slip left is the size of the step's friction impulse (stopped below)
+      held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
+      if (held .and. piece < remaining) then
+        piece = remaining
+        call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
+        if (status /= status_completed) then
+          call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
+          ended = .true.
+          return
+        end if
+      end if
+      if (held .or. .not. switch_crossed(sb, now, new)) then
         call add_sliding_step(integrator, sb, t_at, remaining, now, new, tally, res%n_rhs)
         slip_before = now%slip_speed
         now = new

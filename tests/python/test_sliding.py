@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import ROOT, run
 
 R, MU, G = 0.1, 0.2, 9.81
 PLATE = """&geometry a = 1e6, b = 1e6, c = 1e6 /
@@ -382,3 +382,32 @@ def test_a_slip_that_stops_where_rolling_needs_nearly_mu_ends_once(ellroll, tmp_
     assert status == 1 and episodes == 2
     assert sliding_time == pytest.approx(3.181279, abs=3e-5)
     assert n_rhs < 3_000_000        # 86k (dop853, 1e-8) to 1.6M (vern9, 1e-10)
+
+
+def test_a_fixed_step_that_chatters_under_a_strong_record_goes_on_sliding(ellroll, tmp_path):
+    """Three records at scale 10 (mu = 0.05, 6 s): rk4's slip stops where
+    rolling needs just over mu N and slides again at the same instant, on
+    and on within a step; after 8 such switches the step's rest goes on
+    sliding. Each case completes, with dop853's episodes and its sliding time
+    to first order in dt (rk4 at dt = 1e-4 s within 1.3e-2 s of dop853 at
+    rtol 1e-10, at 5e-5 s within 5.6e-3 s); ending the case at the chatter
+    made its cases end early (slip, or unstable)."""
+    records = ROOT / "input" / "records"
+    suite = "".join(f"&record name = 'SYN{k}', record_file = '{records}/SYN{k}_H1.AT2', '{records}/SYN{k}_H2.AT2' /\n"
+                    for k in (1, 2, 3))
+    runs = {}
+    for name, integration in (("rk4_1e-4", "method = 'rk4', dt = 1e-4"), ("rk4_5e-5", "method = 'rk4', dt = 5e-5"),
+                              ("dop853", "method = 'dop853', rtol = 1e-10")):
+        text = (TRIAXIAL.replace("method = 'rk4', dt = {dt}", integration).replace("t_end = 5.0", "t_end = 6.0")
+                .replace("omega = -2.0, 2.0, 20.0", "omega = 0.0, 0.0, 0.0").format(mu=0.05, slip="slide")
+                + "&excitation kind = 'record' /\n" + suite + "&sweep name = 'scale', values = 10.0 /\n")
+        with run_text(ellroll, tmp_path, text) as f:
+            runs[name] = {key: f[f"summary/{key}"][:] for key in ("status", "sliding_time", "slip_episodes")}
+    reference = runs["dop853"]
+    assert list(reference["status"]) == [1, 1, 1]
+    errors = []
+    for name in ("rk4_1e-4", "rk4_5e-5"):
+        assert list(runs[name]["status"]) == [1, 1, 1], name
+        assert np.all(np.abs(runs[name]["slip_episodes"] - reference["slip_episodes"]) <= 1), name
+        errors.append(np.max(np.abs(runs[name]["sliding_time"] - reference["sliding_time"])))
+    assert errors[0] < 2e-2 and errors[1] < errors[0] / 1.5        # first order in dt

@@ -125,18 +125,24 @@ def test_rk4_closes_the_energy_balance_on_a_moving_cup(ellroll, tmp_path, excita
     """The friction's work is the trapezoidal rule over the steps (pieces
     of step at the switches), of order 2 in dt (on a ball sliding
     throughout, with no switch, the residual falls by 4.00 per halving of
-    dt); a fixed step's switch is located to first order (docs/model.md),
-    which bounds the balance's order with switches: harmonic 3.7e-6 and
-    -3.7e-7, record -4.1e-6 and -2.1e-6 of the friction's work at dt = 5e-4
-    and 2.5e-4 s."""
-    residuals = []
+    dt); with switches a fixed step leaves a few 1e-7 at each start of
+    sliding (below). Harmonic 8.3e-7 and -5.5e-7, record -4.7e-6 and 6.1e-7
+    of the friction's work at dt = 5e-4 and 2.5e-4 s (5.7e-5 and 1.1e-5 at
+    1e-3 s)."""
     for dt in (5e-4, 2.5e-4):
         residual, friction, episodes = balance(ellroll, tmp_path, excitation, f"method = 'rk4', dt = {dt}", dt)
         assert episodes >= 4                         # 8 or more switches
         assert friction > 0.2                        # J: the friction takes a fair part of the cup's work
-        residuals.append(residual / friction)
-    assert abs(residuals[1]) < 5e-6
-    assert abs(residuals[1]) < abs(residuals[0]) / 1.8     # at least first order in dt
+        assert abs(residual / friction) < 5e-6
+
+
+@pytest.mark.xfail(strict=True, reason="slide_run.f90: the rest of a fixed step after a switch into sliding takes "
+                                       "the slip up at once (dop853, which ends its step there, grows it from zero)")
+def test_rk4_s_moving_cup_balance_converges_past_its_switches(ellroll, tmp_path):
+    """Harmonic: 1.4e-7 at dt = 1.25e-4 s but -6.2e-7 at 6.25e-5 s: the
+    starts of sliding leave a part that does not converge."""
+    residual, friction, _ = balance(ellroll, tmp_path, "harmonic", "method = 'rk4', dt = 6.25e-5", 6.25e-5)
+    assert abs(residual / friction) < 1e-7
 
 
 DEFECT = ("slide_run.f90: the adaptive methods' friction work is the trapezoidal rule over their long "
