@@ -329,25 +329,20 @@ contains
     t_stop = t + h_step
     do switches = 0, max_switches_per_step
       if (now%sliding) call sb%begin_step(now%s)
-      piece = stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs)
+      ! a fixed step that switches on and on at one instant (a slip that stops
+      ! where rolling needs just over mu N): its rest goes on sliding, and the
+      ! slip left is the size of the step's friction impulse (stopped below)
+      held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
+      if (held) then
+        piece = remaining
+      else
+        piece = stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs)
+      end if
       call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
         ended = .true.
         return
-      end if
-      ! a fixed step that switches on and on at one instant (a slip that stops
-      ! where rolling needs just over mu N): its rest goes on sliding, and the
-      ! slip left is the size of the step's friction impulse (stopped below)
-      held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
-      if (held .and. piece < remaining) then
-        piece = remaining
-        call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
-        if (status /= status_completed) then
-          call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
-          ended = .true.
-          return
-        end if
       end if
       if (held .or. .not. switch_crossed(sb, now, new)) then
         call add_sliding_step(integrator, sb, t_at, remaining, now, new, tally, res%n_rhs)
