@@ -241,15 +241,7 @@ contains
       res%n_steps = res%n_steps + 1
       if (ended) return
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
-      if (now%sliding) then
-        if (hovering_slip(pair, sb, now)) then
-          hovering = hovering + 1
-        else
-          hovering = 0
-        end if
-      else
-        hovering = 0
-      end if
+      hovering = merge(hovering + 1, 0, hovering_slip(pair, sb, now))
       if (hovering >= hover_steps .and. mod(hovering, hover_steps) == 0) then
         ! the slip is zero to the pair's tolerance: it stops if rolling can go on
         call stop_sliding(rolling, sb, t_next, now, res, tally, at_rest_only=.true.)
@@ -322,7 +314,7 @@ contains
     type(regime_state_t) :: new
     real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
-    logical :: held
+    logical :: held, taken
     ended = .false.
     t_at = t
     remaining = h_step
@@ -333,12 +325,11 @@ contains
       ! where rolling needs just over mu N): its rest goes on sliding, and the
       ! slip left is the size of the step's friction impulse (stopped below)
       held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
-      if (held) then
-        piece = remaining
-      else
-        piece = stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs)
-      end if
-      call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
+      piece = remaining
+      taken = .false.
+      if (.not. held) call stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs, piece, new, status, &
+                                        taken)
+      if (.not. taken) call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
         ended = .true.
@@ -374,13 +365,15 @@ contains
     ended = .true.
   end subroutine advance
 
-  !> Whether the slip at now is within the pair's tolerance of zero, measured
-  !> against the contact's speeds (|V_C| + R |omega|).
+  !> Whether now slides with a slip within the pair's tolerance of zero,
+  !> measured against the contact's speeds (|V_C| + R |omega|).
   logical function hovering_slip(pair, sb, now) result(hovering)
     class(embedded_pair_t), intent(in) :: pair
     type(sliding_ball_t), intent(in) :: sb
     type(regime_state_t), intent(in) :: now
     real(wp) :: scale
+    hovering = .false.
+    if (.not. now%sliding) return            ! (a rolling state's s is not set)
     scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
     hovering = now%slip_speed <= 10 * (pair%atol + pair%rtol * scale)
   end function hovering_slip
@@ -390,24 +383,29 @@ contains
   !> it, twice that time where the slip has stopped by then (the stop is
   !> searched for inside that): past a stop the method's stages throw the
   !> slip the other way, by the remaining time over the stop's, which
-  !> overflows for a stiff slip (a large mu, a small inertia factor).
-  function stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs) result(piece)
+  !> overflows for a stiff slip (a large mu, a small inertia factor). Where
+  !> the piece is that trial's (taken), new and status are its step.
+  subroutine stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs, piece, new, status, taken)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t_at, remaining
     type(regime_state_t), intent(in) :: now
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: piece, bracket
-    type(regime_state_t) :: trial
-    integer :: status
+    real(wp), intent(out) :: piece
+    type(regime_state_t), intent(inout) :: new
+    integer, intent(inout) :: status
+    logical, intent(out) :: taken
+    real(wp) :: bracket
     piece = remaining
+    taken = .false.
     if (.not. now%sliding) return
     bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
     if (.not. bracket < remaining) return
-    call take(integrator, rolling, sb, t_at, bracket, now, trial, status, n_rhs)
-    if (status == status_completed .and. switch_crossed(sb, now, trial)) piece = bracket
-  end function stop_bracket
+    call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
+    taken = status == status_completed .and. switch_crossed(sb, now, new)
+    if (taken) piece = bracket
+  end subroutine stop_bracket
 
   !> Whether the regime switches between now and new (one step apart):
   !> rolling needs more friction than mu N at new; or the slip, nonzero at
