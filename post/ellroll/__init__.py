@@ -179,6 +179,13 @@ _GROUP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*", re.ASCII)
 _VARIABLE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*(\([1-9][0-9]*\))?", re.ASCII)
 
 
+def _require_groups(value):
+    """InputError unless value is a dict of groups (what namelist() writes)."""
+    if not isinstance(value, dict):
+        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
+                         f"{type(value).__name__}", _INPUT)
+
+
 def namelist(groups):
     """The namelist text of a dict of groups: {'geometry': {'a': 1.0}, 'sweep': [{...}, {...}]}.
 
@@ -186,9 +193,7 @@ def namelist(groups):
     quoted, logicals .true./.false., lists comma-separated; a group given as
     a list of dicts is written once per dict (&sweep, &record).
     """
-    if not isinstance(groups, dict):
-        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
-                         f"{type(groups).__name__}", _INPUT)
+    _require_groups(groups)
     lines = []
     for group, contents in groups.items():
         if not isinstance(group, str) or not _GROUP_NAME.fullmatch(group):
@@ -526,9 +531,7 @@ def _run_inputs(inputs, threads, path, results):
     """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
-    if not isinstance(inputs, dict):
-        raise InputError(f"the input must be a namelist text (str) or a dict of groups, not "
-                         f"{type(inputs).__name__}", _INPUT)
+    _require_groups(inputs)
     with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
         records = {}
         text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
