@@ -81,9 +81,11 @@ contains
     character(kind=c_char), intent(in) :: text(text_length), label(label_length)
     integer(c_int), value, intent(in) :: threads
     type(memory_output_t), pointer :: out
-    character(len=text_length) :: text_string
-    character(len=label_length) :: label_string
+    ! on the heap: a caller's thread may have a small stack, and a text may be large
+    character(len=:), allocatable :: text_string, label_string
     integer(i8) :: k
+    allocate (character(len=text_length) :: text_string)
+    allocate (character(len=label_length) :: label_string)
     do k = 1, text_length
       text_string(k:k) = text(k)
     end do

@@ -13,7 +13,7 @@ module ellroll_strings
   implicit none
   private
 
-  public :: lower, itoa, join, format_real, real_text, text_hash
+  public :: lower, itoa, join, format_real, real_text, text_hash, excerpt
   ! the lengths of itoa and format_real, for a caller's own result length
   ! (gfortran 12 cannot nest len(itoa(x)) of a derived type's component there)
   public :: decimal_width, real_text_length
@@ -22,6 +22,9 @@ module ellroll_strings
   interface itoa
     module procedure itoa_default, itoa_long
   end interface itoa
+
+  !> The longest text a message quotes whole (excerpt).
+  integer, parameter :: excerpt_max = 200
 
   !> The longest text real_text writes ('-1.2345678901234567e-308' and
   !> fixed-point forms up to 10 integer digits and 20 decimals).
@@ -82,6 +85,24 @@ contains
     character(len=decimal_width(i)) :: s
     write (s, '(i0)') i
   end function itoa_long
+
+  pure integer function excerpt_length(text) result(n)
+    character(len=*), intent(in) :: text
+    n = len(text)
+    if (n > excerpt_max) n = excerpt_max - 40 + 6 + decimal_width(int(n, i8)) + 12
+  end function excerpt_length
+
+  !> A text for a message: itself up to excerpt_max characters; longer, its
+  !> start and its length (a value may be megabytes long).
+  pure function excerpt(text) result(out)
+    character(len=*), intent(in) :: text
+    character(len=excerpt_length(text)) :: out
+    if (len(text) <= excerpt_max) then
+      out = text
+    else
+      out = text(:excerpt_max - 40) // ' ... (' // itoa(len(text)) // ' characters)'
+    end if
+  end function excerpt
 
   !> The words, trimmed, joined by ', '.
   pure function join(words) result(text)

@@ -10,7 +10,7 @@ module ellroll_input
   use ellroll_errors, only: error_t
   use ellroll_namelist_scan, only: nml_file_t, nml_group_t, nml_assignment_t, scan_namelist_file, &
       scan_namelist_text
-  use ellroll_strings, only: itoa, join, format_real
+  use ellroll_strings, only: itoa, join, format_real, excerpt
   use ellroll_cases, only: case_t, output_plan_t, get_param, problem_setting
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given
@@ -142,7 +142,7 @@ contains
           associate (item => grp%items(k))
             ! a longer text would be cut to the variable's length without a word
             if (text_length(v, item%base) > 0 .and. longest_text(item%source) > text_length(v, item%base)) then
-              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // &
+              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // excerpt(item%value) // &
                   ': a text of ' // itoa(longest_text(item%source)) // ' characters (blanks included); at most ' // &
                   itoa(text_length(v, item%base)) // ' fit')
               return
@@ -150,7 +150,7 @@ contains
             call read_assignment(grp, k, v, ios, msg)
             if (ios /= 0) then
               call bad_value_reason(grp%name, item, reason)
-              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // item%value // reason)
+              call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // excerpt(item%value) // reason)
               return
             end if
           end associate

@@ -7,7 +7,7 @@ module ellroll_input_reader
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_namelist_scan, only: nml_file_t, nml_assignment_t
-  use ellroll_strings, only: itoa, join, format_real
+  use ellroll_strings, only: itoa, join, format_real, excerpt
   use ellroll_params, only: param_count, params
   use ellroll_suggest, only: did_you_mean
   use ellroll_intensity, only: max_sa_periods
@@ -166,7 +166,7 @@ contains
     else
       associate (item => rd%file%groups(gi)%items(k))
         call rd%fail_at(item%line, '&' // rd%file%groups(gi)%name // ': ' // item%name // ' = ' // &
-                        item%value // ': ' // reason)
+                        excerpt(item%value) // ': ' // reason)
       end associate
     end if
   end subroutine fail_value

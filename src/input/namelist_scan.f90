@@ -7,7 +7,7 @@
 !> own (see ellroll_input), which pins every error to one variable.
 module ellroll_namelist_scan
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_strings, only: lower, itoa
+  use ellroll_strings, only: lower, itoa, excerpt
   use ellroll_files, only: path_kind, kind_folder
   implicit none
   private
@@ -216,6 +216,7 @@ contains
     character, intent(in) :: ch
     type(error_t), intent(inout) :: err
     integer :: name_start, eq_pos
+    character(len=:), allocatable :: text
     associate (clean => s%clean, i => s%i)
       if (ch == "'" .or. ch == '"') then
         s%quote = ch
@@ -235,14 +236,16 @@ contains
           call fail(s, err, s%line, "'=' without a variable name before it in &" // s%group_name)
           return
         end if
-        if (s%item_count == 0 .and. len_trim(collapse(clean(s%value_start:name_start-1))) > 0) then
-          call fail(s, err, s%line, 'unexpected text "' // collapse(clean(s%value_start:name_start-1)) // &
+        if (s%item_count == 0 .and. collapsed_length(clean(s%value_start:name_start-1)) > 0) then
+          call collapse(clean(s%value_start:name_start-1), text)
+          call fail(s, err, s%line, 'unexpected text "' // excerpt(text) // &
                     '" in &' // s%group_name // ' before the first variable')
           return
         end if
         if (.not. close_value(s, err, name_start - 1)) return
         s%item_count = s%item_count + 1
-        call append_item(s%items, lower(collapse(clean(name_start:eq_pos-1))), s%line)
+        call collapse(clean(name_start:eq_pos-1), text)
+        call append_item(s%items, lower(text), s%line)
         s%items(s%item_count)%source = clean(name_start:eq_pos)    ! value appended by close_value
         s%value_start = eq_pos + 1
       end if
@@ -258,10 +261,10 @@ contains
     integer, intent(in) :: last
     character(len=:), allocatable :: value
     close_value = .true.
-    value = collapse(s%clean(s%value_start:last))
+    call collapse(s%clean(s%value_start:last), value)
     if (s%item_count == 0) then
       if (len(value) > 0) then
-        call fail(s, err, s%line, 'unexpected text "' // value // '" in &' // s%group_name // &
+        call fail(s, err, s%line, 'unexpected text "' // excerpt(value) // '" in &' // s%group_name // &
                   '; expected name = value')
         close_value = .false.
       end if
@@ -482,26 +485,27 @@ contains
     base = name(:base_end(name))
   end function base_name
 
+  !> The length of text with blanks, tabs and line breaks collapsed (collapse).
   pure integer function collapsed_length(text) result(m)
     character(len=*), intent(in) :: text
-    character(len=len(text)) :: buf
-    call collapse_into(text, buf, m)
+    call collapse_into(text, m)
   end function collapsed_length
 
-  !> Blanks, tabs and line breaks collapsed to single blanks, ends trimmed.
-  pure function collapse(text) result(out)
+  !> Blanks, tabs and line breaks collapsed to single blanks, ends trimmed;
+  !> on the heap, as a value may be megabytes long.
+  pure subroutine collapse(text, out)
     character(len=*), intent(in) :: text
-    character(len=collapsed_length(text)) :: out
-    character(len=len(text)) :: buf
+    character(len=:), allocatable, intent(out) :: out
     integer :: m
-    call collapse_into(text, buf, m)
-    out = buf(:m)
-  end function collapse
+    allocate (character(len=collapsed_length(text)) :: out)
+    call collapse_into(text, m, out)
+  end subroutine collapse
 
-  pure subroutine collapse_into(text, buf, m)
+  !> The collapsed text's length m, and the text itself into out where given.
+  pure subroutine collapse_into(text, m, out)
     character(len=*), intent(in) :: text
-    character(len=len(text)), intent(out) :: buf
     integer, intent(out) :: m
+    character(len=*), intent(inout), optional :: out
     integer :: k
     logical :: blank_pending
     m = 0
@@ -513,11 +517,11 @@ contains
       case default
         if (blank_pending) then
           m = m + 1
-          buf(m:m) = ' '
+          if (present(out)) out(m:m) = ' '
           blank_pending = .false.
         end if
         m = m + 1
-        buf(m:m) = text(k:k)
+        if (present(out)) out(m:m) = text(k:k)
       end select
     end do
   end subroutine collapse_into

@@ -276,3 +276,23 @@ def test_mu_left_out_is_not_limited(ellroll, tmp_path):
     with h5py.File(tmp_path / "slip.h5") as f:
         meanings = f["summary/status"].attrs["flag_meanings"].split()
         assert meanings[f["summary/status"][0]] == "slip" and f["case/mu"][0] == needed * 0.9
+
+
+@pytest.mark.parametrize("where", ["a value", "text before the first variable"])
+def test_a_value_of_megabytes_is_refused_with_a_short_message_on_a_small_stack(ellroll, tmp_path, where):
+    """A 12 MB value (600,000 sweep values; the limit is 10,000) or 12 MB of
+    stray text: exit 2 naming the group and the value's start and length,
+    under a 1 MiB stack (the text is never copied to the stack)."""
+    values = ", ".join(repr(1 + k * 1e-6) for k in range(600_000))
+    if where == "a value":
+        text = PAPER_INPUT.read_text() + f"&sweep name = 'radius', values = {values} /\n"
+        words = ["case.nml:", "&sweep: values = 1.0, 1.000001,", "characters): 600000 values given; values holds 10000"]
+    else:
+        text = PAPER_INPUT.read_text() + f"&sweep {values} name = 'radius', values = 0.2 /\n"
+        words = ["case.nml:", 'unexpected text "1.0, 1.000001,', "characters)\" in &sweep before the first variable"]
+    (tmp_path / "case.nml").write_text(text)
+    result = run("bash", "-c", f"ulimit -s 1024 && exec {ellroll} check case.nml", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr[-300:]
+    assert len(result.stderr) < 400
+    for word in words:
+        assert word in result.stderr

@@ -357,8 +357,10 @@ def execute(exe, trial, folder, index=0):
 
 
 def collapse(text):
-    """A value as messages show it: its runs of blanks as one."""
-    return re.sub(r"\s+", " ", text)
+    """A value as messages show it: its runs of blanks as one; one of more
+    than 200 characters by its first 160 and its length."""
+    text = re.sub(r"\s+", " ", text).strip()
+    return text if len(text) <= 200 else f"{text[:160]} ... ({len(text)} characters)"
 
 
 # warnings (indented lines continue one), then the error: in the file, or in cases of it

@@ -202,6 +202,20 @@ def test_a_bad_input_raises_the_programs_message(program, tmp_path, old, new):
     assert isinstance(raised.value, ellroll.Error) and isinstance(raised.value, ValueError)
 
 
+def test_texts_of_megabytes_run_or_raise_on_the_run_thread():
+    """The run's thread has the platform's default stack (8 MiB): a 20 MB
+    comment runs, and a 12 MB sweep (600,000 values; 10,000 allowed)
+    raises InputError with a short message, as the CLI does."""
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.1")
+    arrays, attributes = ellroll.run_arrays("! " + "x" * 20_000_000 + "\n" + text)
+    assert attributes["summary"]["status"]["flag_meanings"].split()[arrays["summary"]["status"][0]] == "completed"
+    values = ", ".join(repr(1 + k * 1e-6) for k in range(600_000))
+    with pytest.raises(ellroll.InputError) as raised:
+        ellroll.run_arrays(text + f"&sweep name = 'radius', values = {values} /\n")
+    assert len(raised.value.message) < 400
+    assert "characters): 600000 values given; values holds 10000" in raised.value.message
+
+
 def test_invalid_cases_that_stop_raise_the_programs_message(program, tmp_path):
     text = PAPER_INPUT.read_text() + "&sweep name = 'radius', values = 0.2, 0.9 /\n"
     (tmp_path / "case.nml").write_text(text)
