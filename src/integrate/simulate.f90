@@ -8,7 +8,7 @@ module ellroll_simulate
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_status, only: status_completed, status_slip
+  use ellroll_status, only: status_completed, status_slip, status_liftoff
   use ellroll_cases, only: case_t, output_plan_t, field_count, field_contact, field_nutation, field_energy
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_error_contact, fig_error_theta, fig_error_energy, fig_n_rhs_reference
@@ -98,7 +98,9 @@ contains
     call new_integrator(trim(cs%method), integrator, err)
     if (err%failed()) return
     call start_case(cs, plan, run, res, y, f)
-    if (cs%slide .and. (res%status == status_completed .or. res%status == status_slip)) then
+    ! a start that may slide: whether it slips or lifts off is the slide loop's
+    ! to say (a given velocity of the centre changes both)
+    if (cs%slide .and. any(res%status == [status_completed, status_slip, status_liftoff])) then
       select type (integrator)
       class is (embedded_pair_t)
         integrator%rtol = cs%param(p_rtol)

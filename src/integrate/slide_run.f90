@@ -11,7 +11,7 @@
 module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable
+  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
@@ -64,7 +64,9 @@ contains
 
   !> The case from (y, f) at t = 0 (start_case) to t_end or the limit it
   !> meets. A start whose friction exceeds mu (res%status slip), or with a
-  !> velocity of the centre that is not rolling's, starts sliding.
+  !> velocity of the centre that is not rolling's, starts sliding; a start
+  !> whose normal force does not push (rolling's, res%status liftoff, or the
+  !> sliding start's) ends at t = 0.
   subroutine slide_loop(integrator, cs, plan, run, y, f, res)
     class(integrator_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cs
@@ -102,13 +104,19 @@ contains
       call start_sliding(sb, 0.0_wp, now, res, tally)
       call record_regime_sample(res, 1_i8, now)         ! the start slides from t = 0
     end if
-    res%status = status_completed
-    select type (integrator)
-    class is (embedded_pair_t)
-      call adaptive_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
-    class default
-      call fixed_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
-    end select
+    if (now%sliding) then
+      res%status = merge(status_liftoff, status_completed, now%obs%reaction_normal <= 0)
+    else if (res%status /= status_liftoff) then
+      res%status = status_completed
+    end if
+    if (res%status == status_completed) then
+      select type (integrator)
+      class is (embedded_pair_t)
+        call adaptive_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
+      class default
+        call fixed_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
+      end select
+    end if
     res%reals(fig_sliding_time) = tally%sliding_time
     res%counts(fig_slip_episodes) = tally%episodes
     res%reals(fig_friction_energy) = tally%friction_energy

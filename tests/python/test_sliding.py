@@ -296,6 +296,27 @@ def test_energy_drift_of_the_launch_in_the_cup(ellroll, tmp_path):
     assert abs(energy[-1] - energy[0] + work) / energy[0] <= drift < 1e-7    # 3.7e-9 measured
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_a_launch_without_gravity_is_held_by_the_cup(ellroll, tmp_path, method):
+    """g = 0, launched at v0 = 0.5 m/s along x from the bottom: the cup
+    pushes with N = m v0^2 / (a^2/c - R) = 5.2083 N (the centre's circle),
+    friction -mu N, E0 = m v0^2 / 2; the ball slides on (a rolling start at
+    rest lifts off, since nothing presses it)."""
+    text = LAUNCH.format(mu=0.1, k=0.4, v=0.5, integration=METHODS[method], t_end=1.0, interval=0.01)
+    text = text.replace("weight = 2620.0", "mass = 100.0") + "&environment g = 0.0 /\n"
+    with run_text(ellroll, tmp_path, text) as f:
+        meanings = f["summary/status"].attrs["flag_meanings"].split()
+        status = meanings[f["summary/status"][0]]
+        reaction = f["trajectory/reaction"][0, 0]
+        energy = f["trajectory/energy"][0]
+        work = f["summary/friction_energy"][0]
+    normal = 100.0 * 0.5**2 / (1.0**2 / 0.2 - 0.2)
+    assert status == "completed"
+    assert reaction == pytest.approx([-0.1 * normal, 0.0, normal], rel=1e-12, abs=1e-12)
+    assert energy[0] == pytest.approx(12.5, rel=1e-14)
+    assert 0 < work < 12.5 and energy[-1] - energy[0] + work == pytest.approx(0, abs=1e-6)
+
+
 @pytest.mark.parametrize("v0", [5, 20, 100])
 def test_the_friction_work_ends_where_a_case_ends_at_a_limit(ellroll, tmp_path, v0):
     """Launched fast in the paper's cup, the ball climbs to where it no
