@@ -106,6 +106,7 @@ contains
     integer :: ios
     select case (option)
     case ('-o', '--output')
+      if (len_trim(value) == 0) call usage_error(err, option // ' needs a file name, not an empty text')
       cli%output_path = value
     case ('--threads')
       ios = 1

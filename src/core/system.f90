@@ -3,12 +3,13 @@ module ellroll_system
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_size_t, c_ptr, &
       c_null_ptr, c_associated, c_int64_t
   use ellroll_kinds, only: wp, i8
+  use ellroll_strings, only: itoa
   implicit none
   private
 
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
-      system_error_text, open_regular_file, read_text, file_type_words
+      system_error_text, open_regular_file, read_text, file_type_words, read_whole_file
   public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now
 
   interface
@@ -210,6 +211,46 @@ contains
     case default; words = 'not a regular file'
     end select
   end function file_type_words
+
+  !> The whole text of `path`, a regular file (links followed) of at most
+  !> max_bytes (limit_words says how much that is); a FIFO, which would wait
+  !> for a writer, or a device, which may never end, is not opened. reason:
+  !> '' or why not, naming the path and what the file is (`what`, e.g. 'an
+  !> input file').
+  subroutine read_whole_file(path, what, max_bytes, limit_words, text, reason)
+    character(len=*), intent(in) :: path, what, limit_words
+    integer(i8), intent(in) :: max_bytes
+    character(len=:), allocatable, intent(out) :: text, reason
+    integer :: code, fd
+    integer(i8) :: bytes
+    character :: file_type
+    reason = ''
+    text = ''
+    code = open_regular_file(path, fd, bytes, file_type)
+    if (code > 0) then
+      reason = 'cannot open ' // path // ': ' // system_error_text(code)
+      return
+    else if (code < 0) then
+      reason = path // ': ' // trim(file_type_words(file_type)) // ', not a regular file; ' // what // &
+               ' is read from a regular file'
+      return
+    end if
+    if (bytes > max_bytes) then
+      reason = path // ': ' // itoa(bytes) // ' bytes, more than ' // what // ' may hold (' // limit_words // ')'
+    else
+      deallocate (text)
+      allocate (character(len=bytes) :: text, stat=code)
+      if (code /= 0) then
+        reason = path // ': no memory for its ' // itoa(bytes) // ' bytes'
+        text = ''
+      else
+        code = read_text(fd, text)
+        if (code > 0) reason = 'cannot read ' // path // ': ' // system_error_text(code)
+        if (code < 0) reason = path // ': the file shrank while it was read'
+      end if
+    end if
+    code = close_descriptor(fd)
+  end subroutine read_whole_file
 
   !> The first len(text) bytes of the file open as fd: 0, an errno value,
   !> or -1 where the file ends first.

@@ -6,9 +6,11 @@
 !> assignments with their line numbers; each assignment is then read on its
 !> own (see ellroll_input), which pins every error to one variable.
 module ellroll_namelist_scan
+  use ellroll_kinds, only: i8
   use ellroll_errors, only: error_t, set_error, err_input
   use ellroll_strings, only: lower, itoa, excerpt
   use ellroll_files, only: path_kind, kind_folder
+  use ellroll_system, only: read_whole_file
   implicit none
   private
 
@@ -39,6 +41,8 @@ module ellroll_namelist_scan
   end type nml_file_t
 
   character, parameter :: lf = achar(10), cr = achar(13), tab = achar(9)
+  !> The largest input file read (its positions are default integers).
+  integer(i8), parameter :: max_input_bytes = 2_i8**30
 
   !> Where a scan stands and what it has found.
   type :: scanner_t
@@ -62,8 +66,7 @@ contains
     character(len=*), intent(in) :: path
     type(nml_file_t), intent(out) :: file
     type(error_t), intent(inout) :: err
-    integer :: unit, ios, file_size
-    character(len=256) :: msg
+    character(len=:), allocatable :: reason
     logical :: exists
 
     file%path = path
@@ -76,23 +79,9 @@ contains
       call set_error(err, err_input, path // ': a folder, not an input file (give the namelist file in it)')
       return
     end if
-    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', &
-          status='old', iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(err, err_input, path // ': cannot open input file: ' // trim(msg))
-      return
-    end if
-    inquire (unit=unit, size=file_size)
-    if (file_size < 0) then
-      close (unit)
-      call set_error(err, err_input, path // ': cannot read input file (not a regular file?)')
-      return
-    end if
-    allocate (character(len=file_size) :: file%text)
-    if (file_size > 0) read (unit, iostat=ios, iomsg=msg) file%text
-    close (unit)
-    if (ios /= 0) then
-      call set_error(err, err_input, path // ': cannot read input file: ' // trim(msg))
+    call read_whole_file(path, 'an input file', max_input_bytes, '1 GiB', file%text, reason)
+    if (len(reason) > 0) then
+      call set_error(err, err_input, reason)
       return
     end if
     if (holds_hdf5_signature(file%text)) then

@@ -4,7 +4,7 @@
 module ellroll_record_text
   use ellroll_kinds, only: i8
   use ellroll_strings, only: itoa, lower, decimal_width
-  use ellroll_system, only: open_regular_file, read_text, close_descriptor, system_error_text, file_type_words
+  use ellroll_system, only: read_whole_file
   implicit none
   private
 
@@ -30,33 +30,8 @@ contains
     character(len=*), intent(in) :: path
     type(text_file_t), intent(out) :: file
     character(len=:), allocatable, intent(out) :: reason
-    integer :: code, fd
-    integer(i8) :: bytes
-    character :: file_type
-    reason = ''
     file%path = path
-    code = open_regular_file(path, fd, bytes, file_type)
-    if (code > 0) then
-      reason = 'cannot open ' // path // ': ' // system_error_text(code)
-      return
-    else if (code < 0) then
-      reason = path // ': ' // trim(file_type_words(file_type)) // ', not a regular file; a record is read ' // &
-               'from a regular file'
-      return
-    end if
-    if (bytes > max_record_bytes) then
-      reason = path // ': ' // itoa(bytes) // ' bytes, more than a record file may hold (1 GiB)'
-    else
-      allocate (character(len=bytes) :: file%text, stat=code)
-      if (code /= 0) then
-        reason = path // ': no memory for its ' // itoa(bytes) // ' bytes'
-      else
-        code = read_text(fd, file%text)
-        if (code > 0) reason = 'cannot read ' // path // ': ' // system_error_text(code)
-        if (code < 0) reason = path // ': the file shrank while it was read'
-      end if
-    end if
-    code = close_descriptor(fd)
+    call read_whole_file(path, 'a record file', max_record_bytes, '1 GiB', file%text, reason)
   end subroutine read_record_text
 
   !> The next line of the file: its characters first .. last (without the

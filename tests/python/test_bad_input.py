@@ -83,6 +83,8 @@ def test_bad_input_exits_2_and_touches_no_output(ellroll, tmp_path, edits, words
     (["run", "a.nml", "b.nml"], "more than one input file"),
     (["run", "a.nml", "--fast"], "unknown option --fast"),
     (["run", "a.nml", "-o"], "-o needs a value"),
+    (["run", "a.nml", "-o", ""], "-o needs a file name, not an empty text"),
+    (["run", "a.nml", "--output", "  "], "--output needs a file name, not an empty text"),
     (["run", "a.nml", "--threads", "0"], "--threads needs a positive number"),
     (["run", "a.nml", "--shard", "2/2"], "--shard needs I/N"),
     (["run", "a.nml", "--resume", "--overwrite"], "exclude each other"),
@@ -296,3 +298,22 @@ def test_a_value_of_megabytes_is_refused_with_a_short_message_on_a_small_stack(e
     assert len(result.stderr) < 400
     for word in words:
         assert word in result.stderr
+
+
+@pytest.mark.parametrize("kind", ["fifo", "pipe"])
+def test_an_input_that_is_not_a_regular_file_is_refused_by_name(ellroll, tmp_path, kind):
+    """A FIFO with no writer would block for ever, a pipe reads as empty:
+    both refused, naming the path and what it is."""
+    import os
+    import subprocess
+    if kind == "fifo":
+        os.mkfifo(tmp_path / "in.nml")
+        result = run(ellroll, "check", "in.nml", cwd=tmp_path, timeout=20)
+        path = "in.nml"
+    else:
+        result = subprocess.run([str(ellroll), "check", "/dev/stdin"], input=PAPER_INPUT.read_text(), cwd=tmp_path,
+                                capture_output=True, text=True, timeout=20)
+        path = "/dev/stdin"
+    assert result.returncode == 2
+    assert f"{path}: a FIFO (named pipe), not a regular file; an input file is read from a regular file" \
+        in result.stderr

@@ -78,3 +78,13 @@ def test_every_row_s_range_is_enforced(ellroll, tmp_path, beyond):
     # every row (above), every row whose range excludes 0 (weight, mass, inertia_factor, dt, ...)
     assert checked == (len(table) if beyond == "above" else sum("> 0" in row[4] for row in table))
     assert checked >= (25 if beyond == "above" else 4)
+
+
+def test_the_campaign_docs_list_every_input_that_can_vary(ellroll):
+    """docs/campaigns.md's list of the names a sweep or sample can vary is
+    the table's varied rows, no more, no fewer."""
+    varied = [line.split("|")[1].strip().strip("`") for line in table_rows(ellroll).splitlines()[2:]
+              if line.split("|")[7].strip() == "yes"]
+    text = (DOCS.parent / "campaigns.md").read_text()
+    listed = re.search(r"Names that can vary \(.*?\): `([^`]*)`", text, re.S).group(1).split()
+    assert sorted(listed) == sorted(varied)
