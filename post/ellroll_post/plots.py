@@ -386,8 +386,8 @@ def _mark_early(ax, x, y, status):
     and open, they leave the completed cases' colours readable)."""
     for marker, name in zip("xs^vDP*", sorted(set(status[status != "completed"]))):
         ended = status == name
-        ax.plot(x[ended], y[ended], marker, mfc="none", mec="0.45", mew=0.8, ms=4, ls="none",
-                label=f"ended: {name}")
+        label = f"not run yet: {ended.sum()}" if name == "pending" else f"ended: {name}"
+        ax.plot(x[ended], y[ended], marker, mfc="none", mec="0.45", mew=0.8, ms=4, ls="none", label=label)
 
 
 def _legend_beside(ax, **options):

@@ -126,9 +126,13 @@ class EllrollFile:
         """The inputs that differ between cases, by name."""
         if self.n_cases < 2:
             return []
+        # a file still being written (OUT.h5.partial) has no inputs yet for its pending cases
+        written = np.array(self.status_names()) != "pending"
+        if written.sum() < 2:
+            return []
         swept = []
         for name in self.inputs:
-            column = self.input_column(name)
+            column = self.input_column(name)[written]
             # NaN (an input left unset) is the same as NaN: unset in every case is not varied
             same = (column == column[0]) | (np.isnan(column) & np.isnan(column[0]))
             if not np.all(same):

@@ -425,3 +425,32 @@ def test_trace_colours_the_path_by_regime(ellroll, tmp_path):
         assert lines["contact point, rolling"].get_color() != lines["contact point, sliding"].get_color()
         assert 0 < np.count_nonzero(regime == 1) < regime.size and "contact point" not in lines
         plt.close(fig)
+
+
+def test_a_file_still_being_written_draws_its_finished_cases(ellroll, tmp_path):
+    """A sweep stopped by SIGINT part way (OUT.h5.partial, the pending cases'
+    inputs not yet written): `sweep` draws the finished cases against the
+    swept input and counts the rest as not run yet; `report` is written."""
+    import signal
+    import subprocess
+    import time
+    make(tmp_path, "part", "&sweep name = 'omega_z', start = 10, stop = 80, count = 64 /\n", dt="1.0e-4",
+         t_end=20.0)
+    proc = subprocess.Popen([str(ellroll), "run", "part.nml", "-q", "--threads", "1"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    journal = tmp_path / "part.h5.journal"
+    deadline = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < deadline and not (journal.exists() and
+                                                                        journal.stat().st_size > 4096):
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=60) == 130
+    partial = tmp_path / "part.h5.partial"
+    with ellroll_post.open(partial) as run_:
+        status = np.array(run_.status_names())
+        assert 0 < (status == "completed").sum() < 64 and (status == "pending").sum() > 0
+        assert run_.swept_inputs() == ["omega_z"]
+    code, _, err = cli("sweep", partial)
+    assert code == 0, err
+    code, _, err = cli("report", partial)
+    assert code == 0, err
