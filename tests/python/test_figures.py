@@ -450,7 +450,8 @@ def test_a_file_still_being_written_draws_its_finished_cases(ellroll, tmp_path):
         status = np.array(run_.status_names())
         assert 0 < (status == "completed").sum() < 64 and (status == "pending").sum() > 0
         assert run_.swept_inputs() == ["omega_z"]
-    code, _, err = cli("sweep", partial)
+    code, _, err = cli("sweep", partial, "--out", tmp_path)
     assert code == 0, err
-    code, _, err = cli("report", partial)
+    assert (tmp_path / "part.h5_sweep_omega_z.png").stat().st_size > 0
+    code, _, err = cli("report", partial, "--out", tmp_path / "report")
     assert code == 0, err
