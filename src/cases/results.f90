@@ -13,11 +13,14 @@ module ellroll_results
   private
 
   public :: field_buffer_t, case_result_t, summary_record, set_summary_value, figure_values, set_figure_values, &
-            allocate_fields, fill_unrecorded
+            allocate_fields, fill_unrecorded, add_switch
 
   !> A count (an integer figure) undefined for the case, as NaN is for a
   !> real one: /summary's _FillValue of its integer figures
   integer(i8), parameter, public :: count_undefined = -1
+
+  !> The kinds of a switch of regime (case_result_t%switch_kind).
+  integer, parameter, public :: switch_to_sliding = 1, switch_to_rolling = 2
 
   integer :: k        ! (of implied loops in constant expressions)
 
@@ -52,9 +55,34 @@ module ellroll_results
     integer(i8) :: counts(figure_count) = count_defaults
     type(field_buffer_t) :: fields(field_count)
     integer(i8) :: n_recorded = 0              !< output samples recorded so far (they come in order)
+    !> a case that may slide: its switches of regime in order, their times
+    !> and kinds (switch_to_sliding, switch_to_rolling), n_switches of them
+    integer :: n_switches = 0
+    real(wp), allocatable :: switch_time(:)
+    integer, allocatable :: switch_kind(:)
   end type case_result_t
 
 contains
+
+  !> A switch of regime at time t of kind `kind` joins res's list.
+  pure subroutine add_switch(res, t, kind)
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    integer, intent(in) :: kind
+    real(wp), allocatable :: times(:)
+    integer, allocatable :: kinds(:)
+    if (.not. allocated(res%switch_time)) allocate (res%switch_time(8), res%switch_kind(8))
+    if (res%n_switches == size(res%switch_time)) then
+      allocate (times(2 * res%n_switches), kinds(2 * res%n_switches))
+      times(:res%n_switches) = res%switch_time
+      kinds(:res%n_switches) = res%switch_kind
+      call move_alloc(times, res%switch_time)
+      call move_alloc(kinds, res%switch_kind)
+    end if
+    res%n_switches = res%n_switches + 1
+    res%switch_time(res%n_switches) = t
+    res%switch_kind(res%n_switches) = kind
+  end subroutine add_switch
 
   !> Buffers in res for the wanted fields only (in place: a function result
   !> would copy every buffer once more); fill_unrecorded makes what the case

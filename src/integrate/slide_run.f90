@@ -15,14 +15,15 @@ module ellroll_slide_run
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
-  use ellroll_results, only: case_result_t
+  use ellroll_results, only: case_result_t, add_switch, switch_to_sliding, switch_to_rolling
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
+      observe_sliding, slip_velocity, slip_rate, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
+  use ellroll_slip_substeps, only: slide_piece
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -49,6 +50,7 @@ module ellroll_slide_run
     real(wp) :: s(slide_state_size) = 0, fs(slide_state_size) = 0   !< sliding
     type(observation_t) :: obs
     real(wp) :: slip_speed = 0
+    logical :: stalled = .false.     !< a fixed step's slip stopped inside the piece that led here (slide_piece)
   end type regime_state_t
 
   !> What the sliding adds to the summary as it goes.
@@ -289,7 +291,12 @@ contains
       new%slip_speed = 0
       return
     end if
-    call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
+    select type (integrator)
+    class is (embedded_pair_t)
+      call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
+    class default
+      call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%stalled, n_rhs)
+    end select
     call normalize_normal(new%s)
     call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
     n_rhs = n_rhs + 1
@@ -422,7 +429,7 @@ contains
     type(sliding_ball_t), intent(in) :: sb
     type(regime_state_t), intent(in) :: now, new
     if (now%sliding) then
-      crossed = sb%event_crossed(now%s, new%s) /= 0
+      crossed = new%stalled .or. sb%event_crossed(now%s, new%s) /= 0
     else
       crossed = new%obs%friction_needed > sb%ball%mu
     end if
@@ -434,7 +441,9 @@ contains
   real(wp) function switch_value(sb, x) result(g)
     type(sliding_ball_t), intent(in) :: sb
     type(regime_state_t), intent(in) :: x
-    if (x%sliding) then
+    if (x%stalled) then
+      g = -1                      ! past the stop
+    else if (x%sliding) then
       g = sb%event_value(1, x%s)
     else
       g = sb%ball%mu - x%obs%friction_needed
@@ -488,13 +497,46 @@ contains
     call add_sliding_step(integrator, sb, t_at, search%high, now, x, tally, res%n_rhs)
     t_at = t_at + search%high
     now = x
+    if (now%sliding) call finish_stop(integrator, rolling, sb, h - offset, t_at, now, tally, res, offset)
     call track_balance(run, res, t_at, now%obs, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
     else
       call start_sliding(sb, t_at, now, res, tally)
+      call add_switch(res, t_at, switch_to_sliding)
     end if
   end subroutine switch_inside
+
+  !> A located stop leaves a slip of up to stick_level of the episode's
+  !> (where the event's function |u| - stick_level |u_start| crossed): u
+  !> reaches zero |u|^2 / (-u . u') later, to second order in that time,
+  !> and the piece to there (within room) is taken, so that the switch's
+  !> time is the stop's to far below stick_level of the slip's time scale.
+  subroutine finish_stop(integrator, rolling, sb, room, t_at, now, tally, res, offset)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: rolling
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: room
+    real(wp), intent(inout) :: t_at, offset
+    type(regime_state_t), intent(inout) :: now
+    type(slide_tally_t), intent(inout) :: tally
+    type(case_result_t), intent(inout) :: res
+    type(regime_state_t) :: x
+    real(wp) :: approach, piece
+    integer :: status
+    if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) return  ! turned
+    approach = -dot_product(slip_velocity(sb%ball, now%s), slip_rate(sb%ball, now%s, now%fs))
+    if (.not. approach > 0) return
+    piece = now%slip_speed**2 / approach
+    if (.not. piece < room) return
+    call sb%begin_step(now%s)
+    call take(integrator, rolling, sb, t_at, piece, now, x, status, res%n_rhs)
+    if (status /= status_completed) return
+    call add_sliding_step(integrator, sb, t_at, piece, now, x, tally, res%n_rhs)
+    t_at = t_at + piece
+    offset = offset + piece
+    now = x
+  end subroutine finish_stop
 
   !> The rolling state now (its friction at mu N) goes on sliding: u = 0,
   !> the friction keeps the direction rolling needed, and u grows against it.
@@ -557,6 +599,8 @@ contains
     if (rolled%obs%friction_needed > sb%ball%mu) then
       call start_sliding(sb, t, now, res, tally)
       tally%episodes = tally%episodes - 1          ! the same episode, slipping another way
+    else
+      call add_switch(res, t, switch_to_rolling)
     end if
   end subroutine stop_sliding
 

@@ -29,7 +29,7 @@ module ellroll_sliding_ball
   private
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
-            observe_sliding, slip_velocity, center_velocity, friction_direction, resistance_power, slip_stop_time
+            observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, slip_stop_time
 
   integer, parameter :: slide_state_size = 8
 
@@ -83,6 +83,21 @@ contains
     real(wp) :: u(3)
     u = center_velocity(y) - ball%radius * cross(y(4:6), y(1:3)) / norm2(y(1:3))
   end function slip_velocity
+
+  !> The rate of the slip velocity, du/dt, at sliding state y whose
+  !> derivative is dydt (u = V_C - R omega x n / |n| differentiated).
+  pure function slip_rate(ball, y, dydt) result(rate)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(slide_state_size), dydt(slide_state_size)
+    real(wp) :: rate(3), length, n(3), n_rate(3), v_rate(3)
+    length = norm2(y(1:3))
+    n = y(1:3) / length
+    n_rate = dydt(1:3) / length - n * dot_product(n, dydt(1:3)) / length
+    v_rate(1:2) = dydt(7:8)
+    v_rate(3) = -((dydt(1) * y(7) + y(1) * dydt(7) + dydt(2) * y(8) + y(2) * dydt(8)) * y(3) &
+                  - (y(1) * y(7) + y(2) * y(8)) * dydt(3)) / y(3)**2
+    rate = v_rate - ball%radius * (cross(dydt(4:6), n) + cross(y(4:6), n_rate))
+  end function slip_rate
 
   !> The sliding state at rolling state y (u = 0 there).
   pure function sliding_from_rolling(ball, y) result(s)

@@ -123,12 +123,9 @@ def balance(ellroll, folder, excitation, integration, interval):
 @pytest.mark.parametrize("excitation", ["harmonic", "record"])
 def test_rk4_closes_the_energy_balance_on_a_moving_cup(ellroll, tmp_path, excitation):
     """The friction's work is the trapezoidal rule over the steps (pieces
-    of step at the switches), of order 2 in dt (on a ball sliding
-    throughout, with no switch, the residual falls by 4.00 per halving of
-    dt); with switches a fixed step leaves a few 1e-7 at each start of
-    sliding (below). Harmonic 8.3e-7 and -5.5e-7, record -4.7e-6 and 6.1e-7
-    of the friction's work at dt = 5e-4 and 2.5e-4 s (5.7e-5 and 1.1e-5 at
-    1e-3 s)."""
+    of step at the switches, substeps where the slip is small), of order 2
+    in dt: harmonic -4.8e-7 and -1.2e-7, record -2.7e-7 and -6.6e-8 of the
+    friction's work at dt = 5e-4 and 2.5e-4 s."""
     for dt in (5e-4, 2.5e-4):
         residual, friction, episodes = balance(ellroll, tmp_path, excitation, f"method = 'rk4', dt = {dt}", dt)
         assert episodes >= 4                         # 8 or more switches
@@ -136,11 +133,10 @@ def test_rk4_closes_the_energy_balance_on_a_moving_cup(ellroll, tmp_path, excita
         assert abs(residual / friction) < 5e-6
 
 
-@pytest.mark.xfail(strict=True, reason="slide_run.f90: the rest of a fixed step after a switch into sliding takes "
-                                       "the slip up at once (dop853, which ends its step there, grows it from zero)")
 def test_rk4_s_moving_cup_balance_converges_past_its_switches(ellroll, tmp_path):
-    """Harmonic: 1.4e-7 at dt = 1.25e-4 s but -6.2e-7 at 6.25e-5 s: the
-    starts of sliding leave a part that does not converge."""
+    """Harmonic: -3.0e-8 at dt = 1.25e-4 s and -7.5e-9 at 6.25e-5 s, 4.00
+    per halving: the starts of sliding (the slip growing from zero, its
+    direction stiff) leave no part that does not converge."""
     residual, friction, _ = balance(ellroll, tmp_path, "harmonic", "method = 'rk4', dt = 6.25e-5", 6.25e-5)
     assert abs(residual / friction) < 1e-7
 
@@ -252,21 +248,18 @@ def reference_per_cycle(ellroll, tmp_path_factory):
 
 
 def test_rk4_energy_per_cycle_converges_to_the_reference(ellroll, tmp_path, reference_per_cycle):
-    """rk4 at dt = 1e-3 and 5e-4 s: 2.3 % and 1.2 % above the reference,
-    converging at first order (2.5e-4 s: 0.73 %, 1.25e-4 s: 0.42 %): the
-    switches are located on the fixed grid to first order in dt (the error
-    is 23 dt / s of the figure)."""
+    """rk4 at dt = 1e-3 and 5e-4 s: -1.7e-5 and -3.3e-6 of the reference
+    (2.5e-4 s: -8.6e-7)."""
     errors = [energy_per_cycle(ellroll, tmp_path, f"method = 'rk4', dt = {dt}") / reference_per_cycle - 1
               for dt in (1e-3, 5e-4)]
     assert errors[0] < 25 * 1e-3 and errors[1] < 25 * 5e-4
-    assert abs(errors[1]) < abs(errors[0]) / 1.6                        # first order: 2 (1.88 measured)
+    assert abs(errors[1]) < abs(errors[0]) / 1.6                        # at least first order
 
 
-@pytest.mark.xfail(strict=True, reason="slide_run.f90: fixed-step switch times located to first order in dt")
 def test_rk4_energy_per_cycle_converges_at_second_order(ellroll, tmp_path, reference_per_cycle):
-    """The friction's work is a trapezoidal sum, of order 2: once the
-    switches are located to that order, so is the energy per cycle
-    (errors 2.1e-4 and 1.1e-4 J of 9.24e-3 J at dt 1e-3 and 5e-4 s)."""
+    """The friction's work is a trapezoidal sum, of order 2, and the
+    switches are located to the method's order: errors -1.6e-7 and -3.1e-8 J
+    of 9.26e-3 J at dt 1e-3 and 5e-4 s (5.1 per halving)."""
     errors = [energy_per_cycle(ellroll, tmp_path, f"method = 'rk4', dt = {dt}") - reference_per_cycle
               for dt in (1e-3, 5e-4)]
     assert abs(errors[1]) < abs(errors[0]) / 3.4
