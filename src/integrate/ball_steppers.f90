@@ -167,30 +167,35 @@ contains
     real(wp) :: margin(lanes)
     real(wp) :: k2(lanes, state_size), k3(lanes, state_size), k4(lanes, state_size), stage(lanes, state_size)
     real(wp) :: length
-    integer :: i, l
+    integer :: i, l, n
     reaction_limited = .false.
     ! (a moving cup's reaction is checked with the stage's derivative: lanes_derivative)
     if (present(inside)) reaction_limited = any(p%mu > 0 .and. .not. p%moves > 0)
     margin = 1
+    ! the lanes the kernels compute only (1 to width): what lanes_derivative
+    ! stores a lane at a time is read back as such (a whole-vector load of
+    ! values stored in pieces stalls), and a lone case's idle lanes cost
+    ! nothing; the lanes past the width are left undefined in y_new and f_new
+    n = p%width
     do i = 1, state_size
-      stage(:, i) = y(:, i) + (h/2) * f0(:, i)
+      stage(:n, i) = y(:n, i) + (h(:n)/2) * f0(:n, i)
     end do
     call lanes_derivative(p, stage, k2, margin, base_half)
     if (reaction_limited) call lanes_check_reaction(p, stage, k2, margin, base_half)
     do i = 1, state_size
-      stage(:, i) = y(:, i) + (h/2) * k2(:, i)
+      stage(:n, i) = y(:n, i) + (h(:n)/2) * k2(:n, i)
     end do
     call lanes_derivative(p, stage, k3, margin, base_half)
     if (reaction_limited) call lanes_check_reaction(p, stage, k3, margin, base_half)
     do i = 1, state_size
-      stage(:, i) = y(:, i) + h * k3(:, i)
+      stage(:n, i) = y(:n, i) + h(:n) * k3(:n, i)
     end do
     call lanes_derivative(p, stage, k4, margin, base_end)
     if (reaction_limited) call lanes_check_reaction(p, stage, k4, margin, base_end)
     do i = 1, state_size
-      y_new(:, i) = y(:, i) + (h/6) * (f0(:, i) + 2*(k2(:, i) + k3(:, i)) + k4(:, i))
+      y_new(:n, i) = y(:n, i) + (h(:n)/6) * (f0(:n, i) + 2*(k2(:n, i) + k3(:n, i)) + k4(:n, i))
     end do
-    do l = 1, p%width                 ! (the lanes past the width keep their finite sums)
+    do l = 1, n
       length = sqrt(y_new(l, 1) * y_new(l, 1) + y_new(l, 2) * y_new(l, 2) + y_new(l, 3) * y_new(l, 3))
       y_new(l, 1:3) = y_new(l, 1:3) / length
     end do

@@ -139,6 +139,9 @@ contains
     real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), every(lanes), step
+    ! each lane's next step that is a multiple of its every, and its last
+    ! step with an output sample ((n_samples - 1) every)
+    integer(i8) :: due(lanes), last_sample(lanes)
     logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
     integer :: i
     real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane, y_new_lane, f_new_lane
@@ -152,6 +155,8 @@ contains
         every(l) = steps_per_sample(cases(i), plan)
         if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
       end do
+      due = every
+      last_sample = (plan%n_samples - 1) * every
       samples%fields = plan%fields
       base_end = 0
       step = 0
@@ -166,8 +171,12 @@ contains
         if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
         if (b%cups%moving) call track_cups(b, out, base_end, step * h, accepted)
-        sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
-        if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, base_end, sample_now)
+        if (any(plan%fields)) then
+          ! the steps that are multiples of every (sample_due) counted up, not divided out
+          sample_now = accepted .and. step == due .and. step <= last_sample
+          where (step == due) due = due + every
+          if (any(sample_now)) call samples%add(out, y_new, balls%radius, base_end, sample_now)
+        end if
         do l = 1, n
           if (.not. active(l)) cycle
           if (.not. passed(l)) results(l)%n_rhs = results(l)%n_rhs + 4

@@ -278,8 +278,13 @@ contains
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t, v
     real(wp) :: d1, d3, numerator, denominator, t_peak
-    self%t = [self%t(2:3), t]
-    self%v = [self%v(2:3), v]
+    ! (shifted element by element: the array constructor built temporaries)
+    self%t(1) = self%t(2)
+    self%t(2) = self%t(3)
+    self%t(3) = t
+    self%v(1) = self%v(2)
+    self%v(2) = self%v(3)
+    self%v(3) = v
     self%n_samples = self%n_samples + 1
     if (self%n_samples < 3) return
     if (.not. (self%v(2) > self%v(1) .and. self%v(2) >= self%v(3))) return

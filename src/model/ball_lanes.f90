@@ -120,7 +120,43 @@ contains
     real(wp), intent(out) :: dydt(lanes, state_size)
     real(wp), intent(inout), optional :: margin(lanes)
     real(wp), intent(in), optional :: base(lanes, 3)
-    real(wp) :: fits(lanes), unit_scale(lanes), u1, u2, u3, c1, c2, c3
+    real(wp) :: unit_scale(lanes), unused(lanes), u1, u2, u3, c1, c2, c3
+    integer :: l
+    ! margin lowered lane by lane in the loop that computes it: a whole-vector
+    ! min after it read what the loop had just stored in pieces, a stalled
+    ! load (a fifth of a lone case's derivative)
+    if (present(margin)) then
+      call derivative_rows(p, y, dydt, margin, unit_scale)
+    else
+      unused = 1
+      call derivative_rows(p, y, dydt, unused, unit_scale)
+    end if
+    if (.not. present(base)) return
+    ! a moving cup: g_vec - a_base in the cup's frame, omega' less
+    ! (n x a_base) / (R (1 + k)), n = y / |y| (ball_derivative's order)
+    do l = 1, p%width
+      u1 = y(l, 1) * unit_scale(l)
+      u2 = y(l, 2) * unit_scale(l)
+      u3 = y(l, 3) * unit_scale(l)
+      ! (both values computed, then one picked: a merge of values vectorizes)
+      c1 = dydt(l, 4) - (u2 * base(l, 3) - u3 * base(l, 2)) / p%base_divisor(l)
+      c2 = dydt(l, 5) - (u3 * base(l, 1) - u1 * base(l, 3)) / p%base_divisor(l)
+      c3 = dydt(l, 6) - (u1 * base(l, 2) - u2 * base(l, 1)) / p%base_divisor(l)
+      dydt(l, 4) = merge(c1, dydt(l, 4), p%moves(l) > 0)
+      dydt(l, 5) = merge(c2, dydt(l, 5), p%moves(l) > 0)
+      dydt(l, 6) = merge(c3, dydt(l, 6), p%moves(l) > 0)
+    end do
+    if (present(margin)) call lanes_stage_reaction(p, y, dydt, unit_scale, base, margin)
+  end subroutine lanes_derivative
+
+  !> lanes_derivative's dy/dt of lanes 1 to width, margin lowered in each
+  !> (unit_scale: |y| / |y|^2 of each lane, for a moving cup's terms).
+  pure subroutine derivative_rows(p, y, dydt, margin, unit_scale)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size)
+    real(wp), intent(out) :: dydt(lanes, state_size)
+    real(wp), intent(inout) :: margin(lanes)
+    real(wp), intent(out) :: unit_scale(lanes)
     real(wp) :: r, length2, length, inv_length2, ay1, ay2, ay3, q, sigma, r_sigma, pq, e, denominator, w1, w2, w3
     real(wp) :: ay_w, x1, x2, x3, rate, spin_rate, gravity, r_fit_sigma, e_fit
     integer :: l
@@ -139,13 +175,14 @@ contains
       r_sigma = r * sigma
       e = r_sigma * q - length * pq
       denominator = r_sigma * e + p%det_axes2(l) * (length2 * length2)
-      ! computed in every lane, kept only when asked for: a test of present()
-      ! inside the loop stops it from vectorizing
+      ! lowers margin in every lane (a caller without one passes one it
+      ! drops): a test of present() inside the loop stops it from vectorizing
       ! fit_indicator written out: a call to another module's function, even
       ! an elemental one, stops the loop from vectorizing
       r_fit_sigma = p%fit_radius(l) * sigma
       e_fit = r_fit_sigma * q - length * pq
-      fits(l) = min(y(l, 3), min(r_fit_sigma * e_fit + p%det_axes2(l) * (length2 * length2), -(e_fit + r_fit_sigma * q)))
+      margin(l) = min(margin(l), min(y(l, 3), min(r_fit_sigma * e_fit + p%det_axes2(l) * (length2 * length2), &
+                                                  -(e_fit + r_fit_sigma * q))))
       w1 = y(l, 5) * y(l, 3) - y(l, 6) * y(l, 2)
       w2 = y(l, 6) * y(l, 1) - y(l, 4) * y(l, 3)
       w3 = y(l, 4) * y(l, 2) - y(l, 5) * y(l, 1)
@@ -165,29 +202,16 @@ contains
       dydt(l, 5) = spin_rate * x2 + gravity * y(l, 1)
       dydt(l, 6) = spin_rate * x3 + gravity * 0.0_wp
     end do
-    if (p%width < lanes) then
+    ! (a lone case's idle lanes, of a size known here, are set by a few
+    ! stores; a section of run-time size is a library call per column)
+    if (p%width == 1) then
+      dydt(2:, :) = 0
+      unit_scale(2:) = 1
+    else if (p%width < lanes) then
       dydt(p%width + 1:, :) = 0
-      fits(p%width + 1:) = 1
       unit_scale(p%width + 1:) = 1
     end if
-    if (present(margin)) margin = min(margin, fits)
-    if (.not. present(base)) return
-    ! a moving cup: g_vec - a_base in the cup's frame, omega' less
-    ! (n x a_base) / (R (1 + k)), n = y / |y| (ball_derivative's order)
-    do l = 1, p%width
-      u1 = y(l, 1) * unit_scale(l)
-      u2 = y(l, 2) * unit_scale(l)
-      u3 = y(l, 3) * unit_scale(l)
-      ! (both values computed, then one picked: a merge of values vectorizes)
-      c1 = dydt(l, 4) - (u2 * base(l, 3) - u3 * base(l, 2)) / p%base_divisor(l)
-      c2 = dydt(l, 5) - (u3 * base(l, 1) - u1 * base(l, 3)) / p%base_divisor(l)
-      c3 = dydt(l, 6) - (u1 * base(l, 2) - u2 * base(l, 1)) / p%base_divisor(l)
-      dydt(l, 4) = merge(c1, dydt(l, 4), p%moves(l) > 0)
-      dydt(l, 5) = merge(c2, dydt(l, 5), p%moves(l) > 0)
-      dydt(l, 6) = merge(c3, dydt(l, 6), p%moves(l) > 0)
-    end do
-    if (present(margin)) call lanes_stage_reaction(p, y, dydt, unit_scale, base, margin)
-  end subroutine lanes_derivative
+  end subroutine derivative_rows
 
   !> The reaction's limits at a stage of every lane whose cup moves
   !> (stage_status where the ball fits: a non-finite force, lift-off, slip),
