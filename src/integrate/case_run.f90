@@ -36,7 +36,8 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
-  public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
+  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, note_nutation, accumulate, &
+            record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -330,12 +331,23 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
+    call track_rolling_resistance(run, res, t, obs)
+    call accumulate(run, res, t, obs)
+  end subroutine track_step_end
+
+  !> What a step's end point adds to the summary of rolling resistance: the
+  !> rest (note_rest) and the couple's work (from obs's normal, omega,
+  !> centre and normal force; the batches call it per lane).
+  pure subroutine track_rolling_resistance(run, res, t, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
     if (run%ball%rolling_resistance > 0) then
       call note_rest(run, t, obs)
       call add_resistance_work(run, res, t, obs)
     end if
-    call accumulate(run, res, t, obs)
-  end subroutine track_step_end
+  end subroutine track_rolling_resistance
 
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
@@ -356,7 +368,7 @@ contains
   !> What a step's end point adds to the summary of a moving cup beyond the
   !> step-end statistics (the transmissibility's fit), from the horizontal
   !> absolute accelerations of the centre and of the cup (the batches call
-  !> it per lane; their scenes have no rolling resistance).
+  !> it per lane).
   pure subroutine track_cup_motion(run, t, center_acceleration, base)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, center_acceleration(2), base(2)
