@@ -16,7 +16,7 @@ module ellroll_batch_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
   use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes, &
-      lanes_rolling_mode, lanes_rolling_stops
+      lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
@@ -177,7 +177,7 @@ contains
         if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
         if (b%cups%moving) call track_cups(b, out, base_end, step * h, accepted)
-        if (balls%resists) call track_resistance(b, out, y_new, step * h, accepted, results)
+        if (balls%resists) call track_resistance(b, out, y_new, f_new, step * h, accepted, results)
         sample_now = accepted .and. mod(step, every) == 0 .and. step / every + 1 <= plan%n_samples
         if (any(sample_now) .and. any(plan%fields)) call samples%add(out, y_new, balls%radius, base_end, sample_now)
         do l = 1, n
@@ -638,24 +638,26 @@ contains
     end do
   end subroutine track_cups
 
-  !> What the accepted lanes' new states y (observed: out, at times t) add to
-  !> the summary of rolling resistance (track_rolling_resistance, the
-  !> one-case code on each lane that has it).
-  subroutine track_resistance(b, out, y, t, accepted, results)
+  !> What the accepted lanes' new states y (derivatives f, observed: out, at
+  !> times t) add to the summary of rolling resistance
+  !> (track_rolling_resistance, the one-case code on each lane that has it).
+  subroutine track_resistance(b, out, y, f, t, accepted, results)
     type(batch_t), intent(inout) :: b
     type(lane_outputs_t), intent(in) :: out
-    real(wp), intent(in) :: y(lanes, state_size), t(lanes)
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), t(lanes)
     logical, intent(in) :: accepted(lanes)
     type(case_result_t), intent(inout) :: results(:)
     type(observation_t) :: obs
+    logical :: still(lanes)
     integer :: l
+    still = lanes_at_rest(b%balls, f)
     do l = 1, b%n
       if (.not. (accepted(l) .and. b%balls%resistance(l) > 0)) cycle
       obs%normal = out%normal(l, :)
       obs%omega = y(l, 4:6)
       obs%center = out%contact(l, :) + b%run(l)%ball%radius * obs%normal
       obs%reaction_normal = out%quantity(l, q_reaction_normal)
-      call track_rolling_resistance(b%run(l), results(l), t(l), obs)
+      call track_rolling_resistance(b%run(l), results(l), t(l), obs, still(l))
     end do
   end subroutine track_resistance
 

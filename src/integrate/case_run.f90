@@ -337,14 +337,16 @@ contains
 
   !> What a step's end point adds to the summary of rolling resistance: the
   !> rest (note_rest) and the couple's work (from obs's normal, omega,
-  !> centre and normal force; the batches call it per lane).
-  pure subroutine track_rolling_resistance(run, res, t, obs)
+  !> centre and normal force; the batches call it per lane, with whether
+  !> the ball is at rest there: still, lanes_at_rest's).
+  pure subroutine track_rolling_resistance(run, res, t, obs, still)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    logical, intent(in), optional :: still
     if (run%ball%rolling_resistance > 0) then
-      call note_rest(run, t, obs)
+      call note_rest(run, t, obs, still)
       call add_resistance_work(run, res, t, obs)
     end if
   end subroutine track_rolling_resistance
@@ -378,11 +380,18 @@ contains
   !> Whether the ball is at rest at a step end at time t, and where and
   !> since when it rests: the rest event's time where the step located one
   !> inside it (stopped_at), else t (an adaptive step ends at the event).
-  pure subroutine note_rest(run, t, obs)
+  pure subroutine note_rest(run, t, obs, still)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    if (at_rest(run%ball, t, [obs%normal, obs%omega])) then
+    logical, intent(in), optional :: still      !< whether it is at rest (at_rest), when known
+    logical :: resting
+    if (present(still)) then
+      resting = still
+    else
+      resting = at_rest(run%ball, t, [obs%normal, obs%omega])
+    end if
+    if (resting) then
       if (.not. run%resting) then
         run%resting = .true.
         run%rest_since = t

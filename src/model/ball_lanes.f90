@@ -21,7 +21,7 @@ module ellroll_ball_lanes
   private
 
   public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
-  public :: lanes_rolling_mode, lanes_rolling_stops
+  public :: lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -47,6 +47,9 @@ module ellroll_ball_lanes
     !> the rolling at its start (0 at rest), the rolling part of omega there,
     !> and 1 where it rolls, else 0
     real(wp) :: resistance(lanes) = 0
+    !> rolling resistance's constants: sqrt(g / R) (rest_rate's), m R and
+    !> m R^2 (1 + k) (couple_inertia's), as the one-case code computes them
+    real(wp), dimension(lanes) :: rest_scale = 1, mass_radius = 1, couple_inertia = 1
     real(wp) :: rolling_mode(lanes, 3) = 0, rolling_at_start(lanes, 3) = 0, rolls(lanes) = 0
     logical :: resists = .false.          !< some lane has rolling resistance
   end type ball_lanes_t
@@ -104,6 +107,9 @@ contains
     p%base_divisor(l) = ball%radius * (1 + ball%inertia_factor)
     p%moves(l) = merge(1.0_wp, 0.0_wp, ball%excitation%kind /= excitation_none)
     p%resistance(l) = max(ball%rolling_resistance, 0.0_wp)
+    p%rest_scale(l) = sqrt(ball%g / ball%radius)
+    p%mass_radius(l) = ball%mass * ball%radius
+    p%couple_inertia(l) = ball%mass * ball%radius**2 * (1 + ball%inertia_factor)
     p%rolling_mode(l, :) = 0
     p%rolling_at_start(l, :) = 0
     p%rolls(l) = 0
@@ -222,40 +228,40 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), base(lanes, 3)
     real(wp), intent(inout) :: dydt(lanes, state_size)
-    real(wp) :: length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, resistance, spin, o1, o2, o3, rate, rest
+    real(wp) :: inv_length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, resistance, spin, o1, o2, o3, rate, rest
     real(wp) :: d1, d2, d3, drive_size, inertia, divisor, quotient, e1, e2, e3, m, r
     logical :: rolling, past, held, resists
     integer :: l, i
     do l = 1, p%width
       r = p%radius(l)
       m = p%mass(l)
-      length = sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
-      n1 = y(l, 1) / length
-      n2 = y(l, 2) / length
-      n3 = y(l, 3) / length
+      inv_length = 1 / sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
       g1 = merge(0.0_wp - base(l, 1), 0.0_wp, p%moves(l) > 0)
       g2 = merge(0.0_wp - base(l, 2), 0.0_wp, p%moves(l) > 0)
       g3 = merge(-p%g(l) - base(l, 3), -p%g(l), p%moves(l) > 0)
       t1 = dydt(l, 2) * n3 - dydt(l, 3) * n2
       t2 = dydt(l, 3) * n1 - dydt(l, 1) * n3
       t3 = dydt(l, 1) * n2 - dydt(l, 2) * n1
-      normal_force = m * (r * (y(l, 4) * t1 + y(l, 5) * t2 + y(l, 6) * t3) / length - (g1 * n1 + g2 * n2 + g3 * n3))
+      normal_force = m * (r * (y(l, 4) * t1 + y(l, 5) * t2 + y(l, 6) * t3) * inv_length - (g1 * n1 + g2 * n2 + g3 * n3))
       resistance = p%resistance(l) * max(normal_force, 0.0_wp)
       spin = y(l, 4) * n1 + y(l, 5) * n2 + y(l, 6) * n3
       o1 = y(l, 4) - spin * n1
       o2 = y(l, 5) - spin * n2
       o3 = y(l, 6) - spin * n3
       rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
-      rest = 1.0e-12_wp * (sqrt(p%g(l) / r) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
+      rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
       rolling = rate > rest
       past = o1 * p%rolling_mode(l, 1) + o2 * p%rolling_mode(l, 2) + o3 * p%rolling_mode(l, 3) < 0
       ! at rest: the couple m R n x (g_vec - a_base) that would start it rolling
-      d1 = (m * r) * (n2 * g3 - n3 * g2)
-      d2 = (m * r) * (n3 * g1 - n1 * g3)
-      d3 = (m * r) * (n1 * g2 - n2 * g1)
+      d1 = p%mass_radius(l) * (n2 * g3 - n3 * g2)
+      d2 = p%mass_radius(l) * (n3 * g1 - n1 * g3)
+      d3 = p%mass_radius(l) * (n1 * g2 - n2 * g1)
       drive_size = sqrt(d1 * d1 + d2 * d2 + d3 * d3)
       held = .not. rolling .and. drive_size <= resistance
-      inertia = m * r**2 * (1 + p%inertia_factor(l))
+      inertia = p%couple_inertia(l)
       divisor = merge(merge(inertia, rate * inertia, past), drive_size * inertia, rolling)
       quotient = resistance / merge(divisor, 1.0_wp, .not. held)
       e1 = merge(merge(p%rolling_mode(l, 1), o1, past), d1, rolling)
@@ -290,7 +296,7 @@ contains
       o2 = y(l, 5) - spin * n2
       o3 = y(l, 6) - spin * n3
       rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
-      rest = 1.0e-12_wp * (sqrt(p%g(l) / p%radius(l)) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
+      rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
       rolling = rate > rest
       p%rolling_at_start(l, :) = [o1, o2, o3]
       p%rolls(l) = merge(1.0_wp, 0.0_wp, rolling)
@@ -300,6 +306,22 @@ contains
       p%rolling_mode(l, 3) = merge(o3 / rate, 0.0_wp, rolling)
     end do
   end subroutine lanes_rolling_mode
+
+  !> Whether each lane's ball is at rest with derivative f at its state
+  !> (at_rest: rolling resistance, no rolling, and held): f = 0. (f = 0
+  !> holds where the couple holds the ball, and otherwise only where n' = 0
+  !> and so omega is along n: no rolling either way.)
+  pure function lanes_at_rest(p, f) result(still)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: f(lanes, state_size)
+    logical :: still(lanes)
+    integer :: l
+    still = .false.
+    do l = 1, p%width
+      still(l) = p%resistance(l) > 0 .and. &
+                 abs(f(l, 1)) + abs(f(l, 2)) + abs(f(l, 3)) + abs(f(l, 4)) + abs(f(l, 5)) + abs(f(l, 6)) <= 0
+    end do
+  end function lanes_at_rest
 
   !> Where the rolling stops inside each lane's step to y_end (rolling_stops
   !> after lanes_rolling_mode at the step's start): a lane with rolling

@@ -181,8 +181,9 @@ contains
     real(wp), intent(in) :: t, y(state_size), length
     real(wp), intent(inout) :: dydt(state_size)
     real(wp), intent(in), optional :: base(3)
-    real(wp) :: n(3), omega_t(3), gravity(3), drive(3), turn(3), normal_force, resistance, rate, drive_size
-    n = y(1:3) / length
+    real(wp) :: n(3), omega_t(3), gravity(3), drive(3), turn(3), normal_force, resistance, rate, drive_size, inv_length
+    inv_length = 1 / length
+    n = y(1:3) * inv_length
     gravity = [0.0_wp, 0.0_wp, -ball%g]
     if (ball%excitation%kind /= excitation_none) then
       if (present(base)) then
@@ -192,7 +193,7 @@ contains
       end if
     end if
     turn = cross(dydt(1:3), n)
-    normal_force = ball%mass * (ball%radius * (y(4) * turn(1) + y(5) * turn(2) + y(6) * turn(3)) / length &
+    normal_force = ball%mass * (ball%radius * (y(4) * turn(1) + y(5) * turn(2) + y(6) * turn(3)) * inv_length &
                                 - (gravity(1) * n(1) + gravity(2) * n(2) + gravity(3) * n(3)))
     resistance = ball%rolling_resistance * max(normal_force, 0.0_wp)
     omega_t = y(4:6) - (y(4) * n(1) + y(5) * n(2) + y(6) * n(3)) * n
@@ -234,13 +235,16 @@ contains
   !> come_to_rest leaves it, and held there by the couple (resist_rolling:
   !> the state constant), not at a turn it rolls back from. Without it the
   !> ball has no rest but the bottom's unstable balance of round-off: false.
+  !> (The batch's lanes_at_rest is the same test on each lane, from its
+  !> derivative at the step's end.)
   pure logical function at_rest(ball, t, y)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size)
-    real(wp) :: dydt(state_size)
+    real(wp) :: dydt(state_size), omega_t(3)
     at_rest = .false.
     if (.not. ball%rolling_resistance > 0) return
-    if (norm2(rolling_part(y)) > rest_rate(ball, y)) return
+    omega_t = rolling_part(y)
+    if (sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3)) > rest_rate(ball, y)) return
     call ball_derivative(ball, t, y, dydt)
     at_rest = all(is_zero(dydt))
   end function at_rest
