@@ -737,6 +737,8 @@ def test_batched_rolling_resistance_equals_the_same_cases_run_alone(ellroll, tmp
             .replace("t_end = 3.0", "t_end = 3.0, settle = 3.0"))
     (tmp_path / "camp.nml").write_text(base + ROLLING_RESISTANCE)
     assert run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", "camp.nml", "-q", "--threads", "2", "-o", "threads.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "campaign.h5", tmp_path / "threads.h5")
     with h5py.File(tmp_path / "campaign.h5", "r") as c:
         assert len(set(c["summary/wall_time"][:])) == 1, "the sweep runs as one batch"
         assert np.sum(c["summary/at_rest"][:]) >= 6 and np.max(c["summary/t_final"][:]) > 3.0
