@@ -19,14 +19,17 @@ Three campaigns of the paper's cup and ball, RK4 at dt = 1e-3, summary only
   spin sweep      32 spins omega_z = 5..36 rad/s over 60 s, on a fixed cup
   harmonic sweep  the same 32 cases, the cup shaken along x and y (0.3 m/s^2,
                   0.5 Hz)
+  rolling-resistance sweep  the same 32 cases with rolling resistance 1e-3 m
+                  (each lane its mode per step; rest events where the rolling
+                  stops)
   record suite    the six synthetic records of input/records at scales 0.5,
                   1 and 1.5 ... (15 cases, 40 s) against the same 15 cases on
                   a fixed cup
 Each build's runs take turns (--rounds times, best of each), so that every
 build sees the same machine; a campaign is timed by its processor time.
 Printed: the ratios above, ns per case-step of
-each campaign and the ratios harmonic / fixed and record suite / fixed, per
-build.
+each campaign and the ratios harmonic / fixed, rolling resistance / fixed and
+record suite / fixed, per build.
 
     python bench/scene_campaigns.py --exe build/ellroll [--exe OTHER/ellroll ...] [--revision REV]
                                     [--revision-build DIR] [--rounds 3] [--quick]
@@ -63,6 +66,7 @@ def campaigns(quick):
     t_spin, t_suite = (2.0, 2.0) if quick else (60.0, 40.0)
     sweep = f"&sweep name = 'omega_z', values = {SPINS} /\n"
     harmonic = "&excitation kind = 'harmonic', amplitude = 0.3, 0.3, 0.0, frequency = 0.5 /\n"
+    resisting = CUP.format(t_end=t_spin).replace("weight = 2620.0 /", "weight = 2620.0, rolling_resistance = 1.0e-3 /")
     records = "".join(f"&record name = '{r}', record_file = '{ROOT / 'input' / 'records' / (r + '.AT2')}' /\n"
                       for r in RECORDS)
     scales = "&sweep name = 'scale', values = " + ", ".join(map(str, SCALES)) + " /\n"
@@ -71,6 +75,7 @@ def campaigns(quick):
     return {
         "spin sweep, fixed cup": (CUP.format(t_end=t_spin) + sweep, 32, n_spin),
         "spin sweep, harmonic cup": (CUP.format(t_end=t_spin) + harmonic + sweep, 32, n_spin),
+        "spin sweep, rolling resist.": (resisting + sweep, 32, n_spin),
         "15 cases, fixed cup": (CUP.format(t_end=t_suite) + suite_fixed, 15, n_suite),
         "record suite, 15 cases": (CUP.format(t_end=t_suite) + "&excitation kind = 'record' /\n" + records + scales,
                                    15, n_suite),
@@ -193,6 +198,7 @@ def measure(args, labels):
     for name, (_, cases, steps) in runs.items():
         print(f"{name:>26} {cases:6d} " + " ".join(f"{1e9 * best[e, name] / (cases * steps):14.1f}" for e in args.exe))
     for label, moving, fixed in [("harmonic / fixed cup", "spin sweep, harmonic cup", "spin sweep, fixed cup"),
+                                 ("rolling resist. / fixed cup", "spin sweep, rolling resist.", "spin sweep, fixed cup"),
                                  ("record suite / fixed cup", "record suite, 15 cases", "15 cases, fixed cup")]:
         ratios = [best[e, moving] / runs[moving][1] / runs[moving][2] / (best[e, fixed] / runs[fixed][1] / runs[fixed][2])
                   for e in args.exe]

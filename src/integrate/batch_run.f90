@@ -10,16 +10,18 @@ module ellroll_batch_run
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, make_ball
   use ellroll_results, only: case_result_t
-  use ellroll_quantities, only: q_friction_needed, q_energy
-  use ellroll_rolling_ball, only: observation_t, state_size
+  use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal
+  use ellroll_rolling_ball, only: observation_t, state_size, event_rest
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
   use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
-  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes
+  use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes, &
+      lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
-  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion
-  use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps
+  use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
+      track_rolling_resistance, latest_end, settled
+  use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, slip_inside
   use ellroll_step_control, only: step_control_t, last_step_clipped, round_off_step, cannot_follow, judged_norm
@@ -54,7 +56,7 @@ contains
     type(method_info_t) :: method
     method = method_info(cs%method)
     batchable = method%batches .and. .not. (cs%error_estimate .or. cs%slide)
-    if (batchable) batchable = runs_in_lanes(make_ball(cs))
+    if (batchable) batchable = runs_in_lanes(make_ball(cs), fixed_steps=.not. method%adaptive)
   end function batchable
 
   !> Up to `lanes` batchable cases of one method advanced together, one per
@@ -126,7 +128,11 @@ contains
     end associate
   end subroutine simulate_batch
 
-  !> A fixed-step method with each case's dt (fixed_step_loop across lanes).
+  !> A fixed-step method with each case's dt (fixed_step_loop across lanes):
+  !> with rolling resistance, each lane's mode for the step from its start
+  !> (lanes_rolling_mode), a step in which its rolling stops taken again
+  !> through the rest event on the one-case code (rest_events), and a case
+  !> that settles runs past t_end until the ball is at rest (n_last).
   subroutine fixed_step_lanes(b, integrator, cases, plan, results)
     type(batch_t), intent(inout) :: b
     class(integrator_t), intent(inout) :: integrator
@@ -138,7 +144,7 @@ contains
     real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
     real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: h(lanes), t
-    integer(i8) :: n_steps(lanes), every(lanes), step
+    integer(i8) :: n_steps(lanes), n_last(lanes), every(lanes), step
     ! each lane's next step that is a multiple of its every, and its last
     ! step with an output sample ((n_samples - 1) every)
     integer(i8) :: due(lanes), last_sample(lanes)
@@ -152,8 +158,11 @@ contains
         i = merge(l, donor, active(l))
         h(l) = cases(i)%param(p_dt)
         n_steps(l) = nint(cases(i)%t_end / cases(i)%param(p_dt), i8)
+        n_last(l) = n_steps(l)
+        if (latest_end(cases(i), run(i)) > cases(i)%t_end) &
+          n_last(l) = max(nint(latest_end(cases(i), run(i)) / cases(i)%param(p_dt), i8), n_steps(l))
         every(l) = steps_per_sample(cases(i), plan)
-        if (l <= n) active(l) = active(l) .and. n_steps(l) > 0
+        if (l <= n) active(l) = active(l) .and. n_last(l) > 0
       end do
       due = every
       last_sample = (plan%n_samples - 1) * every
@@ -166,11 +175,14 @@ contains
         step = step + 1
         if (stop_asked(step)) exit
         call step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
+        if (balls%resists) call rest_events(b, integrator, real(step - 1, wp) * h, h, y_new, f_new, inside, out, base_end, &
+                                            results)
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
         if (any(active .and. .not. accepted)) call meet_limits()
         call summary%add(out, step * h, accepted)
         if (b%cups%moving) call track_cups(b, out, base_end, step * h, accepted)
+        if (balls%resists) call track_resistance(b, out, y_new, f_new, step * h, accepted, results)
         if (any(plan%fields)) then
           ! the steps that are multiples of every (sample_due) counted up, not divided out
           sample_now = accepted .and. step == due .and. step <= last_sample
@@ -183,7 +195,7 @@ contains
           results(l)%n_steps = step
           t = step * h(l)
           call run(l)%maxima%add(t, out%tan_nutation(l))
-          if (step == n_steps(l)) then
+          if (step == n_last(l) .or. (step >= n_steps(l) .and. n_last(l) > n_steps(l) .and. settled(run(l), t))) then
             call samples%flush(l, results(l))
             results(l)%t_final = t
             call summary%store(l, run(l), results(l))
@@ -217,6 +229,7 @@ contains
         y_lane = b%y(l, :)
         f_lane = b%f(l, :)
         checkpoint_lane = y_older_checkpoint(l, :)
+        if (b%run(l)%ball%nonsmooth()) call b%run(l)%ball%begin_step(y_lane)    ! the step's mode
         call end_at_limit(integrator, b%run(l), plan, cases(l)%t_end, checkpoint_lane, step - 1, y_lane, f_lane, h(l), &
                           every(l), merge(out%status(l), status_no_fit, out%status(l) /= status_completed), &
                           results(l), y_new_lane, f_new_lane, obs)
@@ -241,9 +254,52 @@ contains
     end subroutine meet_limits
   end subroutine fixed_step_lanes
 
+  !> The active lanes whose rolling stops inside the step from t (steps h)
+  !> just taken (lanes_rolling_stops, where the step stayed inside the
+  !> model): the step taken again through the rest event with the one-case
+  !> code on the lane (step_through_event, in the lane's mode for the step),
+  !> its end (y_new, f_new) observed with the others' (out; base_end: the
+  !> cups' accelerations there); a lane whose step then meets a limit is not
+  !> inside (meet_limits).
+  subroutine rest_events(b, integrator, t, h, y_new, f_new, inside, out, base_end, results)
+    type(batch_t), intent(inout) :: b
+    class(integrator_t), intent(inout) :: integrator
+    real(wp), intent(in) :: t(lanes), h(lanes), base_end(lanes, 3)
+    real(wp), dimension(lanes, state_size), intent(inout) :: y_new, f_new
+    logical, intent(inout) :: inside(lanes)
+    type(lane_outputs_t), intent(inout) :: out
+    type(case_result_t), intent(inout) :: results(:)
+    real(wp), dimension(state_size) :: y_lane, f_lane, y_new_lane, f_new_lane
+    type(observation_t) :: obs
+    logical :: stops(lanes)
+    real(wp) :: t_event
+    integer :: status, l
+    stops = lanes_rolling_stops(b%balls, y_new) .and. b%active .and. inside .and. out%status == status_completed
+    if (.not. any(stops)) return
+    do l = 1, b%n
+      if (.not. stops(l)) cycle
+      y_lane = b%y(l, :)
+      f_lane = b%f(l, :)
+      y_new_lane = y_new(l, :)                 ! where the event was seen
+      call b%run(l)%ball%begin_step(y_lane)
+      call step_through_event(integrator, b%run(l), event_rest, t(l), y_lane, f_lane, h(l), y_new_lane, f_new_lane, &
+                              obs, status, results(l)%n_rhs, t_event)
+      b%run(l)%stopped_at = t_event
+      y_new(l, :) = y_new_lane
+      f_new(l, :) = f_new_lane
+      inside(l) = status == status_completed
+    end do
+    if (b%cups%moving) then
+      call lanes_observe(b%balls, y_new, f_new, out, base_end)
+    else
+      call lanes_observe(b%balls, y_new, f_new, out)
+    end if
+  end subroutine rest_events
+
   !> Every lane's fixed step number `step` (steps h, from t = (step - 1) h,
   !> the one-case loop's times) and the observation of its end (base_end:
-  !> the cups' accelerations there, when they move).
+  !> the cups' accelerations there, when they move); with rolling
+  !> resistance, in each lane's mode from the step's start.
   subroutine step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
     type(batch_t), intent(inout) :: b
     class(integrator_t), intent(in) :: integrator
@@ -254,6 +310,7 @@ contains
     type(lane_outputs_t), intent(inout) :: out
     real(wp), intent(inout) :: base_end(lanes, 3)
     real(wp) :: base_half(lanes, 3)
+    if (b%balls%resists) call lanes_rolling_mode(b%balls, b%y)
     if (b%cups%moving) then
       call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
       call b%cups%at(real(step - 1, wp) * h + h, base_end)
@@ -589,6 +646,29 @@ contains
       call track_cup_motion(b%run(l), t(l), center_acceleration, base_lane)
     end do
   end subroutine track_cups
+
+  !> What the accepted lanes' new states y (derivatives f, observed: out, at
+  !> times t) add to the summary of rolling resistance
+  !> (track_rolling_resistance, the one-case code on each lane that has it).
+  subroutine track_resistance(b, out, y, f, t, accepted, results)
+    type(batch_t), intent(inout) :: b
+    type(lane_outputs_t), intent(in) :: out
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), t(lanes)
+    logical, intent(in) :: accepted(lanes)
+    type(case_result_t), intent(inout) :: results(:)
+    type(observation_t) :: obs
+    logical :: still(lanes)
+    integer :: l
+    still = lanes_at_rest(b%balls, f)
+    do l = 1, b%n
+      if (.not. (accepted(l) .and. b%balls%resistance(l) > 0)) cycle
+      obs%normal = out%normal(l, :)
+      obs%omega = y(l, 4:6)
+      obs%center = out%contact(l, :) + b%run(l)%ball%radius * obs%normal
+      obs%reaction_normal = out%quantity(l, q_reaction_normal)
+      call track_rolling_resistance(b%run(l), results(l), t(l), obs, still(l))
+    end do
+  end subroutine track_resistance
 
   !> The mask of lane l alone.
   pure function lane_only(l) result(mask)

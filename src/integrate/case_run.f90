@@ -36,7 +36,8 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
-  public :: track, track_step_end, track_cup_motion, note_nutation, accumulate, record_sample, record_geometry_sample, stored
+  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, note_nutation, accumulate, &
+            record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -335,12 +336,25 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    if (run%ball%rolling_resistance > 0) then
-      call note_rest(run, t, obs)
-      call add_resistance_work(run, res, t, obs)
-    end if
+    call track_rolling_resistance(run, res, t, obs)
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
+
+  !> What a step's end point adds to the summary of rolling resistance: the
+  !> rest (note_rest) and the couple's work (from obs's normal, omega,
+  !> centre and normal force; the batches call it per lane, with whether
+  !> the ball is at rest there: still, lanes_at_rest's).
+  pure subroutine track_rolling_resistance(run, res, t, obs, still)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    logical, intent(in), optional :: still
+    if (run%ball%rolling_resistance > 0) then
+      call note_rest(run, t, obs, still)
+      call add_resistance_work(run, res, t, obs)
+    end if
+  end subroutine track_rolling_resistance
 
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
@@ -361,7 +375,7 @@ contains
   !> What a step's end point adds to the summary of a moving cup beyond the
   !> step-end statistics (the transmissibility's fit), from the horizontal
   !> absolute accelerations of the centre and of the cup (the batches call
-  !> it per lane; their scenes have no rolling resistance).
+  !> it per lane).
   pure subroutine track_cup_motion(run, t, center_acceleration, base)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, center_acceleration(2), base(2)
@@ -371,11 +385,18 @@ contains
   !> Whether the ball is at rest at a step end at time t, and where and
   !> since when it rests: the rest event's time where the step located one
   !> inside it (stopped_at), else t (an adaptive step ends at the event).
-  pure subroutine note_rest(run, t, obs)
+  pure subroutine note_rest(run, t, obs, still)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
-    if (at_rest(run%ball, t, [obs%normal, obs%omega])) then
+    logical, intent(in), optional :: still      !< whether it is at rest (at_rest), when known
+    logical :: resting
+    if (present(still)) then
+      resting = still
+    else
+      resting = at_rest(run%ball, t, [obs%normal, obs%omega])
+    end if
+    if (resting) then
       if (.not. run%resting) then
         run%resting = .true.
         run%rest_since = t

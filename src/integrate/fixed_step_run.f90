@@ -21,7 +21,7 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit, fixed_step
+  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.
@@ -99,13 +99,16 @@ contains
   !> (event_search_t on the method's own partial steps, a step that meets a
   !> limit counting as past it), the model acts there (apply_event), and the
   !> rest of the step is taken from there in the mode the model gives that
-  !> state (begin_step), so that the steps stay on the grid of dt.
+  !> state (begin_step), so that the steps stay on the grid of dt. y_new:
+  !> the whole step's end, where the event was seen, on entry; the end of
+  !> the step taken through it on return.
   subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: event
     real(wp), intent(in) :: t, y(state_size), f(state_size), h
-    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    real(wp), intent(inout) :: y_new(state_size)
+    real(wp), intent(out) :: f_new(state_size)
     type(observation_t), intent(out) :: obs
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs

@@ -21,6 +21,7 @@ module ellroll_ball_lanes
   private
 
   public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
+  public :: lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -41,6 +42,16 @@ module ellroll_ball_lanes
     !> 1 where the lane's cup moves, else 0 (a mask of the data's width: a
     !> logical's, narrower, keeps a merge from vectorizing)
     real(wp) :: moves(lanes) = 0
+    !> rolling resistance (delta, m; 0: none) and, for a step, each lane's
+    !> mode (ball_begin_step's, from lanes_rolling_mode): the direction of
+    !> the rolling at its start (0 at rest), the rolling part of omega there,
+    !> and 1 where it rolls, else 0
+    real(wp) :: resistance(lanes) = 0
+    !> rolling resistance's constants: sqrt(g / R) (rest_rate's), m R and
+    !> m R^2 (1 + k) (couple_inertia's), as the one-case code computes them
+    real(wp), dimension(lanes) :: rest_scale = 1, mass_radius = 1, couple_inertia = 1
+    real(wp) :: rolling_mode(lanes, 3) = 0, rolling_at_start(lanes, 3) = 0, rolls(lanes) = 0
+    logical :: resists = .false.          !< some lane has rolling resistance
   end type ball_lanes_t
 
   !> What the summary, the limits and the stored samples need of a state, per lane.
@@ -59,12 +70,16 @@ module ellroll_ball_lanes
 
 contains
 
-  !> Whether a ball's scene runs in lanes: the kernels here hold fixed and
-  !> moving cups and the smooth model (no non-smooth laws: no events, no
-  !> mode per step).
-  pure logical function runs_in_lanes(ball)
+  !> Whether a ball's scene runs in lanes with a method with fixed steps
+  !> (fixed_steps) or an embedded pair: the kernels here hold fixed and
+  !> moving cups, and rolling resistance on fixed steps (each lane its
+  !> mode per step, lanes_rolling_mode, and its rest events, located on the
+  !> one-case code: an adaptive step ends at the event, which an attempt
+  !> of all lanes does not).
+  pure logical function runs_in_lanes(ball, fixed_steps)
     type(rolling_ball_t), intent(in) :: ball
-    runs_in_lanes = .not. ball%nonsmooth()
+    logical, intent(in) :: fixed_steps
+    runs_in_lanes = .not. ball%nonsmooth() .or. fixed_steps
   end function runs_in_lanes
 
   !> Put a ball into lane l (its cup's motion: ellroll_excitation_lanes).
@@ -91,6 +106,14 @@ contains
     p%mu(l) = ball%mu
     p%base_divisor(l) = ball%radius * (1 + ball%inertia_factor)
     p%moves(l) = merge(1.0_wp, 0.0_wp, ball%excitation%kind /= excitation_none)
+    p%resistance(l) = max(ball%rolling_resistance, 0.0_wp)
+    p%rest_scale(l) = sqrt(ball%g / ball%radius)
+    p%mass_radius(l) = ball%mass * ball%radius
+    p%couple_inertia(l) = ball%mass * ball%radius**2 * (1 + ball%inertia_factor)
+    p%rolling_mode(l, :) = 0
+    p%rolling_at_start(l, :) = 0
+    p%rolls(l) = 0
+    p%resists = any(p%resistance > 0)
   end subroutine set_lane
 
   !> |n| of lane l's state (its first three components), 1/|n| and n/|n|.
@@ -120,7 +143,7 @@ contains
     real(wp), intent(out) :: dydt(lanes, state_size)
     real(wp), intent(inout), optional :: margin(lanes)
     real(wp), intent(in), optional :: base(lanes, 3)
-    real(wp) :: unit_scale(lanes), unused(lanes), u1, u2, u3, c1, c2, c3
+    real(wp) :: unit_scale(lanes), unused(lanes), u1, u2, u3, c1, c2, c3, fixed_cups(lanes, 3)
     integer :: l
     ! margin lowered lane by lane in the loop that computes it: a whole-vector
     ! min after it read what the loop had just stored in pieces, a stalled
@@ -131,7 +154,13 @@ contains
       unused = 1
       call derivative_rows(p, y, dydt, unused, unit_scale)
     end if
-    if (.not. present(base)) return
+    if (.not. present(base)) then
+      if (p%resists) then
+        fixed_cups = 0
+        call lanes_resist_rolling(p, y, dydt, fixed_cups)
+      end if
+      return
+    end if
     ! a moving cup: g_vec - a_base in the cup's frame, omega' less
     ! (n x a_base) / (R (1 + k)), n = y / |y| (ball_derivative's order)
     do l = 1, p%width
@@ -146,6 +175,7 @@ contains
       dydt(l, 5) = merge(c2, dydt(l, 5), p%moves(l) > 0)
       dydt(l, 6) = merge(c3, dydt(l, 6), p%moves(l) > 0)
     end do
+    if (p%resists) call lanes_resist_rolling(p, y, dydt, base)
     if (present(margin)) call lanes_stage_reaction(p, y, dydt, unit_scale, base, margin)
   end subroutine lanes_derivative
 
@@ -212,6 +242,135 @@ contains
       unit_scale(p%width + 1:) = 1
     end if
   end subroutine derivative_rows
+
+  !> The couple of rolling resistance on every lane that has it
+  !> (resist_rolling, expression by expression, in the lane's mode for the
+  !> step: rolling_mode, rolls); base: the cups' accelerations (0 where a
+  !> cup does not move). Every branch computed with safe divisors, then one
+  !> picked by merge, so that the loop vectorizes.
+  pure subroutine lanes_resist_rolling(p, y, dydt, base)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), base(lanes, 3)
+    real(wp), intent(inout) :: dydt(lanes, state_size)
+    real(wp) :: inv_length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, resistance, spin, o1, o2, o3, rate, rest
+    real(wp) :: d1, d2, d3, drive_size, inertia, divisor, quotient, e1, e2, e3, m, r
+    logical :: rolling, past, held, resists
+    integer :: l, i
+    do l = 1, p%width
+      r = p%radius(l)
+      m = p%mass(l)
+      inv_length = 1 / sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
+      g1 = merge(0.0_wp - base(l, 1), 0.0_wp, p%moves(l) > 0)
+      g2 = merge(0.0_wp - base(l, 2), 0.0_wp, p%moves(l) > 0)
+      g3 = merge(-p%g(l) - base(l, 3), -p%g(l), p%moves(l) > 0)
+      t1 = dydt(l, 2) * n3 - dydt(l, 3) * n2
+      t2 = dydt(l, 3) * n1 - dydt(l, 1) * n3
+      t3 = dydt(l, 1) * n2 - dydt(l, 2) * n1
+      normal_force = m * (r * (y(l, 4) * t1 + y(l, 5) * t2 + y(l, 6) * t3) * inv_length - (g1 * n1 + g2 * n2 + g3 * n3))
+      resistance = p%resistance(l) * max(normal_force, 0.0_wp)
+      spin = y(l, 4) * n1 + y(l, 5) * n2 + y(l, 6) * n3
+      o1 = y(l, 4) - spin * n1
+      o2 = y(l, 5) - spin * n2
+      o3 = y(l, 6) - spin * n3
+      rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
+      rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
+      rolling = rate > rest
+      past = o1 * p%rolling_mode(l, 1) + o2 * p%rolling_mode(l, 2) + o3 * p%rolling_mode(l, 3) < 0
+      ! at rest: the couple m R n x (g_vec - a_base) that would start it rolling
+      d1 = p%mass_radius(l) * (n2 * g3 - n3 * g2)
+      d2 = p%mass_radius(l) * (n3 * g1 - n1 * g3)
+      d3 = p%mass_radius(l) * (n1 * g2 - n2 * g1)
+      drive_size = sqrt(d1 * d1 + d2 * d2 + d3 * d3)
+      held = .not. rolling .and. drive_size <= resistance
+      inertia = p%couple_inertia(l)
+      divisor = merge(merge(inertia, rate * inertia, past), drive_size * inertia, rolling)
+      quotient = resistance / merge(divisor, 1.0_wp, .not. held)
+      e1 = merge(merge(p%rolling_mode(l, 1), o1, past), d1, rolling)
+      e2 = merge(merge(p%rolling_mode(l, 2), o2, past), d2, rolling)
+      e3 = merge(merge(p%rolling_mode(l, 3), o3, past), d3, rolling)
+      resists = p%resistance(l) > 0
+      dydt(l, 4) = merge(dydt(l, 4) - quotient * e1, dydt(l, 4), resists)
+      dydt(l, 5) = merge(dydt(l, 5) - quotient * e2, dydt(l, 5), resists)
+      dydt(l, 6) = merge(dydt(l, 6) - quotient * e3, dydt(l, 6), resists)
+      do i = 1, state_size
+        dydt(l, i) = merge(0.0_wp, dydt(l, i), resists .and. held)
+      end do
+    end do
+  end subroutine lanes_resist_rolling
+
+  !> Every lane's mode for a step from y (ball_begin_step,
+  !> set_rolling_mode's arithmetic): the rolling part of omega, its
+  !> direction where the ball rolls (0 at rest) and whether it rolls.
+  pure subroutine lanes_rolling_mode(p, y)
+    type(ball_lanes_t), intent(inout) :: p
+    real(wp), intent(in) :: y(lanes, state_size)
+    real(wp) :: length, n1, n2, n3, spin, o1, o2, o3, rate, rest
+    logical :: rolling
+    integer :: l
+    do l = 1, p%width
+      length = sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
+      n1 = y(l, 1) / length
+      n2 = y(l, 2) / length
+      n3 = y(l, 3) / length
+      spin = y(l, 4) * n1 + y(l, 5) * n2 + y(l, 6) * n3
+      o1 = y(l, 4) - spin * n1
+      o2 = y(l, 5) - spin * n2
+      o3 = y(l, 6) - spin * n3
+      rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
+      rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
+      rolling = rate > rest
+      p%rolling_at_start(l, :) = [o1, o2, o3]
+      p%rolls(l) = merge(1.0_wp, 0.0_wp, rolling)
+      rate = merge(rate, 1.0_wp, rolling)
+      p%rolling_mode(l, 1) = merge(o1 / rate, 0.0_wp, rolling)
+      p%rolling_mode(l, 2) = merge(o2 / rate, 0.0_wp, rolling)
+      p%rolling_mode(l, 3) = merge(o3 / rate, 0.0_wp, rolling)
+    end do
+  end subroutine lanes_rolling_mode
+
+  !> Whether each lane's ball is at rest with derivative f at its state
+  !> (at_rest: rolling resistance, no rolling, and held): f = 0. (f = 0
+  !> holds where the couple holds the ball, and otherwise only where n' = 0
+  !> and so omega is along n: no rolling either way.)
+  pure function lanes_at_rest(p, f) result(still)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: f(lanes, state_size)
+    logical :: still(lanes)
+    integer :: l
+    still = .false.
+    do l = 1, p%width
+      still(l) = p%resistance(l) > 0 .and. &
+                 abs(f(l, 1)) + abs(f(l, 2)) + abs(f(l, 3)) + abs(f(l, 4)) + abs(f(l, 5)) + abs(f(l, 6)) <= 0
+    end do
+  end function lanes_at_rest
+
+  !> Where the rolling stops inside each lane's step to y_end (rolling_stops
+  !> after lanes_rolling_mode at the step's start): a lane with rolling
+  !> resistance that rolled at the start, its rolling part turned by a
+  !> right angle or more.
+  pure function lanes_rolling_stops(p, y_end) result(stops)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y_end(lanes, state_size)
+    logical :: stops(lanes)
+    real(wp) :: length, n1, n2, n3, spin, o1, o2, o3
+    integer :: l
+    stops = .false.
+    do l = 1, p%width
+      length = sqrt(y_end(l, 1) * y_end(l, 1) + y_end(l, 2) * y_end(l, 2) + y_end(l, 3) * y_end(l, 3))
+      n1 = y_end(l, 1) / length
+      n2 = y_end(l, 2) / length
+      n3 = y_end(l, 3) / length
+      spin = y_end(l, 4) * n1 + y_end(l, 5) * n2 + y_end(l, 6) * n3
+      o1 = y_end(l, 4) - spin * n1
+      o2 = y_end(l, 5) - spin * n2
+      o3 = y_end(l, 6) - spin * n3
+      stops(l) = p%resistance(l) > 0 .and. p%rolls(l) > 0 .and. &
+                 o1 * p%rolling_at_start(l, 1) + o2 * p%rolling_at_start(l, 2) + o3 * p%rolling_at_start(l, 3) <= 0
+    end do
+  end function lanes_rolling_stops
 
   !> The reaction's limits at a stage of every lane whose cup moves
   !> (stage_status where the ball fits: a non-finite force, lift-off, slip),

@@ -162,7 +162,7 @@ contains
         end if
       end if
     end associate
-    if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt)
+    if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt, base)
   end subroutine ball_derivative
 
   !> The couple of rolling resistance, delta N against the rolling part
@@ -173,29 +173,42 @@ contains
   !> ball up to delta N against the couple m R n x (g_vec - a_base) that
   !> would start it rolling: within that, the state stays exactly as it is;
   !> beyond it, the ball starts rolling that way, the couple against it.
-  pure subroutine resist_rolling(ball, t, y, length, dydt)
+  !> The sums and norms are written out in the order the batch's
+  !> lanes_resist_rolling takes them (base: the cup's acceleration at t,
+  !> when known).
+  pure subroutine resist_rolling(ball, t, y, length, dydt, base)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size), length
     real(wp), intent(inout) :: dydt(state_size)
-    real(wp) :: n(3), omega_t(3), gravity(3), drive(3), normal_force, resistance, rate, drive_size
-    n = y(1:3) / length
+    real(wp), intent(in), optional :: base(3)
+    real(wp) :: n(3), omega_t(3), gravity(3), drive(3), turn(3), normal_force, resistance, rate, drive_size, inv_length
+    inv_length = 1 / length
+    n = y(1:3) * inv_length
     gravity = [0.0_wp, 0.0_wp, -ball%g]
-    if (ball%excitation%kind /= excitation_none) gravity = gravity - base_acceleration(ball%excitation, t)
-    normal_force = ball%mass * (ball%radius * dot_product(y(4:6), cross(dydt(1:3), n)) / length &
-                                - dot_product(gravity, n))
+    if (ball%excitation%kind /= excitation_none) then
+      if (present(base)) then
+        gravity = gravity - base
+      else
+        gravity = gravity - base_acceleration(ball%excitation, t)
+      end if
+    end if
+    turn = cross(dydt(1:3), n)
+    normal_force = ball%mass * (ball%radius * (y(4) * turn(1) + y(5) * turn(2) + y(6) * turn(3)) * inv_length &
+                                - (gravity(1) * n(1) + gravity(2) * n(2) + gravity(3) * n(3)))
     resistance = ball%rolling_resistance * max(normal_force, 0.0_wp)
-    omega_t = y(4:6) - dot_product(y(4:6), n) * n
-    rate = norm2(omega_t)
+    omega_t = y(4:6) - (y(4) * n(1) + y(5) * n(2) + y(6) * n(3)) * n
+    rate = sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3))
     if (rate > rest_rate(ball, y)) then
-      if (dot_product(omega_t, ball%rolling_mode) < 0) then     ! past the stop, inside the step cut there
+      ! past the stop, inside the step cut there
+      if (omega_t(1) * ball%rolling_mode(1) + omega_t(2) * ball%rolling_mode(2) + omega_t(3) * ball%rolling_mode(3) < 0) then
         dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
       else
         dydt(4:6) = dydt(4:6) - (resistance / (rate * couple_inertia(ball))) * omega_t
       end if
       return
     end if
-    drive = ball%mass * ball%radius * cross(n, gravity)
-    drive_size = norm2(drive)
+    drive = (ball%mass * ball%radius) * cross(n, gravity)
+    drive_size = sqrt(drive(1) * drive(1) + drive(2) * drive(2) + drive(3) * drive(3))
     if (drive_size <= resistance) then
       dydt = 0                                   ! held: at rest
     else
@@ -209,11 +222,12 @@ contains
     couple_inertia = ball%mass * ball%radius**2 * (1 + ball%inertia_factor)
   end function couple_inertia
 
-  !> Below this rolling rate the ball is at rest (come_to_rest leaves round-off only).
+  !> Below this rolling rate the ball is at rest (come_to_rest leaves round-off
+  !> only); written out as lanes_rolling_mode takes it.
   pure real(wp) function rest_rate(ball, y)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(state_size)
-    rest_rate = 1.0e-12_wp * (sqrt(ball%g / ball%radius) + norm2(y(4:6)))
+    rest_rate = 1.0e-12_wp * (sqrt(ball%g / ball%radius) + sqrt(y(4) * y(4) + y(5) * y(5) + y(6) * y(6)))
   end function rest_rate
 
   !> Whether the ball is at rest on the cup at time t, state y: with
@@ -221,23 +235,27 @@ contains
   !> come_to_rest leaves it, and held there by the couple (resist_rolling:
   !> the state constant), not at a turn it rolls back from. Without it the
   !> ball has no rest but the bottom's unstable balance of round-off: false.
+  !> (The batch's lanes_at_rest is the same test on each lane, from its
+  !> derivative at the step's end.)
   pure logical function at_rest(ball, t, y)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size)
-    real(wp) :: dydt(state_size)
+    real(wp) :: dydt(state_size), omega_t(3)
     at_rest = .false.
     if (.not. ball%rolling_resistance > 0) return
-    if (norm2(rolling_part(y)) > rest_rate(ball, y)) return
+    omega_t = rolling_part(y)
+    if (sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3)) > rest_rate(ball, y)) return
     call ball_derivative(ball, t, y, dydt)
     at_rest = all(is_zero(dydt))
   end function at_rest
 
-  !> The rolling part of the angular velocity at state y.
+  !> The rolling part of the angular velocity at state y (written out as
+  !> the batch's lanes_rolling_mode takes it).
   pure function rolling_part(y) result(omega_t)
     real(wp), intent(in) :: y(state_size)
     real(wp) :: omega_t(3), n(3)
-    n = y(1:3) / norm2(y(1:3))
-    omega_t = y(4:6) - dot_product(y(4:6), n) * n
+    n = y(1:3) / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+    omega_t = y(4:6) - (y(4) * n(1) + y(5) * n(2) + y(6) * n(3)) * n
   end function rolling_part
 
   !> Whether the model has non-smooth laws (rolling resistance): a mode
@@ -318,14 +336,16 @@ contains
     rolling_stops = .false.
     if (.not. ball%rolling_resistance > 0) return
     start = rolling_part(y_start)
-    if (norm2(start) <= rest_rate(ball, y_start)) return
-    rolling_stops = dot_product(start, rolling_part(y_end)) <= 0
+    if (.not. sqrt(start(1) * start(1) + start(2) * start(2) + start(3) * start(3)) > rest_rate(ball, y_start)) return
+    rolling_stops = rolling_along(y_end, start) <= 0
   end function rolling_stops
 
   !> The rolling part of the angular velocity at y along direction.
   pure real(wp) function rolling_along(y, direction)
     real(wp), intent(in) :: y(state_size), direction(3)
-    rolling_along = dot_product(rolling_part(y), direction)
+    real(wp) :: omega_t(3)
+    omega_t = rolling_part(y)
+    rolling_along = omega_t(1) * direction(1) + omega_t(2) * direction(2) + omega_t(3) * direction(3)
   end function rolling_along
 
   !> The direction of the rolling at y (zero at rest) as the ball's mode for
@@ -333,11 +353,12 @@ contains
   pure subroutine set_rolling_mode(ball, y)
     type(rolling_ball_t), intent(inout) :: ball
     real(wp), intent(in) :: y(state_size)
-    real(wp) :: omega_t(3)
+    real(wp) :: omega_t(3), rate
     omega_t = rolling_part(y)
+    rate = sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3))
     ball%rolling_at_start = omega_t
     ball%rolling_mode = 0
-    if (norm2(omega_t) > rest_rate(ball, y)) ball%rolling_mode = omega_t / norm2(omega_t)
+    if (rate > rest_rate(ball, y)) ball%rolling_mode = omega_t / rate
   end subroutine set_rolling_mode
 
   !> The rolling part of the angular velocity at y set to zero (the spin

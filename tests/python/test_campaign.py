@@ -718,3 +718,46 @@ def test_batched_moving_cups_equal_the_same_cases_run_alone(ellroll, tmp_path, k
         for figure in ("theta_max", "reaction_normal_max", "horizontal_force_max", "displacement_max",
                        "energy_drift", "transmissibility"):
             np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=1e-10)
+
+
+ROLLING_RESISTANCE = """&sweep name = 'rolling_resistance', values = 1.0e-3, 2.0e-3, 4.0e-3, 8.0e-3 /
+&sweep name = 'omega_z', values = 0.0, 3.0 /
+"""
+
+
+def test_batched_rolling_resistance_equals_the_same_cases_run_alone(ellroll, tmp_path):
+    """A sweep of rolling resistance (rk4, 8 cases) runs in SIMD lanes (one
+    batch: its cases share its wall time), each lane its own mode per step
+    and its own rest events; each case equals the one-case path (the case
+    alone in its own input) to round-off: the same steps and status, samples
+    and figures to 1e-12, the time and place it comes to rest. The event
+    search's trials (its RHS calls) follow the round-off of the two paths."""
+    base = (BASE.format(t_end=3.0).replace("x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0",
+                                           "x = 0.1, y = 0.0, omega = 0.0, 0.0, 0.0")
+            .replace("t_end = 3.0", "t_end = 3.0, settle = 3.0"))
+    (tmp_path / "camp.nml").write_text(base + ROLLING_RESISTANCE)
+    assert run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "-o", "campaign.h5", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", "camp.nml", "-q", "--threads", "2", "-o", "threads.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "campaign.h5", tmp_path / "threads.h5")
+    with h5py.File(tmp_path / "campaign.h5", "r") as c:
+        assert len(set(c["summary/wall_time"][:])) == 1, "the sweep runs as one batch"
+        assert np.sum(c["summary/at_rest"][:]) >= 6 and np.max(c["summary/t_final"][:]) > 3.0
+    for index in (1, 4, 7):
+        with h5py.File(tmp_path / "campaign.h5", "r") as c:
+            resistance, spin = float(c["case/rolling_resistance"][index]), float(c["case/omega"][index][2])
+        alone = (base.replace("omega = 0.0, 0.0, 0.0", f"omega = 0.0, 0.0, {spin!r}")
+                 + f"&sweep name = 'rolling_resistance', values = {resistance!r} /\n")
+        (tmp_path / "alone.nml").write_text(alone)
+        assert run(ellroll, "run", "alone.nml", "-q", "--overwrite", "-o", "alone.h5", cwd=tmp_path).returncode == 0
+        with h5py.File(tmp_path / "campaign.h5", "r") as c, h5py.File(tmp_path / "alone.h5", "r") as a:
+            for name in ("status", "n_steps", "at_rest", "t_final"):
+                assert c[f"summary/{name}"][index] == a[f"summary/{name}"][0], name
+            assert abs(int(c["summary/n_rhs"][index]) - int(a["summary/n_rhs"][0])) <= 4 * 60
+            for field in ("contact", "omega", "reaction", "energy"):
+                expected = a[f"trajectory/{field}"][0]
+                np.testing.assert_allclose(c[f"trajectory/{field}"][index], expected, rtol=1e-12,
+                                           atol=1e-12 * np.max(np.abs(expected)))
+            for figure in ("rest_time", "residual_displacement", "rolling_resistance_energy", "theta_max",
+                           "reaction_normal_max", "energy_drift"):
+                np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=1e-12,
+                                           atol=1e-15)

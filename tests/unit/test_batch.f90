@@ -34,10 +34,12 @@ program test_batch
   use testing
   use ellroll_params, only: p_atol, p_dt, p_omega_x, p_omega_z, p_rtol, p_x, p_y, p_a, p_b, p_c, p_g, &
       p_inertia_factor, p_mass, p_mu, p_radius, p_excitation_frequency, p_excitation_phase, &
-      p_excitation_amplitude_x, p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale
+      p_excitation_amplitude_x, p_excitation_amplitude_y, p_excitation_amplitude_z, p_scale, &
+      p_rolling_resistance, p_settle
   use ellroll_figures, only: fig_constraint_error_max, fig_displacement_max, fig_energy_drift, &
       fig_friction_needed_max, fig_horizontal_force_max, fig_linear_periods, fig_nutation_maxima, &
-      fig_nutation_period, fig_reaction_normal_max, fig_theta_max
+      fig_nutation_period, fig_reaction_normal_max, fig_theta_max, fig_rest_time, fig_at_rest, &
+      fig_residual_displacement, fig_rolling_resistance_energy
   implicit none
   integer, parameter :: n_cases = lanes
   type(case_t) :: cases(n_cases)
@@ -79,6 +81,7 @@ program test_batch
   end do
   call parted_runs()
   call moving_cups()
+  call rolling_resistance_lanes()
   call finish('test_batch')
 
 contains
@@ -464,6 +467,81 @@ contains
                  ': a fixed cup in a batch of moving cups, bitwise as in a batch of fixed cups')
     end do
   end subroutine moving_cups
+
+  !> Rolling resistance in lanes (rk4; a batch of cases that roll to rest
+  !> through rest events, that are held at their start, that settle past
+  !> t_end on a fixed cup and after a record, on a harmonic cup, and one
+  !> without resistance): against the one-case path as compare_paths does
+  !> (the same bounds: each lane's mode per step and its rest events, the
+  !> step through an event taken with the one-case code, give the same
+  !> steps), a result independent of its lane and neighbours (bitwise);
+  !> and the rest figures (when and where the ball came to rest, the
+  !> couple's work) to round-off of the one-case path's.
+  subroutine rolling_resistance_lanes()
+    type(case_t) :: cases(n_cases)
+    type(case_result_t) :: single(n_cases), batch(n_cases)
+    type(error_t) :: err
+    integer :: designed(n_cases), l
+    real(wp) :: worst_rest, worst_work
+    logical :: same_rest
+    cases = resisting_cases()
+    designed = status_completed
+    call compare_paths(cases, 'rk4, rolling resistance', designed)
+    call simulate_batch(cases, plan, batch)
+    same_rest = .true.
+    worst_rest = 0
+    worst_work = 0
+    do l = 1, n_cases
+      call simulate_case(cases(l), plan, single(l), err)
+      same_rest = same_rest .and. single(l)%counts(fig_at_rest) == batch(l)%counts(fig_at_rest)
+      if (batch(l)%counts(fig_at_rest) == 1) worst_rest = max(worst_rest, &
+          abs(single(l)%reals(fig_rest_time) - batch(l)%reals(fig_rest_time)), &
+          abs(single(l)%reals(fig_residual_displacement) - batch(l)%reals(fig_residual_displacement)))
+      worst_work = max(worst_work, abs(single(l)%reals(fig_rolling_resistance_energy) - &
+                       batch(l)%reals(fig_rolling_resistance_energy)) / &
+                       max(abs(single(l)%reals(fig_rolling_resistance_energy)), tiny(1.0_wp)))
+    end do
+    call check(count(batch%counts(fig_at_rest) == 1) == 5 .and. same_rest, &
+               'rolling resistance batch: the same 5 cases end at rest as on the one-case path')
+    call check_below(worst_rest, 1.0e-12_wp, &
+                     'rolling resistance batch vs one case: rest time (s) and residual displacement (m)')
+    call check_below(worst_work, 1.0e-12_wp, 'rolling resistance batch vs one case: the couple''s work (rel.)')
+  end subroutine rolling_resistance_lanes
+
+  !> Cases with rolling resistance for one batch (rolling_resistance_lanes).
+  function resisting_cases() result(cs)
+    type(case_t) :: cs(n_cases)
+    integer, parameter :: n_record = 201
+    real(wp) :: times(n_record), values(3, n_record)
+    integer :: k
+    cs = paper_case(1.0e-3_wp, 3.0_wp)
+    cs%param(p_rolling_resistance) = 2.0e-3_wp
+    cs(1)%param(p_omega_x:p_omega_z) = [-2.0_wp, 2.0_wp, 0.0_wp]           ! rolls, turns, stops
+    cs(1)%param(p_rolling_resistance) = 1.0e-2_wp
+    cs(2)%param(p_x) = 0.15_wp; cs(2)%param(p_omega_x:p_omega_z) = 0       ! released off the bottom
+    cs(2)%param(p_rolling_resistance) = 5.0e-3_wp
+    cs(3)%param(p_rolling_resistance) = 1.0e-4_wp                            ! spins on
+    cs(4)%param(p_x) = 0.01_wp; cs(4)%param(p_omega_x:p_omega_z) = 0       ! held where it starts
+    cs(4)%param(p_rolling_resistance) = 1.0e-2_wp
+    cs(5)%param(p_dt) = 2.0e-3_wp; cs(5)%t_end = 2.0_wp                     ! another step and length
+    cs(5)%param(p_x) = -0.1_wp; cs(5)%param(p_y) = 0.05_wp; cs(5)%param(p_omega_x:p_omega_z) = 0
+    cs(5)%param(p_settle) = 5                                               ! on past t_end until at rest
+    do k = 1, n_record                                                      ! a record that ends at rest
+      times(k) = (k - 1) * 0.01_wp
+      values(:, k) = [1.5_wp * sin(5.0_wp * times(k)), 0.8_wp * sin(3.0_wp * times(k)), 0.0_wp] &
+                     * merge(1.0_wp, 0.0_wp, k < n_record)
+    end do
+    call set_record(cs(6)%excitation, times, values)
+    cs(6)%param(p_settle) = 5
+    cs(6)%param(p_rolling_resistance) = 1.0e-2_wp
+    cs(6)%t_end = 1.0_wp
+    cs(7)%excitation%kind = excitation_harmonic                              ! a harmonic cup
+    cs(7)%param(p_excitation_frequency) = 0.8_wp
+    cs(7)%param(p_excitation_amplitude_x) = 0.6_wp
+    cs(7)%param(p_excitation_amplitude_y) = 0.3_wp
+    cs(7)%param(p_omega_x:p_omega_z) = [1.0_wp, 1.0_wp, 5.0_wp]
+    cs(8)%param(p_rolling_resistance) = 0                                    ! none among them
+  end function resisting_cases
 
   !> Harmonic cups (other frequencies, phases, amplitudes, one lifting the
   !> ball off), cups following an even and an uneven record at two
