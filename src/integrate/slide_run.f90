@@ -16,13 +16,15 @@ module ellroll_slide_run
   use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t
-  use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
+  use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max, &
+      fig_rolling_resistance_energy
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
+      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, center_velocity, resistance_power
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
+  use ellroll_step_works, only: step_works
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -336,7 +338,7 @@ contains
         return
       end if
       if (held .or. .not. switch_crossed(sb, now, new)) then
-        call add_sliding_step(integrator, sb, t_at, remaining, now, new, tally, res%n_rhs)
+        call add_sliding_step(integrator, run, rolling, sb, t_at, remaining, now, new, tally, res)
         slip_before = now%slip_speed
         now = new
         if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
@@ -477,7 +479,7 @@ contains
       ended = .true.
       return
     end if
-    call add_sliding_step(integrator, sb, t_at, search%high, now, x, tally, res%n_rhs)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, search%high, now, x, tally, res)
     t_at = t_at + search%high
     now = x
     call track_balance(run, res, t_at, now%obs, tally)
@@ -553,34 +555,29 @@ contains
   end subroutine stop_sliding
 
   !> The piece of step h from (t, from) to `to` that the integrator has just
-  !> taken adds to the sliding figures (add_sliding). An embedded pair's
-  !> friction work is the 3-point Gauss-Legendre rule on the piece's dense
-  !> output (exact to degree 5, its error far below the pair's own over
-  !> the long steps the pair takes; the trapezoidal rule's h^2 error there
-  !> does not fall with the tolerance); a fixed step's the trapezoidal rule.
-  subroutine add_sliding_step(integrator, sb, t, h, from, to, tally, n_rhs)
+  !> taken adds to the sliding figures (add_sliding). An embedded pair's works
+  !> of the friction and of the rolling resistance, in either regime, are
+  !> step_works' (the latter in place of add_resistance_work's trapezoids).
+  subroutine add_sliding_step(integrator, run, rolling, sb, t, h, from, to, tally, res)
     class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    type(run_state_t), intent(in) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, h
     type(regime_state_t), intent(in) :: from, to
     type(slide_tally_t), intent(inout) :: tally
-    integer(i8), intent(inout) :: n_rhs
-    real(wp), parameter :: offset = 0.3872983346207416885_wp      ! sqrt(15) / 10
-    real(wp), parameter :: nodes(3) = [0.5_wp - offset, 0.5_wp, 0.5_wp + offset]
-    real(wp), parameter :: weights(3) = [5.0_wp, 8.0_wp, 5.0_wp] / 18
-    real(wp) :: y(slide_state_size), rate(slide_state_size), big_n, work
-    integer :: i
-    if (.not. from%sliding) return
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: work(2)
     select type (integrator)
     class is (embedded_pair_t)
-      work = 0
-      do i = 1, 3
-        call integrator%dense(sb, nodes(i), y, n_rhs)
-        call sliding_derivative(sb, t + nodes(i) * h, y, rate, big_n)
-        work = work + weights(i) * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
-      end do
-      n_rhs = n_rhs + 3
-      call add_sliding(sb, h, from, to, tally, h * sb%ball%mu * work)
+      if (.not. (from%sliding .or. rolling%ball%rolling_resistance > 0)) return
+      call step_works(integrator, rolling%ball, sb, from%sliding, t, h, work, res%n_rhs)
+      call add_sliding(sb, h, from, to, tally, work(1))
+      if (rolling%ball%rolling_resistance > 0) then
+        res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) + work(2)
+        run%resistance_time = t + h       ! (the tracked state there adds no trapezoid)
+        run%resistance_power = resistance_power(sb%ball, to%obs%normal, to%obs%omega, to%obs%reaction_normal)
+      end if
     class default
       call add_sliding(sb, h, from, to, tally)
     end select

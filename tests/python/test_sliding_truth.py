@@ -145,11 +145,6 @@ def test_rk4_s_moving_cup_balance_converges_past_its_switches(ellroll, tmp_path)
     assert abs(residual / friction) < 1e-7
 
 
-DEFECT = ("slide_run.f90: the adaptive methods' friction work is the trapezoidal rule over their long "
-          "steps' pieces, cut at the output samples: the balance closes to 2e-6 of the friction's work at "
-          "any rtol (harmonic 2.1e-6, record 1.2e-6 at rtol 1e-9; 2.2e-6, 1.2e-6 at 1e-10)")
-
-
 @pytest.mark.parametrize("excitation", ["harmonic", "record"])
 @pytest.mark.parametrize("method", ["dop853", "vern9"])
 def test_an_adaptive_method_closes_the_energy_balance_on_a_moving_cup(ellroll, tmp_path, excitation, method):
@@ -381,11 +376,11 @@ def test_both_laws_close_the_energy_balance_of_a_ball_sliding_on_a_moving_cup(el
     assert abs(residuals[1]) < abs(residuals[0]) / 3.5
 
 
-@pytest.mark.xfail(strict=True, reason=DEFECT)
 @pytest.mark.parametrize("method", ["dop853", "vern9"])
 def test_both_laws_close_the_energy_balance_of_a_ball_sliding_on_a_moving_cup_adaptive(ellroll, tmp_path, method):
-    """As above at rtol 1e-10: 1.1e-7 of the dissipated energy at rtol 1e-8
-    and 1e-10 alike (the friction's trapezoidal sum on the adaptive steps)."""
+    """As above at rtol 1e-10: both works are the Gauss-Legendre rule on the
+    pair's dense output, 5e-13 of the dissipated energy (a trapezoidal sum
+    of the resistance's work leaves 1.9e-8)."""
     residual, _ = both_laws_balance(ellroll, tmp_path, 1e-3, f"method = '{method}', rtol = 1e-10", 1e-3,
                                     **SLIDING_THROUGHOUT)
     assert abs(residual) < 1e-8
