@@ -1,5 +1,5 @@
 !> One case that may slide (`&ball slip = 'slide'`): the ball rolls (the
-!> rolling model's steps, fixed_step, on its six-number state) until the
+!> rolling path's steps and events, step_with_events and attempt_step) until the
 !> friction rolling needs reaches mu N, slides (ellroll_sliding_ball, eight
 !> numbers) until the slip stops with rolling's friction within mu N, and so
 !> on. Both switches are located inside the step where they happen (a root
@@ -23,7 +23,9 @@ module ellroll_slide_run
       observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, center_velocity, resistance_power
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
-  use ellroll_fixed_step_run, only: fixed_step
+  use ellroll_fixed_step_run, only: step_with_events
+  use ellroll_adaptive_run, only: attempt_step
+  use ellroll_step_control, only: step_control_t
   use ellroll_step_works, only: step_works
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
@@ -51,6 +53,7 @@ module ellroll_slide_run
     real(wp) :: s(slide_state_size) = 0, fs(slide_state_size) = 0   !< sliding
     type(observation_t) :: obs
     real(wp) :: slip_speed = 0
+    real(wp) :: stopped_at = -1     !< where a fixed step's rest event (rolling) was made (< 0: none)
   end type regime_state_t
 
   !> What the sliding adds to the summary as it goes.
@@ -157,7 +160,7 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
@@ -191,16 +194,17 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
     type(regime_state_t) :: trial
+    type(step_control_t) :: control
     real(wp) :: t, h, h_max, t_next, next_sample_time, factor
     integer :: status, stalled, hovering
     integer(i8) :: attempts
-    logical :: ended
+    logical :: ended, rejected
     h_max = min(cs%t_end, cs%param(p_dt))
     if (.not. ieee_is_finite(h_max) .or. h_max <= 0) h_max = cs%t_end
     if (now%sliding) then
@@ -226,8 +230,8 @@ contains
       end if
       if (cs%t_end - t_next <= 4 * spacing(cs%t_end)) t_next = cs%t_end
       h = t_next - t
-      call take(pair, rolling, sb, t, h, now, trial, status, res%n_rhs)
-      if (status == status_completed .and. .not. pair%error_norm <= 1) then
+      call attempt(pair, control, rolling, sb, t, h, now, trial, status, res, rejected)
+      if (rejected) then
         res%n_rejected = res%n_rejected + 1
         h = h * max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order()))
         if (h <= 16 * spacing(t)) then
@@ -239,7 +243,7 @@ contains
       end if
       factor = 5
       if (pair%error_norm > 0) factor = min(5.0_wp, max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order())))
-      call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next)
+      call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next, trial, status)
       res%n_steps = res%n_steps + 1
       if (ended) return
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
@@ -265,21 +269,60 @@ contains
     res%t_final = t
   end subroutine adaptive_slide
 
+  !> An embedded pair's attempt of size h from (t, now), and whether its error
+  !> rejects it. Sliding: take's step, or its stop bracket's where the slip
+  !> stops in that; rolling: the rolling model's attempt (attempt_step), cut
+  !> where an event of the model happens (h is cut to either).
+  subroutine attempt(pair, control, rolling, sb, t, h, now, new, status, res, rejected)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(step_control_t), intent(inout) :: control
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: h
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(out) :: new
+    integer, intent(out) :: status
+    type(case_result_t), intent(inout) :: res
+    logical, intent(out) :: rejected
+    real(wp) :: h_cut
+    logical :: taken
+    if (now%sliding) then
+      call sb%begin_step(now%s)
+      call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
+      if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
+      h = h_cut
+      rejected = status == status_completed .and. .not. pair%error_norm <= 1
+      return
+    end if
+    if (rolling%ball%nonsmooth()) call rolling%ball%begin_step(now%y)
+    h_cut = h
+    call attempt_step(pair, control, rolling, t, now%y, now%f, h_cut, new%y, new%f, new%obs, status, res)
+    new%sliding = .false.
+    new%slip_speed = 0
+    rejected = pair%error_norm > 1
+    if (.not. rejected) h = h_cut        ! (a rejection's h is the caller's to shrink)
+  end subroutine attempt
+
   !> One step of the method from (t, now) of size h in now's regime: the new
   !> state (normal projected), its derivative and outputs, and the status of
-  !> the first limit met at a stage or at the end (0: completed).
+  !> the first limit met at a stage or at the end (0: completed). Rolling,
+  !> the step is the rolling model's, through its events (step_with_events:
+  !> the rest of rolling resistance).
   subroutine take(integrator, rolling, sb, t, h, now, new, status, n_rhs)
     class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, h
     type(regime_state_t), intent(in) :: now
     type(regime_state_t), intent(out) :: new
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
+    integer :: event
     new%sliding = now%sliding
     if (.not. now%sliding) then
-      call fixed_step(integrator, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, n_rhs)
+      call step_with_events(integrator, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, n_rhs, event, &
+                            new%stopped_at)
       new%slip_speed = 0
       return
     end if
@@ -300,11 +343,13 @@ contains
   !> on the way: a piece that meets a limit ends the case there (ended); a
   !> switch inside it is located, made, and the rest of the step taken in
   !> the new regime (fixed steps), or the step ends there (stop_at_switch).
-  !> t_stop: where the step ended.
-  subroutine advance(integrator, run, rolling, sb, t, h_step, stop_at_switch, now, tally, res, ended, t_stop)
+  !> t_stop: where the step ended. first, first_status: the step h_step
+  !> from now already taken (an embedded pair's judged attempt).
+  subroutine advance(integrator, run, rolling, sb, t, h_step, stop_at_switch, now, tally, res, ended, t_stop, &
+                     first, first_status)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t, h_step
     logical, intent(in) :: stop_at_switch
@@ -313,6 +358,8 @@ contains
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: ended
     real(wp), intent(out) :: t_stop
+    type(regime_state_t), intent(in), optional :: first
+    integer, intent(in), optional :: first_status
     type(regime_state_t) :: new
     real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
@@ -329,8 +376,13 @@ contains
       held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
       piece = remaining
       taken = .false.
-      if (.not. held) call stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs, piece, new, status, &
-                                        taken)
+      if (switches == 0 .and. present(first)) then
+        new = first                        ! (its stop bracket taken with it; the integrator holds its step)
+        status = first_status
+        taken = .true.
+      else if (.not. held) then
+        call stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs, piece, new, status, taken)
+      end if
       if (.not. taken) call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
@@ -341,6 +393,7 @@ contains
         call add_sliding_step(integrator, run, rolling, sb, t_at, remaining, now, new, tally, res)
         slip_before = now%slip_speed
         now = new
+        if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
         if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
           ! a slip that the friction removes within a fixed step, and that
           ! did not fall over this one: the method's stages around u = 0 do
@@ -354,7 +407,7 @@ contains
         end if
         return
       end if
-      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, tally, res, offset, ended)
+      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, new, tally, res, offset, ended)
       if (ended) return
       remaining = remaining - offset
       if (remaining <= 0 .or. stop_at_switch) then
@@ -389,7 +442,7 @@ contains
   !> the piece is that trial's (taken), new and status are its step.
   subroutine stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs, piece, new, status, taken)
     class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t_at, remaining
     type(regime_state_t), intent(in) :: now
@@ -435,19 +488,20 @@ contains
     end if
   end function switch_value
 
-  !> The step h from (t_at, now) crosses a switch: where (offset, by a root
-  !> search on partial steps), the state there, and the regime that goes on
-  !> from it (t_at and now moved there). A partial step that meets a limit
-  !> counts as past the switch; one to the switch itself that meets one
+  !> The step h from (t_at, now) to past crosses a switch: where (offset, by
+  !> a root search on partial steps), the state there, and the regime that
+  !> goes on from it (t_at and now moved there). A partial step that meets a
+  !> limit counts as past the switch; one to the switch itself that meets one
   !> ends the case (ended).
-  subroutine switch_inside(integrator, run, rolling, sb, t_at, h, now, tally, res, offset, ended)
+  subroutine switch_inside(integrator, run, rolling, sb, t_at, h, now, past, tally, res, offset, ended)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(inout) :: t_at
     real(wp), intent(in) :: h
     type(regime_state_t), intent(inout) :: now
+    type(regime_state_t), intent(in) :: past
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
     real(wp), intent(out) :: offset
@@ -462,8 +516,7 @@ contains
     else
       g_start = switch_value(sb, now)
     end if
-    call take(integrator, rolling, sb, t_at, h, now, x, status, res%n_rhs)
-    call search%start(max(g_start, tiny(1.0_wp)), h, switch_value(sb, x), sb%event_tolerance(1) * h)
+    call search%start(max(g_start, tiny(1.0_wp)), h, switch_value(sb, past), sb%event_tolerance(1) * h)
     do k = 1, max_event_trials
       if (search%done()) exit
       trial = search%trial()
@@ -482,6 +535,7 @@ contains
     call add_sliding_step(integrator, run, rolling, sb, t_at, search%high, now, x, tally, res)
     t_at = t_at + search%high
     now = x
+    if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
     call track_balance(run, res, t_at, now%obs, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
@@ -522,7 +576,7 @@ contains
   !> else slides on in the direction that friction gives. Where the slip has
   !> only turned, the ball slides on against its new direction.
   subroutine stop_sliding(rolling, sb, t, now, res, tally, at_rest_only)
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t
     type(regime_state_t), intent(inout) :: now
@@ -611,7 +665,7 @@ contains
   subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, h
     type(regime_state_t), intent(in) :: now
