@@ -21,7 +21,7 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event
+  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event, step_with_events
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.
@@ -60,13 +60,13 @@ contains
         res%status = status_pending
         return
       end if
-      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
-      call fixed_step(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
-      event = 0
-      if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
-      if (event /= 0) call step_through_event(integrator, run, event, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, &
-                                              res%n_rhs, t_event)
-      if (event /= 0) run%stopped_at = t_event
+      if (run%ball%nonsmooth()) then
+        call step_with_events(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs, event, &
+                              t_event)
+        if (event /= 0) run%stopped_at = t_event
+      else
+        call fixed_step(integrator, run, t, y, f, cs%param(p_dt), y_new, f_new, obs, status, res%n_rhs)
+      end if
       if (status /= status_completed) then
         call end_at_limit(integrator, run, plan, cs%t_end, y_older_checkpoint, k - 1, y, f, cs%param(p_dt), &
             every, status, res, &
@@ -93,6 +93,27 @@ contains
     end do
     res%t_final = t
   end subroutine fixed_step_loop
+
+  !> One step of size h from (t, y, f) in the mode the model gives y
+  !> (begin_step), through an event of the model inside it
+  !> (step_through_event): event, its number (0: none), and t_event, where
+  !> the model acted (< 0: a limit met first).
+  subroutine step_with_events(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs, event, t_event)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp), intent(out) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(out) :: obs
+    integer, intent(out) :: status, event
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(out) :: t_event
+    if (run%ball%nonsmooth()) call run%ball%begin_step(y)
+    call fixed_step(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+    event = 0
+    t_event = -1
+    if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
+    if (event /= 0) call step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
+  end subroutine step_with_events
 
   !> A step of size h from (t, y, f) in which an event of the model happens
   !> (event_crossed): it is cut where the event's function changes sign

@@ -1,5 +1,5 @@
 !> One case that may slide (`&ball slip = 'slide'`): the ball rolls (the
-!> rolling model's steps, fixed_step, on its six-number state) until the
+!> rolling path's steps and events, step_with_events and attempt_step) until the
 !> friction rolling needs reaches mu N, slides (ellroll_sliding_ball, eight
 !> numbers) until the slip stops with rolling's friction within mu N, and so
 !> on. Both switches are located inside the step where they happen (a root
@@ -12,18 +12,20 @@ module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff
-  use ellroll_ode, only: no_step_solution
-  use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
-  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
-  use ellroll_results, only: case_result_t, add_switch, switch_to_sliding, switch_to_rolling
+  use ellroll_events, only: root_search_t, max_event_trials
+  use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
+  use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
-  use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
-  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, slip_rate, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
+  use ellroll_rolling_ball, only: state_size, observe
+  use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
+      stick_level, slip_stop_time, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
-  use ellroll_fixed_step_run, only: fixed_step
-  use ellroll_slip_substeps, only: slide_piece
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due
+  use ellroll_adaptive_run, only: attempt_step
+  use ellroll_step_control, only: step_control_t
+  use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
+      record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
+      end_at_limit
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -40,27 +42,6 @@ module ellroll_slide_run
   !> can go on, and before the case ends as unstable where it cannot.
   integer, parameter :: hover_steps = 64, max_hover_steps = 100000
 
-  !> Model limits are located to this many units in the last place of t.
-  real(wp), parameter :: limit_time_ulps = 16
-
-  !> The state of a run that may slide: the regime and its state.
-  type :: regime_state_t
-    logical :: sliding = .false.
-    real(wp) :: y(state_size) = 0, f(state_size) = 0           !< rolling
-    real(wp) :: s(slide_state_size) = 0, fs(slide_state_size) = 0   !< sliding
-    type(observation_t) :: obs
-    real(wp) :: slip_speed = 0
-    logical :: stalled = .false.     !< a fixed step's slip stopped inside the piece that led here (slide_piece)
-  end type regime_state_t
-
-  !> What the sliding adds to the summary as it goes.
-  type :: slide_tally_t
-    real(wp) :: sliding_time = 0
-    integer(i8) :: episodes = 0
-    real(wp) :: friction_energy = 0
-    real(wp) :: slip_speed_max = 0
-    real(wp) :: episode_slip_max = 0      !< the largest slip speed of the episode under way
-  end type slide_tally_t
 
 contains
 
@@ -125,39 +106,6 @@ contains
     res%reals(fig_slip_speed_max) = tally%slip_speed_max
   end subroutine slide_loop
 
-  !> The first sample and the summary's start again from the sliding start.
-  pure subroutine restart_samples(cs, run, res, now)
-    type(case_t), intent(in) :: cs
-    type(run_state_t), intent(inout) :: run
-    type(case_result_t), intent(inout) :: res
-    type(regime_state_t), intent(in) :: now
-    call record_regime_sample(res, 1_i8, now)
-    call restart_case(cs, run, res, now%obs)
-  end subroutine restart_samples
-
-  !> A step end's track, its energy with the friction's work so far.
-  pure subroutine track_balance(run, res, t, obs, tally)
-    type(run_state_t), intent(inout) :: run
-    type(case_result_t), intent(inout) :: res
-    real(wp), intent(in) :: t
-    type(observation_t), intent(in) :: obs
-    type(slide_tally_t), intent(in) :: tally
-    run%friction_work = tally%friction_energy
-    call track(run, res, t, obs)
-  end subroutine track_balance
-
-  !> Every stored field's values at one output sample, the regime and the
-  !> slip speed with them (a sliding observation's friction is mu N).
-  pure subroutine record_regime_sample(res, sample, now)
-    type(case_result_t), intent(inout) :: res
-    integer(i8), intent(in) :: sample
-    type(regime_state_t), intent(in) :: now
-    call record_sample(res, sample, now%obs)
-    if (.not. now%sliding) return
-    if (stored(res, field_regime)) res%fields(field_regime)%values(1, sample) = 1
-    if (stored(res, field_slip_speed)) res%fields(field_slip_speed)%values(1, sample) = now%slip_speed
-  end subroutine record_regime_sample
-
   !> Fixed steps of dt, each from the state at its start to the grid point
   !> after it, through the switches inside it (advance).
   subroutine fixed_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
@@ -165,7 +113,7 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
@@ -199,16 +147,17 @@ contains
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
     type(regime_state_t) :: trial
+    type(step_control_t) :: control
     real(wp) :: t, h, h_max, t_next, next_sample_time, factor
     integer :: status, stalled, hovering
     integer(i8) :: attempts
-    logical :: ended
+    logical :: ended, rejected
     h_max = min(cs%t_end, cs%param(p_dt))
     if (.not. ieee_is_finite(h_max) .or. h_max <= 0) h_max = cs%t_end
     if (now%sliding) then
@@ -234,8 +183,8 @@ contains
       end if
       if (cs%t_end - t_next <= 4 * spacing(cs%t_end)) t_next = cs%t_end
       h = t_next - t
-      call take(pair, rolling, sb, t, h, now, trial, status, res%n_rhs)
-      if (status == status_completed .and. .not. pair%error_norm <= 1) then
+      call attempt(pair, control, rolling, sb, t, h, now, trial, status, res, rejected)
+      if (rejected) then
         res%n_rejected = res%n_rejected + 1
         h = h * max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order()))
         if (h <= 16 * spacing(t)) then
@@ -247,7 +196,7 @@ contains
       end if
       factor = 5
       if (pair%error_norm > 0) factor = min(5.0_wp, max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order())))
-      call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next)
+      call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next, trial, status)
       res%n_steps = res%n_steps + 1
       if (ended) return
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
@@ -273,51 +222,52 @@ contains
     res%t_final = t
   end subroutine adaptive_slide
 
-  !> One step of the method from (t, now) of size h in now's regime: the new
-  !> state (normal projected), its derivative and outputs, and the status of
-  !> the first limit met at a stage or at the end (0: completed).
-  subroutine take(integrator, rolling, sb, t, h, now, new, status, n_rhs)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(in) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h
+  !> An embedded pair's attempt of size h from (t, now), and whether its error
+  !> rejects it. Sliding: take's step, or its stop bracket's where the slip
+  !> stops in that; rolling: the rolling model's attempt (attempt_step), cut
+  !> where an event of the model happens (h is cut to either).
+  subroutine attempt(pair, control, rolling, sb, t, h, now, new, status, res, rejected)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(step_control_t), intent(inout) :: control
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: h
     type(regime_state_t), intent(in) :: now
     type(regime_state_t), intent(out) :: new
     integer, intent(out) :: status
-    integer(i8), intent(inout) :: n_rhs
-    new%sliding = now%sliding
-    if (.not. now%sliding) then
-      call fixed_step(integrator, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, n_rhs)
-      new%slip_speed = 0
+    type(case_result_t), intent(inout) :: res
+    logical, intent(out) :: rejected
+    real(wp) :: h_cut
+    logical :: taken
+    if (now%sliding) then
+      call sb%begin_step(now%s)
+      call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
+      if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
+      h = h_cut
+      rejected = status == status_completed .and. .not. pair%error_norm <= 1
       return
     end if
-    select type (integrator)
-    class is (embedded_pair_t)
-      call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
-    class default
-      call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%stalled, n_rhs)
-    end select
-    call normalize_normal(new%s)
-    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
-    n_rhs = n_rhs + 1
-    if (integrator%stage_limit == no_step_solution) then
-      status = status_unstable
-    else if (integrator%stage_limit /= 0) then
-      status = integrator%stage_limit
-    else
-      status = limit_status(rolling%ball, new%s(1:6), new%obs)
-    end if
-  end subroutine take
+    if (rolling%ball%nonsmooth()) call rolling%ball%begin_step(now%y)
+    h_cut = h
+    call attempt_step(pair, control, rolling, t, now%y, now%f, h_cut, new%y, new%f, new%obs, status, res)
+    new%sliding = .false.
+    new%slip_speed = 0
+    rejected = pair%error_norm > 1
+    if (.not. rejected) h = h_cut        ! (a rejection's h is the caller's to shrink)
+  end subroutine attempt
 
   !> A step of size h_step from (t, now), through the switches of regime
   !> on the way: a piece that meets a limit ends the case there (ended); a
   !> switch inside it is located, made, and the rest of the step taken in
   !> the new regime (fixed steps), or the step ends there (stop_at_switch).
-  !> t_stop: where the step ended.
-  subroutine advance(integrator, run, rolling, sb, t, h_step, stop_at_switch, now, tally, res, ended, t_stop)
+  !> t_stop: where the step ended. first, first_status: the step h_step
+  !> from now already taken (an embedded pair's judged attempt).
+  subroutine advance(integrator, run, rolling, sb, t, h_step, stop_at_switch, now, tally, res, ended, t_stop, &
+                     first, first_status)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t, h_step
     logical, intent(in) :: stop_at_switch
@@ -326,6 +276,8 @@ contains
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: ended
     real(wp), intent(out) :: t_stop
+    type(regime_state_t), intent(in), optional :: first
+    integer, intent(in), optional :: first_status
     type(regime_state_t) :: new
     real(wp) :: t_at, remaining, piece, offset, slip_before
     integer :: status, switches
@@ -342,8 +294,13 @@ contains
       held = .not. stop_at_switch .and. switches >= chatter_switches .and. now%sliding
       piece = remaining
       taken = .false.
-      if (.not. held) call stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs, piece, new, status, &
-                                        taken)
+      if (switches == 0 .and. present(first)) then
+        new = first                        ! (its stop bracket taken with it; the integrator holds its step)
+        status = first_status
+        taken = .true.
+      else if (.not. held) then
+        call stop_bracket(integrator, rolling, sb, t_at, remaining, now, res%n_rhs, piece, new, status, taken)
+      end if
       if (.not. taken) call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
         call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
@@ -351,9 +308,10 @@ contains
         return
       end if
       if (held .or. .not. switch_crossed(sb, now, new)) then
-        call add_sliding_step(integrator, sb, t_at, remaining, now, new, tally, res%n_rhs)
+        call add_sliding_step(integrator, run, rolling, sb, t_at, remaining, now, new, tally, res)
         slip_before = now%slip_speed
         now = new
+        if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
         if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
           ! a slip that the friction removes within a fixed step, and that
           ! did not fall over this one: the method's stages around u = 0 do
@@ -367,7 +325,7 @@ contains
         end if
         return
       end if
-      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, tally, res, offset, ended)
+      call switch_inside(integrator, run, rolling, sb, t_at, piece, now, new, tally, res, offset, ended)
       if (ended) return
       remaining = remaining - offset
       if (remaining <= 0 .or. stop_at_switch) then
@@ -402,7 +360,7 @@ contains
   !> the piece is that trial's (taken), new and status are its step.
   subroutine stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs, piece, new, status, taken)
     class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t_at, remaining
     type(regime_state_t), intent(in) :: now
@@ -422,47 +380,20 @@ contains
     if (taken) piece = bracket
   end subroutine stop_bracket
 
-  !> Whether the regime switches between now and new (one step apart):
-  !> rolling needs more friction than mu N at new; or the slip, nonzero at
-  !> now, turned by a right angle or more.
-  logical function switch_crossed(sb, now, new) result(crossed)
-    type(sliding_ball_t), intent(in) :: sb
-    type(regime_state_t), intent(in) :: now, new
-    if (now%sliding) then
-      crossed = new%stalled .or. sb%event_crossed(now%s, new%s) /= 0
-    else
-      crossed = new%obs%friction_needed > sb%ball%mu
-    end if
-  end function switch_crossed
-
-  !> The switch's function at state x of a step from now: positive before
-  !> it (rolling: mu - |F_t|/N; sliding: the slip along its direction at the
-  !> step's start).
-  real(wp) function switch_value(sb, x) result(g)
-    type(sliding_ball_t), intent(in) :: sb
-    type(regime_state_t), intent(in) :: x
-    if (x%stalled) then
-      g = -1                      ! past the stop
-    else if (x%sliding) then
-      g = sb%event_value(1, x%s)
-    else
-      g = sb%ball%mu - x%obs%friction_needed
-    end if
-  end function switch_value
-
-  !> The step h from (t_at, now) crosses a switch: where (offset, by a root
-  !> search on partial steps), the state there, and the regime that goes on
-  !> from it (t_at and now moved there). A partial step that meets a limit
-  !> counts as past the switch; one to the switch itself that meets one
+  !> The step h from (t_at, now) to past crosses a switch: where (offset, by
+  !> a root search on partial steps), the state there, and the regime that
+  !> goes on from it (t_at and now moved there). A partial step that meets a
+  !> limit counts as past the switch; one to the switch itself that meets one
   !> ends the case (ended).
-  subroutine switch_inside(integrator, run, rolling, sb, t_at, h, now, tally, res, offset, ended)
+  subroutine switch_inside(integrator, run, rolling, sb, t_at, h, now, past, tally, res, offset, ended)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(inout) :: t_at
     real(wp), intent(in) :: h
     type(regime_state_t), intent(inout) :: now
+    type(regime_state_t), intent(in) :: past
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
     real(wp), intent(out) :: offset
@@ -477,8 +408,7 @@ contains
     else
       g_start = switch_value(sb, now)
     end if
-    call take(integrator, rolling, sb, t_at, h, now, x, status, res%n_rhs)
-    call search%start(max(g_start, tiny(1.0_wp)), h, switch_value(sb, x), sb%event_tolerance(1) * h)
+    call search%start(max(g_start, tiny(1.0_wp)), h, switch_value(sb, past), sb%event_tolerance(1) * h)
     do k = 1, max_event_trials
       if (search%done()) exit
       trial = search%trial()
@@ -494,10 +424,11 @@ contains
       ended = .true.
       return
     end if
-    call add_sliding_step(integrator, sb, t_at, search%high, now, x, tally, res%n_rhs)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, search%high, now, x, tally, res)
     t_at = t_at + search%high
     now = x
-    if (now%sliding) call finish_stop(integrator, rolling, sb, h - offset, t_at, now, tally, res, offset)
+    if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
+    if (now%sliding) call finish_stop(integrator, run, rolling, sb, h - offset, t_at, now, tally, res, offset)
     call track_balance(run, res, t_at, now%obs, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
@@ -512,9 +443,9 @@ contains
   !> reaches zero |u|^2 / (-u . u') later, to second order in that time,
   !> and the piece to there (within room) is taken, so that the switch's
   !> time is the stop's to far below stick_level of the slip's time scale.
-  subroutine finish_stop(integrator, rolling, sb, room, t_at, now, tally, res, offset)
+  subroutine finish_stop(integrator, run, rolling, sb, room, t_at, now, tally, res, offset)
     class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(in) :: rolling
+    type(run_state_t), intent(inout) :: run, rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: room
     real(wp), intent(inout) :: t_at, offset
@@ -532,170 +463,9 @@ contains
     call sb%begin_step(now%s)
     call take(integrator, rolling, sb, t_at, piece, now, x, status, res%n_rhs)
     if (status /= status_completed) return
-    call add_sliding_step(integrator, sb, t_at, piece, now, x, tally, res%n_rhs)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, piece, now, x, tally, res)
     t_at = t_at + piece
     offset = offset + piece
     now = x
   end subroutine finish_stop
-
-  !> The rolling state now (its friction at mu N) goes on sliding: u = 0,
-  !> the friction keeps the direction rolling needed, and u grows against it.
-  subroutine start_sliding(sb, t, now, res, tally)
-    type(sliding_ball_t), intent(inout) :: sb
-    real(wp), intent(in) :: t
-    type(regime_state_t), intent(inout) :: now
-    type(case_result_t), intent(inout) :: res
-    type(slide_tally_t), intent(inout) :: tally
-    real(wp) :: tangential(3), size_t
-    tangential = now%obs%reaction - now%obs%reaction_normal * now%obs%normal
-    size_t = norm2(tangential)
-    sb%slip_mode = 0
-    if (size_t > 0) sb%slip_mode = -tangential / size_t
-    now%s = sliding_from_rolling(sb%ball, now%y)
-    now%sliding = .true.
-    call sb%begin_step(now%s)
-    call observe_sliding(sb, t, now%s, now%obs, now%slip_speed, now%fs)
-    res%n_rhs = res%n_rhs + 1
-    tally%episodes = tally%episodes + 1
-    tally%episode_slip_max = 0
-  end subroutine start_sliding
-
-  !> The slip of sliding state now has fallen to stick_level of its value
-  !> at the piece's start, or turned by a right angle. Where it has stopped
-  !> (the first, or the slip is below stick_level of the episode's largest:
-  !> where rolling's friction is close to mu N the slip spirals into zero,
-  !> turning by a right angle ever more often; the rest of the slip is
-  !> stopped by an impulse, stick, its work added to the friction's),
-  !> the ball rolls on from there where rolling's friction is within mu N,
-  !> else slides on in the direction that friction gives. Where the slip has
-  !> only turned, the ball slides on against its new direction.
-  subroutine stop_sliding(rolling, sb, t, now, res, tally, at_rest_only)
-    type(run_state_t), intent(in) :: rolling
-    type(sliding_ball_t), intent(inout) :: sb
-    real(wp), intent(in) :: t
-    type(regime_state_t), intent(inout) :: now
-    type(case_result_t), intent(inout) :: res
-    type(slide_tally_t), intent(inout) :: tally
-    logical, intent(in), optional :: at_rest_only   !< stop it only where rolling goes on (a slip not located)
-    type(regime_state_t) :: rolled
-    if (present(at_rest_only)) then
-      rolled%y = stick(sb%ball, now%s)
-      call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
-      call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
-      res%n_rhs = res%n_rhs + 1
-      if (rolled%obs%friction_needed > sb%ball%mu) return
-    else if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) then
-      call sb%begin_step(now%s)
-      return
-    end if
-    rolled%sliding = .false.
-    rolled%y = stick(sb%ball, now%s)
-    call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
-    call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
-    res%n_rhs = res%n_rhs + 1
-    rolled%slip_speed = 0
-    tally%friction_energy = tally%friction_energy + (now%obs%energy - rolled%obs%energy)
-    now = rolled
-    if (rolled%obs%friction_needed > sb%ball%mu) then
-      call start_sliding(sb, t, now, res, tally)
-      tally%episodes = tally%episodes - 1          ! the same episode, slipping another way
-    else
-      call add_switch(res, t, switch_to_rolling)
-    end if
-  end subroutine stop_sliding
-
-  !> The piece of step h from (t, from) to `to` that the integrator has just
-  !> taken adds to the sliding figures (add_sliding). An embedded pair's
-  !> friction work is the 3-point Gauss-Legendre rule on the piece's dense
-  !> output (exact to degree 5, its error far below the pair's own over
-  !> the long steps the pair takes; the trapezoidal rule's h^2 error there
-  !> does not fall with the tolerance); a fixed step's the trapezoidal rule.
-  subroutine add_sliding_step(integrator, sb, t, h, from, to, tally, n_rhs)
-    class(integrator_t), intent(inout) :: integrator
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h
-    type(regime_state_t), intent(in) :: from, to
-    type(slide_tally_t), intent(inout) :: tally
-    integer(i8), intent(inout) :: n_rhs
-    real(wp), parameter :: offset = 0.3872983346207416885_wp      ! sqrt(15) / 10
-    real(wp), parameter :: nodes(3) = [0.5_wp - offset, 0.5_wp, 0.5_wp + offset]
-    real(wp), parameter :: weights(3) = [5.0_wp, 8.0_wp, 5.0_wp] / 18
-    real(wp) :: y(slide_state_size), rate(slide_state_size), big_n, work
-    integer :: i
-    if (.not. from%sliding) return
-    select type (integrator)
-    class is (embedded_pair_t)
-      work = 0
-      do i = 1, 3
-        call integrator%dense(sb, nodes(i), y, n_rhs)
-        call sliding_derivative(sb, t + nodes(i) * h, y, rate, big_n)
-        work = work + weights(i) * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
-      end do
-      n_rhs = n_rhs + 3
-      call add_sliding(sb, h, from, to, tally, h * sb%ball%mu * work)
-    class default
-      call add_sliding(sb, h, from, to, tally)
-    end select
-  end subroutine add_sliding_step
-
-  !> A piece of step h from `from` to `to` adds to the sliding figures:
-  !> its time, the friction's work mu N |u| (`work` where given, else the
-  !> trapezoidal rule over the piece; the pieces end at the switches), the
-  !> largest slip speed.
-  pure subroutine add_sliding(sb, h, from, to, tally, work)
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: h
-    type(regime_state_t), intent(in) :: from, to
-    type(slide_tally_t), intent(inout) :: tally
-    real(wp), intent(in), optional :: work
-    if (.not. from%sliding) return
-    tally%sliding_time = tally%sliding_time + h
-    if (present(work)) then
-      tally%friction_energy = tally%friction_energy + work
-    else
-      tally%friction_energy = tally%friction_energy + 0.5_wp * h * sb%ball%mu &
-          * (from%obs%reaction_normal * from%slip_speed + to%obs%reaction_normal * to%slip_speed)
-    end if
-    tally%slip_speed_max = max(tally%slip_speed_max, to%slip_speed)
-    tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
-  end subroutine add_sliding
-
-  !> The step h from (t, now) met a limit: the case ends where the method's
-  !> partial steps from now first meet it (to limit_time_ulps of t), with
-  !> its status; the last valid state adds to the summary.
-  subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(in) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h
-    type(regime_state_t), intent(in) :: now
-    type(slide_tally_t), intent(inout) :: tally
-    type(case_result_t), intent(inout) :: res
-    type(crossing_search_t) :: search
-    type(regime_state_t) :: x, last_valid
-    real(wp) :: trial
-    integer :: status, crossed, k
-    call take(integrator, rolling, sb, t, h, now, x, crossed, res%n_rhs)
-    last_valid = now
-    call search%start(h, limit_time_ulps * spacing(t + h))
-    do k = 1, max_event_trials
-      if (search%done()) exit
-      trial = search%trial()
-      call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
-      if (status == status_completed) then
-        last_valid = x
-      else
-        crossed = status
-      end if
-      call search%report(trial, status == status_completed)
-    end do
-    if (search%valid > 0) then
-      call add_sliding(sb, search%valid, now, last_valid, tally)
-      call track_balance(run, res, t + search%valid, last_valid%obs, tally)
-    end if
-    if (crossed == status_completed) crossed = status_unstable
-    res%status = crossed
-    res%t_final = t + search%valid
-  end subroutine end_at_limit
 end module ellroll_slide_run

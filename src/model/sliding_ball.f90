@@ -29,7 +29,8 @@ module ellroll_sliding_ball
   private
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
-            observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, slip_stop_time
+            observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
+            slip_stop_time, dissipation
 
   integer, parameter :: slide_state_size = 8
 
@@ -239,6 +240,18 @@ contains
     real(wp), intent(in) :: n(3), omega(3), big_n
     power = -ball%rolling_resistance * max(big_n, 0.0_wp) * norm2(omega - dot_product(omega, n) * n)
   end function resistance_power
+
+  !> The rates at which the friction (mu N |u|) and the couple of rolling
+  !> resistance (delta N |omega_t|) take energy at sliding state y, W.
+  pure function dissipation(sb, t, y) result(power)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp) :: power(2), rate(slide_state_size), big_n
+    call sliding_derivative(sb, t, y, rate, big_n)
+    power(1) = sb%ball%mu * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
+    power(2) = 0
+    if (sb%ball%rolling_resistance > 0) power(2) = -resistance_power(sb%ball, y(1:3) / norm2(y(1:3)), y(4:6), big_n)
+  end function dissipation
 
   !> The sliding right-hand side with the couple of rolling resistance
   !> where the ball has it (sliding_derivative's forces, resist_sliding).

@@ -1,0 +1,311 @@
+!> One regime's step of a case that may slide and what it adds to the
+!> summary: the state of either regime (regime_state_t), a step in it (take),
+!> the switches' functions, the making of a switch, the works and the end
+!> at a model limit; ellroll_slide_run's loops locate the switches.
+module ellroll_slide_regime
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use ellroll_kinds, only: wp, i8
+  use ellroll_status, only: status_completed, status_unstable
+  use ellroll_ode, only: no_step_solution
+  use ellroll_events, only: crossing_search_t, max_event_trials
+  use ellroll_cases, only: case_t, field_regime, field_slip_speed
+  use ellroll_results, only: case_result_t, add_switch, switch_to_rolling
+  use ellroll_figures, only: fig_rolling_resistance_energy
+  use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
+      observe
+  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
+      stick_level, resistance_power
+  use ellroll_integrators, only: integrator_t, embedded_pair_t
+  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored
+  use ellroll_fixed_step_run, only: step_with_events
+  use ellroll_step_works, only: step_works
+  use ellroll_slip_substeps, only: slide_piece
+  implicit none
+  private
+
+  public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
+            record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
+            add_sliding, end_at_limit
+
+  !> Model limits are located to this many units in the last place of t.
+  real(wp), parameter :: limit_time_ulps = 16
+
+  !> The state of a run that may slide: the regime and its state.
+  type :: regime_state_t
+    logical :: sliding = .false.
+    real(wp) :: y(state_size) = 0, f(state_size) = 0           !< rolling
+    real(wp) :: s(slide_state_size) = 0, fs(slide_state_size) = 0   !< sliding
+    type(observation_t) :: obs
+    real(wp) :: slip_speed = 0
+    logical :: stalled = .false.     !< a fixed step's slip stopped inside the piece that led here (slide_piece)
+    real(wp) :: stopped_at = -1     !< where a fixed step's rest event (rolling) was made (< 0: none)
+  end type regime_state_t
+
+  !> What the sliding adds to the summary as it goes.
+  type :: slide_tally_t
+    real(wp) :: sliding_time = 0
+    integer(i8) :: episodes = 0
+    real(wp) :: friction_energy = 0
+    real(wp) :: slip_speed_max = 0
+    real(wp) :: episode_slip_max = 0      !< the largest slip speed of the episode under way
+  end type slide_tally_t
+
+contains
+
+  !> The first sample and the summary's start again from the sliding start.
+  pure subroutine restart_samples(cs, run, res, now)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    type(regime_state_t), intent(in) :: now
+    call record_regime_sample(res, 1_i8, now)
+    call restart_case(cs, run, res, now%obs)
+  end subroutine restart_samples
+
+  !> A step end's track, its energy with the friction's work so far.
+  pure subroutine track_balance(run, res, t, obs, tally)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    type(slide_tally_t), intent(in) :: tally
+    run%friction_work = tally%friction_energy
+    call track(run, res, t, obs)
+  end subroutine track_balance
+
+  !> Every stored field's values at one output sample, the regime and the
+  !> slip speed with them (a sliding observation's friction is mu N).
+  pure subroutine record_regime_sample(res, sample, now)
+    type(case_result_t), intent(inout) :: res
+    integer(i8), intent(in) :: sample
+    type(regime_state_t), intent(in) :: now
+    call record_sample(res, sample, now%obs)
+    if (.not. now%sliding) return
+    if (stored(res, field_regime)) res%fields(field_regime)%values(1, sample) = 1
+    if (stored(res, field_slip_speed)) res%fields(field_slip_speed)%values(1, sample) = now%slip_speed
+  end subroutine record_regime_sample
+
+  !> One step of the method from (t, now) of size h in now's regime: the new
+  !> state (normal projected), its derivative and outputs, and the status of
+  !> the first limit met at a stage or at the end (0: completed). Rolling,
+  !> the step is the rolling model's, through its events (step_with_events:
+  !> the rest of rolling resistance).
+  subroutine take(integrator, rolling, sb, t, h, now, new, status, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(out) :: new
+    integer, intent(out) :: status
+    integer(i8), intent(inout) :: n_rhs
+    integer :: event
+    new%sliding = now%sliding
+    if (.not. now%sliding) then
+      call step_with_events(integrator, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, n_rhs, event, &
+                            new%stopped_at)
+      new%slip_speed = 0
+      return
+    end if
+    select type (integrator)
+    class is (embedded_pair_t)
+      call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
+    class default
+      call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%stalled, n_rhs)
+    end select
+    call normalize_normal(new%s)
+    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
+    n_rhs = n_rhs + 1
+    if (integrator%stage_limit == no_step_solution) then
+      status = status_unstable
+    else if (integrator%stage_limit /= 0) then
+      status = integrator%stage_limit
+    else
+      status = limit_status(rolling%ball, new%s(1:6), new%obs)
+    end if
+  end subroutine take
+
+  !> Whether the regime switches between now and new (one step apart):
+  !> rolling needs more friction than mu N at new; or the slip, nonzero at
+  !> now, turned by a right angle or more.
+  logical function switch_crossed(sb, now, new) result(crossed)
+    type(sliding_ball_t), intent(in) :: sb
+    type(regime_state_t), intent(in) :: now, new
+    if (now%sliding) then
+      crossed = new%stalled .or. sb%event_crossed(now%s, new%s) /= 0
+    else
+      crossed = new%obs%friction_needed > sb%ball%mu
+    end if
+  end function switch_crossed
+
+  !> The switch's function at state x of a step from now: positive before
+  !> it (rolling: mu - |F_t|/N; sliding: the slip along its direction at the
+  !> step's start).
+  real(wp) function switch_value(sb, x) result(g)
+    type(sliding_ball_t), intent(in) :: sb
+    type(regime_state_t), intent(in) :: x
+    if (x%stalled) then
+      g = -1                      ! past the stop
+    else if (x%sliding) then
+      g = sb%event_value(1, x%s)
+    else
+      g = sb%ball%mu - x%obs%friction_needed
+    end if
+  end function switch_value
+
+  !> The rolling state now (its friction at mu N) goes on sliding: u = 0,
+  !> the friction keeps the direction rolling needed, and u grows against it.
+  subroutine start_sliding(sb, t, now, res, tally)
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: t
+    type(regime_state_t), intent(inout) :: now
+    type(case_result_t), intent(inout) :: res
+    type(slide_tally_t), intent(inout) :: tally
+    real(wp) :: tangential(3), size_t
+    tangential = now%obs%reaction - now%obs%reaction_normal * now%obs%normal
+    size_t = norm2(tangential)
+    sb%slip_mode = 0
+    if (size_t > 0) sb%slip_mode = -tangential / size_t
+    now%s = sliding_from_rolling(sb%ball, now%y)
+    now%sliding = .true.
+    call sb%begin_step(now%s)
+    call observe_sliding(sb, t, now%s, now%obs, now%slip_speed, now%fs)
+    res%n_rhs = res%n_rhs + 1
+    tally%episodes = tally%episodes + 1
+    tally%episode_slip_max = 0
+  end subroutine start_sliding
+
+  !> The slip of sliding state now has fallen to stick_level of its value
+  !> at the piece's start, or turned by a right angle. Where it has stopped
+  !> (the first, or the slip is below stick_level of the episode's largest:
+  !> where rolling's friction is close to mu N the slip spirals into zero,
+  !> turning by a right angle ever more often; the rest of the slip is
+  !> stopped by an impulse, stick, its work added to the friction's),
+  !> the ball rolls on from there where rolling's friction is within mu N,
+  !> else slides on in the direction that friction gives. Where the slip has
+  !> only turned, the ball slides on against its new direction.
+  subroutine stop_sliding(rolling, sb, t, now, res, tally, at_rest_only)
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: t
+    type(regime_state_t), intent(inout) :: now
+    type(case_result_t), intent(inout) :: res
+    type(slide_tally_t), intent(inout) :: tally
+    logical, intent(in), optional :: at_rest_only   !< stop it only where rolling goes on (a slip not located)
+    type(regime_state_t) :: rolled
+    if (present(at_rest_only)) then
+      rolled%y = stick(sb%ball, now%s)
+      call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
+      call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
+      res%n_rhs = res%n_rhs + 1
+      if (rolled%obs%friction_needed > sb%ball%mu) return
+    else if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) then
+      call sb%begin_step(now%s)
+      return
+    end if
+    rolled%sliding = .false.
+    rolled%y = stick(sb%ball, now%s)
+    call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
+    call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
+    res%n_rhs = res%n_rhs + 1
+    rolled%slip_speed = 0
+    tally%friction_energy = tally%friction_energy + (now%obs%energy - rolled%obs%energy)
+    now = rolled
+    if (rolled%obs%friction_needed > sb%ball%mu) then
+      call start_sliding(sb, t, now, res, tally)
+      tally%episodes = tally%episodes - 1          ! the same episode, slipping another way
+    else
+      call add_switch(res, t, switch_to_rolling)
+    end if
+  end subroutine stop_sliding
+
+  !> The piece of step h from (t, from) to `to` that the integrator has just
+  !> taken adds to the sliding figures (add_sliding). An embedded pair's works
+  !> of the friction and of the rolling resistance, in either regime, are
+  !> step_works' (the latter in place of add_resistance_work's trapezoids).
+  subroutine add_sliding_step(integrator, run, rolling, sb, t, h, from, to, tally, res)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    type(run_state_t), intent(in) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: from, to
+    type(slide_tally_t), intent(inout) :: tally
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: work(2)
+    select type (integrator)
+    class is (embedded_pair_t)
+      if (.not. (from%sliding .or. rolling%ball%rolling_resistance > 0)) return
+      call step_works(integrator, rolling%ball, sb, from%sliding, t, h, work, res%n_rhs)
+      call add_sliding(sb, h, from, to, tally, work(1))
+      if (rolling%ball%rolling_resistance > 0) then
+        res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) + work(2)
+        run%resistance_time = t + h       ! (the tracked state there adds no trapezoid)
+        run%resistance_power = resistance_power(sb%ball, to%obs%normal, to%obs%omega, to%obs%reaction_normal)
+      end if
+    class default
+      call add_sliding(sb, h, from, to, tally)
+    end select
+  end subroutine add_sliding_step
+
+  !> A piece of step h from `from` to `to` adds to the sliding figures:
+  !> its time, the friction's work mu N |u| (`work` where given, else the
+  !> trapezoidal rule over the piece; the pieces end at the switches), the
+  !> largest slip speed.
+  pure subroutine add_sliding(sb, h, from, to, tally, work)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: h
+    type(regime_state_t), intent(in) :: from, to
+    type(slide_tally_t), intent(inout) :: tally
+    real(wp), intent(in), optional :: work
+    if (.not. from%sliding) return
+    tally%sliding_time = tally%sliding_time + h
+    if (present(work)) then
+      tally%friction_energy = tally%friction_energy + work
+    else
+      tally%friction_energy = tally%friction_energy + 0.5_wp * h * sb%ball%mu &
+          * (from%obs%reaction_normal * from%slip_speed + to%obs%reaction_normal * to%slip_speed)
+    end if
+    tally%slip_speed_max = max(tally%slip_speed_max, to%slip_speed)
+    tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
+  end subroutine add_sliding
+
+  !> The step h from (t, now) met a limit: the case ends where the method's
+  !> partial steps from now first meet it (to limit_time_ulps of t), with
+  !> its status; the last valid state adds to the summary.
+  subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: now
+    type(slide_tally_t), intent(inout) :: tally
+    type(case_result_t), intent(inout) :: res
+    type(crossing_search_t) :: search
+    type(regime_state_t) :: x, last_valid
+    real(wp) :: trial
+    integer :: status, crossed, k
+    call take(integrator, rolling, sb, t, h, now, x, crossed, res%n_rhs)
+    last_valid = now
+    call search%start(h, limit_time_ulps * spacing(t + h))
+    do k = 1, max_event_trials
+      if (search%done()) exit
+      trial = search%trial()
+      call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
+      if (status == status_completed) then
+        last_valid = x
+      else
+        crossed = status
+      end if
+      call search%report(trial, status == status_completed)
+    end do
+    if (search%valid > 0) then
+      call add_sliding(sb, search%valid, now, last_valid, tally)
+      call track_balance(run, res, t + search%valid, last_valid%obs, tally)
+    end if
+    if (crossed == status_completed) crossed = status_unstable
+    res%status = crossed
+    res%t_final = t + search%valid
+  end subroutine end_at_limit
+end module ellroll_slide_regime
