@@ -11,7 +11,7 @@
 module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable
+  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_rim
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: root_search_t, crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, field_regime, field_slip_speed
@@ -19,7 +19,8 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, &
-      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity
+      observe_sliding, slip_velocity, stick, stick_level, slip_stop_time, sliding_derivative, center_velocity, &
+      at_sliding_rim
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stop_asked, sample_due, stored
   use ellroll_fixed_step_run, only: fixed_step
@@ -133,6 +134,7 @@ contains
     type(observation_t), intent(in) :: obs
     type(slide_tally_t), intent(in) :: tally
     run%friction_work = tally%friction_energy
+    res%reals(fig_slip_speed_max) = tally%slip_speed_max
     call track(run, res, t, obs)
   end subroutine track_balance
 
@@ -283,15 +285,19 @@ contains
     end if
     call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
     call normalize_normal(new%s)
-    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
-    n_rhs = n_rhs + 1
     if (integrator%stage_limit == no_step_solution) then
       status = status_unstable
     else if (integrator%stage_limit /= 0) then
       status = integrator%stage_limit
+    else if (at_sliding_rim(new%s)) then
+      status = status_rim
     else
-      status = limit_status(rolling%ball, new%s(1:6), new%obs)
+      status = status_completed
     end if
+    if (status /= status_completed) return      ! (a state past a limit: its outputs may overflow)
+    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
+    n_rhs = n_rhs + 1
+    status = limit_status(rolling%ball, new%s(1:6), new%obs)
   end subroutine take
 
   !> A step of size h_step from (t, now), through the switches of regime
@@ -401,7 +407,7 @@ contains
     taken = .false.
     if (.not. now%sliding) return
     bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
-    if (.not. bracket < remaining) return
+    if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
     call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
     taken = status == status_completed .and. switch_crossed(sb, now, new)
     if (taken) piece = bracket
@@ -608,9 +614,22 @@ contains
     tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
   end subroutine add_sliding
 
+  !> Whether the integrator's last step is within its tolerance (a fixed
+  !> step always is).
+  pure logical function within_tolerance(integrator) result(within)
+    class(integrator_t), intent(in) :: integrator
+    within = .true.
+    select type (integrator)
+    class is (embedded_pair_t)
+      within = integrator%error_norm <= 1
+    end select
+  end function within_tolerance
+
   !> The step h from (t, now) met a limit: the case ends where the method's
   !> partial steps from now first meet it (to limit_time_ulps of t), with
-  !> its status; the last valid state adds to the summary.
+  !> its status; the last valid state (an embedded pair's: within its
+  !> tolerance, not only short of the limit: next to the rim a partial
+  !> step's stages can pass it and come back far off) adds to the summary.
   subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
@@ -624,6 +643,7 @@ contains
     type(regime_state_t) :: x, last_valid
     real(wp) :: trial
     integer :: status, crossed, k
+    logical :: valid
     call take(integrator, rolling, sb, t, h, now, x, crossed, res%n_rhs)
     last_valid = now
     call search%start(h, limit_time_ulps * spacing(t + h))
@@ -631,12 +651,14 @@ contains
       if (search%done()) exit
       trial = search%trial()
       call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
-      if (status == status_completed) then
+      valid = status == status_completed
+      if (valid) valid = within_tolerance(integrator)
+      if (valid) then
         last_valid = x
-      else
+      else if (status /= status_completed) then
         crossed = status
       end if
-      call search%report(trial, status == status_completed)
+      call search%report(trial, valid)
     end do
     if (search%valid > 0) then
       call add_sliding(sb, search%valid, now, last_valid, tally)

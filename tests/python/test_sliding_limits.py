@@ -1,0 +1,97 @@
+"""Sliding cases (&ball slip = 'slide') near the model's limits and with a
+slip that vanishes inside an embedded pair's step: every build ends them
+with a status (never a signal), and the figures of a case that ends at a
+limit stay within what its energy allows: on a fixed cup the friction's
+work is at most E(0), the slip speed at most the largest speed of the
+contact point that E(0) allows, |V_C| + R |omega| <= sqrt(2 E0 / m) (1 +
+1 / sqrt(k)) (docs/output.md, "Peaks at a model limit")."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+
+PAPER_CUP = "&geometry a = 1.0, b = 0.4, c = 0.2 /\n"
+RIM_START = """&geometry a = 5.0, b = 0.9, c = 0.5 /
+&ball radius = 0.19, mass = 100.0, mu = 1e-3, slip = 'slide' /
+&initial x = 0.0, y = 0.0, omega = 0, 0, 0, velocity = 0.0, {speed}, 0.0 /
+&integration {integration}, t_end = 1.0 /
+&output file = 'o.h5', interval = 0.01 /
+"""
+# an ordinary sliding start that reaches the rim at 0.25 s
+RIM_ORDINARY = """&geometry a = 2.0, b = 0.4, c = 0.2 /
+&ball radius = 0.05, mass = 100.0, mu = 0.01, slip = 'slide', inertia_factor = 0.6666666666666666 /
+&initial x = 0.1, y = 0.0, omega = 0, 5, 0, velocity = 0.48498382872880136, 1.9403068535341395, 0.0024279559878441896 /
+&integration {integration}, t_end = 5.0 /
+&output file = 'o.h5', interval = 0.01 /
+"""
+# the slip vanishes exactly at a step's start (dop853): a zero-length bracket
+ZERO_SLIP = """&geometry a = 1.0, b = 0.8, c = 0.2 /
+&ball radius = 0.05, mass = 100.0, mu = 0.2, slip = 'slide', inertia_factor = 0.6666666666666666 /
+&initial x = 0.1, y = 0.0, omega = 0, 5, 0, velocity = -0.14692353269943573, 1.994596068265231, -0.0029532741262881263 /
+&integration method = 'dop853', rtol = 1e-10, t_end = 5.0 /
+&output file = 'o.h5', interval = 0.01 /
+"""
+STRONG_RECORD = PAPER_CUP + """&ball radius = 0.2, weight = 2620.0, mu = 0.05, slip = 'slide' /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'dop853', rtol = 1e-9, t_end = 2.0 /
+&excitation kind = 'record', record_file = '{record}', scale = 100.0 /
+&output file = 'o.h5', interval = 0.01 /
+"""
+NEARLY_FRICTIONLESS = PAPER_CUP + """&ball radius = 0.2, weight = 2620.0, mu = 1e-6, slip = 'slide' /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'dop853', rtol = 1e-9, t_end = 1.0 /
+&excitation kind = 'harmonic', amplitude = 1.0, 0.5, 0.0, frequency = 0.5 /
+&output file = 'o.h5', interval = 0.01 /
+"""
+RECORD = __import__("conftest").ROOT / "input" / "records" / "synthetic_ground.csv"
+
+
+def summary(exe, folder, text, name="case"):
+    (folder / f"{name}.nml").write_text(text)
+    result = run(exe, "run", f"{name}.nml", "-q", "--overwrite", "-o", f"{name}.h5", cwd=folder, timeout=300)
+    assert result.returncode == 0, (result.returncode, result.stderr)
+    with h5py.File(folder / f"{name}.h5", "r") as f:
+        out = {k: f["summary"][k][0] for k in f["summary"]}
+        out["E0"] = f["trajectory"]["energy"][0, 0]
+        out["mass"] = f["case"]["mass"][0]
+        out["k"] = f["case"]["inertia_factor"][0]
+    return out
+
+
+def assert_within_energy(out):
+    assert out["friction_energy"] <= out["E0"]
+    speed = np.sqrt(2 * out["E0"] / out["mass"]) * (1 + 1 / np.sqrt(out["k"]))
+    assert out["slip_speed_max"] <= speed
+    assert np.isfinite(out["reaction_normal_max"])
+
+
+@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-9",
+                                         "method = 'vern9', rtol = 1e-9"])
+@pytest.mark.parametrize("speed", [-25.0, -30.0, -50.0])
+def test_a_fast_slide_to_the_rim_keeps_its_works_within_its_energy(ellroll, tmp_path, integration, speed):
+    out = summary(ellroll, tmp_path, RIM_START.format(speed=speed, integration=integration))
+    assert out["status"] == 2                           # rim
+    assert_within_energy(out)
+
+
+@pytest.mark.parametrize("integration", ["method = 'vern9', rtol = 1e-10", "method = 'dop853', rtol = 1e-10",
+                                         "method = 'rk4', dt = 1e-4"])
+def test_an_ordinary_slide_to_the_rim_keeps_its_works_within_its_energy(ellroll, tmp_path, integration):
+    out = summary(ellroll, tmp_path, RIM_ORDINARY.format(integration=integration))
+    assert out["status"] == 2
+    assert_within_energy(out)
+    # the friction's work to the last clear step end, against the energy lost there
+    assert out["energy_drift"] < 1e-6
+
+
+@pytest.mark.parametrize("text", ["rim_rk4", "rim_vern9", "zero_slip", "strong_record", "nearly_frictionless"])
+def test_the_debug_build_ends_sliding_cases_without_a_signal(ellroll_debug, tmp_path, text):
+    inputs = {"rim_rk4": RIM_START.format(speed=-30.0, integration="method = 'rk4', dt = 1e-3"),
+              "rim_vern9": RIM_ORDINARY.format(integration="method = 'vern9', rtol = 1e-10"),
+              "zero_slip": ZERO_SLIP, "strong_record": STRONG_RECORD.format(record=RECORD),
+              "nearly_frictionless": NEARLY_FRICTIONLESS}
+    out = summary(ellroll_debug, tmp_path, inputs[text])
+    assert out["status"] in (1, 2, 3)                   # completed, rim, no_fit
+    if text == "zero_slip":
+        assert out["status"] == 1 and out["energy_drift"] < 1e-9
