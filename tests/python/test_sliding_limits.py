@@ -95,3 +95,30 @@ def test_the_debug_build_ends_sliding_cases_without_a_signal(ellroll_debug, tmp_
     assert out["status"] in (1, 2, 3)                   # completed, rim, no_fit
     if text == "zero_slip":
         assert out["status"] == 1 and out["energy_drift"] < 1e-9
+
+
+# a ball with rolling resistance that rolls into no_fit (mu 1000: it never
+# slides; mu 1e-3: it slides a little first), in slide mode and rolling
+NO_FIT_RESISTANCE = """&geometry a = 1.0, b = 1.0, c = 0.5 /
+&ball radius = 0.5, mass = 100.0, {mu} rolling_resistance = 0.01 /
+&initial x = 0.0, y = 0.02, omega = 0, 50, 0 /
+&integration {integration}, t_end = 0.5 /
+&output file = 'o.h5', interval = 0.01, fields = 'energy' /
+"""
+
+
+@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-9",
+                                         "method = 'vern9', rtol = 1e-9"])
+@pytest.mark.parametrize("mu", ["mu = 1000.0, slip = 'slide',", "mu = 1e-3, slip = 'slide',", ""])
+def test_the_couples_work_at_a_model_limit_stays_within_the_energy_lost(ellroll, tmp_path, integration, mu):
+    """On a fixed cup E falls monotonically: the works up to the last clear
+    step end lie between E0 - E at the last stored sample before the limit
+    (590 J; the clear step ends go on past it) and E0 (44,240 J)."""
+    text = NO_FIT_RESISTANCE.format(mu=mu, integration=integration)
+    out = summary(ellroll, tmp_path, text)
+    assert out["status"] == 3                           # no_fit
+    with h5py.File(tmp_path / "case.h5", "r") as f:
+        energy = f["trajectory"]["energy"][0]
+    lost = out["E0"] - energy[np.isfinite(energy)][-1]
+    works = out["rolling_resistance_energy"] + out["friction_energy"]
+    assert lost < works < out["E0"]
