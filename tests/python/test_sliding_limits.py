@@ -122,3 +122,32 @@ def test_the_couples_work_at_a_model_limit_stays_within_the_energy_lost(ellroll,
     lost = out["E0"] - energy[np.isfinite(energy)][-1]
     works = out["rolling_resistance_energy"] + out["friction_energy"]
     assert lost < works < out["E0"]
+
+
+# the couple of rolling resistance flips with omega_t about omega_t = 0
+# while the ball slides: the embedded pairs' steps shrink to ~1e-11 s
+HANGS = {
+    "fast_start": """&geometry a = 1.0, b = 0.9, c = 1.0 /
+&ball radius = 0.19, mass = 100.0, mu = 1e-06, slip = 'slide', inertia_factor = 0.6666666666666666,
+      rolling_resistance = 0.0001 /
+&initial x = 0.3, y = 0.0, omega = -2, 2, 20, velocity = -9870.635831033893, -1603.2929523670516, -3104.1713611430637 /
+&integration method = 'dop853', rtol = 1e-09, t_end = 0.05 /
+&output file = 'o.h5', interval = 0.01 /
+""",
+    "ordinary_start": """&geometry a = 1.0, b = 0.4, c = 0.5 /
+&ball radius = 0.1, mass = 100.0, mu = 0.01, slip = 'slide', inertia_factor = 0.1, rolling_resistance = 0.001 /
+&initial x = 0.1, y = 0.0, omega = 0, 5, 0, velocity = -0.8847532418849654, -0.4660597611616389, -0.04446052326337854 /
+&integration method = 'vern9', rtol = 1e-10, t_end = 5.0 /
+&output file = 'o.h5', interval = 0.01 /
+""",
+}
+
+
+@pytest.mark.parametrize("name", sorted(HANGS))
+def test_a_slide_whose_steps_crawl_ends_unstable_in_bounded_time(ellroll, tmp_path, name):
+    (tmp_path / "case.nml").write_text(HANGS[name])
+    result = run(ellroll, "run", "case.nml", "-q", "-o", "case.h5", cwd=tmp_path, timeout=60)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "case.h5", "r") as f:
+        assert f["summary"]["status"][0] == 9           # unstable
+        assert f["summary"]["t_final"][0] < f["case"]["t_end"][0]
