@@ -10,7 +10,7 @@ module ellroll_batch_run
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, make_ball
   use ellroll_results, only: case_result_t
-  use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal
+  use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal, q_fit_clearance
   use ellroll_rolling_ball, only: observation_t, state_size, event_rest
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
@@ -666,6 +666,7 @@ contains
       obs%omega = y(l, 4:6)
       obs%center = out%contact(l, :) + b%run(l)%ball%radius * obs%normal
       obs%reaction_normal = out%quantity(l, q_reaction_normal)
+      obs%fit_clearance = out%quantity(l, q_fit_clearance)
       call track_rolling_resistance(b%run(l), results(l), t(l), obs, still(l))
     end do
   end subroutine track_resistance

@@ -102,6 +102,8 @@ module ellroll_case_run
     !> its value at the last step end clear of the cup's curvature (where a
     !> case that ends at a model limit cuts it, as its peaks)
     real(wp) :: friction_work = 0, friction_work_clear = 0
+    !> the largest slip speed and the couple's work at that step end
+    real(wp) :: slip_speed_clear = 0, resistance_work_clear = 0
   end type run_state_t
 
 contains
@@ -183,12 +185,7 @@ contains
       res%counts(fig_at_rest) = 1
     end if
     call finish_running(run%stats, run%ball%mass, res)
-    if (cs%slide .and. is_model_limit(res%status)) then
-      ! the friction's work up to the step ends the peaks take: near the
-      ! limit N grows without bound and a piece's quadrature with it
-      res%reals(fig_friction_energy) = ieee_value(res%reals(fig_friction_energy), ieee_quiet_nan)
-      if (run%stats%n_clear(1) > 0) res%reals(fig_friction_energy) = run%friction_work_clear
-    end if
+    if (is_model_limit(res%status)) call cut_at_limit(cs, run, res)
     periods = oscillation_periods(run%ball, run%spin0)
     call set_figure_values(res, fig_linear_periods, periods)
     if (cs%excitation%kind == excitation_record) then
@@ -342,8 +339,8 @@ contains
 
   !> What a step's end point adds to the summary of rolling resistance: the
   !> rest (note_rest) and the couple's work (from obs's normal, omega,
-  !> centre and normal force; the batches call it per lane, with whether
-  !> the ball is at rest there: still, lanes_at_rest's).
+  !> centre, normal force and fit clearance; the batches call it per lane,
+  !> with whether the ball is at rest there: still, lanes_at_rest's).
   pure subroutine track_rolling_resistance(run, res, t, obs, still)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
@@ -353,8 +350,32 @@ contains
     if (run%ball%rolling_resistance > 0) then
       call note_rest(run, t, obs, still)
       call add_resistance_work(run, res, t, obs)
+      if (obs%fit_clearance > 0) run%resistance_work_clear = res%reals(fig_rolling_resistance_energy)
     end if
   end subroutine track_rolling_resistance
+
+  !> A case that ended at a model limit: the works of friction and of the
+  !> couple and the largest slip speed up to the step ends the peaks take
+  !> (NaN where none was): near the limit N grows without bound, and a
+  !> piece's quadrature with it (near the rim a sliding state's V_z).
+  pure subroutine cut_at_limit(cs, run, res)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp) :: nan
+    nan = ieee_value(nan, ieee_quiet_nan)
+    if (cs%slide) then
+      res%reals([fig_friction_energy, fig_slip_speed_max]) = nan
+      if (run%stats%n_clear(1) > 0) then
+        res%reals(fig_friction_energy) = run%friction_work_clear
+        res%reals(fig_slip_speed_max) = run%slip_speed_clear
+      end if
+    end if
+    if (run%ball%rolling_resistance > 0) then
+      res%reals(fig_rolling_resistance_energy) = nan
+      if (run%stats%n_clear(1) > 0) res%reals(fig_rolling_resistance_energy) = run%resistance_work_clear
+    end if
+  end subroutine cut_at_limit
 
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
@@ -433,7 +454,10 @@ contains
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     q = step_quantities(obs)
     q(1, q_energy) = q(1, q_energy) + run%friction_work
-    if (obs%fit_clearance > 0) run%friction_work_clear = run%friction_work
+    if (obs%fit_clearance > 0) then
+      run%friction_work_clear = run%friction_work
+      run%slip_speed_clear = res%reals(fig_slip_speed_max)
+    end if
     call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 

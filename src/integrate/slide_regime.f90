@@ -5,16 +5,16 @@
 module ellroll_slide_regime
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_completed, status_unstable
+  use ellroll_status, only: status_completed, status_unstable, status_rim
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, add_switch, switch_to_rolling
-  use ellroll_figures, only: fig_rolling_resistance_energy
+  use ellroll_figures, only: fig_rolling_resistance_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      stick_level, resistance_power
+      at_sliding_rim, stick_level, resistance_power
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored
   use ellroll_fixed_step_run, only: step_with_events
@@ -70,6 +70,7 @@ contains
     type(observation_t), intent(in) :: obs
     type(slide_tally_t), intent(in) :: tally
     run%friction_work = tally%friction_energy
+    res%reals(fig_slip_speed_max) = tally%slip_speed_max
     call track(run, res, t, obs)
   end subroutine track_balance
 
@@ -114,15 +115,19 @@ contains
       call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%stalled, n_rhs)
     end select
     call normalize_normal(new%s)
-    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
-    n_rhs = n_rhs + 1
     if (integrator%stage_limit == no_step_solution) then
       status = status_unstable
     else if (integrator%stage_limit /= 0) then
       status = integrator%stage_limit
+    else if (at_sliding_rim(new%s)) then
+      status = status_rim
     else
-      status = limit_status(rolling%ball, new%s(1:6), new%obs)
+      status = status_completed
     end if
+    if (status /= status_completed) return      ! (a state past a limit: its outputs may overflow)
+    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
+    n_rhs = n_rhs + 1
+    status = limit_status(rolling%ball, new%s(1:6), new%obs)
   end subroutine take
 
   !> Whether the regime switches between now and new (one step apart):
@@ -270,9 +275,22 @@ contains
     tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
   end subroutine add_sliding
 
+  !> Whether the integrator's last step is within its tolerance (a fixed
+  !> step always is).
+  pure logical function within_tolerance(integrator) result(within)
+    class(integrator_t), intent(in) :: integrator
+    within = .true.
+    select type (integrator)
+    class is (embedded_pair_t)
+      within = integrator%error_norm <= 1
+    end select
+  end function within_tolerance
+
   !> The step h from (t, now) met a limit: the case ends where the method's
   !> partial steps from now first meet it (to limit_time_ulps of t), with
-  !> its status; the last valid state adds to the summary.
+  !> its status; the last valid state (an embedded pair's: within its
+  !> tolerance, not only short of the limit: next to the rim a partial
+  !> step's stages can pass it and come back far off) adds to the summary.
   subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
@@ -286,6 +304,7 @@ contains
     type(regime_state_t) :: x, last_valid
     real(wp) :: trial
     integer :: status, crossed, k
+    logical :: valid
     call take(integrator, rolling, sb, t, h, now, x, crossed, res%n_rhs)
     last_valid = now
     call search%start(h, limit_time_ulps * spacing(t + h))
@@ -293,12 +312,14 @@ contains
       if (search%done()) exit
       trial = search%trial()
       call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
-      if (status == status_completed) then
+      valid = status == status_completed
+      if (valid) valid = within_tolerance(integrator)
+      if (valid) then
         last_valid = x
-      else
+      else if (status /= status_completed) then
         crossed = status
       end if
-      call search%report(trial, status == status_completed)
+      call search%report(trial, valid)
     end do
     if (search%valid > 0) then
       call add_sliding(sb, search%valid, now, last_valid, tally)

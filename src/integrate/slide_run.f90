@@ -41,6 +41,9 @@ module ellroll_slide_run
   !> its error (hovering_slip) before the slip counts as stopped where rolling
   !> can go on, and before the case ends as unstable where it cannot.
   integer, parameter :: hover_steps = 64, max_hover_steps = 100000
+  !> Steps shorter on average than this part of t_end over max_hover_steps
+  !> steps crawl: the case would take more than 1e7 steps (it ends unstable).
+  real(wp), parameter :: crawl_fraction = 1.0e-7_wp
 
 
 contains
@@ -154,8 +157,8 @@ contains
     type(case_result_t), intent(inout) :: res
     type(regime_state_t) :: trial
     type(step_control_t) :: control
-    real(wp) :: t, h, h_max, t_next, next_sample_time, factor
-    integer :: status, stalled, hovering
+    real(wp) :: t, h, h_max, t_next, next_sample_time, factor, window_start
+    integer :: status, stalled, hovering, crawling
     integer(i8) :: attempts
     logical :: ended, rejected
     h_max = min(cs%t_end, cs%param(p_dt))
@@ -169,6 +172,8 @@ contains
     attempts = 0
     stalled = 0
     hovering = 0
+    crawling = 0
+    window_start = 0
     do while (t < cs%t_end)
       attempts = attempts + 1
       if (stop_asked(attempts)) then
@@ -199,6 +204,14 @@ contains
       call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next, trial, status)
       res%n_steps = res%n_steps + 1
       if (ended) return
+      ! steps too short to reach t_end in any time (a couple or a friction
+      ! that flips at every stage about omega_t = 0 or u = 0): every
+      ! max_hover_steps steps the case must have moved on by crawl_fraction
+      ! of t_end per step on average
+      if (mod(res%n_steps, int(max_hover_steps, i8)) == 0) then
+        crawling = merge(1, 0, t_next - window_start < max_hover_steps * crawl_fraction * cs%t_end)
+        window_start = t_next
+      end if
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
       hovering = merge(hovering + 1, 0, hovering_slip(pair, sb, now))
       if (hovering >= hover_steps .and. mod(hovering, hover_steps) == 0) then
@@ -206,7 +219,7 @@ contains
         call stop_sliding(rolling, sb, t_next, now, res, tally, at_rest_only=.true.)
         if (.not. now%sliding) hovering = 0
       end if
-      if (stalled > max_switches_per_step .or. hovering > max_hover_steps) then
+      if (stalled > max_switches_per_step .or. hovering > max_hover_steps .or. crawling > 0) then
         res%status = status_unstable           ! switches that no longer move on: chattering
         res%t_final = t
         return
@@ -374,7 +387,7 @@ contains
     taken = .false.
     if (.not. now%sliding) return
     bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
-    if (.not. bracket < remaining) return
+    if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
     call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
     taken = status == status_completed .and. switch_crossed(sb, now, new)
     if (taken) piece = bracket
