@@ -172,11 +172,11 @@ class EllrollFile:
         first, count = int(group["first"][case]), int(group["count"][case])
         if count < 0:
             raise ValueError(f"{self.path}: case {case} was never run ({self.status_name(case)})")
-        kinds = group["kind"]
+        kinds = group["switch_kind"]
         values = np.asarray(kinds.attrs["flag_values"])
         names = np.array(kinds.attrs["flag_meanings"].split())
         codes = kinds[first:first + count]
-        return group["time"][first:first + count], names[np.searchsorted(values, codes)]
+        return group["switch_time"][first:first + count], names[np.searchsorted(values, codes)]
 
     def status_names(self):
         """Each case's status by name (the flag_meanings of its flag_values)."""

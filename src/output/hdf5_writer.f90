@@ -21,7 +21,8 @@ module ellroll_hdf5_writer
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
-  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group
+  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, &
+      switch_group
   use ellroll_file_layout, only: table_row, file_row, limit_state_row, file_title, file_references
   implicit none
   private
@@ -552,7 +553,7 @@ contains
     if (.not. self%switches%active) return
     lay%file = self%file
     lay%path = self%path
-    call self%switches%write_group(lay)
+    call switch_group(lay, self%switches)
     if (lay%err%failed()) err = lay%err
   end subroutine write_switches
 

@@ -1,17 +1,15 @@
 !> The switches of regime of a campaign's cases (/switches): kept case by
-!> case as the cases come, in any order, and written when the file closes,
-!> in case order, as two ragged columns (time, kind: every case's switches
+!> case as the cases come, in any order, and given out (ragged) in case
+!> order, which the file (ellroll_hdf5_groups' switch_group, when it
+!> closes) and the Python API lay out as two ragged columns (time, kind: every case's switches
 !> one case after the other) indexed per case by first and count. A case's
 !> switches are few (tens), the table of a campaign is small beside its
 !> trajectories, and the file holds them in the same order whatever order
 !> the threads, a resume or a merge kept them in.
 module ellroll_switch_store
-  use hdf5
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_pending, status_invalid
   use ellroll_results, only: case_result_t, count_undefined
-  use ellroll_hdf5_layout, only: layout_t
-  use ellroll_file_layout, only: case_entry
   implicit none
   private
 
@@ -30,7 +28,7 @@ module ellroll_switch_store
   contains
     procedure :: start
     procedure :: keep
-    procedure :: write_group
+    procedure :: ragged
   end type switch_store_t
 
 contains
@@ -77,63 +75,26 @@ contains
     self%n_pool = self%n_pool + n
   end subroutine keep
 
-  !> /switches: `time` and `kind` on the `switch` dimension (every case's
-  !> switches, case after case), `first` and `count` on the case dimension.
-  subroutine write_group(self, lay)
+  !> The cases' switches in case order: every case's first switch (0-based;
+  !> -1 for a case never run), count (-1 never run), and every switch's
+  !> time and kind.
+  subroutine ragged(self, first, count, times, kinds)
     class(switch_store_t), intent(in) :: self
-    type(layout_t), intent(inout) :: lay
-    integer(hid_t) :: group, scale, switch_scale, dset
-    integer(i8), allocatable :: first(:), kinds(:), order(:)
-    integer(i8), target :: undefined
-    real(wp), allocatable :: times(:)
+    integer(i8), allocatable, intent(out) :: first(:), count(:), kinds(:)
+    real(wp), allocatable, intent(out) :: times(:)
     integer(i8) :: n, k, at
-    if (.not. self%active) return
-    undefined = count_undefined
-    associate (count => self%count)
-      n = sum(max(count, 0_i8))
-      allocate (first(size(count)), times(n), kinds(n))
-      at = 0
-      do k = 1, size(count, kind=i8)
-        first(k) = merge(at, count_undefined, count(k) >= 0)
-        if (count(k) <= 0) cycle
-        times(at + 1:at + count(k)) = self%times(self%first(k):self%first(k) + count(k) - 1)
-        kinds(at + 1:at + count(k)) = self%kinds(self%first(k):self%first(k) + count(k) - 1)
-        at = at + count(k)
-      end do
-      order = [(k, k = 0, n - 1)]
-      group = lay%new_group('switches')
-      scale = lay%int_dataset(group, trim(case_entry%name), size(count, kind=i8), case_entry%units, &
-                              case_entry%description)
-      call lay%write_ints(scale, self%indices, 0_i8)
-      call lay%make_scale(scale, trim(case_entry%name))
-      switch_scale = lay%int_dataset(group, 'switch', n, '1', 'index of the switch in time and kind')
-      if (n > 0) call lay%write_ints(switch_scale, order, 0_i8)
-      call lay%make_scale(switch_scale, 'switch')
-      dset = lay%real_dataset(group, 'time', [n], 's', 'time of the switch of regime')
-      if (n > 0) call lay%write_reals(dset, times, [0_i8], [n])
-      call lay%attach(dset, switch_scale, 0)
-      call lay%close_dataset(dset)
-      dset = lay%int_dataset(group, 'kind', n, '1', 'kind of the switch of regime', small=.true.)
-      if (n > 0) call lay%write_ints(dset, kinds, 0_i8)
-      call lay%int_attribute(dset, 'flag_values', [1_i8, 2_i8], small=.true.)
-      call lay%text_attribute(dset, 'flag_meanings', switch_flag_meanings)
-      call lay%attach(dset, switch_scale, 0)
-      call lay%close_dataset(dset)
-      dset = lay%int_dataset(group, 'first', size(count, kind=i8), '1', &
-                             'index of the case''s first switch in time and kind', fill=undefined)
-      call lay%int_attribute(dset, '_FillValue', [count_undefined])
-      call lay%write_ints(dset, first, 0_i8)
-      call lay%attach(dset, scale, 0)
-      call lay%close_dataset(dset)
-      dset = lay%int_dataset(group, 'count', size(count, kind=i8), '1', 'switches of regime of the case', &
-                             fill=undefined)
-      call lay%int_attribute(dset, '_FillValue', [count_undefined])
-      call lay%write_ints(dset, count, 0_i8)
-      call lay%attach(dset, scale, 0)
-      call lay%close_dataset(dset)
-      call lay%close_dataset(switch_scale)
-      call lay%close_dataset(scale)
-      call lay%close_group(group)
-    end associate
-  end subroutine write_group
+    allocate (count(size(self%count)))
+    count(:) = self%count
+    n = sum(max(count, 0_i8))
+    allocate (first(size(count)), times(n), kinds(n))
+    at = 0
+    do k = 1, size(count, kind=i8)
+      first(k) = merge(at, count_undefined, count(k) >= 0)
+      if (count(k) <= 0) cycle
+      times(at + 1:at + count(k)) = self%times(self%first(k):self%first(k) + count(k) - 1)
+      kinds(at + 1:at + count(k)) = self%kinds(self%first(k):self%first(k) + count(k) - 1)
+      at = at + count(k)
+    end do
+  end subroutine ragged
+
 end module ellroll_switch_store

@@ -185,9 +185,9 @@ contains
     first = shard%int_column('switches/first', err)
     count = shard%int_column('switches/count', err)
     if (err%failed()) return
-    if (shard%dataset_length('switches/time') > 0) then
-      times = shard%real_column('switches/time', err)
-      kinds = shard%int_column('switches/kind', err)
+    if (shard%dataset_length('switches/switch_time') > 0) then
+      times = shard%real_column('switches/switch_time', err)
+      kinds = shard%int_column('switches/switch_kind', err)
     else
       allocate (times(0), kinds(0))
     end if

@@ -18,10 +18,10 @@ def switches(path, case=0):
     with h5py.File(path, "r") as f:
         group = f["switches"]
         first, count = group["first"][case], group["count"][case]
-        assert group["time"].attrs["units"] == "s"
-        assert group["kind"].attrs["flag_meanings"] == "to_sliding to_rolling"
-        assert list(group["kind"].attrs["flag_values"]) == [1, 2]
-        return group["time"][first:first + count], group["kind"][first:first + count]
+        assert group["switch_time"].attrs["units"] == "s"
+        assert group["switch_kind"].attrs["flag_meanings"] == "to_sliding to_rolling"
+        assert list(group["switch_kind"].attrs["flag_values"]) == [1, 2]
+        return group["switch_time"][first:first + count], group["switch_kind"][first:first + count]
 
 
 def shaken_as_the_unit_test(ellroll, folder, name, integration):
@@ -98,7 +98,7 @@ def test_switches_are_the_same_bits_for_any_thread_count_and_through_shards_and_
         count, first = f["switches/count"][:], f["switches/first"][:]
         assert count.max() >= 4 and count[-1] == 0 and np.all(count >= 0)
         assert list(first) == list(np.concatenate([[0], np.cumsum(count)[:-1]]))
-        assert len(f["switches/time"]) == count.sum()
+        assert len(f["switches/switch_time"]) == count.sum()
         assert list(count[count > 0] // 2 + count[count > 0] % 2) == \
             list(f["summary/slip_episodes"][:][count > 0])
     for i in range(3):
@@ -135,3 +135,21 @@ def test_switches_survive_kill_and_resume(ellroll, tmp_path, compression):
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
     with h5py.File(tmp_path / "out.h5", "r") as f:
         assert f["switches/count"][:].max() >= 4
+
+
+def test_the_python_api_gives_the_files_switches(ellroll, tmp_path):
+    ellroll_api = pytest.importorskip("ellroll")
+    name = campaign(tmp_path, count=8)
+    assert run(ellroll, "run", name, "-q", "-o", "file.h5", cwd=tmp_path).returncode == 0
+    text = (tmp_path / name).read_text()
+    arrays, attributes = ellroll_api.run_arrays(text, threads=2)
+    tree = ellroll_api.run(text, threads=1)
+    with h5py.File(tmp_path / "file.h5", "r") as f:
+        assert sorted(arrays["switches"]) == sorted(f["switches"])
+        for key in f["switches"]:
+            assert np.array_equal(arrays["switches"][key], f["switches"][key][:]), key
+            assert np.array_equal(tree["switches"][key].values, f["switches"][key][:]), key
+            assert attributes["switches"][key]["units"] == f["switches"][key].attrs["units"]
+        assert f["switches/count"][:].max() >= 4
+    assert attributes["switches"]["switch_kind"]["flag_meanings"] == "to_sliding to_rolling"
+    assert "switches" not in ellroll_api.run(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0")).children
