@@ -285,11 +285,11 @@ contains
       ! record reserved goes here
       start = self%next_position
       moved = next_marker(self, bytes)
-      ! damaged: counted in records of the size of one that did not slide
-      ! (a place reserved but never written reads as zeros)
+      ! damaged: a stretch counts as the whole records of a case that did
+      ! not slide it could hold, at least one (a place reserved but never
+      ! written reads as zeros)
       if (written) self%n_damaged = self%n_damaged + &
-          max(1_i8, ((merge(self%next_position, bytes + 1, moved) - start) / 8 + self%record_words + 1) / &
-                    (self%record_words + 2))
+          max(1_i8, (merge(self%next_position, bytes + 1, moved) - start) / (8 * (self%record_words + 2)))
       if (.not. moved) exit
     end do
   end subroutine index_records

@@ -2,12 +2,16 @@
 times located inside the steps (rk4 at dt 1e-4 against vern9 at rtol
 1e-12), the same bits through a resume after kill -9, shards and merge and
 any thread count, nothing stored for a campaign that cannot slide."""
+import os
+import struct
+import subprocess
+
 import h5py
 import numpy as np
 import pytest
 
 from conftest import run, PAPER_INPUT
-from test_campaign import assert_same_datasets, kill_after_records, record_bytes
+from test_campaign import JOURNAL_HEADER, RECORD_MARKER, WALL_TIME_ENTRY, assert_same_datasets, kill_after_records, record_bytes
 from test_sliding_truth import run_case
 
 import ellroll_post
@@ -153,3 +157,60 @@ def test_the_python_api_gives_the_files_switches(ellroll, tmp_path):
         assert f["switches/count"][:].max() >= 4
     assert attributes["switches"]["switch_kind"]["flag_meanings"] == "to_sliding to_rolling"
     assert "switches" not in ellroll_api.run(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0")).children
+
+
+def journal_records(path):
+    """[(offset, slot, number of switches)] of a journal's records in
+    order, each found where the one before it ends (their sizes differ)."""
+    data = path.read_bytes()
+    fixed = record_bytes() // 8 - 2                  # the part of one size (no trajectories in the record)
+    at, out = JOURNAL_HEADER, []
+    while at + 8 * (fixed + 2) <= len(data):
+        words = struct.unpack(f"<{fixed + 1}q", data[at:at + 8 * (fixed + 1)])
+        assert words[0] == RECORD_MARKER
+        out.append((at, words[1], words[fixed]))
+        at += 8 * (fixed + 2 + 2 * words[fixed])
+    return out
+
+
+@pytest.mark.parametrize("damage", ["zeroed", "bits"])
+def test_a_damaged_record_with_switches_runs_its_case_again_and_keeps_the_rest(ellroll, tmp_path, damage):
+    """A kill after every case was journaled (strace kills at the unlink
+    that follows), then the first record that holds switches is zeroed (a
+    place never written) or has a bit of its switches flipped: the resume
+    finds the records after it by their marker, keeps them, runs that case
+    again, and the file is the uninterrupted run's."""
+    name = campaign(tmp_path, count=6)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    killed = subprocess.run(["strace", "-f", "-o", os.devnull, "-e", "inject=unlink:signal=SIGKILL:when=1",
+                             str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path)
+    assert killed.returncode != 0
+    (tmp_path / "out.h5").rename(tmp_path / "out.h5.partial")
+    journal = tmp_path / "out.h5.journal"
+    records = journal_records(journal)
+    assert sorted(slot for _, slot, _ in records) == list(range(6))
+    offset, slot, n = next(r for r in records if r[2] > 0)
+    size = record_bytes() + 16 * n
+    with open(journal, "r+b") as f:
+        if damage == "zeroed":
+            f.seek(offset)
+            f.write(bytes(size))
+        else:
+            f.seek(offset + size - 8 * n - 16)       # a switch's time
+            byte = f.read(1)[0]
+            f.seek(offset + size - 8 * n - 16)
+            f.write(bytes([byte ^ 4]))
+    data = journal.read_bytes()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    if damage == "bits":
+        assert "1 damaged records skipped" in result.stderr and "1 of 6 cases have no valid record" in result.stderr, \
+            result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    # the records after the damaged one were kept: their cases' wall times are the journal's
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+    later = [(at, kept) for at, kept, _ in records if at > offset]
+    assert later
+    for at, kept in later:
+        assert struct.unpack("<d", data[at + 8 * (3 + 3 * WALL_TIME_ENTRY):][:8])[0] == wall[kept]
