@@ -400,6 +400,13 @@ def _dataset(xr, variables, attrs=None):
 
 
 _GROUPS = ("", "case", "summary", "trajectory")
+# groups of some runs only: /switches where a case may slide
+_OPTIONAL_GROUPS = ("switches",)
+
+
+def _groups_of(groups):
+    """The groups of a run, in the file's order."""
+    return _GROUPS + tuple(group for group in _OPTIONAL_GROUPS if group in groups)
 
 
 class _Template:
@@ -421,7 +428,7 @@ class _Template:
         # (group, Dataset, [(position, name)] to fill, [(position, name)] with array attributes)
         self.nodes = []
         self.scales = []         # (group, position, the scale's bytes)
-        for group in _GROUPS:
+        for group in _groups_of(groups):
             variables = groups.get(group, [])
             made, fill, deep = [], [], []
             for position, (name, dims, values, attrs) in enumerate(variables):
@@ -467,7 +474,7 @@ def _tree(groups, root_attrs):
     import xarray as xr
     if not hasattr(xr, "DataTree"):
         root = _dataset(xr, groups.get("", []), root_attrs)
-        datasets = {name: _dataset(xr, groups.get(name, [])) for name in _GROUPS[1:]}
+        datasets = {name: _dataset(xr, groups.get(name, [])) for name in _groups_of(groups)[1:]}
         datasets["trajectory"] = datasets["trajectory"].assign_coords(
             {name: root[name] for name in ("time", "xyz") if name in root.coords})
         return {"/": root, **datasets}

@@ -160,6 +160,24 @@ class EllrollFile:
         self.check_case(case)
         return ds[case]
 
+    def switches(self, case=0):
+        """One case's switches of regime, in order: (times in s, kinds by
+        name, 'to_sliding' or 'to_rolling'), from /switches (a campaign
+        with &ball slip = 'slide'); empty for a case that never slid."""
+        self.check_case(case)
+        if "switches" not in self._h5:
+            raise NotAnEllrollFile(f"{self.path}: no /switches in this file (no case may slide: "
+                                   "&ball slip = 'slide' stores them)")
+        group = self._h5["switches"]
+        first, count = int(group["first"][case]), int(group["count"][case])
+        if count < 0:
+            raise ValueError(f"{self.path}: case {case} was never run ({self.status_name(case)})")
+        kinds = group["switch_kind"]
+        values = np.asarray(kinds.attrs["flag_values"])
+        names = np.array(kinds.attrs["flag_meanings"].split())
+        codes = kinds[first:first + count]
+        return group["switch_time"][first:first + count], names[np.searchsorted(values, codes)]
+
     def status_names(self):
         """Each case's status by name (the flag_meanings of its flag_values)."""
         return self._status_meanings(self._dataset("summary/status")[:]).tolist()

@@ -16,11 +16,12 @@ module ellroll_hdf5_groups
   use ellroll_limit_states, only: limit_state_t, limit_state_flag_values, limit_state_flag_meanings
   use ellroll_figures, only: figures
   use ellroll_hdf5_layout, only: layout_t
+  use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
   use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
   implicit none
   private
 
-  public :: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group
+  public :: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, switch_group
 
   !> Largest chunk of a trajectory dataset (bytes); one case per chunk at most.
   integer, parameter :: max_chunk_bytes = 2**20
@@ -180,6 +181,56 @@ contains
     call lay%close_dataset(scale)
     call lay%close_group(group)
   end subroutine limit_state_group
+
+  !> /switches: `time` and `kind` on the `switch` dimension (every case's
+  !> switches, case after case), `first` and `count` on the case dimension.
+  subroutine switch_group(lay, store)
+    type(layout_t), intent(inout) :: lay
+    type(switch_store_t), intent(in) :: store
+    integer(hid_t) :: group, scale, switch_scale, dset
+    integer(i8), allocatable :: first(:), count(:), kinds(:), order(:)
+    integer(i8), target :: undefined
+    real(wp), allocatable :: times(:)
+    integer(i8) :: n, k
+    if (.not. store%active) return
+    undefined = count_undefined
+    call store%ragged(first, count, times, kinds)
+    n = size(times, kind=i8)
+    order = [(k, k = 0, n - 1)]
+    group = lay%new_group('switches')
+    scale = lay%int_dataset(group, trim(case_entry%name), size(count, kind=i8), case_entry%units, &
+                            case_entry%description)
+    call lay%write_ints(scale, store%indices, 0_i8)
+    call lay%make_scale(scale, trim(case_entry%name))
+    switch_scale = lay%int_dataset(group, 'switch', n, '1', 'index of the switch')
+    if (n > 0) call lay%write_ints(switch_scale, order, 0_i8)
+    call lay%make_scale(switch_scale, 'switch')
+    dset = lay%real_dataset(group, 'switch_time', [n], 's', 'time of the switch of regime')
+    if (n > 0) call lay%write_reals(dset, times, [0_i8], [n])
+    call lay%attach(dset, switch_scale, 0)
+    call lay%close_dataset(dset)
+    dset = lay%int_dataset(group, 'switch_kind', n, '1', 'kind of the switch of regime', small=.true.)
+    if (n > 0) call lay%write_ints(dset, kinds, 0_i8)
+    call lay%int_attribute(dset, 'flag_values', [1_i8, 2_i8], small=.true.)
+    call lay%text_attribute(dset, 'flag_meanings', switch_flag_meanings)
+    call lay%attach(dset, switch_scale, 0)
+    call lay%close_dataset(dset)
+    dset = lay%int_dataset(group, 'first', size(count, kind=i8), '1', &
+                           'index of the case''s first switch', fill=undefined)
+    call lay%int_attribute(dset, '_FillValue', [count_undefined])
+    call lay%write_ints(dset, first, 0_i8)
+    call lay%attach(dset, scale, 0)
+    call lay%close_dataset(dset)
+    dset = lay%int_dataset(group, 'count', size(count, kind=i8), '1', 'switches of regime of the case', &
+                           fill=undefined)
+    call lay%int_attribute(dset, '_FillValue', [count_undefined])
+    call lay%write_ints(dset, count, 0_i8)
+    call lay%attach(dset, scale, 0)
+    call lay%close_dataset(dset)
+    call lay%close_dataset(switch_scale)
+    call lay%close_dataset(scale)
+    call lay%close_group(group)
+  end subroutine switch_group
 
   !> The group's own 'case' scale, holding the global case indices.
   integer(hid_t) function case_scale(lay, group, indices) result(id)

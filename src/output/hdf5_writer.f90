@@ -12,6 +12,7 @@ module ellroll_hdf5_writer
   use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_records, only: named_value_t, kind_real, kind_int, kind_text
   use ellroll_cases, only: case_t, case_record, field_count, field_names, field_ncomp
+  use ellroll_switch_store, only: switch_store_t
   use ellroll_results, only: case_result_t, summary_record
   use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: close_descriptor, system_error_text
@@ -20,7 +21,8 @@ module ellroll_hdf5_writer
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
   use ellroll_hdf5_layout, only: layout_t
-  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group
+  use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, &
+      switch_group
   use ellroll_file_layout, only: table_row, file_row, limit_state_row, file_title, file_references
   implicit none
   private
@@ -94,6 +96,7 @@ module ellroll_hdf5_writer
     integer(i8) :: windows_opened = 0
     integer :: window_rows = 1                       !< cases per window
     character(len=11), allocatable :: row_groups(:)  !< the group of each row entry
+    type(switch_store_t) :: switches                 !< the switches of regime, written at close
   contains
     procedure :: create
     procedure :: keep_case
@@ -156,6 +159,8 @@ contains
       return
     end if
     call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, label_address, err)
+    ! a campaign that may slide (its regime is stored) stores its switches
+    if (template%slide) call self%switches%start(indices)
   end subroutine create
 
   !> Create the file, truncating any of that name, and with `labelled`
@@ -353,6 +358,7 @@ contains
       end do
       if (win%filled == win%expected) call take_window(win, full)
     end associate
+    call self%switches%keep(icase, res)
   end subroutine keep_case
 
   !> The values of an array of any shape, in array element order (no temporary).
@@ -514,6 +520,7 @@ contains
       end do
       deallocate (self%windows)
     end if
+    if (.not. err%failed()) call write_switches(self, err)
     if (allocated(self%open_ids)) then
       do k = 1, size(self%open_ids)
         call h5dclose_f(self%open_ids(k), hdferr)
@@ -537,6 +544,18 @@ contains
     end if
     self%file = -1
   end subroutine close_file
+
+  !> /switches, from the switches of every case kept.
+  subroutine write_switches(self, err)
+    type(h5_output_t), intent(inout) :: self
+    type(error_t), intent(inout) :: err
+    type(layout_t) :: lay
+    if (.not. self%switches%active) return
+    lay%file = self%file
+    lay%path = self%path
+    call switch_group(lay, self%switches)
+    if (lay%err%failed()) err = lay%err
+  end subroutine write_switches
 
   ! ------------------------------------------------------------ low level
 

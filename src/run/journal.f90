@@ -12,18 +12,20 @@
 !> case runs again. Compressed trajectories go through HDF5, whose file a
 !> kill may damage, so their records hold them whole.
 !>
-!> Records have one size, so a record's place is a multiple of it: threads
-!> reserve places one after the other (under a lock, a few nanoseconds) and
-!> write their records there at the same time (pwrite). A kill may leave a
-!> place unwritten or a record torn; it fails its marker or checksum and is
-!> skipped, and its case is run again.
+!> A record is a part of one size (status, summary, trajectories held
+!> whole) and the case's switches of regime (their count, times and kinds:
+!> none but for a case that slid). Threads reserve places one after the
+!> other (under a lock, a few nanoseconds) and write their records there at
+!> the same time (pwrite). A kill may leave a place unwritten or a record
+!> torn; it fails its marker or checksum and is skipped (the next record is
+!> found by its marker), and its case is run again.
 module ellroll_journal
   use, intrinsic :: iso_c_binding, only: c_loc
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_ncomp
-  use ellroll_results, only: case_result_t, summary_record, set_summary_value
+  use ellroll_results, only: case_result_t, summary_record, set_summary_value, add_switch
   use ellroll_checksum, only: checksum, checksum_start, fold_reals
   use ellroll_system, only: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, &
       system_error_text
@@ -34,7 +36,7 @@ module ellroll_journal
 
   public :: journal_t, journal_header_t, journal_is_torn
 
-  character(len=8), parameter :: magic = 'ELLROLL6'
+  character(len=8), parameter :: magic = 'ELLROLL7'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
   !> The header: magic, then these words (the campaign id's 64 bytes, n_slots,
   !> n_samples, the shard's two numbers, a flag per field for the stored and
@@ -70,6 +72,7 @@ module ellroll_journal
     procedure :: index_records
     procedure :: record_at
     procedure :: record => encode_record
+    procedure :: record_size
     procedure :: fingerprint
     procedure :: reserve
     procedure :: write_records
@@ -266,21 +269,79 @@ contains
   subroutine index_records(self, places)
     class(journal_t), intent(inout) :: self
     integer(i8), intent(out) :: places(0:)
-    integer(i8), allocatable, target :: words(:)
-    integer :: code
-    allocate (words(self%record_words + 1))
+    integer(i8), allocatable :: words(:)
+    integer(i8) :: bytes, start
+    logical :: found, written, moved
     places = -1
+    bytes = file_size(self%path)
     do
-      code = read_at(self%fd, c_loc(words), 8 * size(words, kind=i8), self%next_position - 1)
-      if (code /= 0) exit
-      if (is_valid(self, words)) then
+      call read_record(self, self%next_position, bytes, words, found, written)
+      if (found) then
         if (places(words(2)) < 0) places(words(2)) = self%next_position
-      else if (any(words /= 0)) then          ! a place reserved but never written reads as zeros
-        self%n_damaged = self%n_damaged + 1
+        self%next_position = self%next_position + 8 * size(words, kind=i8)
+        cycle
       end if
-      self%next_position = self%next_position + 8 * size(words)
+      ! the next record, if any, is found by its marker; none: the next
+      ! record reserved goes here
+      start = self%next_position
+      moved = next_marker(self, bytes)
+      ! damaged: a stretch counts as the whole records of a case that did
+      ! not slide it could hold, at least one (a place reserved but never
+      ! written reads as zeros)
+      if (written) self%n_damaged = self%n_damaged + &
+          max(1_i8, (merge(self%next_position, bytes + 1, moved) - start) / (8 * (self%record_words + 2)))
+      if (.not. moved) exit
     end do
   end subroutine index_records
+
+  !> The valid record at `position` (found), whole with its checksum in
+  !> `words`; `written`: some word there is not zero.
+  subroutine read_record(self, position, bytes, words, found, written)
+    type(journal_t), intent(in) :: self
+    integer(i8), intent(in) :: position, bytes     !< the record's place (1-based), the journal's size
+    integer(i8), allocatable, target, intent(out) :: words(:)
+    logical, intent(out) :: found, written
+    integer(i8), allocatable, target :: head(:)
+    integer(i8) :: n_switches, n_words
+    found = .false.
+    written = .false.
+    allocate (head(self%record_words + 1))
+    if (read_at(self%fd, c_loc(head), 8 * size(head, kind=i8), position - 1) /= 0) then
+      if (position <= bytes) written = .true.      ! a torn record at the journal's end
+      return
+    end if
+    written = any(head /= 0)
+    n_switches = head(size(head))
+    if (head(1) /= record_marker .or. n_switches < 0 .or. &
+        n_switches > (bytes - position + 1) / 16) return
+    n_words = self%record_words + 2 + 2 * n_switches
+    allocate (words(n_words))
+    if (read_at(self%fd, c_loc(words), 8 * n_words, position - 1) /= 0) return
+    found = is_valid(self, words)
+  end subroutine read_record
+
+  !> Move next_position to the next word after it that is a record's
+  !> marker; false (next_position unchanged) where none is.
+  logical function next_marker(self, bytes) result(moved)
+    type(journal_t), intent(inout) :: self
+    integer(i8), intent(in) :: bytes
+    integer(i8), parameter :: chunk = 4096
+    integer(i8), target :: words(chunk)
+    integer(i8) :: at, n, k
+    moved = .false.
+    at = self%next_position + 8
+    do while (at + 7 <= bytes)
+      n = min(chunk, (bytes - at + 1) / 8)
+      if (read_at(self%fd, c_loc(words), 8 * n, at - 1) /= 0) return
+      k = findloc(words(:n), record_marker, dim=1)
+      if (k > 0) then
+        self%next_position = at + 8 * (k - 1)
+        moved = .true.
+        return
+      end if
+      at = at + 8 * n
+    end do
+  end function next_marker
 
   !> The record at a place from index_records (found: it reads back valid
   !> still). The trajectories written in place are not in res: `in_place`
@@ -291,11 +352,10 @@ contains
     type(case_result_t), intent(out) :: res
     integer(i8), intent(out) :: in_place
     logical, intent(out) :: found
-    integer(i8), allocatable, target :: words(:)
+    integer(i8), allocatable :: words(:)
     integer(i8) :: slot
-    allocate (words(self%record_words + 1))
-    found = read_at(self%fd, c_loc(words), 8 * size(words, kind=i8), place - 1) == 0
-    if (found) found = is_valid(self, words)
+    logical :: written
+    call read_record(self, place, file_size(self%path), words, found, written)
     if (found) call unpack_record(self%header, words, slot, res, in_place)
   end subroutine record_at
 
@@ -314,10 +374,25 @@ contains
     integer(i8), intent(in) :: slot
     type(case_result_t), intent(in) :: res
     integer(i8), allocatable :: words(:)
-    allocate (words(self%record_words + 1))
+    integer(i8) :: n, at
+    allocate (words(self%record_size(res)))
     call pack_record(self%header, slot, res, self%fingerprint(res), words(:self%record_words))
-    words(self%record_words + 1) = checksum(words(:self%record_words))
+    n = res%n_switches
+    at = self%record_words + 1
+    words(at) = n
+    if (n > 0) then
+      words(at + 1:at + n) = transfer(res%switch_time(:n), 0_i8, n)
+      words(at + n + 1:at + 2 * n) = int(res%switch_kind(:n), i8)
+    end if
+    words(size(words)) = checksum(words(:size(words) - 1))
   end function encode_record
+
+  !> The words of res's record (encode_record), its checksum included.
+  pure integer(i8) function record_size(self, res)
+    class(journal_t), intent(in) :: self
+    type(case_result_t), intent(in) :: res
+    record_size = self%record_words + 2 + 2 * int(res%n_switches, i8)
+  end function record_size
 
   !> A checksum of the case's trajectories written in place, not in its record.
   pure integer(i8) function fingerprint(self, res)
@@ -452,6 +527,10 @@ contains
       res%fields(f)%values = reshape(transfer(words(at + 1:at + n), 0.0_wp, n), &
                                      [int(field_ncomp(f), i8), header%n_samples])
       at = at + n
+    end do
+    n = words(at + 1)             ! the switches of regime, after the part of one size
+    do k = 1, int(n)
+      call add_switch(res, transfer(words(at + 1 + k), 0.0_wp), int(words(at + 1 + n + k)))
     end do
   end subroutine unpack_record
 end module ellroll_journal

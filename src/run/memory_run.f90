@@ -24,6 +24,7 @@ module ellroll_memory_run
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_shards, only: campaign_id
+  use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
   use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, file_title, &
       file_references, table_row, status_flag_meanings
@@ -290,8 +291,46 @@ contains
     end do
 
     call fill_columns(inp, out, row, where)
+    if (inp%campaign%base%slide) call switch_datasets(out, indices)
     call write_catalog(out)
   end subroutine lay_out
+
+  !> /switches of a campaign that may slide, as the file holds it.
+  subroutine switch_datasets(out, indices)
+    type(memory_output_t), intent(inout) :: out
+    integer(i8), intent(in) :: indices(:)
+    type(switch_store_t) :: store
+    integer(i8), allocatable :: first(:), count(:), kinds(:)
+    real(wp), allocatable :: times(:)
+    integer(i8) :: k, n
+    integer :: d
+    call store%start(indices)
+    do k = 0, size(indices, kind=i8) - 1
+      call store%keep(k, out%results(k))
+    end do
+    call store%ragged(first, count, times, kinds)
+    n = size(times, kind=i8)
+    call case_scale(out, 'switches', indices)
+    d = add(out, 'switches', named_value_t('switch', '1', 'index of the switch'), kind_int, &
+            ['switch'], [n])
+    out%datasets(d)%ints = [(k, k = 0, n - 1)]
+    d = add(out, 'switches', named_value_t('switch_time', 's', 'time of the switch of regime'), kind_real, &
+            ['switch'], [n])
+    out%datasets(d)%reals = times
+    d = add(out, 'switches', named_value_t('switch_kind', '1', 'kind of the switch of regime'), kind_int, &
+            ['switch'], [n])
+    out%datasets(d)%ints = kinds
+    call add_attribute(out%datasets(d), 'flag_values', int_list([1_i8, 2_i8]), 'i8')
+    call add_attribute(out%datasets(d), 'flag_meanings', switch_flag_meanings)
+    d = add(out, 'switches', named_value_t('first', '1', 'index of the case''s first switch'), &
+            kind_int, ['case'], [size(indices, kind=i8)])
+    out%datasets(d)%ints = first
+    call add_attribute(out%datasets(d), '_FillValue', int_list([count_undefined]), 'i8')
+    d = add(out, 'switches', named_value_t('count', '1', 'switches of regime of the case'), kind_int, ['case'], &
+            [size(indices, kind=i8)])
+    out%datasets(d)%ints = count
+    call add_attribute(out%datasets(d), '_FillValue', int_list([count_undefined]), 'i8')
+  end subroutine switch_datasets
 
   !> A /case or /summary entry of a row as a dataset of `group`: one value,
   !> one per mode or an xyz vector per case.

@@ -2,12 +2,12 @@
 !> single-process run: the shards must belong to the same campaign, be
 !> complete, and cover every case exactly once.
 module ellroll_merge
-  use ellroll_kinds, only: i8
+  use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
-  use ellroll_results, only: case_result_t
+  use ellroll_results, only: case_result_t, add_switch
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
@@ -77,7 +77,8 @@ contains
     type(h5_output_t) :: out
     type(provenance_t) :: prov
     type(case_result_t) :: res
-    integer(i8), allocatable :: slots(:), statuses(:), all_cases(:)
+    integer(i8), allocatable :: slots(:), statuses(:), all_cases(:), sw_first(:), sw_count(:), sw_kind(:)
+    real(wp), allocatable :: sw_time(:)
     integer(i8) :: slot, i
 
     allocate (shards(size(shard_paths)))
@@ -155,9 +156,16 @@ contains
         call set_error(err, err_input, trim(shard_paths(shard_of(index))) // ': holds ' // &
             itoa(shards(shard_of(index))%n_cases) // ' cases; shard ' // itoa(index) // ' should hold ' // &
             itoa(size(slots)))
+      if (inp%campaign%base%slide) &
+        call shard_switches(shards(shard_of(index)), sw_first, sw_count, sw_time, sw_kind, err)
       do slot = 0, size(slots, kind=i8) - 1
         if (err%failed()) exit
         call shards(shard_of(index))%read_case_result(slot, inp%plan%n_samples, res, err)
+        if (inp%campaign%base%slide) then
+          do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
+            call add_switch(res, sw_time(i), int(sw_kind(i)))
+          end do
+        end if
         call out%write_case(slots(slot + 1), inp%campaign%case_at(slots(slot + 1)), res, err)
       end do
     end do
@@ -166,6 +174,28 @@ contains
       call shards(k)%close()
     end do
   end subroutine merge_into
+
+  !> A shard's /switches: each case's first switch (0-based) and count, and
+  !> every switch's time and kind.
+  subroutine shard_switches(shard, first, count, times, kinds, err)
+    type(h5_input_t), intent(in) :: shard
+    integer(i8), allocatable, intent(out) :: first(:), count(:), kinds(:)
+    real(wp), allocatable, intent(out) :: times(:)
+    type(error_t), intent(inout) :: err
+    first = shard%int_column('switches/first', err)
+    count = shard%int_column('switches/count', err)
+    if (err%failed()) return
+    if (shard%dataset_length('switches/switch_time') > 0) then
+      times = shard%real_column('switches/switch_time', err)
+      kinds = shard%int_column('switches/switch_kind', err)
+    else
+      allocate (times(0), kinds(0))
+    end if
+    if (size(first) /= size(count) .or. size(times) /= size(kinds) .or. &
+        any(count > 0 .and. (first < 0 .or. first + count > size(times)))) then
+      if (.not. err%failed()) call set_error(err, err_input, shard%path // ': /switches does not index its switches')
+    end if
+  end subroutine shard_switches
 
   !> Two shards of other campaigns: their inputs differ, or (the input the
   !> same) a file it reads differed when they ran.

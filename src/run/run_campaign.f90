@@ -235,10 +235,16 @@ contains
       run_start = j + 1
     end do
     if (n_done > 0) call run%timings%add_write(writes_trajectories, asked)
-    record_size = run%journal%record_words + 1
-    allocate (records(record_size * n_done), rows(size(file_row(cases(1), results(1))), n_done))
+    record_size = 0
     do j = 1, n_done
-      records((j - 1) * record_size + 1:j * record_size) = run%journal%record(slots(j), results(j))
+      record_size = record_size + run%journal%record_size(results(j))
+    end do
+    allocate (records(record_size), rows(size(file_row(cases(1), results(1))), n_done))
+    record_size = 0
+    do j = 1, n_done
+      records(record_size + 1:record_size + run%journal%record_size(results(j))) = &
+          run%journal%record(slots(j), results(j))
+      record_size = record_size + run%journal%record_size(results(j))
       rows(:, j) = file_row(cases(j), results(j))
     end do
     ! the journal: places taken under its lock, the records written there

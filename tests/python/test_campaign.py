@@ -182,7 +182,8 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # as (value, kind, spare) words per entry in summary_record's order
 # (src/cases/results.f90: wall_time is the 5th), the checksum of the
 # trajectories written in place, the trajectories written through HDF5
-# (compressed), the record's checksum
+# (compressed), the count of the case's switches of regime (their times and
+# kinds after it: none for a case that did not slide), the record's checksum
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 34, 4
 # magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
 # input's files (empty without records) and its checksum
@@ -193,7 +194,7 @@ RECORD_MARKER = 7310312871522813004
 def record_bytes(samples_in_record=0):
     """The size of a journal record holding `samples_in_record` trajectory
     values (samples x components of the compressed fields)."""
-    return 8 * (3 + 3 * SUMMARY_ENTRIES + 1 + samples_in_record + 1)
+    return 8 * (3 + 3 * SUMMARY_ENTRIES + 1 + samples_in_record + 1 + 1)
 
 
 def test_the_journal_record_layout_here_is_the_programs(ellroll, tmp_path):

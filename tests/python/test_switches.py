@@ -1,0 +1,216 @@
+"""The switches of regime in the file (/switches) and its readers: the
+times located inside the steps (rk4 at dt 1e-4 against vern9 at rtol
+1e-12), the same bits through a resume after kill -9, shards and merge and
+any thread count, nothing stored for a campaign that cannot slide."""
+import os
+import struct
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run, PAPER_INPUT
+from test_campaign import JOURNAL_HEADER, RECORD_MARKER, WALL_TIME_ENTRY, assert_same_datasets, kill_after_records, record_bytes
+from test_sliding_truth import run_case
+
+import ellroll_post
+
+
+def switches(path, case=0):
+    """(times, kinds) of a case, read with h5py alone."""
+    with h5py.File(path, "r") as f:
+        group = f["switches"]
+        first, count = group["first"][case], group["count"][case]
+        assert group["switch_time"].attrs["units"] == "s"
+        assert group["switch_kind"].attrs["flag_meanings"] == "to_sliding to_rolling"
+        assert list(group["switch_kind"].attrs["flag_values"]) == [1, 2]
+        return group["switch_time"][first:first + count], group["switch_kind"][first:first + count]
+
+
+def shaken_as_the_unit_test(ellroll, folder, name, integration):
+    """tests/unit/test_slide_switches.f90's case, its inputs computed as
+    there, to the last bit."""
+    mu, frequency, k, g, r = 0.05, 1.25, 0.4, 9.81, 0.2
+    w = 2 * np.pi * frequency
+    direction = np.array([2.0, 1.0]) / np.sqrt(5.0)
+    factors = direction / ((1 + k) * w**2 - g / np.array([1.0 / 0.2 - r, 0.16 / 0.2 - r]))
+    threshold = mu * g / (k * w**2 * np.linalg.norm(factors))
+    amplitude = 1.3 * threshold
+    velocity = [float(v) for v in amplitude * factors * w]
+    ax, ay = (float(v) for v in amplitude * direction)
+    excitation = (f"&excitation kind = 'harmonic', amplitude = {ax!r}, {ay!r}, 0.0, "
+                  f"frequency = {frequency}, phase = 0.0 /")
+    run_case(ellroll, folder, name, mu=mu, omega=f"{-velocity[1] / r!r}, {velocity[0] / r!r}, 0.0",
+             integration=integration, t_end=3.0, excitation=excitation, fields="'none'")
+
+
+def test_rk4_switch_times_agree_with_vern9_in_the_file(ellroll, tmp_path):
+    """The paper cup shaken at 1.3 A* (mu 0.05) for 3 s slides twice a cycle:
+    15 switches, sliding first. rk4 at dt 1e-4 s puts each within 5e-9 s of
+    vern9 at rtol 1e-12, all but one within 1e-9 s (2.5e-9 s for the 10th,
+    2e-10 s the others: tests/unit/test_slide_switches.f90's figures)."""
+    shaken_as_the_unit_test(ellroll, tmp_path, "vern9", "method = 'vern9', rtol = 1e-12")
+    shaken_as_the_unit_test(ellroll, tmp_path, "rk4", "method = 'rk4', dt = 1e-4")
+    reference, reference_kinds = switches(tmp_path / "vern9.h5")
+    times, kinds = switches(tmp_path / "rk4.h5")
+    assert len(reference) == 15 and list(reference_kinds) == [1, 2] * 7 + [1]
+    assert list(kinds) == list(reference_kinds)
+    errors = np.sort(np.abs(times - reference))
+    assert errors[-1] < 5e-9 and errors[-2] < 1e-9, errors
+    with h5py.File(tmp_path / "rk4.h5", "r") as f:
+        assert f["summary/slip_episodes"][0] == 8                    # every switch into sliding
+        assert list(f["switches/case"][:]) == [0] and list(f["switches/switch"][:]) == list(range(15))
+    with ellroll_post.open(tmp_path / "rk4.h5") as out:
+        read_times, names = out.switches(0)
+    assert read_times.tobytes() == times.tobytes()
+    assert list(names) == ["to_sliding", "to_rolling"] * 7 + ["to_sliding"]
+
+
+def test_a_campaign_that_cannot_slide_stores_no_switches(ellroll, tmp_path):
+    result = run(ellroll, "run", PAPER_INPUT, "-q", "-o", "paper.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "paper.h5", "r") as f:
+        assert "switches" not in f and "regime" not in f["trajectory"]
+    with ellroll_post.open(tmp_path / "paper.h5") as out, pytest.raises(ellroll_post.NotAnEllrollFile):
+        out.switches(0)
+
+
+# mu from 0.02 to 0.2 on the paper cup shaken at 1.5, 0.5 m/s^2: from many
+# slip episodes to none (the larger mu roll throughout)
+CAMPAIGN = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, mass = 1.0, mu = 0.1, slip = 'slide' /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1e-3, t_end = {t_end} /
+&excitation kind = 'harmonic', amplitude = 1.5, 0.5, 0.0, frequency = 0.8 /
+&sweep name = 'mu', start = 0.02, stop = 0.2, count = {count}, spacing = 'log' /
+&output file = 'out.h5', interval = 0.01, fields = 'center', compression = {compression} /
+"""
+
+
+def campaign(folder, count=24, t_end=2.0, compression=0):
+    (folder / "camp.nml").write_text(CAMPAIGN.format(count=count, t_end=t_end, compression=compression))
+    return "camp.nml"
+
+
+def test_switches_are_the_same_bits_for_any_thread_count_and_through_shards_and_merge(ellroll, tmp_path):
+    name = campaign(tmp_path)
+    assert run(ellroll, "run", name, "-q", "--threads", "1", "-o", "one.h5", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", name, "-q", "--threads", "2", "-o", "two.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "one.h5", tmp_path / "two.h5")
+    with h5py.File(tmp_path / "one.h5", "r") as f:
+        count, first = f["switches/count"][:], f["switches/first"][:]
+        assert count.max() >= 4 and count[-1] == 0 and np.all(count >= 0)
+        assert list(first) == list(np.concatenate([[0], np.cumsum(count)[:-1]]))
+        assert len(f["switches/switch_time"]) == count.sum()
+        assert list(count[count > 0] // 2 + count[count > 0] % 2) == \
+            list(f["summary/slip_episodes"][:][count > 0])
+    for i in range(3):
+        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    result = run(ellroll, "merge", "merged.h5", "shard_1.h5", "shard_2.h5", "shard_0.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "one.h5", tmp_path / "merged.h5")
+
+
+@pytest.mark.parametrize("compression", [0, 4])
+def test_switches_survive_kill_and_resume(ellroll, tmp_path, compression):
+    """kill -9 at random moments, then --resume: the journal's records carry
+    each case's switches (records of several sizes), the file holds the
+    uninterrupted run's bits."""
+    import random
+    name = campaign(tmp_path, count=48, compression=compression)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    rng = random.Random(5)
+    kills = 0
+    for attempt in range(4):
+        args = [str(ellroll), "run", name, "-q", "--threads", "2"] + (["--resume"] if attempt else [])
+        if not kill_after_records(args, tmp_path, journal, 3, record_bytes(), rng.uniform(0.0, 0.02)):
+            break
+        if not journal.exists():
+            break
+        kills += 1
+    if not (tmp_path / "out.h5").exists():
+        result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        assert "run again" not in result.stderr
+    assert kills >= 1
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert f["switches/count"][:].max() >= 4
+
+
+def test_the_python_api_gives_the_files_switches(ellroll, tmp_path):
+    ellroll_api = pytest.importorskip("ellroll")
+    name = campaign(tmp_path, count=8)
+    assert run(ellroll, "run", name, "-q", "-o", "file.h5", cwd=tmp_path).returncode == 0
+    text = (tmp_path / name).read_text()
+    arrays, attributes = ellroll_api.run_arrays(text, threads=2)
+    tree = ellroll_api.run(text, threads=1)
+    with h5py.File(tmp_path / "file.h5", "r") as f:
+        assert sorted(arrays["switches"]) == sorted(f["switches"])
+        for key in f["switches"]:
+            assert np.array_equal(arrays["switches"][key], f["switches"][key][:]), key
+            assert np.array_equal(tree["switches"][key].values, f["switches"][key][:]), key
+            assert attributes["switches"][key]["units"] == f["switches"][key].attrs["units"]
+        assert f["switches/count"][:].max() >= 4
+    assert attributes["switches"]["switch_kind"]["flag_meanings"] == "to_sliding to_rolling"
+    assert "switches" not in ellroll_api.run(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 1.0")).children
+
+
+def journal_records(path):
+    """[(offset, slot, number of switches)] of a journal's records in
+    order, each found where the one before it ends (their sizes differ)."""
+    data = path.read_bytes()
+    fixed = record_bytes() // 8 - 2                  # the part of one size (no trajectories in the record)
+    at, out = JOURNAL_HEADER, []
+    while at + 8 * (fixed + 2) <= len(data):
+        words = struct.unpack(f"<{fixed + 1}q", data[at:at + 8 * (fixed + 1)])
+        assert words[0] == RECORD_MARKER
+        out.append((at, words[1], words[fixed]))
+        at += 8 * (fixed + 2 + 2 * words[fixed])
+    return out
+
+
+@pytest.mark.parametrize("damage", ["zeroed", "bits"])
+def test_a_damaged_record_with_switches_runs_its_case_again_and_keeps_the_rest(ellroll, tmp_path, damage):
+    """A kill after every case was journaled (strace kills at the unlink
+    that follows), then the first record that holds switches is zeroed (a
+    place never written) or has a bit of its switches flipped: the resume
+    finds the records after it by their marker, keeps them, runs that case
+    again, and the file is the uninterrupted run's."""
+    name = campaign(tmp_path, count=6)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    killed = subprocess.run(["strace", "-f", "-o", os.devnull, "-e", "inject=unlink:signal=SIGKILL:when=1",
+                             str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path)
+    assert killed.returncode != 0
+    (tmp_path / "out.h5").rename(tmp_path / "out.h5.partial")
+    journal = tmp_path / "out.h5.journal"
+    records = journal_records(journal)
+    assert sorted(slot for _, slot, _ in records) == list(range(6))
+    offset, slot, n = next(r for r in records if r[2] > 0)
+    size = record_bytes() + 16 * n
+    with open(journal, "r+b") as f:
+        if damage == "zeroed":
+            f.seek(offset)
+            f.write(bytes(size))
+        else:
+            f.seek(offset + size - 8 * n - 16)       # a switch's time
+            byte = f.read(1)[0]
+            f.seek(offset + size - 8 * n - 16)
+            f.write(bytes([byte ^ 4]))
+    data = journal.read_bytes()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    if damage == "bits":
+        assert "1 damaged records skipped" in result.stderr and "1 of 6 cases have no valid record" in result.stderr, \
+            result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    # the records after the damaged one were kept: their cases' wall times are the journal's
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+    later = [(at, kept) for at, kept, _ in records if at > offset]
+    assert later
+    for at, kept in later:
+        assert struct.unpack("<d", data[at + 8 * (3 + 3 * WALL_TIME_ENTRY):][:8])[0] == wall[kept]
