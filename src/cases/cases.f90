@@ -57,7 +57,7 @@ module ellroll_cases
   integer, parameter :: problem_not_finite = 1, problem_range = 2, problem_weight_without_g = 3, &
       problem_weight_mass = 4, problem_dt_above_t_end = 5, problem_too_many_steps = 6, problem_interval = 7, &
       problem_outside = 8, problem_no_fit = 9, problem_slide_mu = 10, problem_velocity_rolls = 11, &
-      problem_velocity_tangent = 12, problem_velocity_partial = 13
+      problem_velocity_tangent = 12, problem_velocity_partial = 13, problem_slide_resistance = 14
 
   ! A case's steps (t_end / dt) are counted in 64-bit integers and would take
   ! days at a million steps per second.
@@ -188,6 +188,10 @@ contains
                ' m, and radius must be below ' // format_real(radii(1)) // ' m'
     case (problem_slide_mu)
       reason = "slip = 'slide' needs a friction coefficient mu > 0"
+    case (problem_slide_resistance)
+      reason = "with slip = 'slide' must be below mu radius = " // format_real(cs%param(p_mu) * cs%param(p_radius)) // &
+               ' m: a couple of rolling resistance as large as the greatest of the friction (mu N radius) stops ' // &
+               'the rolling of a sliding ball and holds it, a motion the sliding model does not follow'
     case (problem_velocity_partial)
       reason = 'the initial velocity needs all three components (vx, vy, vz in m/s)'
     case (problem_velocity_rolls)
@@ -250,6 +254,10 @@ contains
     param = p_mu
     problem = problem_slide_mu
     if (cs%slide .and. ieee_is_nan(cs%param(p_mu))) return        ! (a given mu is > 0: checked above)
+    param = p_rolling_resistance
+    problem = problem_slide_resistance
+    if (cs%slide .and. cs%param(p_rolling_resistance) > 0 .and. &
+        cs%param(p_rolling_resistance) >= cs%param(p_mu) * cs%param(p_radius)) return
     param = p_velocity_x
     problem = problem_velocity_partial
     if (any(ieee_is_nan(cs%param(p_velocity_x:p_velocity_z))) .and. &

@@ -29,6 +29,10 @@ module ellroll_slide_regime
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
+  !> A fixed step's partial step towards a limit is the method's own growth
+  !> where it and its two halves differ by more than this (its normal, and
+  !> its energy against the energy at its start).
+  real(wp), parameter :: halves_tolerance = 0.1_wp
 
   !> The state of a run that may slide: the regime and its state.
   type :: regime_state_t
@@ -286,11 +290,40 @@ contains
     end select
   end function within_tolerance
 
+  !> Whether a fixed-step method's step h from (t, now) to x agrees with
+  !> the same method's two half steps (normal and energy within
+  !> halves_tolerance; an embedded pair's own estimate judges its steps).
+  !> Next to the rim a partial step's stages meet V_z's 1 / n_z and its end
+  !> can be far off without meeting any limit.
+  logical function agrees_with_halves(integrator, rolling, sb, t, h, now, x, n_rhs) result(agrees)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: now, x
+    integer(i8), intent(inout) :: n_rhs
+    type(regime_state_t) :: middle, halves
+    integer :: status
+    agrees = .true.
+    select type (integrator)
+    class is (embedded_pair_t)
+      return
+    end select
+    agrees = .false.
+    call take(integrator, rolling, sb, t, h / 2, now, middle, status, n_rhs)
+    if (status /= status_completed) return
+    call take(integrator, rolling, sb, t + h / 2, h / 2, middle, halves, status, n_rhs)
+    if (status /= status_completed) return
+    agrees = norm2(halves%obs%normal - x%obs%normal) <= halves_tolerance .and. &
+             abs(halves%obs%energy - x%obs%energy) <= halves_tolerance * abs(now%obs%energy)
+  end function agrees_with_halves
+
   !> The step h from (t, now) met a limit: the case ends where the method's
   !> partial steps from now first meet it (to limit_time_ulps of t), with
-  !> its status; the last valid state (an embedded pair's: within its
-  !> tolerance, not only short of the limit: next to the rim a partial
-  !> step's stages can pass it and come back far off) adds to the summary.
+  !> its status; the last valid state (not only short of the limit: within
+  !> an embedded pair's tolerance, or, towards the rim, agreeing with a
+  !> fixed step's halves: there a partial step's stages can pass it and come
+  !> back far off) adds to the summary.
   subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
@@ -314,6 +347,8 @@ contains
       call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
       valid = status == status_completed
       if (valid) valid = within_tolerance(integrator)
+      if (valid .and. crossed == status_rim) valid = agrees_with_halves(integrator, rolling, sb, t, trial, now, x, &
+                                                                         res%n_rhs)
       if (valid) then
         last_valid = x
       else if (status /= status_completed) then

@@ -222,9 +222,9 @@ contains
   !> "Rolling resistance while sliding"): M = -delta N omega_t / |omega_t|
   !> on omega (J omega' gains M; the centre's motion and N do not see a
   !> couple). Where the ball does not roll (omega_t = 0, as a ball launched
-  !> without spin) the couple holds it up to delta N against the friction's
-  !> couple -R n x F that would start it rolling, and opposes that couple
-  !> beyond. omega_rate holds omega' without the couple.
+  !> without spin) the couple opposes the friction's couple -R n x F that
+  !> starts it rolling (delta < mu R: a case's input is checked for it),
+  !> and holds it where N vanishes. omega_rate holds omega' without the couple.
   pure subroutine resist_sliding(ball, n, omega, big_n, force, omega_rate)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: n(3), omega(3), big_n, force(3)

@@ -66,13 +66,17 @@ def assert_within_energy(out):
     assert np.isfinite(out["reaction_normal_max"])
 
 
-@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-9",
-                                         "method = 'vern9', rtol = 1e-9"])
+@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-3", "method = 'rk4', dt = 1e-4",
+                                         "method = 'dop853', rtol = 1e-9", "method = 'vern9', rtol = 1e-9"])
 @pytest.mark.parametrize("speed", [-25.0, -30.0, -50.0])
 def test_a_fast_slide_to_the_rim_keeps_its_works_within_its_energy(ellroll, tmp_path, integration, speed):
+    """rk4 at dt = 1e-3 covers 3-5 cm a step: the last partial step
+    towards the rim is judged against its two halves (its stages meet V_z's
+    1 / n_z and its end can be far off inside the cup)."""
     out = summary(ellroll, tmp_path, RIM_START.format(speed=speed, integration=integration))
     assert out["status"] == 2                           # rim
     assert_within_energy(out)
+    assert out["energy_drift"] < 1e-3                   # 9.2e-5 measured (rk4 dt 1e-3, 30 m/s)
 
 
 @pytest.mark.parametrize("integration", ["method = 'vern9', rtol = 1e-10", "method = 'dop853', rtol = 1e-10",
@@ -98,9 +102,9 @@ def test_the_debug_build_ends_sliding_cases_without_a_signal(ellroll_debug, tmp_
 
 
 # a ball with rolling resistance that rolls into no_fit (mu 1000: it never
-# slides; mu 1e-3: it slides a little first), in slide mode and rolling
+# slides; mu 3e-3: it slides a little first), in slide mode and rolling
 NO_FIT_RESISTANCE = """&geometry a = 1.0, b = 1.0, c = 0.5 /
-&ball radius = 0.5, mass = 100.0, {mu} rolling_resistance = 0.01 /
+&ball radius = 0.5, mass = 100.0, {mu} rolling_resistance = 0.001 /
 &initial x = 0.0, y = 0.02, omega = 0, 50, 0 /
 &integration {integration}, t_end = 0.5 /
 &output file = 'o.h5', interval = 0.01, fields = 'energy' /
@@ -109,11 +113,11 @@ NO_FIT_RESISTANCE = """&geometry a = 1.0, b = 1.0, c = 0.5 /
 
 @pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-9",
                                          "method = 'vern9', rtol = 1e-9"])
-@pytest.mark.parametrize("mu", ["mu = 1000.0, slip = 'slide',", "mu = 1e-3, slip = 'slide',", ""])
+@pytest.mark.parametrize("mu", ["mu = 1000.0, slip = 'slide',", "mu = 3e-3, slip = 'slide',", ""])
 def test_the_couples_work_at_a_model_limit_stays_within_the_energy_lost(ellroll, tmp_path, integration, mu):
     """On a fixed cup E falls monotonically: the works up to the last clear
     step end lie between E0 - E at the last stored sample before the limit
-    (590 J; the clear step ends go on past it) and E0 (44,240 J)."""
+    (60 J; the clear step ends go on past it) and E0 (44,240 J)."""
     text = NO_FIT_RESISTANCE.format(mu=mu, integration=integration)
     out = summary(ellroll, tmp_path, text)
     assert out["status"] == 3                           # no_fit
@@ -124,8 +128,9 @@ def test_the_couples_work_at_a_model_limit_stays_within_the_energy_lost(ellroll,
     assert lost < works < out["E0"]
 
 
-# the couple of rolling resistance flips with omega_t about omega_t = 0
-# while the ball slides: the embedded pairs' steps shrink to ~1e-11 s
+# rolling resistance at or above mu R with slip = 'slide': the couple would
+# stop the rolling of the sliding ball and hold it (omega_t = 0), a contact
+# state the model does not follow (docs/model.md); refused at the input
 HANGS = {
     "fast_start": """&geometry a = 1.0, b = 0.9, c = 1.0 /
 &ball radius = 0.19, mass = 100.0, mu = 1e-06, slip = 'slide', inertia_factor = 0.6666666666666666,
@@ -144,10 +149,12 @@ HANGS = {
 
 
 @pytest.mark.parametrize("name", sorted(HANGS))
-def test_a_slide_whose_steps_crawl_ends_unstable_in_bounded_time(ellroll, tmp_path, name):
+def test_a_slide_whose_resistance_outweighs_the_friction_is_refused(ellroll, tmp_path, name):
     (tmp_path / "case.nml").write_text(HANGS[name])
     result = run(ellroll, "run", "case.nml", "-q", "-o", "case.h5", cwd=tmp_path, timeout=60)
-    assert result.returncode == 0, result.stderr
-    with h5py.File(tmp_path / "case.h5", "r") as f:
-        assert f["summary"]["status"][0] == 9           # unstable
-        assert f["summary"]["t_final"][0] < f["case"]["t_end"][0]
+    assert result.returncode == 2
+    limit = {"fast_start": 1e-6 * 0.19, "ordinary_start": 0.01 * 0.1}[name]      # mu radius
+    assert "case.nml" in result.stderr and "&ball" in result.stderr
+    assert f"rolling_resistance = {HANGS[name].split('rolling_resistance = ')[1].split()[0]}" in result.stderr
+    assert f"mu radius = {limit!r} m" in result.stderr
+    assert not (tmp_path / "case.h5").exists()
