@@ -21,7 +21,7 @@ module ellroll_slide_run
       stick_level, slip_stop_time, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due
-  use ellroll_adaptive_run, only: attempt_step
+  use ellroll_adaptive_run, only: attempt_step, slip_inside
   use ellroll_step_control, only: step_control_t
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
@@ -238,7 +238,9 @@ contains
   !> An embedded pair's attempt of size h from (t, now), and whether its error
   !> rejects it. Sliding: take's step, or its stop bracket's where the slip
   !> stops in that; rolling: the rolling model's attempt (attempt_step), cut
-  !> where an event of the model happens (h is cut to either).
+  !> where an event of the model happens, or taken again to where its dense
+  !> output passes a limit of rolling (slip_inside: the friction needed
+  !> passes mu N inside it); h is cut to either.
   subroutine attempt(pair, control, rolling, sb, t, h, now, new, status, res, rejected)
     class(embedded_pair_t), intent(inout) :: pair
     type(step_control_t), intent(inout) :: control
@@ -251,7 +253,7 @@ contains
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: rejected
-    real(wp) :: h_cut
+    real(wp) :: h_cut, passed
     logical :: taken
     if (now%sliding) then
       call sb%begin_step(now%s)
@@ -267,7 +269,19 @@ contains
     new%sliding = .false.
     new%slip_speed = 0
     rejected = pair%error_norm > 1
-    if (.not. rejected) h = h_cut        ! (a rejection's h is the caller's to shrink)
+    if (rejected) return                 ! (a rejection's h is the caller's to shrink)
+    h = h_cut
+    if (status /= status_completed .or. new%obs%friction_needed > sb%ball%mu) return
+    ! the friction needed may pass mu N and fall back inside the step (a
+    ! grazing slip): the rolling path's search on the dense output finds it,
+    ! and the step is taken again to there, where the switch is then located
+    rolling%ball%mu = sb%ball%mu
+    call slip_inside(pair, rolling, now%y, now%f, new%obs%friction_needed, status, passed, res%n_rhs)
+    rolling%ball%mu = -1
+    if (status == status_completed) return
+    h = passed
+    call attempt_step(pair, control, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, res)
+    rejected = pair%error_norm > 1
   end subroutine attempt
 
   !> A step of size h_step from (t, now), through the switches of regime

@@ -214,3 +214,35 @@ def test_a_damaged_record_with_switches_runs_its_case_again_and_keeps_the_rest(e
     assert later
     for at, kept in later:
         assert struct.unpack("<d", data[at + 8 * (3 + 3 * WALL_TIME_ENTRY):][:8])[0] == wall[kept]
+
+
+GRAZE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0{mu} /
+&initial x = 0.1, y = 0.05, omega = 1, -2, 30 /
+&integration method = '{method}', rtol = {rtol}, t_end = 3.0 /
+&output file = 'g.h5', interval = 0.5, fields = 'none' /
+"""
+
+
+@pytest.mark.parametrize("method", ["dop853", "vern9"])
+@pytest.mark.parametrize("margin", [1e-3, 1e-5])
+def test_a_slip_that_grazes_mu_inside_a_long_step_is_met(ellroll, tmp_path, method, margin):
+    """mu just below the largest friction the rolling ball needs (its
+    maximum over the step ends at rtol 1e-12, less a margin): the friction
+    needed passes mu N for a moment. At rtol 1e-6 the steps are long, and
+    both ends of the step can lie below: the slide starts where slip =
+    'end' ends (its search on the dense output), within the method's
+    accuracy there."""
+    def summary(mu, rtol, name):
+        (tmp_path / f"{name}.nml").write_text(GRAZE.format(mu=mu, method=method, rtol=rtol))
+        result = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        return tmp_path / f"{name}.h5"
+    with h5py.File(summary("", 1e-12, "rolling"), "r") as f:
+        mu = float(f["summary/friction_needed_max"][0] * (1 - margin))
+    with h5py.File(summary(f", mu = {mu!r}, slip = 'end'", 1e-6, "end"), "r") as f:
+        assert f["summary/status"][0] == 4                   # slip
+        t_slip = f["summary/t_final"][0]
+    times, kinds = switches(summary(f", mu = {mu!r}, slip = 'slide'", 1e-6, "slide"))
+    assert len(times) >= 2 and kinds[0] == 1                # slides, and rolls again
+    assert abs(times[0] - t_slip) < 1e-5                    # 1.3e-6 s measured
