@@ -301,24 +301,34 @@ contains
     end do
   end subroutine lanes_resist_rolling
 
+  !> The rolling part of omega = (w1, w2, w3) relative to the cup at the
+  !> normal (y1, y2, y3) / |y|: omega - (omega . n) n (one lane's numbers,
+  !> inlined into the lane loops).
+  pure elemental subroutine rolling_part(y1, y2, y3, w1, w2, w3, o1, o2, o3)
+    real(wp), intent(in) :: y1, y2, y3, w1, w2, w3
+    real(wp), intent(out) :: o1, o2, o3
+    real(wp) :: length, n1, n2, n3, spin
+    length = sqrt(y1 * y1 + y2 * y2 + y3 * y3)
+    n1 = y1 / length
+    n2 = y2 / length
+    n3 = y3 / length
+    spin = w1 * n1 + w2 * n2 + w3 * n3
+    o1 = w1 - spin * n1
+    o2 = w2 - spin * n2
+    o3 = w3 - spin * n3
+  end subroutine rolling_part
+
   !> Every lane's mode for a step from y (ball_begin_step,
   !> set_rolling_mode's arithmetic): the rolling part of omega, its
   !> direction where the ball rolls (0 at rest) and whether it rolls.
   pure subroutine lanes_rolling_mode(p, y)
     type(ball_lanes_t), intent(inout) :: p
     real(wp), intent(in) :: y(lanes, state_size)
-    real(wp) :: length, n1, n2, n3, spin, o1, o2, o3, rate, rest
+    real(wp) :: o1, o2, o3, rate, rest
     logical :: rolling
     integer :: l
     do l = 1, p%width
-      length = sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
-      n1 = y(l, 1) / length
-      n2 = y(l, 2) / length
-      n3 = y(l, 3) / length
-      spin = y(l, 4) * n1 + y(l, 5) * n2 + y(l, 6) * n3
-      o1 = y(l, 4) - spin * n1
-      o2 = y(l, 5) - spin * n2
-      o3 = y(l, 6) - spin * n3
+      call rolling_part(y(l, 1), y(l, 2), y(l, 3), y(l, 4), y(l, 5), y(l, 6), o1, o2, o3)
       rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
       rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
       rolling = rate > rest
@@ -355,18 +365,11 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y_end(lanes, state_size)
     logical :: stops(lanes)
-    real(wp) :: length, n1, n2, n3, spin, o1, o2, o3
+    real(wp) :: o1, o2, o3
     integer :: l
     stops = .false.
     do l = 1, p%width
-      length = sqrt(y_end(l, 1) * y_end(l, 1) + y_end(l, 2) * y_end(l, 2) + y_end(l, 3) * y_end(l, 3))
-      n1 = y_end(l, 1) / length
-      n2 = y_end(l, 2) / length
-      n3 = y_end(l, 3) / length
-      spin = y_end(l, 4) * n1 + y_end(l, 5) * n2 + y_end(l, 6) * n3
-      o1 = y_end(l, 4) - spin * n1
-      o2 = y_end(l, 5) - spin * n2
-      o3 = y_end(l, 6) - spin * n3
+      call rolling_part(y_end(l, 1), y_end(l, 2), y_end(l, 3), y_end(l, 4), y_end(l, 5), y_end(l, 6), o1, o2, o3)
       stops(l) = p%resistance(l) > 0 .and. p%rolls(l) > 0 .and. &
                  o1 * p%rolling_at_start(l, 1) + o2 * p%rolling_at_start(l, 2) + o3 * p%rolling_at_start(l, 3) <= 0
     end do
