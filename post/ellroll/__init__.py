@@ -21,6 +21,7 @@ post/, as .ci/setup installs it), then in the lib/ folder beside the bin/
 of the `ellroll` on PATH (cmake --install's layout).
 """
 import ctypes
+import numbers
 import os
 import pathlib
 import queue
@@ -70,8 +71,8 @@ class Record:
         if not isinstance(name, str):
             raise InputError(f"Record name {name!r}: give a text (letters, digits, '_', '.', '-'; 1 to 32), "
                              f"not {type(name).__name__}", _INPUT)
-        self.time = np.asarray(time, dtype=np.float64)
-        self.acceleration = np.asarray(acceleration, dtype=np.float64)
+        self.time = _real_array(time, "time", name)
+        self.acceleration = _real_array(acceleration, "acceleration", name)
         if self.time.ndim != 1 or self.acceleration.ndim != 2 or \
                 self.acceleration.shape[0] != self.time.shape[0] or self.acceleration.shape[1] not in (2, 3):
             raise InputError(f"Record {name!r}: give time as n values and acceleration as n rows of 2 or 3 "
@@ -85,6 +86,37 @@ class Record:
         """The record as a CSV file's text: `time, ax, ay[, az]`, m/s^2."""
         columns = np.column_stack([self.time, self.acceleration])
         return "".join(", ".join(repr(float(v)) for v in row) + "\n" for row in columns)
+
+
+def _real_array(values, argument, name):
+    """values as float64; InputError unless each is a real number (numpy
+    would drop a complex part with only a warning, and read True as 1)."""
+    try:
+        array = np.asarray(values)
+    except (ValueError, TypeError) as error:          # ragged rows
+        raise InputError(f"Record {name!r}: {argument}: {error}", _INPUT) from None
+    if array.dtype.kind == "O":                       # Python objects: each a real number
+        for value in array.ravel().tolist():
+            if not _is_real_number(value):
+                raise InputError(f"Record {name!r}: {argument} must be real numbers, not "
+                                 f"{type(value).__name__} ({value!r})", _INPUT)
+    elif array.dtype.kind not in "iuf":
+        words = {"c": "complex", "b": "logicals", "U": "text", "S": "bytes"}.get(array.dtype.kind, str(array.dtype))
+        raise InputError(f"Record {name!r}: {argument} must be real numbers, not {words} "
+                         f"(dtype {array.dtype})", _INPUT)
+    return array.astype(np.float64)
+
+
+def _is_real_number(value):
+    """Whether value is a real number (not a logical, a text or a complex number) float() reads."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or \
+            (isinstance(value, numbers.Complex) and not isinstance(value, numbers.Real)):
+        return False
+    try:
+        float(value)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def library_path():

@@ -256,8 +256,10 @@ contains
     if (cs%slide .and. ieee_is_nan(cs%param(p_mu))) return        ! (a given mu is > 0: checked above)
     param = p_rolling_resistance
     problem = problem_slide_resistance
-    if (cs%slide .and. cs%param(p_rolling_resistance) > 0 .and. &
-        cs%param(p_rolling_resistance) >= cs%param(p_mu) * cs%param(p_radius)) return
+    if (cs%slide) then        ! (nested: no ordered comparison with an unset mu, NaN, which traps)
+      if (cs%param(p_rolling_resistance) > 0 .and. &
+          cs%param(p_rolling_resistance) >= cs%param(p_mu) * cs%param(p_radius)) return
+    end if
     param = p_velocity_x
     problem = problem_velocity_partial
     if (any(ieee_is_nan(cs%param(p_velocity_x:p_velocity_z))) .and. &

@@ -14,7 +14,7 @@ module ellroll_limit_state_input
 contains
 
   !> A &limit_state group's name (an identifier, not taken), figure (a real
-  !> single-valued /summary figure) and capacity (finite), after `states`.
+  !> single-valued /summary figure) and capacity (finite, >= 0), after `states`.
   subroutine add_limit_state(rd, v, gi, states, lines)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
@@ -52,6 +52,13 @@ contains
       return
     end if
     if (.not. rd%require(gi, 'capacity', v%limit_capacity)) return     ! (given and finite)
+    ! every figure it can bound is >= 0: below 0 every defined one exceeds it
+    ! (0 has a meaning: any value above 0, as a sliding_time, exceeds it)
+    if (v%limit_capacity < 0) then
+      call rd%fail_value(gi, 'capacity', "must be >= 0 (the figures a limit state bounds are >= 0; 0: any " // &
+                         "value above 0 exceeds it)")
+      return
+    end if
     state%name = name
     do k = 1, size(figures)
       if (figures(k)%name == figure) state%figure = k

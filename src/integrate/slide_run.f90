@@ -20,7 +20,7 @@ module ellroll_slide_run
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, latest_end, settled
   use ellroll_adaptive_run, only: attempt_step, slip_inside
   use ellroll_step_control, only: step_control_t
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
@@ -48,11 +48,12 @@ module ellroll_slide_run
 
 contains
 
-  !> The case from (y, f) at t = 0 (start_case) to t_end or the limit it
-  !> meets. A start whose friction exceeds mu (res%status slip), or with a
-  !> velocity of the centre that is not rolling's, starts sliding; a start
-  !> whose normal force does not push (rolling's, res%status liftoff, or the
-  !> sliding start's) ends at t = 0.
+  !> The case from (y, f) at t = 0 (start_case) to t_end (with settle: on
+  !> until the ball rolls at rest for good, as the rolling loops; latest_end)
+  !> or the limit it meets. A start whose friction exceeds mu (res%status
+  !> slip), or with a velocity of the centre that is not rolling's, starts
+  !> sliding; a start whose normal force does not push (rolling's,
+  !> res%status liftoff, or the sliding start's) ends at t = 0.
   subroutine slide_loop(integrator, cs, plan, run, y, f, res)
     class(integrator_t), intent(inout) :: integrator
     type(case_t), intent(in) :: cs
@@ -121,13 +122,15 @@ contains
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
-    integer(i8) :: k, n_steps, every, sample
+    integer(i8) :: k, n_steps, n_last, every, sample
     real(wp) :: t, t_stop
     logical :: ended
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
+    n_last = n_steps           ! past t_end (settle): on until the ball is at rest
+    if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_steps)
     every = steps_per_sample(cs, plan)
     t = 0
-    do k = 1, n_steps
+    do k = 1, n_last
       if (stop_asked(k)) then
         res%status = status_pending
         return
@@ -139,6 +142,9 @@ contains
       call track_balance(run, res, t, now%obs, tally)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
+      if (k >= n_steps .and. n_last > n_steps) then
+        if (at_rest_for_good(run, now, t)) exit
+      end if
     end do
     res%t_final = t
   end subroutine fixed_slide
@@ -158,6 +164,7 @@ contains
     type(regime_state_t) :: trial
     type(step_control_t) :: control
     real(wp) :: t, h, h_max, t_next, next_sample_time, factor, window_start
+    real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     integer :: status, stalled, hovering, crawling
     integer(i8) :: attempts
     logical :: ended, rejected
@@ -174,19 +181,28 @@ contains
     hovering = 0
     crawling = 0
     window_start = 0
-    do while (t < cs%t_end)
+    t_stop = cs%t_end
+    do
+      if (.not. t < t_stop) then
+        ! past t_end (settle): on until the ball is at rest
+        if (t_stop < latest_end(cs, run) .and. .not. at_rest_for_good(run, now, t)) then
+          t_stop = latest_end(cs, run)
+        else
+          exit
+        end if
+      end if
       attempts = attempts + 1
       if (stop_asked(attempts)) then
         res%status = status_pending
         return
       end if
-      h = min(h, h_max, cs%t_end - t)
+      h = min(h, h_max, t_stop - t)
       t_next = t + h
       if (run%next_sample <= plan%n_samples) then
         next_sample_time = real(run%next_sample - 1, wp) * plan%interval
         if (next_sample_time > t .and. next_sample_time < t_next) t_next = next_sample_time
       end if
-      if (cs%t_end - t_next <= 4 * spacing(cs%t_end)) t_next = cs%t_end
+      if (t_stop - t_next <= 4 * spacing(t_stop)) t_next = t_stop
       h = t_next - t
       call attempt(pair, control, rolling, sb, t, h, now, trial, status, res, rejected)
       if (rejected) then
@@ -231,9 +247,23 @@ contains
         run%next_sample = run%next_sample + 1
       end if
       h = h * factor
+      if (t_stop > cs%t_end) then
+        if (at_rest_for_good(run, now, t)) exit
+      end if
     end do
     res%t_final = t
   end subroutine adaptive_slide
+
+  !> Whether the case is at rest for good at the step end t just tracked
+  !> (settled): rolling there (a sliding state's omega says nothing of its
+  !> centre's velocity).
+  pure logical function at_rest_for_good(run, now, t) result(rests)
+    type(run_state_t), intent(in) :: run
+    type(regime_state_t), intent(in) :: now
+    real(wp), intent(in) :: t
+    rests = .not. now%sliding
+    if (rests) rests = settled(run, t)
+  end function at_rest_for_good
 
   !> An embedded pair's attempt of size h from (t, now), and whether its error
   !> rejects it. Sliding: take's step, or its stop bracket's where the slip

@@ -260,6 +260,19 @@ def test_a_sweep_of_mu_reaching_zero_makes_that_case_invalid(ellroll, tmp_path):
             assert list(f["case/mu"][:]) == values
 
 
+def test_a_sweep_of_the_displacement_capacity_is_checked_case_by_case(ellroll, tmp_path):
+    """&output capacity swept (docs/campaigns.md): a case at 0 or below is
+    invalid with the range's words, the others run."""
+    sweep = "&sweep name = 'capacity', values = 0.05, 0.0, -1.0, 0.2 /\n"
+    (tmp_path / "case.nml").write_text(PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5") + sweep)
+    result = run(ellroll, "check", "case.nml", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    for case, value in ((1, "0"), (2, "-1")):
+        assert f"case.nml: case {case} (capacity = {value}): capacity = {value}: must be > 0 and <= 1000000 m" \
+            in result.stderr, result.stderr
+    assert "case 0" not in result.stderr and "case 3" not in result.stderr
+
+
 def test_mu_left_out_is_not_limited(ellroll, tmp_path):
     """The paper's case needs up to 0.0759 of friction: unset, no limit
     ends it, and /case/mu is NaN; mu just below what it needs ends it with slip."""

@@ -136,6 +136,8 @@ def test_a_file_without_limit_states_has_no_group(paper_file):
     ("name = 'd', figure = 'wall_time', capacity = 1", "unknown figure 'wall_time'"),
     ("name = 'd', figure = 'displacement_max'", "capacity is required but not given"),
     ("name = 'd', figure = 'displacement_max', capacity = 1e400", "capacity = 1e400: must be a finite number"),
+    ("name = 'd', figure = 'displacement_max', capacity = -1.0", "capacity = -1.0: must be >= 0"),
+    ("name = 'd', figure = 'sliding_time', capacity = -5e-324", "capacity = -5e-324: must be >= 0"),
     ("figure = 'theta_max', capacity = 0.1", "name is required but not given"),
     ("name = 'd', capacity = 0.1", "figure is required but not given"),
     ("name = 'drift', figure = 'theta_max', capacity = 0.1", "name = 'drift': already names the &limit_state at"),
@@ -147,6 +149,28 @@ def test_bad_limit_states(ellroll, tmp_path, group, words):
     assert result.returncode == 2, result.stderr
     assert "suite.nml:" in result.stderr and "&limit_state" in result.stderr and words in result.stderr, \
         result.stderr
+
+
+def test_a_capacity_of_zero_is_any_value_above_zero(ellroll, tmp_path):
+    """capacity = 0 is a bound (every figure a limit state bounds is >= 0):
+    sliding_time > 0 flags the cases that slid at all, 0 those that rolled
+    throughout (two scales of one record, mu = 0.3: 0.94 s of sliding at
+    scale 30, none at scale 1)."""
+    text = SUITE.split("&excitation")[0].replace("weight = 2620.0", "weight = 2620.0, mu = 0.3, slip = 'slide'") \
+        .replace("t_end = 12.0", "t_end = 6.0") + """&excitation  kind = 'record', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /
+&sweep       name = 'scale', values = 1.0, 30.0 /
+&output      file = 'out.h5', interval = 0.1, fields = 'center' /
+&limit_state name = 'slid', figure = 'sliding_time', capacity = 0.0 /
+"""
+    name = write(tmp_path, text)
+    result = run(ellroll, "run", name, "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        sliding = f["summary/sliding_time"][()]
+        assert list(f["summary/status"][()]) == [1, 1]
+        assert sliding[0] == 0 and sliding[1] > 0.5
+        assert list(f["limit_state/slid"][()]) == [0, 1]
+        assert f["limit_state/slid"].attrs["capacity"] == 0.0
 
 
 def test_ellroll_summary_suite_equals_the_python_statistics(ellroll, whole):

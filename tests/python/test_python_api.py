@@ -4,6 +4,7 @@ gives what its namelist text gives; bad input raises with the program's
 message; runs in threads at once, and on any thread count, agree."""
 import concurrent.futures
 import ctypes
+import fractions
 import gc
 import os
 import pathlib
@@ -11,6 +12,7 @@ import sys
 import tempfile
 import threading
 import time
+import warnings
 
 import h5py
 import numpy as np
@@ -745,6 +747,30 @@ def test_record_names_as_record_groups():
     for name in [None, 3, b"r"]:
         with pytest.raises(ellroll.InputError, match="give a text"):
             ellroll.Record(time, acceleration, name=name)
+
+
+@pytest.mark.parametrize("argument, values, words", [
+    ("acceleration", np.zeros((5, 2)) + 0.5j, "acceleration must be real numbers, not complex"),
+    ("acceleration", [[0.1, 0.2 + 1e-30j]] * 5, "acceleration must be real numbers, not complex"),
+    ("time", np.arange(5) * (0.01 + 0j), "time must be real numbers, not complex"),
+    ("acceleration", np.zeros((5, 2), dtype=bool), "acceleration must be real numbers, not logicals"),
+    ("acceleration", [["0.1", "0.2"]] * 5, "acceleration must be real numbers, not text"),
+    ("acceleration", [[0.1, None]] * 5, "acceleration must be real numbers, not NoneType (None)"),
+    ("time", [0.0, 0.01, 0.02, 0.03, "later"], "time must be real numbers, not text"),
+])
+def test_a_record_of_numbers_that_are_not_real_is_refused(argument, values, words):
+    """Complex, logical, text or missing values in a Record are refused by
+    argument, not converted (numpy would drop an imaginary part with only a
+    warning); integers and fractions are real numbers."""
+    arrays = {"time": np.arange(5) * 0.01, "acceleration": np.zeros((5, 2))}
+    arrays[argument] = values
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.Record(arrays["time"], arrays["acceleration"], name="quake")
+    assert isinstance(raised.value, ValueError) and f"Record 'quake': {words}" in raised.value.message
+    whole = ellroll.Record([0, 1, 2], [[1, 0], [fractions.Fraction(1, 4), 0], [-1, 0]])
+    assert whole.time.dtype == np.float64 and whole.acceleration[1, 0] == 0.25
 
 
 def test_a_bad_record_array_is_named_by_its_record_and_row():

@@ -28,8 +28,8 @@ FIGURES = ("residual_displacement", "rest_time", "at_rest", "t_final")
 
 
 def run_cup(ellroll, folder, integration=METHODS["rk4"], delta=DELTA, x=0.052, t_end=30.0, settle=None,
-            excitation=""):
-    text = CUP.format(resistance=f", rolling_resistance = {delta!r}" if delta else "", x=x,
+            excitation="", ball="", start=""):
+    text = CUP.format(resistance=(f", rolling_resistance = {delta!r}" if delta else "") + ball, x=f"{x!r}{start}",
                       integration=integration, t_end=t_end, settle=f", settle = {settle!r}" if settle else "",
                       excitation=excitation)
     (folder / "cup.nml").write_text(text)
@@ -37,7 +37,8 @@ def run_cup(ellroll, folder, integration=METHODS["rk4"], delta=DELTA, x=0.052, t
     assert result.returncode == 0, result.stderr
     with h5py.File(folder / "out.h5", "r") as f:
         figures = {name: f["summary/" + name][0] for name in FIGURES}
-        figures["status"] = f["summary/status"][0]
+        for name in ("status", "sliding_time", "slip_episodes"):
+            figures[name] = f["summary/" + name][0]
         figures["center"] = f["trajectory/center"][0]
         figures["time"] = f["time"][()]
     return figures
@@ -85,6 +86,57 @@ def test_settle_runs_on_until_the_ball_is_at_rest(ellroll, tmp_path, reference, 
     assert abs(settled["residual_displacement"] - reference["residual_displacement"]) < 1e-11
     short = run_cup(ellroll, tmp_path, METHODS[method], t_end=10.0, settle=2.0)
     assert short["at_rest"] == 0 and short["t_final"] == 12.0 and np.isnan(short["residual_displacement"])
+
+
+@pytest.mark.parametrize("method", ["rk4", "dop853"])
+def test_settle_with_slip_slide_rests_as_rolling(ellroll, tmp_path, reference, method):
+    """slip = 'slide' with a mu rolling never reaches (10; the swing needs
+    |F_t|/N < 0.1): settle runs on past t_end = 10 s to the rest as the rolling
+    run does (slip = 'end'), with its rest time and place: bit for bit with
+    rk4 (the sliding loop's rolling steps are the rolling path's), to 1e-9
+    with dop853 (the sliding loop ends its steps at the output samples)."""
+    runs = [run_cup(ellroll, tmp_path, METHODS[method], t_end=10.0, settle=60.0,
+                    ball=f", mu = 10.0, slip = '{slip}'") for slip in ("end", "slide")]
+    rolling, sliding = runs
+    for got in runs:
+        assert got["status"] == 1 and got["at_rest"] == 1 and got["sliding_time"] == 0
+        assert got["rest_time"] <= got["t_final"] < got["rest_time"] + 1.0e-3
+        assert len(got["time"]) == 1001 and got["time"][-1] == 10.0
+        assert abs(got["rest_time"] - reference["rest_time"]) < 1e-8
+        assert abs(got["residual_displacement"] - reference["residual_displacement"]) < 1e-11
+    if method == "rk4":
+        for name in FIGURES:
+            assert sliding[name].tobytes() == rolling[name].tobytes(), name
+    else:
+        assert abs(sliding["rest_time"] - rolling["rest_time"]) < 1e-9
+        assert abs(sliding["residual_displacement"] - rolling["residual_displacement"]) < 1e-9
+        assert abs(sliding["t_final"] - rolling["t_final"]) < 1e-9
+
+
+@pytest.mark.parametrize("method", ["rk4", "dop853"])
+def test_settle_after_sliding_rests_where_a_long_run_does(ellroll, tmp_path, method):
+    """Launched sliding from the bottom at 1 m/s with mu = 0.05 and rolling
+    resistance 1e-3 m: it slides for 0.48 s, then rolls and comes to rest
+    at 31.5 s, past t_end = 5 s;
+    settle = 50 s ends it there, at the rest time and place of a run to 60 s
+    without settle (rk4: bit for bit; dop853 to 1e-9: steps past t_end are
+    not cut at output samples), with the trajectory to t_end."""
+    launch = dict(integration=METHODS[method], delta=1.0e-3, x=0.0, start=", velocity = 1.0, 0.0, 0.0",
+                  ball=", mu = 0.05, slip = 'slide'")
+    settled = run_cup(ellroll, tmp_path, t_end=5.0, settle=50.0, **launch)
+    long = run_cup(ellroll, tmp_path, t_end=60.0, **launch)
+    for got in (settled, long):
+        assert got["status"] == 1 and got["at_rest"] == 1 and got["slip_episodes"] == 1
+        assert 0.4 < got["sliding_time"] < 0.6
+        assert 5.0 < got["rest_time"] < 55.0
+    assert settled["rest_time"] <= settled["t_final"] < settled["rest_time"] + 1.0e-3
+    assert len(settled["time"]) == 501 and settled["time"][-1] == 5.0
+    assert long["t_final"] == 60.0
+    tolerance = 0 if method == "rk4" else 1e-9
+    assert abs(settled["rest_time"] - long["rest_time"]) <= tolerance
+    assert abs(settled["residual_displacement"] - long["residual_displacement"]) <= tolerance
+    assert settled["sliding_time"] == long["sliding_time"]
+    assert 0 < settled["residual_displacement"] < 2 * RHO * 1.0e-3 / RADIUS   # inside the band it can rest in
 
 
 def test_no_rest_without_rolling_resistance(ellroll, tmp_path):
@@ -160,6 +212,43 @@ def test_held_through_the_end_of_a_record(ellroll, tmp_path):
     later = run_record(ellroll, tmp_path, 30.0, scale=1.0)
     assert later["rest_time"] == after["rest_time"]
     assert later["residual_displacement"] == after["residual_displacement"]
+
+
+SUITE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, rolling_resistance = 1.0e-4{slip} /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 25.0, settle = 120.0 /
+&excitation kind = 'record' /
+&record name = 'SYN1', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /
+&record name = 'SYN3', record_file = 'records/SYN3_H1.AT2', 'records/SYN3_H2.AT2' /
+&sweep name = 'scale', values = 1.0, 30.0 /
+&output file = 'out.h5', interval = 0.01 /
+"""
+
+
+def test_a_record_suite_that_may_slide_settles_case_by_case(ellroll, tmp_path):
+    """A suite of two records at scales 1 and 30 with settle: with slip =
+    'slide' every case runs on to its own rest, as the rolling suite's (mu =
+    10, never reached: the same rest to 1e-9; the rolling suite runs in
+    batches); with mu = 0.05 the strong cases slide and still end at rest
+    before t_end + settle, with a residual displacement each."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    suites = {}
+    for name, slip in (("rolling", ""), ("never", ", mu = 10.0, slip = 'slide'"), ("slides", ", mu = 0.05, slip = 'slide'")):
+        (tmp_path / "suite.nml").write_text(SUITE.format(slip=slip))
+        result = run(ellroll, "run", "suite.nml", "-q", "--overwrite", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / "out.h5", "r") as f:
+            suites[name] = {k: f["summary/" + k][()] for k in FIGURES + ("status", "sliding_time")}
+    rolling, never, slides = suites["rolling"], suites["never"], suites["slides"]
+    assert np.all(rolling["at_rest"] == 1) and np.any(rolling["t_final"] > 25.0)
+    assert np.all(never["sliding_time"] == 0) and np.all(never["at_rest"] == 1)
+    for name in ("rest_time", "residual_displacement", "t_final"):
+        assert np.max(np.abs(never[name] - rolling[name])) < 1e-9, name
+    assert np.all(slides["status"] == 1) and np.all(slides["at_rest"] == 1)
+    assert np.any(slides["sliding_time"] > 0) and np.any((slides["sliding_time"] > 0) & (slides["t_final"] > 25.0))
+    assert np.all(slides["rest_time"] <= slides["t_final"]) and np.all(slides["t_final"] < 25.0 + 120.0)
+    assert np.all(np.isfinite(slides["residual_displacement"]))
 
 
 def test_settle_is_checked(ellroll, tmp_path):
