@@ -324,7 +324,7 @@ contains
   !> an embedded pair's tolerance, or, towards the rim, agreeing with a
   !> fixed step's halves: there a partial step's stages can pass it and come
   !> back far off) adds to the summary.
-  subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res)
+  subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res, switch_first, before, at_before)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
     type(run_state_t), intent(inout) :: rolling
@@ -333,6 +333,11 @@ contains
     type(regime_state_t), intent(in) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
+    !> (where asked) the regime switches before the limit, at the last valid
+    !> state (at_before, a piece `before` from now): nothing is ended or added
+    logical, intent(out), optional :: switch_first
+    real(wp), intent(out), optional :: before
+    type(regime_state_t), intent(out), optional :: at_before
     type(crossing_search_t) :: search
     type(regime_state_t) :: x, last_valid
     real(wp) :: trial
@@ -356,6 +361,15 @@ contains
       end if
       call search%report(trial, valid)
     end do
+    if (present(switch_first)) then
+      switch_first = search%valid > 0
+      if (switch_first) switch_first = switch_crossed(sb, now, last_valid)
+      if (switch_first) then
+        before = search%valid
+        at_before = last_valid
+        return
+      end if
+    end if
     if (search%valid > 0) then
       call add_sliding(sb, search%valid, now, last_valid, tally)
       call track_balance(run, res, t + search%valid, last_valid%obs, tally)

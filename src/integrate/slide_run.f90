@@ -123,7 +123,7 @@ contains
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
     integer(i8) :: k, n_steps, n_last, every, sample
-    real(wp) :: t, t_stop
+    real(wp) :: t, t_stop, friction_before, friction_start
     logical :: ended
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
     n_last = n_steps           ! past t_end (settle): on until the ball is at rest
@@ -135,7 +135,11 @@ contains
         res%status = status_pending
         return
       end if
-      call advance(integrator, run, rolling, sb, t, cs%param(p_dt), .false., now, tally, res, ended, t_stop)
+      friction_start = merge(huge(1.0_wp), now%obs%friction_needed, now%sliding)
+      if (k == 1) friction_before = huge(1.0_wp)
+      call advance(integrator, run, rolling, sb, t, cs%param(p_dt), .false., now, tally, res, ended, t_stop, &
+                   friction_before=friction_before)
+      friction_before = friction_start
       res%n_steps = k
       if (ended) return
       t = k * cs%param(p_dt)
@@ -321,7 +325,7 @@ contains
   !> t_stop: where the step ended. first, first_status: the step h_step
   !> from now already taken (an embedded pair's judged attempt).
   subroutine advance(integrator, run, rolling, sb, t, h_step, stop_at_switch, now, tally, res, ended, t_stop, &
-                     first, first_status)
+                     first, first_status, friction_before)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
     type(run_state_t), intent(inout) :: rolling
@@ -335,10 +339,11 @@ contains
     real(wp), intent(out) :: t_stop
     type(regime_state_t), intent(in), optional :: first
     integer, intent(in), optional :: first_status
+    real(wp), intent(in), optional :: friction_before
     type(regime_state_t) :: new
-    real(wp) :: t_at, remaining, piece, offset, slip_before
+    real(wp) :: t_at, remaining, piece, offset, slip_before, before_limit
     integer :: status, switches
-    logical :: held, taken
+    logical :: held, taken, switch_first
     ended = .false.
     t_at = t
     remaining = h_step
@@ -360,9 +365,17 @@ contains
       end if
       if (.not. taken) call take(integrator, rolling, sb, t_at, piece, now, new, status, res%n_rhs)
       if (status /= status_completed) then
-        call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res)
-        ended = .true.
-        return
+        ! a limit ends the case, unless the regime switches on the way there
+        call end_at_limit(integrator, run, rolling, sb, t_at, piece, now, tally, res, switch_first, before_limit, new)
+        if (.not. switch_first) then
+          ended = .true.
+          return
+        end if
+        piece = before_limit
+      end if
+      if (switches == 0 .and. present(friction_before) .and. .not. now%sliding) then
+        if (.not. switch_crossed(sb, now, new)) &
+          call graze_inside(integrator, rolling, sb, t_at, remaining, friction_before, now, new, res%n_rhs, piece)
       end if
       if (held .or. .not. switch_crossed(sb, now, new)) then
         call add_sliding_step(integrator, run, rolling, sb, t_at, remaining, now, new, tally, res)
@@ -394,6 +407,41 @@ contains
     res%t_final = t_at
     ended = .true.
   end subroutine advance
+
+  !> A fixed rolling step h from (t, now) to new whose ends both need less
+  !> friction than mu N: where the parabola through the friction needed at
+  !> t - h (friction_before), t and t + h peaks inside the step above mu,
+  !> the partial step to its vertex is taken, and where that needs more, it
+  !> is the step that crosses (new and piece replaced): the friction needed
+  !> can pass mu N and fall back between two step ends.
+  subroutine graze_inside(integrator, rolling, sb, t, h, friction_before, now, new, n_rhs, piece)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h, friction_before
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(inout) :: new
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(inout) :: piece
+    type(regime_state_t) :: x
+    real(wp) :: fa, fb, fc, curvature, vertex, peak
+    integer :: status
+    fa = friction_before
+    fb = now%obs%friction_needed
+    fc = new%obs%friction_needed
+    if (.not. (fa < sb%ball%mu .and. fb < sb%ball%mu .and. fc < sb%ball%mu)) return
+    curvature = fa - 2 * fb + fc
+    if (.not. curvature < 0) return
+    vertex = (fa - fc) / (2 * curvature)
+    if (.not. (vertex > 0 .and. vertex < 1)) return
+    peak = fb - (fa - fc)**2 / (8 * curvature)
+    if (.not. peak > sb%ball%mu) return
+    call take(integrator, rolling, sb, t, vertex * h, now, x, status, n_rhs)
+    if (status /= status_completed) return
+    if (.not. switch_crossed(sb, now, x)) return
+    new = x
+    piece = vertex * h
+  end subroutine graze_inside
 
   !> Whether now slides with a slip within the pair's tolerance of zero,
   !> measured against the contact's speeds (|V_C| + R |omega|).

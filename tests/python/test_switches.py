@@ -246,3 +246,59 @@ def test_a_slip_that_grazes_mu_inside_a_long_step_is_met(ellroll, tmp_path, meth
     times, kinds = switches(summary(f", mu = {mu!r}, slip = 'slide'", 1e-6, "slide"))
     assert len(times) >= 2 and kinds[0] == 1                # slides, and rolls again
     assert abs(times[0] - t_slip) < 1e-5                    # 1.3e-6 s measured
+
+
+@pytest.mark.parametrize("dt", [2e-2, 1e-2])
+def test_a_slip_that_grazes_mu_between_fixed_step_ends_is_met(ellroll, tmp_path, dt):
+    """rk4 with mu halfway between the largest friction needed at its own
+    step ends and the largest at vern9's (rtol 1e-12, steps of 1e-4 s at
+    most): the friction needed passes mu N only between two step ends.
+    slip = 'end' finds it (the limit at the stages); the slide starts
+    there too (the parabola through three step ends)."""
+    def output(mu, integration, name):
+        text = GRAZE.replace("method = '{method}', rtol = {rtol}", "{integration}")
+        (tmp_path / f"{name}.nml").write_text(text.format(mu=mu, integration=integration))
+        result = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        return tmp_path / f"{name}.h5"
+    rk4 = f"method = 'rk4', dt = {dt}"
+    with h5py.File(output("", "method = 'vern9', rtol = 1e-12, dt = 1e-4", "fine"), "r") as f:
+        peak = f["summary/friction_needed_max"][0]
+    with h5py.File(output("", rk4, "coarse"), "r") as f:
+        at_step_ends = f["summary/friction_needed_max"][0]
+    assert at_step_ends < peak
+    mu = float((peak + at_step_ends) / 2)
+    with h5py.File(output(f", mu = {mu!r}, slip = 'end'", rk4, "end"), "r") as f:
+        assert f["summary/status"][0] == 4
+        t_slip = f["summary/t_final"][0]
+    times, kinds = switches(output(f", mu = {mu!r}, slip = 'slide'", rk4, "slide"))
+    assert len(times) >= 2 and kinds[0] == 1
+    assert abs(times[0] - t_slip) < 1e-5                    # 2.9e-6 s (dt 2e-2), 1.1e-7 s (1e-2) measured
+
+
+SLIP_BEFORE_NO_FIT = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, mu = 0.20411491139823162, slip = '{slip}' /
+&initial x = -0.051375778168383734, y = 0.0593546051480669, omega = -2.6238600990030667, -4.891228461708808, -3.282479430530529 /
+&integration method = 'rk4', dt = 1e-3, t_end = 5.0 /
+&excitation kind = 'harmonic', amplitude = 1.0, 0.5, 0.0, frequency = 0.7 /
+&output file = 'o.h5', interval = 0.01, fields = 'none' /
+"""
+
+
+def test_a_slip_inside_the_step_that_meets_a_limit_comes_first(ellroll, tmp_path):
+    """A shaken ball whose friction needed passes mu N 0.5 ms before it
+    meets no_fit, both inside one rk4 step: slip = 'end' ends at the slip;
+    slip = 'slide' slides from there (not ending at no_fit without sliding),
+    then meets no_fit later."""
+    out = {}
+    for slip in ("end", "slide"):
+        (tmp_path / f"{slip}.nml").write_text(SLIP_BEFORE_NO_FIT.format(slip=slip))
+        result = run(ellroll, "run", f"{slip}.nml", "-q", "-o", f"{slip}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / f"{slip}.h5", "r") as f:
+            out[slip] = (f["summary/status"][0], f["summary/t_final"][0])
+    assert out["end"][0] == 4                                # slip, at 0.748036 s
+    times, kinds = switches(tmp_path / "slide.h5")
+    assert len(times) >= 1 and kinds[0] == 1
+    assert abs(times[0] - out["end"][1]) < 1e-5              # 6.8e-7 s measured
+    assert out["slide"][0] == 3 and out["slide"][1] > times[0]   # no_fit, after the slide began
