@@ -36,8 +36,8 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
-  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, note_nutation, accumulate, &
-            record_sample, record_geometry_sample, stored
+  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
+            accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -376,6 +376,19 @@ contains
       if (run%stats%n_clear(1) > 0) res%reals(fig_rolling_resistance_energy) = run%resistance_work_clear
     end if
   end subroutine cut_at_limit
+
+  !> An embedded pair's step (or piece of step) ending at t adds `work`, the
+  !> couple's work over it (step_works' rule on its dense output), in place
+  !> of the trapezoid over it: the state obs tracked at t then adds nothing.
+  pure subroutine add_step_resistance(run, res, t, work, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t, work
+    type(observation_t), intent(in) :: obs
+    res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) + work
+    run%resistance_time = t
+    run%resistance_power = resistance_power(run%ball, obs%normal, obs%omega, obs%reaction_normal)
+  end subroutine add_step_resistance
 
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
