@@ -98,7 +98,8 @@ module ellroll_case_run
     !> trapezoidal rule over the states tracked: step ends and switches)
     real(wp) :: resistance_time = 0, resistance_power = 0
     !> sliding: the friction's work so far, which the step ends' energy
-    !> adds to E (energy_drift: the residual of the balance E + W = E0), and
+    !> adds to E with the couple's (energy_drift: the residual of the
+    !> balance E + W = E0), and
     !> its value at the last step end clear of the cup's curvature (where a
     !> case that ends at a model limit cuts it, as its peaks)
     real(wp) :: friction_work = 0, friction_work_clear = 0
@@ -456,8 +457,9 @@ contains
   end subroutine note_nutation
 
   !> What an accepted step end adds to the summary: the nutation angle, and
-  !> the step-end quantities to their statistics (the energy with the
-  !> friction's work so far).
+  !> the step-end quantities to their statistics (the energy with the works
+  !> of the friction and of the couple of rolling resistance so far, tracked
+  !> up to t before: energy_drift is the residual of the balance E + W = E0).
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
@@ -467,6 +469,7 @@ contains
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     q = step_quantities(obs)
     q(1, q_energy) = q(1, q_energy) + run%friction_work
+    if (run%ball%rolling_resistance > 0) q(1, q_energy) = q(1, q_energy) + res%reals(fig_rolling_resistance_energy)
     if (obs%fit_clearance > 0) then
       run%friction_work_clear = run%friction_work
       run%slip_speed_clear = res%reals(fig_slip_speed_max)
