@@ -1,8 +1,8 @@
 !> One case with an adaptive embedded pair (dop853, vern9): its steps
 !> under the step control (ellroll_step_control), and everything taken from
 !> the pair's dense output inside a step (output samples, the maxima of
-!> Theta, where a model limit is crossed), so that no result depends on
-!> where the steps fall. The batches and the flow to a limit
+!> Theta, where a model limit is crossed, the couple of rolling resistance's
+!> work), so that no result depends on where the steps fall. The batches and the flow to a limit
 !> (ellroll_flow_to_limit) use the same pieces.
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -17,7 +17,8 @@ module ellroll_adaptive_run
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
-      accumulate, record_sample, record_geometry_sample, latest_end, settled
+      accumulate, record_sample, record_geometry_sample, latest_end, settled, add_step_resistance
+  use ellroll_step_works, only: step_works
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, last_step_clipped
   use ellroll_params, only: p_dt
   implicit none
@@ -56,6 +57,7 @@ contains
     integer :: status, round_off_attempts
     logical :: peak_inside
     real(wp) :: passed                    ! where a slip inside a step is known
+    real(wp) :: works(2)                  ! the friction's (0) and the couple's over the step
 
     t = 0
     round_off_attempts = 0
@@ -112,6 +114,12 @@ contains
       if (peak_inside) then
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
+      end if
+      if (run%ball%rolling_resistance > 0) then
+        ! the couple's power varies inside the long step: its work by the
+        ! Gauss-Legendre rule on the dense output, not the step ends' trapezoid
+        call step_works(pair, run%ball, t, h, works, res%n_rhs)
+        call add_step_resistance(run, res, t + h, works(2), obs)
       end if
       if (.not. round_off_step(t, h)) round_off_attempts = 0
       t = t + h

@@ -10,6 +10,7 @@ module ellroll_batch_run
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample, make_ball
   use ellroll_results, only: case_result_t
+  use ellroll_figures, only: fig_rolling_resistance_energy
   use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal, q_fit_clearance
   use ellroll_rolling_ball, only: observation_t, state_size, event_rest
   use ellroll_errors, only: error_t
@@ -180,7 +181,7 @@ contains
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
         if (any(active .and. .not. accepted)) call meet_limits()
-        call summary%add(out, step * h, accepted)
+        if (.not. balls%resists) call summary%add(out, step * h, accepted)
         if (b%cups%moving) call track_cups(b, out, base_end, step * h, accepted)
         if (balls%resists) call track_resistance(b, out, y_new, f_new, step * h, accepted, results)
         if (any(plan%fields)) then
@@ -648,8 +649,10 @@ contains
   end subroutine track_cups
 
   !> What the accepted lanes' new states y (derivatives f, observed: out, at
-  !> times t) add to the summary of rolling resistance
-  !> (track_rolling_resistance, the one-case code on each lane that has it).
+  !> times t) add to the summary of a batch with rolling resistance: the
+  !> couple's work (track_rolling_resistance, the one-case code on each lane
+  !> that has it), then the step-end quantities, the energy with that work
+  !> (energy_drift: the residual of the balance E + W = E0).
   subroutine track_resistance(b, out, y, f, t, accepted, results)
     type(batch_t), intent(inout) :: b
     type(lane_outputs_t), intent(in) :: out
@@ -658,8 +661,10 @@ contains
     type(case_result_t), intent(inout) :: results(:)
     type(observation_t) :: obs
     logical :: still(lanes)
+    real(wp) :: works(lanes)
     integer :: l
     still = lanes_at_rest(b%balls, f)
+    works = 0
     do l = 1, b%n
       if (.not. (accepted(l) .and. b%balls%resistance(l) > 0)) cycle
       obs%normal = out%normal(l, :)
@@ -668,7 +673,9 @@ contains
       obs%reaction_normal = out%quantity(l, q_reaction_normal)
       obs%fit_clearance = out%quantity(l, q_fit_clearance)
       call track_rolling_resistance(b%run(l), results(l), t(l), obs, still(l))
+      works(l) = results(l)%reals(fig_rolling_resistance_energy)
     end do
+    call b%summary%add(out, t, accepted, works)
   end subroutine track_resistance
 
   !> The mask of lane l alone.

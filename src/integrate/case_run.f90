@@ -36,8 +36,8 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
-  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, note_nutation, accumulate, &
-            record_sample, record_geometry_sample, stored
+  public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
+            accumulate, record_sample, record_geometry_sample, stored
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -98,7 +98,8 @@ module ellroll_case_run
     !> trapezoidal rule over the states tracked: step ends and switches)
     real(wp) :: resistance_time = 0, resistance_power = 0
     !> sliding: the friction's work so far, which the step ends' energy
-    !> adds to E (energy_drift: the residual of the balance E + W = E0), and
+    !> adds to E with the couple's (energy_drift: the residual of the
+    !> balance E + W = E0), and
     !> its value at the last step end clear of the cup's curvature (where a
     !> case that ends at a model limit cuts it, as its peaks)
     real(wp) :: friction_work = 0, friction_work_clear = 0
@@ -377,6 +378,19 @@ contains
     end if
   end subroutine cut_at_limit
 
+  !> An embedded pair's step (or piece of step) ending at t adds `work`, the
+  !> couple's work over it (step_works' rule on its dense output), in place
+  !> of the trapezoid over it: the state obs tracked at t then adds nothing.
+  pure subroutine add_step_resistance(run, res, t, work, obs)
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t, work
+    type(observation_t), intent(in) :: obs
+    res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) + work
+    run%resistance_time = t
+    run%resistance_power = resistance_power(run%ball, obs%normal, obs%omega, obs%reaction_normal)
+  end subroutine add_step_resistance
+
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
   pure subroutine add_resistance_work(run, res, t, obs)
@@ -443,8 +457,9 @@ contains
   end subroutine note_nutation
 
   !> What an accepted step end adds to the summary: the nutation angle, and
-  !> the step-end quantities to their statistics (the energy with the
-  !> friction's work so far).
+  !> the step-end quantities to their statistics (the energy with the works
+  !> of the friction and of the couple of rolling resistance so far, tracked
+  !> up to t before: energy_drift is the residual of the balance E + W = E0).
   pure subroutine accumulate(run, res, t, obs)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
@@ -454,6 +469,7 @@ contains
     call note_nutation(run, res, obs%tan_nutation, obs%lateral, obs%normal(3))
     q = step_quantities(obs)
     q(1, q_energy) = q(1, q_energy) + run%friction_work
+    if (run%ball%rolling_resistance > 0) q(1, q_energy) = q(1, q_energy) + res%reals(fig_rolling_resistance_energy)
     if (obs%fit_clearance > 0) then
       run%friction_work_clear = run%friction_work
       run%slip_speed_clear = res%reals(fig_slip_speed_max)

@@ -65,12 +65,16 @@ contains
   end subroutine load_summary
 
   !> What the accepted lanes' new states (at times t) add to the summary
-  !> (accumulate); branch-free (merge), so that the loop vectorizes.
-  pure subroutine add_to_summary(self, out, t, accepted)
+  !> (accumulate); branch-free (merge), so that the loop vectorizes. works:
+  !> each lane's works so far that its energy's balance adds (the couple of
+  !> rolling resistance's; energy_drift is the residual of E + W = E0).
+  pure subroutine add_to_summary(self, out, t, accepted, works)
     class(lane_summary_t), intent(inout) :: self
     type(lane_outputs_t), intent(in) :: out
     real(wp), intent(in) :: t(lanes)
     logical, intent(in) :: accepted(lanes)
+    real(wp), intent(in), optional :: works(lanes)
+    real(wp) :: quantity(lanes, size(out%quantity, 2))
     logical :: higher
     integer :: l
     do l = 1, lanes
@@ -80,7 +84,13 @@ contains
       self%normal_z_at_max(l) = merge(out%normal(l, 3), self%normal_z_at_max(l), higher)
       self%theta_moved(l) = self%theta_moved(l) .or. higher
     end do
-    call add_step_ends(self%stats, out%quantity, t, accepted)
+    if (present(works)) then
+      quantity = out%quantity
+      quantity(:, q_energy) = quantity(:, q_energy) + works
+      call add_step_ends(self%stats, quantity, t, accepted)
+    else
+      call add_step_ends(self%stats, out%quantity, t, accepted)
+    end if
   end subroutine add_to_summary
 
   !> A nutation angle of lane l's case (tan Theta, and the lateral and

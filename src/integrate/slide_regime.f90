@@ -10,13 +10,13 @@ module ellroll_slide_regime
   use ellroll_events, only: crossing_search_t, max_event_trials
   use ellroll_cases, only: case_t, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, add_switch, switch_to_rolling
-  use ellroll_figures, only: fig_rolling_resistance_energy, fig_slip_speed_max
+  use ellroll_figures, only: fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, resistance_power
+      at_sliding_rim, stick_level
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored
+  use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
   use ellroll_step_works, only: step_works
   use ellroll_slip_substeps, only: slide_piece
@@ -231,7 +231,8 @@ contains
   !> The piece of step h from (t, from) to `to` that the integrator has just
   !> taken adds to the sliding figures (add_sliding). An embedded pair's works
   !> of the friction and of the rolling resistance, in either regime, are
-  !> step_works' (the latter in place of add_resistance_work's trapezoids).
+  !> step_works' (the latter in place of add_resistance_work's trapezoids:
+  !> add_step_resistance).
   subroutine add_sliding_step(integrator, run, rolling, sb, t, h, from, to, tally, res)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
@@ -245,13 +246,13 @@ contains
     select type (integrator)
     class is (embedded_pair_t)
       if (.not. (from%sliding .or. rolling%ball%rolling_resistance > 0)) return
-      call step_works(integrator, rolling%ball, sb, from%sliding, t, h, work, res%n_rhs)
-      call add_sliding(sb, h, from, to, tally, work(1))
-      if (rolling%ball%rolling_resistance > 0) then
-        res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) + work(2)
-        run%resistance_time = t + h       ! (the tracked state there adds no trapezoid)
-        run%resistance_power = resistance_power(sb%ball, to%obs%normal, to%obs%omega, to%obs%reaction_normal)
+      if (from%sliding) then
+        call step_works(integrator, rolling%ball, t, h, work, res%n_rhs, sb)
+      else
+        call step_works(integrator, rolling%ball, t, h, work, res%n_rhs)
       end if
+      call add_sliding(sb, h, from, to, tally, work(1))
+      if (rolling%ball%rolling_resistance > 0) call add_step_resistance(run, res, t + h, work(2), to%obs)
     class default
       call add_sliding(sb, h, from, to, tally)
     end select
