@@ -62,7 +62,8 @@ module ellroll_figures
                q_reaction_normal), &
       figure_t('friction_needed_max', '1', 'largest |F_t|/N over all steps', kind_real, 1, from_maximum, &
                q_friction_needed), &
-      figure_t('energy_drift', '1', 'max |E - E0| / |E0| over all steps', kind_real, 1, from_maximum, q_energy, &
+      figure_t('energy_drift', '1', 'max |E - E0 + W| / |E0| over the step ends, W the works of ' // &
+               'friction and rolling resistance so far', kind_real, 1, from_maximum, q_energy, &
                finish_per_start), &
       figure_t('constraint_error_max', '1', 'max |(x/a)^2+(y/b)^2+((z-c)/c)^2-1| of the contact point over all steps', &
                kind_real, 1, from_maximum, q_surface_residual), &

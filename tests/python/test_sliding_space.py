@@ -101,7 +101,7 @@ def test_a_case_that_may_slide_ends_with_a_status_within_its_energy(ellroll_debu
     assert math.isnan(slip_max) or slip_max <= speed * (1 + 1 / math.sqrt(k)) * (1 + 1e-6) + 1e-9, where
     if status == "completed":
         # rk4 at dt = 1e-3 meets slips that stop within a step (inertia factor
-        # 1e-3: case 180's stops 0.75 ms after its start, the balance's residual
+        # 1e-3: case 180's slip ends 0.75 ms after its start, the balance's residual
         # 1.3e-5 E0, 2.7e-7 at dt 1e-4): its error there is its truncation's
         end = energy[np.isfinite(energy)][-1]
         tolerance = 1e-4 if "rk4" in text else 1e-5
