@@ -37,6 +37,17 @@ def run(exe, *args, cwd=None, timeout=120):
                           text=True, timeout=timeout)
 
 
+def run_shards_and_merge(exe, name, folder, order, merged="merged.h5"):
+    """Namelist `name` run in len(order) shards (shard_i.h5), then merged in
+    the given order of the shards into `merged`."""
+    for i in range(len(order)):
+        result = run(exe, "run", name, "-q", "--shard", f"{i}/{len(order)}", "-o", f"shard_{i}.h5", cwd=folder)
+        assert result.returncode == 0, result.stderr
+    result = run(exe, "merge", merged, *(f"shard_{i}.h5" for i in order), cwd=folder)
+    assert result.returncode == 0, result.stderr
+    return folder / merged
+
+
 @pytest.fixture(scope="session")
 def paper_file(ellroll, tmp_path_factory):
     """The paper's case run once, as written by the program."""

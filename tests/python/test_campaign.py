@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, run
+from conftest import ROOT, run, run_shards_and_merge
 
 BASE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
 &ball        radius = 0.2, weight = 2620.0 /
@@ -550,11 +550,7 @@ def test_invalid_cases_keep_their_undefined_counts_through_shards_merge_and_resu
         invalid = f["summary/status"][()] == f["summary/status"].attrs["flag_meanings"].split().index("invalid")
         assert invalid.sum() == 40
         assert np.all(f["summary/n_steps"][()][invalid] == -1) and np.all(f["summary/n_steps"][()][~invalid] > 0)
-    for i in range(3):
-        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
-        assert result.returncode == 0, result.stderr
-    result = run(ellroll, "merge", "merged.h5", "shard_2.h5", "shard_0.h5", "shard_1.h5", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
+    run_shards_and_merge(ellroll, name, tmp_path, (2, 0, 1))
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
     with h5py.File(tmp_path / "merged.h5", "r") as f:
         assert list(f["summary/slip_episodes"].attrs["_FillValue"]) == [-1]
@@ -674,11 +670,7 @@ def test_moving_cups_in_lanes_are_the_same_on_any_threads_and_shards(ellroll, tm
         assert f["summary/status"].shape == (12,) and np.all(f["summary/n_steps"][:] == 2000)
     assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t2.h5")
     assert_same_datasets(tmp_path / "t1.h5", tmp_path / "t3.h5")
-    for i in range(3):
-        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
-        assert result.returncode == 0, result.stderr
-    result = run(ellroll, "merge", "merged.h5", "shard_0.h5", "shard_1.h5", "shard_2.h5", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
+    run_shards_and_merge(ellroll, name, tmp_path, (0, 1, 2))
     assert_same_datasets(tmp_path / "t1.h5", tmp_path / "merged.h5")
 
 

@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run, PAPER_INPUT
+from conftest import run, run_shards_and_merge, PAPER_INPUT
 from test_campaign import JOURNAL_HEADER, RECORD_MARKER, WALL_TIME_ENTRY, assert_same_datasets, kill_after_records, record_bytes
 from test_sliding_truth import run_case
 
@@ -105,11 +105,7 @@ def test_switches_are_the_same_bits_for_any_thread_count_and_through_shards_and_
         assert len(f["switches/switch_time"]) == count.sum()
         assert list(count[count > 0] // 2 + count[count > 0] % 2) == \
             list(f["summary/slip_episodes"][:][count > 0])
-    for i in range(3):
-        result = run(ellroll, "run", name, "-q", "--shard", f"{i}/3", "-o", f"shard_{i}.h5", cwd=tmp_path)
-        assert result.returncode == 0, result.stderr
-    result = run(ellroll, "merge", "merged.h5", "shard_1.h5", "shard_2.h5", "shard_0.h5", cwd=tmp_path)
-    assert result.returncode == 0, result.stderr
+    run_shards_and_merge(ellroll, name, tmp_path, (1, 2, 0))
     assert_same_datasets(tmp_path / "one.h5", tmp_path / "merged.h5")
 
 
