@@ -95,6 +95,11 @@ def _real_array(values, argument, name):
         array = np.asarray(values)
     except (ValueError, TypeError) as error:          # ragged rows
         raise InputError(f"Record {name!r}: {argument}: {error}", _INPUT) from None
+    if not isinstance(values, np.ndarray) and array.dtype.kind in "iuf":
+        # a list mixing logicals with numbers becomes numbers: look at its items
+        for value in np.asarray(values, dtype=object).ravel().tolist():
+            if isinstance(value, (bool, np.bool_)):
+                raise InputError(f"Record {name!r}: {argument} must be real numbers, not bool ({value!r})", _INPUT)
     if array.dtype.kind == "O":                       # Python objects: each a real number
         for value in array.ravel().tolist():
             if not _is_real_number(value):

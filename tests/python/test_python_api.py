@@ -757,6 +757,8 @@ def test_record_names_as_record_groups():
     ("acceleration", [["0.1", "0.2"]] * 5, "acceleration must be real numbers, not text"),
     ("acceleration", [[0.1, None]] * 5, "acceleration must be real numbers, not NoneType (None)"),
     ("time", [0.0, 0.01, 0.02, 0.03, "later"], "time must be real numbers, not text"),
+    ("acceleration", [[0.1, True]] + [[0.1, 0.2]] * 4, "acceleration must be real numbers, not bool (True)"),
+    ("time", [0.0, 0.01, False, 0.03, 0.04], "time must be real numbers, not bool (False)"),
 ])
 def test_a_record_of_numbers_that_are_not_real_is_refused(argument, values, words):
     """Complex, logical, text or missing values in a Record are refused by
