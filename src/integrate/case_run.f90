@@ -150,7 +150,7 @@ contains
     type(running_t) :: fresh
     run%stats = fresh
     call start_running(run%stats, step_quantities(obs), cs%param)
-    call track(run, res, 0.0_wp, obs)
+    call track(run, res, 0.0_wp, obs, still=.false.)       ! (sliding: not at rest)
   end subroutine restart_case
 
   !> Harmonic forcing: the fit of the steady response at the forcing
@@ -317,24 +317,26 @@ contains
 
   !> Everything a fixed step's end point adds to the summary; the maxima of
   !> Theta from the step ends (refined by parabolas).
-  pure subroutine track(run, res, t, obs)
+  pure subroutine track(run, res, t, obs, still)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    logical, intent(in), optional :: still      !< whether the ball is at rest there, where known
     ! maxima of tan Theta are the maxima of Theta (tan is increasing)
     call run%maxima%add(t, obs%tan_nutation)
-    call track_step_end(run, res, t, obs)
+    call track_step_end(run, res, t, obs, still)
   end subroutine track
 
   !> What any step's end point adds to the summary but the maxima of Theta.
-  pure subroutine track_step_end(run, res, t, obs)
+  pure subroutine track_step_end(run, res, t, obs, still)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    logical, intent(in), optional :: still      !< whether the ball is at rest there, where known
     call track_cup_motion(run, t, obs%center_acceleration(1:2), obs%base_acceleration(1:2))
-    call track_rolling_resistance(run, res, t, obs)
+    call track_rolling_resistance(run, res, t, obs, still)
     call accumulate(run, res, t, obs)
   end subroutine track_step_end
 

@@ -143,7 +143,7 @@ contains
       res%n_steps = k
       if (ended) return
       t = k * cs%param(p_dt)
-      call track_balance(run, res, t, now%obs, tally)
+      call track_balance(run, res, t, now, tally)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
       if (k >= n_steps .and. n_last > n_steps) then
@@ -245,7 +245,7 @@ contains
         return
       end if
       t = t_next
-      call track_balance(run, res, t, now%obs, tally)
+      call track_balance(run, res, t, now, tally)
       if (sample_due(run, plan, t)) then
         call record_regime_sample(res, run%next_sample, now)
         run%next_sample = run%next_sample + 1
@@ -534,7 +534,7 @@ contains
     now = x
     if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
     if (now%sliding) call finish_stop(integrator, run, rolling, sb, h - offset, t_at, now, tally, res, offset)
-    call track_balance(run, res, t_at, now%obs, tally)
+    call track_balance(run, res, t_at, now, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
     else
