@@ -21,7 +21,7 @@ module ellroll_batch_run
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
-      track_rolling_resistance, latest_end, settled
+      track_rolling_resistance, settled, last_fixed_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, slip_inside
@@ -159,9 +159,7 @@ contains
         i = merge(l, donor, active(l))
         h(l) = cases(i)%param(p_dt)
         n_steps(l) = nint(cases(i)%t_end / cases(i)%param(p_dt), i8)
-        n_last(l) = n_steps(l)
-        if (latest_end(cases(i), run(i)) > cases(i)%t_end) &
-          n_last(l) = max(nint(latest_end(cases(i), run(i)) / cases(i)%param(p_dt), i8), n_steps(l))
+        n_last(l) = last_fixed_step(cases(i), run(i))
         every(l) = steps_per_sample(cases(i), plan)
         if (l <= n) active(l) = active(l) .and. n_last(l) > 0
       end do

@@ -31,11 +31,12 @@ module ellroll_case_run
   use ellroll_harmonic_fit, only: harmonic_fit_t
   use ellroll_ellipsoid, only: contact_from_normal
   use ellroll_system, only: stop_signal
-  use ellroll_params, only: p_scale, p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y, p_settle
+  use ellroll_params, only: p_scale, p_excitation_frequency, p_omega_x, p_omega_z, p_x, p_y, p_settle, p_dt
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled
+  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled, &
+            last_fixed_step
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
             accumulate, record_sample, record_geometry_sample, stored
 
@@ -209,6 +210,15 @@ contains
     if (cs%param(p_settle) > 0 .and. run%ball%rolling_resistance > 0 .and. &
         excitation_end(run%ball%excitation) < huge(1.0_wp)) latest_end = cs%t_end + cs%param(p_settle)
   end function latest_end
+
+  !> The last fixed step (of dt) case cs may take: t_end's, or latest_end's
+  !> where it settles past t_end.
+  pure integer(i8) function last_fixed_step(cs, run) result(n_last)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    n_last = nint(cs%t_end / cs%param(p_dt), i8)
+    if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_last)
+  end function last_fixed_step
 
   !> Whether the ball is at rest for good at the step end t just tracked:
   !> at rest, and the cup at rest for ever from t on (a ball held while the

@@ -15,7 +15,7 @@ module ellroll_fixed_step_run
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
   use ellroll_integrators, only: integrator_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, latest_end, settled
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, settled, last_fixed_step
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -49,8 +49,7 @@ contains
     integer :: status, event
 
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
-    n_last = n_steps           ! past t_end (settle): on until the ball is at rest
-    if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_steps)
+    n_last = last_fixed_step(cs, run)     ! past t_end (settle): on until the ball is at rest
     every = steps_per_sample(cs, plan)
     t = 0
     y_checkpoint = y

@@ -20,7 +20,7 @@ module ellroll_slide_run
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, latest_end, settled
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, latest_end, settled, last_fixed_step
   use ellroll_adaptive_run, only: attempt_step, slip_inside
   use ellroll_step_control, only: step_control_t
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
@@ -49,7 +49,8 @@ module ellroll_slide_run
 contains
 
   !> The case from (y, f) at t = 0 (start_case) to t_end (with settle: on
-  !> until the ball rolls at rest for good, as the rolling loops; latest_end)
+  !> until the ball is at rest for good, as the rolling loops; latest_end;
+  !> a sliding step end is never at rest: track_balance)
   !> or the limit it meets. A start whose friction exceeds mu (res%status
   !> slip), or with a velocity of the centre that is not rolling's, starts
   !> sliding; a start whose normal force does not push (rolling's,
@@ -126,17 +127,16 @@ contains
     real(wp) :: t, t_stop, friction_before, friction_start
     logical :: ended
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
-    n_last = n_steps           ! past t_end (settle): on until the ball is at rest
-    if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_steps)
+    n_last = last_fixed_step(cs, run)     ! past t_end (settle): on until the ball is at rest
     every = steps_per_sample(cs, plan)
     t = 0
+    friction_before = huge(1.0_wp)        ! (unknown before the first step: no parabola)
     do k = 1, n_last
       if (stop_asked(k)) then
         res%status = status_pending
         return
       end if
       friction_start = merge(huge(1.0_wp), now%obs%friction_needed, now%sliding)
-      if (k == 1) friction_before = huge(1.0_wp)
       call advance(integrator, run, rolling, sb, t, cs%param(p_dt), .false., now, tally, res, ended, t_stop, &
                    friction_before=friction_before)
       friction_before = friction_start
@@ -147,7 +147,7 @@ contains
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
       if (k >= n_steps .and. n_last > n_steps) then
-        if (at_rest_for_good(run, now, t)) exit
+        if (settled(run, t)) exit
       end if
     end do
     res%t_final = t
@@ -189,7 +189,7 @@ contains
     do
       if (.not. t < t_stop) then
         ! past t_end (settle): on until the ball is at rest
-        if (t_stop < latest_end(cs, run) .and. .not. at_rest_for_good(run, now, t)) then
+        if (t_stop < latest_end(cs, run) .and. .not. settled(run, t)) then
           t_stop = latest_end(cs, run)
         else
           exit
@@ -252,22 +252,11 @@ contains
       end if
       h = h * factor
       if (t_stop > cs%t_end) then
-        if (at_rest_for_good(run, now, t)) exit
+        if (settled(run, t)) exit
       end if
     end do
     res%t_final = t
   end subroutine adaptive_slide
-
-  !> Whether the case is at rest for good at the step end t just tracked
-  !> (settled): rolling there (a sliding state's omega says nothing of its
-  !> centre's velocity).
-  pure logical function at_rest_for_good(run, now, t) result(rests)
-    type(run_state_t), intent(in) :: run
-    type(regime_state_t), intent(in) :: now
-    real(wp), intent(in) :: t
-    rests = .not. now%sliding
-    if (rests) rests = settled(run, t)
-  end function at_rest_for_good
 
   !> An embedded pair's attempt of size h from (t, now), and whether its error
   !> rejects it. Sliding: take's step, or its stop bracket's where the slip

@@ -18,18 +18,12 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, run
+from test_messages import tangent_vz
 
 SEED = 20261126
 CASES = int(os.environ.get("ELLROLL_FUZZ_BUDGET", "36"))
 MASS, G = 100.0, 9.81
 STATUSES = {"completed", "rim", "no_fit", "liftoff", "unstable", "nonfinite", "constraint"}
-
-
-def tangent(x, y, a, b, c, vx, vy):
-    """vz that makes (vx, vy, vz) tangent to the cup at contact (x, y)."""
-    z = c - c * math.sqrt(max(0.0, 1 - (x / a) ** 2 - (y / b) ** 2))
-    n = (x / a**2, y / b**2, (z - c) / c**2)
-    return -(n[0] * vx + n[1] * vy) / n[2]
 
 
 def case(index):
@@ -61,7 +55,7 @@ def case(index):
             f"&ball radius = {radius}, mass = {MASS}, mu = {mu}, slip = 'slide', inertia_factor = {k!r}, "
             f"rolling_resistance = {delta} /\n"
             f"&initial x = {x}, y = {y}, omega = {omega}, "
-            f"velocity = {vx!r}, {vy!r}, {tangent(x, y, a, b, c, vx, vy)!r} /\n"
+            f"velocity = {vx!r}, {vy!r}, {tangent_vz(a, b, c, x, y, vx, vy)!r} /\n"
             f"&integration {integration} /\n{excitation}"
             f"&output file = 'out.h5', interval = 0.01, fields = 'energy' /\n")
     return text, scene == "fixed", radius, k, delta >= mu * radius and delta > 0
