@@ -5,6 +5,7 @@
 !> one-case code on that lane. A lane's cup may move: the cups'
 !> accelerations at each stage's time come from ellroll_excitation_lanes.
 module ellroll_batch_run
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
@@ -26,11 +27,11 @@ module ellroll_batch_run
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, slip_inside
   use ellroll_step_control, only: step_control_t, last_step_clipped, round_off_step, cannot_follow, judged_norm
-  use ellroll_params, only: p_atol, p_dt, p_rtol
+  use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
   private
 
-  public :: lanes, batchable, simulate_batch
+  public :: lanes, batchable, lane_result_stands, simulate_batch
 
   !> A batch's lanes: each lane's case state, the lanes' model and cups'
   !> motions, summary, state and derivative, which lanes still run, how
@@ -49,16 +50,28 @@ contains
 
   !> Whether a case runs in a batch (simulate_batch): its method batches
   !> (the method table), its model runs in lanes (runs_in_lanes), it has
-  !> no reference run and it does not go on sliding (the sliding regime runs
-  !> one case at a time); a property of the case alone, so that every run
-  !> and every shard takes the same path for it.
+  !> no reference run and it does not start sliding (&initial velocity); a
+  !> property of the case alone, so that every run and every shard takes the
+  !> same path for it. A case that may slide rolls in its lane as with slip
+  !> = 'end' (status slip where its friction reaches mu N): lane_result_stands.
   pure logical function batchable(cs)
     type(case_t), intent(in) :: cs
     type(method_info_t) :: method
     method = method_info(cs%method)
-    batchable = method%batches .and. .not. (cs%error_estimate .or. cs%slide)
+    batchable = method%batches .and. .not. cs%error_estimate
+    if (batchable .and. cs%slide) batchable = ieee_is_nan(cs%param(p_velocity_x))
     if (batchable) batchable = runs_in_lanes(make_ball(cs), fixed_steps=.not. method%adaptive)
   end function batchable
+
+  !> Whether a batched case's result (res) is its own: a case that may slide
+  !> (slip = 'slide') and did not complete its lane (it slipped, or met a
+  !> limit that sliding would have met otherwise) is the one-case path's to
+  !> run again from t = 0, so its whole result is that path's, bitwise.
+  pure logical function lane_result_stands(cs, res)
+    type(case_t), intent(in) :: cs
+    type(case_result_t), intent(in) :: res
+    lane_result_stands = .not. cs%slide .or. res%status == status_completed .or. res%status == status_pending
+  end function lane_result_stands
 
   !> Up to `lanes` batchable cases of one method advanced together, one per
   !> SIMD lane (ellroll_ball_lanes): steps, f, the summary's quantities, the

@@ -19,12 +19,12 @@ module ellroll_simulate
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_slide_run, only: slide_loop
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
-  use ellroll_batch_run, only: lanes, batchable, simulate_batch
+  use ellroll_batch_run, only: lanes, batchable, lane_result_stands, simulate_batch
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_settle
   implicit none
   private
 
-  public :: simulate_case, simulate_batch, batchable, lanes
+  public :: simulate_case, simulate_batch, batchable, lane_result_stands, lanes
 
 contains
 

@@ -1,15 +1,16 @@
 !> Integrating one block of a campaign's cases, as every way of running a
 !> campaign does (into a file, into memory): the block's batchable cases
-!> together across SIMD lanes, one batch per method, the others one by one.
+!> together across SIMD lanes, one batch per method, the others one by one
+!> (and a batched case whose lane result is not its own: lane_result_stands).
 !> Whether cases share lanes depends on the campaign only (uses_batches),
 !> never on threads, shards or resumption, so results stay bitwise the same.
 module ellroll_block_run
-  use ellroll_kinds, only: i8
+  use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_cases, only: case_t, output_plan_t
   use ellroll_results, only: case_result_t
   use ellroll_campaign, only: campaign_t
-  use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lanes
+  use ellroll_simulate, only: simulate_case, simulate_batch, batchable, lane_result_stands, lanes
   implicit none
   private
 
@@ -38,6 +39,7 @@ contains
     type(case_t), allocatable :: batch_cases(:)
     integer :: n, j, in_batch(lanes), n_batch, first
     logical :: waiting(lanes)
+    real(wp) :: lane_time
     n = size(cases)
     waiting(:n) = [(in_lanes(cases(j)), j = 1, n)]
     do while (any(waiting(:n)))
@@ -61,8 +63,13 @@ contains
     end do
     n_done = n
     do j = 1, n
-      if (in_lanes(cases(j))) cycle
+      lane_time = 0
+      if (in_lanes(cases(j))) then
+        if (lane_result_stands(cases(j), results(j))) cycle
+        lane_time = results(j)%wall_time        ! (the integration time counts both runs)
+      end if
       call simulate_case(cases(j), plan, results(j), err)
+      results(j)%wall_time = results(j)%wall_time + lane_time
       if (err%failed()) then
         n_done = j - 1
         exit
