@@ -42,6 +42,10 @@ module ellroll_slide_regime
     type(observation_t) :: obs
     real(wp) :: slip_speed = 0
     logical :: stalled = .false.     !< a fixed step's slip stopped inside the piece that led here (slide_piece)
+    !> how far the piece that led here went: its size, or, where a fixed
+    !> step's slip stopped or stalled inside it, the time of the substep
+    !> that found it (slide_piece)
+    real(wp) :: reached = 0
     real(wp) :: stopped_at = -1     !< where a fixed step's rest event (rolling) was made (< 0: none)
   end type regime_state_t
 
@@ -112,6 +116,7 @@ contains
     integer(i8), intent(inout) :: n_rhs
     integer :: event
     new%sliding = now%sliding
+    new%reached = h
     if (.not. now%sliding) then
       call step_with_events(integrator, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, n_rhs, event, &
                             new%stopped_at)
@@ -122,7 +127,8 @@ contains
     class is (embedded_pair_t)
       call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
     class default
-      call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%stalled, n_rhs)
+      call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%reached, new%stalled, &
+                       n_rhs)
     end select
     call normalize_normal(new%s)
     if (integrator%stage_limit == no_step_solution) then
@@ -135,7 +141,7 @@ contains
       status = status_completed
     end if
     if (status /= status_completed) return      ! (a state past a limit: its outputs may overflow)
-    call observe_sliding(sb, t + h, new%s, new%obs, new%slip_speed, new%fs)
+    call observe_sliding(sb, t + new%reached, new%s, new%obs, new%slip_speed, new%fs)
     n_rhs = n_rhs + 1
     status = limit_status(rolling%ball, new%s(1:6), new%obs)
   end subroutine take

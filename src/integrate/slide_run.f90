@@ -511,15 +511,15 @@ contains
       if (status == status_completed) g = switch_value(sb, x)
       call search%report(trial, g)
     end do
-    offset = search%high
     call take(integrator, rolling, sb, t_at, search%high, now, x, status, res%n_rhs)
     if (status /= status_completed) then
       call end_at_limit(integrator, run, rolling, sb, t_at, search%high, now, tally, res)
       ended = .true.
       return
     end if
-    call add_sliding_step(integrator, run, rolling, sb, t_at, search%high, now, x, tally, res)
-    t_at = t_at + search%high
+    offset = x%reached                    ! (a fixed step's substeps may find the stop before search%high)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, offset, now, x, tally, res)
+    t_at = t_at + offset
     now = x
     if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
     if (now%sliding) call finish_stop(integrator, run, rolling, sb, h - offset, t_at, now, tally, res, offset)

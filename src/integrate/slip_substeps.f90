@@ -36,22 +36,23 @@ module ellroll_slip_substeps
 contains
 
   !> The piece of size h from (t, y0) (f0 its derivative) of sliding ball sb,
-  !> whose normal force there is big_n: y_end at its end (integrator's
-  !> stage_limit set by the substep that met a limit, where one did), or,
-  !> where the slip stops inside it (the event of sb crosses, or the slip
-  !> stalls: stalled), the state where it did (the caller locates the stop
-  !> by the piece's size).
-  subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, stalled, n_rhs)
+  !> whose normal force there is big_n: y_end at its end, reached = h
+  !> (integrator's stage_limit set by the substep that met a limit, where one
+  !> did), or, where the slip stops inside it (the event of sb crosses, or the
+  !> slip stalls: stalled), the state at the end of the substep where it did,
+  !> reached its time from t (the caller locates the stop by the piece's size).
+  subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, h, y0(slide_state_size), f0(slide_state_size), big_n
-    real(wp), intent(out) :: y_end(slide_state_size)
+    real(wp), intent(out) :: y_end(slide_state_size), reached
     logical, intent(out) :: stalled
     integer(i8), intent(inout) :: n_rhs
     real(wp), dimension(slide_state_size) :: y, f, whole, half, halves, f_half
     real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start
     integer :: k, accepted
     stalled = .false.
+    reached = h
     reach = sb%ball%mu * max(big_n, 0.0_wp) * (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * h
     if (.not. norm2(slip_velocity(sb%ball, y0)) < stiff_reach * reach) then
       call integrator%step(sb, t, y0, f0, h, y_end, n_rhs)
@@ -100,8 +101,10 @@ contains
     end do
     if (integrator%stage_limit /= 0) then
       y_end = whole                   ! (not valid: the caller ends the case where its partial steps meet the limit)
+      reached = h
     else
       y_end = y
+      reached = min(tau, h)
     end if
   end subroutine slide_piece
 
