@@ -16,6 +16,7 @@
 !> max_phase_step of the oscillator's phase apart, with the Hermite cubic's
 !> peak between them.
 module ellroll_intensity
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp
   implicit none
   private
@@ -37,6 +38,21 @@ module ellroll_intensity
   !> Largest phase step (omega h, rad) between the exact points of Sa's
   !> oscillator (oscillator_sub_steps).
   real(wp), parameter :: max_phase_step = 0.05_wp
+  !> Most exact points per sample step. An oscillator whose period is far
+  !> below the sample step (it would need more) follows the piecewise-linear
+  !> record quasi-statically apart from the transient that each kink of the
+  !> record starts, of relative size about its period over the step; that
+  !> transient has died out by exp(-zeta max_phase_step max_sub_steps) =
+  !> exp(-10) after max_sub_steps - 1 points at max_phase_step, and the rest
+  !> of the step is one exact step (whose |u|, a line there, peaks at an
+  !> end): stiff_sample_step.
+  integer, parameter :: max_sub_steps = 4000
+
+  !> stiff_sample_step's propagator over its fine step (h_fine < 0: none yet)
+  type :: stiff_propagators_t
+    real(wp) :: h_fine = -1
+    real(wp) :: fine(4, 4) = 0
+  end type stiff_propagators_t
 
   type :: record_intensity_t
     real(wp) :: pga = 0     !< m/s^2, peak of |a_g| (horizontal)
@@ -91,20 +107,33 @@ contains
   end function record_intensity
 
   !> Sa(T) = (2 pi / T)^2 max |u| for each period (s) at damping ratio zeta,
-  !> the oscillator at rest at the first sample.
+  !> the oscillator at rest at the first sample (NaN at a period that is not
+  !> positive and finite).
   pure function pseudo_spectral_acceleration(times, values, periods, zeta) result(sa)
     real(wp), intent(in) :: times(:), values(:, :), periods(:), zeta
     real(wp) :: sa(size(periods))
     real(wp) :: omega, peak, x(2, 2), x_prev(2, 2), h, h_step, f0(2), f1(2), slope(2), propagator(4, 4)
-    real(wp) :: u_prev(2), v_prev(2), u_now(2), v_now(2)
+    type(stiff_propagators_t) :: stiff
     integer :: p, k, j, sub_steps
     do p = 1, size(periods)
+      if (.not. (periods(p) > 0 .and. periods(p) < huge(1.0_wp))) then
+        sa(p) = ieee_value(0.0_wp, ieee_quiet_nan)
+        cycle
+      end if
       omega = 8 * atan(1.0_wp) / periods(p)
       x = 0                                 ! (u, v) of each horizontal component
       peak = 0
       h_step = -1
+      stiff = stiff_propagators_t()
       do k = 1, size(times) - 1
         sub_steps = oscillator_sub_steps(omega, times(k + 1) - times(k))
+        f0 = -values(1:2, k)
+        f1 = -values(1:2, k + 1)
+        slope = (f1 - f0) / (times(k + 1) - times(k))
+        if (sub_steps > max_sub_steps) then
+          call stiff_sample_step(omega, zeta, times(k + 1) - times(k), spacing(times(k + 1)), f0, slope, x, peak, stiff)
+          cycle
+        end if
         h = (times(k + 1) - times(k)) / sub_steps
         ! records on an even grid: once (their times k dt repeat the step
         ! only to the round-off of t, whose effect on the propagator is
@@ -113,32 +142,110 @@ contains
           propagator = exponential(oscillator(omega, zeta) * h)
           h_step = h
         end if
-        f0 = -values(1:2, k)
-        f1 = -values(1:2, k + 1)
-        slope = (f1 - f0) / (times(k + 1) - times(k))
         do j = 1, sub_steps
           x_prev = x
           x = advance(propagator, x, f0 + slope * (h * (j - 1)), slope)
-          ! between the exact states: Hermite's cubic of u from u and u'
-          ! (error of order (omega h)^4 of the peak)
-          u_prev = x_prev(1, :)      ! (contiguous: no array temporaries)
-          v_prev = x_prev(2, :)
-          u_now = x(1, :)
-          v_now = x(2, :)
-          peak = max(peak, hypot(x(1, 1), x(1, 2)), hermite_peak(u_prev, v_prev, u_now, v_now, h))
+          peak = max(peak, sub_step_peak(x_prev, x, h))
         end do
       end do
       sa(p) = omega**2 * peak
     end do
   end function pseudo_spectral_acceleration
 
+  !> The largest |u| of a sub-step of size piece from the exact state x_prev
+  !> to x: at its end or, between them, on Hermite's cubic of u from u and u'
+  !> (error of order (omega piece)^4 of the peak).
+  pure real(wp) function sub_step_peak(x_prev, x, piece) result(peak)
+    real(wp), intent(in) :: x_prev(2, 2), x(2, 2), piece
+    real(wp) :: u_prev(2), v_prev(2), u_now(2), v_now(2)
+    u_prev = x_prev(1, :)      ! (contiguous: no array temporaries)
+    v_prev = x_prev(2, :)
+    u_now = x(1, :)
+    v_now = x(2, :)
+    peak = max(hypot(x(1, 1), x(1, 2)), hermite_peak(u_prev, v_prev, u_now, v_now, piece))
+  end function sub_step_peak
+
+  !> A sample step of length step (spacing_end: its end time's) of the
+  !> oscillator omega, zeta far stiffer than the step (max_sub_steps), from
+  !> its state x (u, v of each component) with forcing f0 at its start and
+  !> slope df/dt: max_sub_steps - 1 points max_phase_step apart and one exact
+  !> step to the end (long_scaled_step), in the variables (omega^2 u, omega
+  !> v), whose propagator's entries are of order omega h (those of (u, v)
+  !> span omega^2 h to h^2 / 2: round-off would swamp the small ones); peak:
+  !> the largest |u| so far.
+  pure subroutine stiff_sample_step(omega, zeta, step, spacing_end, f0, slope, x, peak, cache)
+    real(wp), intent(in) :: omega, zeta, step, spacing_end, f0(2), slope(2)
+    real(wp), intent(inout) :: x(2, 2), peak
+    type(stiff_propagators_t), intent(inout) :: cache
+    real(wp) :: xs(2, 2), xs_prev(2, 2), h, h_rest
+    integer :: j
+    h = max_phase_step / omega
+    h_rest = step - (max_sub_steps - 1) * h
+    if (.not. abs(h - cache%h_fine) <= 4 * spacing_end) then
+      cache%fine = exponential(scaled_oscillator(omega, zeta) * h)
+      cache%h_fine = h
+    end if
+    xs(1, :) = omega**2 * x(1, :)
+    xs(2, :) = omega * x(2, :)
+    do j = 1, max_sub_steps
+      xs_prev = xs
+      if (j < max_sub_steps) then
+        xs = advance(cache%fine, xs, f0 + slope * (h * (j - 1)), slope)
+        peak = max(peak, scaled_peak(xs_prev, xs, omega, h) / omega**2)
+      else
+        xs = long_scaled_step(xs, omega, zeta, f0 + slope * (h * (j - 1)), slope, h_rest)
+        peak = max(peak, scaled_peak(xs_prev, xs, omega, h_rest) / omega**2)
+      end if
+    end do
+    x(1, :) = xs(1, :) / omega**2
+    x(2, :) = xs(2, :) / omega
+  end subroutine stiff_sample_step
+
+  !> The state (omega^2 u, omega v) of each component after time tau from
+  !> x, the forcing f + slope t over it, in closed form: the particular
+  !> solution (f - 2 zeta slope / omega, slope / omega) plus the damped free
+  !> oscillation of the difference (a matrix exponential over omega tau >=
+  !> 200 would lose the small entries to its squarings' round-off).
+  pure function long_scaled_step(x, omega, zeta, f, slope, tau) result(next)
+    real(wp), intent(in) :: x(2, 2), omega, zeta, f(2), slope(2), tau
+    real(wp) :: next(2, 2), d0, e0, decay, c, s, root
+    integer :: k
+    root = sqrt(1 - zeta**2)
+    decay = exp(-zeta * omega * tau)
+    c = cos(root * omega * tau)
+    s = sin(root * omega * tau)
+    do k = 1, 2
+      d0 = x(1, k) - (f(k) - 2 * zeta * slope(k) / omega)
+      e0 = x(2, k) - slope(k) / omega
+      next(1, k) = (f(k) + slope(k) * tau - 2 * zeta * slope(k) / omega) + decay * (d0 * c + (e0 + zeta * d0) / root * s)
+      next(2, k) = slope(k) / omega + decay * (e0 * c - (d0 + zeta * e0) / root * s)
+    end do
+  end function long_scaled_step
+
+  !> sub_step_peak in the variables (omega^2 u, omega v) of x_prev and x:
+  !> the largest omega^2 |u|.
+  pure real(wp) function scaled_peak(x_prev, x, omega, piece) result(peak)
+    real(wp), intent(in) :: x_prev(2, 2), x(2, 2), omega, piece
+    real(wp) :: u_prev(2), q_prev(2), u_now(2), q_now(2)
+    u_prev = x_prev(1, :)
+    q_prev = omega * x_prev(2, :)       ! (omega^2 u)' = omega (omega v)
+    u_now = x(1, :)
+    q_now = omega * x(2, :)
+    peak = max(hypot(x(1, 1), x(1, 2)), hermite_peak(u_prev, q_prev, u_now, q_now, piece))
+  end function scaled_peak
+
   !> Exact points per sample step of length h for the oscillator of angular
   !> frequency omega: at most max_phase_step radians apart, so that the
   !> Hermite cubic between them misses a peak by less than about
-  !> max_phase_step^4 / 384 of it (2e-8); at least one.
+  !> max_phase_step^4 / 384 of it (2e-8); at least one; max_sub_steps + 1
+  !> where it would be more than max_sub_steps (no integer overflow).
   pure integer function oscillator_sub_steps(omega, h)
     real(wp), intent(in) :: omega, h
-    oscillator_sub_steps = max(1, ceiling(omega * h / max_phase_step))
+    if (omega * h / max_phase_step > max_sub_steps) then
+      oscillator_sub_steps = max_sub_steps + 1
+    else
+      oscillator_sub_steps = max(1, ceiling(omega * h / max_phase_step))
+    end if
   end function oscillator_sub_steps
 
   !> The largest |p(s)| inside [0, delta] of the cubic Hermite interpolant
@@ -196,6 +303,18 @@ contains
       next(:, c) = matmul(propagator(1:2, :), [x(1, c), x(2, c), f(c), slope(c)])
     end do
   end function advance
+
+  !> oscillator's matrix in the variables (omega^2 u, omega v, f, f')
+  pure function scaled_oscillator(omega, zeta) result(a)
+    real(wp), intent(in) :: omega, zeta
+    real(wp) :: a(4, 4)
+    a = 0
+    a(1, 2) = omega
+    a(2, 1) = -omega
+    a(2, 2) = -2 * zeta * omega
+    a(2, 3) = omega
+    a(3, 4) = 1
+  end function scaled_oscillator
 
   pure function oscillator(omega, zeta) result(a)
     real(wp), intent(in) :: omega, zeta

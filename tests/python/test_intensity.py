@@ -118,6 +118,46 @@ def test_spectral_acceleration_equals_an_independent_newmark_integration(shipped
         assert value == pytest.approx(newmark_peak(times, acc, period), rel=1e-5)
 
 
+def test_a_stiff_oscillator_tends_to_the_ground_peak_at_first_order(ellroll, tmp_path):
+    """Periods far below the record's 0.02 s step (down to the 1e-7 s of a
+    ball's gyroscopic mode, and beyond): the oscillator follows the
+    piecewise-linear record, and Sa tends to PGA from above at first order
+    in T (the response's lag and overshoot after each kink of the record):
+    (Sa / PGA - 1) / T the same from 1e-12 to 1e-6 s, and continuous where
+    the oscillator's work per sample step is bounded (4000 exact points at
+    most: stiff below about 6.3e-4 s here)."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    periods = (1e-12, 1e-9, 1e-6, 6e-4, 7e-4)
+    with run_input(ellroll, tmp_path, "record_file = 'records/SYN2_H1.AT2', 'records/SYN2_H2.AT2'",
+                   ", ".join(map(repr, periods)), 1.0) as f:
+        pga = f["case/pga"][0]
+        sa = np.array([f[f"case/sa_{period:g}"][0] for period in periods])
+    assert np.all(sa >= pga)
+    rate = (sa / pga - 1) / np.array(periods)
+    assert rate[:3] == pytest.approx(rate[2], rel=1e-3), rate
+    assert rate[3:] == pytest.approx(rate[2], rel=1e-3), rate
+
+
+def test_a_fast_spin_s_gyroscopic_period_gets_its_sa_in_bounded_time(ellroll, tmp_path):
+    """A ball spinning at 1e5 rad/s about the normal in a spherical cup: a
+    gyroscopic mode of period 2.2e-7 s, whose Sa (sa_linear_periods) is the
+    record's PGA to 1e-5, in bounded time."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    (tmp_path / "spin.nml").write_text("""&geometry a = 1.0, b = 1.0, c = 1.0 /
+&ball radius = 0.999, mass = 1.0 /
+&initial x = 0.0, y = 0.0, omega = 0, 0, 100000.0 /
+&integration method = 'rk4', dt = 1e-05, t_end = 0.001 /
+&excitation kind = 'record', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /
+&output file = 'spin.h5', interval = 0.001 /
+""")
+    result = run(ellroll, "run", "spin.nml", "-q", cwd=tmp_path, timeout=60)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "spin.h5", "r") as f:
+        period, sa, pga = f["summary/linear_periods"][0, 0], f["summary/sa_linear_periods"][0, 0], f["case/pga"][0]
+    assert period == pytest.approx(2.2013e-7, rel=1e-4)
+    assert pga <= sa <= pga * (1 + 1e-5)
+
+
 def sine_response_peak(amplitude, forcing, period, duration, dt=1e-4):
     """max |u| over [0, duration] of u'' + 2 zeta w u' + w^2 u = -A sin(W t)
     from rest, in closed form: the steady state X sin + Y cos plus the
