@@ -5,6 +5,8 @@
 program ellroll
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   !$ use omp_lib, only: omp_set_num_threads
+  !$ use ellroll_kinds, only: i8
+  !$ use ellroll_threads, only: team_size
   use ellroll_errors, only: error_t, err_interrupted, exit_code
   use ellroll_hdf5_common, only: hdf5_close_failed
   use ellroll_system, only: tune_runtime, exit_now
@@ -26,7 +28,7 @@ program ellroll
   call tune_runtime()
   call ranks_start(rank, n_ranks)
   call parse_arguments(cli, err)
-  !$ if (cli%opts%threads > 0) call omp_set_num_threads(cli%opts%threads)   ! for every parallel loop
+  !$ call omp_set_num_threads(team_size(cli%opts%threads, huge(1_i8)))   ! for every parallel loop (capped)
   if (.not. err%failed()) then
     select case (cli%command)
     case ('help')

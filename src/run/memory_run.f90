@@ -11,6 +11,7 @@ module ellroll_memory_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   !$ use omp_lib, only: omp_get_max_threads, omp_set_num_threads
   use ellroll_kinds, only: wp, i8
+  use ellroll_threads, only: team_size
   use ellroll_errors, only: error_t, set_error, err_interrupted
   use ellroll_system, only: stop_signal, signal_name
   use ellroll_strings, only: itoa
@@ -91,7 +92,7 @@ contains
     ! --threads` sets it (for the calling thread only; put back at the end)
     default_threads = 0
     !$ default_threads = omp_get_max_threads()
-    !$ if (threads > 0) call omp_set_num_threads(threads)
+    !$ call omp_set_num_threads(team_size(threads, huge(1_i8)))
     call run_input(label, text, threads, out)
     !$ call omp_set_num_threads(default_threads)
   end subroutine run_in_memory
@@ -138,9 +139,7 @@ contains
     integer :: n_threads, failed
     logical :: use_batches
     n_cases = inp%campaign%n_cases()
-    n_threads = 1
-    !$ n_threads = omp_get_max_threads()
-    if (threads > 0) n_threads = threads
+    n_threads = team_size(threads, n_cases)
     use_batches = uses_batches(inp%campaign)
     block_slots = lanes
     if (.not. use_batches) block_slots = max(1_i8, min(int(lanes, i8), n_cases / (4_i8 * n_threads)))

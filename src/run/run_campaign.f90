@@ -13,7 +13,7 @@
 !> journaled cases' trajectories, and moves it over OUT.partial
 !> (ellroll_resume).
 module ellroll_run_campaign
-  !$ use omp_lib, only: omp_get_max_threads
+  use ellroll_threads, only: team_size
   use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_interrupted
@@ -146,9 +146,7 @@ contains
     type(run_state_t), intent(inout) :: run
     integer(i8) :: chunk
     integer :: n_threads
-    n_threads = 1
-    !$ n_threads = omp_get_max_threads()
-    if (opts%threads > 0) n_threads = opts%threads
+    n_threads = team_size(opts%threads, run%n_slots)
     call run%progress%start(run%n_slots, count(run%done, kind=i8), opts%quiet)
     ! In a campaign that batches (uses_batches), blocks of `lanes` slots
     ! whose batchable cases run together across SIMD lanes (simulate_block).

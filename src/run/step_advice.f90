@@ -9,6 +9,7 @@ module ellroll_step_advice
   use ellroll_cases, only: case_t, output_plan_t, case_problem, make_ball, adaptive_method, is_multiple
   use ellroll_results, only: case_result_t
   use ellroll_status, only: status_completed
+  use ellroll_threads, only: team_size
   use ellroll_simulate, only: simulate_case
   use ellroll_rolling_ball, only: rolling_ball_t, initial_state
   use ellroll_linear, only: fastest_rate
@@ -45,7 +46,7 @@ contains
     if (err%failed()) return
     limit = stability_limit(integrator)
     allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1))
-    !$omp parallel do schedule(dynamic, 256)
+    !$omp parallel do schedule(dynamic, 256) num_threads(team_size(0, (inp%campaign%n_cases() + 255) / 256))
     do i = 0, inp%campaign%n_cases() - 1
       call start_rate(i, rates(i), steps(i))
     end do

@@ -125,6 +125,26 @@ def test_threads_give_bitwise_the_same_check_and_run(ellroll, tmp_path, name):
                 f"repeat {repeat}, {threads} threads: {differing[:10]}"
 
 
+@pytest.mark.parametrize("how", ["option", "environment"])
+def test_a_huge_thread_count_is_capped_and_gives_the_same_bits(ellroll, tmp_path, how):
+    """--threads or OMP_NUM_THREADS far beyond the machine (100,000 threads'
+    stacks exhaust the memory): each loop takes at most its units of work
+    and 16 threads per processor; the file is the one thread's."""
+    folder = campaign_folder(tmp_path, "fixed_rk4")
+    reference = run(ellroll, "run", "c.nml", "-o", "one.h5", "--threads", 1, "-q", cwd=folder)
+    assert reference.returncode == 0, reference.stderr
+    if how == "option":
+        for threads in (100000, 2**31 - 1):
+            result = run(ellroll, "run", "c.nml", "-o", "many.h5", "--threads", threads, "-q", "--overwrite",
+                         cwd=folder)
+            assert result.returncode == 0, result.stderr
+    else:
+        result = subprocess.run([str(ellroll), "run", "c.nml", "-o", "many.h5", "-q"], cwd=folder, capture_output=True,
+                                text=True, timeout=120, env=dict(os.environ, OMP_NUM_THREADS="100000"))
+        assert result.returncode == 0, result.stderr
+    assert file_contents(folder / "many.h5") == file_contents(folder / "one.h5")
+
+
 def test_threads_give_the_same_check_of_many_cases(ellroll, tmp_path):
     (tmp_path / "c.nml").write_text(MANY_STARTS)
     checked = run(ellroll, "check", "c.nml", "--threads", 1, cwd=tmp_path)
