@@ -148,6 +148,7 @@ contains
               return
             end if
             call read_assignment(grp, k, v, ios, msg)
+            if (ios == 0 .and. lone_sign(grp%name, item)) ios = 1      ! (gfortran reads a sign alone as 0)
             if (ios /= 0) then
               call bad_value_reason(grp%name, item, reason)
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // excerpt(item%value) // reason)
@@ -353,7 +354,7 @@ contains
       end if
       if (kind == 't') cycle
       read (token, *, iostat=ios) x
-      if (ios /= 0 .or. scan(token, '''"/') > 0) then
+      if (ios /= 0 .or. scan(token, '''"/') > 0 .or. token == '-' .or. token == '+') then
         reason = ' is not a number'
         if (len(token) < len(item%value)) reason = ': ' // token // ' is not a number'
         return
@@ -373,6 +374,31 @@ contains
       reason = ': ' // itoa(count) // ' values given; ' // item%base // ' holds ' // itoa(capacity)
     end if
   end subroutine bad_value_reason
+
+  !> Whether a value of a numeric assignment is a sign alone (also after a
+  !> repeat count, r*-): gfortran's read takes it for 0.
+  logical function lone_sign(group, item)
+    character(len=*), intent(in) :: group
+    type(nml_assignment_t), intent(in) :: item
+    character :: kind
+    integer :: capacity, start, pos, star
+    lone_sign = .false.
+    if (variable_row(group, item%base) == 0) then
+      call own_variable_shape(item%base, kind, capacity)
+      if (kind == 't') return
+    end if
+    start = 1
+    do pos = 1, len(item%value) + 1
+      if (pos <= len(item%value)) then
+        if (item%value(pos:pos) /= ',' .and. item%value(pos:pos) /= ' ' .and. item%value(pos:pos) /= achar(10)) cycle
+      end if
+      if (pos > start) then
+        star = index(item%value(start:pos - 1), '*')
+        if (item%value(start + star:pos - 1) == '-' .or. item%value(start + star:pos - 1) == '+') lone_sign = .true.
+      end if
+      start = pos + 1
+    end do
+  end function lone_sign
 
   !> The kind ('r' real, 'i' integer, 't' text) and number of values of a
   !> group's own variable (read_namelist's).

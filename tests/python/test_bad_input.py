@@ -22,6 +22,10 @@ CASES = [
      ["&output", "interval = 0.07", "whole number of output intervals"]),
     ("malformed number", [("dt = 1.0e-3", "dt = 1.0e-3.5")], ["case.nml:8:", "&integration", "dt = 1.0e-3.5", "dt = 1.0e-3.5 is not a number"]),
     ("text for a number", [("dt = 1.0e-3", "dt = 'fast'")], ["&integration", "dt = 'fast'", "dt = 'fast' is not a number"]),
+    # (gfortran's namelist read takes a sign alone for 0)
+    ("a sign alone", [("x = 0.0", "x = -")], ["case.nml:7:", "&initial", "x = - is not a number"]),
+    ("a plus sign alone", [("dt = 1.0e-3", "dt = +")], ["case.nml:8:", "&integration", "dt = + is not a number"]),
+    ("a repeated sign alone", [("interval = 0.01", "interval = 1*-")], ["&output", "interval = 1*-: - is not a number"]),
     ("NaN", [("a = 1.0", "a = NaN")], ["case.nml:4:", "&geometry", "a = NaN", "finite"]),
     ("infinity", [("t_end = 30.0", "t_end = Inf")], ["&integration", "t_end = Inf", "finite"]),
     ("huge", [("a = 1.0", "a = 1e300")], ["&geometry", "a = 1e300", "must be between"]),
