@@ -22,6 +22,7 @@ import pytest
 
 from test_campaign import assert_same_datasets
 from test_fuzz import CRASH_SIGNS
+from test_output_safety import printed_folder
 
 FULL = os.environ.get("ELLROLL_FAULT_FULL") == "1"
 SAMPLE_PER_KIND = 3          # in CI: the first, the last and this many more of each kind
@@ -173,3 +174,19 @@ def test_a_fault_at_each_write_is_an_error_or_the_right_file(ellroll, tmp_path, 
         shutil.rmtree(folder)
     print(f"{command}: {sum(len(v) for v in ordinals.values())} write-type calls "
           f"({', '.join(f'{k} {len(v)}' for k, v in ordinals.items() if v)}); injected: {outcomes}")
+
+
+@pytest.fixture(scope="module")
+def printed(ellroll, tmp_path_factory):
+    return printed_folder(ellroll, tmp_path_factory)
+
+
+@pytest.mark.parametrize("command", [["inputs"], ["summary", "w.h5", "--format", "csv"]], ids=" ".join)
+def test_an_io_error_on_standard_output_is_exit_3(ellroll, printed, command):
+    """write(2) on descriptor 1 failing with EIO (the first such write after
+    the program starts: the dynamic loader writes nothing) is exit 3 too."""
+    result = subprocess.run([STRACE, "-f", "-o", "/dev/null", "-e", "trace=write", "-e", "inject=write:error=EIO:when=1",
+                             str(ellroll), *command], cwd=printed, capture_output=True, text=True, timeout=120)
+    no_crash(result, command)
+    assert result.returncode == 3, result.stderr
+    assert "cannot write the standard output: Input/output error" in result.stderr
