@@ -138,7 +138,9 @@ def main(argv=None):
     if args.command == "fragility" and args.bootstrap < 0:
         parser.error("--bootstrap must be 0 or more")
     if args.command == "report" and args.out == ".":
-        args.out = str(pathlib.Path(args.file).with_suffix("")) + "_report"
+        # FILE_report beside FILE ("." or "/" have no name: open_run refuses them, a folder)
+        name = pathlib.Path(args.file)
+        args.out = str(name.with_suffix("") if name.name else name) + "_report"
 
     import matplotlib
     matplotlib.use("Agg")
@@ -175,8 +177,8 @@ def main(argv=None):
             print(path)
             return 0
         out = pathlib.Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
         if args.command == "workprecision":
+            out.mkdir(parents=True, exist_ok=True)
             written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
             check_target(written[0], args.overwrite)
             points = workprecision_points(args.files)
@@ -185,6 +187,7 @@ def main(argv=None):
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
+                out.mkdir(parents=True, exist_ok=True)     # (once the file opened: no folder for a bad one)
                 if args.command == "report":
                     run.check_case(args.case)
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,

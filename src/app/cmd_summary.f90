@@ -362,6 +362,14 @@ contains
       write (counted, '(i10)') count(status == s)
       call put_line('  ' // label // counted)
     end do
+    ! a status this program does not know (a file from a later version, or
+    ! altered) is counted as `unknown`, as status_name names it: the counts
+    ! add up to the cases
+    if (any(status < 0 .or. status >= status_count)) then
+      label = status_name(-1)
+      write (counted, '(i10)') count(status < 0 .or. status >= status_count)
+      call put_line('  ' // label // counted)
+    end if
     ran = status /= status_pending .and. status /= status_invalid
     if (.not. any(ran)) return
     slowest = maxloc(wall, dim=1, mask=ran)
