@@ -388,3 +388,24 @@ def test_report_of_a_folder_is_a_clear_error(tmp_path):
     assert result.returncode == 2 and "cannot open" in result.stderr
     assert not (tmp_path / "missing_report").exists()          # nothing made for a file that cannot be read
 
+
+def test_suite_figures_of_a_partial_file_say_its_finished_cases_hold_one_record(suite_file, tmp_path):
+    """An interrupted suite whose finished cases all ran one record: its
+    pending cases hold no record yet; suite and fragility say so."""
+    partial = tmp_path / "suite.h5.partial"
+    partial.write_bytes(suite_file.read_bytes())
+    with h5py.File(partial, "r+") as f:
+        records = np.array([r.decode().strip() if isinstance(r, bytes) else str(r).strip() for r in f["case/record"][:]])
+        first = records[0]
+        status = f["summary/status"][:]
+        status[records != first] = 0                       # pending
+        f["summary/status"][...] = status
+        blank = f["case/record"][:]
+        blank[records != first] = b""
+        f["case/record"][...] = blank
+        finished, n_cases = int(np.sum(records == first)), len(records)
+    for command in ("suite", "fragility"):
+        result = plot_cli(command, partial, "--out", tmp_path)
+        assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+        assert (f"its {finished} finished cases of {n_cases} hold one record ({first}); a suite's figures need two "
+                "or more") in result.stderr, result.stderr
