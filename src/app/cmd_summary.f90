@@ -89,7 +89,12 @@ contains
       wall = file%real_column('summary/wall_time', err)
       theta_max = file%real_column('summary/theta_max', err)
     end if
-    if (format /= 'table' .or. size(status) > 1) columns = summary_columns(file, err)
+    ! (apart: status is read for a table only, and .or. may evaluate both sides)
+    if (format /= 'table') then
+      columns = summary_columns(file, err)
+    else if (size(status) > 1) then
+      columns = summary_columns(file, err)
+    end if
     call file%close()
     if (err%failed()) return
     select case (format)
