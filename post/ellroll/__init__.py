@@ -205,11 +205,27 @@ def _literal(value, where):
                          _INPUT)
     if isinstance(value, (list, tuple, np.ndarray)):
         items = np.asarray(value, dtype=object).ravel() if isinstance(value, np.ndarray) else value
+        if any(isinstance(item, (list, tuple, np.ndarray)) for item in items):
+            items = _rows(value, where)
         if len(items) == 0:
             raise InputError(f"{where}: an empty list has no namelist value", _INPUT)
         return ", ".join(_literal(item, where) for item in items)
     raise InputError(f"{where}: {value!r} ({type(value).__name__}) has no namelist value "
                      "(numbers, logicals, texts or lists of them)", _INPUT)
+
+
+def _rows(value, where):
+    """A nested list's items row by row, as numpy would lay out its array;
+    InputError for a ragged one (rows of different lengths), whose values
+    would otherwise run as one flat list that nobody wrote."""
+    try:
+        array = np.array(value, dtype=object)
+    except ValueError:
+        array = None
+    if array is None or any(isinstance(item, (list, tuple, np.ndarray)) for item in array.ravel()):
+        raise InputError(f"{where}: {value!r} is a ragged nested list (rows of different lengths): give one "
+                         "list of values, or rows of one length", _INPUT)
+    return array.ravel()
 
 
 _GROUP_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*", re.ASCII)
@@ -686,9 +702,19 @@ def _run_text(text, threads, path, results):
     if threads is not None and (isinstance(threads, (bool, np.bool_)) or not isinstance(threads, (int, np.integer))
                                 or not 1 <= threads <= 2**31 - 1):
         raise InputError(f"threads = {threads!r}: give a count from 1 to {2**31 - 1}, or None", _INPUT)
+    if path is not None and not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"path = {path!r} ({type(path).__name__}): give a file name (str or os.PathLike), "
+                         "or None", _INPUT)
+    # a path as the file system names it (os.fsencode keeps the bytes of a
+    # name os.fsdecode read); the text must be Unicode the library can read
+    label = os.fsencode(path) if path is not None else b"<input>"
+    try:
+        encoded = text.encode()
+    except UnicodeEncodeError as error:
+        line = text.count("\n", 0, error.start) + 1
+        raise InputError(f"{os.fsdecode(label)}: line {line}: the text holds {text[error.start]!r}, a lone surrogate "
+                         "(a byte that was not UTF-8), not a character", _INPUT) from None
     lib = _library or _lib()
-    label = (path if path is not None else "<input>").encode()
-    encoded = text.encode()
     handle = _interruptible_run(lib, encoded, len(encoded), label, len(label), int(threads or 0))
     if not handle:
         raise Error("libellroll: out of memory")

@@ -79,6 +79,22 @@ def workprecision_points(paths):
     return points
 
 
+def check_suite(run, path):
+    """A record suite's figures need two or more records among the cases run. A
+    partial file's pending cases hold no record yet: where its finished ones
+    hold fewer than two, say so (the input may well be a suite)."""
+    names = run.record_names()
+    finished = [n for n, status in zip(names, run.status_names()) if status != "pending"]
+    held = sorted(set(finished) - {""})
+    if len(held) >= 2:
+        return
+    if len(finished) < len(names):
+        which = f"one record ({held[0]})" if held else "no record"
+        raise NotAnEllrollFile(f"{path}: its {len(finished)} finished cases of {len(names)} hold {which}; a suite's "
+                               "figures need two or more (finish the run: ellroll run --resume)")
+    raise NotAnEllrollFile(f"{path}: not a record suite (give two or more &record groups)")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="ellroll-plot", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -138,7 +154,9 @@ def main(argv=None):
     if args.command == "fragility" and args.bootstrap < 0:
         parser.error("--bootstrap must be 0 or more")
     if args.command == "report" and args.out == ".":
-        args.out = str(pathlib.Path(args.file).with_suffix("")) + "_report"
+        # FILE_report beside FILE ("." or "/" have no name: open_run refuses them, a folder)
+        name = pathlib.Path(args.file)
+        args.out = str(name.with_suffix("") if name.name else name) + "_report"
 
     import matplotlib
     matplotlib.use("Agg")
@@ -155,8 +173,7 @@ def main(argv=None):
             return 0
         if args.command == "fragility":
             with open_run(args.file) as run:
-                if len(set(run.record_names()) - {""}) < 2:
-                    raise NotAnEllrollFile(f"{args.file}: not a record suite (give two or more &record groups)")
+                check_suite(run, args.file)
                 plots.intensity(run, args.im)           # a clear error before anything is written
                 if args.format in ("table", "csv", "json"):
                     table, _ = plots.suite_fragility(run, args.im, args.bootstrap, args.seed)
@@ -175,8 +192,8 @@ def main(argv=None):
             print(path)
             return 0
         out = pathlib.Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
         if args.command == "workprecision":
+            out.mkdir(parents=True, exist_ok=True)
             written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
             check_target(written[0], args.overwrite)
             points = workprecision_points(args.files)
@@ -185,6 +202,7 @@ def main(argv=None):
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
+                out.mkdir(parents=True, exist_ok=True)     # (once the file opened: no folder for a bad one)
                 if args.command == "report":
                     run.check_case(args.case)
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
@@ -198,8 +216,7 @@ def main(argv=None):
                                                "cup is not shaken harmonically (&excitation kind = 'harmonic')")
                     written = [draw("transmissibility", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "suite":
-                    if len(set(run.record_names()) - {""}) < 2:
-                        raise NotAnEllrollFile(f"{args.file}: not a record suite (give two or more &record groups)")
+                    check_suite(run, args.file)
                     written = [draw("suite", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "sweep":
                     x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]

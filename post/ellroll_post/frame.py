@@ -8,7 +8,8 @@ def summary_frame(path):
     """A pandas DataFrame of one row per case, indexed by the global case
     index (`case`): every input of /case (a vector's components as their
     input names, `omega_z`; text as str), `status` by name (categorical,
-    its categories the file's flag_meanings), then every figure of /summary
+    its categories the file's flag_meanings, and `unknown` for a code outside
+    them), then every figure of /summary
     (a value per mode as a column per mode, `linear_periods_1`, as in
     `ellroll summary --format csv`; a count as pandas' nullable Int64,
     missing (<NA>) where it holds the dataset's _FillValue, -1: a case
@@ -34,8 +35,11 @@ def summary_frame(path):
                     units[label] = dataset.attrs.get("units", "")
         status = h5["summary/status"]
         order = np.argsort(status.attrs["flag_values"])
-        categories = np.array(status.attrs["flag_meanings"].split())[order]
-        columns["status"] = pd.Categorical(run.status_names(), categories=categories)
+        categories = list(np.array(status.attrs["flag_meanings"].split())[order])
+        names = run.status_names()
+        if "unknown" in names and "unknown" not in categories:
+            categories.append("unknown")   # a code outside flag_values (reader.status_names)
+        columns["status"] = pd.Categorical(names, categories=categories)
         units["status"] = "1"
         for name in run.summary_figures:
             values, unit = run.summary(name), run.units(f"summary/{name}")

@@ -1,5 +1,7 @@
 """Lazy access to an ellroll file: nothing is read until asked for, so a
 file of 10^5 cases costs only what is plotted."""
+import os
+
 import h5py
 import numpy as np
 
@@ -11,6 +13,8 @@ class NotAnEllrollFile(Exception):
 class EllrollFile:
     def __init__(self, path):
         self.path = str(path)
+        if os.path.isdir(self.path):
+            raise NotAnEllrollFile(f"{self.path}: a folder, not an ellroll file")
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
@@ -187,11 +191,15 @@ class EllrollFile:
         return str(self._status_meanings(self._dataset("summary/status")[case:case + 1])[0])
 
     def _status_meanings(self, codes):
+        """The flag_meanings of codes; "unknown" for a code outside flag_values (a file
+        from a later version, or altered), as `ellroll summary` names and counts it."""
         attrs = self._dataset("summary/status").attrs
         values = np.asarray(attrs["flag_values"])
         order = np.argsort(values)
         names = np.array(attrs["flag_meanings"].split())[order]
-        return names[np.searchsorted(values[order], codes)]
+        codes = np.asarray(codes)
+        at = np.minimum(np.searchsorted(values[order], codes), len(values) - 1)
+        return np.where(values[order][at] == codes, names[at], "unknown")
 
 
 def open(path):  # noqa: A001 - mirrors h5py.File / xarray.open_dataset naming

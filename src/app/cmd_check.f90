@@ -2,7 +2,8 @@
 !> campaign and output described, its step advice and invalid cases
 !> reported; nothing written.
 module ellroll_cmd_check
-  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use, intrinsic :: iso_fortran_env, only: error_unit
+  use ellroll_standard_output, only: put_line
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_strings, only: itoa, format_real
@@ -44,8 +45,8 @@ contains
     call find_invalid_cases(inp, invalid, messages)
     call refuse_invalid_cases(inp, invalid, messages, err)
     if (err%failed()) return
-    if (any(invalid)) write (output_unit, '(a)') itoa(count(invalid)) // ' invalid cases will be skipped:' // messages
-    write (output_unit, '(a)') trim(cli%paths(1)) // ': ok'
+    if (any(invalid)) call put_line(itoa(count(invalid)) // ' invalid cases will be skipped:' // messages)
+    call put_line(trim(cli%paths(1)) // ': ok')
   end subroutine check_command
 
   !> The base case, what the campaign varies, and what a run will produce.
@@ -61,47 +62,47 @@ contains
     character(len=:), allocatable :: line
     cs = inp%campaign%base
     ball = make_ball(cs)
-    write (output_unit, '(a)') 'base case (resolved input):'
+    call put_line('base case (resolved input):')
     call print_values(case_record(cs))
     n0 = normal_from_contact(ball%cup, cs%param(p_x), cs%param(p_y))
     radii = principal_radii(ball%cup, n0)
     y = initial_state(ball, cs%param(p_x), cs%param(p_y), cs%param(p_omega_x:p_omega_z))
     call ball%rhs(0.0_wp, y, f)
     call observe(ball, 0.0_wp, y, f, obs)
-    write (output_unit, '(a)') 'derived:'
-    write (output_unit, '(a)') '  z0 = ' // format_real(obs%contact(3)) // ' m'
-    write (output_unit, '(a)') '  principal radii of curvature at the start = ' // &
-        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // format_real(cs%param(p_radius)) // ' m)'
-    write (output_unit, '(a)') '  spin omega . n at the start = ' // format_real(dot_product(y(4:6), n0)) // ' rad/s'
-    write (output_unit, '(a)') '  energy at the start = ' // format_real(obs%energy) // ' J'
+    call put_line('derived:')
+    call put_line('  z0 = ' // format_real(obs%contact(3)) // ' m')
+    call put_line('  principal radii of curvature at the start = ' // &
+        format_real(radii(1)) // ', ' // format_real(radii(2)) // ' m (radius ' // format_real(cs%param(p_radius)) // ' m)')
+    call put_line('  spin omega . n at the start = ' // format_real(dot_product(y(4:6), n0)) // ' rad/s')
+    call put_line('  energy at the start = ' // format_real(obs%energy) // ' J')
     if (cs%param(p_g) > 0) then
       periods = no_spin_periods(ball)
       if (fits_at_bottom(ball)) then
-        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
-            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s'
+        call put_line('  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+            format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s')
       else
-        write (output_unit, '(a)') '  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
+        call put_line('  small-oscillation periods at the bottom without spin (x-z, y-z) = ' // &
             format_real(periods(1)) // ', ' // format_real(periods(2)) // ' s (undefined: the ball does not fit ' // &
-            'at the bottom, radius >= a^2/c or b^2/c)'
+            'at the bottom, radius >= a^2/c or b^2/c)')
       end if
     end if
 
     n_cases = inp%campaign%n_cases()
     n_local = size(shard_slots(n_cases, shard), kind=i8)
-    write (output_unit, '(a)') 'campaign: ' // itoa(n_cases) // ' cases'
-    if (shard(2) > 1) write (output_unit, '(a)') '  this shard (' // itoa(shard(1)) // '/' // &
-        itoa(shard(2)) // '): ' // itoa(n_local) // ' cases'
+    call put_line('campaign: ' // itoa(n_cases) // ' cases')
+    if (shard(2) > 1) call put_line('  this shard (' // itoa(shard(1)) // '/' // &
+        itoa(shard(2)) // '): ' // itoa(n_local) // ' cases')
     do k = 1, size(inp%campaign%sweeps)
-      write (output_unit, '(a)') '  sweep ' // trim(params(inp%campaign%sweeps(k)%param)%name) // ': ' // &
+      call put_line('  sweep ' // trim(params(inp%campaign%sweeps(k)%param)%name) // ': ' // &
           itoa(size(inp%campaign%sweeps(k)%values)) // ' values from ' // &
           format_real(inp%campaign%sweeps(k)%values(1)) // ' to ' // &
-          format_real(inp%campaign%sweeps(k)%values(size(inp%campaign%sweeps(k)%values)))
+          format_real(inp%campaign%sweeps(k)%values(size(inp%campaign%sweeps(k)%values))))
     end do
     do k = 1, size(inp%campaign%samples)
-      write (output_unit, '(a)') '  sample ' // trim(params(inp%campaign%samples(k)%param)%name) // &
+      call put_line('  sample ' // trim(params(inp%campaign%samples(k)%param)%name) // &
           ' in [' // format_real(inp%campaign%samples(k)%low) // ', ' // &
           format_real(inp%campaign%samples(k)%high) // '], ' // &
-          merge('log   ', 'linear', inp%campaign%samples(k)%log_spacing) // ' spacing'
+          merge('log   ', 'linear', inp%campaign%samples(k)%log_spacing) // ' spacing')
     end do
     if (size(inp%campaign%sweeps) + size(inp%campaign%samples) > 0) then
       do i = 0, min(n_cases, 5_i8) - 1
@@ -115,24 +116,24 @@ contains
           line = line // ' ' // trim(params(inp%campaign%samples(k)%param)%name) // ' = ' // &
                  format_real(get_param(cs, inp%campaign%samples(k)%param))
         end do
-        write (output_unit, '(a)') line
+        call put_line(line)
       end do
-      if (n_cases > 5) write (output_unit, '(a)') '  ...'
+      if (n_cases > 5) call put_line('  ...')
     end if
 
-    write (output_unit, '(a)') 'output:'
-    write (output_unit, '(a)') '  file = ' // inp%plan%file
-    write (output_unit, '(a)') '  steps per case = ' // itoa(nint(inp%campaign%base%t_end / &
+    call put_line('output:')
+    call put_line('  file = ' // inp%plan%file)
+    call put_line('  steps per case = ' // itoa(nint(inp%campaign%base%t_end / &
         inp%campaign%base%param(p_dt), i8)) // ', samples = ' // itoa(inp%plan%n_samples) // ' every ' // &
-        format_real(inp%plan%interval) // ' s'
+        format_real(inp%plan%interval) // ' s')
     line = '  fields ='
     do k = 1, field_count
       if (inp%plan%fields(k)) line = line // ' ' // trim(field_names(k))
     end do
-    write (output_unit, '(a)') line
+    call put_line(line)
     bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
     call size_text(bytes, line)
-    write (output_unit, '(a)') '  trajectory data before compression = ' // line // ' (' // itoa(n_local) // ' cases)'
+    call put_line('  trajectory data before compression = ' // line // ' (' // itoa(n_local) // ' cases)')
   end subroutine describe
 
   !> bytes in KiB (whole), MiB or GiB (one decimal).
@@ -167,7 +168,7 @@ contains
         text = "'" // trim(rec(k)%text) // "'"
       end select
       if (trim(rec(k)%units) /= '1') text = text // ' ' // trim(rec(k)%units)
-      write (output_unit, '(a)') '  ' // trim(rec(k)%name) // ' = ' // text
+      call put_line('  ' // trim(rec(k)%name) // ' = ' // text)
     end do
   end subroutine print_values
 end module ellroll_cmd_check

@@ -2,7 +2,7 @@
 !> and each command's), version, methods (the integrators) and inputs (the
 !> parameter table).
 module ellroll_cmd_info
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_standard_output, only: put_line, put_lines
   use ellroll_strings, only: itoa, format_real
   use ellroll_cases, only: range_text
   use ellroll_params, only: params, param_component, param_unset_allowed
@@ -11,13 +11,17 @@ module ellroll_cmd_info
   implicit none
   private
 
+  !> the longest line of the help texts (103 characters) and room to spare:
+  !> put_lines trims each line's blanks
+  integer, parameter :: help_width = 160
+
   public :: print_help, print_command_help, print_version, print_methods, print_inputs
 
 contains
 
   !> `ellroll --help`: the commands, the options and the exit codes.
   subroutine print_help()
-    write (output_unit, '(a)') &
+    call put_lines([character(len=help_width) :: &
       'ellroll ' // version_string // ': a heavy ball rolling without slip in a triaxial ellipsoidal cup', &
       '', &
       'usage:', &
@@ -44,7 +48,7 @@ contains
       'exit codes: 0 ok (also when a case ended at a model limit), 1 internal error,', &
       '            2 bad input, 3 output error, 143 (SIGTERM) or 130 (SIGINT): the run was', &
       '            interrupted and kept its finished cases; run it again with --resume', &
-      'The namelist reference is in docs/inputs.md, the HDF5 layout in docs/output.md.'
+      'The namelist reference is in docs/inputs.md, the HDF5 layout in docs/output.md.'])
   end subroutine print_help
 
   !> `ellroll COMMAND --help`: what the command does and the options it takes.
@@ -52,7 +56,7 @@ contains
     character(len=*), intent(in) :: topic
     select case (topic)
     case ('run')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll run FILE.nml [-o OUT.h5] [--overwrite | --resume] [--threads N] [--shard I/N]', &
         '                   [-q] [--timings]', &
         '', &
@@ -67,21 +71,21 @@ contains
         '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
         '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file (ellroll merge joins them)', &
         '  -q, --quiet           no progress lines on stderr', &
-        '  --timings             print where the run''s time went'
+        '  --timings             print where the run''s time went'])
     case ('check')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll check FILE.nml [-o OUT.h5]', &
         '', &
         'Reads and validates FILE.nml, prints the resolved cases and the campaign, writes nothing.', &
-        'Bad input: a message naming the file, line, namelist group, variable and value; exit 2.'
+        'Bad input: a message naming the file, line, namelist group, variable and value; exit 2.'])
     case ('merge')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll merge OUT.h5 SHARD.h5... [--overwrite]', &
         '', &
         'Joins the files of ''ellroll run --shard I/N'' (all N shards of one input) into OUT.h5, equal', &
-        'to the file of the same run unsharded.'
+        'to the file of the same run unsharded.'])
     case ('summary')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll summary OUT.h5 [--suite] [--format table|csv|json]', &
         '', &
         'table (the default): cases per status, steps, integration time, the slowest case; of a', &
@@ -90,28 +94,28 @@ contains
         '/summary. The JSON is strict (NaN as null) and gives the units in its "units" object.', &
         '--suite: one row per stripe (the cases that share every varied input but the record):', &
         'counts, the fraction at a model limit and past each /limit_state, and each response', &
-        'figure''s 16th, 50th and 84th percentile over the completed cases (docs/isolator.md).'
+        'figure''s 16th, 50th and 84th percentile over the completed cases (docs/isolator.md).'])
     case ('modes')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll modes FILE.nml', &
         '', &
-        'The small-oscillation periods of every case about the lowest point of its cup (docs/model.md).'
+        'The small-oscillation periods of every case about the lowest point of its cup (docs/model.md).'])
     case ('methods')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll methods', &
         '', &
-        'The integration methods: name, kind (fixed step, adaptive or symmetric), order and when to pick it.'
+        'The integration methods: name, kind (fixed step, adaptive or symmetric), order and when to pick it.'])
     case ('inputs')
-      write (output_unit, '(a)') &
+      call put_lines([character(len=help_width) :: &
         'usage: ellroll inputs', &
         '', &
         'The real inputs (namelist group, variable, unit, range, default) as a Markdown table;', &
-        'each may be varied by &sweep or &sample under the name in its first column.'
+        'each may be varied by &sweep or &sample under the name in its first column.'])
     end select
   end subroutine print_command_help
 
   subroutine print_version()
-    write (output_unit, '(a)') 'ellroll ' // version_string
+    call put_line('ellroll ' // version_string)
   end subroutine print_version
 
   !> `ellroll methods`: the methods' table.
@@ -119,12 +123,12 @@ contains
     integer :: k
     character(len=10) :: name, kind
     character(len=30) :: order
-    write (output_unit, '(a)') 'method    kind      order                         use for'
+    call put_line('method    kind      order                         use for')
     do k = 1, size(methods)
       name = methods(k)%name
       kind = methods(k)%kind
       order = methods(k)%order
-      write (output_unit, '(a)') name // kind // order // trim(methods(k)%use_for)
+      call put_line(name // kind // order // trim(methods(k)%use_for))
     end do
   end subroutine print_methods
 
@@ -132,8 +136,8 @@ contains
   subroutine print_inputs()
     integer :: k
     character(len=:), allocatable :: default, variable
-    write (output_unit, '(a)') '| name | group | variable | unit | valid range | default | varied | description |'
-    write (output_unit, '(a)') '| --- | --- | --- | --- | --- | --- | --- | --- |'
+    call put_line('| name | group | variable | unit | valid range | default | varied | description |')
+    call put_line('| --- | --- | --- | --- | --- | --- | --- | --- |')
     do k = 1, size(params)
       associate (p => params(k))
         default = format_real(p%default)
@@ -141,9 +145,9 @@ contains
         if (param_unset_allowed(k)) default = 'unset'
         variable = trim(p%variable)
         if (param_component(k) > 0) variable = variable // '(' // itoa(param_component(k)) // ')'
-        write (output_unit, '(a)') '| `' // trim(p%name) // '` | `&' // trim(p%group) // '` | `' // variable // &
+        call put_line('| `' // trim(p%name) // '` | `&' // trim(p%group) // '` | `' // variable // &
             '` | ' // trim(p%unit) // ' | ' // range_text(k) // ' | ' // default // ' | ' // &
-            trim(merge('yes', 'no ', p%sweepable)) // ' | ' // trim(p%description) // ' |'
+            trim(merge('yes', 'no ', p%sweepable)) // ' | ' // trim(p%description) // ' |')
       end associate
     end do
   end subroutine print_inputs

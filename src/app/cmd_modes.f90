@@ -1,7 +1,7 @@
 !> `ellroll modes FILE.nml`: the small-oscillation periods of every case of
 !> an input (docs/model.md).
 module ellroll_cmd_modes
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_standard_output, only: put_line
   use, intrinsic :: ieee_arithmetic, only: ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -35,7 +35,7 @@ contains
     character(len=:), allocatable :: reason, subject
     call read_input(trim(cli%paths(1)), cli%output_path, inp, err)
     if (err%failed()) return
-    write (output_unit, '(a)') '    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s'
+    call put_line('    case   sigma rad/s    period 1 s    period 2 s  no spin: x-z s         y-z s')
     do i = 0, inp%campaign%n_cases() - 1
       cs = inp%campaign%case_at(i)
       ! an invalid case has no cup or ball to analyse: its reason instead
@@ -43,7 +43,7 @@ contains
       if (param /= 0) then
         write (line, '(i8)') i
         call problem_setting(cs, inp%plan%interval, param, subject)
-        write (output_unit, '(a)') trim(line) // '  invalid: ' // subject // ': ' // reason
+        call put_line(trim(line) // '  invalid: ' // subject // ': ' // reason)
         cycle
       end if
       ball = make_ball(cs)
@@ -52,7 +52,7 @@ contains
       no_spin = no_spin_periods(ball)
       write (line, '(i8, f14.4, 4a)') i, dot_product(cs%param(p_omega_x:p_omega_z), n0), period_column(periods(1)), &
           period_column(periods(2)), period_column(no_spin(1)), period_column(no_spin(2))
-      write (output_unit, '(a)') trim(line)
+      call put_line(trim(line))
     end do
   end subroutine modes_command
 

@@ -7,7 +7,7 @@
 !> flag -1, counted apart as n_undefined_NAME), and the 16th, 50th and 84th percentiles (numpy's linear ones)
 !> of each response figure over the completed cases.
 module ellroll_cmd_suite
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_standard_output, only: put_line
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -413,7 +413,7 @@ contains
         if (k > 1) line = line // ', '
         line = line // '"' // trim(columns(k)%name) // '": "' // trim(columns(k)%units) // '"'
       end do
-      write (output_unit, '(a)') line // '}, "stripes": ['
+      call put_line(line // '}, "stripes": [')
       do s = 1, n
         line = ' {'
         do k = 1, size(columns)
@@ -421,19 +421,19 @@ contains
           call cell(columns(k), s, 'null', text)
           line = line // '"' // trim(columns(k)%name) // '": ' // text
         end do
-        write (output_unit, '(a)') line // trim(merge('}, ', '}  ', s < n))
+        call put_line(line // trim(merge('}, ', '}  ', s < n)))
       end do
       ! the fragilities: maximum likelihood theta and beta in the scale, no bootstrap
-      write (output_unit, '(a)') '], "fragility": ['
-      if (len(fragility) > 0) write (output_unit, '(a)') fragility
-      write (output_unit, '(a)') ']}'
+      call put_line('], "fragility": [')
+      if (len(fragility) > 0) call put_line(fragility)
+      call put_line(']}')
     case ('csv')
       line = ''
       do k = 1, size(columns)
         if (k > 1) line = line // ','
         line = line // trim(columns(k)%name)
       end do
-      write (output_unit, '(a)') line
+      call put_line(line)
       do s = 1, n
         line = ''
         do k = 1, size(columns)
@@ -441,11 +441,11 @@ contains
           call cell(columns(k), s, 'nan', text)
           line = line // text
         end do
-        write (output_unit, '(a)') line
+        call put_line(line)
       end do
     case default
-      write (output_unit, '(a)') path // ': ' // itoa(n) // ' stripes; each figure''s median, 16th and 84th ' // &
-          'percentile (numpy''s linear) over the completed cases; fraction_* of the cases with a physical outcome'
+      call put_line(path // ': ' // itoa(n) // ' stripes; each figure''s median, 16th and 84th ' // &
+          'percentile (numpy''s linear) over the completed cases; fraction_* of the cases with a physical outcome')
       do s = 1, n
         line = ''
         do k = 1, size(columns)
@@ -453,7 +453,7 @@ contains
           line = line // '  ' // trim(columns(k)%name) // ' = ' // text
           if (.not. columns(k)%count .and. trim(columns(k)%units) /= '1') line = line // ' ' // trim(columns(k)%units)
         end do
-        write (output_unit, '(a)') 'stripe ' // itoa(s) // ':' // line
+        call put_line('stripe ' // itoa(s) // ':' // line)
       end do
     end select
   end subroutine print_columns

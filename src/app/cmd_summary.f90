@@ -2,7 +2,7 @@
 !> file itself: a table (cases per status, the slowest case, totals; also
 !> printed at the end of a run), or one row per case as CSV or JSON.
 module ellroll_cmd_summary
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_standard_output, only: put_line
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -89,7 +89,12 @@ contains
       wall = file%real_column('summary/wall_time', err)
       theta_max = file%real_column('summary/theta_max', err)
     end if
-    if (format /= 'table' .or. size(status) > 1) columns = summary_columns(file, err)
+    ! (apart: status is read for a table only, and .or. may evaluate both sides)
+    if (format /= 'table') then
+      columns = summary_columns(file, err)
+    else if (size(status) > 1) then
+      columns = summary_columns(file, err)
+    end if
     call file%close()
     if (err%failed()) return
     select case (format)
@@ -195,14 +200,14 @@ contains
       if (len_trim(columns(k)%units) > 0 .and. columns(k)%units /= '1') &
         line = line // ' [' // trim(columns(k)%units) // ']'
     end do
-    write (output_unit, '(a)') line
+    call put_line(line)
     do i = 1, size(columns(1)%ints)
       line = ''
       do k = 1, size(columns)
         if (k > 1) line = line // ','
         call append_cell(line, columns(k), i, json=.false.)
       end do
-      write (output_unit, '(a)') line
+      call put_line(line)
     end do
   end subroutine print_csv
 
@@ -218,7 +223,7 @@ contains
       if (k > 1) line = line // ', '
       line = line // '"' // trim(columns(k)%name) // '": "' // json_text(columns(k)%units) // '"'
     end do
-    write (output_unit, '(a)') line // '}, "cases": ['
+    call put_line(line // '}, "cases": [')
     do i = 1, size(columns(1)%ints)
       line = ' {'
       do k = 1, size(columns)
@@ -228,9 +233,9 @@ contains
       end do
       line = line // '}'
       if (i < size(columns(1)%ints)) line = line // ','
-      write (output_unit, '(a)') line
+      call put_line(line)
     end do
-    write (output_unit, '(a)') ']}'
+    call put_line(']}')
   end subroutine print_json
 
   !> A column's value for case i after line: a number (JSON: null when not
@@ -316,9 +321,9 @@ contains
       if (columns(k)%name == 'status') first = k + 1
     end do
     if (first == 0 .or. count(completed) == 0) return
-    write (output_unit, '(a)') '  over the ' // itoa(count(completed)) // ' completed ' // &
-        trim(merge('case ', 'cases', count(completed) == 1)) // ':'
-    write (output_unit, '(a)') '    figure                                  min            median         max'
+    call put_line('  over the ' // itoa(count(completed)) // ' completed ' // &
+        trim(merge('case ', 'cases', count(completed) == 1)) // ':')
+    call put_line('    figure                                  min            median         max')
     do k = first, size(columns)
       if (.not. allocated(columns(k)%reals) .or. columns(k)%name == 'wall_time') cycle
       values = pack(columns(k)%reals, completed .and. .not. ieee_is_nan(columns(k)%reals))
@@ -328,8 +333,8 @@ contains
       name = trim(columns(k)%name)
       if (columns(k)%units /= '1') name = name // ' [' // columns(k)%units // ']'
       label = name
-      write (output_unit, '(a)') '    ' // label // cell(values(1)) // &
-          cell((values((n + 1) / 2) + values(n / 2 + 1)) / 2) // trim(cell(values(n)))
+      call put_line('    ' // label // cell(values(1)) // &
+          cell((values((n + 1) / 2) + values(n / 2 + 1)) / 2) // trim(cell(values(n))))
     end do
   contains
     !> x to six significant digits, in a column 15 wide.
@@ -353,21 +358,31 @@ contains
     real(wp), intent(in) :: wall(:), theta_max(:)
     integer :: s, slowest
     character(len=12) :: label
+    character(len=10) :: counted
     logical :: ran(size(status))
-    write (output_unit, '(a)') path // ': ' // itoa(size(status)) // ' cases'
+    call put_line(path // ': ' // itoa(size(status)) // ' cases')
     do s = 0, status_count - 1
       if (count(status == s) == 0) cycle
       label = status_name(s)
-      write (output_unit, '(a, i10)') '  ' // label, count(status == s)
+      write (counted, '(i10)') count(status == s)
+      call put_line('  ' // label // counted)
     end do
+    ! a status this program does not know (a file from a later version, or
+    ! altered) is counted as `unknown`, as status_name names it: the counts
+    ! add up to the cases
+    if (any(status < 0 .or. status >= status_count)) then
+      label = status_name(-1)
+      write (counted, '(i10)') count(status < 0 .or. status >= status_count)
+      call put_line('  ' // label // counted)
+    end if
     ran = status /= status_pending .and. status /= status_invalid
     if (.not. any(ran)) return
     slowest = maxloc(wall, dim=1, mask=ran)
-    write (output_unit, '(a)') '  steps, all cases: ' // itoa(sum(steps, mask=ran)) // '; integration time ' // &
-        format_real(real(nint(1000 * sum(wall, mask=ran)), wp) / 1000) // ' s (sum over cases)'
-    write (output_unit, '(a)') '  slowest case: ' // itoa(index(slowest)) // ' (' // &
+    call put_line('  steps, all cases: ' // itoa(sum(steps, mask=ran)) // '; integration time ' // &
+        format_real(real(nint(1000 * sum(wall, mask=ran)), wp) / 1000) // ' s (sum over cases)')
+    call put_line('  slowest case: ' // itoa(index(slowest)) // ' (' // &
         format_real(real(nint(1.0e4_wp * wall(slowest)), wp) / 1.0e4_wp) // ' s, ' // &
-        status_name(int(status(slowest))) // ')'
-    if (size(status) == 1) write (output_unit, '(a)') '  theta_max: ' // format_real(theta_max(1)) // ' rad'
+        status_name(int(status(slowest))) // ')')
+    if (size(status) == 1) call put_line('  theta_max: ' // format_real(theta_max(1)) // ' rad')
   end subroutine print_table
 end module ellroll_cmd_summary

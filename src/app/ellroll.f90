@@ -3,7 +3,7 @@
 !> ended at a model limit), 1 internal error, 2 bad input, 3 output error,
 !> 128 + the signal when a run was interrupted.
 program ellroll
-  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use, intrinsic :: iso_fortran_env, only: error_unit
   !$ use omp_lib, only: omp_set_num_threads
   !$ use ellroll_kinds, only: i8
   !$ use ellroll_threads, only: team_size
@@ -18,6 +18,7 @@ program ellroll
   use ellroll_cmd_merge, only: merge_command
   use ellroll_cmd_summary, only: summary_command
   use ellroll_cmd_modes, only: modes_command
+  use ellroll_standard_output, only: stdout_error
   implicit none
 
   type(cli_t) :: cli
@@ -55,6 +56,9 @@ program ellroll
       call modes_command(cli, err)
     end select
   end if
+  ! every command's output written (put_line): a failed write or close of
+  ! standard output is an output error (exit 3)
+  if (.not. err%failed()) call stdout_error(err)
   status = 0
   if (err%code > err_interrupted) then
     call resume_line(n_ranks, line)
@@ -76,7 +80,6 @@ program ellroll
     ! what was finished is in the journal and the partial file; HDF5's own
     ! exit handler would close files whose writes failed (a full disk), or
     ! that it could not close, and can crash doing so
-    flush (output_unit)
     flush (error_unit)
     call exit_now(status)
   end if

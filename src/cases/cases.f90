@@ -12,7 +12,7 @@ module ellroll_cases
       p_excitation_amplitude_x, p_excitation_amplitude_z, p_scale, p_rolling_resistance, p_settle, &
       p_velocity_x, p_velocity_z
   use ellroll_records, only: named_value_t, real_value, vector_value, int_value, text_value
-  use ellroll_strings, only: format_real
+  use ellroll_strings, only: format_real, format_computed
   use ellroll_ellipsoid, only: new_ellipsoid, principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t
   use ellroll_excitation, only: excitation_t, excitation_kind_names, excitation_record
@@ -169,27 +169,27 @@ contains
     case (problem_too_many_steps)
       if (cs%param(p_settle) > 0) then
         reason = 'must be at least (t_end + settle) / ' // format_real(max_steps) // ' = ' // &
-                 format_real((cs%t_end + cs%param(p_settle)) / max_steps) // ' s: no case takes more than ' // &
+                 format_computed((cs%t_end + cs%param(p_settle)) / max_steps) // ' s: no case takes more than ' // &
                  format_real(max_steps) // ' steps'
       else
         reason = 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
-                 format_real(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
+                 format_computed(cs%t_end / max_steps) // ' s: no case takes more than ' // format_real(max_steps) // ' steps'
       end if
     case (problem_interval)
       reason = 'the output interval ' // format_real(interval) // ' s must be a whole number of steps'
     case (problem_outside)
       level = start_level(cs)
       reason = 'the start (x, y) = (' // format_real(cs%param(p_x)) // ', ' // format_real(cs%param(p_y)) // &
-               ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_real(level) // ' must be < 1'
+               ') is not inside the cup: (x/a)^2 + (y/b)^2 = ' // format_computed(level) // ' must be < 1'
     case (problem_no_fit)
       radii = start_radii(cs)
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
-               format_real(radii(1)) // ' m and ' // format_real(radii(2)) // &
-               ' m, and radius must be below ' // format_real(radii(1)) // ' m'
+               format_computed(radii(1)) // ' m and ' // format_computed(radii(2)) // &
+               ' m, and radius must be below ' // format_computed(radii(1)) // ' m'
     case (problem_slide_mu)
       reason = "slip = 'slide' needs a friction coefficient mu > 0"
     case (problem_slide_resistance)
-      reason = "with slip = 'slide' must be below mu radius = " // format_real(cs%param(p_mu) * cs%param(p_radius)) // &
+      reason = "with slip = 'slide' must be below mu radius = " // format_computed(cs%param(p_mu) * cs%param(p_radius)) // &
                ' m: a couple of rolling resistance as large as the greatest of the friction (mu N radius) stops ' // &
                'the rolling of a sliding ball and holds it, a motion the sliding model does not follow'
     case (problem_velocity_partial)

@@ -13,7 +13,7 @@ module ellroll_strings
   implicit none
   private
 
-  public :: lower, itoa, join, format_real, real_text, text_hash, excerpt
+  public :: lower, itoa, join, format_real, format_computed, real_text, text_hash, excerpt
   ! the lengths of itoa and format_real, for a caller's own result length
   ! (gfortran 12 cannot nest len(itoa(x)) of a derived type's component there)
   public :: decimal_width, real_text_length
@@ -133,6 +133,29 @@ contains
     call real_text(x, buffer, n)
     text = buffer(:n)
   end function format_real
+
+  !> The double nearest x rounded to 10 significant digits (x itself where
+  !> not finite, or so large that the rounding could pass huge()).
+  pure real(wp) function ten_digits(x) result(rounded)
+    real(wp), intent(in) :: x
+    character(len=24) :: work
+    integer :: ios
+    rounded = x
+    if (.not. ieee_is_finite(x)) return
+    if (abs(x) > 1.0e300_wp) return
+    write (work, '(es24.9e3)') x
+    read (work, '(es24.0)', iostat=ios) rounded
+    if (ios /= 0) rounded = x
+  end function ten_digits
+
+  !> A value a message computes (mu radius, t_end / max_steps), to at most 10
+  !> significant digits: 1.9e-07, where the shortest text that reads back
+  !> would show the product's binary noise (1.8999999999999998e-07).
+  pure function format_computed(x) result(text)
+    real(wp), intent(in) :: x
+    character(len=real_text_length(ten_digits(x))) :: text
+    text = format_real(ten_digits(x))
+  end function format_computed
 
   !> format_real's text of x in buffer(:n) (for a caller that writes many,
   !> such as a table of numbers, without building each twice).

@@ -5,7 +5,7 @@
 module ellroll_case_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
-  use ellroll_strings, only: lower, join, format_real
+  use ellroll_strings, only: lower, join, format_real, format_computed
   use ellroll_cases, only: case_t, output_plan_t, check_case, finalize_case, field_names, field_ncomp, &
       set_param, adaptive_method, out_of_range_reason, max_steps, field_base_acceleration, is_multiple, &
       field_regime, field_slip_speed
@@ -377,7 +377,7 @@ contains
     end if
     if (cs%t_end > max_steps * v%interval) then       ! (not t_end / interval: it may overflow)
       call rd%fail_value(gi, 'interval', 'must be at least t_end / ' // format_real(max_steps) // ' = ' // &
-                         format_real(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
+                         format_computed(cs%t_end / max_steps) // ' s: no case stores more samples than steps')
       return
     end if
     if (.not. is_multiple(cs%t_end, v%interval)) then
@@ -421,7 +421,7 @@ contains
     bytes_per_sample = 8.0_wp * sum(field_ncomp, mask=plan%fields)
     if (bytes_per_sample * real(plan%n_samples, wp) > max_case_buffer_bytes) then
       call rd%fail_value(gi, 'interval', 'the trajectory of one case would need ' // &
-          format_real(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
+          format_computed(bytes_per_sample * real(plan%n_samples, wp) / 2.0_wp**30) // &
           ' GiB; raise interval or select fewer fields')
     end if
   end subroutine build_plan

@@ -4,6 +4,7 @@
 !> records (.VT2, .DT2) are refused.
 module ellroll_record_at2
   use ellroll_kinds, only: wp
+  use ellroll_exact, only: is_zero
   use ellroll_strings, only: itoa, format_real, lower
   use ellroll_decimal, only: decimal_value, decimal_ok, decimal_too_long, longest_decimal
   use ellroll_record_text, only: text_file_t, take_line, is_blank, next_word, names_nonfinite, quoted, first_word
@@ -53,7 +54,8 @@ contains
   !> ('ACCELERATION TIME SERIES IN UNITS OF G'), the fourth giving NPTS and
   !> DT ('NPTS=  1999, DT=   .0100 SEC', with any text after, or the older
   !> '3930 0.00500 NPTS, DT'), then NPTS accelerations, any number to a
-  !> line (the line holding the last may be padded beyond NPTS). Upper or
+  !> line, and after them only zeros padding the last one's line, then
+  !> blank lines. Upper or
   !> lower case, LF or CRLF line ends. acc is in m/s^2.
   subroutine load_at2(file, factor, dt, acc, reason)
     type(text_file_t), intent(inout) :: file
@@ -94,39 +96,21 @@ contains
       allocate (acc(0))
       return
     end if
-    ! One pass over the values, line feeds counted as they pass: the line
-    ! holding the last value may go on (padding), then only blank lines.
+    ! One pass over the values, line feeds counted as they pass; after the
+    ! NPTS values nothing but blanks and line ends
     n = len(file%text)
     pos = file%next
     line = file%line + 1                  ! the line holding pos
     got = 0
     do while (got < npts)
-      do while (pos <= n)                 ! to the next word
-        code = ichar(file%text(pos:pos))
-        if (code > 32) exit
-        if (code == 10) then
-          line = line + 1
-        else if (code /= 32 .and. code /= 9 .and. code /= 13) then
-          exit                            ! another control character: in a word
-        end if
-        pos = pos + 1
-      end do
-      if (pos > n) then
+      call value_word(file%text, pos, line, word_first, word_last)
+      if (word_first == 0) then
         if (file%next > n) line = line - 1              ! no line after the header
         if (file%next <= n .and. ichar(file%text(n:n)) == 10) line = line - 1   ! nothing after the last line feed
         reason = file%path // ':' // itoa(line) // ': the file ends after ' // itoa(got) // ' of NPTS = ' // &
                  itoa(npts) // ' values (truncated, or NPTS disagrees with the values)'
         return
       end if
-      word_first = pos
-      do while (pos <= n)                 ! to the word's end
-        code = ichar(file%text(pos:pos))
-        if (code <= 32) then
-          if (code == 32 .or. code == 9 .or. code == 13 .or. code == 10) exit
-        end if
-        pos = pos + 1
-      end do
-      word_last = pos - 1
       code = decimal_value(file%text(word_first:word_last), value)
       if (code /= decimal_ok) then
         if (names_nonfinite(file%text(word_first:word_last))) then
@@ -147,22 +131,72 @@ contains
         return
       end if
     end do
-    do while (pos <= n)                   ! the rest of the last value's line
-      if (ichar(file%text(pos:pos)) == 10) exit
-      pos = pos + 1
-    end do
-    do while (pos <= n)                   ! then nothing but blank lines
-      code = ichar(file%text(pos:pos))
+    call refuse_beyond_npts(file, pos, line, npts, reason)
+  end subroutine load_at2
+
+  !> The next word of text from pos (blanks, tabs, CRs and line feeds
+  !> between words; line counts the line feeds passed): text(first:last),
+  !> pos after it; first = 0 at the end of the text.
+  pure subroutine value_word(text, pos, line, first, last)
+    character(len=*), intent(in) :: text
+    integer, intent(inout) :: pos, line
+    integer, intent(out) :: first, last
+    integer :: code
+    first = 0
+    last = 0
+    do while (pos <= len(text))           ! to the next word
+      code = ichar(text(pos:pos))
+      if (code > 32) exit
       if (code == 10) then
         line = line + 1
       else if (code /= 32 .and. code /= 9 .and. code /= 13) then
-        reason = file%path // ':' // itoa(line) // ': values beyond NPTS = ' // itoa(npts) // &
-                 ' (NPTS disagrees with the values)'
-        return
+        exit                              ! another control character: in a word
       end if
       pos = pos + 1
     end do
-  end subroutine load_at2
+    if (pos > len(text)) return
+    first = pos
+    do while (pos <= len(text))           ! to the word's end
+      code = ichar(text(pos:pos))
+      if (code == 32 .or. code == 9 .or. code == 13 .or. code == 10) exit
+      pos = pos + 1
+    end do
+    last = pos - 1
+  end subroutine value_word
+
+  !> After the NPTS values the file holds nothing but zeros on the line of the
+  !> last (the fixed five-a-line layout pads that line) and blanks: more
+  !> values (NPTS disagrees with them, as with fewer) or any text are refused,
+  !> at the line of the first word beyond, with the counts.
+  subroutine refuse_beyond_npts(file, pos, line, npts, reason)
+    type(text_file_t), intent(in) :: file
+    integer, intent(inout) :: pos, line
+    integer, intent(in) :: npts
+    character(len=:), allocatable, intent(inout) :: reason
+    integer :: first, last, extra, first_line, last_value_line
+    real(wp) :: value
+    logical :: padding
+    extra = 0
+    first_line = 0
+    last_value_line = line
+    padding = .true.
+    do
+      call value_word(file%text, pos, line, first, last)
+      if (first == 0) exit
+      if (extra == 0) first_line = line
+      if (decimal_value(file%text(first:last), value) /= decimal_ok) then
+        reason = file%path // ':' // itoa(line) // ': ' // quoted(file%text(first:last)) // ' after the NPTS = ' // &
+                 itoa(npts) // ' values'
+        if (extra > 0) reason = reason // ' and ' // itoa(extra) // ' more'
+        reason = reason // ' (the values end at NPTS; text only in the four header lines)'
+        return
+      end if
+      extra = extra + 1
+      padding = padding .and. line == last_value_line .and. is_zero(value)
+    end do
+    if (extra > 0 .and. .not. padding) reason = file%path // ':' // itoa(first_line) // ': ' // &
+        itoa(npts + extra) // ' values where NPTS = ' // itoa(npts) // ' (NPTS disagrees with the values)'
+  end subroutine refuse_beyond_npts
 
   !> The unit of an AT2 file from its header (lines 1 to 3, text(first(k):
   !> last(k))): the word after 'UNITS OF' on the line that says UNITS (the

@@ -16,7 +16,7 @@ module ellroll_slide_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
-  use ellroll_rolling_ball, only: state_size, observe
+  use ellroll_rolling_ball, only: state_size, observe, observation_t
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
@@ -90,6 +90,10 @@ contains
     end if
     if (.not. now%sliding .and. res%status == status_slip) then
       call start_sliding(sb, 0.0_wp, now, res, tally)
+      call add_switch(res, 0.0_wp, switch_to_sliding)
+      ! its slip is round-off there: the friction stored is mu N along the
+      ! switch's direction (-slip_mode), as the steps from it take it
+      if (now%obs%reaction_normal > 0) call switch_reaction(sb, now%obs)
       call record_regime_sample(res, 1_i8, now)         ! the start slides from t = 0
     end if
     if (now%sliding) then
@@ -110,6 +114,17 @@ contains
     res%reals(fig_friction_energy) = tally%friction_energy
     res%reals(fig_slip_speed_max) = tally%slip_speed_max
   end subroutine slide_loop
+
+  !> The observation of a sliding state at its switch into sliding with
+  !> friction mu N against the slip's direction the switch set (where the
+  !> state's slip is round-off, the reaction would follow its direction).
+  pure subroutine switch_reaction(sb, obs)
+    type(sliding_ball_t), intent(in) :: sb
+    type(observation_t), intent(inout) :: obs
+    obs%reaction = obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode)
+    obs%friction_needed = sb%ball%mu
+    obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
+  end subroutine switch_reaction
 
   !> Fixed steps of dt, each from the state at its start to the grid point
   !> after it, through the switches inside it (advance).

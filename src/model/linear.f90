@@ -84,6 +84,10 @@ contains
   !> (n2, w2) alone (block B) and (n2, w2)' on (n1, w1) alone (block C), while
   !> n3 and w3 stay constant to first order. Then J^2 = diag(BC, CB), and the
   !> eigenvalues are the square roots of the eigenvalues mu of the 2x2 BC.
+  !> With spin the two mu = -omega^2 part by orders of magnitude: the larger
+  !> comes from the quadratic without cancellation, the smaller from the
+  !> product omega_1 omega_2 = omega_x omega_y of the no-spin pair (docs/model.md,
+  !> "Linear modes"), since det(BC) itself is a difference of products ~ sigma^4.
   function oscillation_periods(ball, sigma) result(periods)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: sigma
@@ -97,6 +101,16 @@ contains
     squared = matmul(jac(odd, even), jac(even, odd))
     half_trace = (squared(1, 1) + squared(2, 2)) / 2
     discriminant = half_trace**2 - (squared(1, 1) * squared(2, 2) - squared(1, 2) * squared(2, 1))
+    if (stable_gyroscopic(sigma, ball%g, half_trace, discriminant)) then
+      ! the fast root by the quadratic, the slow from the product (no round-off
+      ! floor below: it is as exact as the fast one)
+      frequencies(1) = sqrt(-(half_trace - sqrt(discriminant)))
+      frequencies(2) = product(two_pi / no_spin_periods(ball)) / frequencies(1)
+      ! (a period that would overflow, from a subnormal g, stays NaN)
+      where (frequencies([2, 1]) > two_pi / huge(1.0_wp)) periods = two_pi / frequencies([2, 1])
+      if (ieee_is_nan(periods(1))) periods = periods([2, 1])
+      return
+    end if
     mu = half_trace + [1, -1] * sqrt(cmplx(discriminant, 0.0_wp, wp))
     ! an eigenvalue sqrt(mu) oscillates at |Im sqrt(mu)|: a real mu < 0 is a
     ! pure oscillation; a complex pair (flutter) grows while it oscillates
@@ -110,6 +124,17 @@ contains
       if (periods(2) > periods(1)) periods = periods([2, 1])
     end if
   end function oscillation_periods
+
+  !> A spinning pair whose K is positive definite (g > 0, the ball fits at the
+  !> bottom): both mu = -omega^2 real and negative. Without spin the quadratic's
+  !> roots are the no-spin pair's own, and its two formulas agree.
+  pure logical function stable_gyroscopic(sigma, g, half_trace, discriminant)
+    real(wp), intent(in) :: sigma, g, half_trace, discriminant
+    stable_gyroscopic = .false.
+    ! NaN apart first: an ordered comparison with it traps where invalid traps
+    if (.not. (ieee_is_finite(half_trace) .and. ieee_is_finite(discriminant))) return
+    stable_gyroscopic = abs(sigma) > 0 .and. g > 0 .and. half_trace < 0 .and. discriminant >= 0
+  end function stable_gyroscopic
 
   !> The fastest rate of the motion linearised at y (1/s): the largest
   !> |eigenvalue| of the Jacobian. Where a bound on it (balanced_norm) is

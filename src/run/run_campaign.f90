@@ -27,7 +27,7 @@ module ellroll_run_campaign
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: stop_signal, signal_name
+  use ellroll_system, only: stop_signal, signal_name, file_exists
   use ellroll_output_files, only: output_files_t, work_partial, work_journal
   use ellroll_output_start, only: decide_start, open_outputs
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
@@ -189,7 +189,14 @@ contains
     call run%out%close(err)
     call run%journal%close(err)
     call files%commit(files%partial, err)
-    if (err%failed()) return
+    ! a write error before the finished file moved into place (closing it:
+    ! /switches, metadata; or its sync or rename): the journal keeps every
+    ! case, and abandon says so as for an error in the loop; after it,
+    ! commit's own message says what is left to do
+    if (err%failed()) then
+      if (file_exists(files%partial)) call abandon(run, files, err)
+      return
+    end if
     run%timings%ended = wall_clock()
     if (opts%timings) call run%timings%report()
   end subroutine finish

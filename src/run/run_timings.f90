@@ -8,7 +8,7 @@
 !> the number of threads: on one thread, that share of the loop bounds the
 !> speed-up of any number of them.
 module ellroll_run_timings
-  use, intrinsic :: iso_fortran_env, only: output_unit
+  use ellroll_standard_output, only: put_line
   use ellroll_kinds, only: wp, i8
   implicit none
   private
@@ -63,24 +63,29 @@ contains
     self%held(kind) = self%held(kind) + seconds
   end subroutine add_write
 
-  subroutine report(self, unit)
+  !> On standard output (put_line: a failed write is the program's exit 3).
+  subroutine report(self)
     class(run_timings_t), intent(in) :: self
-    integer, intent(in), optional :: unit
-    integer :: out, k
+    integer :: k
     real(wp) :: loop
-    out = output_unit
-    if (present(unit)) out = unit
+    character(len=200) :: line
     loop = self%loop_ended - self%loop_started
-    write (out, '(a, 4(f7.4, a))') 'timings:', self%advice + (self%checked - self%started), &
+    write (line, '(a, 4(f7.4, a))') 'timings:', self%advice + (self%checked - self%started), &
         ' s in parallel before the loop (checks, step advice),', self%loop_started - self%checked, &
         ' s serial before it (file layout),', loop, &
         ' s in the loop,', self%ended - self%loop_ended, ' s after it (closing)'
-    write (out, '(2x, a36, a)') 'one thread at a time', '   inside s  waiting s  (summed over the threads)'
+    call put_line(trim(line))
+    write (line, '(2x, a36, a)') 'one thread at a time', '   inside s  waiting s  (summed over the threads)'
+    call put_line(trim(line))
     do k = 1, section_count
-      write (out, '(2x, a36, 2f11.4)') section_names(k), self%held(k), self%waited(k)
+      write (line, '(2x, a36, 2f11.4)') section_names(k), self%held(k), self%waited(k)
+      call put_line(trim(line))
     end do
-    if (maxval(self%held) > 0 .and. loop > 0) write (out, '(a, f5.2, a, f6.1, a)') &
-        '  busiest:', 100 * maxval(self%held) / loop, ' % of the loop; no number of threads makes the loop over', &
-        loop / maxval(self%held), 'x faster than here'
+    if (maxval(self%held) > 0 .and. loop > 0) then
+      write (line, '(a, f5.2, a, f6.1, a)') &
+          '  busiest:', 100 * maxval(self%held) / loop, ' % of the loop; no number of threads makes the loop over', &
+          loop / maxval(self%held), 'x faster than here'
+      call put_line(trim(line))
+    end if
   end subroutine report
 end module ellroll_run_timings

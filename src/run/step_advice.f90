@@ -5,7 +5,7 @@
 module ellroll_step_advice
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_strings, only: itoa, format_real
+  use ellroll_strings, only: itoa, format_real, format_computed
   use ellroll_cases, only: case_t, output_plan_t, case_problem, make_ball, adaptive_method, is_multiple
   use ellroll_results, only: case_result_t
   use ellroll_status, only: status_completed
@@ -83,7 +83,7 @@ contains
     if (len(message) > 0) message = message // achar(10)
     message = message // 'ellroll: warning: ' // itoa(n_coarse) // cases_of // &
         'dt is large for their fastest time scale (case ' // itoa(worst) // ': dt = ' // &
-        format_real(steps(worst)) // ' s, 1/rate = ' // format_real(1 / worst_rate) // ' s); suggested dt <= ' // &
+        format_real(steps(worst)) // ' s, 1/rate = ' // format_computed(1 / worst_rate) // ' s); suggested dt <= ' // &
         format_real(nice_step(aim / worst_rate, inp%plan%interval)) // ' s, or method = ''dop853'''
   contains
     !> Case `index`'s fastest rate at the start and its step; where a bound on

@@ -22,6 +22,7 @@ import pytest
 
 from test_campaign import assert_same_datasets
 from test_fuzz import CRASH_SIGNS
+from test_output_safety import printed_folder
 
 FULL = os.environ.get("ELLROLL_FAULT_FULL") == "1"
 SAMPLE_PER_KIND = 3          # in CI: the first, the last and this many more of each kind
@@ -158,9 +159,15 @@ def test_a_fault_at_each_write_is_an_error_or_the_right_file(ellroll, tmp_path, 
             assert result.returncode in (0, 3), detail
             outcome = f"exit {result.returncode}"
             if result.returncode == 3:
-                assert re.search(r"ellroll: error: (out|s0|s1)\.h5[.\w]*: ", result.stderr), detail
+                # (or the standard output: its close, checked at the end, is one of the calls)
+                assert re.search(r"ellroll: error: ((out|s0|s1)\.h5[.\w]*|cannot write the standard output): ",
+                                 result.stderr), detail
                 reason = "Input/output error" if fault == "error=EIO" else "No space left on device"
                 assert reason in result.stderr, detail
+                if command == "run" and (folder / "out.h5.journal").exists() and not (folder / "out.h5").exists():
+                    # every write error that leaves the run's journal says so, also one while closing the file
+                    assert "out.h5.journal keeps the cases finished so far; fix the cause and run again with " \
+                           "--resume" in result.stderr, detail
             else:
                 assert_same_datasets(base / reference, folder / "out.h5")
                 assert work_files(folder) == [], detail
@@ -173,3 +180,19 @@ def test_a_fault_at_each_write_is_an_error_or_the_right_file(ellroll, tmp_path, 
         shutil.rmtree(folder)
     print(f"{command}: {sum(len(v) for v in ordinals.values())} write-type calls "
           f"({', '.join(f'{k} {len(v)}' for k, v in ordinals.items() if v)}); injected: {outcomes}")
+
+
+@pytest.fixture(scope="module")
+def printed(ellroll, tmp_path_factory):
+    return printed_folder(ellroll, tmp_path_factory)
+
+
+@pytest.mark.parametrize("command", [["inputs"], ["summary", "w.h5", "--format", "csv"]], ids=" ".join)
+def test_an_io_error_on_standard_output_is_exit_3(ellroll, printed, command):
+    """write(2) on descriptor 1 failing with EIO (the first such write after
+    the program starts: the dynamic loader writes nothing) is exit 3 too."""
+    result = subprocess.run([STRACE, "-f", "-o", "/dev/null", "-e", "trace=write", "-e", "inject=write:error=EIO:when=1",
+                             str(ellroll), *command], cwd=printed, capture_output=True, text=True, timeout=120)
+    no_crash(result, command)
+    assert result.returncode == 3, result.stderr
+    assert "cannot write the standard output: Input/output error" in result.stderr

@@ -357,3 +357,43 @@ def test_a_fifo_is_refused_without_waiting(ellroll, tmp_path, what):
         result = run(ellroll, command, "suite.nml", "-q" if command == "run" else "--threads", *(
             [] if command == "run" else ["1"]), cwd=folder, timeout=30)
         assert result.returncode in (2, 3) and "not a regular file" in result.stderr, result.stderr
+
+
+STDOUT_COMMANDS = [["inputs"], ["methods"], ["--help"], ["run", "--help"], ["check", "w.nml"], ["modes", "w.nml"],
+                   ["summary", "w.h5"], ["summary", "w.h5", "--format", "csv"], ["summary", "w.h5", "--format", "json"],
+                   ["run", "w.nml", "-o", "again.h5", "-q"]]
+
+
+def printed_folder(ellroll, tmp_path_factory):
+    """A folder with a small campaign (w.nml, 6 cases) and its output w.h5."""
+    folder = tmp_path_factory.mktemp("stdout")
+    (folder / "w.nml").write_text(
+        "&geometry a = 1.0, b = 0.4, c = 0.2 /\n&ball radius = 0.2, weight = 2620.0 /\n"
+        "&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /\n"
+        "&integration method = 'rk4', dt = 1.0e-3, t_end = 0.2 /\n&output file = 'w.h5', interval = 0.05 /\n"
+        "&sweep name = 'omega_z', values = 0, 20, 40, 1000, 1e4, 1e5 /\n")
+    result = subprocess.run([str(ellroll), "run", "w.nml", "-q"], cwd=folder, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    return folder
+
+
+@pytest.fixture(scope="module")
+def printed(ellroll, tmp_path_factory):
+    return printed_folder(ellroll, tmp_path_factory)
+
+
+@pytest.mark.parametrize("command", STDOUT_COMMANDS, ids=" ".join)
+def test_a_lost_standard_output_is_exit_3(ellroll, printed, command):
+    """Every command that prints: its standard output on a full device
+    (/dev/full: each write fails with ENOSPC) ends in exit 3 with the reason
+    on stderr; the same command to a pipe prints and exits 0."""
+    (printed / "again.h5").unlink(missing_ok=True)
+    fine = subprocess.run([str(ellroll), *command], cwd=printed, capture_output=True, text=True, timeout=60)
+    assert fine.returncode == 0 and fine.stdout, fine.stderr
+    (printed / "again.h5").unlink(missing_ok=True)
+    with open("/dev/full", "w") as full:
+        lost = subprocess.run([str(ellroll), *command], cwd=printed, stdout=full, stderr=subprocess.PIPE, text=True,
+                              timeout=60)
+    assert lost.returncode >= 0, command
+    assert lost.returncode == 3, lost.stderr
+    assert "cannot write the standard output: No space left on device" in lost.stderr

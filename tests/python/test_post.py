@@ -4,6 +4,7 @@ equation; bad files and arguments give clear errors, not tracebacks."""
 import csv
 import io
 import json
+import re
 import subprocess
 import sys
 
@@ -345,3 +346,66 @@ def test_sweep_plots_of_a_sampled_campaign_stay_small(ellroll, tmp_path):
         assert len(lines[0].get_xdata()) == 400 and [line.get_label() for line in lines[1:]] == [
             "median of completed cases"]
         plt.close(fig)
+
+
+def test_a_status_outside_flag_values_is_unknown_and_counted(ellroll, sweep_file, tmp_path):
+    """A status the reader does not know (a later version's, or an altered
+    file): ellroll-plot summary, report and summary_frame name it `unknown`
+    as `ellroll summary` does, and in both the counts add up to the cases."""
+    altered = tmp_path / "altered.h5"
+    altered.write_bytes(sweep_file.read_bytes())
+    with h5py.File(altered, "r+") as f:
+        status = f["summary/status"]
+        n_cases = status.shape[0]
+        known = [str(n) for n in np.asarray(status.attrs["flag_meanings"]).ravel()[0].split()]
+        codes = status[:]
+        codes[1] = 77
+        status[...] = codes
+    with ellroll_post.open(altered) as runfile:
+        names = runfile.status_names()
+        assert names[1] == "unknown" and runfile.status_name(1) == "unknown"
+        assert [n for k, n in enumerate(names) if k != 1] == [known[c] for k, c in enumerate(codes) if k != 1]
+    assert ellroll_post.summary_frame(altered)["status"].iloc[1] == "unknown"
+    table = plot_cli("summary", altered)
+    assert table.returncode == 0 and "Traceback" not in table.stderr and "unknown" in table.stdout, table.stderr
+    report = plot_cli("report", altered, "--out", tmp_path / "report")
+    assert report.returncode == 0, report.stderr
+    counts = re.search(r"((?:\d+ \w+, )*\d+ \w+)\.", (tmp_path / "report" / "index.html").read_text()).group(1)
+    counted = {name: int(count) for count, name in (item.split() for item in counts.split(", "))}
+    assert counted["unknown"] == 1 and sum(counted.values()) == n_cases, counts
+    printed = run(ellroll, "summary", altered)
+    assert printed.returncode == 0, printed.stderr
+    lines = [line.split() for line in printed.stdout.splitlines()[1:] if re.fullmatch(r"  \w+ +\d+", line)]
+    assert ["unknown", "1"] in lines and sum(int(count) for _, count in lines) == n_cases, printed.stdout
+
+
+def test_report_of_a_folder_is_a_clear_error(tmp_path):
+    for folder in (".", str(tmp_path)):
+        result = plot_cli("report", folder)
+        assert result.returncode == 2 and "a folder, not an ellroll file" in result.stderr, result.stderr
+        assert "Traceback" not in result.stderr
+    result = plot_cli("report", tmp_path / "missing.h5")
+    assert result.returncode == 2 and "cannot open" in result.stderr
+    assert not (tmp_path / "missing_report").exists()          # nothing made for a file that cannot be read
+
+
+def test_suite_figures_of_a_partial_file_say_its_finished_cases_hold_one_record(suite_file, tmp_path):
+    """An interrupted suite whose finished cases all ran one record: its
+    pending cases hold no record yet; suite and fragility say so."""
+    partial = tmp_path / "suite.h5.partial"
+    partial.write_bytes(suite_file.read_bytes())
+    with h5py.File(partial, "r+") as f:
+        records = np.array([r.decode().strip() if isinstance(r, bytes) else str(r).strip() for r in f["case/record"][:]])
+        first = records[0]
+        status = f["summary/status"][:]
+        status[records != first] = 0                       # pending
+        f["summary/status"][...] = status
+        blank = f["case/record"][:]
+        blank[records != first] = b""
+        f["case/record"][...] = blank
+        finished, n_cases = int(np.sum(records == first)), len(records)
+    for command in ("suite", "fragility"):
+        result = plot_cli(command, partial, "--out", tmp_path)
+        assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+        assert (f"its {finished} finished cases of {n_cases} hold one record ({first}); a suite's figures need two "
+                "or more") in result.stderr, result.stderr

@@ -736,6 +736,41 @@ def test_threads_within_the_programs_bounds(threads):
     assert f"threads = {threads!r}: give a count from 1 to 2147483647" in raised.value.message
 
 
+def test_text_and_path_the_library_cannot_take_are_input_errors():
+    """A text with a lone surrogate (Python's stand-in for a byte that was not
+    UTF-8) and a path that is not a file name raise InputError with a message;
+    a name read with os.fsdecode is taken."""
+    text = ellroll.namelist(GOOD_GROUPS)
+    with pytest.raises(ellroll.InputError) as raised:
+        ellroll.run_arrays("! a comment \udcff\n" + text)
+    assert "line 1: the text holds '\\udcff', a lone surrogate" in raised.value.message and raised.value.code == 2
+    for path in (5, 1.5, ["a.nml"], b"a.nml"):
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.run_arrays(text, path=path)
+        assert f"path = {path!r} ({type(path).__name__}): give a file name" in raised.value.message
+    with tempfile.TemporaryDirectory() as folder:
+        named = os.fsdecode(os.path.join(os.fsencode(folder), b"in\xff.nml"))
+        assert ellroll.run_arrays(text, path=named)[0]["summary"]["status"].shape == (1,)
+        assert ellroll.run_arrays(text, path=pathlib.Path(named))[0]["summary"]["status"].shape == (1,)
+
+
+def test_a_ragged_nested_list_is_an_input_error():
+    """[[0, 0], [1]] is not three values: refused, where rows of one length
+    (or a 2-d array) give their values row by row."""
+    for ragged in ([[0.0, 0.0], [1.0]], [[0.0], 1.0, 2.0], ([0.0, 0.0], (1.0,))):
+        groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+        groups["initial"] = {"omega": ragged}
+        for function in (ellroll.namelist, ellroll.run_arrays):
+            with pytest.raises(ellroll.InputError) as raised:
+                function(groups)
+            assert "ragged nested list" in raised.value.message and "&initial" in raised.value.message
+    groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+    groups["sweep"] = {"name": "omega_z", "values": [[10.0, 20.0], [30.0, 40.0]]}
+    assert "values = 10.0, 20.0, 30.0, 40.0" in ellroll.namelist(groups)
+    groups["sweep"]["values"] = np.array([[10.0, 20.0], [30.0, 40.0]])
+    assert "values = 10.0, 20.0, 30.0, 40.0" in ellroll.namelist(groups)
+
+
 def test_record_names_as_record_groups():
     time = np.arange(5) * 0.01
     acceleration = np.zeros((5, 2))

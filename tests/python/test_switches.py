@@ -315,3 +315,63 @@ def test_a_slip_inside_the_step_that_meets_a_limit_comes_first(ellroll, tmp_path
     assert len(times) >= 1 and kinds[0] == 1
     assert abs(times[0] - out["end"][1]) < 1e-5              # 6.8e-7 s measured
     assert out["slide"][0] == 3 and out["slide"][1] > times[0]   # no_fit, after the slide began
+
+
+# Starts whose rolling friction at t = 0 is above mu, no velocity given (seeded
+# fuzz cases): a fixed cup, vern9 and rk4
+MUST_SLIDE_AT_ONCE = {
+    "vern9": """&geometry a=0.5, b=0.162272204724216, c=0.7931880244875041 /
+&ball radius=0.009481447951150569, mass=100.0, mu=0.016467004862557345, slip='slide', inertia_factor=0.4 /
+&initial x=0.04491986272897186, y=-0.012798163508954003, omega=-4.273257349183711,3.5257076356101624,9.479883844789518 /
+&integration method='vern9', rtol=1e-06, t_end=1.0 /
+&output file='o.h5', interval=0.01 /
+""",
+    "rk4": """&geometry a=0.5, b=0.22360749859437612, c=0.33007612994043123 /
+&ball radius=0.01908846954761211, mass=100.0, mu=0.09496275847030129, slip='slide', inertia_factor=0.6666666666666666 /
+&initial x=-0.06186509510359414, y=-0.04045611463825726, omega=3.38115771499748,3.921610435820335,0.8645794892093353 /
+&integration method='rk4', dt=1e-3, t_end=1.0 /
+&output file='o.h5', interval=0.01 /
+""",
+}
+
+
+def start_reaction(path):
+    with h5py.File(path, "r") as f:
+        force, normal = f["trajectory/reaction"][0, 0], f["trajectory/normal"][0, 0]
+        regime = f["trajectory/regime"][0, 0] if "trajectory/regime" in f else None
+        episodes = int(f["summary/slip_episodes"][0])
+    normal_force = force @ normal
+    return force, normal_force, force - normal_force * normal, regime, episodes
+
+
+@pytest.mark.parametrize("method", sorted(MUST_SLIDE_AT_ONCE))
+def test_a_start_that_must_slide_at_once_stores_mu_along_rollings_need_and_its_switch(ellroll, ellroll_debug,
+                                                                                       tmp_path, method):
+    """At t = 0 the slip is round-off: the sample there holds the sliding
+    state's reaction with the friction mu N along the direction of the
+    friction rolling needs (slip = 'end''s t = 0 sample), the same in the
+    Release and Debug builds to round-off, and /switches holds the
+    to_sliding switch at t = 0, so that slip_episodes counts the to_sliding
+    switches."""
+    text = MUST_SLIDE_AT_ONCE[method]
+    mu = float(text.split("mu=")[1].split(",")[0])
+    (tmp_path / "slide.nml").write_text(text)
+    (tmp_path / "end.nml").write_text(text.replace("slip='slide', ", ""))
+    outputs = {}
+    for name, exe in (("release", ellroll), ("debug", ellroll_debug)):
+        result = run(exe, "run", "slide.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path, timeout=300)
+        assert result.returncode == 0, result.stderr
+        outputs[name] = start_reaction(tmp_path / f"{name}.h5")
+    result = run(ellroll, "run", "end.nml", "-q", "-o", "end.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    _, _, needed, _, _ = start_reaction(tmp_path / "end.h5")
+    assert np.linalg.norm(needed) > 1.05 * mu * (outputs["release"][1])          # rolling's need is above mu
+    for name, (force, normal_force, tangential, regime, episodes) in outputs.items():
+        assert regime == 1, name
+        assert abs(np.linalg.norm(tangential) / normal_force - mu) <= 1e-12 * mu, name
+        assert tangential @ needed / np.linalg.norm(tangential) / np.linalg.norm(needed) > 1 - 1e-12, name
+        times, kinds = ellroll_post.open(tmp_path / f"{name}.h5").switches(0)
+        assert times[0] == 0.0 and kinds[0] == "to_sliding", (name, times, kinds)
+        assert episodes == list(kinds).count("to_sliding") >= 1, (name, episodes, list(kinds))
+    release, debug = outputs["release"][0], outputs["debug"][0]
+    assert np.abs(release - debug).max() <= 1e-9 * np.abs(release).max(), (release, debug)

@@ -17,7 +17,7 @@ program test_linear
   use ellroll_linear, only: oscillation_periods, fastest_rate, jacobian, eigenvalues, no_spin_periods, fits_at_bottom
   use fixtures, only: paper_case, run_case
   use testing
-  use ellroll_params, only: p_a, p_b, p_c, p_g, p_omega_x, p_omega_z, p_radius, p_x, p_y
+  use ellroll_params, only: p_a, p_b, p_c, p_g, p_omega_x, p_omega_z, p_radius, p_x, p_y, p_inertia_factor
   implicit none
   type(case_t) :: cs
   type(case_result_t) :: res
@@ -48,6 +48,7 @@ program test_linear
   call check_close(measured(2), periods(2), 1.0e-4_wp, 'spin 40 rad/s: fast mode period, simulated vs linear (s)')
   call check_periods_against_eigenvalues()
   call check_rate_bound()
+  call check_fast_spin()
   call finish('test_linear')
 
 contains
@@ -108,15 +109,21 @@ contains
   !> oscillation_periods' 2x2 closed form against the periods of the whole
   !> 6x6 Jacobian's eigenvalues (LAPACK), and the symmetry the closed form
   !> rests on: (n1, w1)' does not depend on (n1, w1), nor (n2, w2)' on (n2, w2).
+  !> The fast root comes from the same Jacobian both ways; the slow one from
+  !> the product omega_x omega_y / omega_f, the 6x6's from the Jacobian. All
+  !> against the modes' closed form (exact_frequencies): the Jacobian's central
+  !> differences leave 4e-10 at |sigma| ~ 300 in both.
   subroutine check_periods_against_eigenvalues()
     integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]
     type(case_t) :: cup
     type(rolling_ball_t) :: ball
     real(wp) :: draw(4), sigma, jac(state_size, state_size), re(state_size), im(state_size)
-    real(wp) :: closed(2), full(2), worst_difference, worst_coupling
+    real(wp) :: closed(2), full(2), exact(2), worst_fast, worst_slow, worst_full_slow, worst_coupling
     integer :: k
     call seed_random()
-    worst_difference = 0
+    worst_fast = 0
+    worst_slow = 0
+    worst_full_slow = 0
     worst_coupling = 0
     do k = 1, 500
       call random_number(draw)
@@ -129,10 +136,15 @@ contains
       full = two_pi / pack(im, im > 1.0e-9_wp * maxval(abs(im)))   ! two oscillating modes here
       full = [maxval(full), minval(full)]
       closed = oscillation_periods(ball, sigma)
-      worst_difference = max(worst_difference, maxval(abs(closed - full) / full))
+      exact = two_pi / exact_frequencies(cup, sigma)   ! [fast, slow] periods
+      worst_fast = max(worst_fast, abs(closed(2) - full(2)) / full(2))
+      worst_slow = max(worst_slow, maxval(abs(closed - exact([2, 1])) / exact([2, 1])))
+      worst_full_slow = max(worst_full_slow, maxval(abs(full - exact([2, 1])) / exact([2, 1])))
     end do
     call check_below(worst_coupling, 1.0e-9_wp, 'bottom equilibrium: Jacobian entries the mirror symmetry makes zero')
-    call check_below(worst_difference, 1.0e-10_wp, 'periods: 2x2 closed form against the 6x6 eigenvalues (500 cups)')
+    call check_below(worst_fast, 1.0e-13_wp, 'fast period: 2x2 closed form against the 6x6 eigenvalues (500 cups)')
+    call check_below(worst_slow, 1.0e-9_wp, 'periods: 2x2 closed form against the modes'' closed form (500 cups)')
+    call check_below(worst_full_slow, 1.0e-9_wp, 'periods: 6x6 eigenvalues against the modes'' closed form (500 cups)')
   end subroutine check_periods_against_eigenvalues
 
   !> Over random cups, balls from small to nearly the cup's least radius of
@@ -174,6 +186,95 @@ contains
     ! unbalanced, the plain norm is 12.5 times the rate here
     call check_below(worst_ratio, 5.0_wp, 'fastest rate: worst bound / eigenvalues'' rate, paper''s cup swept')
   end subroutine check_rate_bound
+
+  !> Spin sigma about the normal, from 1 to 1e6 rad/s. In n = (n1, n2) the
+  !> motion is M n'' + G n' + K n = 0 with M = (1 + k) diag(L1, L2), G = k R sigma
+  !> [[0, -1], [1, 0]], K = g I (L = rho - R; docs/model.md, "Linear modes"),
+  !> so omega_f^2 + omega_s^2 = omega_x^2 + omega_y^2 + (k R sigma)^2 / ((1 + k)^2 L1 L2)
+  !> and omega_f omega_s = omega_x omega_y, the no-spin pair's. Checked: both
+  !> periods finite, their product against the no-spin pair's to 1e-12, the
+  !> fast one against the closed form and its asymptote 2 pi (1 + k)
+  !> sqrt(L1 L2) / (k R sigma); without spin the quadratic's own two roots,
+  !> bitwise. Cups: a = b = c = 1 with R = 0.999 (k = 0.4 and 0.1), the paper's.
+  subroutine check_fast_spin()
+    real(wp), parameter :: spins(9) = [1.0_wp, 10.0_wp, 100.0_wp, 1.0e3_wp, 3.0e3_wp, 1.0e4_wp, 3.0e4_wp, &
+                                       1.0e5_wp, 1.0e6_wp]
+    type(case_t) :: cup
+    real(wp) :: no_spin(2), periods(2), fast, asymptote, lengths(2), k, exact(2)
+    real(wp) :: worst_product, worst_fast, worst_asymptote
+    integer :: which, j
+    logical :: all_finite
+    worst_product = 0
+    worst_fast = 0
+    worst_asymptote = 0
+    all_finite = .true.
+    do which = 1, 3
+      cup = paper_case(1.0e-3_wp, 1.0_wp)
+      cup%param(p_inertia_factor) = merge(0.1_wp, 0.4_wp, which == 2)
+      if (which <= 2) then
+        cup%param(p_a:p_c) = 1
+        cup%param(p_radius) = 0.999_wp
+      end if
+      k = cup%param(p_inertia_factor)
+      lengths = [cup%param(p_a)**2, cup%param(p_b)**2] / cup%param(p_c) - cup%param(p_radius)
+      no_spin = no_spin_periods(make_ball(cup))
+      call check_no_spin_roots(cup)
+      do j = 1, size(spins)
+        periods = oscillation_periods(make_ball(cup), spins(j))
+        all_finite = all_finite .and. all(ieee_is_finite(periods))
+        if (.not. all(ieee_is_finite(periods))) cycle
+        worst_product = max(worst_product, abs(product(periods) / product(no_spin) - 1))
+        fast = two_pi / minval(periods)
+        exact = exact_frequencies(cup, spins(j))
+        worst_fast = max(worst_fast, abs(fast / exact(1) - 1), abs(two_pi / maxval(periods) / exact(2) - 1))
+        asymptote = k * cup%param(p_radius) * spins(j) / ((1 + k) * sqrt(product(lengths)))
+        if (spins(j) >= 1.0e5_wp) worst_asymptote = max(worst_asymptote, abs(fast / asymptote - 1))
+      end do
+    end do
+    call check(all_finite, 'spin 1 to 1e6 rad/s: both periods finite (3 cups)')
+    call check_below(worst_product, 1.0e-12_wp, 'spin 1 to 1e6 rad/s: period product / the no-spin pair''s - 1')
+    ! (the Jacobian's central differences, step ~6e-6 relative, at spin 1e6)
+    call check_below(worst_fast, 1.0e-8_wp, 'spin 1 to 1e6 rad/s: both frequencies against the closed form, relative')
+    ! the asymptote's own error (omega_x^2 + omega_y^2) / (2 omega_f^2): 5.8e-7 on the paper's cup at 1e5
+    call check_below(worst_asymptote, 1.0e-6_wp, 'spin 1e5, 1e6 rad/s: fast frequency against k R sigma / ((1 + k) &
+        &sqrt(L1 L2)), relative')
+  end subroutine check_fast_spin
+
+  !> The modes' angular frequencies [fast, slow] from M n'' + G n' + K n = 0
+  !> (docs/model.md, "Linear modes"): omega^2 solves (1 + k)^2 L1 L2 omega^4 -
+  !> ((1 + k) g (L1 + L2) + (k R sigma)^2) omega^2 + g^2 = 0, the larger root
+  !> by the quadratic, the smaller from the product of the two.
+  function exact_frequencies(cup, sigma) result(frequencies)
+    type(case_t), intent(in) :: cup
+    real(wp), intent(in) :: sigma
+    real(wp) :: frequencies(2), lengths(2), k, a, b, c
+    k = cup%param(p_inertia_factor)
+    lengths = [cup%param(p_a)**2, cup%param(p_b)**2] / cup%param(p_c) - cup%param(p_radius)
+    a = (1 + k)**2 * product(lengths)
+    b = (1 + k) * cup%param(p_g) * sum(lengths) + (k * cup%param(p_radius) * sigma)**2
+    c = cup%param(p_g)**2
+    frequencies(1) = sqrt((b + sqrt((b - 2 * sqrt(a * c)) * (b + 2 * sqrt(a * c)))) / (2 * a))
+    frequencies(2) = sqrt(c / a) / frequencies(1)
+  end function exact_frequencies
+
+  !> Without spin the two periods are the quadratic's roots mu = half_trace +-
+  !> sqrt(discriminant) of the 2x2 product BC of the Jacobian's blocks
+  !> (omega = |Im sqrt(mu)|), bitwise.
+  subroutine check_no_spin_roots(cup)
+    type(case_t), intent(in) :: cup
+    integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]
+    real(wp) :: jac(state_size, state_size), squared(2, 2), half_trace, discriminant, roots(2), periods(2)
+    complex(wp) :: mu(2)
+    jac = jacobian(make_ball(cup), [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp])
+    squared = matmul(jac(odd, even), jac(even, odd))
+    half_trace = (squared(1, 1) + squared(2, 2)) / 2
+    discriminant = half_trace**2 - (squared(1, 1) * squared(2, 2) - squared(1, 2) * squared(2, 1))
+    mu = half_trace + [1, -1] * sqrt(cmplx(discriminant, 0.0_wp, wp))
+    roots = two_pi / abs(aimag(sqrt(mu)))
+    periods = oscillation_periods(make_ball(cup), 0.0_wp)
+    call check(equals(periods(1), maxval(roots)) .and. equals(periods(2), minval(roots)), &
+               'no spin: periods the quadratic''s own roots, bitwise')
+  end subroutine check_no_spin_roots
 
   !> The angular frequency of the largest peak of |DFT(hann * x)| within
   !> 10 % of guess, found by golden-section search on the continuous DFT.
