@@ -14,7 +14,7 @@ module ellroll_slide_regime
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level
+      at_sliding_rim, stick_level, align_slip
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -141,6 +141,7 @@ contains
       status = status_completed
     end if
     if (status /= status_completed) return      ! (a state past a limit: its outputs may overflow)
+    if (sb%aligned) call align_slip(sb, t + new%reached, new%s, n_rhs)
     call observe_sliding(sb, t + new%reached, new%s, new%obs, new%slip_speed, new%fs)
     n_rhs = n_rhs + 1
     status = limit_status(rolling%ball, new%s(1:6), new%obs)

@@ -18,7 +18,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      stick_level, slip_stop_time, center_velocity
+      stick_level, slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, latest_end, settled, last_fixed_step
   use ellroll_adaptive_run, only: attempt_step, slip_inside
@@ -44,6 +44,10 @@ module ellroll_slide_run
   !> Steps shorter on average than this part of t_end over max_hover_steps
   !> steps crawl: the case would take more than 1e7 steps (it ends unstable).
   real(wp), parameter :: crawl_fraction = 1.0e-7_wp
+  !> The error the aligned slip law may leave in the slip (choose_slip_law):
+  !> this part of an embedded pair's tolerance. A fixed-step method keeps the
+  !> full law (its substeps resolve the small slip: slip_substeps).
+  real(wp), parameter :: align_fraction = 1.0e-3_wp
 
 
 contains
@@ -70,6 +74,12 @@ contains
     rolling = run
     rolling%ball%mu = -1             ! the rolling steps know no slip: its switch is this loop's
     sb%ball = run%ball
+    select type (integrator)
+    class is (embedded_pair_t)
+      sb%align_atol = align_fraction * integrator%atol
+      sb%align_rtol = align_fraction * integrator%rtol
+      sb%stiff_allowance = 1 / align_fraction
+    end select
     now%y = y
     now%f = f
     call observe(rolling%ball, 0.0_wp, y, f, now%obs)
@@ -286,7 +296,7 @@ contains
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t
     real(wp), intent(inout) :: h
-    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(inout) :: now
     type(regime_state_t), intent(out) :: new
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
@@ -295,6 +305,7 @@ contains
     logical :: taken
     if (now%sliding) then
       call sb%begin_step(now%s)
+      call choose_slip_law(sb, t, now%s, now%fs, h, res%n_rhs)
       call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
       if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
       h = h_cut
@@ -354,6 +365,8 @@ contains
     t_stop = t + h_step
     do switches = 0, max_switches_per_step
       if (now%sliding) call sb%begin_step(now%s)
+      if (now%sliding .and. .not. (switches == 0 .and. present(first))) &
+        call choose_slip_law(sb, t_at, now%s, now%fs, remaining, res%n_rhs)
       ! a fixed step that switches on and on at one instant (a slip that stops
       ! where rolling needs just over mu N): its rest goes on sliding, and the
       ! slip left is the size of the step's friction impulse (stopped below)
@@ -481,7 +494,7 @@ contains
     real(wp) :: bracket
     piece = remaining
     taken = .false.
-    if (.not. now%sliding) return
+    if (.not. now%sliding .or. sb%aligned) return     ! (aligned: the slip passes zero smoothly)
     bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
     if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
     call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)

@@ -20,7 +20,7 @@
 !> rolling part of omega relative to the cup (resist_sliding).
 module ellroll_sliding_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use ellroll_kinds, only: wp
+  use ellroll_kinds, only: wp, i8
   use ellroll_ode, only: hybrid_system_t
   use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_status, only: status_liftoff, status_nonfinite, status_rim, status_no_fit
@@ -31,7 +31,7 @@ module ellroll_sliding_ball
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
-            slip_stop_time, dissipation, at_sliding_rim
+            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip
 
   integer, parameter :: slide_state_size = 8
 
@@ -63,6 +63,16 @@ module ellroll_sliding_ball
     !> up to the stop stays smooth inside the step that is cut there
     real(wp) :: slip_mode(3) = 0
     real(wp) :: slip_at_start(3) = 0
+    !> the step's friction lies along the friction rolling needs (its slip
+    !> on the slow manifold: choose_slip_law), not against u / |u|
+    logical :: aligned = .false.
+    !> the error the aligned law may leave in the slip: align_atol +
+    !> align_rtol (|V_C| + R |omega|), m/s (0: the law is never aligned)
+    real(wp) :: align_atol = 0, align_rtol = 0
+    !> where the full law is stiff over the step (tau below a tenth of it,
+    !> its explicit stages then unresolved), the aligned law may leave this
+    !> many times that error
+    real(wp) :: stiff_allowance = 1
   contains
     procedure :: rhs => sliding_rhs
     procedure :: stage_status => sliding_stage_status
@@ -178,10 +188,45 @@ contains
     end if
   end function friction_direction
 
-  !> The sliding right-hand side (the equations above) without the couple
-  !> of rolling resistance (sliding_rate adds it), with N and the friction
-  !> force where asked.
-  pure subroutine sliding_derivative(sb, t, y, dydt, normal_force, friction, base)
+  !> The contact's frame at sliding state y: the unit normal n, V_C, n'
+  !> (of y(1:3), in dydt13), g_eff and N (the equations above).
+  pure subroutine contact_frame(sb, t, y, base, n, v, dydt13, g_eff, big_n)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp), intent(in), optional :: base(3)
+    real(wp), intent(out) :: n(3), v(3), dydt13(3), g_eff(3), big_n
+    real(wp) :: rolling(state_size), rate(state_size)
+    associate (ball => sb%ball)
+      n = y(1:3) / norm2(y(1:3))
+      v = center_velocity(y)
+      ! n' from rolling's kinematics with omega such that R omega x n = V_C:
+      ! omega = n x V_C / R (its part along n does not move n)
+      rolling(1:3) = y(1:3)
+      rolling(4:6) = cross(n, v) / ball%radius
+      call ball_derivative(ball, t, rolling, rate)     ! (only its n' is used)
+      dydt13 = rate(1:3)
+      g_eff = [0.0_wp, 0.0_wp, -ball%g]
+      if (present(base)) then
+        g_eff = g_eff - base
+      else if (ball%excitation%kind /= excitation_none) then
+        g_eff = g_eff - base_acceleration(ball%excitation, t)
+      end if
+      big_n = -ball%mass * (dot_product(v, dydt13 / norm2(y(1:3))) + dot_product(g_eff, n))
+    end associate
+  end subroutine contact_frame
+
+  !> The friction rolling would need at sliding state y (needed_friction).
+  pure function needed_at(sb, t, y) result(need)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp) :: need(3), n(3), v(3), dydt13(3), g_eff(3), big_n, n_dot(3)
+    call contact_frame(sb, t, y, n=n, v=v, dydt13=dydt13, g_eff=g_eff, big_n=big_n)
+    n_dot = dydt13 / norm2(y(1:3))
+    need = needed_friction(sb%ball, n, y(4:6), n_dot - n * dot_product(n, n_dot), big_n, g_eff)
+  end function needed_at
+
+  !> sliding_derivative under the full law, F = -mu N u / |u|.
+  pure subroutine full_law_derivative(sb, t, y, dydt, normal_force, friction, base)
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, y(slide_state_size)
     real(wp), intent(out) :: dydt(slide_state_size)
@@ -216,7 +261,96 @@ contains
       if (present(normal_force)) normal_force = big_n
       if (present(friction)) friction = force
     end associate
+  end subroutine full_law_derivative
+
+  !> The sliding right-hand side (the equations above) without the couple
+  !> of rolling resistance (sliding_rate adds it), with N and the friction
+  !> force where asked. needed: the friction rolling would need at y (F_req).
+  pure subroutine sliding_derivative(sb, t, y, dydt, normal_force, friction, base, needed)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size)
+    real(wp), intent(out) :: dydt(slide_state_size)
+    real(wp), intent(out), optional :: normal_force, friction(3)
+    real(wp), intent(in), optional :: base(3)
+    real(wp), intent(out), optional :: needed(3)
+    real(wp) :: length, n(3), v(3), g_eff(3), rolling(state_size), rate(state_size), n_dot(3), u(3), force(3)
+    real(wp) :: big_n, v_dot(3), r, need(3)
+    if (.not. (sb%aligned .or. present(needed))) then
+      call full_law_derivative(sb, t, y, dydt, normal_force, friction, base)
+      return
+    end if
+    associate (ball => sb%ball)
+      r = ball%radius
+      length = norm2(y(1:3))
+      n = y(1:3) / length
+      v = center_velocity(y)
+      ! n' from rolling's kinematics with omega such that R omega x n = V_C:
+      ! omega = n x V_C / R (its part along n does not move n)
+      rolling(1:3) = y(1:3)
+      rolling(4:6) = cross(n, v) / r
+      call ball_derivative(ball, t, rolling, rate)     ! (only its n' is used)
+      dydt(1:3) = rate(1:3)
+      n_dot = rate(1:3) / length
+      g_eff = [0.0_wp, 0.0_wp, -ball%g]
+      if (present(base)) then
+        g_eff = g_eff - base
+      else if (ball%excitation%kind /= excitation_none) then
+        g_eff = g_eff - base_acceleration(ball%excitation, t)
+      end if
+      big_n = -ball%mass * (dot_product(v, n_dot) + dot_product(g_eff, n))
+      u = v - r * cross(y(4:6), n)
+      need = 0
+      if (sb%aligned .or. present(needed)) then
+        need = needed_friction(ball, n, y(4:6), n_dot - n * dot_product(n, n_dot), big_n, g_eff)
+        if (present(needed)) needed = need
+      end if
+      if (.not. sb%aligned) then
+        force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
+      else if (norm2(need) > 0) then
+        force = ball%mu * max(big_n, 0.0_wp) * (need / norm2(need))
+      else
+        force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
+      end if
+      v_dot = (big_n * n + force) / ball%mass + g_eff
+      dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
+      dydt(7:8) = v_dot(1:2)
+      if (sb%aligned .and. norm2(u) > 0 .and. norm2(need) > 0) then
+        force = turning_friction(sb, t, y, dydt, need, norm2(u), big_n)
+        v_dot = (big_n * n + force) / ball%mass + g_eff
+        dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
+        dydt(7:8) = v_dot(1:2)
+      end if
+      if (present(normal_force)) normal_force = big_n
+      if (present(friction)) friction = force
+    end associate
   end subroutine sliding_derivative
+
+  !> The aligned law's friction at sliding state y with slip |u| = slip
+  !> along -F_req (docs/model.md, "Where the slip is small"): with
+  !> f = F_req / |F_req| and u = -|u| f, u' = c (F - F_req) asks for
+  !> F = F_req - (|u|' f + |u| f') / c: across f the part -(|u| / c) f'
+  !> that turns u with F_req, along f the part that gives |u| the rate of
+  !> the full law on its slow manifold, |u|' = c (|F_req| cos(lag) - mu N)
+  !> with sin(lag) = |u| |f'| / (c |F_req|) (the lag of -u / |u| behind
+  !> f). f' is the difference of f over turn_probe along the flow
+  !> (dydt: the derivative with the friction along f).
+  pure function turning_friction(sb, t, y, dydt, need, slip, big_n) result(force)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size), dydt(slide_state_size), need(3), slip, big_n
+    real(wp) :: force(3), along(3), later(3), turn(3), n(3), c, size_need, lag_sine
+    real(wp), parameter :: turn_probe = 1.0e-7_wp
+    c = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass
+    size_need = norm2(need)
+    along = need / size_need
+    later = needed_at(sb, t + turn_probe, y + turn_probe * dydt)
+    turn = (later / norm2(later) - along) / turn_probe
+    ! (across f in the tangent plane: later is tangent where n has turned)
+    n = y(1:3) / norm2(y(1:3))
+    turn = turn - dot_product(turn, along) * along - dot_product(turn, n) * n
+    lag_sine = min(1.0_wp, slip * norm2(turn) / (c * size_need))
+    force = (sb%ball%mu * max(big_n, 0.0_wp) + size_need * (1 - sqrt(1 - lag_sine**2))) * along &
+            - (slip / c) * turn
+  end function turning_friction
 
   !> The couple of rolling resistance while the ball slides (docs/model.md,
   !> "Rolling resistance while sliding"): M = -delta N omega_t / |omega_t|
@@ -255,14 +389,129 @@ contains
     power = -ball%rolling_resistance * max(big_n, 0.0_wp) * norm2(omega - dot_product(omega, n) * n)
   end function resistance_power
 
+  !> The friction rolling would need at a sliding state (F_req: the F that
+  !> makes the slip's rate zero; docs/model.md, "Where the slip is small"):
+  !> u' = b + c F for a tangent F, with c = 1/m + R^2/J (F moves V_C by F / m
+  !> and the contact point of omega by (R^2/J) (n x F) x n = (R^2/J) F) and
+  !> b = N n / m + g_eff - R (omega_M' x n + omega x n'), omega_M' the
+  !> couple of rolling resistance over J; F_req = -b_t / c, b_t the tangent
+  !> part of b (its normal part keeps u tangent as n turns). n_rate: n'.
+  pure function needed_friction(ball, n, omega, n_rate, big_n, g_eff) result(need)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: n(3), omega(3), n_rate(3), big_n, g_eff(3)
+    real(wp) :: need(3), b(3), omega_t(3), couple_rate(3), rate, inertia
+    couple_rate = 0
+    if (ball%rolling_resistance > 0) then
+      inertia = ball%inertia_factor * ball%mass * ball%radius**2
+      omega_t = omega - dot_product(omega, n) * n
+      rate = norm2(omega_t)
+      if (rate > 1.0e-12_wp * (sqrt(ball%g / ball%radius) + norm2(omega))) &
+        couple_rate = -(ball%rolling_resistance * max(big_n, 0.0_wp) / (rate * inertia)) * omega_t
+    end if
+    b = big_n * n / ball%mass + g_eff - ball%radius * (cross(couple_rate, n) + cross(omega, n_rate))
+    need = -(b - dot_product(b, n) * n) / ((1 + 1 / ball%inertia_factor) / ball%mass)
+  end function needed_friction
+
+  !> The angle between two vectors (0 where either is zero).
+  pure real(wp) function turn_angle(a, b) result(angle)
+    real(wp), intent(in) :: a(3), b(3)
+    angle = atan2(norm2(cross(a, b)), dot_product(a, b))
+  end function turn_angle
+
+  !> The slip law of a step of size h from (t, y) (docs/model.md, "Where
+  !> the slip is small"): aligned (the friction mu N along F_req) where the
+  !> slip lies along -F_req and the lag of its direction behind -F_req,
+  !> tau Omega with tau = |u| / (c |F_req|) and Omega the rate at which
+  !> F_req turns, leaves an error |u| tau Omega in the slip within
+  !> align_atol + align_rtol (|V_C| + R |omega|) over the step (|u| at its
+  !> larger end, Omega the larger of its rate at t and its mean over the
+  !> step at the state of t); else against u / |u|. Where the law changes,
+  !> f (the derivative at y) is taken again with the new one.
+  subroutine choose_slip_law(sb, t, y, f, h, n_rhs)
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size), h
+    real(wp), intent(inout) :: f(slide_state_size)
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: rate(slide_state_size), scratch(slide_state_size), need(3), later(3), u(3), along(3)
+    real(wp) :: allowed, slip, turn, probe, big_n, reach
+    logical :: before
+    before = sb%aligned
+    sb%aligned = .false.
+    allowed = sb%align_atol + sb%align_rtol * (norm2(center_velocity(y)) + sb%ball%radius * norm2(y(4:6)))
+    ! (with rolling resistance the full law: its couple turns omega_t's
+    ! direction, and where the ball does not roll it depends on the friction)
+    if (sb%ball%rolling_resistance > 0) allowed = 0
+    if (allowed > 0 .and. h > 0) then
+      call sliding_derivative(sb, t, y, rate, big_n, needed=need)
+      n_rhs = n_rhs + 1
+      u = resolved_slip(sb%ball, y)          ! (round-off's slip has no direction)
+      along = need / max(norm2(need), tiny(1.0_wp))
+      ! on the slow manifold: u along -F_req, its part across within the error
+      if (big_n > 0 .and. norm2(need) > 0 .and. .not. dot_product(u, along) > 0 .and. &
+          norm2(u - dot_product(u, along) * along) <= allowed) then
+        sb%aligned = .true.
+        call sliding_derivative(sb, t, y, rate)
+        slip = max(norm2(u), norm2(u + h * slip_rate(sb%ball, y, rate)))
+        probe = min(h, 1.0e-6_wp)
+        call sliding_derivative(sb, t + probe, y + probe * rate, scratch, needed=later)
+        turn = turn_angle(need, later) / probe
+        call sliding_derivative(sb, t + h, y, scratch, needed=later)
+        turn = max(turn, turn_angle(need, later) / h)
+        n_rhs = n_rhs + 3
+        reach = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)      ! kappa |F_req|
+        if (10 * slip < h * reach) allowed = allowed * sb%stiff_allowance          ! (tau < h / 10)
+        sb%aligned = slip**2 * turn <= allowed * reach
+        if (sb%aligned) then
+          f = rate
+          return
+        end if
+      end if
+    end if
+    if (sb%aligned .neqv. before) then
+      call sb%rhs(t, y, f)
+      n_rhs = n_rhs + 1
+    end if
+  end subroutine choose_slip_law
+
+  !> An aligned step's end: the slip turned onto -F_req at its size,
+  !> u = -|u| F_req / |F_req|, by an impulse P of the cup at A (m dV_C = P,
+  !> J d omega = -R n x P, so du = P (1/m + R^2/J)): the part of the
+  !> friction across the slip that turns it with F_req, which the aligned
+  !> law leaves out, given at the step's end. It keeps |u| and so the energy
+  !> (the energy changes by P . (u + u_new) / 2 = (|u_new|^2 - |u|^2) / (2 c)).
+  !> A slip along +F_req (past its stop) is left to the stop's event.
+  subroutine align_slip(sb, t, y, n_rhs)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: y(slide_state_size)
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: rate(slide_state_size), need(3), along(3), u(3), impulse(3), n(3)
+    call sliding_derivative(sb, t, y, rate, needed=need)
+    n_rhs = n_rhs + 1
+    if (.not. norm2(need) > 0) return
+    along = need / norm2(need)
+    u = slip_velocity(sb%ball, y)
+    if (dot_product(u, along) > 0) return
+    associate (m => sb%ball%mass, k => sb%ball%inertia_factor)
+      impulse = (-norm2(u) * along - u) / (1 / m + 1 / (k * m))
+      n = y(1:3) / norm2(y(1:3))
+      y(7:8) = y(7:8) + impulse(1:2) / m
+      y(4:6) = y(4:6) - cross(n, impulse) / (k * m * sb%ball%radius)
+    end associate
+  end subroutine align_slip
+
   !> The rates at which the friction (mu N |u|) and the couple of rolling
   !> resistance (delta N |omega_t|) take energy at sliding state y, W.
   pure function dissipation(sb, t, y) result(power)
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, y(slide_state_size)
-    real(wp) :: power(2), rate(slide_state_size), big_n
-    call sliding_derivative(sb, t, y, rate, big_n)
-    power(1) = sb%ball%mu * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
+    real(wp) :: power(2), rate(slide_state_size), big_n, force(3)
+    call sliding_derivative(sb, t, y, rate, big_n, force)
+    if (sb%aligned) then
+      power(1) = -dot_product(force, slip_velocity(sb%ball, y))    ! (u is not along -F inside an aligned step)
+    else
+      power(1) = sb%ball%mu * max(big_n, 0.0_wp) * norm2(slip_velocity(sb%ball, y))
+    end if
     power(2) = 0
     if (sb%ball%rolling_resistance > 0) power(2) = -resistance_power(sb%ball, y(1:3) / norm2(y(1:3)), y(4:6), big_n)
   end function dissipation

@@ -125,11 +125,12 @@ def test_the_energy_balance_closes_as_the_tolerance_falls(ellroll, tmp_path, met
     """The paper's case with mu = 0.05 up to 4.3 s (slides, rolls at 3.0 s,
     slides again at 4.19 s): (E(t_end) - E(0) + friction_energy) / friction_energy
     at two step sizes or tolerances of each method is below 5e-9 and falls
-    with them (measured: rk4 1.2e-9, 3.1e-10 at dt 1e-4, 5e-5 (the
-    trapezoidal rule's h^2); dop853 2.2e-9, 9.2e-13 at rtol 1e-7, 1e-9;
-    vern9 4.6e-11, 1.2e-12 at rtol 1e-6, 1e-7). An error of the friction's
-    tally that does not fall with the tolerance (a quadrature of the long
-    steps' own) fails it."""
+    with them, or is below 1e-11 at both (measured: rk4 1.2e-9, 3.1e-10 at
+    dt 1e-4, 5e-5 (the trapezoidal rule's h^2); dop853 7.1e-12, 3.2e-13 at
+    rtol 1e-7, 1e-9; vern9 2.5e-12, 2.2e-12 at rtol 1e-6, 1e-7, where the
+    aligned slip law takes the small slip in long steps). An error of the
+    friction's tally that does not fall with the tolerance (a quadrature of
+    the long steps' own) fails it."""
     residuals = []
     for integration in BALANCE[method]:
         text = TRIAXIAL.format(mu=0.05, slip="slide", dt=1e-4).replace(
@@ -141,7 +142,7 @@ def test_the_energy_balance_closes_as_the_tolerance_falls(ellroll, tmp_path, met
             assert f["summary/status"][0] == 1 and f["summary/slip_episodes"][0] == 2
         assert work > 80
         residuals.append(abs(energy[-1] - energy[0] + work) / work)
-    assert residuals[0] < 5e-9 and residuals[1] < residuals[0] / 2, residuals
+    assert residuals[0] < 5e-9 and (residuals[1] < residuals[0] / 2 or max(residuals) < 1e-11), residuals
 
 
 def test_a_mu_never_reached_gives_the_rolling_run_bit_for_bit(ellroll, tmp_path):
