@@ -153,7 +153,9 @@ def test_a_fast_spin_s_gyroscopic_period_gets_its_sa_in_bounded_time(ellroll, tm
     result = run(ellroll, "run", "spin.nml", "-q", cwd=tmp_path, timeout=60)
     assert result.returncode == 0, result.stderr
     with h5py.File(tmp_path / "spin.h5", "r") as f:
-        period, sa, pga = f["summary/linear_periods"][0, 0], f["summary/sa_linear_periods"][0, 0], f["case/pga"][0]
+        periods, sas, pga = f["summary/linear_periods"][0], f["summary/sa_linear_periods"][0], f["case/pga"][0]
+    fast = np.argmin(periods)                  # (the other, the precession's, is 25,594 s)
+    period, sa = periods[fast], sas[fast]
     assert period == pytest.approx(2.2013e-7, rel=1e-4)
     assert pga <= sa <= pga * (1 + 1e-5)
 
