@@ -225,24 +225,23 @@ contains
     need = needed_friction(sb%ball, n, y(4:6), n_dot - n * dot_product(n, n_dot), big_n, g_eff)
   end function needed_at
 
-  !> sliding_derivative under the full law, F = -mu N u / |u|.
-  pure subroutine full_law_derivative(sb, t, y, dydt, normal_force, friction, base)
+  !> What both slip laws take from sliding state y: n' (dydt(1:3): rolling's
+  !> kinematics with omega such that R omega x n = V_C, omega = n x V_C / R,
+  !> whose part along n does not move n), the unit normal n and its rate, V_C,
+  !> g_eff = g - the cup's acceleration, N and the slip u.
+  pure subroutine sliding_kinematics(sb, t, y, base, dydt, n, n_dot, v, g_eff, big_n, u)
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, y(slide_state_size)
-    real(wp), intent(out) :: dydt(slide_state_size)
-    real(wp), intent(out), optional :: normal_force, friction(3)
     real(wp), intent(in), optional :: base(3)
-    real(wp) :: length, n(3), v(3), g_eff(3), rolling(state_size), rate(state_size), n_dot(3), u(3), force(3)
-    real(wp) :: big_n, v_dot(3), r
+    real(wp), intent(inout) :: dydt(slide_state_size)
+    real(wp), intent(out) :: n(3), n_dot(3), v(3), g_eff(3), big_n, u(3)
+    real(wp) :: length, rolling(state_size), rate(state_size)
     associate (ball => sb%ball)
-      r = ball%radius
       length = norm2(y(1:3))
       n = y(1:3) / length
       v = center_velocity(y)
-      ! n' from rolling's kinematics with omega such that R omega x n = V_C:
-      ! omega = n x V_C / R (its part along n does not move n)
       rolling(1:3) = y(1:3)
-      rolling(4:6) = cross(n, v) / r
+      rolling(4:6) = cross(n, v) / ball%radius
       call ball_derivative(ball, t, rolling, rate)     ! (only its n' is used)
       dydt(1:3) = rate(1:3)
       n_dot = rate(1:3) / length
@@ -253,15 +252,20 @@ contains
         g_eff = g_eff - base_acceleration(ball%excitation, t)
       end if
       big_n = -ball%mass * (dot_product(v, n_dot) + dot_product(g_eff, n))
-      u = v - r * cross(y(4:6), n)
-      force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
-      v_dot = (big_n * n + force) / ball%mass + g_eff
-      dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
-      dydt(7:8) = v_dot(1:2)
-      if (present(normal_force)) normal_force = big_n
-      if (present(friction)) friction = force
+      u = v - ball%radius * cross(y(4:6), n)
     end associate
-  end subroutine full_law_derivative
+  end subroutine sliding_kinematics
+
+  !> omega' and V_C' (dydt(4:8)) under the friction force at A.
+  pure subroutine friction_rates(ball, n, g_eff, big_n, force, dydt)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: n(3), g_eff(3), big_n, force(3)
+    real(wp), intent(inout) :: dydt(slide_state_size)
+    real(wp) :: v_dot(3)
+    v_dot = (big_n * n + force) / ball%mass + g_eff
+    dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * ball%radius)
+    dydt(7:8) = v_dot(1:2)
+  end subroutine friction_rates
 
   !> The sliding right-hand side (the equations above) without the couple
   !> of rolling resistance (sliding_rate adds it), with N and the friction
@@ -273,52 +277,23 @@ contains
     real(wp), intent(out), optional :: normal_force, friction(3)
     real(wp), intent(in), optional :: base(3)
     real(wp), intent(out), optional :: needed(3)
-    real(wp) :: length, n(3), v(3), g_eff(3), rolling(state_size), rate(state_size), n_dot(3), u(3), force(3)
-    real(wp) :: big_n, v_dot(3), r, need(3)
-    if (.not. (sb%aligned .or. present(needed))) then
-      call full_law_derivative(sb, t, y, dydt, normal_force, friction, base)
-      return
-    end if
+    real(wp) :: n(3), v(3), g_eff(3), n_dot(3), u(3), force(3), big_n, need(3)
     associate (ball => sb%ball)
-      r = ball%radius
-      length = norm2(y(1:3))
-      n = y(1:3) / length
-      v = center_velocity(y)
-      ! n' from rolling's kinematics with omega such that R omega x n = V_C:
-      ! omega = n x V_C / R (its part along n does not move n)
-      rolling(1:3) = y(1:3)
-      rolling(4:6) = cross(n, v) / r
-      call ball_derivative(ball, t, rolling, rate)     ! (only its n' is used)
-      dydt(1:3) = rate(1:3)
-      n_dot = rate(1:3) / length
-      g_eff = [0.0_wp, 0.0_wp, -ball%g]
-      if (present(base)) then
-        g_eff = g_eff - base
-      else if (ball%excitation%kind /= excitation_none) then
-        g_eff = g_eff - base_acceleration(ball%excitation, t)
-      end if
-      big_n = -ball%mass * (dot_product(v, n_dot) + dot_product(g_eff, n))
-      u = v - r * cross(y(4:6), n)
+      call sliding_kinematics(sb, t, y, base, dydt, n, n_dot, v, g_eff, big_n, u)
       need = 0
       if (sb%aligned .or. present(needed)) then
         need = needed_friction(ball, n, y(4:6), n_dot - n * dot_product(n, n_dot), big_n, g_eff)
         if (present(needed)) needed = need
       end if
-      if (.not. sb%aligned) then
-        force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
-      else if (norm2(need) > 0) then
+      if (sb%aligned .and. norm2(need) > 0) then
         force = ball%mu * max(big_n, 0.0_wp) * (need / norm2(need))
       else
         force = ball%mu * max(big_n, 0.0_wp) * friction_direction(u, sb%slip_mode)
       end if
-      v_dot = (big_n * n + force) / ball%mass + g_eff
-      dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
-      dydt(7:8) = v_dot(1:2)
+      call friction_rates(ball, n, g_eff, big_n, force, dydt)
       if (sb%aligned .and. norm2(u) > 0 .and. norm2(need) > 0) then
         force = turning_friction(sb, t, y, dydt, need, norm2(u), big_n)
-        v_dot = (big_n * n + force) / ball%mass + g_eff
-        dydt(4:6) = -cross(n, force) / (ball%inertia_factor * ball%mass * r)
-        dydt(7:8) = v_dot(1:2)
+        call friction_rates(ball, n, g_eff, big_n, force, dydt)
       end if
       if (present(normal_force)) normal_force = big_n
       if (present(friction)) friction = force
