@@ -17,7 +17,7 @@ module ellroll_adaptive_run
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
-      accumulate, record_sample, record_geometry_sample, latest_end, settled, add_step_resistance
+      accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance
   use ellroll_step_works, only: step_works
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, last_step_clipped
   use ellroll_params, only: p_dt
@@ -55,7 +55,7 @@ contains
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
     integer :: status, round_off_attempts
-    logical :: peak_inside
+    logical :: peak_inside, done
     real(wp) :: passed                    ! where a slip inside a step is known
     real(wp) :: works(2)                  ! the friction's (0) and the couple's over the step
 
@@ -66,14 +66,8 @@ contains
     call pair%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     t_stop = cs%t_end
     do
-      if (.not. t < t_stop) then
-        ! past t_end (settle): on until the ball is at rest
-        if (t_stop < latest_end(cs, run) .and. .not. settled(run, t)) then
-          t_stop = latest_end(cs, run)
-        else
-          exit
-        end if
-      end if
+      call reach_stop(cs, run, t, t_stop, done)       ! (past t_end, settle: on until the ball is at rest)
+      if (done) exit
       if (stop_asked(res%n_steps + res%n_rejected)) then
         res%status = status_pending
         return

@@ -36,7 +36,7 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled, &
-            last_fixed_step
+            last_fixed_step, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
             accumulate, record_sample, record_geometry_sample, stored
 
@@ -210,6 +210,25 @@ contains
     if (cs%param(p_settle) > 0 .and. run%ball%rolling_resistance > 0 .and. &
         excitation_end(run%ball%excitation) < huge(1.0_wp)) latest_end = cs%t_end + cs%param(p_settle)
   end function latest_end
+
+  !> Whether an adaptive loop at t, its stop t_stop (t_end, then latest_end
+  !> while the ball settles), is done: t has reached t_stop and, past t_end,
+  !> the ball is at rest for good or latest_end is reached; t_stop moves on
+  !> to latest_end where the ball is still to settle.
+  pure subroutine reach_stop(cs, run, t, t_stop, done)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: t_stop
+    logical, intent(out) :: done
+    done = .false.
+    if (t < t_stop) return
+    if (t_stop < latest_end(cs, run) .and. .not. settled(run, t)) then
+      t_stop = latest_end(cs, run)
+    else
+      done = .true.
+    end if
+  end subroutine reach_stop
 
   !> The last fixed step (of dt) case cs may take: t_end's, or latest_end's
   !> where it settles past t_end.

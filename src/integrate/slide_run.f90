@@ -20,7 +20,7 @@ module ellroll_slide_run
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, latest_end, settled, last_fixed_step
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: attempt_step, slip_inside
   use ellroll_step_control, only: step_control_t
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
@@ -196,7 +196,7 @@ contains
     real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     integer :: status, stalled, hovering, crawling
     integer(i8) :: attempts
-    logical :: ended, rejected
+    logical :: ended, rejected, done
     h_max = min(cs%t_end, cs%param(p_dt))
     if (.not. ieee_is_finite(h_max) .or. h_max <= 0) h_max = cs%t_end
     if (now%sliding) then
@@ -212,14 +212,8 @@ contains
     window_start = 0
     t_stop = cs%t_end
     do
-      if (.not. t < t_stop) then
-        ! past t_end (settle): on until the ball is at rest
-        if (t_stop < latest_end(cs, run) .and. .not. settled(run, t)) then
-          t_stop = latest_end(cs, run)
-        else
-          exit
-        end if
-      end if
+      call reach_stop(cs, run, t, t_stop, done)       ! (past t_end, settle: on until the ball is at rest)
+      if (done) exit
       attempts = attempts + 1
       if (stop_asked(attempts)) then
         res%status = status_pending
