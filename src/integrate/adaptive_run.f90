@@ -8,7 +8,7 @@ module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero
-  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable
+  use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
@@ -19,7 +19,7 @@ module ellroll_adaptive_run
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance
   use ellroll_step_works, only: step_works
-  use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, last_step_clipped
+  use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
   private
@@ -41,14 +41,20 @@ contains
   !> allowed). Output samples, limit crossings and the maxima of Theta come
   !> from the dense output, so that they do not depend on where the steps
   !> fall; a sample computes only what the stored fields need. The steps are
-  !> the fused ones of the ball (ellroll_ball_steppers).
-  subroutine adaptive_loop(pair, cs, plan, run, y, f, res)
+  !> the fused ones of the ball (ellroll_ball_steppers). A case that may
+  !> slide rolls here from t_start (its rolling pieces) and, where the
+  !> friction needed passes mu N (located as slip = 'end' ends the case),
+  !> returns slipped with res%status slip, res%t_final the switch's time and
+  !> y the state there (f is not set).
+  subroutine adaptive_loop(pair, cs, plan, run, y, f, res, t_start, slipped)
     class(embedded_pair_t), intent(inout) :: pair
     type(case_t), intent(in) :: cs
     type(output_plan_t), intent(in) :: plan
     type(run_state_t), intent(inout) :: run
     real(wp), intent(inout) :: y(state_size), f(state_size)
     type(case_result_t), intent(inout) :: res
+    real(wp), intent(in), optional :: t_start
+    logical, intent(out), optional :: slipped
     real(wp) :: y_new(state_size), f_new(state_size), t, h, h_max
     real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     type(observation_t) :: obs
@@ -60,6 +66,8 @@ contains
     real(wp) :: works(2)                  ! the friction's (0) and the couple's over the step
 
     t = 0
+    if (present(t_start)) t = t_start
+    if (present(slipped)) slipped = .false.
     round_off_attempts = 0
     h_max = cs%param(p_dt)
     control%order = pair%control_order()
@@ -72,7 +80,7 @@ contains
         res%status = status_pending
         return
       end if
-      h = last_step_clipped(t, h, t_stop, control%after_rejection)
+      h = next_step(t, h, t_stop, control%after_rejection, run%ball%excitation)
       if (round_off_step(t, h)) round_off_attempts = round_off_attempts + 1
       if (cannot_follow(h, round_off_attempts, res%n_steps + res%n_rejected)) then
         res%status = status_unstable
@@ -86,21 +94,21 @@ contains
         cycle
       end if
       if (status /= status_completed) then
-        call stop_in_step(pair, run, plan, status, res)
+        call end_in_step(status)
         return
       end if
       peak_inside = nutation_peak_inside(y, f, y_new, f_new)
       if (peak_inside) then
         call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         if (beyond_rim(peak)) then
-          call stop_in_step(pair, run, plan, status_rim, res, peak%t - t)
+          call end_in_step(status_rim, peak%t - t)
           return
         end if
       end if
       if (run%ball%mu > 0) then
         call slip_inside(pair, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
         if (status /= status_completed) then
-          call stop_in_step(pair, run, plan, status, res, passed)
+          call end_in_step(status, passed)
           return
         end if
       end if
@@ -130,6 +138,19 @@ contains
       end if
     end do
     res%t_final = t_stop
+  contains
+    !> The case ends inside the last attempt at the limit (status) met first
+    !> (stop_in_step); where it may slide, a slip hands the state over.
+    subroutine end_in_step(status, invalid)
+      integer, intent(in) :: status
+      real(wp), intent(in), optional :: invalid
+      if (.not. present(slipped)) then
+        call stop_in_step(pair, run, plan, status, res, invalid)
+        return
+      end if
+      call stop_in_step(pair, run, plan, status, res, invalid, y)
+      slipped = res%status == status_slip
+    end subroutine end_in_step
   end subroutine adaptive_loop
 
   !> One attempt of size h from (t, y, f), its RHS calls counted in
@@ -305,19 +326,22 @@ contains
   !> The last attempt (in pair) crossed a limit (status): bisect on its dense
   !> output, record the output samples before the crossing, and end the
   !> case at the last valid point. invalid: the offset from the step's
-  !> start known to be past the limit (default: its end).
-  subroutine stop_in_step(pair, run, plan, status, res, invalid)
+  !> start known to be past the limit (default: its end). at: the state at
+  !> the last valid point (the case's end), where asked for.
+  subroutine stop_in_step(pair, run, plan, status, res, invalid, at)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(inout) :: run
     type(output_plan_t), intent(in) :: plan
     integer, intent(in) :: status
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in), optional :: invalid
+    real(wp), intent(inout), optional :: at(state_size)
     type(limit_search_t) :: search
     call locate_crossing(pair, run, status, search, res%n_rhs, invalid)
     call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
     call end_at_crossing(pair, run, search, res)
     res%n_steps = res%n_steps + 1
+    if (present(at) .and. search%found_valid) call dense_point(pair, run, search%valid / pair%h, at, res%n_rhs)
   end subroutine stop_in_step
 
   !> Bisect the dense output of the last attempt (in pair), which crossed a

@@ -26,7 +26,7 @@ module ellroll_batch_run
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, slip_inside
-  use ellroll_step_control, only: step_control_t, last_step_clipped, round_off_step, cannot_follow, judged_norm
+  use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
   private
@@ -480,7 +480,7 @@ contains
     integer :: l
     do l = 1, lanes
       if (.not. b%active(l)) cycle
-      h(l) = last_step_clipped(t(l), h(l), t_end(l), control(l)%after_rejection)
+      h(l) = next_step(t(l), h(l), t_end(l), control(l)%after_rejection, b%run(l)%ball%excitation)
       if (round_off_step(t(l), h(l))) round_off_attempts(l) = round_off_attempts(l) + 1
       if (cannot_follow(h(l), round_off_attempts(l), results(l)%n_steps + results(l)%n_rejected)) then
         results(l)%status = status_unstable

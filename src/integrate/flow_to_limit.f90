@@ -12,7 +12,7 @@ module ellroll_flow_to_limit
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: embedded_pair_t, new_pair
   use ellroll_case_run, only: run_state_t, limit_search_t, track
-  use ellroll_step_control, only: step_control_t, last_step_clipped, smallest_step_ulps
+  use ellroll_step_control, only: step_control_t, next_step, smallest_step_ulps
   use ellroll_adaptive_run, only: nutation_peak_t, attempt_step, locate_crossing, record_samples_until, end_at_crossing, &
       nutation_peak_inside, locate_nutation_peak, beyond_rim, slip_inside
   implicit none
@@ -84,7 +84,7 @@ contains
         res%t_final = t_at
         return
       end if
-      h = last_step_clipped(t_at, h, t_until, control%after_rejection)
+      h = next_step(t_at, h, t_until, control%after_rejection, run%ball%excitation)
       if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
       if (run%ball%nonsmooth()) call run%ball%begin_step(y_at)
       call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)

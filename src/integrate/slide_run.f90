@@ -16,13 +16,14 @@ module ellroll_slide_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
-  use ellroll_rolling_ball, only: state_size, observe, observation_t
+  use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
-  use ellroll_adaptive_run, only: attempt_step, slip_inside
-  use ellroll_step_control, only: step_control_t
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step, add_step_resistance
+  use ellroll_adaptive_run, only: adaptive_loop
+  use ellroll_step_works, only: step_works
+  use ellroll_excitation, only: step_to_sample
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
       end_at_limit
@@ -48,6 +49,14 @@ module ellroll_slide_run
   !> this part of an embedded pair's tolerance. A fixed-step method keeps the
   !> full law (its substeps resolve the small slip: slip_substeps).
   real(wp), parameter :: align_fraction = 1.0e-3_wp
+  !> An embedded pair's first step of a sliding piece: this part of its
+  !> initial-step guess. At the switch the slip is zero and its direction's
+  !> lag time |u| / (kappa |F_req|) with it: the pair's error estimate of one
+  !> long first step does not see the error this start makes (on
+  !> test_slip_direction's record the friction's work then wandered by 1e-6
+  !> of itself with the tolerance; from a 32nd of the guess it agrees to
+  !> 1e-11 across pairs and tolerances).
+  real(wp), parameter :: first_step_fraction = 1.0_wp / 32
 
 
 contains
@@ -178,8 +187,10 @@ contains
     res%t_final = t
   end subroutine fixed_slide
 
-  !> An embedded pair's steps, each ending at the next output sample or
-  !> before, or at a switch of regime inside it.
+  !> An embedded pair's case: its rolling pieces are the rolling path's own
+  !> (adaptive_loop, which returns where the friction needed passes mu N,
+  !> located on its dense output where slip = 'end' ends the case), its
+  !> sliding pieces sliding_piece's steps.
   subroutine adaptive_slide(pair, cs, plan, run, rolling, sb, now, tally, res)
     class(embedded_pair_t), intent(inout) :: pair
     type(case_t), intent(in) :: cs
@@ -190,36 +201,75 @@ contains
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
+    real(wp) :: t, works(2)
+    logical :: slipped, done
+    t = 0
+    do
+      if (.not. now%sliding) then
+        ! the stick's work of the stop just made is the friction's (track_balance's)
+        run%friction_work = tally%friction_energy
+        call adaptive_loop(pair, cs, plan, run, now%y, now%f, res, t, slipped)
+        if (.not. slipped) return
+        t = res%t_final
+        res%status = status_completed
+        if (run%ball%rolling_resistance > 0) then
+          ! the couple's work over the crossing step's piece up to the switch
+          call step_works(pair, run%ball, pair%t_old, t - pair%t_old, works, res%n_rhs, part=(t - pair%t_old) / pair%h)
+          call add_step_resistance(run, res, t, works(2), now%obs)
+        end if
+        if (run%ball%nonsmooth()) call run%ball%begin_step(now%y)
+        call ball_derivative(run%ball, t, now%y, now%f)
+        call observe(run%ball, t, now%y, now%f, now%obs)
+        res%n_rhs = res%n_rhs + 1
+        call start_sliding(sb, t, now, res, tally)
+        call add_switch(res, t, switch_to_sliding)
+      end if
+      call sliding_piece(pair, cs, plan, run, rolling, sb, t, now, tally, res, done)
+      if (done) return
+    end do
+  end subroutine adaptive_slide
+
+  !> An embedded pair's steps from (t, now), sliding, each ending at the next
+  !> output sample or before, until a switch to rolling (t and now moved
+  !> there) or the case's end (done).
+  subroutine sliding_piece(pair, cs, plan, run, rolling, sb, t, now, tally, res, done)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(case_t), intent(in) :: cs
+    type(output_plan_t), intent(in) :: plan
+    type(run_state_t), intent(inout) :: run
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(inout) :: sb
+    real(wp), intent(inout) :: t
+    type(regime_state_t), intent(inout) :: now
+    type(slide_tally_t), intent(inout) :: tally
+    type(case_result_t), intent(inout) :: res
+    logical, intent(out) :: done
     type(regime_state_t) :: trial
-    type(step_control_t) :: control
-    real(wp) :: t, h, h_max, t_next, next_sample_time, factor, window_start
+    real(wp) :: h, h_max, t_next, next_sample_time, factor, window_start
     real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     integer :: status, stalled, hovering, crawling
-    integer(i8) :: attempts
-    logical :: ended, rejected, done
+    integer(i8) :: steps
+    logical :: ended, rejected
     h_max = min(cs%t_end, cs%param(p_dt))
     if (.not. ieee_is_finite(h_max) .or. h_max <= 0) h_max = cs%t_end
-    if (now%sliding) then
-      call pair%initial_step(sb, 0.0_wp, now%s, now%fs, h_max, h, res%n_rhs)
-    else
-      call pair%initial_step(rolling%ball, 0.0_wp, now%y, now%f, h_max, h, res%n_rhs)
-    end if
-    t = 0
-    attempts = 0
+    call pair%initial_step(sb, t, now%s, now%fs, h_max, h, res%n_rhs)
+    h = first_step_fraction * h
+    run%maxima%n_samples = 0              ! (Theta's maxima from these step ends alone)
+    steps = 0
     stalled = 0
     hovering = 0
     crawling = 0
-    window_start = 0
+    window_start = t
     t_stop = cs%t_end
     do
       call reach_stop(cs, run, t, t_stop, done)       ! (past t_end, settle: on until the ball is at rest)
       if (done) exit
-      attempts = attempts + 1
-      if (stop_asked(attempts)) then
+      if (stop_asked(res%n_steps + res%n_rejected)) then
         res%status = status_pending
+        done = .true.
         return
       end if
-      h = min(h, h_max, t_stop - t)
+      h = step_to_sample(run%ball%excitation, t, min(h, h_max, t_stop - t))
       t_next = t + h
       if (run%next_sample <= plan%n_samples) then
         next_sample_time = real(run%next_sample - 1, wp) * plan%interval
@@ -227,13 +277,14 @@ contains
       end if
       if (t_stop - t_next <= 4 * spacing(t_stop)) t_next = t_stop
       h = t_next - t
-      call attempt(pair, control, rolling, sb, t, h, now, trial, status, res, rejected)
+      call attempt(pair, rolling, sb, t, h, now, trial, status, res, rejected)
       if (rejected) then
         res%n_rejected = res%n_rejected + 1
         h = h * max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order()))
         if (h <= 16 * spacing(t)) then
           res%status = status_unstable
           res%t_final = t
+          done = .true.
           return
         end if
         cycle
@@ -242,12 +293,13 @@ contains
       if (pair%error_norm > 0) factor = min(5.0_wp, max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order())))
       call advance(pair, run, rolling, sb, t, h, .true., now, tally, res, ended, t_next, trial, status)
       res%n_steps = res%n_steps + 1
+      steps = steps + 1
+      done = ended
       if (ended) return
-      ! steps too short to reach t_end in any time (a couple or a friction
-      ! that flips at every stage about omega_t = 0 or u = 0): every
-      ! max_hover_steps steps the case must have moved on by crawl_fraction
-      ! of t_end per step on average
-      if (mod(res%n_steps, int(max_hover_steps, i8)) == 0) then
+      ! steps too short to reach t_end in any time (a friction that flips at
+      ! every stage about u = 0): every max_hover_steps steps the case must
+      ! have moved on by crawl_fraction of t_end per step on average
+      if (mod(steps, int(max_hover_steps, i8)) == 0) then
         crawling = merge(1, 0, t_next - window_start < max_hover_steps * crawl_fraction * cs%t_end)
         window_start = t_next
       end if
@@ -261,6 +313,7 @@ contains
       if (stalled > max_switches_per_step .or. hovering > max_hover_steps .or. crawling > 0) then
         res%status = status_unstable           ! switches that no longer move on: chattering
         res%t_final = t
+        done = .true.
         return
       end if
       t = t_next
@@ -269,23 +322,17 @@ contains
         call record_regime_sample(res, run%next_sample, now)
         run%next_sample = run%next_sample + 1
       end if
+      if (.not. now%sliding) return           ! rolling on from t
       h = h * factor
-      if (t_stop > cs%t_end) then
-        if (settled(run, t)) exit
-      end if
     end do
     res%t_final = t
-  end subroutine adaptive_slide
+  end subroutine sliding_piece
 
-  !> An embedded pair's attempt of size h from (t, now), and whether its error
-  !> rejects it. Sliding: take's step, or its stop bracket's where the slip
-  !> stops in that; rolling: the rolling model's attempt (attempt_step), cut
-  !> where an event of the model happens, or taken again to where its dense
-  !> output passes a limit of rolling (slip_inside: the friction needed
-  !> passes mu N inside it); h is cut to either.
-  subroutine attempt(pair, control, rolling, sb, t, h, now, new, status, res, rejected)
+  !> An embedded pair's sliding attempt of size h from (t, now), and whether
+  !> its error rejects it: take's step, or its stop bracket's where the slip
+  !> stops in that (h cut to it).
+  subroutine attempt(pair, rolling, sb, t, h, now, new, status, res, rejected)
     class(embedded_pair_t), intent(inout) :: pair
-    type(step_control_t), intent(inout) :: control
     type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
     real(wp), intent(in) :: t
@@ -295,36 +342,14 @@ contains
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: rejected
-    real(wp) :: h_cut, passed
+    real(wp) :: h_cut
     logical :: taken
-    if (now%sliding) then
-      call sb%begin_step(now%s)
-      call choose_slip_law(sb, t, now%s, now%fs, h, res%n_rhs)
-      call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
-      if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
-      h = h_cut
-      rejected = status == status_completed .and. .not. pair%error_norm <= 1
-      return
-    end if
-    if (rolling%ball%nonsmooth()) call rolling%ball%begin_step(now%y)
-    h_cut = h
-    call attempt_step(pair, control, rolling, t, now%y, now%f, h_cut, new%y, new%f, new%obs, status, res)
-    new%sliding = .false.
-    new%slip_speed = 0
-    rejected = pair%error_norm > 1
-    if (rejected) return                 ! (a rejection's h is the caller's to shrink)
+    call sb%begin_step(now%s)
+    call choose_slip_law(sb, t, now%s, now%fs, h, res%n_rhs)
+    call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
+    if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
     h = h_cut
-    if (status /= status_completed .or. new%obs%friction_needed > sb%ball%mu) return
-    ! the friction needed may pass mu N and fall back inside the step (a
-    ! grazing slip): the rolling path's search on the dense output finds it,
-    ! and the step is taken again to there, where the switch is then located
-    rolling%ball%mu = sb%ball%mu
-    call slip_inside(pair, rolling, now%y, now%f, new%obs%friction_needed, status, passed, res%n_rhs)
-    rolling%ball%mu = -1
-    if (status == status_completed) return
-    h = passed
-    call attempt_step(pair, control, rolling, t, now%y, now%f, h, new%y, new%f, new%obs, status, res)
-    rejected = pair%error_norm > 1
+    rejected = status == status_completed .and. .not. pair%error_norm <= 1
   end subroutine attempt
 
   !> A step of size h_step from (t, now), through the switches of regime

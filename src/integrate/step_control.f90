@@ -8,10 +8,11 @@ module ellroll_step_control
   use ellroll_kinds, only: wp, i8
   use ellroll_cases, only: max_steps
   use ellroll_integrators, only: tolerance_ratio_cap
+  use ellroll_excitation, only: excitation_t, step_to_sample
   implicit none
   private
 
-  public :: judged_norm, round_off_step, cannot_follow, last_step_clipped, smallest_step_ulps
+  public :: judged_norm, round_off_step, cannot_follow, next_step, smallest_step_ulps
 
   !> Step-size control of an embedded pair: Hairer's safety factor, a
   !> rejected step shrunk at most 3-fold, and after an accepted step
@@ -115,6 +116,15 @@ contains
       step = t_end - t
     end if
   end function last_step_clipped
+
+  !> The step to attempt from t: last_step_clipped's, ending at the cup's
+  !> record's next sample where it would pass it (step_to_sample).
+  pure real(wp) function next_step(t, h, t_end, after_rejection, excitation) result(step)
+    real(wp), intent(in) :: t, h, t_end
+    logical, intent(in) :: after_rejection
+    type(excitation_t), intent(in) :: excitation
+    step = step_to_sample(excitation, t, last_step_clipped(t, h, t_end, after_rejection))
+  end function next_step
 
   !> h: the step to retry after a rejected attempt of size h with this
   !> error norm (> 1); the next accepted step will not grow.

@@ -22,31 +22,35 @@ contains
   !> work(1): the friction's, work(2): the rolling resistance's (both >= 0,
   !> J) over the pair's last step, of size h from t: sliding where sb is
   !> given (its state), else rolling (ball, in the mode of the step:
-  !> begin_step; the friction's work 0); n_rhs counts the RHS calls.
-  subroutine step_works(pair, ball, t, h, work, n_rhs, sb)
+  !> begin_step; the friction's work 0); n_rhs counts the RHS calls. part:
+  !> the works over the first part of the last step only (h its size).
+  subroutine step_works(pair, ball, t, h, work, n_rhs, sb, part)
     class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, h
     real(wp), intent(out) :: work(2)
     integer(i8), intent(inout) :: n_rhs
     type(sliding_ball_t), intent(in), optional :: sb
+    real(wp), intent(in), optional :: part
     ! the roots of P_4 on [-1, 1], +-sqrt(3/7 -+ 2/7 sqrt(6/5)), and their
     ! weights (18 +- sqrt(30)) / 36, mapped onto [0, 1]
     real(wp), parameter :: inner = 0.33998104358485626480_wp, outer = 0.86113631159405257522_wp
     real(wp), parameter :: nodes(4) = 0.5_wp + 0.5_wp * [-outer, -inner, inner, outer]
     real(wp), parameter :: weights(4) = [0.34785484513745385737_wp, 0.65214515486254614263_wp, &
                                          0.65214515486254614263_wp, 0.34785484513745385737_wp] / 2
-    real(wp) :: s(slide_state_size), y(state_size), f(state_size), power(2), at
+    real(wp) :: s(slide_state_size), y(state_size), f(state_size), power(2), at, theta(4)
     type(observation_t) :: obs
     integer :: i
     work = 0
+    theta = nodes
+    if (present(part)) theta = part * nodes
     do i = 1, size(nodes)
       at = t + nodes(i) * h
       if (present(sb)) then
-        call pair%dense(sb, nodes(i), s, n_rhs)
+        call pair%dense(sb, theta(i), s, n_rhs)
         power = dissipation(sb, at, s)
       else
-        call pair%dense(ball, nodes(i), y, n_rhs)
+        call pair%dense(ball, theta(i), y, n_rhs)
         call normalize_normal(y)
         call ball_derivative(ball, at, y, f)
         call observe(ball, at, y, f, obs)

@@ -6,7 +6,7 @@ module ellroll_excitation
   implicit none
   private
 
-  public :: excitation_t, base_acceleration, set_record, excitation_end
+  public :: excitation_t, base_acceleration, set_record, excitation_end, step_to_sample
   public :: excitation_none, excitation_harmonic, excitation_record, excitation_kind_names
 
   integer, parameter :: excitation_none = 0, excitation_harmonic = 1, excitation_record = 2
@@ -62,7 +62,7 @@ contains
     type(excitation_t), intent(in) :: exc
     real(wp), intent(in) :: t
     real(wp) :: a(3)
-    integer :: low, high, mid
+    integer :: low, high
     real(wp) :: weight
     select case (exc%kind)
     case (excitation_harmonic)
@@ -77,24 +77,65 @@ contains
         a = exc%scale * exc%values(:, high)
         return
       end if
-      if (exc%step > 0) then           ! the sample at or before t, by index
-        low = min(max(int(t * (1 / exc%step)) + 1, 1), high - 1)
-        if (exc%times(low) > t) low = low - 1
-        if (exc%times(low + 1) <= t) low = low + 1
-        high = low + 1
-      end if
-      do while (high - low > 1)
-        mid = (low + high) / 2
-        if (exc%times(mid) <= t) then
-          low = mid
-        else
-          high = mid
-        end if
-      end do
+      low = sample_before(exc, t)
+      high = low + 1
       weight = (t - exc%times(low)) / (exc%times(high) - exc%times(low))
       a = exc%scale * ((1 - weight) * exc%values(:, low) + weight * exc%values(:, high))
     case default
       a = 0
     end select
   end function base_acceleration
+
+  !> The index of a record's last sample at or before t, for
+  !> times(1) < t < times(n): by its index on a grid of equal steps, else
+  !> by bisection.
+  pure integer function sample_before(exc, t) result(low)
+    type(excitation_t), intent(in) :: exc
+    real(wp), intent(in) :: t
+    integer :: high, mid
+    low = 1
+    high = size(exc%times)
+    if (exc%step > 0) then
+      low = min(max(int(t * (1 / exc%step)) + 1, 1), high - 1)
+      if (exc%times(low) > t) low = low - 1
+      if (exc%times(low + 1) <= t) low = low + 1
+      high = low + 1
+    end if
+    do while (high - low > 1)
+      mid = (low + high) / 2
+      if (exc%times(mid) <= t) then
+        low = mid
+      else
+        high = mid
+      end if
+    end do
+  end function sample_before
+
+  !> The step h from t, cut to end at the record's next sample where it
+  !> would pass it: the interpolated record's slope jumps there, and an
+  !> embedded pair's step across such a kink loses its order (its error
+  !> stays above the tolerance). A t within 4 units in the last place of a
+  !> sample is at it.
+  pure real(wp) function step_to_sample(exc, t, h) result(step)
+    type(excitation_t), intent(in) :: exc
+    real(wp), intent(in) :: t, h
+    integer :: next, n
+    real(wp) :: kink
+    step = h
+    if (exc%kind /= excitation_record) return
+    n = size(exc%times)
+    if (t < exc%times(1)) then
+      next = 1
+    else if (t < exc%times(n)) then
+      next = sample_before(exc, t) + 1
+    else
+      return
+    end if
+    kink = exc%times(next)
+    if (kink - t <= 4 * spacing(kink)) then
+      if (next == n) return
+      kink = exc%times(next + 1)
+    end if
+    if (t + h > kink) step = kink - t
+  end function step_to_sample
 end module ellroll_excitation

@@ -157,8 +157,11 @@ def test_a_record_sliding_often_takes_few_steps_and_agrees_across_methods(ellrol
     where the friction rolling needs passes mu N slowly (the slip then stays
     at 1e-9..1e-8 m/s for a while). vern9 and dop853 at rtol 1e-10 and 1e-12
     give the same 41 switches to 1e-7 s, sliding time to 1e-7 s and friction
-    energy to 1e-6 J (the stops where rolling needs nearly mu N are the
-    least well posed: a slip error du moves them by du / |u'|)."""
+    energy to 1e-9 J (the stops where rolling needs nearly mu N are the
+    least well posed: a slip error du moves them by du / |u'|; the friction's
+    work is not: 2.2288835826 J to 5e-11 J across pairs and tolerances, which
+    a sliding piece's first step as long as the pair's initial guess misses
+    by up to 1.7e-6 J)."""
     runs = {(m, rtol): run_record(ellroll, tmp_path, m, rtol) for m in ("vern9", "dop853")
             for rtol in (1e-10, 1e-12)}
     reference = runs[("vern9", 1e-12)]
@@ -166,5 +169,5 @@ def test_a_record_sliding_often_takes_few_steps_and_agrees_across_methods(ellrol
         assert out["status"] == 1 and out["slip_episodes"] == 21 and len(out["switches"]) == 41, key
         assert np.abs(out["switches"] - reference["switches"]).max() < 1e-7, key
         assert abs(out["sliding_time"] - reference["sliding_time"]) < 1e-7, key
-        assert abs(out["friction_energy"] - reference["friction_energy"]) < 1e-6, key
+        assert abs(out["friction_energy"] - reference["friction_energy"]) < 1e-9, key
         assert out["n_steps"] < 6000, key
