@@ -379,3 +379,30 @@ def test_a_spinning_stop_in_lanes_is_the_case_alone(ellroll, tmp_path):
         with h5py.File(tmp_path / f"alone{j}.h5") as f:
             assert abs(f["summary/rest_time"][0] - forward["rest_time"][j]) < 1e-12
             assert abs(f["summary/residual_displacement"][0] - forward["residual_displacement"][j]) < 1e-15
+
+
+def test_a_spinning_stop_in_lanes_is_the_case_alone_bitwise_in_debug(ellroll_debug, tmp_path):
+    """In the Debug build (no fused multiply-adds, floating-point traps) the
+    sweep's lanes take the laws of the case alone bit for bit: every summary
+    figure (n_rhs included) and every stored sample of each case equals its
+    run alone (the one-case path)."""
+    sweep = "&sweep name = 'omega_z', values = {} /\n".format(", ".join(map(repr, SPINS)))
+    (tmp_path / "lanes.nml").write_text(SPINNING_STOP.format(integration="method = 'rk4', dt = 1e-3")
+                                        .replace("fields = 'none'", "fields = 'all'") + sweep)
+    result = run(ellroll_debug, "run", "lanes.nml", "-q", "-o", "lanes.h5", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "lanes.h5") as lanes:
+        for j, spin in enumerate(SPINS):
+            text = SPINNING_STOP.format(integration="method = 'rk4', dt = 1e-3").replace(
+                "-5.946281168382165 /", f"{spin!r} /").replace("fields = 'none'", "fields = 'all'")
+            (tmp_path / f"alone{j}.nml").write_text(text)
+            result = run(ellroll_debug, "run", f"alone{j}.nml", "-q", "-o", f"alone{j}.h5", cwd=tmp_path)
+            assert result.returncode == 0, result.stderr
+            with h5py.File(tmp_path / f"alone{j}.h5") as alone:
+                assert alone["summary/at_rest"][0] == 1
+                for group in ("summary", "trajectory"):
+                    for name, item in alone[group].items():
+                        if name in ("wall_time", "case") or (group == "trajectory" and item.ndim < 2):
+                            continue
+                        assert np.asarray(lanes[group][name][j]).tobytes() == np.asarray(item[0]).tobytes(), \
+                            (spin, group, name)
