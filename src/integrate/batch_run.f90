@@ -13,12 +13,13 @@ module ellroll_batch_run
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_rolling_resistance_energy
   use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal, q_fit_clearance
-  use ellroll_rolling_ball, only: observation_t, state_size, event_rest
+  use ellroll_rolling_ball, only: observation_t, state_size, event_rest, law_exact
+  use ellroll_lane_laws, only: choose_lane_laws, exact_lane_ends
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
   use ellroll_ball_steppers, only: lanes_fixed_step, lanes_pair_attempt, lanes_pair_dense_stages
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes, &
-      lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
+      lanes_rolling_stops, lanes_at_rest, keep_accepted
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
@@ -155,7 +156,7 @@ contains
     type(case_result_t), intent(inout) :: results(:)
     type(lane_outputs_t) :: out
     type(lane_sample_block_t) :: samples
-    real(wp), dimension(lanes, state_size) :: y_new, f_new, y_checkpoint, y_older_checkpoint
+    real(wp), dimension(lanes, state_size) :: y_new, f_new, f_start, y_checkpoint, y_older_checkpoint
     real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: h(lanes), t
     integer(i8) :: n_steps(lanes), n_last(lanes), every(lanes), step
@@ -186,9 +187,9 @@ contains
       do while (any(active))
         step = step + 1
         if (stop_asked(step)) exit
-        call step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
-        if (balls%resists) call rest_events(b, integrator, real(step - 1, wp) * h, h, y_new, f_new, inside, out, base_end, &
-                                            results)
+        call step_lanes(b, integrator, step, h, f_start, y_new, f_new, inside, out, base_end, results)
+        if (balls%resists) call rest_events(b, integrator, real(step - 1, wp) * h, h, f_start, y_new, f_new, inside, out, &
+                                            base_end, results)
         accepted = active .and. inside .and. out%status == status_completed
         passed = .false.
         if (any(active .and. .not. accepted)) call meet_limits()
@@ -266,92 +267,87 @@ contains
     end subroutine meet_limits
   end subroutine fixed_step_lanes
 
-  !> The active lanes whose rolling stops inside the step from t (steps h)
-  !> just taken (lanes_rolling_stops, where the step stayed inside the
-  !> model): the step taken again through the rest event with the one-case
-  !> code on the lane (step_through_event, in the lane's mode for the step),
+  !> The active lanes whose rolling stops inside the step from t (steps h,
+  !> derivatives f_start at its start in its law) just taken
+  !> (lanes_rolling_stops, where the step stayed inside the model): the
+  !> step taken again through the rest event with the one-case code on the
+  !> lane (step_through_event, in the lane's mode and law for the step);
   !> its end (y_new, f_new) observed with the others' (out; base_end: the
-  !> cups' accelerations there); a lane whose step then meets a limit is not
-  !> inside (meet_limits).
-  subroutine rest_events(b, integrator, t, h, y_new, f_new, inside, out, base_end, results)
+  !> cups' accelerations there); a lane whose step then meets a limit is
+  !> not inside (meet_limits). The others' steps taken in another law than
+  !> law_exact: f_new in law_exact (exact_lane_ends), out in their law.
+  subroutine rest_events(b, integrator, t, h, f_start, y_new, f_new, inside, out, base_end, results)
     type(batch_t), intent(inout) :: b
     class(integrator_t), intent(inout) :: integrator
-    real(wp), intent(in) :: t(lanes), h(lanes), base_end(lanes, 3)
+    real(wp), intent(in) :: t(lanes), h(lanes), base_end(lanes, 3), f_start(lanes, state_size)
     real(wp), dimension(lanes, state_size), intent(inout) :: y_new, f_new
     logical, intent(inout) :: inside(lanes)
     type(lane_outputs_t), intent(inout) :: out
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane, y_new_lane, f_new_lane
     type(observation_t) :: obs
-    logical :: stops(lanes)
+    logical :: stops(lanes), ends(lanes)
     real(wp) :: t_event
     integer :: status, l
-    stops = lanes_rolling_stops(b%balls, y_new) .and. b%active .and. inside .and. out%status == status_completed
-    if (.not. any(stops)) return
+    ends = b%active .and. inside .and. out%status == status_completed
+    stops = lanes_rolling_stops(b%balls, y_new) .and. ends
+    ends = ends .and. .not. stops .and. b%balls%law > 0
+    if (.not. any(stops .or. ends)) return
     do l = 1, b%n
       if (.not. stops(l)) cycle
       y_lane = b%y(l, :)
-      f_lane = b%f(l, :)
+      f_lane = f_start(l, :)
       y_new_lane = y_new(l, :)                 ! where the event was seen
       call b%run(l)%ball%begin_step(y_lane)
+      b%run(l)%ball%rolling_law = nint(b%balls%law(l))
+      b%run(l)%ball%law_step = b%balls%law_step(l)
       call step_through_event(integrator, b%run(l), event_rest, t(l), y_lane, f_lane, h(l), y_new_lane, f_new_lane, &
                               obs, status, results(l)%n_rhs, t_event)
+      b%run(l)%ball%rolling_law = law_exact
       b%run(l)%stopped_at = t_event
       y_new(l, :) = y_new_lane
       f_new(l, :) = f_new_lane
       inside(l) = status == status_completed
     end do
-    if (b%cups%moving) then
+    if (b%cups%moving .and. any(stops)) then
       call lanes_observe(b%balls, y_new, f_new, out, base_end)
-    else
+    else if (any(stops)) then
       call lanes_observe(b%balls, y_new, f_new, out)
     end if
+    call exact_lane_ends(b%balls, b%run, ends, t + h, y_new, f_new, results)
   end subroutine rest_events
 
   !> Every lane's fixed step number `step` (steps h, from t = (step - 1) h,
   !> the one-case loop's times) and the observation of its end (base_end:
   !> the cups' accelerations there, when they move); with rolling
   !> resistance, in each lane's mode from the step's start.
-  subroutine step_lanes(b, integrator, step, h, y_new, f_new, inside, out, base_end)
+  subroutine step_lanes(b, integrator, step, h, f_start, y_new, f_new, inside, out, base_end, results)
     type(batch_t), intent(inout) :: b
     class(integrator_t), intent(in) :: integrator
     integer(i8), intent(in) :: step
     real(wp), intent(in) :: h(lanes)
-    real(wp), dimension(lanes, state_size), intent(out) :: y_new, f_new
+    real(wp), dimension(lanes, state_size), intent(out) :: f_start, y_new, f_new
     logical, intent(out) :: inside(lanes)
     type(lane_outputs_t), intent(inout) :: out
     real(wp), intent(inout) :: base_end(lanes, 3)
+    type(case_result_t), intent(inout) :: results(:)
     real(wp) :: base_half(lanes, 3)
-    if (b%balls%resists) call lanes_rolling_mode(b%balls, b%y)
+    f_start = b%f
+    if (b%balls%resists) then                  ! the modes and laws (f_start: the derivatives in them)
+      base_half = 0
+      if (b%cups%moving) call b%cups%at(real(step - 1, wp) * h, base_half)
+      call choose_lane_laws(b%balls, b%run, b%active, b%y, b%f, real(step - 1, wp) * h, h, base_half, f_start, results)
+    end if
     if (b%cups%moving) then
       call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
       call b%cups%at(real(step - 1, wp) * h + h, base_end)
-      call lanes_fixed_step(integrator, b%balls, b%y, b%f, h, y_new, f_new, inside, base_half, base_end)
+      call lanes_fixed_step(integrator, b%balls, b%y, f_start, h, y_new, f_new, inside, base_half, base_end)
       call lanes_observe(b%balls, y_new, f_new, out, base_end)
     else
-      call lanes_fixed_step(integrator, b%balls, b%y, b%f, h, y_new, f_new, inside)
+      call lanes_fixed_step(integrator, b%balls, b%y, f_start, h, y_new, f_new, inside)
       call lanes_observe(b%balls, y_new, f_new, out)
     end if
   end subroutine step_lanes
-
-  !> The accepted lanes' new states and derivatives taken as theirs.
-  pure subroutine keep_accepted(y, f, y_new, f_new, accepted)
-    real(wp), dimension(lanes, state_size), intent(inout) :: y, f
-    real(wp), dimension(lanes, state_size), intent(in) :: y_new, f_new
-    logical, intent(in) :: accepted(lanes)
-    integer :: i
-    if (all(accepted)) then             ! the rule: whole vectors, no test per lane
-      y = y_new
-      f = f_new
-    else
-      do i = 1, state_size
-        where (accepted)
-          y(:, i) = y_new(:, i)
-          f(:, i) = f_new(:, i)
-        end where
-      end do
-    end if
-  end subroutine keep_accepted
 
   !> An embedded pair with each case's tolerances (adaptive_loop across
   !> lanes): the attempts of all lanes together, the step control of each

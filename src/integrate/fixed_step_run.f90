@@ -12,8 +12,9 @@ module ellroll_fixed_step_run
   use ellroll_linear, only: fastest_rate
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal
-  use ellroll_integrators, only: integrator_t, stability_limit
+  use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
+      choose_rolling_law, law_exact
+  use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, settled, last_fixed_step
   use ellroll_flow_to_limit, only: follow_flow_to_limit
@@ -21,7 +22,7 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event, step_with_events
+  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event, step_with_events, exact_end, choose_law
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.
@@ -106,13 +107,61 @@ contains
     integer, intent(out) :: status, event
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(out) :: t_event
-    if (run%ball%nonsmooth()) call run%ball%begin_step(y)
-    call fixed_step(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
+    real(wp) :: f_start(state_size)
+    f_start = f
+    if (run%ball%nonsmooth()) then
+      call run%ball%begin_step(y)
+      if (fixed_steps(integrator)) call choose_law(run, t, y, h, f_start, n_rhs)
+    end if
+    call fixed_step(integrator, run, t, y, f_start, h, y_new, f_new, obs, status, n_rhs)
     event = 0
     t_event = -1
     if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
-    if (event /= 0) call step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
+    if (event /= 0) call step_through_event(integrator, run, event, t, y, f_start, h, y_new, f_new, obs, status, &
+                                            n_rhs, t_event)
+    if (run%ball%rolling_law /= law_exact) then
+      run%ball%rolling_law = law_exact
+      if (event == 0 .and. status == status_completed) call exact_end(run, t + h, y_new, f_new, n_rhs)
+    end if
   end subroutine step_with_events
+
+  !> The couple's law for a fixed step h from (t, y) (choose_rolling_law);
+  !> f: the derivative at y with the couple against omega_t on entry, in
+  !> the law chosen on return.
+  subroutine choose_law(run, t, y, h, f, n_rhs)
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, y(state_size), h
+    real(wp), intent(inout) :: f(state_size)
+    integer(i8), intent(inout) :: n_rhs
+    call choose_rolling_law(run%ball, t, y, f, h)
+    if (run%ball%rolling_law == law_exact) return
+    call ball_derivative(run%ball, t, y, f)
+    n_rhs = n_rhs + 1
+  end subroutine choose_law
+
+  !> The derivative at the end (t, y) of a step taken in another law of the
+  !> couple, in law_exact: the model's there, the next step's start (the
+  !> step's outputs there stay its law's).
+  subroutine exact_end(run, t, y, f, n_rhs)
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: t, y(state_size)
+    real(wp), intent(out) :: f(state_size)
+    integer(i8), intent(inout) :: n_rhs
+    call ball_derivative(run%ball, t, y, f)
+    n_rhs = n_rhs + 1
+  end subroutine exact_end
+
+  !> Whether the method takes fixed steps (the couple's law is chosen per
+  !> step: choose_rolling_law); an embedded pair controls its steps instead.
+  logical function fixed_steps(integrator)
+    class(integrator_t), intent(in) :: integrator
+    select type (integrator)
+    class is (embedded_pair_t)
+      fixed_steps = .false.
+    class default
+      fixed_steps = .true.
+    end select
+  end function fixed_steps
 
   !> A step of size h from (t, y, f) in which an event of the model happens
   !> (event_crossed): it is cut where the event's function changes sign

@@ -21,7 +21,7 @@ module ellroll_ball_lanes
   private
 
   public :: lanes, ball_lanes_t, lane_outputs_t, runs_in_lanes, set_lane, lanes_derivative, lanes_observe
-  public :: lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest
+  public :: lanes_rolling_mode, lanes_rolling_stops, lanes_at_rest, lanes_may_stiffen, keep_accepted
 
   !> Cases per batch: two AVX2 or one AVX-512 register of doubles.
   integer, parameter :: lanes = 8
@@ -51,6 +51,10 @@ module ellroll_ball_lanes
     !> m R^2 (1 + k) (couple_inertia's), as the one-case code computes them
     real(wp), dimension(lanes) :: rest_scale = 1, mass_radius = 1, couple_inertia = 1
     real(wp) :: rolling_mode(lanes, 3) = 0, rolling_at_start(lanes, 3) = 0, rolls(lanes) = 0
+    !> each lane's law of the couple for the step (rolling_law's law_exact,
+    !> law_held, law_implicit as 0, 1, 2) and the step law_implicit looks
+    !> ahead by (choose_rolling_law on the lane: ellroll_lane_laws)
+    real(wp) :: law(lanes) = 0, law_step(lanes) = 0
     logical :: resists = .false.          !< some lane has rolling resistance
   end type ball_lanes_t
 
@@ -113,6 +117,7 @@ contains
     p%rolling_mode(l, :) = 0
     p%rolling_at_start(l, :) = 0
     p%rolls(l) = 0
+    p%law(l) = 0
     p%resists = any(p%resistance > 0)
   end subroutine set_lane
 
@@ -254,7 +259,8 @@ contains
     real(wp), intent(inout) :: dydt(lanes, state_size)
     real(wp) :: inv_length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, resistance, spin, o1, o2, o3, rate, rest
     real(wp) :: d1, d2, d3, drive_size, inertia, divisor, quotient, e1, e2, e3, m, r
-    logical :: rolling, past, held, resists
+    real(wp) :: along, a1, a2, a3, ahead_size
+    logical :: rolling, past, held, resists, ahead, by_mode
     integer :: l, i
     do l = 1, p%width
       r = p%radius(l)
@@ -279,6 +285,15 @@ contains
       rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
       rolling = rate > rest
       past = o1 * p%rolling_mode(l, 1) + o2 * p%rolling_mode(l, 2) + o3 * p%rolling_mode(l, 3) < 0
+      ! the step's law: law_implicit against omega_t + h F_t (rolling_rate's
+      ! F_t, from dydt without the couple), law_held against the mode
+      along = dydt(l, 4) * n1 + dydt(l, 5) * n2 + dydt(l, 6) * n3
+      a1 = o1 + p%law_step(l) * (dydt(l, 4) - along * n1 - (spin * inv_length) * dydt(l, 1))
+      a2 = o2 + p%law_step(l) * (dydt(l, 5) - along * n2 - (spin * inv_length) * dydt(l, 2))
+      a3 = o3 + p%law_step(l) * (dydt(l, 6) - along * n3 - (spin * inv_length) * dydt(l, 3))
+      ahead_size = sqrt(a1 * a1 + a2 * a2 + a3 * a3)
+      ahead = p%law(l) > 1.5_wp .and. ahead_size > 0
+      by_mode = merge(.not. ahead_size > 0, p%law(l) > 0.5_wp .or. past, p%law(l) > 1.5_wp)
       ! at rest: the couple m R n x (g_vec - a_base) that would start it rolling
       d1 = p%mass_radius(l) * (n2 * g3 - n3 * g2)
       d2 = p%mass_radius(l) * (n3 * g1 - n1 * g3)
@@ -286,11 +301,12 @@ contains
       drive_size = sqrt(d1 * d1 + d2 * d2 + d3 * d3)
       held = .not. rolling .and. drive_size <= resistance
       inertia = p%couple_inertia(l)
-      divisor = merge(merge(inertia, rate * inertia, past), drive_size * inertia, rolling)
+      divisor = merge(merge(inertia, merge(ahead_size * inertia, rate * inertia, ahead), by_mode), &
+                      drive_size * inertia, rolling)
       quotient = resistance / merge(divisor, 1.0_wp, .not. held)
-      e1 = merge(merge(p%rolling_mode(l, 1), o1, past), d1, rolling)
-      e2 = merge(merge(p%rolling_mode(l, 2), o2, past), d2, rolling)
-      e3 = merge(merge(p%rolling_mode(l, 3), o3, past), d3, rolling)
+      e1 = merge(merge(p%rolling_mode(l, 1), merge(a1, o1, ahead), by_mode), d1, rolling)
+      e2 = merge(merge(p%rolling_mode(l, 2), merge(a2, o2, ahead), by_mode), d2, rolling)
+      e3 = merge(merge(p%rolling_mode(l, 3), merge(a3, o3, ahead), by_mode), d3, rolling)
       resists = p%resistance(l) > 0
       dydt(l, 4) = merge(dydt(l, 4) - quotient * e1, dydt(l, 4), resists)
       dydt(l, 5) = merge(dydt(l, 5) - quotient * e2, dydt(l, 5), resists)
@@ -334,12 +350,63 @@ contains
       rolling = rate > rest
       p%rolling_at_start(l, :) = [o1, o2, o3]
       p%rolls(l) = merge(1.0_wp, 0.0_wp, rolling)
+      p%law(l) = 0
       rate = merge(rate, 1.0_wp, rolling)
       p%rolling_mode(l, 1) = merge(o1 / rate, 0.0_wp, rolling)
       p%rolling_mode(l, 2) = merge(o2 / rate, 0.0_wp, rolling)
       p%rolling_mode(l, 3) = merge(o3 / rate, 0.0_wp, rolling)
     end do
   end subroutine lanes_rolling_mode
+
+  !> The lanes whose step h from y (derivative f there, the cups'
+  !> accelerations base) may be one in which the couple's direction turns
+  !> faster than the step (stiff_rolling, after lanes_rolling_mode): they
+  !> roll and 2 C h > |omega_t|, a margin over the round-off of a vector
+  !> code; the one-case code decides on them (ellroll_lane_laws).
+  pure function lanes_may_stiffen(p, y, f, h, base) result(stiff)
+    type(ball_lanes_t), intent(in) :: p
+    real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), h(lanes), base(lanes, 3)
+    logical :: stiff(lanes)
+    real(wp) :: inv_length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, couple, rate
+    integer :: l
+    stiff = .false.
+    do l = 1, p%width
+      inv_length = 1 / sqrt(y(l, 1) * y(l, 1) + y(l, 2) * y(l, 2) + y(l, 3) * y(l, 3))
+      n1 = y(l, 1) * inv_length
+      n2 = y(l, 2) * inv_length
+      n3 = y(l, 3) * inv_length
+      g1 = merge(0.0_wp - base(l, 1), 0.0_wp, p%moves(l) > 0)
+      g2 = merge(0.0_wp - base(l, 2), 0.0_wp, p%moves(l) > 0)
+      g3 = merge(-p%g(l) - base(l, 3), -p%g(l), p%moves(l) > 0)
+      t1 = f(l, 2) * n3 - f(l, 3) * n2
+      t2 = f(l, 3) * n1 - f(l, 1) * n3
+      t3 = f(l, 1) * n2 - f(l, 2) * n1
+      normal_force = p%mass(l) * (p%radius(l) * (y(l, 4) * t1 + y(l, 5) * t2 + y(l, 6) * t3) * inv_length &
+                                  - (g1 * n1 + g2 * n2 + g3 * n3))
+      couple = p%resistance(l) * max(normal_force, 0.0_wp) / p%couple_inertia(l)
+      rate = sqrt(p%rolling_at_start(l, 1)**2 + p%rolling_at_start(l, 2)**2 + p%rolling_at_start(l, 3)**2)
+      stiff(l) = p%resistance(l) > 0 .and. p%rolls(l) > 0 .and. 2 * couple * h(l) > rate
+    end do
+  end function lanes_may_stiffen
+
+  !> The accepted lanes' new states and derivatives taken as theirs.
+  pure subroutine keep_accepted(y, f, y_new, f_new, accepted)
+    real(wp), dimension(lanes, state_size), intent(inout) :: y, f
+    real(wp), dimension(lanes, state_size), intent(in) :: y_new, f_new
+    logical, intent(in) :: accepted(lanes)
+    integer :: i
+    if (all(accepted)) then             ! the rule: whole vectors, no test per lane
+      y = y_new
+      f = f_new
+    else
+      do i = 1, state_size
+        where (accepted)
+          y(:, i) = y_new(:, i)
+          f(:, i) = f_new(:, i)
+        end where
+      end do
+    end if
+  end subroutine keep_accepted
 
   !> Whether each lane's ball is at rest with derivative f at its state
   !> (at_rest: rolling resistance, no rolling, and held): f = 0. (f = 0

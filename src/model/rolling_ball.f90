@@ -25,7 +25,16 @@ module ellroll_rolling_ball
 
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
-            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross
+            nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
+            choose_rolling_law, rolling_rate, stiff_rolling
+
+  !> How a fixed step directs the couple of rolling resistance
+  !> (choose_rolling_law): against the rolling part of omega as it is
+  !> (law_exact), against its direction at the step's start (law_held), or
+  !> against the rolling part an implicit Euler step of the whole step would
+  !> reach, omega_t + h F_t (law_implicit; F_t the rolling part's rate
+  !> without the couple).
+  integer, parameter, public :: law_exact = 0, law_held = 1, law_implicit = 2
 
   integer, parameter :: state_size = 6
   !> Largest surface residual accepted before a case ends with 'constraint'.
@@ -53,6 +62,11 @@ module ellroll_rolling_ball
     !> to the stop stays smooth inside the step that is cut there
     real(wp) :: rolling_mode(3) = 0
     real(wp) :: rolling_at_start(3) = 0   !< the rolling part of omega where the step started
+    !> the couple's law for the step (law_exact unless a fixed step chose
+    !> another: choose_rolling_law; begin_step sets law_exact) and the
+    !> step h law_implicit looks ahead by
+    integer :: rolling_law = law_exact
+    real(wp) :: law_step = 0
   contains
     procedure :: rhs => ball_rhs
     procedure :: stage_status => ball_stage_status
@@ -182,6 +196,7 @@ contains
     real(wp), intent(inout) :: dydt(state_size)
     real(wp), intent(in), optional :: base(3)
     real(wp) :: n(3), omega_t(3), gravity(3), drive(3), turn(3), normal_force, resistance, rate, drive_size, inv_length
+    real(wp) :: ahead(3), ahead_size
     inv_length = 1 / length
     n = y(1:3) * inv_length
     gravity = [0.0_wp, 0.0_wp, -ball%g]
@@ -199,8 +214,18 @@ contains
     omega_t = y(4:6) - (y(4) * n(1) + y(5) * n(2) + y(6) * n(3)) * n
     rate = sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3))
     if (rate > rest_rate(ball, y)) then
-      ! past the stop, inside the step cut there
-      if (omega_t(1) * ball%rolling_mode(1) + omega_t(2) * ball%rolling_mode(2) + omega_t(3) * ball%rolling_mode(3) < 0) then
+      if (ball%rolling_law == law_implicit) then
+        ! against omega_t + h F_t, F_t from dydt without the couple (yet)
+        ahead = omega_t + ball%law_step * rolling_rate(y, dydt)
+        ahead_size = sqrt(ahead(1) * ahead(1) + ahead(2) * ahead(2) + ahead(3) * ahead(3))
+        if (ahead_size > 0) then
+          dydt(4:6) = dydt(4:6) - (resistance / (ahead_size * couple_inertia(ball))) * ahead
+        else
+          dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
+        end if
+      else if (ball%rolling_law == law_held .or. omega_t(1) * ball%rolling_mode(1) + omega_t(2) * ball%rolling_mode(2) &
+               + omega_t(3) * ball%rolling_mode(3) < 0) then
+        ! held, or past the stop inside the step cut there
         dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
       else
         dydt(4:6) = dydt(4:6) - (resistance / (rate * couple_inertia(ball))) * omega_t
@@ -276,12 +301,78 @@ contains
   end function smooth_part
 
   !> The mode of a step from y: with rolling resistance, the direction of
-  !> the rolling there (set_rolling_mode).
+  !> the rolling there (set_rolling_mode), the couple against the rolling
+  !> as it is (law_exact).
   pure subroutine ball_begin_step(self, y)
     class(rolling_ball_t), intent(inout) :: self
     real(wp), intent(in), contiguous :: y(:)
+    self%rolling_law = law_exact
     if (self%rolling_resistance > 0) call set_rolling_mode(self, y)
   end subroutine ball_begin_step
+
+  !> The law of the couple for a fixed step h from (t, y), f = the
+  !> derivative there with the couple against omega_t (after begin_step):
+  !> where its direction would turn faster than the step (stiff_rolling:
+  !> C h > |omega_t|, C the couple over the rolling inertia), law_implicit
+  !> where the implicit Euler step's rolling part, omega_t + h F_t, is
+  !> longer than C h and F_t leans the way the ball rolls (the ball rolls
+  !> on through the step: the couple against where it goes), else law_held
+  !> (it stops inside the step: the couple against where it went; the stop
+  !> event locates it). docs/model.md, "Rolling resistance".
+  pure subroutine choose_rolling_law(ball, t, y, f, h)
+    type(rolling_ball_t), intent(inout) :: ball
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp) :: couple, free(3), ahead(3)
+    logical :: stiff
+    ball%rolling_law = law_exact
+    call stiff_rolling(ball, t, y, f, h, couple, stiff)
+    if (.not. stiff) return
+    free = rolling_rate(y, f) + couple * ball%rolling_mode        ! f's couple taken out
+    ahead = ball%rolling_at_start + h * free
+    ball%law_step = h
+    ball%rolling_law = law_held
+    if (sqrt(ahead(1) * ahead(1) + ahead(2) * ahead(2) + ahead(3) * ahead(3)) > couple * h .and. &
+        ball%rolling_at_start(1) * free(1) + ball%rolling_at_start(2) * free(2) &
+        + ball%rolling_at_start(3) * free(3) > 0) ball%rolling_law = law_implicit
+  end subroutine choose_rolling_law
+
+  !> Whether a step h from (t, y), f the derivative there, is one in which
+  !> the couple's direction turns faster than the step (stiff): the ball
+  !> rolls (begin_step's mode) and C h > |omega_t|, couple = C = delta N /
+  !> (m R^2 (1 + k)) (N as resist_rolling takes it, from f's n').
+  pure subroutine stiff_rolling(ball, t, y, f, h, couple, stiff)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    real(wp), intent(out) :: couple
+    logical, intent(out) :: stiff
+    real(wp) :: n(3), gravity(3), turn(3), inv_length
+    couple = 0
+    stiff = .false.
+    if (.not. (ball%rolling_resistance > 0 .and. sum(ball%rolling_mode**2) > 0)) return
+    inv_length = 1 / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+    n = y(1:3) * inv_length
+    gravity = [0.0_wp, 0.0_wp, -ball%g]
+    if (ball%excitation%kind /= excitation_none) gravity = gravity - base_acceleration(ball%excitation, t)
+    turn = cross(f(1:3), n)
+    couple = ball%rolling_resistance * max(ball%mass * (ball%radius * (y(4) * turn(1) + y(5) * turn(2) &
+             + y(6) * turn(3)) * inv_length - (gravity(1) * n(1) + gravity(2) * n(2) + gravity(3) * n(3))), 0.0_wp) &
+             / couple_inertia(ball)
+    stiff = couple * h > sqrt(ball%rolling_at_start(1) * ball%rolling_at_start(1) &
+            + ball%rolling_at_start(2) * ball%rolling_at_start(2) + ball%rolling_at_start(3) * ball%rolling_at_start(3))
+  end subroutine stiff_rolling
+
+  !> The rate of the rolling part omega_t = omega - (omega . n) n at y
+  !> with derivative f: its projection on the tangent plane less (omega .
+  !> n) n' (written out as the batch's lanes take it).
+  pure function rolling_rate(y, f) result(rate)
+    real(wp), intent(in) :: y(state_size), f(state_size)
+    real(wp) :: rate(3), n(3), inv_length, spin, along
+    inv_length = 1 / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
+    n = y(1:3) * inv_length
+    spin = y(4) * n(1) + y(5) * n(2) + y(6) * n(3)
+    along = f(4) * n(1) + f(5) * n(2) + f(6) * n(3)
+    rate = f(4:6) - along * n - (spin * inv_length) * f(1:3)
+  end function rolling_rate
 
   !> event_rest where the rolling stops inside a step from y_start to y_end
   !> (rolling_stops), else 0.
