@@ -269,9 +269,8 @@ contains
       difference = abs(figures(single(l)) - figures(batch(l))) / max(abs(figures(batch(l))), tiny(1.0_wp))
       if (present(reference) .and. adaptive) then
         ! against a far more accurate run: the batch's samples no further
-        ! from it than twice the one-case path's, and 100 rtol (a record's
-        ! kinks, one at each of its samples, hold a pair's error above its
-        ! tolerance, and two parted runs may err on either side)
+        ! from it than twice the one-case path's, and 100 rtol (two parted
+        ! runs may err on either side)
         worst_samples = max(worst_samples, sample_difference(reference(l), batch(l)) / &
                                            (2 * sample_difference(reference(l), single(l)) + allowed))
       else
