@@ -17,7 +17,7 @@ module ellroll_adaptive_run
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
-      accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance
+      accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
@@ -258,12 +258,15 @@ contains
   !> simple root: its time is well conditioned), by regula falsi with the
   !> Illinois modification (superlinear, the bracket kept) to a bracket of
   !> 4 units of round-off in theta: about 10 evaluations where bisection
-  !> takes 52.
-  subroutine locate_nutation_peak(pair, ball, peak, n_rhs)
+  !> takes 52. upto: over the part [0, upto] of the step only, where a
+  !> maximum at its end counts (inside: whether it lies inside).
+  subroutine locate_nutation_peak(pair, ball, peak, n_rhs, upto, inside)
     class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     type(nutation_peak_t), intent(out) :: peak
     integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(in), optional :: upto
+    logical, intent(out), optional :: inside
     integer, parameter :: max_iterations = 100
     real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
     real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
@@ -273,8 +276,10 @@ contains
     if (prepared) n_rhs = n_rhs + pair%dense_calls()
     low = 0
     high = 1
+    if (present(upto)) high = upto
     trend_low = trend_at(low)
     trend_high = trend_at(high)
+    if (present(inside)) inside = trend_low >= 0 .and. trend_high < 0
     ! a root at an end, where round-off decided the step's test: that end
     if (trend_low < 0) then
       high = low
@@ -339,10 +344,37 @@ contains
     type(limit_search_t) :: search
     call locate_crossing(pair, run, status, search, res%n_rhs, invalid)
     call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+    if (search%found_valid) call track_piece(pair, run, search%valid, search%last_valid, res)
     call end_at_crossing(pair, run, search, res)
     res%n_steps = res%n_steps + 1
     if (present(at) .and. search%found_valid) call dense_point(pair, run, search%valid / pair%h, at, res%n_rhs)
   end subroutine stop_in_step
+
+  !> What the piece [t_old, t_old + part] of the last attempt (in pair), at
+  !> whose end (obs) the case stops, adds: a maximum of Theta inside it, and
+  !> the couple of rolling resistance's work over it (step_works on that
+  !> part of the step).
+  subroutine track_piece(pair, run, part, obs, res)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: part
+    type(observation_t), intent(in) :: obs
+    type(case_result_t), intent(inout) :: res
+    type(nutation_peak_t) :: peak
+    real(wp) :: works(2)
+    logical :: inside
+    if (.not. part > 0) return
+    call locate_nutation_peak(pair, run%ball, peak, res%n_rhs, part / pair%h, inside)
+    if (inside) then
+      call run%maxima%add_peak(peak%t)
+      call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
+    end if
+    if (run%ball%rolling_resistance > 0) then
+      call step_works(pair, run%ball, pair%t_old, part, works, res%n_rhs, part=part / pair%h)
+      call add_step_resistance(run, res, pair%t_old + part, works(2), obs)
+      call track_rolling_resistance(run, res, pair%t_old + part, obs)
+    end if
+  end subroutine track_piece
 
   !> Bisect the dense output of the last attempt (in pair), which crossed a
   !> limit (status) at its end or at the offset invalid, for where the

@@ -20,9 +20,8 @@ module ellroll_slide_run
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       stick_level, slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step, add_step_resistance
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop
-  use ellroll_step_works, only: step_works
   use ellroll_excitation, only: step_to_sample
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
@@ -201,7 +200,7 @@ contains
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
-    real(wp) :: t, works(2)
+    real(wp) :: t
     logical :: slipped, done
     t = 0
     do
@@ -212,11 +211,6 @@ contains
         if (.not. slipped) return
         t = res%t_final
         res%status = status_completed
-        if (run%ball%rolling_resistance > 0) then
-          ! the couple's work over the crossing step's piece up to the switch
-          call step_works(pair, run%ball, pair%t_old, t - pair%t_old, works, res%n_rhs, part=(t - pair%t_old) / pair%h)
-          call add_step_resistance(run, res, t, works(2), now%obs)
-        end if
         if (run%ball%nonsmooth()) call run%ball%begin_step(now%y)
         call ball_derivative(run%ball, t, now%y, now%f)
         call observe(run%ball, t, now%y, now%f, now%obs)

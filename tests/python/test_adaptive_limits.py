@@ -56,3 +56,39 @@ def test_a_starting_step_far_too_long_stays_finite(ellroll_debug, tmp_path, meth
                                   rtol=1.0e-6, atol=1.0e-6, t_end=1.0e-4, interval=1.0e-5)
     assert status == ["no_fit"] * len(status)
     assert np.all(np.abs(t_final - 1.0806e-6) < 1.0e-9)
+
+
+# a ball shaken off its rolling at 0.014 s, inside the pairs' first step or two:
+# the piece of the step up to the slip holds a maximum of Theta and the couple's work
+SLIP_IN_FIRST_STEP = """&geometry a = 0.5, b = 0.36324918179651394, c = 0.8527649992936689 /
+&ball radius = 0.01645012763074531, mass = 100.0, inertia_factor = 0.6666666666666666,
+      rolling_resistance = 0.00021127666497455753, mu = 0.35399501318949733 /
+&initial x = 0.03216820946231186, y = 0.09128263733986659,
+         omega = -1.2948872570006738, 10.916668156017185, 7.369790422472628 /
+&integration {integration}, t_end = 4.0 /
+&excitation kind = 'harmonic', amplitude = 1.7460471439216079, 2.991353343910225, -0.04861389182843223,
+            frequency = 0.9601498620292943, phase = 0.4770214915031632 /
+&output file = 'out.h5', interval = 0.001 /
+"""
+
+
+def test_a_case_ending_inside_a_step_counts_the_piece_before_its_end(ellroll, tmp_path):
+    """`slip` at 0.0140865 s by every method; theta_max 0.5566137997 rad and
+    the couple's work 0.0288438 J (rk4 at dt = 1e-6 s: 0.0288428 J) with
+    the pairs, whose one or two steps reach past the slip."""
+    found = {}
+    for name, integration in (("rk4", "method = 'rk4', dt = 1e-6"),
+                              ("dop853", "method = 'dop853', rtol = 1e-12"),
+                              ("vern9", "method = 'vern9', rtol = 1e-12")):
+        (tmp_path / f"{name}.nml").write_text(SLIP_IN_FIRST_STEP.format(integration=integration))
+        result = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / f"{name}.h5") as f:
+            found[name] = {k: f["summary"][k][0] for k in ("status", "t_final", "theta_max", "rolling_resistance_energy")}
+            assert found[name]["theta_max"] >= np.nanmax(f["trajectory/nutation"][0])
+    for name in ("dop853", "vern9"):
+        assert found[name]["status"] == 4                               # slip
+        assert found[name]["t_final"] == pytest.approx(found["rk4"]["t_final"], abs=1e-12)
+        assert found[name]["theta_max"] == pytest.approx(found["rk4"]["theta_max"], abs=1e-10)
+        assert found[name]["rolling_resistance_energy"] == pytest.approx(found["rk4"]["rolling_resistance_energy"],
+                                                                        rel=1e-4)
