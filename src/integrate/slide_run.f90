@@ -1,8 +1,10 @@
-!> One case that may slide (`&ball slip = 'slide'`): the ball rolls (the
-!> rolling path's steps and events, step_with_events and attempt_step) until the
+!> One case that may slide (`&ball slip = 'slide'`): the ball rolls until the
 !> friction rolling needs reaches mu N, slides (ellroll_sliding_ball, eight
 !> numbers) until the slip stops with rolling's friction within mu N, and so
-!> on. Both switches are located inside the step where they happen (a root
+!> on. An adaptive method rolls in the rolling path's own loop (adaptive_loop,
+!> which hands the state over where the friction passes mu N); a fixed-step
+!> method rolls with the rolling path's steps and events (step_with_events).
+!> The other switches are located inside the step where they happen (a root
 !> search on the method's own partial steps from the step's start); a
 !> fixed-step method takes the rest of its step from the switch in the new
 !> regime, so that its steps stay on the grid of dt; an adaptive method ends
