@@ -16,7 +16,7 @@ module ellroll_fixed_step_run
       choose_rolling_law, law_exact
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, settled, last_fixed_step
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -216,7 +216,8 @@ contains
   !> f and the derived outputs there, and the limits checked at the stages
   !> and at the new state (the first met wins). RK4 takes the fused step of
   !> the ball (the same arithmetic, tested against the generic one); other
-  !> methods their own.
+  !> methods their own. Once the run is asked to stop, the step fails at
+  !> once (stopping), unmoved.
   subroutine fixed_step(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
@@ -227,6 +228,13 @@ contains
     integer(i8), intent(inout) :: n_rhs
     integer :: stage_limit
     real(wp) :: base(3)
+    if (stopping()) then
+      y_new = y
+      f_new = f
+      call observe(run%ball, t, y, f, obs)
+      status = status_unstable
+      return
+    end if
     call ball_fixed_step(integrator, run%ball, t, y, f, h, y_new, stage_limit, n_rhs)
     call normalize_normal(y_new)
     base = 0                                  ! the cup's acceleration, looked up once

@@ -12,7 +12,9 @@
 module ellroll_slip_substeps
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_ode, only: no_step_solution
   use ellroll_integrators, only: integrator_t
+  use ellroll_case_run, only: stopping
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity
   implicit none
   private
@@ -41,6 +43,8 @@ contains
   !> did), or, where the slip stops inside it (the event of sb crosses, or the
   !> slip stalls: stalled), the state at the end of the substep where it did,
   !> reached its time from t (the caller locates the stop by the piece's size).
+  !> Once the run is asked to stop, the piece fails at its next substep
+  !> (stopping): no step solution.
   subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(sliding_ball_t), intent(in) :: sb
@@ -67,6 +71,11 @@ contains
     tau = 0
     s = h / 64
     do k = 1, max_substeps
+      if (stopping()) then
+        integrator%stage_limit = no_step_solution
+        whole = y
+        exit
+      end if
       s = min(s, h - tau)
       if (k == max_substeps) s = h - tau
       call integrator%step(sb, t + tau, y, f, s, whole, n_rhs)
