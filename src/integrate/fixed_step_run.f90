@@ -299,6 +299,9 @@ contains
     if (met) then
       if (res%t_final < t) res%n_recorded = min(res%n_recorded, int(res%t_final / h, i8) / every + 1)
     else
+      ! the flow's steps left the ball in the mode of their own last start
+      ! (begin_step): the pieces are of the step from y, f the derivative there
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
       call step_in_pieces(integrator, run, t, y, f, h, res, y_new, f_new, obs)
     end if
   end subroutine end_at_limit
