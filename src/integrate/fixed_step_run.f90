@@ -241,14 +241,16 @@ contains
     if (run%ball%excitation%kind /= excitation_none) base = base_acceleration(run%ball%excitation, t + h)
     call ball_derivative(run%ball, t + h, y_new, f_new, base=base)
     n_rhs = n_rhs + 1
-    call observe(run%ball, t + h, y_new, f_new, obs, base)
-    if (stage_limit == no_step_solution) then
-      status = status_unstable
-    else if (stage_limit /= 0) then
-      status = stage_limit
-    else
+    if (stage_limit == 0) then
+      call observe(run%ball, t + h, y_new, f_new, obs, base)
       status = limit_status(run%ball, y_new, obs)
+      return
     end if
+    ! a step past a limit at a stage, or without solution: its end is no state
+    ! of the model (the reaction there can overflow); obs is the start's
+    call observe(run%ball, t, y, f, obs)
+    status = stage_limit
+    if (stage_limit == no_step_solution) status = status_unstable
   end subroutine fixed_step
 
   !> The step after n_done steps of size h, from the valid state (y, f),
