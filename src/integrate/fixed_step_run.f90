@@ -13,7 +13,7 @@ module ellroll_fixed_step_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      choose_rolling_law, law_exact
+      choose_rolling_law, law_exact, law_held, event_rest
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step
@@ -119,6 +119,15 @@ contains
     if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
     if (event /= 0) call step_through_event(integrator, run, event, t, y, f_start, h, y_new, f_new, obs, status, &
                                             n_rhs, t_event)
+    ! held past the stop, the couple drives the rolling back ever faster (N
+    ! grows with omega^2) and the step can end past a limit: the stop it
+    ! holds comes first (docs/model.md, "Rolling resistance")
+    if (status /= status_completed .and. run%ball%rolling_law == law_held) then
+      event = event_rest
+      call step_through_event(integrator, run, event, t, y, f_start, h, y_new, f_new, obs, status, n_rhs, t_event, &
+                              passed=.true.)
+      if (t_event < 0) event = 0
+    end if
     if (run%ball%rolling_law /= law_exact) then
       run%ball%rolling_law = law_exact
       if (event == 0 .and. status == status_completed) call exact_end(run, t + h, y_new, f_new, n_rhs)
@@ -171,7 +180,7 @@ contains
   !> state (begin_step), so that the steps stay on the grid of dt. y_new:
   !> the whole step's end, where the event was seen, on entry; the end of
   !> the step taken through it on return.
-  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
+  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event, passed)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: event
@@ -182,11 +191,12 @@ contains
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(out) :: t_event       !< where the model acted (< 0: a limit met first)
+    logical, intent(in), optional :: passed  !< y_new is past a model limit (the event counts as passed there)
     real(wp) :: y_at(state_size), f_at(state_size), offset
     type(event_search_t) :: search
     type(run_state_t) :: after
     integer :: k
-    call search%begin(run%ball, event, y_new, h)
+    call search%begin(run%ball, event, y_new, h, passed)
     do k = 1, max_event_trials
       if (search%done()) exit
       offset = search%trial()

@@ -9,7 +9,8 @@ import pytest
 from conftest import run
 
 # rk4 at dt 0.1 (check: 'dt <= 0.0005 s would do'), sliding, mu 1000, a couple
-# of rolling resistance 500 R: the piece's substeps cannot follow the couple
+# of rolling resistance 500 R: the step's substeps and partial steps meet
+# states of omega 1e86 rad/s on the way (test_held_stop.py has its rest)
 SLIDING = """&geometry a=0.001, b=0.001, c=0.01 /
 &ball radius=1e-06, mass=1.0, mu=1000.0, slip='slide', rolling_resistance=0.0005 /
 &initial x=-0.0003409340241157387, y=-0.0003349201356646935, omega=0.0,0.0,1.0, velocity=1.0,0.0,-3.881292271606023 /
@@ -34,10 +35,10 @@ def ending(exe, folder, text, name):
         return f["summary/status"][0], f["summary/t_final"][0]
 
 
-@pytest.mark.parametrize("text, status", [(SLIDING, 2), (ROLLING, 3)], ids=["sliding", "rolling"])
+@pytest.mark.parametrize("text, status", [(SLIDING, 1), (ROLLING, 3)], ids=["sliding", "rolling"])
 def test_the_debug_build_ends_an_exploding_step_at_the_release_builds_status(ellroll, ellroll_debug, tmp_path,
                                                                               text, status):
     release = ending(ellroll, tmp_path, text, "release")
     debug = ending(ellroll_debug, tmp_path, text, "debug")
-    assert release[0] == status and debug[0] == status          # rim, no_fit: the Release build's
+    assert release[0] == status and debug[0] == status          # completed (at rest), no_fit
     assert abs(debug[1] - release[1]) <= 1e-9 * release[1]
