@@ -35,8 +35,8 @@ module ellroll_case_run
   implicit none
   private
 
-  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, latest_end, settled, &
-            last_fixed_step, reach_stop
+  public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, stopping, &
+            latest_end, settled, last_fixed_step, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
             accumulate, record_sample, record_geometry_sample, stored
 
@@ -267,6 +267,19 @@ contains
     stop_asked = .false.
     if (mod(step, stop_poll_steps) == 0) stop_asked = stop_signal() /= 0
   end function stop_asked
+
+  !> Whether the run was asked to stop, looked at on every call (a relaxed
+  !> atomic load). Every fixed step polls it (fixed_step, slide_piece's
+  !> substeps): once a stop is asked, each step fails at once, without
+  !> solution, so that the searches and piece loops around a step (a limit
+  !> located in partial steps, a step taken again in 2^20 pieces, a switch
+  !> located inside a step), bounded in trials but not in what a trial
+  !> costs, end within a few hundred cheap trials; the runner drops the case
+  !> cut short (run_block). The outer loops' stop_asked ends a case whose
+  !> steps are cheap.
+  logical function stopping()
+    stopping = stop_signal() /= 0
+  end function stopping
 
   !> Whether the next output sample falls at or before t_until (to round-off).
   pure logical function sample_due(run, plan, t_until)

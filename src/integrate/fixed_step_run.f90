@@ -13,10 +13,10 @@ module ellroll_fixed_step_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      choose_rolling_law, law_exact
+      choose_rolling_law, law_exact, law_held, event_rest
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, settled, last_fixed_step
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -119,6 +119,15 @@ contains
     if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
     if (event /= 0) call step_through_event(integrator, run, event, t, y, f_start, h, y_new, f_new, obs, status, &
                                             n_rhs, t_event)
+    ! held past the stop, the couple drives the rolling back ever faster (N
+    ! grows with omega^2) and the step can end past a limit: the stop it
+    ! holds comes first (docs/model.md, "Rolling resistance")
+    if (status /= status_completed .and. run%ball%rolling_law == law_held) then
+      event = event_rest
+      call step_through_event(integrator, run, event, t, y, f_start, h, y_new, f_new, obs, status, n_rhs, t_event, &
+                              passed=.true.)
+      if (t_event < 0) event = 0
+    end if
     if (run%ball%rolling_law /= law_exact) then
       run%ball%rolling_law = law_exact
       if (event == 0 .and. status == status_completed) call exact_end(run, t + h, y_new, f_new, n_rhs)
@@ -171,7 +180,7 @@ contains
   !> state (begin_step), so that the steps stay on the grid of dt. y_new:
   !> the whole step's end, where the event was seen, on entry; the end of
   !> the step taken through it on return.
-  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event)
+  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event, passed)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: event
@@ -182,11 +191,12 @@ contains
     integer, intent(out) :: status
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(out) :: t_event       !< where the model acted (< 0: a limit met first)
+    logical, intent(in), optional :: passed  !< y_new is past a model limit (the event counts as passed there)
     real(wp) :: y_at(state_size), f_at(state_size), offset
     type(event_search_t) :: search
     type(run_state_t) :: after
     integer :: k
-    call search%begin(run%ball, event, y_new, h)
+    call search%begin(run%ball, event, y_new, h, passed)
     do k = 1, max_event_trials
       if (search%done()) exit
       offset = search%trial()
@@ -216,7 +226,8 @@ contains
   !> f and the derived outputs there, and the limits checked at the stages
   !> and at the new state (the first met wins). RK4 takes the fused step of
   !> the ball (the same arithmetic, tested against the generic one); other
-  !> methods their own.
+  !> methods their own. Once the run is asked to stop, the step fails at
+  !> once (stopping), unmoved.
   subroutine fixed_step(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
@@ -227,20 +238,29 @@ contains
     integer(i8), intent(inout) :: n_rhs
     integer :: stage_limit
     real(wp) :: base(3)
+    if (stopping()) then
+      y_new = y
+      f_new = f
+      call observe(run%ball, t, y, f, obs)
+      status = status_unstable
+      return
+    end if
     call ball_fixed_step(integrator, run%ball, t, y, f, h, y_new, stage_limit, n_rhs)
     call normalize_normal(y_new)
     base = 0                                  ! the cup's acceleration, looked up once
     if (run%ball%excitation%kind /= excitation_none) base = base_acceleration(run%ball%excitation, t + h)
     call ball_derivative(run%ball, t + h, y_new, f_new, base=base)
     n_rhs = n_rhs + 1
-    call observe(run%ball, t + h, y_new, f_new, obs, base)
-    if (stage_limit == no_step_solution) then
-      status = status_unstable
-    else if (stage_limit /= 0) then
-      status = stage_limit
-    else
+    if (stage_limit == 0) then
+      call observe(run%ball, t + h, y_new, f_new, obs, base)
       status = limit_status(run%ball, y_new, obs)
+      return
     end if
+    ! a step past a limit at a stage, or without solution: its end is no state
+    ! of the model (the reaction there can overflow); obs is the start's
+    call observe(run%ball, t, y, f, obs)
+    status = stage_limit
+    if (stage_limit == no_step_solution) status = status_unstable
   end subroutine fixed_step
 
   !> The step after n_done steps of size h, from the valid state (y, f),
@@ -291,6 +311,9 @@ contains
     if (met) then
       if (res%t_final < t) res%n_recorded = min(res%n_recorded, int(res%t_final / h, i8) / every + 1)
     else
+      ! the flow's steps left the ball in the mode of their own last start
+      ! (begin_step): the pieces are of the step from y, f the derivative there
+      if (run%ball%nonsmooth()) call run%ball%begin_step(y)
       call step_in_pieces(integrator, run, t, y, f, h, res, y_new, f_new, obs)
     end if
   end subroutine end_at_limit

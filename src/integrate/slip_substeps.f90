@@ -12,7 +12,9 @@
 module ellroll_slip_substeps
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_ode, only: no_step_solution
   use ellroll_integrators, only: integrator_t
+  use ellroll_case_run, only: stopping
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity
   implicit none
   private
@@ -30,7 +32,10 @@ module ellroll_slip_substeps
   !> slip's approach slow) the substeps' own errors turn its direction near
   !> zero, and it hovers there without reaching zero; it stops there.
   integer, parameter :: stall_substeps = 64
-  !> Substeps of one piece at most (the rest is then taken whole).
+  !> Substeps of one piece at most: a piece not done by then has no
+  !> solution the substeps can follow (a couple whose direction turns far
+  !> faster than round-off-sized substeps; the rest taken whole grows past
+  !> any scale of the motion).
   integer, parameter :: max_substeps = 100000
 
 contains
@@ -41,6 +46,9 @@ contains
   !> did), or, where the slip stops inside it (the event of sb crosses, or the
   !> slip stalls: stalled), the state at the end of the substep where it did,
   !> reached its time from t (the caller locates the stop by the piece's size).
+  !> The piece has no solution (no_step_solution) once the run is asked to
+  !> stop (stopping), where a substep of round-off size still errs, or after
+  !> max_substeps.
   subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(sliding_ball_t), intent(in) :: sb
@@ -67,8 +75,12 @@ contains
     tau = 0
     s = h / 64
     do k = 1, max_substeps
+      if (stopping() .or. k == max_substeps) then
+        integrator%stage_limit = no_step_solution
+        whole = y
+        exit
+      end if
       s = min(s, h - tau)
-      if (k == max_substeps) s = h - tau
       call integrator%step(sb, t + tau, y, f, s, whole, n_rhs)
       if (integrator%stage_limit /= 0) exit
       call integrator%step(sb, t + tau, y, f, s / 2, half, n_rhs)
@@ -78,7 +90,12 @@ contains
       n_rhs = n_rhs + 1
       if (integrator%stage_limit /= 0) exit
       error = norm2(slip_velocity(sb%ball, halves) - slip_velocity(sb%ball, whole)) / 15
-      if (error <= tolerance .or. s <= 16 * spacing(t + h) .or. k == max_substeps) then
+      if (.not. error <= tolerance .and. s <= 16 * spacing(t + h)) then
+        integrator%stage_limit = no_step_solution     ! a round-off substep still errs: no solution here
+        whole = y
+        exit
+      end if
+      if (error <= tolerance) then
         tau = tau + s
         y = halves + (halves - whole) / 15
         if (tau >= h) exit

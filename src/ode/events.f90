@@ -121,15 +121,20 @@ contains
   end function root_done
 
   !> The search for `event` of sys (its mode set for the step: begin_step)
-  !> in the step of size h that ends at y_end.
-  pure subroutine begin_event_search(self, sys, event, y_end, h)
+  !> in the step of size h that ends at y_end (passed: a state past a model
+  !> limit, where the event counts as passed, as in report_state).
+  pure subroutine begin_event_search(self, sys, event, y_end, h, passed)
     class(event_search_t), intent(inout) :: self
     class(hybrid_system_t), intent(in) :: sys
     integer, intent(in) :: event
     real(wp), intent(in) :: h
     real(wp), intent(in), contiguous :: y_end(:)
+    logical, intent(in), optional :: passed
+    real(wp) :: g_end
     self%event = event
-    call self%start(sys%event_start_value(event), h, sys%event_value(event, y_end), sys%event_tolerance(event) * h)
+    g_end = -1
+    if (.not. present(passed)) g_end = sys%event_value(event, y_end)
+    call self%start(sys%event_start_value(event), h, g_end, sys%event_tolerance(event) * h)
   end subroutine begin_event_search
 
   !> The state y at offset from the step's start; not valid (a model limit
