@@ -392,9 +392,11 @@ contains
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
     logical, intent(in), optional :: still
+    real(wp) :: stopped_at
     if (run%ball%rolling_resistance > 0) then
+      stopped_at = run%stopped_at         ! (note_rest takes it)
       call note_rest(run, t, obs, still)
-      call add_resistance_work(run, res, t, obs)
+      call add_resistance_work(run, res, t, obs, stopped_at)
       if (obs%fit_clearance > 0) run%resistance_work_clear = res%reals(fig_rolling_resistance_energy)
     end if
   end subroutine track_rolling_resistance
@@ -437,16 +439,26 @@ contains
 
   !> The rolling resistance's work from the last state tracked to this one
   !> (trapezoidal rule; a state tracked again at the same time adds nothing).
-  pure subroutine add_resistance_work(run, res, t, obs)
+  !> Where a fixed step's rolling stopped inside it (at stopped_at, >= 0),
+  !> the couple's power falls to zero there and rises from it (the ball held,
+  !> or rolling back): a trapezoid on each side of the stop, not one over the
+  !> step, which counts the power at the step's start for all of it.
+  pure subroutine add_resistance_work(run, res, t, obs, stopped_at)
     type(run_state_t), intent(inout) :: run
     type(case_result_t), intent(inout) :: res
     real(wp), intent(in) :: t
     type(observation_t), intent(in) :: obs
+    real(wp), intent(in) :: stopped_at
     real(wp) :: power
     if (t < run%resistance_time) return
     power = resistance_power(run%ball, obs%normal, obs%omega, obs%reaction_normal)
-    res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) &
-        - 0.5_wp * (t - run%resistance_time) * (run%resistance_power + power)
+    if (stopped_at > run%resistance_time .and. stopped_at < t) then
+      res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) &
+          - 0.5_wp * ((stopped_at - run%resistance_time) * run%resistance_power + (t - stopped_at) * power)
+    else
+      res%reals(fig_rolling_resistance_energy) = res%reals(fig_rolling_resistance_energy) &
+          - 0.5_wp * (t - run%resistance_time) * (run%resistance_power + power)
+    end if
     run%resistance_time = t
     run%resistance_power = power
   end subroutine add_resistance_work
