@@ -72,14 +72,49 @@ module ellroll_intensity
 
 contains
 
-  !> Every intensity measure of the record: PGA, PGV, PGD and Sa at `periods`.
+  !> Every intensity measure of the record: PGA, PGV, PGD and Sa at `periods`,
+  !> of its part from t = 0, where a case starts (at rest, shaken by the
+  !> record's value there): samples before 0 are never felt.
   pure function intensity_of(times, values, periods) result(im)
     real(wp), intent(in) :: times(:), values(:, :), periods(:)
     type(record_intensity_t) :: im
-    im = record_intensity(times, values)
+    real(wp), allocatable :: felt_times(:), felt_values(:, :)
+    if (times(1) >= 0) then
+      im = record_intensity(times, values)
+      im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
+    else
+      call from_time_zero(times, values, felt_times, felt_values)
+      im = record_intensity(felt_times, felt_values)
+      im%sa = pseudo_spectral_acceleration(felt_times, felt_values, periods, damping_ratio)
+    end if
     im%periods = periods
-    im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
   end function intensity_of
+
+  !> The record from t = 0 on (times(1) < 0): its value at 0 interpolated
+  !> as the case reads it (ellroll_excitation's base_acceleration: linear,
+  !> the last sample's value past the end), then its samples after 0.
+  pure subroutine from_time_zero(times, values, felt_times, felt_values)
+    real(wp), intent(in) :: times(:), values(:, :)
+    real(wp), allocatable, intent(out) :: felt_times(:), felt_values(:, :)
+    real(wp) :: weight
+    integer :: first, n
+    n = size(times)
+    first = n + 1                          ! the first sample after 0
+    do while (first > 1)
+      if (.not. times(first - 1) > 0) exit
+      first = first - 1
+    end do
+    allocate (felt_times(n - first + 2), felt_values(size(values, 1), n - first + 2))
+    felt_times(1) = 0
+    if (first > n) then
+      felt_values(:, 1) = values(:, n)
+    else
+      weight = (0 - times(first - 1)) / (times(first) - times(first - 1))
+      felt_values(:, 1) = (1 - weight) * values(:, first - 1) + weight * values(:, first)
+    end if
+    felt_times(2:) = times(first:)
+    felt_values(:, 2:) = values(:, first:)
+  end subroutine from_time_zero
 
   !> PGA, PGV and PGD of the horizontal components (rows 1 and 2 of values,
   !> m/s^2, at times, s), from rest at the first sample.

@@ -249,6 +249,43 @@ def test_spectral_acceleration_of_a_sine_is_the_closed_form(ellroll, tmp_path):
         assert f["case/pga"][0] == pytest.approx(np.abs(acc).max(), rel=1e-14)
 
 
+def test_a_record_s_samples_before_time_zero_are_not_measured(ellroll, tmp_path):
+    """A CSV record from t = -1 s with a 3 m/s^2 burst before 0 and at most
+    0.8 m/s^2 after: the case starts at 0 on the record's value there, so
+    every measure is that of the record cut at 0 (its value at 0
+    interpolated, as the trajectory's first base_acceleration shows),
+    written as a record of its own; and PGA is the peak of |a| from 0."""
+    rng = np.random.default_rng(8)
+    times = np.r_[-1.0, np.cumsum(rng.uniform(0.005, 0.03, 300)) - 0.993]
+    ax = np.where(times < 0, 3.0 * np.sin(9 * times), 0.8 * np.exp(-times / 2) * np.sin(7 * times + 0.3))
+    ay = np.where(times < 0, 0.0, 0.5 * np.exp(-times) * np.cos(11 * times))
+    first = np.searchsorted(times, 0.0, side="right")
+    w = (0 - times[first - 1]) / (times[first] - times[first - 1])
+    at_zero = [(1 - w) * c[first - 1] + w * c[first] for c in (ax, ay)]
+    cut_t = np.r_[0.0, times[first:]]
+    cut = np.stack([np.r_[at_zero[0], ax[first:]], np.r_[at_zero[1], ay[first:]]], axis=1)
+    write = lambda path, t, a: path.write_text(
+        "time, ax, ay\n" + "".join(f"{float(ti)!r}, {float(x)!r}, {float(y)!r}\n" for ti, (x, y) in zip(t, a)))
+    write(tmp_path / "whole.csv", times, np.stack([ax, ay], axis=1))
+    (tmp_path / "cut").mkdir()
+    write(tmp_path / "cut" / "whole.csv", cut_t, cut)
+    names = ("pga", "pgv", "pgd", "sa_0.1", "sa_0.5", "sa_2")
+    figures = []
+    text = INPUT.replace("fields = 'center'", "fields = 'center', 'base_acceleration'")
+    for folder in (tmp_path, tmp_path / "cut"):
+        (folder / "im.nml").write_text(text.format(files="record_file = 'whole.csv'", periods="0.1, 0.5, 2.0",
+                                                   t_end=1.0, scale=""))
+        result = run(ellroll, "run", "im.nml", "-q", cwd=folder)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(folder / "im.h5", "r") as f:
+            figures.append([f["case"][name][0] for name in names])
+            # (to an ulp: the build may fuse the interpolation's multiply-adds)
+            assert f["trajectory/base_acceleration"][0, 0, :2] == pytest.approx(at_zero, rel=1e-15, abs=0)
+    assert figures[0] == pytest.approx(figures[1], rel=1e-13, abs=0)
+    assert figures[0][0] == pytest.approx(np.hypot(cut[:, 0], cut[:, 1]).max(), rel=1e-15)
+    assert figures[0][0] < 0.9
+
+
 def test_a_campaign_without_a_record_has_no_intensity_measures(paper_file):
     with h5py.File(paper_file, "r") as f:
         assert not any(n in f["case"] for n in ("pga", "pgv", "pgd"))
