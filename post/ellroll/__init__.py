@@ -205,7 +205,8 @@ def _literal(value, where):
                          _INPUT)
     if isinstance(value, (list, tuple, np.ndarray)):
         items = np.asarray(value, dtype=object).ravel() if isinstance(value, np.ndarray) else value
-        if any(isinstance(item, (list, tuple, np.ndarray)) for item in items):
+        if (isinstance(value, np.ndarray) and value.ndim > 1) or \
+                any(isinstance(item, (list, tuple, np.ndarray)) for item in items):
             items = _rows(value, where)
         if len(items) == 0:
             raise InputError(f"{where}: an empty list has no namelist value", _INPUT)
@@ -225,6 +226,12 @@ def _rows(value, where):
     if array is None or any(isinstance(item, (list, tuple, np.ndarray)) for item in array.ravel()):
         raise InputError(f"{where}: {value!r} is a ragged nested list (rows of different lengths): give one "
                          "list of values, or rows of one length", _INPUT)
+    if 1 in array.shape:
+        # a vector kept in a table of one row or column (numpy's keepdims, a
+        # slice [i:i+1]): which values were meant is a guess
+        raise InputError(f"{where}: a nested list or array of shape {array.shape} is a table with a row or "
+                         "column of one: give one flat list of values (numpy: .ravel()), or rows of one length",
+                         _INPUT)
     return array.ravel()
 
 

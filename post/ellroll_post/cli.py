@@ -12,7 +12,7 @@ from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, save_figure
 from .summary import format_summary
-from .suite import NoIntensityMeasure, format_fragility, format_suite, suite_statistics
+from .suite import NoIntensityMeasure, NoStripes, format_fragility, format_suite, suite_statistics
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
@@ -234,7 +234,7 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
-    except (NotAnEllrollFile, NoIntensityMeasure, OutputExists, OSError) as exc:
+    except (NotAnEllrollFile, NoIntensityMeasure, NoStripes, OutputExists, OSError) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
     for path in written:

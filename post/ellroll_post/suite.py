@@ -259,6 +259,11 @@ class NoIntensityMeasure(ValueError):
     """The file holds no intensity measure of the name asked for."""
 
 
+class NoStripes(ValueError):
+    """No group of cases with the same design inputs spans two intensities:
+    nothing to fit a fragility to."""
+
+
 def intensity_measures(run):
     """{name: (per-case value, units)} of the intensity measures a file
     holds besides the scale: /case datasets named pga, pgv, pgd or sa_*
@@ -402,9 +407,18 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
     states = {MODEL_LIMIT_STATE: None}
     states.update(limit_state_columns(run))
     states.update(exceeded or {})
+    groups = np.unique(keys, axis=0)
+    spans = [np.unique(x[np.all(keys == key, axis=1) & np.isfinite(x) & (x > 0)]).size for key in groups]
+    if max(spans, default=0) < 2:
+        raise NoStripes(
+            f"{run.path}: no stripes to fit a fragility to: none of its {len(groups)} groups of cases with the "
+            f"same design inputs ({', '.join(names) or 'none varied'}) spans two intensities ({im_name}); a "
+            "fragility needs the same isolator at several intensities (a suite: &record groups and a sweep of "
+            "scale, docs/isolator.md)")
     rows, details = [], []
+    physical = np.isin(status, MODEL_LIMITS) | (status == COMPLETED)
     for state, flags in states.items():
-        for key in np.unique(keys, axis=0):
+        for key in groups:
             cases = np.all(keys == key, axis=1)
             levels, n, z = fragility_points(x[cases], status[cases], None if flags is None else flags[cases])
             undefined = 0 if flags is None else int(np.sum(
@@ -430,6 +444,11 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
                            beta_high=fit.beta_interval[1])
                 if separating_step(levels, n, z):
                     row["note"] = "the outcomes separate in the intensity: no finite maximum, beta -> 0"
+            at_zero = int(np.sum(cases & physical & (x == 0)))
+            if at_zero:
+                # P(exceed | 0) = 0 in the lognormal model: no likelihood, so not in n_known
+                zero_note = f"{at_zero} cases at intensity 0 left out (no likelihood)"
+                row["note"] = f"{row['note']}; {zero_note}" if row["note"] else zero_note
             rows.append(row)
             details.append(dict(row=row, x=levels, n=n, z=z, fit=fit, cases=cases,
                                 exceeded=None if flags is None else flags))

@@ -7,7 +7,7 @@ module ellroll_cli
   use ellroll_hdf5_writer, only: provenance_t
   use ellroll_run_campaign, only: run_options_t
   use ellroll_system, only: utc_timestamp
-  use ellroll_version, only: version_string
+  use ellroll_version, only: version_string, build_string
   use ellroll_suggest, only: did_you_mean
   implicit none
   private
@@ -195,6 +195,7 @@ contains
     call get_command(line)
     prov%program = 'ellroll'
     prov%version = version_string
+    prov%build = build_string
     call utc_timestamp(prov%created)
     prov%input_file = input_file
     prov%input_namelist = input_text

@@ -7,7 +7,7 @@ module ellroll_cmd_info
   use ellroll_cases, only: range_text
   use ellroll_params, only: params, param_component, param_unset_allowed
   use ellroll_integrators, only: methods
-  use ellroll_version, only: version_string
+  use ellroll_version, only: version_string, build_string
   implicit none
   private
 
@@ -115,7 +115,7 @@ contains
   end subroutine print_command_help
 
   subroutine print_version()
-    call put_line('ellroll ' // version_string)
+    call put_line('ellroll ' // version_string // ' (' // build_string // ' build)')
   end subroutine print_version
 
   !> `ellroll methods`: the methods' table.

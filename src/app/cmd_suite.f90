@@ -114,7 +114,7 @@ contains
     logical :: defined(size(status))
     real(wp), allocatable :: levels(:), other(:, :)
     integer, allocatable :: n(:), z(:)
-    integer :: undefined
+    integer :: undefined, at_zero
     real(wp) :: theta, beta, nan
     logical :: separated
     character(len=:), allocatable :: row, note, a, b
@@ -163,6 +163,10 @@ contains
           if (separated) note = 'the outcomes separate in the intensity: no finite maximum, beta -> 0'
           if (ieee_is_nan(theta)) note = 'no finite maximum: the exceedances do not grow with the intensity'
         end if
+        ! P(exceed | 0) = 0 in the lognormal model: no likelihood, so not in n_known
+        at_zero = count(group .and. (limit .or. status == status_completed) .and. equals(keys(:, i_scale), 0.0_wp))
+        if (at_zero > 0 .and. len(note) > 0) note = note // '; '
+        if (at_zero > 0) note = note // itoa(at_zero) // ' cases at intensity 0 left out (no likelihood)'
         row = ' {'
         do k = 1, size(inputs)
           if (k == i_scale) cycle

@@ -47,6 +47,14 @@ module ellroll_intensity
   !> of the step is one exact step (whose |u|, a line there, peaks at an
   !> end): stiff_sample_step.
   integer, parameter :: max_sub_steps = 4000
+  !> The stiffest oscillator computed (rad/s; a period of 5.2e-24 s): at a
+  !> shorter period Sa is its value here. Sa exceeds its limit T -> 0 by
+  !> the lag and overshoot after each kink of the record, at most about
+  !> 4 (1 + 2 zeta) / (omega h) of PGA (slopes change by at most 4 PGA / h,
+  !> h >= 1e-6 s the shortest sample step): below 4e-18 of it here, under
+  !> round-off; and omega^2 (1.5e48) stays far from overflow, its inverse
+  !> far from underflow, as the scaled variables need.
+  real(wp), parameter :: max_omega = 2.0_wp**80
 
   !> stiff_sample_step's propagator over its fine step (h_fine < 0: none yet)
   type :: stiff_propagators_t
@@ -64,14 +72,49 @@ module ellroll_intensity
 
 contains
 
-  !> Every intensity measure of the record: PGA, PGV, PGD and Sa at `periods`.
+  !> Every intensity measure of the record: PGA, PGV, PGD and Sa at `periods`,
+  !> of its part from t = 0, where a case starts (at rest, shaken by the
+  !> record's value there): samples before 0 are never felt.
   pure function intensity_of(times, values, periods) result(im)
     real(wp), intent(in) :: times(:), values(:, :), periods(:)
     type(record_intensity_t) :: im
-    im = record_intensity(times, values)
+    real(wp), allocatable :: felt_times(:), felt_values(:, :)
+    if (times(1) >= 0) then
+      im = record_intensity(times, values)
+      im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
+    else
+      call from_time_zero(times, values, felt_times, felt_values)
+      im = record_intensity(felt_times, felt_values)
+      im%sa = pseudo_spectral_acceleration(felt_times, felt_values, periods, damping_ratio)
+    end if
     im%periods = periods
-    im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
   end function intensity_of
+
+  !> The record from t = 0 on (times(1) < 0): its value at 0 interpolated
+  !> as the case reads it (ellroll_excitation's base_acceleration: linear,
+  !> the last sample's value past the end), then its samples after 0.
+  pure subroutine from_time_zero(times, values, felt_times, felt_values)
+    real(wp), intent(in) :: times(:), values(:, :)
+    real(wp), allocatable, intent(out) :: felt_times(:), felt_values(:, :)
+    real(wp) :: weight
+    integer :: first, n
+    n = size(times)
+    first = n + 1                          ! the first sample after 0
+    do while (first > 1)
+      if (.not. times(first - 1) > 0) exit
+      first = first - 1
+    end do
+    allocate (felt_times(n - first + 2), felt_values(size(values, 1), n - first + 2))
+    felt_times(1) = 0
+    if (first > n) then
+      felt_values(:, 1) = values(:, n)
+    else
+      weight = (0 - times(first - 1)) / (times(first) - times(first - 1))
+      felt_values(:, 1) = (1 - weight) * values(:, first - 1) + weight * values(:, first)
+    end if
+    felt_times(2:) = times(first:)
+    felt_values(:, 2:) = values(:, first:)
+  end subroutine from_time_zero
 
   !> PGA, PGV and PGD of the horizontal components (rows 1 and 2 of values,
   !> m/s^2, at times, s), from rest at the first sample.
@@ -120,7 +163,11 @@ contains
         sa(p) = ieee_value(0.0_wp, ieee_quiet_nan)
         cycle
       end if
-      omega = 8 * atan(1.0_wp) / periods(p)
+      if (periods(p) > 8 * atan(1.0_wp) / max_omega) then
+        omega = 8 * atan(1.0_wp) / periods(p)
+      else
+        omega = max_omega
+      end if
       x = 0                                 ! (u, v) of each horizontal component
       peak = 0
       h_step = -1
@@ -193,8 +240,11 @@ contains
         xs = advance(cache%fine, xs, f0 + slope * (h * (j - 1)), slope)
         peak = max(peak, scaled_peak(xs_prev, xs, omega, h) / omega**2)
       else
+        ! a line (the transient is gone): it peaks at an end. Hermite's
+        ! cubic would take omega (omega v)'s round-off (eps |omega^2 u|
+        ! omega) over h_rest: a false peak once omega h_rest nears 1 / eps
         xs = long_scaled_step(xs, omega, zeta, f0 + slope * (h * (j - 1)), slope, h_rest)
-        peak = max(peak, scaled_peak(xs_prev, xs, omega, h_rest) / omega**2)
+        peak = max(peak, hypot(xs(1, 1), xs(1, 2)) / omega**2)
       end if
     end do
     x(1, :) = xs(1, :) / omega**2

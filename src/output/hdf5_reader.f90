@@ -80,7 +80,14 @@ contains
     call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
     if (hdferr < 0) then
       call hdf5_reason(reason)
-      call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
+      if (index(reason, 'temporarily unavailable') > 0) then
+        ! (HDF5's flock: EAGAIN) another process has it open to write
+        call set_error(err, err_output, path // ': cannot open the HDF5 file: another process has it open to ' // &
+            'write (' // reason // '): a running ellroll, if ' // lock_of(path) // ' exists (it names the ' // &
+            'process); read it when that run ends')
+      else
+        call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
+      end if
       return
     end if
     call self%text_attribute('program', program)
@@ -318,4 +325,24 @@ contains
     call h5sclose_f(mem_space, hdferr)
     call h5dclose_f(dset, hdferr)
   end subroutine read_slab
+
+  !> The characters of path's suffix '.partial' or '.partial.new' (0: none).
+  pure integer function trimmed(path)
+    character(len=*), intent(in) :: path
+    trimmed = 0
+    if (len(path) > 12) then
+      if (path(len(path) - 11:) == '.partial.new') trimmed = 12
+    end if
+    if (trimmed == 0 .and. len(path) > 8) then
+      if (path(len(path) - 7:) == '.partial') trimmed = 8
+    end if
+  end function trimmed
+
+  !> The lock file of the output whose file (OUT, OUT.partial or
+  !> OUT.partial.new) is at path: OUT.lock.
+  pure function lock_of(path) result(lock)
+    character(len=*), intent(in) :: path
+    character(len=len(path) - trimmed(path) + 5) :: lock
+    lock = path(:len(path) - trimmed(path)) // '.lock'
+  end function lock_of
 end module ellroll_hdf5_reader

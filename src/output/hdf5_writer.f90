@@ -27,10 +27,11 @@ module ellroll_hdf5_writer
   implicit none
   private
 
-  public :: h5_output_t, provenance_t, window_list_t, table_row, file_row, written_in_place
+  public :: h5_output_t, provenance_t, window_list_t, table_row, file_row, written_in_place, describe_writer
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
+    character(len=:), allocatable :: build          !< the build type and options ('Release native')
     character(len=:), allocatable :: campaign_id    !< hash of the canonical input and its files' fingerprints
     character(len=:), allocatable :: input_files    !< the files the input reads, with their fingerprints
     integer(i8) :: n_cases_total = 0                !< cases of the whole campaign
@@ -217,6 +218,19 @@ contains
     end if
   end subroutine open_new_file
 
+  !> 'ellroll VERSION (BUILD build)' of a file's or journal's writer: what
+  !> merge and --resume compare (build '': a file without the attribute
+  !> `build`, of unknown type).
+  subroutine describe_writer(version, build, text)
+    character(len=*), intent(in) :: version, build
+    character(len=:), allocatable, intent(out) :: text
+    if (len_trim(build) == 0) then
+      text = 'ellroll ' // trim(version) // ' (build of unknown type)'
+    else
+      text = 'ellroll ' // trim(version) // ' (' // trim(build) // ' build)'
+    end if
+  end subroutine describe_writer
+
   !> The root's attributes: written after the layout, so that where the
   !> trajectories lie (and so /trajectory_label) depends on the layout
   !> alone, not on the command line or the input's text.
@@ -234,6 +248,7 @@ contains
     call lay%text_attribute(self%file, 'references', file_references)
     call lay%text_attribute(self%file, 'program', prov%program)
     call lay%text_attribute(self%file, 'version', prov%version)
+    if (allocated(prov%build)) call lay%text_attribute(self%file, 'build', prov%build)
     call lay%text_attribute(self%file, 'created', prov%created)
     call lay%text_attribute(self%file, 'input_file', prov%input_file)
     call lay%text_attribute(self%file, 'input_namelist', prov%input_namelist)

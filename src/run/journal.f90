@@ -36,20 +36,24 @@ module ellroll_journal
 
   public :: journal_t, journal_header_t, journal_is_torn
 
-  character(len=8), parameter :: magic = 'ELLROLL7'
+  character(len=8), parameter :: magic = 'ELLROLL8'
   integer(i8), parameter :: record_marker = 7310312871522813004_i8
-  !> The header: magic, then these words (the campaign id's 64 bytes, n_slots,
+  !> The header: magic, then these words (the campaign id's 64 bytes, the
+  !> writer's 128 (the program, its version and build), n_slots,
   !> n_samples, the shard's two numbers, a flag per field for the stored and
   !> for the in-place fields, the note's length in words), then their
   !> checksum; then the note of the input's files (their fingerprints), blank
   !> padded to whole words, and its checksum; then the records.
-  integer, parameter :: id_words = 8
-  integer, parameter :: header_words = id_words + 4 + 2 * field_count + 1
+  integer, parameter :: id_words = 8, writer_words = 16
+  integer, parameter :: header_words = id_words + writer_words + 4 + 2 * field_count + 1
   integer, parameter :: header_bytes = 8 + 8 * (header_words + 1)
 
   !> What a journal must agree on with the run that resumes it.
   type :: journal_header_t
     character(len=64) :: campaign_id = ''          !< the campaign's id, then the id of the input's text alone
+    !> the program that wrote it: 'ellroll VERSION (BUILD build)'; a resume
+    !> by another would mix the results of two programs in one file
+    character(len=8 * writer_words) :: writer = ''
     character(len=:), allocatable :: input_files   !< the input's files and their fingerprints, a line each
     integer(i8) :: n_slots = 0
     integer(i8) :: n_samples = 0
@@ -150,21 +154,25 @@ contains
     type(journal_header_t), intent(in) :: header
     integer(i8), intent(in) :: n_note          !< words of the note of the input's files
     integer(i8) :: words(header_words)
+    integer, parameter :: w = id_words + writer_words
     words(:id_words) = transfer(header%campaign_id, 0_i8, id_words)
-    words(id_words + 1:id_words + 4) = [header%n_slots, header%n_samples, int(header%shard, i8)]
-    words(id_words + 5:header_words - 1) = [merge(1_i8, 0_i8, header%fields), merge(1_i8, 0_i8, header%in_place)]
+    words(id_words + 1:w) = transfer(header%writer, 0_i8, writer_words)
+    words(w + 1:w + 4) = [header%n_slots, header%n_samples, int(header%shard, i8)]
+    words(w + 5:header_words - 1) = [merge(1_i8, 0_i8, header%fields), merge(1_i8, 0_i8, header%in_place)]
     words(header_words) = n_note
   end function encode_header
 
   function decode_header(words) result(header)
     integer(i8), intent(in) :: words(header_words)
     type(journal_header_t) :: header
+    integer, parameter :: w = id_words + writer_words
     header%campaign_id = transfer(words(:id_words), header%campaign_id)
-    header%n_slots = words(id_words + 1)
-    header%n_samples = words(id_words + 2)
-    header%shard = int(words(id_words + 3:id_words + 4))
-    header%fields = words(id_words + 5:id_words + 4 + field_count) == 1
-    header%in_place = words(id_words + 5 + field_count:header_words - 1) == 1
+    header%writer = transfer(words(id_words + 1:w), header%writer)
+    header%n_slots = words(w + 1)
+    header%n_samples = words(w + 2)
+    header%shard = int(words(w + 3:w + 4))
+    header%fields = words(w + 5:w + 4 + field_count) == 1
+    header%in_place = words(w + 5 + field_count:header_words - 1) == 1
   end function decode_header
 
   !> Open a journal to resume it; refuse one written for another campaign.
@@ -183,8 +191,16 @@ contains
       call set_error(err, err_output, path // ': cannot open the journal: ' // system_error_text(-self%fd))
       return
     end if
-    code = read_at(self%fd, c_loc(start), int(header_bytes, i8), 0_i8)
+    code = read_at(self%fd, c_loc(start), 8_i8, 0_i8)
     found_magic = transfer(start(1), found_magic)
+    if (code == 0 .and. found_magic(:7) == magic(:7) .and. found_magic /= magic) then
+      call set_error(err, err_input, path // ': this run was started by another version of ellroll (journal ' // &
+          'format ' // found_magic(8:) // ', not ' // magic(8:) // '); this is ' // trim(expected%writer) // &
+          ', and a resume would mix the results of two programs: resume it with the ellroll that started it, ' // &
+          'or start over with --overwrite')
+      return
+    end if
+    if (code == 0) code = read_at(self%fd, c_loc(start), int(header_bytes, i8), 0_i8)
     if (code /= 0 .or. found_magic /= magic) then
       call set_error(err, err_output, path // ': not a journal of this version of ellroll; start over ' // &
                      'with --overwrite')
@@ -200,6 +216,12 @@ contains
     if (code /= 0) then
       call set_error(err, err_output, path // ': the journal''s note of the input''s files is damaged, so none ' // &
                      'of its cases can be trusted; start over with --overwrite')
+      return
+    end if
+    if (found%writer /= expected%writer) then
+      call set_error(err, err_input, path // ': this run was started by ' // trim(found%writer) // '; this is ' // &
+          trim(expected%writer) // ', and a resume would mix the results of two programs: resume it with the ' // &
+          'ellroll that started it, or start over with --overwrite')
       return
     end if
     if (found%campaign_id /= expected%campaign_id) then

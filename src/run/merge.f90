@@ -8,7 +8,7 @@ module ellroll_merge
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_results, only: case_result_t, add_switch
-  use ellroll_hdf5_writer, only: h5_output_t, provenance_t
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, describe_writer
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
   use ellroll_shards, only: shard_slots, campaign_id
@@ -114,6 +114,8 @@ contains
         return
       end if
       shard_of(index) = k
+      call check_writer(shards(k), trim(shard_paths(k)), prov_in, err)
+      if (err%failed()) return
       statuses = shards(k)%int_column('summary/status', err)
       if (err%failed()) return
       count = int(count_pending(statuses))
@@ -174,6 +176,28 @@ contains
       call shards(k)%close()
     end do
   end subroutine merge_into
+
+  !> A shard written by another program than this one (another version or
+  !> build: their results differ in the last bits) is refused: the merged
+  !> file would mix them under one version.
+  subroutine check_writer(shard, path, prov_in, err)
+    type(h5_input_t), intent(in) :: shard
+    character(len=*), intent(in) :: path
+    type(provenance_t), intent(in) :: prov_in
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: version, build, found, this
+    call shard%text_attribute('version', version)
+    call shard%text_attribute('build', build)
+    call describe_writer(version, build, found)
+    if (allocated(prov_in%build)) then
+      call describe_writer(prov_in%version, prov_in%build, this)
+    else
+      call describe_writer(prov_in%version, '', this)
+    end if
+    if (found /= this) call set_error(err, err_input, path // ': written by ' // found // '; this is ' // this // &
+        ', and a merge would mix the results of two programs: merge the shards with the ellroll that wrote ' // &
+        'them, or run this shard again with this one')
+  end subroutine check_writer
 
   !> A shard's /switches: each case's first switch (0-based) and count, and
   !> every switch's time and kind.

@@ -10,7 +10,7 @@ module ellroll_output_start
   use ellroll_strings, only: itoa, text_hash
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t
-  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, written_in_place
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, written_in_place, describe_writer
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
   use ellroll_resume, only: open_for_resume, copy_journaled_cases
@@ -156,7 +156,7 @@ contains
     real(wp), allocatable :: times(:)
     type(journal_header_t) :: header
     type(provenance_t) :: prov
-    character(len=:), allocatable :: writing
+    character(len=:), allocatable :: writing, writer
     integer(i8) :: i, n_slots
     allocate (globals, source=shard_slots(inp%campaign%n_cases(), shard))
     n_slots = size(globals, kind=i8)
@@ -171,6 +171,12 @@ contains
     ! (assigned apart: gfortran 12 copies a deferred-length component of a
     ! structure constructor into a buffer of one byte)
     header%input_files = inp%input_files
+    if (allocated(prov_in%build)) then
+      call describe_writer(prov_in%version, prov_in%build, writer)
+    else
+      call describe_writer(prov_in%version, '', writer)
+    end if
+    header%writer = writer
     if (resume) then
       call open_for_resume(journal, files, header, journal_places, err)
       if (err%failed()) return

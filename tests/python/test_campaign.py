@@ -185,9 +185,9 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 # (compressed), the count of the case's switches of regime (their times and
 # kinds after it: none for a case that did not slide), the record's checksum
 SUMMARY_ENTRIES, WALL_TIME_ENTRY = 34, 4
-# magic; id, slots, samples, shard, two flags per field, the note's words; checksum; then the note of the
-# input's files (empty without records) and its checksum
-JOURNAL_HEADER = 8 + 8 * (8 + 4 + 2 * 10 + 1) + 8 + 8
+# magic; id, writer (16 words), slots, samples, shard, two flags per field, the note's words;
+# checksum; then the note of the input's files (empty without records) and its checksum
+JOURNAL_HEADER = 8 + 8 * (8 + 16 + 4 + 2 * 10 + 1) + 8 + 8
 RECORD_MARKER = 7310312871522813004
 
 
@@ -754,3 +754,67 @@ def test_batched_rolling_resistance_equals_the_same_cases_run_alone(ellroll, tmp
                            "reaction_normal_max", "energy_drift"):
                 np.testing.assert_allclose(c[f"summary/{figure}"][index], a[f"summary/{figure}"][0], rtol=1e-12,
                                            atol=1e-15)
+
+
+def writer(exe):
+    """'ellroll VERSION (BUILD build)' as the executable says it."""
+    return run(exe, "--version").stdout.strip()
+
+
+def test_merge_refuses_shards_of_another_version_or_build(ellroll, ellroll_debug, tmp_path):
+    """Two programs' results differ in their last bits: a shard written by
+    the Debug build, or one whose file says another version, is refused
+    (exit 2, both programs named); the Release build's own shards merge."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10, 20 /\n")
+    release, debug = writer(ellroll), writer(ellroll_debug)
+    assert release.endswith(" build)") and "Debug" in debug and release != debug
+    for index, exe in ((0, ellroll), (1, ellroll), (1, ellroll_debug)):
+        out = f"s{index}{'d' if exe == ellroll_debug else ''}.h5"
+        assert run(exe, "run", name, "-q", "--shard", f"{index}/2", "-o", out, cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "s1d.h5", "r") as f:
+        assert f"ellroll {f.attrs['version']} ({f.attrs['build']} build)" == debug
+    result = run(ellroll, "merge", "m.h5", "s0.h5", "s1d.h5", cwd=tmp_path)
+    assert result.returncode == 2
+    assert f"s1d.h5: written by {debug}; this is {release}, and a merge would mix" in result.stderr, result.stderr
+    assert not (tmp_path / "m.h5").exists()
+    other = tmp_path / "s1v.h5"
+    other.write_bytes((tmp_path / "s1.h5").read_bytes())
+    with h5py.File(other, "r+") as f:
+        f.attrs["version"] = "0.0.9+git.0000000"
+        build = f.attrs["build"]
+    result = run(ellroll, "merge", "m.h5", "s1v.h5", "s0.h5", cwd=tmp_path)
+    assert result.returncode == 2
+    assert f"s1v.h5: written by ellroll 0.0.9+git.0000000 ({build} build); this is {release}" in result.stderr
+    assert run(ellroll, "merge", "m.h5", "s0.h5", "s1.h5", cwd=tmp_path).returncode == 0
+
+
+def test_resume_refuses_a_run_started_by_another_build(ellroll, ellroll_debug, tmp_path):
+    """A run the Debug build started and a kill cut short: the Release build
+    refuses to resume it (exit 2, both named) and leaves it whole, so that
+    the Debug build resumes it; a journal of an earlier format is refused
+    the same way."""
+    name, _ = killed_run(ellroll_debug, tmp_path)
+    release, debug = writer(ellroll), writer(ellroll_debug)
+    journal = tmp_path / "out.h5.journal"
+    kept = journal.read_bytes()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 2
+    assert (f"out.h5.journal: this run was started by {debug}; this is {release}, and a resume would mix the "
+            "results of two programs") in result.stderr, result.stderr
+    assert journal.read_bytes() == kept and (tmp_path / "out.h5.partial").exists()
+    older = tmp_path / "older"
+    older.mkdir()
+    for path in tmp_path.glob("out.h5.*"):
+        (older / path.name).write_bytes(path.read_bytes())
+    (older / name).write_text((tmp_path / name).read_text())
+    with open(older / "out.h5.journal", "r+b") as f:
+        f.write(b"ELLROLL7")
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=older)
+    assert result.returncode == 2
+    assert ("out.h5.journal: this run was started by another version of ellroll (journal format 7, not 8); "
+            f"this is {release}") in result.stderr, result.stderr
+    result = run(ellroll_debug, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert f.attrs["build"] in debug

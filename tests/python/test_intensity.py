@@ -138,6 +138,56 @@ def test_a_stiff_oscillator_tends_to_the_ground_peak_at_first_order(ellroll, tmp
     assert rate[3:] == pytest.approx(rate[2], rel=1e-3), rate
 
 
+TINY_PERIODS = ((5e-324, 1e-300, 1e-200, 1e-160, 1e-155, 1e-100, 1e-50, 1e-30, 1e-24, 6e-24, 1e-20, 1e-18,
+                 1e-17, 3e-17, 1e-16, 1e-15),
+                (1e-14, 1e-13, 1e-12, 1e-9, 1e-6))
+
+
+@pytest.mark.parametrize("build", ["release", "debug"])
+def test_sa_at_any_period_down_to_the_smallest_double_is_the_ground_peak(ellroll, ellroll_debug, tmp_path,
+                                                                         build):
+    """Sa(T) = PGA (1 + r T), the first-order law of the test above, from
+    1e-6 s down to 5e-324 s (the smallest positive double): equal to PGA to
+    round-off below 1e-15 s, finite (no overflow of omega^2), and no signal
+    in the Debug build's floating-point traps. r is measured between 1e-9
+    and 1e-6 s."""
+    exe = ellroll if build == "release" else ellroll_debug
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    periods, sa = [], []
+    for k, group in enumerate(TINY_PERIODS):
+        folder = tmp_path / str(k)
+        folder.mkdir()
+        (folder / "records").symlink_to(tmp_path / "records")
+        with run_input(exe, folder, "record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2'",
+                       ", ".join(map(repr, group)), 0.1) as f:
+            pga = f["case/pga"][0]
+            stored = {float(name[3:]): f["case"][name][0] for name in f["case"] if name.startswith("sa_")}
+            assert sorted(stored) == list(group)
+            periods += group
+            sa += [stored[period] for period in group]
+    periods, sa = np.array(periods), np.array(sa)
+    rate = (sa[-1] / pga - 1) / periods[-1]
+    assert (sa[-2] / pga - 1) / periods[-2] == pytest.approx(rate, rel=1e-3)
+    assert 0 < rate < 100
+    expected = pga * (1 + rate * periods)
+    assert np.all(np.abs(sa - expected) <= 1e-3 * (expected - pga) + 8 * np.spacing(pga)), \
+        list(zip(periods, sa / pga - 1))
+    assert np.all(np.abs(sa[periods <= 1e-12] / pga - 1) <= 1e-9)
+
+
+def test_a_record_that_starts_at_a_step_overshoots_it_at_any_short_period(ellroll, tmp_path):
+    """A record at 1 m/s^2 from its first sample: the oscillator, at rest
+    there, answers a step of the forcing, whose first peak is 1 + exp(-pi
+    zeta / sqrt(1 - zeta^2)) of it at every period far below the record's
+    1 s (to the 0.05^4 / 384 of Sa's sub-step peaks)."""
+    (tmp_path / "g.csv").write_text("time, ax, ay\n0, 1, 0\n1, 1, 0\n2, 0, 0\n")
+    with run_input(ellroll, tmp_path, "record_file = 'g.csv'", "1e-300, 1e-24, 1e-12, 1e-3", 0.1) as f:
+        assert f["case/pga"][0] == 1.0
+        overshoot = 1 + math.exp(-math.pi * ZETA / math.sqrt(1 - ZETA**2))
+        for name in ("sa_1e-300", "sa_1e-24", "sa_1e-12", "sa_0.001"):
+            assert f["case"][name][0] == pytest.approx(overshoot, rel=2e-8), name
+
+
 def test_a_fast_spin_s_gyroscopic_period_gets_its_sa_in_bounded_time(ellroll, tmp_path):
     """A ball spinning at 1e5 rad/s about the normal in a spherical cup: a
     gyroscopic mode of period 2.2e-7 s, whose Sa (sa_linear_periods) is the
@@ -197,6 +247,43 @@ def test_spectral_acceleration_of_a_sine_is_the_closed_form(ellroll, tmp_path):
             assert f[f"case/{name}"][0] == pytest.approx(w**2 * peak, rel=1e-4), name
             assert f[f"case/{name}"][0] >= w**2 * steady * (1 - 1e-4)
         assert f["case/pga"][0] == pytest.approx(np.abs(acc).max(), rel=1e-14)
+
+
+def test_a_record_s_samples_before_time_zero_are_not_measured(ellroll, tmp_path):
+    """A CSV record from t = -1 s with a 3 m/s^2 burst before 0 and at most
+    0.8 m/s^2 after: the case starts at 0 on the record's value there, so
+    every measure is that of the record cut at 0 (its value at 0
+    interpolated, as the trajectory's first base_acceleration shows),
+    written as a record of its own; and PGA is the peak of |a| from 0."""
+    rng = np.random.default_rng(8)
+    times = np.r_[-1.0, np.cumsum(rng.uniform(0.005, 0.03, 300)) - 0.993]
+    ax = np.where(times < 0, 3.0 * np.sin(9 * times), 0.8 * np.exp(-times / 2) * np.sin(7 * times + 0.3))
+    ay = np.where(times < 0, 0.0, 0.5 * np.exp(-times) * np.cos(11 * times))
+    first = np.searchsorted(times, 0.0, side="right")
+    w = (0 - times[first - 1]) / (times[first] - times[first - 1])
+    at_zero = [(1 - w) * c[first - 1] + w * c[first] for c in (ax, ay)]
+    cut_t = np.r_[0.0, times[first:]]
+    cut = np.stack([np.r_[at_zero[0], ax[first:]], np.r_[at_zero[1], ay[first:]]], axis=1)
+    write = lambda path, t, a: path.write_text(
+        "time, ax, ay\n" + "".join(f"{float(ti)!r}, {float(x)!r}, {float(y)!r}\n" for ti, (x, y) in zip(t, a)))
+    write(tmp_path / "whole.csv", times, np.stack([ax, ay], axis=1))
+    (tmp_path / "cut").mkdir()
+    write(tmp_path / "cut" / "whole.csv", cut_t, cut)
+    names = ("pga", "pgv", "pgd", "sa_0.1", "sa_0.5", "sa_2")
+    figures = []
+    text = INPUT.replace("fields = 'center'", "fields = 'center', 'base_acceleration'")
+    for folder in (tmp_path, tmp_path / "cut"):
+        (folder / "im.nml").write_text(text.format(files="record_file = 'whole.csv'", periods="0.1, 0.5, 2.0",
+                                                   t_end=1.0, scale=""))
+        result = run(ellroll, "run", "im.nml", "-q", cwd=folder)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(folder / "im.h5", "r") as f:
+            figures.append([f["case"][name][0] for name in names])
+            # (to an ulp: the build may fuse the interpolation's multiply-adds)
+            assert f["trajectory/base_acceleration"][0, 0, :2] == pytest.approx(at_zero, rel=1e-15, abs=0)
+    assert figures[0] == pytest.approx(figures[1], rel=1e-13, abs=0)
+    assert figures[0][0] == pytest.approx(np.hypot(cut[:, 0], cut[:, 1]).max(), rel=1e-15)
+    assert figures[0][0] < 0.9
 
 
 def test_a_campaign_without_a_record_has_no_intensity_measures(paper_file):

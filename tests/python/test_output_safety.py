@@ -231,6 +231,23 @@ def test_a_resume_refused_by_the_lock_leaves_the_run_alone(ellroll, tmp_path):
     assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"]
 
 
+def test_reading_the_partial_file_of_a_running_run_says_a_run_writes_it(ellroll, tmp_path):
+    """`ellroll summary OUT.h5.partial` while the run writes it: HDF5's own
+    lock refuses the reader (exit 3), and the message says that a process
+    writes the file and which lock file names it; once the run ends the
+    output reads."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    writer = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists():
+        time.sleep(0.01)
+    result = run(ellroll, "summary", "out.h5.partial", cwd=folder)
+    writer.send_signal(signal.SIGTERM)
+    writer.wait(timeout=60)
+    assert result.returncode == 3
+    assert ("out.h5.partial: cannot open the HDF5 file: another process has it open to write (" in result.stderr
+            and "a running ellroll, if out.h5.lock exists (it names the process)" in result.stderr), result.stderr
+
+
 # ---- the end of a run, and signals
 
 def test_a_complete_output_beside_its_journal_is_recognised(ellroll, tmp_path):

@@ -771,6 +771,25 @@ def test_a_ragged_nested_list_is_an_input_error():
     assert "values = 10.0, 20.0, 30.0, 40.0" in ellroll.namelist(groups)
 
 
+def test_a_vector_in_a_table_of_one_row_or_column_is_an_input_error():
+    """omega as an array of shape (1, 3) (numpy's keepdims, a slice
+    [i:i+1]) or (3, 1), or the nested list [[x, y, z]]: a table with a row or
+    column of one, refused naming its shape, as a ragged list is, by
+    namelist() and run_arrays() alike."""
+    for table in (np.array([[1.0, 2.0, 3.0]]), np.array([[1.0], [2.0], [3.0]]), [[1.0, 2.0, 3.0]],
+                  np.zeros((1, 1, 3))):
+        groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+        groups["initial"] = {"omega": table}
+        for function in (ellroll.namelist, ellroll.run_arrays):
+            with pytest.raises(ellroll.InputError) as raised:
+                function(groups)
+            assert "&initial" in raised.value.message and "omega" in raised.value.message
+            assert f"of shape {np.shape(table)} is a table with a row or column of one" in raised.value.message
+    groups = {g: dict(v) for g, v in GOOD_GROUPS.items()}
+    groups["initial"] = {"omega": np.array([1.0, 2.0, 3.0])}
+    assert "omega = 1.0, 2.0, 3.0" in ellroll.namelist(groups)
+
+
 def test_record_names_as_record_groups():
     time = np.arange(5) * 0.01
     acceleration = np.zeros((5, 2))

@@ -360,6 +360,45 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
     assert not (tmp_path / "small_fragility.png").exists()
 
 
+def test_fragility_says_what_it_leaves_out_and_refuses_a_campaign_without_stripes(ellroll, small_suite, tmp_path,
+                                                                                  capsys):
+    """A stripe at scale 0 has no likelihood (P = 0 there whatever theta):
+    its cases are left out of n_known, and the note says how many; a file
+    whose groups of equal design inputs each hold one intensity has no
+    stripes: exit 2 with a message, no figure, no one-case fits. `ellroll
+    summary --suite` notes the same."""
+    zero = tmp_path / "zero.h5"
+    shutil.copy(small_suite, zero)
+    with h5py.File(zero, "r+") as f:
+        scale = f["case/scale"][:]
+        at_zero = scale == SCALES[0]
+        for name in ("case/scale", "summary/scale"):       # (the input, and the stripes' coordinate)
+            f[name][at_zero] = 0.0
+    with ellroll_post.open(zero) as f:
+        table, _ = suite.suite_fragility(f)
+        status = np.array(f.status_names())
+        resistance = f.input_column("rolling_resistance")
+    with ellroll_post.open(small_suite) as f:
+        whole, _ = suite.suite_fragility(f)
+    outcome = np.isin(status, suite.MODEL_LIMITS) | (status == "completed")
+    for row, before in zip(table.to_dict("records"), whole.to_dict("records")):
+        cases = resistance == row["rolling_resistance"]
+        dropped = int(np.sum(cases & at_zero & outcome))
+        assert dropped > 0
+        assert row["n_points"] == before["n_points"] - 1 and row["n_known"] == before["n_known"] - dropped
+        assert f"{dropped} cases at intensity 0 left out (no likelihood)" in row["note"], row["note"]
+    assert assert_fortran_fits_are_pythons(ellroll, zero) >= 1
+    flat = tmp_path / "flat.h5"
+    shutil.copy(small_suite, flat)
+    with h5py.File(flat, "r+") as f:
+        f["case/scale"][:] = f["summary/scale"][:] = SCALES[1]
+    assert cli.main(["fragility", str(flat), "--out", str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert (f"{flat}: no stripes to fit a fragility to: none of its 2 groups of cases with the same design "
+            "inputs (rolling_resistance) spans two intensities (scale)") in error and "Traceback" not in error
+    assert not list(tmp_path.glob("*.png"))
+
+
 def test_fragility_against_an_intensity_measure_the_file_holds(small_suite, tmp_path):
     """A /case pga is each case's own; a /records sa_3.0 (a period the
     file has no /case/sa_ for) is the record's,
@@ -436,7 +475,7 @@ def assert_fortran_fits_are_pythons(ellroll, path):
             [expected[k] for k in ("n_points", "n_known", "n_exceeded", "n_undefined")]
         if detail["fit"] is None:
             assert row["theta"] is None and row["beta"] is None
-        elif expected["note"]:
+        elif "separate" in expected["note"]:
             assert (row["theta"], row["beta"]) == separating_step(detail["x"], detail["n"], detail["z"])
         else:
             assert row["theta"] == pytest.approx(expected["theta"], rel=1e-6)
