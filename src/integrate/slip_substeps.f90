@@ -32,11 +32,12 @@ module ellroll_slip_substeps
   !> slip's approach slow) the substeps' own errors turn its direction near
   !> zero, and it hovers there without reaching zero; it stops there.
   integer, parameter :: stall_substeps = 64
-  !> Substeps of one piece at most: a piece not done by then has no
-  !> solution the substeps can follow (a couple whose direction turns far
-  !> faster than round-off-sized substeps; the rest taken whole grows past
-  !> any scale of the motion).
+  !> Substeps of one piece at most (the rest is then taken whole); a
+  !> substep that leaves the motion's scale (speeds beyond beyond_scale
+  !> times the piece's start: a couple whose direction turns far faster than
+  !> round-off-sized substeps) leaves the piece without a solution.
   integer, parameter :: max_substeps = 100000
+  real(wp), parameter :: beyond_scale = 1.0e3_wp
 
 contains
 
@@ -47,8 +48,8 @@ contains
   !> slip stalls: stalled), the state at the end of the substep where it did,
   !> reached its time from t (the caller locates the stop by the piece's size).
   !> The piece has no solution (no_step_solution) once the run is asked to
-  !> stop (stopping), where a substep of round-off size still errs, or after
-  !> max_substeps.
+  !> stop (stopping), or where a substep it takes (shrunk to round-off, or
+  !> the rest taken whole after max_substeps) leaves the motion's scale.
   subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(sliding_ball_t), intent(in) :: sb
@@ -69,18 +70,19 @@ contains
     slip_start = norm2(slip_velocity(sb%ball, y0))
     slip_before = slip_start
     accepted = 0
-    tolerance = slip_tolerance * (norm2(center_velocity(y0)) + sb%ball%radius * norm2(y0(4:6)) + reach)
+    tolerance = slip_tolerance * speed(y0)
     y = y0
     f = f0
     tau = 0
     s = h / 64
     do k = 1, max_substeps
-      if (stopping() .or. k == max_substeps) then
+      if (stopping()) then
         integrator%stage_limit = no_step_solution
         whole = y
         exit
       end if
       s = min(s, h - tau)
+      if (k == max_substeps) s = h - tau
       call integrator%step(sb, t + tau, y, f, s, whole, n_rhs)
       if (integrator%stage_limit /= 0) exit
       call integrator%step(sb, t + tau, y, f, s / 2, half, n_rhs)
@@ -90,12 +92,12 @@ contains
       n_rhs = n_rhs + 1
       if (integrator%stage_limit /= 0) exit
       error = norm2(slip_velocity(sb%ball, halves) - slip_velocity(sb%ball, whole)) / 15
-      if (.not. error <= tolerance .and. s <= 16 * spacing(t + h)) then
-        integrator%stage_limit = no_step_solution     ! a round-off substep still errs: no solution here
-        whole = y
-        exit
-      end if
-      if (error <= tolerance) then
+      if (error <= tolerance .or. s <= 16 * spacing(t + h) .or. k == max_substeps) then
+        if (.not. speed(halves) <= beyond_scale * speed(y0)) then
+          integrator%stage_limit = no_step_solution       ! the substeps leave the motion's scale
+          whole = y
+          exit
+        end if
         tau = tau + s
         y = halves + (halves - whole) / 15
         if (tau >= h) exit
@@ -123,6 +125,13 @@ contains
       y_end = y
       reached = min(tau, h)
     end if
+  contains
+    !> The speeds of the centre and of the contact's turning at sliding state x,
+    !> with the friction's reach over the piece: the motion's scale.
+    real(wp) function speed(x)
+      real(wp), intent(in) :: x(slide_state_size)
+      speed = norm2(center_velocity(x)) + sb%ball%radius * norm2(x(4:6)) + reach
+    end function speed
   end subroutine slide_piece
 
 

@@ -52,7 +52,7 @@ def test_gauss4_rest_inside_the_first_step_is_no_model_limit(ellroll, tmp_path):
 
 @pytest.mark.parametrize("method", ["method='gauss4', dt=1e-4", "method='rk4', dt=1e-4"])
 def test_the_couple_s_work_stops_with_the_rolling_inside_a_step(ellroll, tmp_path, method):
-    """The 1e-6 m ball stops 2.2e-7 s into a step of 1e-4 s: the couple's
+    """The 1e-6 m ball comes to rest 2.2e-7 s into a step of 1e-4 s: the couple's
     work is over the rolling up to the stop (dop853 at rtol 1e-12: 1.38486e-8
     J), not the step's start power over the whole step (6.27e-6 J, an energy
     balance off by 5.2e-4 of E0)."""
