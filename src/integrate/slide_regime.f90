@@ -245,8 +245,9 @@ contains
   !> taken adds to the sliding figures (add_sliding). An embedded pair's works
   !> of the friction and of the rolling resistance, in either regime, are
   !> step_works' (the latter in place of add_resistance_work's trapezoids:
-  !> add_step_resistance).
-  subroutine add_sliding_step(integrator, run, rolling, sb, t, h, from, to, tally, res)
+  !> add_step_resistance). at_stop: the step ends where the slip stops
+  !> (step_works' fresh).
+  subroutine add_sliding_step(integrator, run, rolling, sb, t, h, from, to, tally, res, at_stop)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
     type(run_state_t), intent(in) :: rolling
@@ -255,12 +256,13 @@ contains
     type(regime_state_t), intent(in) :: from, to
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
+    logical, intent(in), optional :: at_stop
     real(wp) :: work(2)
     select type (integrator)
     class is (embedded_pair_t)
       if (.not. (from%sliding .or. rolling%ball%rolling_resistance > 0)) return
       if (from%sliding) then
-        call step_works(integrator, rolling%ball, t, h, work, res%n_rhs, sb)
+        call step_works(integrator, rolling%ball, t, h, work, res%n_rhs, sb, fresh=at_stop)
       else
         call step_works(integrator, rolling%ball, t, h, work, res%n_rhs)
       end if

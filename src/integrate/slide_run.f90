@@ -561,7 +561,7 @@ contains
       return
     end if
     offset = x%reached                    ! (a fixed step's substeps may find the stop before search%high)
-    call add_sliding_step(integrator, run, rolling, sb, t_at, offset, now, x, tally, res)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, offset, now, x, tally, res, at_stop=now%sliding)
     t_at = t_at + offset
     now = x
     if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
@@ -600,7 +600,7 @@ contains
     call sb%begin_step(now%s)
     call take(integrator, rolling, sb, t_at, piece, now, x, status, res%n_rhs)
     if (status /= status_completed) return
-    call add_sliding_step(integrator, run, rolling, sb, t_at, piece, now, x, tally, res)
+    call add_sliding_step(integrator, run, rolling, sb, t_at, piece, now, x, tally, res, at_stop=.true.)
     t_at = t_at + piece
     offset = offset + piece
     now = x

@@ -457,3 +457,44 @@ def test_a_fixed_step_that_chatters_under_a_strong_record_goes_on_sliding(ellrol
         assert np.all(np.abs(runs[name]["slip_episodes"] - reference["slip_episodes"]) <= 1), name
         errors.append(np.max(np.abs(runs[name]["sliding_time"] - reference["sliding_time"])))
     assert errors[0] < 2e-2 and errors[1] < errors[0] / 1.5        # first order in dt
+
+
+@pytest.mark.parametrize("method, rtol", [(m, r) for m in ("dop853", "vern9") for r in (1e-9, 1e-10, 1e-11, 1e-12)])
+def test_long_steps_to_the_stop_take_the_friction_s_work_exactly(ellroll, tmp_path, method, rtol):
+    """A flat plate with its output interval the whole run, so that the
+    pairs' steps are long and one of them ends where the slip stops: the
+    friction's work over it from steps from its start, not from its
+    interpolant (whose stages at u = 0 have a friction of round-off's
+    direction: 1.5e-3 of the work off). Seeded random balls, spins and
+    launches: friction_energy against the energy lost and the closed
+    forms m R^2 omega0^2 / 7 and m v0^2 / 7."""
+    rng = np.random.default_rng(45)
+    number = lambda value: repr(float(value))  # noqa: E731
+    for case in range(6):
+        radius, mu, g = rng.uniform(0.01, 0.3), rng.uniform(0.1, 1.0), rng.choice([1.62, 9.81, 24.8])
+        mass, angle = rng.uniform(0.5, 200.0), rng.uniform(0, 2 * np.pi)
+        size = rng.uniform(1.0, 30.0)
+        if case % 2 == 0:          # spinning about a horizontal axis, set down
+            omega, velocity = (size * np.cos(angle), size * np.sin(angle), 0.0), (0.0, 0.0, 0.0)
+            speed, lost = radius * size, mass * radius**2 * size**2 / 7
+        else:                      # launched sliding without spin
+            speed = size / 10
+            omega, velocity = (0.0, 0.0, 0.0), (speed * np.cos(angle), speed * np.sin(angle), 0.0)
+            lost = mass * speed**2 / 7
+        t_slide = 2 * speed / (7 * mu * g)
+        t_end = float(f"{1.5 * t_slide:.3g}")
+        text = (f"&geometry a = 1e6, b = 1e6, c = 1e6 /\n"
+                f"&ball radius = {number(radius)}, mass = {number(mass)}, mu = {number(mu)}, slip = 'slide' /\n"
+                f"&environment g = {number(g)} /\n"
+                f"&initial x = 0, y = 0, omega = {', '.join(map(number, omega))}, "
+                f"velocity = {', '.join(map(number, velocity))} /\n"
+                f"&integration method = '{method}', rtol = {rtol}, t_end = {t_end} /\n"
+                f"&output file = 'out.h5', interval = {t_end} /\n")
+        with run_text(ellroll, tmp_path, text) as f:
+            s = {k: f["summary"][k][0] for k in ("status", "friction_energy", "energy_drift", "sliding_time")}
+            energy = f["trajectory/energy"][0]
+        label = f"case {case}: {text}"
+        assert s["status"] == 1, label
+        assert s["friction_energy"] == pytest.approx(energy[0] - energy[-1], rel=1e-9), label
+        assert s["friction_energy"] == pytest.approx(lost, rel=1e-6), label
+        assert s["sliding_time"] == pytest.approx(t_slide, rel=1e-6), label
