@@ -29,7 +29,7 @@ contains
   !> where the slip stops has stages there, at u near 0, where the friction's
   !> direction -u / |u| is round-off: the step's end does not take them
   !> (their weights are 0), its interpolant does (on a flat plate's stop,
-  !> vern9 at rtol 1e-12 took 0.66 % too much work over that step).
+  !> vern9 at rtol 1e-12: 0.66 % too much work over that step).
   subroutine step_works(pair, ball, t, h, work, n_rhs, sb, part, fresh)
     class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
