@@ -413,9 +413,13 @@ contains
     before = sb%aligned
     sb%aligned = .false.
     allowed = sb%align_atol + sb%align_rtol * (norm2(center_velocity(y)) + sb%ball%radius * norm2(y(4:6)))
-    ! (with rolling resistance the full law: its couple turns omega_t's
-    ! direction, and where the ball does not roll it depends on the friction)
-    if (sb%ball%rolling_resistance > 0) allowed = 0
+    ! (with rolling resistance the aligned law only where the couple keeps
+    ! its direction over the step: where the ball does not roll it depends
+    ! on the friction)
+    if (sb%ball%rolling_resistance > 0 .and. allowed > 0 .and. h > 0) then
+      if (.not. couple_steady(sb, t, y, h)) allowed = 0
+      n_rhs = n_rhs + 1
+    end if
     if (allowed > 0 .and. h > 0) then
       call sliding_derivative(sb, t, y, rate, big_n, needed=need)
       n_rhs = n_rhs + 1
@@ -438,6 +442,10 @@ contains
         sb%aligned = slip**2 * turn <= allowed * reach
         if (sb%aligned) then
           f = rate
+          if (sb%ball%rolling_resistance > 0) then         ! (rate is without the couple)
+            call sb%rhs(t, y, f)
+            n_rhs = n_rhs + 1
+          end if
           return
         end if
       end if
@@ -447,6 +455,20 @@ contains
       n_rhs = n_rhs + 1
     end if
   end subroutine choose_slip_law
+
+  !> Whether the couple of rolling resistance keeps its direction over a
+  !> step h from sliding state y: omega_t, on which it acts, clear of 0 by
+  !> twice what omega changes in the step at its rate there. Then F_req
+  !> (needed_friction) holds the couple along omega_t, as the flow does.
+  logical function couple_steady(sb, t, y, h) result(steady)
+    class(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size), h
+    real(wp) :: rate(slide_state_size), n(3), omega_t(3)
+    call sb%rhs(t, y, rate)
+    n = y(1:3) / norm2(y(1:3))
+    omega_t = y(4:6) - dot_product(y(4:6), n) * n
+    steady = norm2(omega_t) > 2 * h * norm2(rate(4:6))
+  end function couple_steady
 
   !> An aligned step's end: the slip turned onto -F_req at its size,
   !> u = -|u| F_req / |F_req|, by an impulse P of the cup at A (m dV_C = P,

@@ -106,3 +106,37 @@ def test_pairs_follow_a_hovering_slip_with_rolling_resistance(ellroll, tmp_path)
     a, b = runs["dop853"], runs["vern9"]
     for name in ("sliding_time", "friction_energy", "rolling_resistance_energy"):
         assert a[name][0] == pytest.approx(b[name][0], rel=1e-7), name
+
+
+SLOW_START = """&geometry a = 1.2563732254749764, b = 0.8322510605048443, c = 0.36056575958671633 /
+&ball radius = 0.3219360359473515, mass = 10.0, mu = 0.051184432455100015, slip = 'slide',
+      rolling_resistance = 0.0017122281832639879 /
+&initial x = 0.10714847829077473, y = -0.039583794071531224, omega = -1.3340175200883788, 1.8423182236600724,
+         22.92417261393757 /
+&integration {integration}, t_end = 4.0 /
+&output file = 'out.h5', interval = 0.01 /
+"""
+
+
+@pytest.mark.parametrize("integration", ["method = 'vern9', rtol = 1e-12", "method = 'vern9', rtol = 1e-13",
+                                         "method = 'dop853', rtol = 1e-12"])
+def test_a_slip_starting_slowly_with_rolling_resistance_is_followed_on_its_slow_manifold(ellroll, tmp_path,
+                                                                                         integration):
+    """A slip that starts where rolling's friction just passes mu N grows
+    from 0 as t^2; against u / |u| its direction's time scale |u| / (c
+    |F_req|) holds an explicit pair's steps near 1e-11 s (vern9 at rtol
+    1e-12: 100,000 of them in the first 2.3 ms). With rolling resistance too the slip
+    follows -F_req (the aligned law) where the couple keeps its direction
+    over the step. Against rk4 at dt 2e-5 s (into sliding at 3.5301827922 s,
+    rolling at 3.9984881785 s): the same switches, the start within 1e-9
+    s, the stop (where rolling needs nearly mu N: a slow approach) within
+    5e-7 s, the energy balance closed, and in few steps."""
+    summary, _ = run_text(ellroll, tmp_path, "case", SLOW_START.format(integration=integration))
+    with h5py.File(tmp_path / "case.h5", "r") as f:
+        times, kinds = f["switches/switch_time"][()], f["switches/switch_kind"][()]
+    assert summary["status"][0] == 1
+    assert list(kinds) == [1, 2]
+    assert times[0] == pytest.approx(3.5301827922, abs=1e-9)
+    assert times[1] == pytest.approx(3.9984881785, abs=5e-7)
+    assert summary["energy_drift"][0] < 1e-12
+    assert summary["n_steps"][0] < 5000
