@@ -370,7 +370,7 @@ contains
       call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
     end if
     if (run%ball%rolling_resistance > 0) then
-      call step_works(pair, run%ball, pair%t_old, part, works, res%n_rhs, part=part / pair%h)
+      call step_works(pair, run%ball, pair%t_old, part, works, res%n_rhs)
       call add_step_resistance(run, res, pair%t_old + part, works(2), obs)
       call track_rolling_resistance(run, res, pair%t_old + part, obs)
     end if

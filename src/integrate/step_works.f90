@@ -22,22 +22,21 @@ contains
   !> work(1): the friction's, work(2): the rolling resistance's (both >= 0,
   !> J) over the pair's last step, of size h from t: sliding where sb is
   !> given (its state), else rolling (ball, in the mode of the step:
-  !> begin_step; the friction's work 0); n_rhs counts the RHS calls. part:
-  !> the works over the first part of the last step only (h its size).
+  !> begin_step; the friction's work 0); n_rhs counts the RHS calls. h may
+  !> be the first part of the last step only.
   !> fresh: the sliding state at each node from a step of the pair from
   !> the last step's start, not from its dense output. A step that ends
   !> where the slip stops has stages there, at u near 0, where the friction's
   !> direction -u / |u| is round-off: the step's end does not take them
   !> (their weights are 0), its interpolant does (on a flat plate's stop,
   !> vern9 at rtol 1e-12: 0.66 % too much work over that step).
-  subroutine step_works(pair, ball, t, h, work, n_rhs, sb, part, fresh)
+  subroutine step_works(pair, ball, t, h, work, n_rhs, sb, fresh)
     class(embedded_pair_t), intent(inout) :: pair
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, h
     real(wp), intent(out) :: work(2)
     integer(i8), intent(inout) :: n_rhs
     type(sliding_ball_t), intent(in), optional :: sb
-    real(wp), intent(in), optional :: part
     logical, intent(in), optional :: fresh
     ! the roots of P_4 on [-1, 1], +-sqrt(3/7 -+ 2/7 sqrt(6/5)), and their
     ! weights (18 +- sqrt(30)) / 36, mapped onto [0, 1]
@@ -50,8 +49,7 @@ contains
     class(embedded_pair_t), allocatable :: stepper
     integer :: i
     work = 0
-    theta = nodes
-    if (present(part)) theta = part * nodes
+    theta = (h / pair%h) * nodes
     if (present(fresh) .and. present(sb)) then
       if (fresh) allocate (stepper, source=pair)      ! (the pair keeps its last step)
     end if
