@@ -17,7 +17,8 @@ echo "== pytest"
 # two workers (pytest-xdist): the tests are independent processes, most of one thread
 ELLROLL_EXE="$PWD/build/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-debug/ellroll" \
   ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q -n 2 tests/python
-echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, the input space, hard cases, limits, dt sweeps"
+echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, the input space, literals, hard cases, limits, dt sweeps"
 ELLROLL_BUILD=sanitize ELLROLL_EXE="$PWD/build-sanitize/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-sanitize/ellroll" \
   .venv/bin/python -m pytest -q -n 2 tests/python/test_fuzz.py tests/python/test_extreme_inputs.py \
-  tests/python/test_input_space.py tests/python/test_hard_cases.py tests/python/test_limits_fixed_step.py
+  tests/python/test_input_space.py tests/python/test_input_literals.py tests/python/test_hard_cases.py \
+  tests/python/test_limits_fixed_step.py

@@ -16,7 +16,9 @@ drawn again from the fitted curve (stripes) or the capacities resampled
 (incremental), the fit repeated. A resample whose counts separate in the
 intensity (none exceeds below some level, all above, at most one level
 between) has no finite maximum: it counts as a step, beta = 0
-(separating_step)."""
+(separating_step). Observed counts that separate have no interval (NaN):
+the fit is then the optimiser's last point, not an estimate a resample's
+step repeats."""
 import math
 
 import numpy as np
@@ -78,7 +80,10 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
     n[j] records at intensity x[j] (> 0); with bootstrap > 0, that many
     parametric resamples give 5-95 % intervals. Stripes where every record
     exceeds or none does count (they bound the curve); at least one stripe
-    with exceedances and one with survivors are needed."""
+    with exceedances and one with survivors are needed. Where the counts
+    separate (separating_step) the likelihood has no maximum: theta and beta
+    are the optimiser's last point, which no resample's fit estimates, so
+    there is no interval (NaN) and no bootstrap."""
     x, n, z = (np.asarray(a, dtype=float) for a in (x, n, z))
     if x.shape != n.shape or x.shape != z.shape or x.size == 0:
         raise ValueError("x, n and z must be of one length, at least one stripe")
@@ -88,7 +93,7 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
         raise ValueError("no fragility can be fitted: every record exceeds, or none does")
     theta, beta = _fit_once(np.log(x), n, z)
     fit = FragilityFit(theta, beta)
-    if bootstrap > 0:
+    if bootstrap > 0 and separating_step(x, n, z) is None:
         rng = np.random.default_rng(seed)
         samples = []
         p = fit.probability(x)

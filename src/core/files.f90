@@ -161,7 +161,7 @@ contains
     character(len=*), intent(in) :: path, me
     integer, intent(out) :: fd
     character(len=:), allocatable, intent(out) :: holder
-    character(kind=c_char) :: buffer(512)
+    character(kind=c_char) :: buffer(1024)     ! (a note: host, pid, time and a command of at most 400)
     integer :: n
     fd = c_lock_output(path // c_null_char, me // c_null_char, buffer, size(buffer))
     n = findloc(buffer, c_null_char, dim=1) - 1

@@ -10,7 +10,7 @@ module ellroll_system
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
       system_error_text, open_regular_file, read_text, file_type_words, read_whole_file
-  public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now
+  public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now, shown_command_line
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -344,5 +344,36 @@ contains
       stamp(i:i) = buf(i)
     end do
   end subroutine utc_timestamp
+
+  !> This process's command line as others may read it (the output's lock
+  !> note): 'ellroll' and each argument, in single quotes where it holds
+  !> more than letters, digits and ./_-=:+,@%, a control character shown as
+  !> '?', the whole cut to `limit` characters (its end then '...').
+  subroutine shown_command_line(limit, line)
+    integer, intent(in) :: limit
+    character(len=:), allocatable, intent(out) :: line
+    character(len=:), allocatable :: arg
+    character(len=*), parameter :: plain = 'abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789./_-=:+,@%'
+    integer :: k, length, pos
+    line = 'ellroll'
+    do k = 1, command_argument_count()
+      if (len(line) > limit) exit
+      call get_command_argument(k, length=length)
+      allocate (character(len=length) :: arg)
+      if (length > 0) call get_command_argument(k, arg)
+      do pos = 1, length
+        if (iachar(arg(pos:pos)) < 32 .or. iachar(arg(pos:pos)) == 127) arg(pos:pos) = '?'
+      end do
+      if (length == 0 .or. verify(arg, plain) > 0) then
+        do pos = length, 1, -1             ! ' inside single quotes: '\''
+          if (arg(pos:pos) == "'") arg = arg(:pos - 1) // "'\''" // arg(pos + 1:)
+        end do
+        arg = "'" // arg // "'"
+      end if
+      line = line // ' ' // arg
+      deallocate (arg)
+    end do
+    if (len(line) > limit) line = line(:max(0, limit - 3)) // '...'
+  end subroutine shown_command_line
 
 end module ellroll_system

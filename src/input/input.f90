@@ -13,7 +13,8 @@ module ellroll_input
   use ellroll_strings, only: itoa, join, format_real, excerpt
   use ellroll_cases, only: case_t, output_plan_t, get_param, problem_setting
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
-  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given
+  use ellroll_input_reader, only: reader_t, namelist_values_t, check_names, max_values, max_fields, not_given, &
+      has_unquoted
   use ellroll_campaign_input, only: add_sweep, add_sample
   use ellroll_suite_input, only: record_spec_t, add_record_group
   use ellroll_limit_state_input, only: add_limit_state
@@ -118,6 +119,7 @@ contains
     type(limit_state_t), allocatable :: states(:)
     integer, allocatable :: state_lines(:)
     character(len=:), allocatable :: reason
+    logical :: unquoted
 
     v%param = [(param_default(k), k = 1, param_count)]     ! NaN: required
     v%method = 'rk4'; v%t_end = nan(); v%error_estimate = 'none'; v%slip = 'end'
@@ -140,8 +142,10 @@ contains
         end if
         do k = 1, size(grp%items)
           associate (item => grp%items(k))
-            ! a longer text would be cut to the variable's length without a word
-            if (text_length(v, item%base) > 0 .and. longest_text(item%source) > text_length(v, item%base)) then
+            ! (a text goes in quotes; a longer one would be cut to the variable's length without a word)
+            unquoted = text_length(v, item%base) > 0 .and. has_unquoted(item%value)
+            if (.not. unquoted .and. text_length(v, item%base) > 0 .and. &
+                longest_text(item%source) > text_length(v, item%base)) then
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // excerpt(item%value) // &
                   ': a text of ' // itoa(longest_text(item%source)) // ' characters (blanks included); at most ' // &
                   itoa(text_length(v, item%base)) // ' fit')
@@ -149,6 +153,7 @@ contains
             end if
             call read_assignment(grp, k, v, ios, msg)
             if (ios == 0 .and. lone_sign(grp%name, item)) ios = 1      ! (gfortran reads a sign alone as 0)
+            if (ios == 0 .and. unquoted) ios = 1
             if (ios /= 0) then
               call bad_value_reason(grp%name, item, reason)
               call rd%fail_at(item%line, '&' // grp%name // ': ' // item%name // ' = ' // excerpt(item%value) // reason)
@@ -309,6 +314,19 @@ contains
     character(len=*), intent(in) :: group
     type(nml_assignment_t), intent(in) :: item
     character(len=:), allocatable, intent(out) :: reason
+    type(ieee_status_type) :: fp_state
+    call ieee_get_status(fp_state)
+    ! its reads convert the user's text too: 1d400 reads as Inf, and must
+    ! not stop a build that traps on overflow (as in read_assignment)
+    call ieee_set_halting_mode(ieee_usual, .false.)
+    call value_reason(group, item, reason)
+    call ieee_set_status(fp_state)
+  end subroutine bad_value_reason
+
+  subroutine value_reason(group, item, reason)
+    character(len=*), intent(in) :: group
+    type(nml_assignment_t), intent(in) :: item
+    character(len=:), allocatable, intent(out) :: reason
     character(len=:), allocatable :: token, expected
     integer :: row, capacity, count, start, pos, ios, star
     character :: kind, quote
@@ -361,6 +379,15 @@ contains
       end if
       if (kind == 'i') then
         read (token, *, iostat=ios) whole
+        if (scan(token, '0123456789') > 0 .and. verify(token, '+-0123456789') == 0) then   ! a whole number
+          if (ios /= 0 .or. whole > largest_whole(item%base) .or. whole < -largest_whole(item%base)) then
+            reason = 'out of range (' // item%base // ' holds whole numbers up to ' // &
+                     itoa(largest_whole(item%base)) // ' in magnitude)'
+            if (len(token) < len(item%value)) reason = token // ' is ' // reason
+            reason = ': ' // reason
+            return
+          end if
+        end if
         if (ios /= 0 .or. scan(token, '.eEdD') > 0) then
           reason = ' is not a whole number'
           if (len(token) < len(item%value)) reason = ': ' // token // ' is not a whole number'
@@ -373,7 +400,7 @@ contains
     else if (count > capacity) then
       reason = ': ' // itoa(count) // ' values given; ' // item%base // ' holds ' // itoa(capacity)
     end if
-  end subroutine bad_value_reason
+  end subroutine value_reason
 
   !> Whether a value of a numeric assignment is a sign alone (also after a
   !> repeat count, r*-): gfortran's read takes it for 0.
@@ -417,6 +444,15 @@ contains
     case default; kind = 't'
     end select
   end subroutine own_variable_shape
+
+  !> The largest magnitude the integer variable `base` of the namelists holds.
+  pure integer(i8) function largest_whole(base)
+    character(len=*), intent(in) :: base
+    select case (base)
+    case ('samples', 'seed'); largest_whole = huge(1_i8)
+    case default; largest_whole = huge(1)
+    end select
+  end function largest_whole
 
   !> The length of the character variable `base` of the namelists (0: not one).
   pure integer function text_length(v, base)

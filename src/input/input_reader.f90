@@ -15,7 +15,7 @@ module ellroll_input_reader
   private
 
   public :: reader_t, namelist_values_t, check_names, count_given, is_not_given, not_given, not_finite_entry, resolve_path, &
-            max_values, max_fields
+            max_values, max_fields, has_unquoted
 
   integer, parameter :: max_values = 10000, max_fields = 32
 
@@ -270,5 +270,39 @@ contains
     character(len=len(path) + folder_prefix_length(path, input_path)) :: resolved
     resolved = input_path(:folder_prefix_length(path, input_path)) // path
   end function resolve_path
+
+  !> Whether a text variable's value list holds an item outside quotes
+  !> (after its repeat count r*, if any). gfortran's namelist read takes an
+  !> unquoted number (file = 0.5) as a text but refuses an unquoted word
+  !> (file = NaN): both are refused alike, texts go in quotes.
+  pure logical function has_unquoted(value)
+    character(len=*), intent(in) :: value
+    character(len=*), parameter :: separators = ' ,' // achar(9) // achar(10) // achar(13)
+    integer :: pos, first, star
+    character :: quote
+    has_unquoted = .false.
+    quote = ' '
+    first = 1
+    do pos = 1, len(value) + 1
+      if (pos <= len(value)) then
+        if (quote /= ' ') then
+          if (value(pos:pos) == quote) quote = ' '        ! (a doubled quote closes and opens again)
+          cycle
+        end if
+        if (value(pos:pos) == "'" .or. value(pos:pos) == '"') quote = value(pos:pos)
+        if (index(separators, value(pos:pos)) == 0) cycle
+      end if
+      if (pos > first) then                                 ! an item: value(first:pos - 1)
+        star = index(value(first:pos - 1), '*')
+        if (star > 1) then
+          if (verify(value(first:first + star - 2), '0123456789') == 0) first = first + star
+        end if
+        if (pos > first) then
+          if (value(first:first) /= "'" .and. value(first:first) /= '"') has_unquoted = .true.
+        end if
+      end if
+      first = pos + 1
+    end do
+  end function has_unquoted
 
 end module ellroll_input_reader

@@ -27,10 +27,13 @@ module ellroll_output_files
   implicit none
   private
 
-  public :: output_files_t, work_partial, work_journal, work_target, work_lock
+  public :: output_files_t, work_partial, work_journal, work_target, work_lock, lock_note_command
 
   !> What a file at a work name must be for ellroll to remove or replace it.
   integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3, work_lock = 4
+
+  !> The longest command a lock's note holds (ellroll_system's shown_command_line)
+  integer, parameter :: lock_note_command = 400
 
   integer, parameter :: enoent = 2, eagain = 11, eexist = 17, enolck = 37, enosys = 38, eopnotsupp = 95
 

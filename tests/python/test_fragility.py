@@ -83,3 +83,21 @@ def test_capacities_give_their_geometric_mean_and_log_spread():
 def test_no_fit_where_every_record_or_none_exceeds(z):
     with pytest.raises(ValueError, match="every record exceeds, or none does"):
         fit_stripes(LEVELS, np.full(LEVELS.size, RECORDS), z)
+
+
+@pytest.mark.parametrize("z", [[0, 0, 0, 1], [0, 0, 1, 3], [0, 0, 3, 3], [0, 2, 3, 3]])
+def test_counts_that_separate_have_no_interval(z):
+    """Observed counts that separate in the intensity have no finite
+    maximum: theta and beta are the optimiser's last point, which the
+    bootstrap's steps do not estimate (on the first counts, an outside
+    probe's suite, theta 4.17 got the interval [2.83, 4.0] and beta 0.098
+    the interval [0, 0]). The intervals are NaN and there is no band; counts
+    with a maximum keep intervals that hold their estimate."""
+    x, n = [0.5, 1.0, 2.0, 4.0], [3, 3, 3, 3]
+    fit = fit_stripes(x, n, z, bootstrap=200)
+    assert np.isfinite(fit.theta) and np.isfinite(fit.beta)
+    assert all(math.isnan(v) for v in fit.theta_interval + fit.beta_interval), fit.as_dict()
+    assert len(fit.samples) == 0 and np.all(np.isnan(fit.band(np.array(x))))
+    fit = fit_stripes(x, n, [0, 1, 2, 3], bootstrap=200)
+    assert fit.theta_interval[0] <= fit.theta <= fit.theta_interval[1]
+    assert fit.beta_interval[0] <= fit.beta <= fit.beta_interval[1]

@@ -231,6 +231,28 @@ def test_a_resume_refused_by_the_lock_leaves_the_run_alone(ellroll, tmp_path):
     assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"]
 
 
+@pytest.mark.parametrize("target", ["it's\tout.h5", "./" * 250 + "out.h5"], ids=["quoted", "long"])
+def test_the_lock_names_the_holders_whole_command_line(ellroll, tmp_path, target):
+    """The refusal gives the holder's command line with its options (its
+    output among them): an argument with more than plain characters in
+    single quotes, a control character as '?', at most 400 characters."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    writer = start(ellroll, folder, "-o", target)
+    lock = folder / (target.replace("./", "") + ".lock")
+    while not (folder / (target.replace("./", "") + ".journal")).exists():
+        time.sleep(0.01)
+    result = run(ellroll, "run", "camp.nml", "-q", "-o", target, cwd=folder)
+    assert writer.wait(timeout=120) == 0, writer.stderr.read()
+    assert result.returncode == 3, result.stderr
+    if target.startswith("it"):
+        command = "ellroll run camp.nml -q --threads 1 -o 'it'\\''s?out.h5'"
+        assert f": {command}); nothing of its files was touched" in result.stderr, result.stderr
+    else:
+        command = ("ellroll run camp.nml -q --threads 1 -o " + target)[:397] + "..."
+        assert f": {command}); nothing of its files was touched" in result.stderr, result.stderr
+    assert not lock.exists()
+
+
 def test_reading_the_partial_file_of_a_running_run_says_a_run_writes_it(ellroll, tmp_path):
     """`ellroll summary OUT.h5.partial` while the run writes it: HDF5's own
     lock refuses the reader (exit 3), and the message says that a process
