@@ -27,7 +27,7 @@ module ellroll_file_layout
   type(named_value_t), parameter :: case_entry = named_value_t('case', '1', 'global case index')
   type(named_value_t), parameter :: status_entry = named_value_t('status', '1', 'how the case ended')
   type(named_value_t), parameter :: checksum_entry = named_value_t('checksum', '1', &
-      'CRC-32C of the case''s stored results (-1: never run)')
+      'CRC-32C of the case''s stored results (-1: not written, status pending)')
 
   character(len=*), parameter :: file_title = 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
       'ellipsoidal cup'

@@ -269,7 +269,7 @@ contains
   end subroutine create_status
 
   !> /summary/checksum: each case's checksum (file_row), -1 (CF's
-  !> _FillValue) for a case never run.
+  !> _FillValue) for a case not written (status pending).
   subroutine create_checksum(lay, group, scale, n_cases, coords)
     type(layout_t), intent(inout) :: lay
     integer(hid_t), intent(in) :: group, scale
