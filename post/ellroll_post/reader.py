@@ -57,8 +57,10 @@ class EllrollFile:
     def summary_figures(self):
         """The figures of /summary in the file's order (its members are kept
         in the order they were made, the order of ellroll's summary table),
-        without the case index, the status and the varied inputs."""
-        return [n for n in self._h5["summary"] if n not in {"case", "status", *self._coordinates("summary")}]
+        without the case index, the status, the checksum and the varied
+        inputs."""
+        return [n for n in self._h5["summary"]
+                if n not in {"case", "status", "checksum", *self._coordinates("summary")}]
 
     def _coordinates(self, group):
         """The varied inputs a group holds as coordinates of its cases (CF's

@@ -99,9 +99,19 @@ module ellroll_cases
     integer(i8) :: n_samples = 0
     logical :: fields(field_count) = .true.
     integer :: compression = 0          !< deflate level of the trajectories, 0 (none) to 9
+  contains
+    procedure :: times => output_times
   end type output_plan_t
 
 contains
+
+  !> The output times (/time): n_samples of them, `interval` apart from 0.
+  pure function output_times(plan) result(times)
+    class(output_plan_t), intent(in) :: plan
+    real(wp) :: times(plan%n_samples)
+    integer(i8) :: i
+    times = [(real(i, wp) * plan%interval, i = 0, plan%n_samples - 1)]
+  end function output_times
 
   pure real(wp) function get_param(cs, p) result(value)
     type(case_t), intent(in) :: cs

@@ -2,14 +2,14 @@
 !> catch every error of up to 3 bits in a journal record, a trajectory
 !> label or a case's trajectories, and every burst up to 32 bits. The value
 !> is the CRC zero-extended to 64 bits; a checksum over several arrays
-!> starts at checksum_start and continues with fold_reals.
+!> starts at checksum_start and continues with fold_reals and fold_words.
 module ellroll_checksum
   use, intrinsic :: iso_c_binding, only: c_int32_t, c_size_t, c_char
   use ellroll_kinds, only: wp, i8
   implicit none
   private
 
-  public :: checksum, checksum_start, fold_reals, text_checksum
+  public :: checksum, checksum_start, fold_reals, fold_words, text_checksum
 
   integer(i8), parameter :: checksum_start = 0
 
@@ -53,6 +53,13 @@ contains
     real(wp), intent(in) :: values(n)
     call fold(sum, values, n)
   end subroutine fold_reals
+
+  !> Continue the checksum sum over 64-bit words.
+  pure subroutine fold_words(sum, words)
+    integer(i8), intent(inout) :: sum
+    integer(i8), intent(in) :: words(:)
+    call fold(sum, words, size(words, kind=i8))
+  end subroutine fold_words
 
   pure subroutine fold(sum, data, n)
     integer(i8), intent(inout) :: sum

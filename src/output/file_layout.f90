@@ -1,6 +1,6 @@
 !> What the output's layout is made of, apart from HDF5: the names, units
 !> and long names of the datasets that are not rows of a record (the
-!> dimension scales, the case index, the status), the status's flags, the
+!> dimension scales, the case index, the status, the checksum), the status's flags, the
 !> file's title, and a case's row of the /case and /summary tables. The HDF5
 !> writer and the in-memory results of the C interface both lay out from
 !> here, so that their names cannot drift apart.
@@ -16,16 +16,18 @@ module ellroll_file_layout
   implicit none
   private
 
-  public :: time_entry, xyz_entry, mode_entry, case_entry, status_entry, file_title, file_references
+  public :: time_entry, xyz_entry, mode_entry, case_entry, status_entry, checksum_entry, file_title, file_references
   public :: table_row, file_row, limit_state_row, status_flag_meanings
 
   !> the shared dimension scales (at the root), each group's case index,
-  !> and /summary/status
+  !> /summary/status and /summary/checksum (ellroll_case_checksum)
   type(named_value_t), parameter :: time_entry = named_value_t('time', 's', 'output times')
   type(named_value_t), parameter :: xyz_entry = named_value_t('xyz', '1', 'vector component')
   type(named_value_t), parameter :: mode_entry = named_value_t('mode', '1', 'oscillation mode (the longer period first)')
   type(named_value_t), parameter :: case_entry = named_value_t('case', '1', 'global case index')
   type(named_value_t), parameter :: status_entry = named_value_t('status', '1', 'how the case ended')
+  type(named_value_t), parameter :: checksum_entry = named_value_t('checksum', '1', &
+      'CRC-32C of the case''s stored results (-1: not written, status pending)')
 
   character(len=*), parameter :: file_title = 'ellroll: a heavy ball rolling without slip in a triaxial ' // &
       'ellipsoidal cup'
@@ -43,13 +45,15 @@ contains
     row = [case_record(cs), summary_record(res), int_value('status', '', '', int(res%status, i8))]
   end function table_row
 
-  !> A case's row of the output file: table_row, then its /limit_state
-  !> flags (the C interface's results hold table_row alone).
-  function file_row(cs, res) result(row)
+  !> A case's row of the output file: table_row, its checksum (/summary),
+  !> then its /limit_state flags (the C interface's results hold table_row
+  !> alone).
+  function file_row(cs, res, checksum) result(row)
     type(case_t), intent(in) :: cs
     type(case_result_t), intent(in) :: res
+    integer(i8), intent(in) :: checksum       !< ellroll_case_checksum's
     type(named_value_t), allocatable :: row(:)
-    row = [table_row(cs, res), limit_state_row(cs, res)]
+    row = [table_row(cs, res), int_value(trim(checksum_entry%name), '', '', checksum), limit_state_row(cs, res)]
   end function file_row
 
   !> Whether the case exceeded each of its limit states (1), not (0), or

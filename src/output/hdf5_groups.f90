@@ -17,7 +17,8 @@ module ellroll_hdf5_groups
   use ellroll_figures, only: figures
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
-  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, status_flag_meanings
+  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, checksum_entry, &
+      status_flag_meanings
   implicit none
   private
 
@@ -110,7 +111,10 @@ contains
     group = lay%new_group(name)
     scale = case_scale(lay, group, indices)
     call coordinate_datasets(lay, group, scale, coords)
-    if (name == 'summary') call create_status(lay, group, scale, n_cases, coords)
+    if (name == 'summary') then
+      call create_status(lay, group, scale, n_cases, coords)
+      call create_checksum(lay, group, scale, n_cases, coords)
+    end if
     do k = 1, size(rec)
       if (lay%err%failed()) exit
       select case (rec(k)%kind)
@@ -263,6 +267,25 @@ contains
     call name_coordinates(lay, dset, coords)
     call lay%close_dataset(dset)
   end subroutine create_status
+
+  !> /summary/checksum: each case's checksum (file_row), -1 (CF's
+  !> _FillValue) for a case not written (status pending).
+  subroutine create_checksum(lay, group, scale, n_cases, coords)
+    type(layout_t), intent(inout) :: lay
+    integer(hid_t), intent(in) :: group, scale
+    integer(i8), intent(in) :: n_cases
+    type(coordinate_t), intent(in) :: coords(:)
+    integer(hid_t) :: dset
+    integer(i8), target :: never_run
+    never_run = -1
+    dset = lay%int_dataset(group, trim(checksum_entry%name), n_cases, checksum_entry%units, &
+                           checksum_entry%description, fill=never_run)
+    if (lay%err%failed()) return
+    call lay%int_attribute(dset, '_FillValue', [never_run])
+    call lay%attach(dset, scale, 0)
+    call name_coordinates(lay, dset, coords)
+    call lay%close_dataset(dset)
+  end subroutine create_checksum
 
   !> The varied inputs as datasets of the group, on its case dimension
   !> (CF auxiliary coordinates: xarray gives them as coordinates of `case`).

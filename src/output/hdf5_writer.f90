@@ -24,10 +24,11 @@ module ellroll_hdf5_writer
   use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, &
       switch_group
   use ellroll_file_layout, only: table_row, file_row, limit_state_row, file_title, file_references
+  use ellroll_case_checksum, only: case_checksum
   implicit none
   private
 
-  public :: h5_output_t, provenance_t, window_list_t, table_row, file_row, written_in_place, describe_writer
+  public :: h5_output_t, provenance_t, window_list_t, table_row, written_in_place, describe_writer
 
   type :: provenance_t
     character(len=:), allocatable :: program, version, created, input_file, input_namelist, command_line
@@ -100,6 +101,7 @@ module ellroll_hdf5_writer
     type(switch_store_t) :: switches                 !< the switches of regime, written at close
   contains
     procedure :: create
+    procedure :: row => case_row
     procedure :: keep_case
     procedure :: put_trajectories
     procedure :: write_windows
@@ -148,9 +150,9 @@ contains
     call case_group(lay, 'summary', indices, figures, coords)
     states = limit_state_row(template, case_result_t())
     if (size(states) > 0) call limit_state_group(lay, indices, template%limit_states, states, coords)
-    ! a row (file_row): the inputs, the figures, the status, the limit states
+    ! a row (file_row): the inputs, the figures, the status, the checksum, the limit states
     self%row_groups = [character(len=11) :: spread('case', 1, size(inputs)), &
-                       spread('summary', 1, size(figures) + 1), spread('limit_state', 1, size(states))]
+                       spread('summary', 1, size(figures) + 2), spread('limit_state', 1, size(states))]
     call lay%close_dataset(lay%time_scale)
     call lay%close_dataset(lay%xyz_scale)
     call lay%close_dataset(lay%mode_scale)
@@ -277,10 +279,20 @@ contains
     else
       call self%put_trajectories(icase, [res], err)
     end if
-    call self%keep_case(icase, file_row(cs, res), res, full)
+    call self%keep_case(icase, self%row(cs, res), res, full)
     call self%write_windows(full, err)
     call self%recycle(full)
   end subroutine write_case
+
+  !> A case's row of this file (file_row), its checksum of what the file
+  !> stores of it included. Threads may call this at the same time.
+  function case_row(self, cs, res) result(row)
+    class(h5_output_t), intent(in) :: self
+    type(case_t), intent(in) :: cs
+    type(case_result_t), intent(in) :: res
+    type(named_value_t), allocatable :: row(:)
+    row = file_row(cs, res, case_checksum(res, self%fields, self%n_samples))
+  end function case_row
 
   !> Write the uncompressed trajectories of cases in consecutive slots, from
   !> slot `first` on, in their place in the file (the other fields go with

@@ -27,7 +27,8 @@ module ellroll_memory_run
   use ellroll_shards, only: campaign_id
   use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
-  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, file_title, &
+  use ellroll_case_checksum, only: case_checksum
+  use ellroll_file_layout, only: time_entry, xyz_entry, mode_entry, case_entry, status_entry, checksum_entry, file_title, &
       file_references, table_row, status_flag_meanings
   implicit none
   private
@@ -229,9 +230,9 @@ contains
     n_case_entries = size(row) - figure_count - 1
     ! the root's 3 scales; /case: its scale and inputs; /trajectory: its
     ! scale, the coordinates and the fields; /summary: its scale, the
-    ! coordinates, the status and the figures
+    ! coordinates, the status, the checksum and the figures
     allocate (out%datasets(3 + n_case_entries + 1 + 1 + size(coords) + count(inp%plan%fields) + 1 + size(coords) + &
-                           (size(row) - n_case_entries)))
+                           (size(row) - n_case_entries) + 1))
     out%n = 0
     coordinate_names = ''
     do k = 1, size(coords)
@@ -281,6 +282,7 @@ contains
                        int_list([(int(k, i8), k = 0, status_count - 1)]), 'i8')
     call add_attribute(out%datasets(where(size(row))), 'flag_meanings', meanings)
     call name_coordinates(out%datasets(where(size(row))), coordinate_names)
+    call checksum_dataset(inp, out, coordinate_names)
     do k = n_case_entries + 1, size(row) - 1
       where(k) = add_entry(out, 'summary', row(k), n_cases)
       ! as the file has it: an integer figure undefined for a case is -1
@@ -293,6 +295,21 @@ contains
     if (inp%campaign%base%slide) call switch_datasets(out, indices)
     call write_catalog(out)
   end subroutine lay_out
+
+  !> /summary/checksum, as the file holds it: each case's checksum of what
+  !> the file would store of it (ellroll_case_checksum).
+  subroutine checksum_dataset(inp, out, coordinate_names)
+    type(run_input_t), intent(in) :: inp
+    type(memory_output_t), intent(inout) :: out
+    character(len=*), intent(in) :: coordinate_names
+    integer(i8) :: i, n_cases
+    integer :: d
+    n_cases = inp%campaign%n_cases()
+    d = add(out, 'summary', checksum_entry, kind_int, ['case'], [n_cases])
+    out%datasets(d)%ints = [(case_checksum(out%results(i), inp%plan%fields, inp%plan%n_samples), i = 0, n_cases - 1)]
+    call add_attribute(out%datasets(d), '_FillValue', int_list([-1_i8]), 'i8')
+    call name_coordinates(out%datasets(d), coordinate_names)
+  end subroutine checksum_dataset
 
   !> /switches of a campaign that may slide, as the file holds it.
   subroutine switch_datasets(out, indices)

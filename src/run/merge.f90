@@ -1,6 +1,9 @@
 !> Merging the shard files of a campaign into one file equal to a
 !> single-process run: the shards must belong to the same campaign, be
-!> complete, and cover every case exactly once.
+!> complete, and cover every case exactly once. Each case read from a
+!> shard must match its checksum there (/summary/checksum, of everything
+!> the shard stores of the case: ellroll_case_checksum) before it is
+!> written: a damaged shard is refused, and no output is left.
 module ellroll_merge
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output
@@ -9,6 +12,7 @@ module ellroll_merge
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_results, only: case_result_t, add_switch
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t, describe_writer
+  use ellroll_case_checksum, only: case_checksum
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
   use ellroll_shards, only: shard_slots, campaign_id
@@ -36,6 +40,7 @@ contains
     type(output_files_t), intent(in), optional :: locked
     type(output_files_t) :: files
     character(len=:), allocatable :: command
+    type(error_t) :: cleanup
     integer :: k
     call files%name(target, '')
     do k = 1, size(shard_paths)
@@ -61,7 +66,8 @@ contains
     if (.not. err%failed()) then
       call merge_into(files%partial, shard_paths, prov_in, err)
       if (err%failed()) then
-        call files%discard(files%partial, work_partial, err)
+        ! (apart from err, which says why the merge failed and keeps it)
+        call files%discard(files%partial, work_partial, cleanup)
       else
         call files%commit(files%partial, err)
       end if
@@ -81,10 +87,8 @@ contains
     type(run_input_t) :: inp
     type(h5_output_t) :: out
     type(provenance_t) :: prov
-    type(case_result_t) :: res
-    integer(i8), allocatable :: slots(:), statuses(:), all_cases(:), sw_first(:), sw_count(:), sw_kind(:)
-    real(wp), allocatable :: sw_time(:)
-    integer(i8) :: slot, i
+    integer(i8), allocatable :: slots(:), statuses(:), all_cases(:)
+    integer(i8) :: i
 
     allocate (shards(size(shard_paths)))
     do k = 1, size(shard_paths)
@@ -155,32 +159,69 @@ contains
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = '0/1'
     all_cases = [(i, i = 0, inp%campaign%n_cases() - 1)]
-    call out%create(partial, all_cases, shards(1)%real_column('time', err), inp%plan%fields, inp%campaign%base, &
+    call out%create(partial, all_cases, inp%plan%times(), inp%plan%fields, inp%campaign%base, &
                     prov, inp%campaign%coordinates(all_cases), err, inp%plan%compression)
     do index = 0, n_shards - 1
+      if (err%failed()) exit
       slots = shard_slots(inp%campaign%n_cases(), [index, n_shards])
-      if (size(slots, kind=i8) /= shards(shard_of(index))%n_cases .and. .not. err%failed()) &
-        call set_error(err, err_input, trim(shard_paths(shard_of(index))) // ': holds ' // &
-            itoa(shards(shard_of(index))%n_cases) // ' cases; shard ' // itoa(index) // ' should hold ' // &
-            itoa(size(slots)))
-      if (inp%campaign%base%slide) &
-        call shard_switches(shards(shard_of(index)), sw_first, sw_count, sw_time, sw_kind, err)
-      do slot = 0, size(slots, kind=i8) - 1
-        if (err%failed()) exit
-        call shards(shard_of(index))%read_case_result(slot, inp%plan%n_samples, res, err)
-        if (inp%campaign%base%slide) then
-          do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
-            call add_switch(res, sw_time(i), int(sw_kind(i)))
-          end do
-        end if
-        call out%write_case(slots(slot + 1), inp%campaign%case_at(slots(slot + 1)), res, err)
-      end do
+      call copy_shard(shards(shard_of(index)), trim(shard_paths(shard_of(index))), index, slots, inp, out, err)
     end do
     call out%close(err)
     do k = 1, size(shards)
       call shards(k)%close()
     end do
   end subroutine merge_into
+
+  !> Copy the cases of shard `index` (its file at `path`) into `out`, each
+  !> checked against its checksum there first.
+  subroutine copy_shard(shard, path, index, slots, inp, out, err)
+    type(h5_input_t), intent(in) :: shard
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: index
+    integer(i8), intent(in) :: slots(:)           !< the global index of each of its cases
+    type(run_input_t), intent(in) :: inp
+    type(h5_output_t), intent(inout) :: out
+    type(error_t), intent(inout) :: err
+    type(case_result_t) :: res
+    integer(i8), allocatable :: sw_first(:), sw_count(:), sw_kind(:), sums(:), statuses(:)
+    real(wp), allocatable :: sw_time(:)
+    integer(i8) :: slot, i
+    logical :: per_case
+    if (size(slots, kind=i8) /= shard%n_cases) then
+      call set_error(err, err_input, path // ': holds ' // itoa(shard%n_cases) // ' cases; shard ' // itoa(index) // &
+                     ' should hold ' // itoa(size(slots)))
+      return
+    end if
+    if (inp%campaign%base%slide) call shard_switches(shard, sw_first, sw_count, sw_time, sw_kind, err)
+    allocate (sums, source=shard%int_column('summary/checksum', err))
+    allocate (statuses, source=shard%int_column('summary/status', err))
+    if (err%failed()) return
+    per_case = size(sums) == size(slots) .and. size(statuses) == size(slots)
+    if (inp%campaign%base%slide) per_case = per_case .and. size(sw_first) == size(slots)
+    if (.not. per_case) then
+      call set_error(err, err_input, path // ': its /summary/status, /summary/checksum or /switches does not ' // &
+                     'hold a value per case')
+      return
+    end if
+    do slot = 0, size(slots, kind=i8) - 1
+      call shard%read_case_result(slot, inp%plan%n_samples, res, err)
+      if (err%failed()) return
+      if (inp%campaign%base%slide) then
+        do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
+          call add_switch(res, sw_time(i), int(sw_kind(i)))
+        end do
+      end if
+      ! (the status as stored, all 64 bits: res holds it as a default integer)
+      if (case_checksum(res, inp%plan%fields, inp%plan%n_samples) /= sums(slot + 1) .or. &
+          int(res%status, i8) /= statuses(slot + 1)) then
+        call set_error(err, err_input, path // ': case ' // itoa(slots(slot + 1)) // ' is damaged (what the ' // &
+            'file holds of it does not match its checksum, /summary/checksum); run this shard again')
+        return
+      end if
+      call out%write_case(slots(slot + 1), inp%campaign%case_at(slots(slot + 1)), res, err)
+      if (err%failed()) return
+    end do
+  end subroutine copy_shard
 
   !> A shard written by another program than this one (another version or
   !> build: their results differ in the last bits) is refused: the merged

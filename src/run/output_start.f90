@@ -157,7 +157,7 @@ contains
     type(journal_header_t) :: header
     type(provenance_t) :: prov
     character(len=:), allocatable :: writing, writer
-    integer(i8) :: i, n_slots
+    integer(i8) :: n_slots
     allocate (globals, source=shard_slots(inp%campaign%n_cases(), shard))
     n_slots = size(globals, kind=i8)
     prov = prov_in
@@ -181,7 +181,7 @@ contains
       call open_for_resume(journal, files, header, journal_places, err)
       if (err%failed()) return
     end if
-    times = [(real(i, wp) * inp%plan%interval, i = 0, inp%plan%n_samples - 1)]
+    times = inp%plan%times()
     writing = files%partial
     if (resume) writing = files%resumed      ! moved over partial once the journaled cases are in it
     call out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, &

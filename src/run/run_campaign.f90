@@ -23,7 +23,8 @@ module ellroll_run_campaign
   use ellroll_results, only: case_result_t
   use ellroll_input, only: run_input_t
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
-  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t, file_row
+  use ellroll_hdf5_writer, only: h5_output_t, provenance_t, window_list_t
+  use ellroll_file_layout, only: file_row
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
@@ -245,13 +246,14 @@ contains
     do j = 1, n_done
       record_size = record_size + run%journal%record_size(results(j))
     end do
-    allocate (records(record_size), rows(size(file_row(cases(1), results(1))), n_done))
+    ! (a row's size, its checksum aside: the rows below hold theirs)
+    allocate (records(record_size), rows(size(file_row(cases(1), results(1), 0_i8)), n_done))
     record_size = 0
     do j = 1, n_done
       records(record_size + 1:record_size + run%journal%record_size(results(j))) = &
           run%journal%record(slots(j), results(j))
       record_size = record_size + run%journal%record_size(results(j))
-      rows(:, j) = file_row(cases(j), results(j))
+      rows(:, j) = run%out%row(cases(j), results(j))
     end do
     ! the journal: places taken under its lock, the records written there
     ! outside it, after the trajectories (a resume takes a journaled case's

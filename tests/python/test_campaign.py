@@ -199,12 +199,12 @@ def record_bytes(samples_in_record=0):
 
 def test_the_journal_record_layout_here_is_the_programs(ellroll, tmp_path):
     """The summary entries a journal record holds are the /summary figures
-    (the datasets on the case coordinate, status aside): the record sizes the
-    tests below compute follow the figure table."""
+    (the datasets on the case coordinate, status and checksum aside): the
+    record sizes the tests below compute follow the figure table."""
     name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10 /\n")
     assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
     with h5py.File(tmp_path / "out.h5", "r") as f:
-        figures = [k for k, v in f["summary"].items() if "coordinates" in v.attrs and k != "status"]
+        figures = [k for k, v in f["summary"].items() if "coordinates" in v.attrs and k not in ("status", "checksum")]
         assert len(figures) == SUMMARY_ENTRIES, figures
         assert figures[WALL_TIME_ENTRY] == "wall_time"
 
@@ -510,8 +510,10 @@ def test_invalid_cases_stop_or_skip(ellroll, tmp_path):
         # a case never run holds no number that could pass for data: every real
         # figure is NaN, every count -1, the _FillValue (of its type) that
         # marks it missing to netCDF readers
+        # (the checksum of an invalid case is that of what the file holds of it)
+        assert np.all(f["summary/checksum"][:] >= 0)
         for name, dataset in f["summary"].items():
-            if name in ("status", "case") or name in f["summary/status"].attrs["coordinates"].split():
+            if name in ("status", "checksum", "case") or name in f["summary/status"].attrs["coordinates"].split():
                 continue
             values = dataset[:]
             if values.dtype.kind == "f":
