@@ -192,12 +192,18 @@ contains
                      ' should hold ' // itoa(size(slots)))
       return
     end if
-    if (inp%campaign%base%slide) call shard_switches(shard, sw_first, sw_count, sw_time, sw_kind, err)
+    if (inp%campaign%base%slide) then
+      call shard_switches(shard, sw_first, sw_count, sw_time, sw_kind, err)
+      if (err%failed()) return
+    else                                          ! (no switches: none per case)
+      allocate (sw_first(size(slots)), sw_count(size(slots)), sw_time(0), sw_kind(0))
+      sw_first = 0
+      sw_count = 0
+    end if
     allocate (sums, source=shard%int_column('summary/checksum', err))
     allocate (statuses, source=shard%int_column('summary/status', err))
     if (err%failed()) return
-    per_case = size(sums) == size(slots) .and. size(statuses) == size(slots)
-    if (inp%campaign%base%slide) per_case = per_case .and. size(sw_first) == size(slots)
+    per_case = size(sums) == size(slots) .and. size(statuses) == size(slots) .and. size(sw_first) == size(slots)
     if (.not. per_case) then
       call set_error(err, err_input, path // ': its /summary/status, /summary/checksum or /switches does not ' // &
                      'hold a value per case')
@@ -206,11 +212,9 @@ contains
     do slot = 0, size(slots, kind=i8) - 1
       call shard%read_case_result(slot, inp%plan%n_samples, res, err)
       if (err%failed()) return
-      if (inp%campaign%base%slide) then
-        do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
-          call add_switch(res, sw_time(i), int(sw_kind(i)))
-        end do
-      end if
+      do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
+        call add_switch(res, sw_time(i), int(sw_kind(i)))
+      end do
       ! (the status as stored, all 64 bits: res holds it as a default integer)
       if (case_checksum(res, inp%plan%fields, inp%plan%n_samples) /= sums(slot + 1) .or. &
           int(res%status, i8) /= statuses(slot + 1)) then
