@@ -299,8 +299,10 @@ contains
 
   !> Exact points per sample step of length h for the oscillator of angular
   !> frequency omega: at most max_phase_step radians apart, so that the
-  !> Hermite cubic between them misses a peak by less than about
-  !> max_phase_step^4 / 384 of it (2e-8); at least one; max_sub_steps + 1
+  !> Hermite cubic between them misses a peak by about max_phase_step^4 /
+  !> 384 of it (2e-8) where the oscillator's own motion drives the cubic's
+  !> error (up to 3e-7 at long periods, where the ground drives it:
+  !> docs/output.md); at least one; max_sub_steps + 1
   !> where it would be more than max_sub_steps (no integer overflow).
   pure integer function oscillator_sub_steps(omega, h)
     real(wp), intent(in) :: omega, h
