@@ -83,7 +83,10 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
     with exceedances and one with survivors are needed. Where the counts
     separate (separating_step) the likelihood has no maximum: theta and beta
     are the optimiser's last point, which no resample's fit estimates, so
-    there is no interval (NaN) and no bootstrap."""
+    there is no interval (NaN) and no bootstrap. Where the exceedances do
+    not grow with the intensity (without_trend) the likelihood's supremum
+    lies at beta -> infinity: theta and beta are NaN (a resample without
+    a trend has no fit either and is left out of the intervals)."""
     x, n, z = (np.asarray(a, dtype=float) for a in (x, n, z))
     if x.shape != n.shape or x.shape != z.shape or x.size == 0:
         raise ValueError("x, n and z must be of one length, at least one stripe")
@@ -91,6 +94,8 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
         raise ValueError("each stripe needs x > 0, n >= 1 and 0 <= z <= n")
     if z.sum() == 0 or (n - z).sum() == 0:
         raise ValueError("no fragility can be fitted: every record exceeds, or none does")
+    if without_trend(x, n, z):
+        return FragilityFit(math.nan, math.nan)
     theta, beta = _fit_once(np.log(x), n, z)
     fit = FragilityFit(theta, beta)
     if bootstrap > 0 and separating_step(x, n, z) is None:
@@ -99,11 +104,25 @@ def fit_stripes(x, n, z, bootstrap=0, seed=0):
         p = fit.probability(x)
         for _ in range(bootstrap):
             zb = rng.binomial(n.astype(int), p)
-            if zb.sum() == 0 or (n - zb).sum() == 0:
+            if zb.sum() == 0 or (n - zb).sum() == 0 or without_trend(x, n, zb):
                 continue
             samples.append(separating_step(x, n, zb) or _fit_once(np.log(x), n, zb))
         fit = _with_intervals(fit, samples)
     return fit
+
+
+def without_trend(x, n, z):
+    """Whether the exceedances do not grow with the intensity: the
+    likelihood, concave in (a, b) = (-ln theta / beta, 1 / beta), has its
+    maximum over b >= 0 at b = 0 exactly where its slope in b there,
+    sum_j ln x_j (z_j - n_j p) times a positive factor (p the overall
+    fraction), is not positive (beta -> infinity: no fragility a number
+    holds)."""
+    x, n, z = (np.asarray(a, dtype=float) for a in (x, n, z))
+    log_x = np.log(x)
+    p = z.sum() / n.sum()
+    trend = np.sum(log_x * (z - n * p))
+    return bool(trend <= 1e-12 * np.sum(n * np.abs(log_x - np.average(log_x, weights=n))))
 
 
 def separating_step(x, n, z):

@@ -439,6 +439,10 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
                 row["note"] = "every case exceeds: no fit"
             else:
                 fit = fit_stripes(levels, n, z, bootstrap=bootstrap, seed=seed)
+            if fit is not None and not math.isfinite(fit.theta):
+                row["note"] = "no finite maximum: the exceedances do not grow with the intensity"
+                fit = None
+            if fit is not None:
                 row.update(theta=fit.theta, beta=fit.beta, theta_low=fit.theta_interval[0],
                            theta_high=fit.theta_interval[1], beta_low=fit.beta_interval[0],
                            beta_high=fit.beta_interval[1])

@@ -9,7 +9,7 @@ module ellroll_case_run
   use ellroll_kinds, only: wp, i8, two_pi
   use ellroll_exact, only: is_zero
   use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
-  use ellroll_intensity, only: pseudo_spectral_acceleration, damping_ratio
+  use ellroll_intensity, only: felt_spectral_acceleration
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
@@ -256,7 +256,7 @@ contains
     integer, intent(in) :: k
     real(wp) :: next(2), one(1)
     next = sa
-    one = pseudo_spectral_acceleration(cs%excitation%times, cs%excitation%values, [period], damping_ratio)
+    one = felt_spectral_acceleration(cs%excitation%times, cs%excitation%values, [period])
     next(k) = cs%param(p_scale) * one(1)
   end function spectral_at
 

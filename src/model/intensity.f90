@@ -22,7 +22,7 @@ module ellroll_intensity
   private
 
   public :: record_intensity_t, record_intensity, pseudo_spectral_acceleration, refinement, intensity_of, &
-            damping_ratio, max_sa_periods
+            felt_spectral_acceleration, damping_ratio, max_sa_periods
 
   !> The damping ratio of the spectral accelerations stored (the 5 % of the
   !> design spectra of ASCE 7 and Eurocode 8).
@@ -81,14 +81,27 @@ contains
     real(wp), allocatable :: felt_times(:), felt_values(:, :)
     if (times(1) >= 0) then
       im = record_intensity(times, values)
-      im%sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
     else
       call from_time_zero(times, values, felt_times, felt_values)
       im = record_intensity(felt_times, felt_values)
-      im%sa = pseudo_spectral_acceleration(felt_times, felt_values, periods, damping_ratio)
     end if
+    im%sa = felt_spectral_acceleration(times, values, periods)
     im%periods = periods
   end function intensity_of
+
+  !> Sa at `periods` (damping_ratio) of the record's part from t = 0, as
+  !> intensity_of takes it: samples before 0 are never felt.
+  pure function felt_spectral_acceleration(times, values, periods) result(sa)
+    real(wp), intent(in) :: times(:), values(:, :), periods(:)
+    real(wp) :: sa(size(periods))
+    real(wp), allocatable :: felt_times(:), felt_values(:, :)
+    if (times(1) >= 0) then
+      sa = pseudo_spectral_acceleration(times, values, periods, damping_ratio)
+    else
+      call from_time_zero(times, values, felt_times, felt_values)
+      sa = pseudo_spectral_acceleration(felt_times, felt_values, periods, damping_ratio)
+    end if
+  end function felt_spectral_acceleration
 
   !> The record from t = 0 on (times(1) < 0): its value at 0 interpolated
   !> as the case reads it (ellroll_excitation's base_acceleration: linear,
@@ -286,8 +299,10 @@ contains
 
   !> Exact points per sample step of length h for the oscillator of angular
   !> frequency omega: at most max_phase_step radians apart, so that the
-  !> Hermite cubic between them misses a peak by less than about
-  !> max_phase_step^4 / 384 of it (2e-8); at least one; max_sub_steps + 1
+  !> Hermite cubic between them misses a peak by about max_phase_step^4 /
+  !> 384 of it (2e-8) where the oscillator's own motion drives the cubic's
+  !> error (up to 3e-7 at long periods, where the ground drives it:
+  !> docs/output.md); at least one; max_sub_steps + 1
   !> where it would be more than max_sub_steps (no integer overflow).
   pure integer function oscillator_sub_steps(omega, h)
     real(wp), intent(in) :: omega, h

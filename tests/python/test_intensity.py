@@ -254,7 +254,8 @@ def test_a_record_s_samples_before_time_zero_are_not_measured(ellroll, tmp_path)
     0.8 m/s^2 after: the case starts at 0 on the record's value there, so
     every measure is that of the record cut at 0 (its value at 0
     interpolated, as the trajectory's first base_acceleration shows),
-    written as a record of its own; and PGA is the peak of |a| from 0."""
+    written as a record of its own, Sa at the linear periods
+    (/summary/sa_linear_periods) too; and PGA is the peak of |a| from 0."""
     rng = np.random.default_rng(8)
     times = np.r_[-1.0, np.cumsum(rng.uniform(0.005, 0.03, 300)) - 0.993]
     ax = np.where(times < 0, 3.0 * np.sin(9 * times), 0.8 * np.exp(-times / 2) * np.sin(7 * times + 0.3))
@@ -278,7 +279,7 @@ def test_a_record_s_samples_before_time_zero_are_not_measured(ellroll, tmp_path)
         result = run(ellroll, "run", "im.nml", "-q", cwd=folder)
         assert result.returncode == 0, result.stderr
         with h5py.File(folder / "im.h5", "r") as f:
-            figures.append([f["case"][name][0] for name in names])
+            figures.append([f["case"][name][0] for name in names] + list(f["summary/sa_linear_periods"][0]))
             # (to an ulp: the build may fuse the interpolation's multiply-adds)
             assert f["trajectory/base_acceleration"][0, 0, :2] == pytest.approx(at_zero, rel=1e-15, abs=0)
     assert figures[0] == pytest.approx(figures[1], rel=1e-13, abs=0)

@@ -309,6 +309,30 @@ def test_the_fragility_fit_is_the_probit_glms(seed):
     assert fit.theta == pytest.approx(theta, rel=1e-6) and fit.beta == pytest.approx(beta, rel=1e-6)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_exceedances_that_do_not_grow_with_the_intensity_have_no_fit(seed):
+    """Flat or falling fractions (seeded, n records at each level; a flat
+    3 of 4 included): the likelihood's supremum lies at beta -> infinity,
+    so fit_stripes gives NaN (not an optimiser's last point, which drawing
+    would crash on), with no interval; the same counts rising in the
+    intensity get the probit GLM's fit."""
+    rng = np.random.default_rng(200 + seed)
+    levels = np.geomspace(0.2, 2.5, 4 + seed)
+    n = np.full(levels.size, int(rng.integers(4, 20)))
+    if seed == 0:
+        n[:] = 4
+        z = np.full(levels.size, 3)
+    else:
+        z = np.sort(np.round(n * rng.uniform(0.1, 0.9, levels.size)).astype(int))[::-1]
+    fit = fit_stripes(levels, n, z, bootstrap=50, seed=1)
+    assert math.isnan(fit.theta) and math.isnan(fit.beta)
+    assert np.all(np.isnan(fit.theta_interval))
+    if seed > 0 and np.ptp(z) > 0:
+        rising = fit_stripes(levels, n, z[::-1])
+        theta, beta = probit_glm(levels, n.astype(float), z[::-1].astype(float))
+        assert rising.theta == pytest.approx(theta, rel=1e-6) and rising.beta == pytest.approx(beta, rel=1e-6)
+
+
 def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
     assert cli.main(["fragility", str(small_suite), "--format", "csv", "--bootstrap", "100"]) == 0
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
