@@ -219,8 +219,8 @@ contains
     end do
     if (line == 0) then
       shown = trim(blanked_header(file%text(first(3):min(last(3), first(3) + 119))))
-      reason = file%path // ":3: the header names no unit (PEER's third line reads e.g. 'ACCELERATION TIME " // &
-               "SERIES IN UNITS OF G'): '" // shown // "'"
+      reason = file%path // ":3: the header names no unit after the word UNITS (PEER's third line reads e.g. " // &
+               "'ACCELERATION TIME SERIES IN UNITS OF G'): '" // shown // "'"
       return
     end if
     original = blanked_header(file%text(first(line):last(line)))

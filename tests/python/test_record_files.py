@@ -141,11 +141,14 @@ def test_an_at2_header_without_an_acceleration_unit_is_refused(ellroll, tmp_path
     assert words in stderr, stderr
 
 
-def test_an_at2_header_naming_no_unit_is_refused(ellroll, tmp_path):
-    (tmp_path / "H1.AT2").write_text("PEER\nSYNTHETIC\nACCELERATION TIME SERIES\nNPTS=  4, DT= .01 SEC\n"
-                                     " .1 .2 .3 .4\n")
+@pytest.mark.parametrize("third", ["ACCELERATION TIME SERIES", "ACCELERATION TIME SERIES IN GAL",
+                                   "ACCELERATION TIME SERIES IN M/S^2"])
+def test_an_at2_header_naming_no_unit_is_refused(ellroll, tmp_path, third):
+    """A unit is read after the word UNITS only (a G elsewhere in a title
+    is no unit): the message says so."""
+    (tmp_path / "H1.AT2").write_text(f"PEER\nSYNTHETIC\n{third}\nNPTS=  4, DT= .01 SEC\n .1 .2 .3 .4\n")
     stderr = refused(ellroll, tmp_path)
-    assert "H1.AT2:3: the header names no unit" in stderr and "'ACCELERATION TIME SERIES'" in stderr, stderr
+    assert "H1.AT2:3: the header names no unit after the word UNITS" in stderr and f"'{third}'" in stderr, stderr
 
 
 @pytest.mark.parametrize("line,factor", [("# units: g", STANDARD_GRAVITY), ("#units = cm/s^2", 0.01),
