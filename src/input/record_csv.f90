@@ -37,6 +37,7 @@ contains
     integer :: first, last, hash, n, columns, width, rows, word_first, word_last, code, word_at(2, 4)
     real(wp) :: row(4)
     logical :: found, header_allowed, not_numbers, nonfinite, unit_given
+    real(wp) :: first_value
     type(unit_t) :: unit
     reason = ''
     rows = min(count_lines(file%text), max_record_points + 1)
@@ -66,6 +67,8 @@ contains
         if (width <= 4) word_at(:, width) = [word_first, word_last]
       end do
       if (width == 0) cycle
+      ! (a line led by a number is a sample, not a header: its error is its own)
+      if (header_allowed) header_allowed = decimal_value(file%text(word_at(1, 1):word_at(2, 1)), first_value) /= decimal_ok
       if (width < 3 .or. width > 4) then
         if (header_allowed .and. n == 0) then
           header_allowed = .false.

@@ -315,3 +315,15 @@ def test_bad_csv_times(ellroll, tmp_path, content, words):
     (tmp_path / "rec.csv").write_text(content)
     stderr = refused(ellroll, tmp_path, files="'rec.csv'")
     assert words in stderr, stderr
+
+
+@pytest.mark.parametrize("first,words", [("0.0, 0.5x, 0.0", "rec.csv:1: not numbers: 0.0, 0.5x, 0.0"),
+                                         ("0.0, 0.5", "rec.csv:1: expected 3 or 4 numbers"),
+                                         ("0.0; 0.5; 0.0; 0.1; 0.2", "rec.csv:1: expected 3 or 4 numbers")])
+def test_a_csv_s_first_line_led_by_a_number_is_a_sample_with_its_own_error(ellroll, tmp_path, first, words):
+    """A header's first word is not a number: a first line led by one is a
+    sample, and its typo is named on its line (not dropped as a header,
+    which left the record starting at its second sample)."""
+    (tmp_path / "rec.csv").write_text(f"{first}\n0.01, 1.0, 0.0\n0.02, 0.0, 0.0\n")
+    stderr = refused(ellroll, tmp_path, files="'rec.csv'")
+    assert words in stderr, stderr
