@@ -10,7 +10,7 @@ module ellroll_cmd_run
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign
   use ellroll_output_start, only: check_output_target, holds_this_run
-  use ellroll_output_files, only: output_files_t, work_target, lock_note_command
+  use ellroll_output_files, only: output_files_t, work_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
   use ellroll_merge, only: merge_shards
   use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size
@@ -18,7 +18,7 @@ module ellroll_cmd_run
   use ellroll_strings, only: format_real
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_status, only: status_invalid
-  use ellroll_system, only: catch_stop_signals, shown_command_line
+  use ellroll_system, only: catch_stop_signals
   use ellroll_ranks, only: ranks_all_ok
   use ellroll_cli, only: cli_t, provenance
   use ellroll_cmd_summary, only: print_summary
@@ -173,7 +173,7 @@ contains
     integer, intent(in) :: rank, n_ranks
     type(error_t), intent(inout) :: err
     type(output_files_t) :: files
-    character(len=:), allocatable :: target, command
+    character(len=:), allocatable :: target
     character(len=1024), allocatable :: shard_files(:)
     integer :: r
     logical :: shard_done, complete, all_ok, to_run
@@ -187,8 +187,7 @@ contains
     complete = .false.
     if (rank == 0) then
       call files%name(target, inp%path)
-      call shown_command_line(lock_note_command, command)
-      call files%acquire('mpirun -n ' // itoa(n_ranks) // ' ' // command, err)
+      call files%acquire(err, launcher='mpirun -n ' // itoa(n_ranks))
       call files%check(target, work_target, err)
       call check_rank_files(target, n_ranks, err)
       if (.not. err%failed()) then

@@ -17,8 +17,7 @@ module ellroll_merge
   use ellroll_suite_input, only: changed_files
   use ellroll_shards, only: shard_slots, campaign_id
   use ellroll_files, only: same_file, path_kind, kind_missing
-  use ellroll_output_files, only: output_files_t, work_partial, work_target, lock_note_command
-  use ellroll_system, only: shown_command_line
+  use ellroll_output_files, only: output_files_t, work_partial, work_target
   implicit none
   private
 
@@ -39,7 +38,6 @@ contains
     type(error_t), intent(inout) :: err
     type(output_files_t), intent(in), optional :: locked
     type(output_files_t) :: files
-    character(len=:), allocatable :: command
     type(error_t) :: cleanup
     integer :: k
     call files%name(target, '')
@@ -53,10 +51,7 @@ contains
         return
       end if
     end do
-    if (.not. present(locked)) then
-      call shown_command_line(lock_note_command, command)
-      call files%acquire(command, err)
-    end if
+    if (.not. present(locked)) call files%acquire(err)
     call files%check(files%target, work_target, err)
     if (.not. (err%failed() .or. overwrite)) then
       if (path_kind(files%target) /= kind_missing) &

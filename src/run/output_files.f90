@@ -20,14 +20,14 @@ module ellroll_output_files
   use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_strings, only: itoa
-  use ellroll_system, only: system_error_text, folder_of, utc_timestamp
+  use ellroll_system, only: system_error_text, folder_of, utc_timestamp, shown_command_line
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_files, only: path_kind, same_file, remove_path, rename_path, sync_path, sync_folder, read_head, &
       lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
   implicit none
   private
 
-  public :: output_files_t, work_partial, work_journal, work_target, work_lock, lock_note_command
+  public :: output_files_t, work_partial, work_journal, work_target, work_lock
 
   !> What a file at a work name must be for ellroll to remove or replace it.
   integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3, work_lock = 4
@@ -65,13 +65,17 @@ contains
   end subroutine name_files
 
   !> Take the output's lock; refuse (exit 3) where another process holds
-  !> it, naming it, or where the lock's name holds something else.
-  subroutine acquire(self, command, err)
+  !> it, naming it, or where the lock's name holds something else. Its note
+  !> names this process's command line (shown_command_line), after
+  !> `launcher` where given (mpirun's).
+  subroutine acquire(self, err, launcher)
     class(output_files_t), intent(inout) :: self
-    character(len=*), intent(in) :: command      !< what this process does, for the note
     type(error_t), intent(inout) :: err
-    character(len=:), allocatable :: me, holder, host, stamp
+    character(len=*), intent(in), optional :: launcher
+    character(len=:), allocatable :: me, holder, host, stamp, command
     integer :: fd
+    call shown_command_line(lock_note_command, command)
+    if (present(launcher)) command = launcher // ' ' // command
     call self%check(self%lock, work_lock, err)
     if (err%failed()) return
     call host_name(host)

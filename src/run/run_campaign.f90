@@ -28,8 +28,8 @@ module ellroll_run_campaign
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: stop_signal, signal_name, file_exists, shown_command_line
-  use ellroll_output_files, only: output_files_t, work_partial, work_journal, lock_note_command
+  use ellroll_system, only: stop_signal, signal_name, file_exists
+  use ellroll_output_files, only: output_files_t, work_partial, work_journal
   use ellroll_output_start, only: decide_start, open_outputs
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_run_timings, only: run_timings_t, wall_clock, lock_journal, lock_keep, lock_writer, &
@@ -80,7 +80,7 @@ contains
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
     integer(i8), intent(out), optional :: ran      !< the cases this call integrated
-    character(len=:), allocatable :: messages, command
+    character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
     logical :: resume, nothing_to_do
     type(output_files_t) :: files
@@ -96,8 +96,7 @@ contains
     call refuse_invalid_cases(inp, invalid, messages, err)
     if (err%failed()) return
     if (present(ran)) ran = 0
-    call shown_command_line(lock_note_command, command)
-    call files%acquire(command, err)
+    call files%acquire(err)
     if (err%failed()) return
     call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
     if (.not. (err%failed() .or. nothing_to_do)) then
