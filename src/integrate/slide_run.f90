@@ -576,10 +576,15 @@ contains
   end subroutine switch_inside
 
   !> A located stop leaves a slip of up to stick_level of the episode's
-  !> (where the event's function |u| - stick_level |u_start| crossed): u
-  !> reaches zero |u|^2 / (-u . u') later, to second order in that time,
-  !> and the piece to there (within room) is taken, so that the switch's
-  !> time is the stop's to far below stick_level of the slip's time scale.
+  !> (where the event's function |u| - stick_level |u_start| crossed, or
+  !> where the slip, below that, turned by a right angle): u reaches zero
+  !> |u|^2 / (-u . u') later, to second order in that time, with the
+  !> friction against u itself (past a turn the step's friction is against
+  !> its start's slip, not u), and the piece to there (within room) is
+  !> taken, again from its end while the slip left is above finish_level of
+  !> the first (where the slip's direction still turns, its rate changes
+  !> over the piece), so that the switch's time is the stop's to far below
+  !> stick_level of the slip's time scale.
   subroutine finish_stop(integrator, run, rolling, sb, room, t_at, now, tally, res, offset)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run, rolling
@@ -589,20 +594,35 @@ contains
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
+    real(wp), parameter :: finish_level = 1.0e-3_wp
+    integer, parameter :: finish_pieces = 4
     type(regime_state_t) :: x
-    real(wp) :: approach, piece
-    integer :: status
+    real(wp) :: approach, piece, left, first_slip
+    integer :: status, k
+    logical :: turned
     if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) return  ! turned
-    approach = -dot_product(slip_velocity(sb%ball, now%s), slip_rate(sb%ball, now%s, now%fs))
-    if (.not. approach > 0) return
-    piece = now%slip_speed**2 / approach
-    if (.not. piece < room) return
-    call sb%begin_step(now%s)
-    call take(integrator, rolling, sb, t_at, piece, now, x, status, res%n_rhs)
-    if (status /= status_completed) return
-    call add_sliding_step(integrator, run, rolling, sb, t_at, piece, now, x, tally, res, at_stop=.true.)
-    t_at = t_at + piece
-    offset = offset + piece
-    now = x
+    first_slip = now%slip_speed
+    left = room
+    do k = 1, finish_pieces
+      if (k > 1 .and. .not. now%slip_speed > finish_level * first_slip) exit
+      turned = .not. dot_product(slip_velocity(sb%ball, now%s), sb%slip_mode) > 0
+      call sb%begin_step(now%s)
+      if (turned) then
+        call sb%rhs(t_at, now%s, now%fs)
+        res%n_rhs = res%n_rhs + 1
+      end if
+      approach = -dot_product(slip_velocity(sb%ball, now%s), slip_rate(sb%ball, now%s, now%fs))
+      if (.not. approach > 0) exit
+      piece = now%slip_speed**2 / approach
+      if (.not. piece < left) exit
+      call take(integrator, rolling, sb, t_at, piece, now, x, status, res%n_rhs)
+      if (status /= status_completed) exit
+      piece = x%reached                      ! (a fixed step's substeps may find the stop before it)
+      call add_sliding_step(integrator, run, rolling, sb, t_at, piece, now, x, tally, res, at_stop=.true.)
+      t_at = t_at + piece
+      offset = offset + piece
+      left = left - piece
+      now = x
+    end do
   end subroutine finish_stop
 end module ellroll_slide_run
