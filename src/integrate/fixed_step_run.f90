@@ -13,9 +13,10 @@ module ellroll_fixed_step_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      choose_rolling_law, law_exact, law_held, event_rest
+      choose_rolling_law, law_exact, law_held, event_rest, at_rest
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
+  use ellroll_gauss4, only: gauss4_t
   use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
@@ -98,7 +99,7 @@ contains
   !> (begin_step), through an event of the model inside it
   !> (step_through_event): event, its number (0: none), and t_event, where
   !> the model acted (< 0: a limit met first).
-  subroutine step_with_events(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs, event, t_event)
+  recursive subroutine step_with_events(integrator, run, t, y, f, h, y_new, f_new, obs, status, n_rhs, event, t_event)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, y(state_size), f(state_size), h
@@ -111,9 +112,15 @@ contains
     f_start = f
     if (run%ball%nonsmooth()) then
       call run%ball%begin_step(y)
-      if (fixed_steps(integrator)) call choose_law(run, t, y, h, f_start, n_rhs)
+      if (fixed_steps(integrator)) call choose_law(run, t, y, h, f_start, n_rhs, release=implicit_stages(integrator))
     end if
     call fixed_step(integrator, run, t, y, f_start, h, y_new, f_new, obs, status, n_rhs)
+    if (status /= status_completed .and. implicit_stages(integrator)) then
+      if (at_rest(run%ball, t, y)) then
+        call step_from_hold(integrator, run, t, y, h, y_new, f_new, obs, status, n_rhs, event, t_event)
+        return
+      end if
+    end if
     event = 0
     t_event = -1
     if (status == status_completed .and. run%ball%nonsmooth()) event = run%ball%event_crossed(y, y_new)
@@ -137,12 +144,13 @@ contains
   !> The couple's law for a fixed step h from (t, y) (choose_rolling_law);
   !> f: the derivative at y with the couple against omega_t on entry, in
   !> the law chosen on return.
-  subroutine choose_law(run, t, y, h, f, n_rhs)
+  subroutine choose_law(run, t, y, h, f, n_rhs, release)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: t, y(state_size), h
     real(wp), intent(inout) :: f(state_size)
     integer(i8), intent(inout) :: n_rhs
-    call choose_rolling_law(run%ball, t, y, f, h)
+    logical, intent(in), optional :: release      !< (choose_rolling_law's)
+    call choose_rolling_law(run%ball, t, y, f, h, release)
     if (run%ball%rolling_law == law_exact) return
     call ball_derivative(run%ball, t, y, f)
     n_rhs = n_rhs + 1
@@ -171,6 +179,68 @@ contains
       fixed_steps = .true.
     end select
   end function fixed_steps
+
+  !> A step h from (t, y), where the couple holds the ball at rest, of a
+  !> method whose stages solve equations (gauss4), that the couple lets go
+  !> inside the step (a stage or its end past the hold): no stage polynomial
+  !> follows the rest and then the rolling, so the ball stays as it is up to
+  !> where the couple first lets go (at_rest, bisected to the rest's event
+  !> tolerance from the first of the Gauss nodes and the end that is past
+  !> it), and takes the rest of the step from there (step_with_events:
+  !> from rest, the release's law). A step held at its nodes and end keeps
+  !> the status of the step taken whole.
+  recursive subroutine step_from_hold(integrator, run, t, y, h, y_new, f_new, obs, status, n_rhs, event, t_event)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: t, y(state_size), h
+    real(wp), intent(inout) :: y_new(state_size), f_new(state_size)
+    type(observation_t), intent(inout) :: obs
+    integer, intent(inout) :: status
+    integer(i8), intent(inout) :: n_rhs
+    integer, intent(out) :: event
+    real(wp), intent(out) :: t_event
+    real(wp), parameter :: nodes(3) = [0.5_wp - sqrt(3.0_wp) / 6, 0.5_wp + sqrt(3.0_wp) / 6, 1.0_wp]
+    real(wp) :: low, high, middle, f_at(state_size)
+    integer :: k
+    event = 0
+    t_event = -1
+    call run%ball%begin_step(y)
+    high = 0
+    do k = 1, size(nodes)
+      n_rhs = n_rhs + 1
+      if (.not. at_rest(run%ball, t + nodes(k) * h, y)) then
+        high = nodes(k) * h
+        exit
+      end if
+    end do
+    if (.not. high > 0) return
+    low = 0
+    do k = 1, max_event_trials
+      if (high - low <= run%ball%event_tolerance(event_rest) * h) exit
+      middle = low + (high - low) / 2
+      n_rhs = n_rhs + 1
+      if (at_rest(run%ball, t + middle, y)) then
+        low = middle
+      else
+        high = middle
+      end if
+    end do
+    call ball_derivative(run%ball, t + high, y, f_at)
+    n_rhs = n_rhs + 1
+    call step_with_events(integrator, run, t + high, y, f_at, h - high, y_new, f_new, obs, status, n_rhs, event, t_event)
+  end subroutine step_from_hold
+
+  !> Whether the method's stages solve equations (gauss4): a step from rest
+  !> that the couple lets go takes law_implicit (choose_rolling_law's release).
+  pure logical function implicit_stages(integrator)
+    class(integrator_t), intent(in) :: integrator
+    select type (integrator)
+    type is (gauss4_t)
+      implicit_stages = .true.
+    class default
+      implicit_stages = .false.
+    end select
+  end function implicit_stages
 
   !> A step of size h from (t, y, f) in which an event of the model happens
   !> (event_crossed): it is cut where the event's function changes sign

@@ -319,12 +319,17 @@ contains
   !> on through the step: the couple against where it goes), else law_held
   !> (it stops inside the step: the couple against where it went; the stop
   !> event locates it). docs/model.md, "Rolling resistance".
-  pure subroutine choose_rolling_law(ball, t, y, f, h)
+  pure subroutine choose_rolling_law(ball, t, y, f, h, release)
     type(rolling_ball_t), intent(inout) :: ball
     real(wp), intent(in) :: t, y(state_size), f(state_size), h
+    logical, intent(in), optional :: release   !< a step from rest that the couple lets go: law_implicit (released)
     real(wp) :: couple, free(3), ahead(3)
     logical :: stiff
     ball%rolling_law = law_exact
+    if (present(release)) then
+      if (release) call released(ball, y, f, h)
+      if (ball%rolling_law /= law_exact) return
+    end if
     call stiff_rolling(ball, t, y, f, h, couple, stiff)
     if (.not. stiff) return
     free = rolling_rate(y, f) + couple * ball%rolling_mode        ! f's couple taken out
@@ -335,6 +340,28 @@ contains
         ball%rolling_at_start(1) * free(1) + ball%rolling_at_start(2) * free(2) &
         + ball%rolling_at_start(3) * free(3) > 0) ball%rolling_law = law_implicit
   end subroutine choose_rolling_law
+
+  !> A step h from rest (begin_step's mode zero) that the couple does not
+  !> hold, f the derivative there: the ball starts rolling along the drive d,
+  !> f's rolling part (F_t - C) d with |F_t| > C, so the couple's direction
+  !> omega_t / |omega_t| turns at the rate C / |omega_t|, without bound at the
+  !> start; the couple acts against omega_t + h F_t instead (law_implicit, d
+  !> the mode), of derivative C / |h F_t| < 1 / h, for a method whose stages
+  !> solve equations (gauss4: they have no solution in the exact law). A ball
+  !> held (f = 0) or rolling: law_exact.
+  pure subroutine released(ball, y, f, h)
+    type(rolling_ball_t), intent(inout) :: ball
+    real(wp), intent(in) :: y(state_size), f(state_size), h
+    real(wp) :: start(3), rate
+    ball%rolling_law = law_exact
+    if (.not. ball%rolling_resistance > 0 .or. sum(ball%rolling_mode**2) > 0) return
+    start = rolling_rate(y, f)
+    rate = sqrt(start(1) * start(1) + start(2) * start(2) + start(3) * start(3))
+    if (.not. rate > 0) return
+    ball%rolling_mode = start / rate
+    ball%law_step = h
+    ball%rolling_law = law_implicit
+  end subroutine released
 
   !> Whether a step h from (t, y), f the derivative there, is one in which
   !> the couple's direction turns faster than the step (stiff): the ball

@@ -35,7 +35,12 @@ contains
   !> Stage increments Z solve Z_i = h sum_j a_ij f(y + Z_j) by simplified
   !> Newton with the LU of I - h (A x J), J a forward-difference Jacobian
   !> refreshed every 20 steps or when convergence slows. Iterated to
-  !> round-off, so that the method stays symmetric.
+  !> round-off, so that the method stays symmetric. Where the iteration
+  !> stalls far above round-off, J is taken again at (t, y), against f(t, y)
+  !> itself, and the iteration once more from the start: a hybrid system's
+  !> law changes from step to step (rolling resistance: at rest, rolling,
+  !> past a stop), and a J from an earlier step, or one differenced against
+  !> an f0 in another law, says nothing of this step's equations.
   subroutine gauss4_step(self, sys, t, y, f0, h, y_new, n_rhs)
     class(gauss4_t), intent(inout) :: self
     class(ode_system_t), intent(in) :: sys
@@ -43,36 +48,20 @@ contains
     real(wp), intent(in) :: y(:), f0(:)
     real(wp), intent(out) :: y_new(:)
     integer(i8), intent(inout) :: n_rhs
-    integer :: n, iteration, i, j, info
-    real(wp) :: z(max_equations, 2), f(max_equations, 2), residual(2 * max_equations, 1), stage(max_equations)
-    real(wp) :: scale, size_now, size_before
+    integer :: n, i, j, info
+    real(wp) :: z(max_equations, 2), f(max_equations, 2), stage(max_equations), f_here(max_equations)
+    real(wp) :: scale, size_now
     n = size(y)
-    if (self%steps_since_jacobian >= jacobian_lifetime .or. .not. equals(h, self%lu_h)) call refresh(self)
+    if (self%steps_since_jacobian >= jacobian_lifetime .or. .not. equals(h, self%lu_h)) call refresh(self, f0)
     self%steps_since_jacobian = self%steps_since_jacobian + 1
-    do i = 1, 2
-      z(:n, i) = gl_c(i) * h * f0
-    end do
     scale = 1.0e-3_wp * max(maxval(abs(y)), tiny(1.0_wp))
-    size_before = huge(1.0_wp)
-    do iteration = 1, 12
-      do i = 1, 2
-        stage(:n) = y + z(:n, i)
-        call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
-      end do
-      n_rhs = n_rhs + 2
-      do i = 1, 2
-        residual((i - 1) * n + 1:i * n, 1) = -(z(:n, i) - h * (gl_a(i, 1) * f(:n, 1) + gl_a(i, 2) * f(:n, 2)))
-      end do
-      call dgetrs('N', 2 * n, 1, self%lu, 2 * n, self%pivots, residual, 2 * max_equations, info)
-      do i = 1, 2
-        z(:n, i) = z(:n, i) + residual((i - 1) * n + 1:i * n, 1)
-      end do
-      self%newton_iterations = self%newton_iterations + 1
-      size_now = maxval(abs(residual(:2 * n, 1)))
-      if (size_now <= 4 * epsilon(1.0_wp) * scale .or. (size_now >= size_before .and. iteration > 3)) exit
-      size_before = size_now
-      if (iteration == 6) self%steps_since_jacobian = jacobian_lifetime     ! slow: new Jacobian next step
-    end do
+    call iterate(self, size_now)
+    if (size_now > sqrt(epsilon(1.0_wp)) * scale) then
+      call sys%rhs(t, y, f_here(:n))
+      n_rhs = n_rhs + 1
+      call refresh(self, f_here(:n))
+      call iterate(self, size_now)
+    end if
     ! y_new = y + h sum b_i f_i, with f_i from the converged stages
     self%stage_limit = 0
     do i = 1, 2
@@ -88,8 +77,43 @@ contains
 
   contains
 
-    subroutine refresh(self)
+    !> Newton's iteration for Z from Z_i = c_i h f0, with the LU at hand;
+    !> size_now: its last correction.
+    subroutine iterate(self, size_now)
       class(gauss4_t), intent(inout) :: self
+      real(wp), intent(out) :: size_now
+      real(wp) :: residual(2 * max_equations, 1), size_before
+      integer :: iteration
+      do i = 1, 2
+        z(:n, i) = gl_c(i) * h * f0
+      end do
+      size_before = huge(1.0_wp)
+      do iteration = 1, 12
+        do i = 1, 2
+          stage(:n) = y + z(:n, i)
+          call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))
+        end do
+        n_rhs = n_rhs + 2
+        do i = 1, 2
+          residual((i - 1) * n + 1:i * n, 1) = -(z(:n, i) - h * (gl_a(i, 1) * f(:n, 1) + gl_a(i, 2) * f(:n, 2)))
+        end do
+        call dgetrs('N', 2 * n, 1, self%lu, 2 * n, self%pivots, residual, 2 * max_equations, info)
+        do i = 1, 2
+          z(:n, i) = z(:n, i) + residual((i - 1) * n + 1:i * n, 1)
+        end do
+        self%newton_iterations = self%newton_iterations + 1
+        size_now = maxval(abs(residual(:2 * n, 1)))
+        if (size_now <= 4 * epsilon(1.0_wp) * scale .or. (size_now >= size_before .and. iteration > 3)) exit
+        size_before = size_now
+        if (iteration == 6) self%steps_since_jacobian = jacobian_lifetime     ! slow: new Jacobian next step
+      end do
+    end subroutine iterate
+
+    !> J by forward differences at (t, y) against f_base = f(t, y), and the
+    !> LU of I - h (A x J).
+    subroutine refresh(self, f_base)
+      class(gauss4_t), intent(inout) :: self
+      real(wp), intent(in) :: f_base(:)
       real(wp) :: delta, f_plus(max_equations), y_plus(max_equations)
       if (.not. allocated(self%jacobian)) allocate (self%jacobian(n, n), self%lu(2 * n, 2 * n), self%pivots(2 * n))
       do j = 1, n
@@ -97,7 +121,7 @@ contains
         y_plus(:n) = y
         y_plus(j) = y(j) + delta
         call sys%rhs(t, y_plus(:n), f_plus(:n))
-        self%jacobian(:, j) = (f_plus(:n) - f0) / delta
+        self%jacobian(:, j) = (f_plus(:n) - f_base) / delta
       end do
       n_rhs = n_rhs + n
       self%lu = 0
