@@ -293,7 +293,7 @@ contains
         reason = "no DT on the fourth line (expected 'NPTS= n, DT= dt SEC')"
         return
       end if
-      code = decimal_value(trim(number_after(line, at + 2)), dt)
+      code = decimal_value(trim(without_seconds(number_after(line, at + 2))), dt)
     else                                                        ! n dt NPTS, DT
       call next_word(line(:at - 1), 1, .true., first, last)
       ios = 1
@@ -310,6 +310,22 @@ contains
       reason = 'DT = ' // format_real(dt) // ' s must be between 1e-6 and 1000 s'
     end if
   end subroutine header_counts
+
+  !> A number's text without the unit written against it ('0.01sec', '0.01s').
+  pure function without_seconds(number) result(bare)
+    character(len=*), intent(in) :: number
+    character(len=:), allocatable :: bare
+    integer :: last
+    bare = trim(number)
+    last = len(bare)
+    if (last > 3) then
+      if (bare(last - 2:) == 'sec') bare = bare(:last - 3)
+    end if
+    last = len(bare)
+    if (last > 1) then
+      if (bare(last:) == 's') bare = bare(:last - 1)
+    end if
+  end function without_seconds
 
   !> The text of the number after position `from` and an optional '=' (up
   !> to a blank or a comma), or '?'.

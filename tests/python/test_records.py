@@ -149,6 +149,26 @@ def header(npts):
     return f"PEER\nSYNTHETIC\nACCELERATION TIME SERIES IN UNITS OF G\nNPTS= {npts:6d}, DT=   .0100 SEC\n"
 
 
+# The fourth line as PEER files write it, and as hands and other tools do:
+# the unit against the number, no blanks, lower case
+DT_LINES = ["NPTS=   4, DT=0.01SEC", "NPTS=4,DT=.01 SEC", "NPTS= 4, DT=0.0100s", "npts=     4, dt=   .0100 sec",
+            "NPTS=   4, DT= 1.0E-02 SEC", "NPTS=   4, DT=1.0e-2sec   (synthetic)"]
+
+
+@pytest.mark.parametrize("line", DT_LINES)
+def test_dt_is_read_with_its_unit_written_against_it(ellroll, tmp_path, line):
+    from test_campaign import assert_same_datasets
+    values = "  .1E-01  .2E-01  .3E-01  .4E-01\n"
+    for name, fourth in (("standard", "NPTS=      4, DT=   .0100 SEC"), ("variant", line)):
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / "H1.AT2").write_text(f"PEER\nSYNTHETIC\nACCELERATION TIME SERIES IN UNITS OF G\n{fourth}\n{values}")
+        (folder / "cup.nml").write_text(CUP.format(files="'H1.AT2'", t_end=0.05, extra=""))
+        result = run(ellroll, "run", "cup.nml", "-q", cwd=folder)
+        assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "standard" / "out.h5", tmp_path / "variant" / "out.h5")
+
+
 @pytest.mark.parametrize("label,content,words", BAD, ids=[b[0] for b in BAD])
 def test_bad_at2_files(ellroll, tmp_path, label, content, words):
     (tmp_path / "H1.AT2").write_text(content())
