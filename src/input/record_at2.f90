@@ -293,7 +293,9 @@ contains
         reason = "no DT on the fourth line (expected 'NPTS= n, DT= dt SEC')"
         return
       end if
-      code = decimal_value(trim(without_seconds(number_after(line, at + 2))), dt)
+      number = number_after(line, at + 2)
+      call drop_seconds(number)
+      code = decimal_value(trim(number), dt)
     else                                                        ! n dt NPTS, DT
       call next_word(line(:at - 1), 1, .true., first, last)
       ios = 1
@@ -311,21 +313,21 @@ contains
     end if
   end subroutine header_counts
 
-  !> A number's text without the unit written against it ('0.01sec', '0.01s').
-  pure function without_seconds(number) result(bare)
-    character(len=*), intent(in) :: number
-    character(len=:), allocatable :: bare
+  !> Blanks the unit written against a number's text ('0.01sec', '0.01s').
+  pure subroutine drop_seconds(number)
+    character(len=*), intent(inout) :: number
     integer :: last
-    bare = trim(number)
-    last = len(bare)
+    last = len_trim(number)
     if (last > 3) then
-      if (bare(last - 2:) == 'sec') bare = bare(:last - 3)
+      if (number(last - 2:last) == 'sec') then
+        number(last - 2:) = ' '
+        last = last - 3
+      end if
     end if
-    last = len(bare)
     if (last > 1) then
-      if (bare(last:) == 's') bare = bare(:last - 1)
+      if (number(last:last) == 's') number(last:) = ' '
     end if
-  end function without_seconds
+  end subroutine drop_seconds
 
   !> The text of the number after position `from` and an optional '=' (up
   !> to a blank or a comma), or '?'.

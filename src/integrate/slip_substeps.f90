@@ -15,17 +15,15 @@ module ellroll_slip_substeps
   use ellroll_ode, only: no_step_solution
   use ellroll_integrators, only: integrator_t
   use ellroll_case_run, only: stopping
-  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity, event_stick
+  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity
   implicit none
   private
 
   public :: slide_piece
 
   !> A piece is taken in substeps where its slip at the start is below this
-  !> many times the friction's reach over it (mu N (1/m + R^2/J) h): the
-  !> slip's direction moves on the time scale |u| / (c mu N) or faster, and
-  !> a whole step's error in the slip grows as (h c mu N / |u|)^5.
-  real(wp), parameter :: stiff_reach = 8
+  !> many times the friction's reach over it (mu N (1/m + R^2/J) h).
+  real(wp), parameter :: stiff_reach = 2
   !> A substep's error in the slip, against |V_C| + R |omega| + the
   !> friction's reach over the piece.
   real(wp), parameter :: slip_tolerance = 2.0e-12_wp
@@ -39,8 +37,6 @@ module ellroll_slip_substeps
   !> times the piece's start: a couple whose direction turns far faster than
   !> round-off-sized substeps) leaves the piece without a solution.
   integer, parameter :: max_substeps = 100000
-  !> Secant steps at most that locate the stop inside the substep that crosses it.
-  integer, parameter :: locate_tries = 8
   real(wp), parameter :: beyond_scale = 1.0e3_wp
 
 contains
@@ -49,7 +45,7 @@ contains
   !> whose normal force there is big_n: y_end at its end, reached = h
   !> (integrator's stage_limit set by the substep that met a limit, where one
   !> did), or, where the slip stops inside it (the event of sb crosses, or the
-  !> slip stalls: stalled), the state just past the stop or where it stalled,
+  !> slip stalls: stalled), the state at the end of the substep where it did,
   !> reached its time from t (the caller locates the stop by the piece's size).
   !> The piece has no solution (no_step_solution) once the run is asked to
   !> stop (stopping), or where a substep it takes (shrunk to round-off, or
@@ -61,9 +57,9 @@ contains
     real(wp), intent(out) :: y_end(slide_state_size), reached
     logical, intent(out) :: stalled
     integer(i8), intent(inout) :: n_rhs
-    real(wp), dimension(slide_state_size) :: y, f, whole, half, halves, f_half, next
-    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start, noise, g_before, g_after
-    integer :: k, accepted, locating
+    real(wp), dimension(slide_state_size) :: y, f, whole, half, halves, f_half
+    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start
+    integer :: k, accepted
     stalled = .false.
     reached = h
     reach = sb%ball%mu * max(big_n, 0.0_wp) * (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * h
@@ -74,8 +70,6 @@ contains
     slip_start = norm2(slip_velocity(sb%ball, y0))
     slip_before = slip_start
     accepted = 0
-    locating = 0
-    noise = 64 * epsilon(1.0_wp) * slip_start * speed(y0)      ! the round-off of the event's function
     tolerance = slip_tolerance * speed(y0)
     y = y0
     f = f0
@@ -104,21 +98,8 @@ contains
           whole = y
           exit
         end if
-        next = halves + (halves - whole) / 15
-        if (sb%event_crossed(y0, next) /= 0 .and. locating < locate_tries .and. k < max_substeps) then
-          ! the stop inside the substep: taken again to just past it (the
-          ! secant of the event's function, aimed past its round-off), so
-          ! that the piece ends there, not up to a substep later
-          g_before = sb%event_value(event_stick, y)
-          g_after = sb%event_value(event_stick, next)
-          if (g_before > g_after .and. g_after < -4 * noise) then
-            s = s * (g_before + 2 * noise) / (g_before - g_after)
-            locating = locating + 1
-            cycle
-          end if
-        end if
         tau = tau + s
-        y = next
+        y = halves + (halves - whole) / 15
         if (tau >= h) exit
         call sb%rhs(t + tau, y, f)
         n_rhs = n_rhs + 1
