@@ -56,7 +56,8 @@ module ellroll_figures
       figure_t('n_rhs', '1', 'right-hand side evaluations', kind_int, 1, from_counter), &
       figure_t('wall_time', 's', 'wall-clock time of the integration (not reproducible)', kind_real, 1, from_counter), &
       figure_t('theta_max', 'rad', &
-               'largest nutation angle (at step ends; adaptive methods: located on the dense output)', kind_real, 1, &
+               'largest nutation angle (fixed steps: by a parabola through 3 step ends; adaptive: on the dense ' // &
+               'output)', kind_real, 1, &
                from_run), &
       figure_t('reaction_normal_max', 'N', 'largest normal force over all steps', kind_real, 1, from_maximum, &
                q_reaction_normal), &

@@ -50,12 +50,14 @@ module ellroll_case_run
   real(wp), parameter :: event_time_ulps = 16
 
   !> Local maxima of a sampled signal, each refined by the parabola through
-  !> the three samples around it (uneven spacing allowed).
+  !> the three samples around it (uneven spacing allowed): its time, and the
+  !> largest of its values.
   type :: maxima_t
     real(wp) :: t(3) = 0, v(3) = 0       !< the last three samples
     integer :: n_samples = 0
     integer(i8) :: count = 0
     real(wp) :: first = 0, last = 0      !< times of the first and last maximum
+    real(wp) :: top = -1                 !< the largest parabola's vertex value (-1: none)
   contains
     procedure :: add => add_sample
     procedure :: add_peak
@@ -180,6 +182,9 @@ contains
     integer :: k
     res%counts(fig_nutation_maxima) = run%maxima%count
     res%reals(fig_nutation_period) = run%maxima%mean_interval()
+    ! a fixed step's maximum of Theta between its step ends: the parabola's
+    ! (maxima of tan Theta are those of Theta)
+    if (run%maxima%top > run%tan_theta_max) res%reals(fig_theta_max) = atan(run%maxima%top)
     if (res%status == status_completed .and. run%fit%start < cs%t_end) res%reals(fig_transmissibility) = run%fit%ratio()
     if (res%status == status_completed .and. settled(run, res%t_final)) then
       res%reals(fig_residual_displacement) = run%rest_displacement
@@ -318,7 +323,7 @@ contains
   pure subroutine add_sample(self, t, v)
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t, v
-    real(wp) :: d1, d3, numerator, denominator, t_peak
+    real(wp) :: d1, d3, numerator, denominator, t_peak, peak, shift
     ! (shifted element by element: the array constructor built temporaries)
     self%t(1) = self%t(2)
     self%t(2) = self%t(3)
@@ -335,7 +340,16 @@ contains
     numerator = d1**2 * (self%v(2) - self%v(3)) - d3**2 * (self%v(2) - self%v(1))
     denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
     t_peak = self%t(2)
-    if (.not. is_zero(denominator)) t_peak = self%t(2) - 0.5_wp * numerator / denominator
+    peak = self%v(2)
+    if (.not. is_zero(denominator)) then
+      t_peak = self%t(2) - 0.5_wp * numerator / denominator
+      ! the vertex's value v2 - c s^2, s = t_peak - t2, c the parabola's
+      ! curvature denominator / (d1 d3 (d1 - d3)), in factors of the
+      ! samples' size (none of the spacing's powers alone)
+      shift = t_peak - self%t(2)
+      peak = self%v(2) - (denominator / (d1 * (d1 - d3))) * (shift / d3) * shift
+    end if
+    self%top = max(self%top, peak)
     call self%add_peak(t_peak)
   end subroutine add_sample
 

@@ -14,7 +14,7 @@ module ellroll_slide_regime
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, align_slip
+      at_sliding_rim, stick_level, align_slip, sliding_derivative
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -25,7 +25,7 @@ module ellroll_slide_regime
 
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-            add_sliding, end_at_limit
+            add_sliding, end_at_limit, slip_stopped, observe_stopped
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -221,7 +221,7 @@ contains
       call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
       res%n_rhs = res%n_rhs + 1
       if (rolled%obs%friction_needed > sb%ball%mu) return
-    else if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) then
+    else if (.not. slip_stopped(sb, now, tally)) then
       call sb%begin_step(now%s)
       return
     end if
@@ -240,6 +240,33 @@ contains
       call add_switch(res, t, switch_to_rolling)
     end if
   end subroutine stop_sliding
+
+  !> Whether the slip of sliding state now has stopped (stop_sliding): it
+  !> has fallen to stick_level of its value at the piece's start or of the
+  !> episode's largest.
+  pure logical function slip_stopped(sb, now, tally) result(stopped)
+    type(sliding_ball_t), intent(in) :: sb
+    type(regime_state_t), intent(in) :: now
+    type(slide_tally_t), intent(in) :: tally
+    stopped = .not. now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)
+  end function slip_stopped
+
+  !> The reaction (and the centre's acceleration) of sliding state `at`
+  !> whose slip has stopped (slip_stopped): the friction mu N along the one
+  !> rolling needs, the limit of the sliding friction as u -> 0 (the slip's
+  !> direction relaxes to -F_req: docs/model.md, "The aligned law"), not
+  !> against the slip left, whose direction is the step's error there (a
+  !> summary maximum taken from it is no value of the motion).
+  pure subroutine observe_stopped(sb, t, at)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t
+    type(regime_state_t), intent(inout) :: at
+    real(wp) :: rate(slide_state_size), big_n, force(3), need(3)
+    call sliding_derivative(sb, t, at%s, rate, big_n, force, needed=need)
+    if (.not. norm2(need) > 0) return
+    at%obs%reaction = big_n * at%obs%normal + (sb%ball%mu * max(big_n, 0.0_wp) / norm2(need)) * need
+    at%obs%center_acceleration = at%obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
+  end subroutine observe_stopped
 
   !> The piece of step h from (t, from) to `to` that the integrator has just
   !> taken adds to the sliding figures (add_sliding). An embedded pair's works

@@ -20,14 +20,14 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      stick_level, slip_stop_time, center_velocity, choose_slip_law
+      slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_excitation, only: step_to_sample
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      end_at_limit
+      end_at_limit, slip_stopped, observe_stopped
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -566,6 +566,9 @@ contains
     now = x
     if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
     if (now%sliding) call finish_stop(integrator, run, rolling, sb, h - offset, t_at, now, tally, res, offset)
+    if (now%sliding) then
+      if (slip_stopped(sb, now, tally)) call observe_stopped(sb, t_at, now)
+    end if
     call track_balance(run, res, t_at, now, tally)
     if (now%sliding) then
       call stop_sliding(rolling, sb, t_at, now, res, tally)
@@ -600,7 +603,7 @@ contains
     real(wp) :: approach, piece, left, first_slip
     integer :: status, k
     logical :: turned
-    if (now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)) return  ! turned
+    if (.not. slip_stopped(sb, now, tally)) return  ! turned
     first_slip = now%slip_speed
     left = room
     do k = 1, finish_pieces
