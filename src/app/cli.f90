@@ -9,6 +9,7 @@ module ellroll_cli
   use ellroll_system, only: utc_timestamp
   use ellroll_version, only: version_string, build_string
   use ellroll_suggest, only: did_you_mean
+  use ellroll_files, only: work_suffix
   implicit none
   private
 
@@ -107,6 +108,9 @@ contains
     select case (option)
     case ('-o', '--output')
       if (len_trim(value) == 0) call usage_error(err, option // ' needs a file name, not an empty text')
+      if (work_suffix(value) > 0) call usage_error(err, option // ' ' // value // ': ends in ' // &
+          value(len(value) - work_suffix(value) + 1:) // ', a suffix of ellroll''s own work files (.partial, ' // &
+          '.partial.new, .journal, .lock); choose another output name')
       cli%output_path = value
     case ('--threads')
       ios = 1

@@ -10,7 +10,7 @@ module ellroll_cmd_run
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign
   use ellroll_output_start, only: check_output_target, holds_this_run
-  use ellroll_output_files, only: output_files_t, work_target
+  use ellroll_output_files, only: output_files_t, check_replace, work_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
   use ellroll_merge, only: merge_shards
   use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size
@@ -195,6 +195,7 @@ contains
           if (opts%resume) complete = holds_this_run(target, inp, [0, 1])
           if (.not. (opts%overwrite .or. complete)) &
             call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
+          if (.not. complete) call check_replace(target, err)
         end if
       end if
     end if

@@ -8,7 +8,8 @@ module ellroll_files
   private
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
-            sync_path, sync_folder, read_head, lock_output, unlock_output, host_name, process_id
+            rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
+            host_name, process_id
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other
 
   !> What path_kind finds at a name (a link is not followed).
@@ -44,6 +45,15 @@ module ellroll_files
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: old(*), new(*)
     end function c_rename_path
+    integer(c_int) function c_rename_new(old, new) bind(c, name='ellroll_rename_new')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: old(*), new(*)
+    end function c_rename_new
+    integer(c_int) function c_sticky_refusal(path, folder, owner) bind(c, name='ellroll_sticky_refusal')
+      import :: c_int, c_char, c_long
+      character(kind=c_char), intent(in) :: path(*), folder(*)
+      integer(c_long), intent(out) :: owner
+    end function c_sticky_refusal
     integer(c_int) function c_sync_path(path) bind(c, name='ellroll_sync_path')
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
@@ -125,6 +135,41 @@ contains
     character(len=*), intent(in) :: old, new
     rename_path = c_rename_path(old // c_null_char, new // c_null_char)
   end function rename_path
+
+  !> Move old to new where nothing is at new, never replacing a file made
+  !> there at any moment before (renameat2 RENAME_NOREPLACE, else link and
+  !> unlink): 0, EEXIST (17) when something is there, or another errno value.
+  integer function rename_new(old, new)
+    character(len=*), intent(in) :: old, new
+    rename_new = c_rename_new(old // c_null_char, new // c_null_char)
+  end function rename_new
+
+  !> 0 when the sticky bit of `folder` lets this process replace or remove
+  !> the file at path (or nothing is there); else an errno value: EPERM (1)
+  !> when the folder is sticky and neither it nor the file is this user's
+  !> (owner: the file's uid).
+  integer function sticky_refusal(path, folder, owner)
+    character(len=*), intent(in) :: path, folder
+    integer, intent(out) :: owner
+    integer(c_long) :: uid
+    sticky_refusal = c_sticky_refusal(path // c_null_char, folder // c_null_char, uid)
+    owner = int(uid)
+  end function sticky_refusal
+
+  !> The length of the suffix of ellroll's own work files that path ends
+  !> with ('.partial', '.partial.new', '.journal', '.lock'), or 0.
+  pure integer function work_suffix(path) result(n)
+    character(len=*), intent(in) :: path
+    character(len=*), parameter :: suffixes(4) = [character(len=12) :: '.partial.new', '.partial', '.journal', &
+                                                   '.lock']
+    integer :: k
+    do k = 1, size(suffixes)
+      n = len_trim(suffixes(k))
+      if (len(path) < n) cycle
+      if (path(len(path) - n + 1:) == suffixes(k)(:n)) return
+    end do
+    n = 0
+  end function work_suffix
 
   !> The file at path to the disk (fsync): 0 or an errno value.
   integer function sync_path(path)

@@ -10,7 +10,9 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
+#include <linux/capability.h>
 
 /* 0 when files can be created in folder `path` (it exists, is a folder, and
  * this process may write and search it), else the errno value that says why. */
@@ -88,6 +90,66 @@ int ellroll_rename_path(const char *old, const char *new_path)
     return rename(old, new_path) == 0 ? 0 : errno;
 }
 
+/* Move old to new where nothing is at new: 0, EEXIST when anything is
+ * there (a file, a link, made at any moment before), or another errno.
+ * renameat2 RENAME_NOREPLACE decides in one step; a file system without it
+ * gets link (which never replaces a name) and unlink; one without hard
+ * links, a look (lstat) and rename, which a file made between the two
+ * would lose. */
+int ellroll_rename_new(const char *old, const char *new_path)
+{
+#if defined(SYS_renameat2)
+    if (syscall(SYS_renameat2, AT_FDCWD, old, AT_FDCWD, new_path, 1u /* RENAME_NOREPLACE */) == 0)
+        return 0;
+    if (errno != EINVAL && errno != ENOSYS && errno != EOPNOTSUPP)
+        return errno;
+#endif
+    if (link(old, new_path) == 0)
+        return unlink(old) == 0 ? 0 : errno;
+    if (errno != EPERM && errno != EOPNOTSUPP && errno != ENOSYS && errno != EMLINK)
+        return errno;
+    struct stat info;
+    if (lstat(new_path, &info) == 0)
+        return EEXIST;
+    if (errno != ENOENT)
+        return errno;
+    return rename(old, new_path) == 0 ? 0 : errno;
+}
+
+/* Whether this process holds CAP_FOWNER (the right to remove another
+ * user's file from a sticky folder). */
+static int may_override_owners(void)
+{
+    struct __user_cap_header_struct header = {_LINUX_CAPABILITY_VERSION_3, 0};
+    struct __user_cap_data_struct data[2];
+    memset(data, 0, sizeof data);
+    if (syscall(SYS_capget, &header, data) != 0)
+        return geteuid() == 0;
+    return (data[CAP_FOWNER / 32].effective >> (CAP_FOWNER % 32)) & 1u;
+}
+
+/* 0 when the name path (a file there, or nothing) may be replaced or
+ * removed by this process as far as the sticky bit of its folder `folder`
+ * goes; EPERM when that folder is sticky and neither the file nor the
+ * folder is this user's (the kernel's rule for rename and unlink there),
+ * its owner's uid in *owner; another errno where it cannot be told. */
+int ellroll_sticky_refusal(const char *path, const char *folder, long *owner)
+{
+    struct stat file, place;
+    *owner = -1;
+    if (lstat(path, &file) != 0)
+        return errno == ENOENT ? 0 : errno;
+    if (stat(folder, &place) != 0)
+        return errno;
+    if (!(place.st_mode & S_ISVTX))
+        return 0;
+    uid_t me = geteuid();
+    if (file.st_uid == me || place.st_uid == me || may_override_owners())
+        return 0;
+    *owner = (long)file.st_uid;
+    return EPERM;
+}
+
 /* Write what the file at path holds to the disk, and then the folder's
  * entry of it: 0 or errno. */
 int ellroll_sync_path(const char *path)
@@ -143,7 +205,9 @@ int ellroll_read_head(const char *path, char *buffer, int size)
  * which then holds `me` (who holds it). A descriptor (>= 0) while it is
  * held; -EAGAIN when another process holds it, its `me` copied into holder
  * (null-terminated); -EEXIST when path is not a lock file (a link, a
- * folder, or a file that holds something else); other -errno. A process
+ * folder, or a file that holds something else); other -errno (a file
+ * system without locks: -ENOLCK and the like, the file made for the lock
+ * removed, a file that was there left alone). A process
  * that releases its lock removes the file first, so one that locked the
  * removed file looks again. */
 int ellroll_lock_output(const char *path, const char *me, char *holder, int size)
@@ -174,7 +238,15 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
         }
         if (!created && info.st_size > 0) {   /* someone's file: only a lock file of ours */
             char head[sizeof mark];
-            ssize_t got = pread(fd, head, sizeof mark - 1, 0);
+            ssize_t got;
+            do {
+                got = pread(fd, head, sizeof mark - 1, 0);
+            } while (got < 0 && errno == EINTR);
+            if (got < 0) {                    /* unread: no verdict on what it holds */
+                int code = errno;
+                close(fd);
+                return -code;
+            }
             if (got != (ssize_t)(sizeof mark - 1) || memcmp(head, mark, sizeof mark - 1) != 0) {
                 close(fd);
                 return -EEXIST;
@@ -192,6 +264,10 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
                 close(fd);
                 return -EAGAIN;
             }
+            /* not locked (a file system without locks: the run goes on
+             * unlocked): a file made here for the lock goes at once */
+            if (created && ellroll_descriptor_is_at(fd, path))
+                unlink(path);
             close(fd);
             return -code;
         }

@@ -15,6 +15,7 @@ module ellroll_case_input
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
   use ellroll_suggest, only: did_you_mean
+  use ellroll_files, only: work_suffix
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
   use ellroll_suite_input, only: record_spec_t, load_suite, record_files, note_files
@@ -366,6 +367,12 @@ contains
       plan%file = trim(output_override)
     else if (len_trim(v%file) > 0) then
       plan%file = trim(adjustl(v%file))
+      if (work_suffix(plan%file) > 0) then
+        call rd%fail_value(gi, 'file', 'ends in ' // plan%file(len(plan%file) - work_suffix(plan%file) + 1:) // &
+                           ', a suffix of ellroll''s own work files (.partial, .partial.new, .journal, .lock); ' // &
+                           'choose another name')
+        return
+      end if
     else
       call rd%fail_missing(gi, 'file', 'name the HDF5 file to write (or pass -o FILE)')
       return

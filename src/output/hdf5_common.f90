@@ -1,14 +1,15 @@
 !> What ellroll's HDF5 writer, reader and layout share: hyperslabs (selected
 !> and written), dimension numbering, text types and text attributes.
 module ellroll_hdf5_common
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int, c_int64_t
   use hdf5
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
   implicit none
   private
 
-  public :: hdf5_reason, note_failed_close, hdf5_close_failed
+  public :: hdf5_reason, note_failed_close, hdf5_close_failed, hdf5_quiet, forget_system_failure, system_failure, &
+      hdf5_descriptor
   public :: select_slab, dataset_name, dim_index, new_text_type, write_text_attribute, &
       write_text_slab, write_real_slab, write_int_slab
 
@@ -28,6 +29,21 @@ module ellroll_hdf5_common
       character(kind=c_char), intent(out) :: text(*)
       integer(c_int), value :: size
     end subroutine c_hdf5_error_text
+    !> (see hdf5_errors.c)
+    subroutine hdf5_quiet() bind(c, name='ellroll_hdf5_quiet')
+    end subroutine hdf5_quiet
+    subroutine forget_system_failure() bind(c, name='ellroll_hdf5_forget_failure')
+    end subroutine forget_system_failure
+    integer(c_int) function c_system_failure(words, words_size, file, file_size) &
+        bind(c, name='ellroll_hdf5_system_failure')
+      import :: c_char, c_int
+      character(kind=c_char), intent(out) :: words(*), file(*)
+      integer(c_int), value :: words_size, file_size
+    end function c_system_failure
+    integer(c_int) function c_hdf5_descriptor(file) bind(c, name='ellroll_hdf5_descriptor')
+      import :: c_int, c_int64_t
+      integer(c_int64_t), value :: file      !< an hid_t (int64_t since HDF5 1.10)
+    end function c_hdf5_descriptor
   end interface
 
 contains
@@ -54,6 +70,35 @@ contains
     reason = repeat(' ', n)
     reason = transfer(buffer(:n), reason)
   end subroutine hdf5_reason
+
+  !> Whether an HDF5 call on this thread failed in a system call (a read
+  !> or write error) since forget_system_failure: the system's words and the
+  !> file's name ('' where HDF5 did not give it).
+  logical function system_failure(words, file)
+    character(len=:), allocatable, intent(out) :: words, file
+    character(kind=c_char) :: word_buffer(160), file_buffer(1024)
+    system_failure = c_system_failure(word_buffer, size(word_buffer), file_buffer, size(file_buffer)) /= 0
+    call text_of(word_buffer, words)
+    call text_of(file_buffer, file)
+  end function system_failure
+
+  !> A descriptor of its own of the file HDF5 has open as `file` (sec2
+  !> driver), or -1.
+  integer function hdf5_descriptor(file)
+    integer(hid_t), intent(in) :: file
+    hdf5_descriptor = c_hdf5_descriptor(int(file, c_int64_t))
+  end function hdf5_descriptor
+
+  !> The text of a null-terminated C string.
+  subroutine text_of(buffer, text)
+    character(kind=c_char), intent(in) :: buffer(:)
+    character(len=:), allocatable, intent(out) :: text
+    integer :: n
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    text = repeat(' ', n)
+    text = transfer(buffer(:n), text)
+  end subroutine text_of
 
   !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
   !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.

@@ -1,9 +1,11 @@
 /* Why an HDF5 call failed, in words: HDF5 keeps its errors on a stack of
  * descriptions; the driver that reads and writes the file records the
  * system's reason there ("errno = 5, error message = 'Input/output error'"). */
+#include <fcntl.h>
 #include <hdf5.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 struct reason {
     char system[160];      /* the system's words, where an entry has them */
@@ -45,4 +47,101 @@ void ellroll_hdf5_error_text(char *text, int size)
     else
         snprintf(text, (size_t)size, "HDF5 error");
     H5Eclear2(H5E_DEFAULT);
+}
+
+/* The first failure of an HDF5 call on this thread, since it was last
+ * forgotten, that the file's driver met in a system call: the system's
+ * words and the file's name. HDF5 calls report_failure as its automatic
+ * error handler, in place of printing its error stack. */
+static _Thread_local struct {
+    int seen;
+    char words[160];
+    char file[1024];
+} system_failure;
+
+static _Thread_local int handler_set;
+
+static herr_t look_for_file(unsigned n, const H5E_error2_t *entry, void *data)
+{
+    (void)n;
+    const char *desc = entry->desc ? entry->desc : "";
+    if (!strstr(desc, "error message = '") || system_failure.file[0] != '\0')
+        return 0;
+    const char *name = strstr(desc, "filename = '");
+    size_t skip = strlen("filename = '");
+    if (!name) {
+        name = strstr(desc, "name = '");
+        skip = strlen("name = '");
+    }
+    if (!name)
+        return 0;
+    name += skip;
+    const char *end = strchr(name, '\'');
+    size_t length = end ? (size_t)(end - name) : strlen(name);
+    if (length >= sizeof system_failure.file)
+        length = sizeof system_failure.file - 1;
+    memcpy(system_failure.file, name, length);
+    system_failure.file[length] = '\0';
+    (void)data;
+    return 0;
+}
+
+static herr_t report_failure(hid_t stack, void *unused)
+{
+    (void)unused;
+    if (system_failure.seen)
+        return 0;
+    struct reason found;
+    found.system[0] = '\0';
+    found.innermost[0] = '\0';
+    H5Ewalk2(stack, H5E_WALK_UPWARD, look_at, &found);
+    if (found.system[0] == '\0')
+        return 0;
+    system_failure.seen = 1;
+    snprintf(system_failure.words, sizeof system_failure.words, "%s", found.system);
+    system_failure.file[0] = '\0';
+    H5Ewalk2(stack, H5E_WALK_UPWARD, look_for_file, NULL);
+    return 0;
+}
+
+/* HDF5 prints no error stack on this thread (its automatic handler is set
+ * per thread in a thread-safe library): failures are reported through
+ * ellroll's own errors, and the system's are noted (ellroll_hdf5_system_
+ * failure). Once per thread; every HDF5 entry point of ellroll calls it. */
+void ellroll_hdf5_quiet(void)
+{
+    if (handler_set)
+        return;
+    if (H5Eset_auto2(H5E_DEFAULT, report_failure, NULL) >= 0)
+        handler_set = 1;
+}
+
+/* Forget the noted system failure of this thread. */
+void ellroll_hdf5_forget_failure(void)
+{
+    system_failure.seen = 0;
+    system_failure.words[0] = '\0';
+    system_failure.file[0] = '\0';
+}
+
+/* 1 when an HDF5 call on this thread failed in a system call since the
+ * failure was last forgotten: its words and file (null-terminated, '' when
+ * HDF5 did not name it); else 0. */
+int ellroll_hdf5_system_failure(char *words, int words_size, char *file, int file_size)
+{
+    snprintf(words, (size_t)words_size, "%s", system_failure.words);
+    snprintf(file, (size_t)file_size, "%s", system_failure.file);
+    return system_failure.seen;
+}
+
+/* A descriptor (its own, close-on-exec) of the file open as `file` through
+ * HDF5's sec2 driver: the very file HDF5 made or opened, not whatever a
+ * name holds by then; -1 where HDF5 cannot give it. */
+int ellroll_hdf5_descriptor(hid_t file)
+{
+    void *handle = NULL;
+    if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || handle == NULL)
+        return -1;
+    int fd = fcntl(*(int *)handle, F_DUPFD_CLOEXEC, 0);
+    return fd >= 0 ? fd : dup(*(int *)handle);    /* (a kernel without F_DUPFD_CLOEXEC) */
 }

@@ -12,7 +12,8 @@ module ellroll_hdf5_reader
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_files, only: path_kind, kind_missing
-  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, hdf5_quiet, &
+      forget_system_failure, system_failure
   implicit none
   private
 
@@ -39,6 +40,7 @@ module ellroll_hdf5_reader
     integer(i8) :: n_cases = 0
   contains
     procedure :: open => open_input
+    procedure :: read_failed
     procedure :: close => close_input
     procedure :: has
     procedure :: members
@@ -54,6 +56,9 @@ module ellroll_hdf5_reader
 
 contains
 
+  !> Open the ellroll file at path to read. A file that cannot be read (a
+  !> system call failed: EIO) is err_output, 'cannot read it', whatever
+  !> it holds; one HDF5 finds damaged, or that is not ellroll's, err_input.
   subroutine open_input(self, path, err)
     class(h5_input_t), intent(inout) :: self
     character(len=*), intent(in) :: path
@@ -63,7 +68,8 @@ contains
     character(len=:), allocatable :: program, reason
     self%path = path
     call h5open_f(hdferr)
-    call h5eset_auto_f(0, hdferr)
+    call hdf5_quiet()
+    call forget_system_failure()
     if (path_kind(path) == kind_missing) then
       call set_error(err, err_input, path // ': no such file')
       return
@@ -74,7 +80,7 @@ contains
       call set_error(err, err_output, path // ': cannot read it: ' // reason)
       return
     else if (.not. is_hdf5) then
-      call set_error(err, err_input, path // ': not an HDF5 file')
+      if (.not. read_failed(self, err)) call set_error(err, err_input, path // ': not an HDF5 file')
       return
     end if
     call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
@@ -85,18 +91,32 @@ contains
         call set_error(err, err_output, path // ': cannot open the HDF5 file: another process has it open to ' // &
             'write (' // reason // '): a running ellroll, if ' // lock_of(path) // ' exists (it names the ' // &
             'process); read it when that run ends')
-      else
+      else if (index(reason, 'HDF5: ') /= 1 .or. index(reason, 'already open for write') > 0) then
+        ! the system's reason, or a file a killed writer left open
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
+      else                      ! HDF5's own tables do not hold together (a file cut short)
+        call set_error(err, err_input, path // ': damaged: HDF5 cannot open it (' // reason(7:) // ')')
       end if
       return
     end if
     call self%text_attribute('program', program)
     if (program /= 'ellroll') then
-      call set_error(err, err_input, path // ': not an ellroll file')
+      if (.not. read_failed(self, err)) call set_error(err, err_input, path // ': not an ellroll file')
       return
     end if
     self%n_cases = self%dataset_length('summary/status')
+    if (read_failed(self, err)) return
   end subroutine open_input
+
+  !> Whether an HDF5 call failed in a system call (a read error) since
+  !> the file was opened: err then says the file cannot be read, and why.
+  logical function read_failed(self, err)
+    class(h5_input_t), intent(in) :: self
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: words, file
+    read_failed = system_failure(words, file)
+    if (read_failed) call set_error(err, err_output, self%path // ': cannot read it: ' // words)
+  end function read_failed
 
   subroutine close_input(self)
     class(h5_input_t), intent(inout) :: self

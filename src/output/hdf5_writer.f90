@@ -17,9 +17,10 @@ module ellroll_hdf5_writer
   use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: close_descriptor, system_error_text
   use ellroll_strings, only: itoa
-  use ellroll_files, only: create_new_file, descriptor_is_at, rename_path
+  use ellroll_files, only: descriptor_is_at, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
-  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab
+  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab, &
+      hdf5_quiet, hdf5_descriptor
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, &
       switch_group
@@ -113,7 +114,7 @@ module ellroll_hdf5_writer
 
 contains
 
-  !> Create the file (truncating any file of that name) and every dataset,
+  !> Create the file (where nothing is at path) and every dataset,
   !> filled with NaN / status 'pending' until cases are written.
   subroutine create(self, path, indices, times, fields, template, prov, coords, err, compression)
     class(h5_output_t), intent(inout) :: self
@@ -130,6 +131,7 @@ contains
     integer(i8) :: address(field_count), label_address
     logical :: in_place_fields(field_count)     !< stored fields written in place, outside HDF5
     type(named_value_t), allocatable :: inputs(:), figures(:), states(:)
+    integer :: own, closed
 
     lay%path = path
     if (present(compression)) lay%deflate_level = compression
@@ -141,7 +143,7 @@ contains
     self%in_windows = fields .and. .not. in_place_fields
     self%window_rows = int(max(1_i8, min(int(max_window_rows, i8), window_bytes / &
         max(1_i8, 8 * self%n_samples * sum(field_ncomp, mask=self%in_windows)))))
-    call open_new_file(self, lay, any(in_place_fields), label_address)
+    call open_new_file(self, lay, any(in_place_fields), label_address, own)
     call shared_scales(lay, times)
     inputs = case_record(template)
     figures = summary_record(case_result_t())
@@ -159,31 +161,39 @@ contains
     call write_provenance(self, lay, prov)
     if (lay%err%failed()) then
       if (.not. err%failed()) err = lay%err
+      if (own >= 0) closed = close_descriptor(own)
       return
     end if
-    call self%in_place%start(path, self%n_cases, self%n_samples, in_place_fields, address, label_address, err)
+    call self%in_place%start(path, own, self%n_cases, self%n_samples, in_place_fields, address, label_address, err)
     ! a campaign that may slide (its regime is stored) stores its switches
     if (template%slide) call self%switches%start(indices)
   end subroutine create
 
-  !> Create the file, truncating any of that name, and with `labelled`
-  !> /trajectory_label (its address: label_address).
-  subroutine open_new_file(self, lay, labelled, label_address)
+  !> Create the file where nothing is, and with `labelled`
+  !> /trajectory_label (its address: label_address). own: a descriptor of
+  !> the file HDF5 made, for the trajectories written in place (-1: none).
+  subroutine open_new_file(self, lay, labelled, label_address, own)
     type(h5_output_t), intent(inout) :: self
     type(layout_t), intent(inout) :: lay
     logical, intent(in) :: labelled         !< room for the label of trajectories written in place
     integer(i8), intent(out) :: label_address
-    integer :: hdferr, closed, own
+    integer, intent(out) :: own
+    integer :: hdferr, closed
     integer(hid_t) :: fapl
+    character(len=:), allocatable :: reason
     label_address = -1
+    own = -1
     call h5open_f(hdferr)
     call lay%check(hdferr, 'initialise HDF5')
     if (lay%err%failed()) return
-    call h5eset_auto_f(0, hdferr)   ! errors are reported through err, not printed by HDF5
+    call hdf5_quiet()   ! errors are reported through err, not printed by HDF5
     ! the 1.10 format indexes each fixed-size chunked dataset with a compact
     ! fixed array instead of a B-tree: memory stays flat as cases are added
     call h5pcreate_f(H5P_FILE_ACCESS_F, fapl, hdferr)
     call lay%check(hdferr, 'create a property list')
+    ! the sec2 driver (whatever HDF5_DRIVER says): its handle is the file's descriptor
+    call h5pset_fapl_sec2_f(fapl, hdferr)
+    call lay%check(hdferr, 'choose the file driver')
     call h5pset_libver_bounds_f(fapl, H5F_LIBVER_V110_F, H5F_LIBVER_V110_F, hdferr)
     call lay%check(hdferr, 'set the file format')
     ! no sieve buffer: a write goes to the file in its own call, so that a
@@ -192,22 +202,23 @@ contains
     call h5pset_sieve_buf_size_f(fapl, 0_size_t, hdferr)
     call lay%check(hdferr, 'set the sieve buffer')
     if (lay%err%failed()) return
-    ! the file is made where nothing is, never through a link (HDF5 would
-    ! truncate whatever is there); HDF5 then lays out that very file
-    own = create_new_file(lay%path)
+    ! H5F_ACC_EXCL: O_CREAT | O_EXCL, which fails on any name there, a
+    ! symbolic link included (never followed): HDF5 writes only a file it made
+    call h5fcreate_f(lay%path, H5F_ACC_EXCL_F, self%file, hdferr, access_prp=fapl)
+    if (hdferr < 0) then
+      call hdf5_reason(reason)
+      call set_error(lay%err, err_output, lay%path // ': cannot create the file: ' // reason)
+    end if
+    call h5pclose_f(fapl, closed)
+    call lay%check(closed, 'close a property list')
+    if (lay%err%failed()) return
+    ! what ellroll writes beside HDF5 goes to that same file, by its descriptor
+    own = hdf5_descriptor(self%file)
     if (own < 0) then
-      call set_error(lay%err, err_output, lay%path // ': cannot create the file: ' // system_error_text(-own))
-      return
+      call set_error(lay%err, err_output, lay%path // ': cannot take the descriptor of the file HDF5 made')
+    else if (.not. descriptor_is_at(own, lay%path)) then
+      call set_error(lay%err, err_output, lay%path // ': was replaced while it was being created')
     end if
-    call h5fcreate_f(lay%path, H5F_ACC_TRUNC_F, self%file, hdferr, access_prp=fapl)
-    call lay%check(hdferr, 'create the file')
-    call h5pclose_f(fapl, hdferr)
-    call lay%check(hdferr, 'close a property list')
-    if (.not. lay%err%failed()) then
-      if (.not. descriptor_is_at(own, lay%path)) &
-        call set_error(lay%err, err_output, lay%path // ': was replaced while it was being created')
-    end if
-    closed = close_descriptor(own)
     if (lay%err%failed()) return
     lay%file = self%file
     ! the label first, so that it lies near the file's start, where a
@@ -436,6 +447,7 @@ contains
     type(window_list_t), intent(in) :: full
     type(error_t), intent(inout) :: err
     integer :: k
+    call hdf5_quiet()        ! (any thread of a campaign may write the windows)
     do k = 1, full%n
       call write_window(self, full%items(k), err)
     end do
@@ -540,6 +552,7 @@ contains
     integer :: hdferr, k
     character(len=:), allocatable :: reason
     if (self%file < 0) return
+    call hdf5_quiet()
     call self%in_place%close(err)
     if (allocated(self%windows)) then          ! rows of incomplete windows (an abandoned run)
       do k = 1, size(self%windows)

@@ -61,11 +61,13 @@ module ellroll_trajectory_store
 
 contains
 
-  !> Open the file HDF5 laid out for writing, and write its label at
-  !> label_address. Nothing to do when no field is stored in place.
-  subroutine start(self, path, n_cases, n_samples, fields, address, label_address, err)
+  !> Take the file HDF5 laid out, open as `fd` (a descriptor of its own,
+  !> which the store closes), and write its label at label_address. Nothing
+  !> to do (fd closed) when no field is stored in place.
+  subroutine start(self, path, fd, n_cases, n_samples, fields, address, label_address, err)
     class(trajectory_store_t), intent(inout) :: self
     character(len=*), intent(in) :: path
+    integer, intent(in) :: fd
     integer(i8), intent(in) :: n_cases, n_samples
     logical, intent(in) :: fields(field_count)
     integer(i8), intent(in) :: address(field_count)
@@ -76,14 +78,12 @@ contains
     integer :: code, k
     call describe(self, path, n_cases, n_samples, fields)
     self%address = merge(address, -1_i8, fields)
-    if (.not. any(fields)) return
-    self%label_address = label_address
-    self%fd = open_for_writing(path)
-    if (self%fd < 0) then
-      call set_error(err, err_output, path // ': cannot open for writing the trajectories: ' // &
-                     system_error_text(-self%fd))
+    if (.not. any(fields)) then
+      if (fd >= 0) code = close_descriptor(fd)
       return
     end if
+    self%label_address = label_address
+    self%fd = fd
     words(:label_words - 1) = [label_version, n_cases, n_samples, self%address]
     words(label_words) = checksum(words(:label_words - 1))
     write (label, '(a, *(1x, i0))') label_marker, words

@@ -16,8 +16,9 @@ module ellroll_merge
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
   use ellroll_shards, only: shard_slots, campaign_id
-  use ellroll_files, only: same_file, path_kind, kind_missing
-  use ellroll_output_files, only: output_files_t, work_partial, work_target
+  use ellroll_files, only: same_file, path_kind, kind_missing, work_suffix
+  use ellroll_output_files, only: output_files_t, check_replace, work_partial, work_target
+  use ellroll_hdf5_common, only: system_failure
   implicit none
   private
 
@@ -41,6 +42,12 @@ contains
     type(error_t) :: cleanup
     integer :: k
     call files%name(target, '')
+    if (work_suffix(target) > 0) then
+      call set_error(err, err_input, 'merge: output ' // target // ': ends in ' // &
+          target(len(target) - work_suffix(target) + 1:) // ', a suffix of ellroll''s own work files (.partial, ' // &
+          '.partial.new, .journal, .lock); choose another output name')
+      return
+    end if
     do k = 1, size(shard_paths)
       if (target == trim(shard_paths(k))) then
         call set_error(err, err_input, target // ': is also given as a shard to merge; choose another output')
@@ -57,9 +64,11 @@ contains
       if (path_kind(files%target) /= kind_missing) &
         call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
     end if
+    if (path_kind(files%target) /= kind_missing) call check_replace(files%target, err)
     call files%discard(files%partial, work_partial, err)
     if (.not. err%failed()) then
       call merge_into(files%partial, shard_paths, prov_in, err)
+      if (err%code == err_input) call read_error_instead(err)
       if (err%failed()) then
         ! (apart from err, which says why the merge failed and keeps it)
         call files%discard(files%partial, work_partial, cleanup)
@@ -69,6 +78,17 @@ contains
     end if
     if (.not. present(locked)) call files%release(err)
   end subroutine merge_shards
+
+  !> A shard that could not be read (a read error: EIO) is no verdict on
+  !> what it holds: where a system call of HDF5's failed during the merge,
+  !> err says that, not what the shard seemed to hold.
+  subroutine read_error_instead(err)
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: words, file
+    if (.not. system_failure(words, file)) return
+    if (len(file) == 0) file = 'a shard'
+    call set_error(err, err_output, file // ': cannot read it: ' // words)
+  end subroutine read_error_instead
 
   subroutine merge_into(partial, shard_paths, prov_in, err)
     character(len=*), intent(in) :: partial

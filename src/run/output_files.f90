@@ -22,12 +22,12 @@ module ellroll_output_files
   use ellroll_strings, only: itoa
   use ellroll_system, only: system_error_text, folder_of, utc_timestamp, shown_command_line
   use ellroll_hdf5_reader, only: h5_input_t
-  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, sync_path, sync_folder, read_head, &
-      lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
+  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
+      sync_folder, read_head, lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
   implicit none
   private
 
-  public :: output_files_t, work_partial, work_journal, work_target, work_lock
+  public :: output_files_t, check_replace, work_partial, work_journal, work_target, work_lock
 
   !> What a file at a work name must be for ellroll to remove or replace it.
   integer, parameter :: work_partial = 1, work_journal = 2, work_target = 3, work_lock = 4
@@ -35,7 +35,7 @@ module ellroll_output_files
   !> The longest command a lock's note holds (ellroll_system's shown_command_line)
   integer, parameter :: lock_note_command = 400
 
-  integer, parameter :: enoent = 2, eagain = 11, eexist = 17, enolck = 37, enosys = 38, eopnotsupp = 95
+  integer, parameter :: eperm = 1, enoent = 2, eagain = 11, eexist = 17, enolck = 37, enosys = 38, eopnotsupp = 95
 
   type :: output_files_t
     character(len=:), allocatable :: target, partial, resumed, journal, lock
@@ -131,7 +131,8 @@ contains
     integer, intent(in) :: what
     type(error_t), intent(inout) :: err
     integer :: kind
-    logical :: is_input
+    logical :: is_input, ours
+    character(len=:), allocatable :: unread
     if (err%failed()) return
     kind = path_kind(path)
     if (kind == kind_missing) return
@@ -150,12 +151,36 @@ contains
     else if (is_input) then
       call set_error(err, err_output, path // ': is the input file; it is never written: choose another ' // &
                      'output name')
-    else if (.not. is_ellroll_file(path, what)) then
-      call set_error(err, err_output, path // ': exists and is not an ellroll ' // trim(merge('work file  ', &
+    else
+      call look_at(path, what, ours, unread)
+      if (len(unread) > 0) then              ! no verdict on a file that cannot be read
+        call set_error(err, err_output, unread)
+      else if (.not. ours) then
+        call set_error(err, err_output, path // ': exists and is not an ellroll ' // trim(merge('work file  ', &
                      'output file', what /= work_target)) // '; it is never replaced, even with --overwrite: ' // &
                      'remove it, or choose another output name')
+      end if
     end if
   end subroutine check
+
+  !> Whether the file at `path` may be replaced (renamed over) or removed
+  !> by this process: in a folder with the sticky bit (/tmp, a shared
+  !> scratch folder) only the owner of the file or of the folder may. Else
+  !> err (exit 3), before any case runs.
+  subroutine check_replace(path, err)
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    integer :: code, owner
+    if (err%failed()) return
+    code = sticky_refusal(path, folder_of(path), owner)
+    if (code == eperm) then
+      call set_error(err, err_output, path // ': cannot be replaced by this user: it belongs to user id ' // &
+          itoa(owner) // ', and its folder ' // folder_of(path) // ' has the sticky bit (only the owner of the ' // &
+          'file or of the folder may replace it); choose another output name')
+    else if (code /= 0) then
+      call set_error(err, err_output, path // ': cannot look at it: ' // system_error_text(code))
+    end if
+  end subroutine check_replace
 
   !> Remove a work file (checked first: ours, not a link, not the input);
   !> nothing there is no error.
@@ -182,15 +207,23 @@ contains
     character(len=*), intent(in) :: finished
     type(error_t), intent(inout) :: err
     integer :: code
+    logical :: replacing
     if (err%failed()) return
     call self%check(self%target, work_target, err)
     if (err%failed()) return
+    replacing = path_kind(self%target) /= kind_missing
     code = sync_path(finished)
     if (code /= 0) then
       call set_error(err, err_output, finished // ': cannot write it to the disk: ' // system_error_text(code))
       return
     end if
-    code = rename_path(finished, self%target)
+    ! a file at the output's name, checked above, is replaced; where none
+    ! was, none made since (by another process, while the sync took) is
+    if (replacing) then
+      code = rename_path(finished, self%target)
+    else
+      code = rename_new(finished, self%target)
+    end if
     if (code /= 0) then
       call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
                      ' into place: ' // system_error_text(code))
@@ -207,15 +240,19 @@ contains
         'complete, but its journal cannot be removed: ' // system_error_text(code) // '; remove it by hand')
   end subroutine commit
 
-  !> Whether the regular file at path is a file ellroll made of kind `what`:
-  !> an output is an HDF5 file that says it is ellroll's; a work file is
-  !> told by its first bytes: an HDF5 file (signature at byte 0, or at 512
+  !> Whether the regular file at path is a file ellroll made of kind `what`
+  !> (ours): an output is an HDF5 file that says it is ellroll's; a work file
+  !> is told by its first bytes: an HDF5 file (signature at byte 0, or at 512
   !> behind the trajectories' label), a label of trajectories in place (a
   !> resume keeps only them), a journal, or an empty or torn beginning of
   !> one of these (a run killed as it created it: nothing, or zeros).
-  logical function is_ellroll_file(path, what) result(ours)
+  !> unread: '' or, where the file cannot be read, why ('PATH: cannot read
+  !> it: REASON'), and ours is then false.
+  subroutine look_at(path, what, ours, unread)
     character(len=*), intent(in) :: path
     integer, intent(in) :: what
+    logical, intent(out) :: ours
+    character(len=:), allocatable, intent(out) :: unread
     character(len=*), parameter :: hdf5_signature = char(137) // 'HDF' // achar(13) // achar(10) // &
         achar(26) // achar(10)
     character(len=*), parameter :: label = 'ellroll:', journal_magic = 'ELLROLL', lock_mark = 'ellroll lock'
@@ -224,14 +261,20 @@ contains
     type(h5_input_t) :: output
     type(error_t) :: not_ours
     ours = .false.
+    unread = ''
     if (what == work_target) then
       call output%open(path, not_ours)
       call output%close()
       ours = .not. not_ours%failed()
+      ! (err_output: it could not be read, or a process writes it)
+      if (not_ours%code == err_output) unread = not_ours%message
       return
     end if
     call read_head(path, head, n)
-    if (n < 0) return
+    if (n < 0) then
+      unread = path // ': cannot read it: ' // system_error_text(-n)
+      return
+    end if
     if (verify(head(:n), char(0)) == 0) then          ! empty, or never written
       ours = .true.
       return
@@ -245,5 +288,5 @@ contains
       ours = head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. head(1:min(n, 8)) == label(:min(n, 8))
       if (n >= 520) ours = ours .or. (verify(head(:512), char(0)) == 0 .and. head(513:520) == hdf5_signature)
     end select
-  end function is_ellroll_file
+  end subroutine look_at
 end module ellroll_output_files

@@ -16,7 +16,7 @@ module ellroll_output_start
   use ellroll_resume, only: open_for_resume, copy_journaled_cases
   use ellroll_system, only: folder_write_error, folder_of, system_error_text
   use ellroll_files, only: path_kind, kind_regular
-  use ellroll_output_files, only: output_files_t, work_partial, work_journal, work_target
+  use ellroll_output_files, only: output_files_t, check_replace, work_partial, work_journal, work_target
   use ellroll_shards, only: shard_slots, campaign_id
   implicit none
   private
@@ -72,7 +72,8 @@ contains
     target_exists = path_kind(files%target) == kind_regular
     journal_exists = path_kind(files%journal) == kind_regular
     target_complete = .false.
-    if (target_exists) target_complete = holds_this_run(files%target, inp, shard)
+    if (target_exists) target_complete = holds_this_run(files%target, inp, shard, err)
+    if (err%failed()) return
     if (journal_exists .and. target_complete) then
       write (error_unit, '(a)') 'ellroll: ' // files%target // ': complete; removing the journal of the run ' // &
           'that wrote it (' // files%journal // ')'
@@ -112,6 +113,9 @@ contains
         call set_error(err, err_output, files%target // ': output file exists; pass --overwrite to replace it')
       end if
     end if
+    ! the finished file goes over the output at the end: refused now where
+    ! it could not (a sticky folder, another user's file), not after the run
+    if (target_exists .and. .not. nothing_to_do) call check_replace(files%target, err)
     if (err%failed() .or. nothing_to_do .or. resume) return
     ! afresh: what an earlier run left goes (the output itself stays until the new one replaces it)
     call files%discard(files%resumed, work_partial, err)
@@ -120,23 +124,30 @@ contains
   end subroutine decide_start
 
   !> Whether the output at path is complete and of this campaign and shard.
-  logical function holds_this_run(path, inp, shard) result(holds)
+  !> A file that cannot be read (a read error) is no answer: with `err`,
+  !> that is an error (exit 3).
+  logical function holds_this_run(path, inp, shard, err) result(holds)
     character(len=*), intent(in) :: path
     type(run_input_t), intent(in) :: inp
     integer, intent(in) :: shard(2)
+    type(error_t), intent(inout), optional :: err
     type(h5_input_t) :: existing
     type(error_t) :: unreadable
     character(len=:), allocatable :: id, spec
     integer(i8), allocatable :: status(:)
+    logical :: read_error
     holds = .false.
     call existing%open(path, unreadable)
-    if (unreadable%failed()) return
-    call existing%text_attribute('campaign_id', id)
-    call existing%text_attribute('shard', spec)
-    allocate (status, source=existing%int_column('summary/status', unreadable))
-    call existing%close()
-    holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
-            spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
+    if (.not. unreadable%failed()) then
+      call existing%text_attribute('campaign_id', id)
+      call existing%text_attribute('shard', spec)
+      allocate (status, source=existing%int_column('summary/status', unreadable))
+      read_error = existing%read_failed(unreadable)     ! (unreadable then says why)
+      call existing%close()
+      holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
+              spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
+    end if
+    if (present(err) .and. unreadable%code == err_output) err = unreadable
   end function holds_this_run
 
   !> Create the output file and the journal, or on a resume the file into

@@ -171,3 +171,19 @@ def test_merge_refuses_a_shard_damaged_in_any_case(ellroll, shards):
     with h5py.File(folder / "m.h5", "r") as merged, h5py.File(folder / "whole.h5", "r") as whole:
         for name in ("summary/checksum", "trajectory/contact", "trajectory/regime", "switches/switch_time", "time"):
             assert merged[name][()].tobytes() == whole[name][()].tobytes(), name
+
+
+@pytest.mark.parametrize("keep", [0.1, 0.5, 0.9])
+def test_merge_refuses_a_shard_cut_short_with_exit_2_naming_it(ellroll, shards, tmp_path, keep):
+    """A shard cut short (a copy that stopped: HDF5's own tables end before
+    the file says they do) ends the merge with exit 2 naming the shard, and
+    leaves no output (docs/campaigns.md)."""
+    folder, _ = shards
+    for i in range(2):
+        shutil.copy(folder / f"s{i}.h5", tmp_path / f"s{i}.h5")
+    whole = (tmp_path / "s1.h5").read_bytes()
+    (tmp_path / "s1.h5").write_bytes(whole[:int(len(whole) * keep)])
+    result = run(ellroll, "merge", "m.h5", "s0.h5", "s1.h5", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "ellroll: error: s1.h5: damaged" in result.stderr, result.stderr
+    assert not any((tmp_path / name).exists() for name in WORK_NAMES)

@@ -26,7 +26,7 @@ from test_output_safety import printed_folder
 
 FULL = os.environ.get("ELLROLL_FAULT_FULL") == "1"
 SAMPLE_PER_KIND = 3          # in CI: the first, the last and this many more of each kind
-WRITE_CALLS = ["pwrite64", "pwritev", "write", "fsync", "ftruncate", "rename", "unlink", "close"]
+WRITE_CALLS = ["pwrite64", "pwritev", "write", "fsync", "ftruncate", "rename", "renameat2", "unlink", "close"]
 STRACE = shutil.which("strace")
 
 # 16 cases of rolling resistance (one at a time: blocks of 4 on one thread),
@@ -144,7 +144,7 @@ def test_a_fault_at_each_write_is_an_error_or_the_right_file(ellroll, tmp_path, 
     assert undisturbed.returncode == 0, undisturbed.stderr
     assert_same_datasets(base / reference, counting / "out.h5")
     ordinals = call_ordinals(trace, first_file)
-    assert ordinals["pwrite64"] and ordinals["pwritev"] and ordinals["rename"], ordinals
+    assert ordinals["pwrite64"] and ordinals["pwritev"] and (ordinals["rename"] or ordinals["renameat2"]), ordinals
     seed = 20261125 + ["run", "resume", "merge"].index(command)
     outcomes = {}
     for call, n, fault in faults(chosen(ordinals, seed), seed):
@@ -196,3 +196,95 @@ def test_an_io_error_on_standard_output_is_exit_3(ellroll, printed, command):
     no_crash(result, command)
     assert result.returncode == 3, result.stderr
     assert "cannot write the standard output: Input/output error" in result.stderr
+
+
+def read_ordinals(ellroll, folder, args, path):
+    """The pread64 calls (ordinals, strace's when=) on `path` in an
+    undisturbed run; of the output, those before the work file is made
+    (those after read the file the command writes)."""
+    trace = folder / "reads.txt"
+    result = subprocess.run([STRACE, "-f", "-P", path, "-P", "out.h5.partial", "-P", "out.h5.partial.new", "-e",
+                             "trace=pread64,openat", "-o",
+                             str(trace), str(ellroll), *args], cwd=folder, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    n, ordinals, mine = 0, [], set()
+    for line in trace.read_text().splitlines():
+        opened = re.search(r'openat\(AT_FDCWD, "([^"]+)", (\S+).*= (-?\d+)', line)
+        if opened:
+            name, flags, fd = opened.groups()
+            if name in ("out.h5.partial", "out.h5.partial.new") and "O_CREAT" in flags and path == "out.h5":
+                break
+            (mine.add if name == path else mine.discard)(fd)
+        read = re.search(r"pread64\((\d+),", line)
+        if read and read.group(1) in mine:      # (strace -P counts these alone)
+            n += 1
+            ordinals.append(n)
+    return ordinals
+
+
+@pytest.mark.parametrize("command", ["overwrite", "merge", "resume"])
+def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_path, command):
+    """EIO on a read of the existing output (--overwrite), of a shard
+    (merge; seeded sample of its reads) or of a killed run's lock (--resume):
+    exit 3, 'cannot read it: Input/output error', never advice to remove a
+    file that could not be read, every file left as it was."""
+    base = tmp_path / "base"
+    base.mkdir()
+    (base / "camp.nml").write_text(CAMPAIGN)
+    if command == "overwrite":
+        assert subprocess.run([str(ellroll), "run", "camp.nml", "-q"], cwd=base).returncode == 0
+        args, path = ["run", "camp.nml", "-q", "--overwrite"], "out.h5"
+    elif command == "merge":
+        for shard in ("0/2", "1/2"):
+            assert subprocess.run([str(ellroll), "run", "camp.nml", "-q", "--shard", shard, "-o", f"s{shard[0]}.h5"],
+                                  cwd=base).returncode == 0
+        args, path = ["merge", "out.h5", "s0.h5", "s1.h5"], "s1.h5"
+    else:
+        killed = strace([ellroll, "run", "camp.nml", "-q", "--threads", "1"], base,
+                         inject="pwritev:signal=SIGKILL:when=5")
+        assert killed.returncode != 0 and (base / "out.h5.journal").exists(), killed.stderr
+        # a lock file left as a killed run on another machine's file system may leave it
+        (base / "out.h5.lock").write_text("ellroll lock\nhost h, pid 1, started t: ellroll run camp.nml\n")
+        args, path = ["run", "camp.nml", "-q", "--resume"], "out.h5.lock"
+    counting = tmp_path / "counting"
+    shutil.copytree(base, counting)
+    ordinals = read_ordinals(ellroll, counting, args, path)
+    assert ordinals
+    rng = random.Random(20261127)
+    picked = ordinals if len(ordinals) <= 6 else sorted({ordinals[0], ordinals[-1], *rng.sample(ordinals, 4)})
+    before = {p.name: p.read_bytes() for p in base.iterdir()}
+    for n in picked:
+        folder = tmp_path / f"eio{n}"
+        shutil.copytree(base, folder)
+        result = subprocess.run([STRACE, "-f", "-o", "/dev/null", "-P", path, "-e", "trace=pread64", "-e",
+                                 f"inject=pread64:error=EIO:when={n}", str(ellroll), *args], cwd=folder,
+                                capture_output=True, text=True, timeout=120)
+        detail = f"{command}: EIO at read #{n} of {path}:\n{result.stderr}"
+        no_crash(result, detail)
+        assert result.returncode == 3, detail
+        assert re.search(f"ellroll: error: {re.escape(path)}: (cannot read it|cannot open the HDF5 file|cannot take the "
+                         "output's lock): "
+                         "Input/output error", result.stderr), detail
+        assert "remove it" not in result.stderr and "not an ellroll" not in result.stderr, detail
+        assert {p.name: p.read_bytes() for p in folder.iterdir()} == before, detail
+        shutil.rmtree(folder)
+
+
+def test_a_write_error_on_a_worker_thread_prints_no_hdf5_error_stack(ellroll, tmp_path):
+    """ENOSPC at pwrite64 calls of a run on 2 threads (windows are written by
+    whichever thread completes them): ellroll's own message, and none of
+    HDF5's (HDF5-DIAG) on any thread."""
+    (tmp_path / "camp.nml").write_text(CAMPAIGN)
+    seen = set()
+    for n in range(6, 60, 3):
+        for p in tmp_path.glob("out.h5*"):
+            p.unlink()
+        result = strace([ellroll, "run", "camp.nml", "-q", "--threads", "2"], tmp_path,
+                        inject=f"pwrite64:error=ENOSPC:when={n}")
+        no_crash(result, result.stderr)
+        assert "HDF5-DIAG" not in result.stderr, f"pwrite64 #{n}:\n{result.stderr}"
+        if result.returncode == 3:
+            assert "No space left on device" in result.stderr
+            assert len(result.stderr.splitlines()) <= 3, result.stderr
+        seen.add(result.returncode)
+    assert 3 in seen

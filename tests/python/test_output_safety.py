@@ -436,3 +436,16 @@ def test_a_lost_standard_output_is_exit_3(ellroll, printed, command):
     assert lost.returncode >= 0, command
     assert lost.returncode == 3, lost.stderr
     assert "cannot write the standard output: No space left on device" in lost.stderr
+
+
+@pytest.mark.skipif(shutil.which("strace") is None, reason="strace is not installed")
+def test_a_run_on_a_file_system_without_locks_leaves_no_lock_file(ellroll, tmp_path):
+    """fcntl F_SETLK failing with ENOLCK (a file system without locks): the
+    run warns, writes its output, and leaves no OUT.lock (docs/usage.md)."""
+    folder = folder_with(tmp_path)
+    result = subprocess.run(["strace", "-f", "-o", "/dev/null", "-e", "inject=fcntl:error=ENOLCK",
+                             str(ellroll), "run", "camp.nml", "-q"], cwd=folder, capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "the file system cannot lock files (No locks available)" in result.stderr
+    assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"]

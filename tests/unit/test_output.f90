@@ -18,6 +18,7 @@ program test_output
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: trajectory_store_t
+  use ellroll_system, only: open_for_writing
   use fixtures, only: paper_case
   use testing, only: check, finish
   implicit none
@@ -195,7 +196,7 @@ contains
     open (newunit=unit, file=store_path, status='replace')
     close (unit)
     address = merge(1024_i8, -1_i8, fields)
-    call store%start(store_path, n_cases, n_samples, fields, address, 200_i8, err)
+    call store%start(store_path, open_for_writing(store_path), n_cases, n_samples, fields, address, 200_i8, err)
   end subroutine start_store
 
   subroutine remove(file)
