@@ -13,7 +13,8 @@ module ellroll_adaptive_run
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal
-  use ellroll_events, only: event_search_t, max_event_trials
+  use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
+  use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
@@ -26,7 +27,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, attempt_step
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: beyond_rim, slip_inside, locate_crossing, end_at_crossing
+  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing
 
   !> A maximum of the nutation angle located inside a step.
   type :: nutation_peak_t
@@ -69,7 +70,7 @@ contains
     if (present(t_start)) t = t_start
     if (present(slipped)) slipped = .false.
     round_off_attempts = 0
-    h_max = cs%param(p_dt)
+    h_max = min(cs%param(p_dt), longest_step(run%ball%excitation))
     control%order = pair%control_order()
     call pair%initial_step(run%ball, t, y, f, h_max, h, res%n_rhs)
     t_stop = cs%t_end
@@ -105,8 +106,8 @@ contains
           return
         end if
       end if
-      if (run%ball%mu > 0) then
-        call slip_inside(pair, run, y, f, obs%friction_needed, status, passed, res%n_rhs)
+      if (run%ball%reaction_limited()) then
+        call reaction_inside(pair, run, y, f, obs%friction_needed, obs%reaction_normal, status, passed, res%n_rhs)
         if (status /= status_completed) then
           call end_in_step(status, passed)
           return
@@ -408,106 +409,91 @@ contains
     beyond_rim = .not. peak%normal_z > 0
   end function beyond_rim
 
-  !> With a friction limit (mu > 0): whether the path inside the last
-  !> attempt (in pair), from (y, f) at its start to its end (friction_end
-  !> needed there), both inside, passes the limit. The friction needed is
-  !> smooth along the path, and where a slip only grazes the limit its
-  !> maximum is narrow: a step can begin and end below the limit and pass it
-  !> between. The friction is evaluated on the dense output at 1e-3, 1/4,
-  !> 1/2, 3/4 and 1 - 1e-3 of the step; each maximum among these and the
-  !> ends that lies inside (in time order) is refined by successive
-  !> parabolas (golden sections where a parabola's vertex falls outside its
-  !> bracket) to 1e-6 of the step. (A maximum within 1e-3 of the step from
-  !> an end shows as a rise to it at the end.) status: status_completed, or
-  !> the limit met where the dense output passes it, at offset from the
-  !> step's start (for locate_crossing). Its RHS calls count in n_rhs.
-  subroutine slip_inside(pair, run, y, f, friction_end, status, offset, n_rhs)
+  !> With a limit of the reaction (mu > 0, or a cup that moves:
+  !> reaction_limited): whether the path inside the last attempt (in pair),
+  !> from (y, f) at its start to its end (friction_end needed and normal
+  !> force normal_end there), both inside, passes the limit. The friction
+  !> needed and N are smooth along the path, and where a slip or a lift-off
+  !> only grazes the limit the friction's maximum or N's minimum is narrow:
+  !> a step can begin and end inside and pass the limit between. Both are
+  !> evaluated on the dense output at 1e-3, 1/4, 1/2, 3/4 and 1 - 1e-3 of
+  !> the step (a step in a harmonically shaken cup is half a period at most:
+  !> longest_step); each maximum of the friction (mu > 0) and each minimum
+  !> of N (a moving cup: in a fixed one N >= m g n_z) among these and the
+  !> ends that lies inside is refined, in time order, by successive
+  !> parabolas (peak_search_t) to 1e-6 of the step. (One within 1e-3 of the
+  !> step from an end shows as a rise to it at the end.) status:
+  !> status_completed, or the limit met where the dense output passes it,
+  !> at offset from the step's start (for locate_crossing). Its RHS calls
+  !> count in n_rhs.
+  subroutine reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
-    real(wp), intent(in) :: y(state_size), f(state_size), friction_end
+    real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
     integer, intent(out) :: status
     real(wp), intent(out) :: offset
     integer(i8), intent(inout) :: n_rhs
-    real(wp), parameter :: golden = 0.381966011250105_wp, resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
+    real(wp), parameter :: resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
     real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
-    integer, parameter :: max_trials = 60
     type(observation_t) :: obs
-    real(wp) :: value(0:6)
+    real(wp) :: friction(0:6), lowered(0:6)       ! lowered: -N, whose maxima are N's minima
+    logical :: slips, lifts
     integer :: i
     status = status_completed
     offset = 0
+    slips = run%ball%mu > 0
+    lifts = run%ball%excitation%kind /= excitation_none
     call observe(run%ball, pair%t_old, y, f, obs)
-    value(0) = obs%friction_needed
-    value(6) = friction_end
+    friction(0) = obs%friction_needed
+    lowered(0) = -obs%reaction_normal
+    friction(6) = friction_end
+    lowered(6) = -normal_end
     do i = 1, 5
-      if (trial(theta(i), value(i))) return
+      if (trial(theta(i), friction(i), lowered(i))) return
     end do
     do i = 1, 5
-      if (value(i) >= value(i - 1) .and. value(i) >= value(i + 1)) then
-        if (maximum_passes(theta(i - 1), theta(i), theta(i + 1), value(i - 1), value(i), value(i + 1))) return
+      if (slips .and. friction(i) >= friction(i - 1) .and. friction(i) >= friction(i + 1)) then
+        if (peak_passes(theta(i - 1:i + 1), friction(i - 1:i + 1), .true.)) return
+      end if
+      if (lifts .and. lowered(i) >= lowered(i - 1) .and. lowered(i) >= lowered(i + 1)) then
+        if (peak_passes(theta(i - 1:i + 1), lowered(i - 1:i + 1), .false.)) return
       end if
     end do
   contains
-    !> The friction needed at theta; true where the dense output passes a limit there.
-    logical function trial(at, friction)
+    !> The friction needed and -N at theta; true where the dense output passes a limit there.
+    logical function trial(at, friction_at, lowered_at)
       real(wp), intent(in) :: at
-      real(wp), intent(out) :: friction
+      real(wp), intent(out) :: friction_at, lowered_at
       call dense_state(pair, run, at, .true., obs, n_rhs)
-      friction = obs%friction_needed
+      friction_at = obs%friction_needed
+      lowered_at = -obs%reaction_normal
       status = limit_status(run%ball, [obs%normal, obs%omega], obs)
       trial = status /= status_completed
       if (trial) offset = at * pair%h
     end function trial
 
-    !> The maximum bracketed by a < b < c (fb >= fa, fc), refined until it
-    !> passes a limit (true) or the bracket is resolution wide.
-    logical function maximum_passes(a0, b0, c0, fa0, fb0, fc0) result(passes)
-      real(wp), intent(in) :: a0, b0, c0, fa0, fb0, fc0
-      real(wp) :: a, b, c, fa, fb, fc, x, fx, numerator, denominator
-      integer :: k
-      a = a0
-      b = b0
-      c = c0
-      fa = fa0
-      fb = fb0
-      fc = fc0
+    !> The maximum of the friction (of_friction) or of -N bracketed at the
+    !> offsets at(2) (values: theirs), refined until it passes a limit
+    !> (true) or the bracket is resolution wide.
+    logical function peak_passes(at, values, of_friction) result(passes)
+      real(wp), intent(in) :: at(3), values(3)
+      logical, intent(in) :: of_friction
+      type(peak_search_t) :: search
+      real(wp) :: x, fx, other
+      call search%start(at(1), at(2), at(3), values(1), values(2), values(3), resolution)
       passes = .false.
-      do k = 1, max_trials
-        if (c - a <= resolution) exit
-        ! the vertex of the parabola through the bracket
-        numerator = (b - a)**2 * (fb - fc) - (b - c)**2 * (fb - fa)
-        denominator = (b - a) * (fb - fc) - (b - c) * (fb - fa)
-        x = -1
-        if (.not. is_zero(denominator)) x = b - 0.5_wp * numerator / denominator
-        if (.not. (x > a .and. x < c) .or. abs(x - b) < 0.25_wp * resolution) then
-          if (c - b > b - a) then
-            x = b + golden * (c - b)
-          else
-            x = b - golden * (b - a)
-          end if
-        end if
-        passes = trial(x, fx)
-        if (passes) return
-        if (fx >= fb) then
-          if (x > b) then
-            a = b
-            fa = fb
-          else
-            c = b
-            fc = fb
-          end if
-          b = x
-          fb = fx
-        else if (x > b) then
-          c = x
-          fc = fx
+      do while (.not. search%done())
+        x = search%trial()
+        if (of_friction) then
+          passes = trial(x, fx, other)
         else
-          a = x
-          fa = fx
+          passes = trial(x, other, fx)
         end if
+        if (passes) return
+        call search%report(x, fx)
       end do
-    end function maximum_passes
-  end subroutine slip_inside
+    end function peak_passes
+  end subroutine reaction_inside
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(pair, run, search, res)

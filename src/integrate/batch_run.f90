@@ -21,12 +21,13 @@ module ellroll_batch_run
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, set_lane, lanes_observe, runs_in_lanes, &
       lanes_rolling_stops, lanes_at_rest, keep_accepted
   use ellroll_excitation_lanes, only: excitation_lanes_t
+  use ellroll_excitation, only: longest_step
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
       track_rolling_resistance, settled, last_fixed_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
-      stop_in_step, record_samples_until, beyond_rim, slip_inside
+      stop_in_step, record_samples_until, beyond_rim, reaction_inside
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
@@ -411,7 +412,8 @@ contains
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0))
+        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0 &
+                                                                      .or. balls%moves > 0))
         if (any(dense)) then
           if (b%cups%moving) then
             call lanes_pair_dense_stages(pairs(1), balls, y, h, k, b%cups, t)
@@ -549,7 +551,7 @@ contains
       control(l)%order = pairs(1)%control_order()
       rtol(l) = cases(i)%param(p_rtol)
       atol(l) = cases(i)%param(p_atol)
-      h_max(l) = cases(i)%param(p_dt)
+      h_max(l) = min(cases(i)%param(p_dt), longest_step(b%run(i)%ball%excitation))
       t_end(l) = cases(i)%t_end
       y_lane = b%y(l, :)
       f_lane = b%f(l, :)
@@ -595,11 +597,11 @@ contains
           cycle
         end if
       end if
-      if (b%balls%mu(l) > 0) then
+      if (b%run(l)%ball%reaction_limited()) then
         y_lane = b%y(l, :)
         f_lane = b%f(l, :)
-        call slip_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), inside_status(l), &
-                         passed(l), results(l)%n_rhs)
+        call reaction_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
+                             out%quantity(l, q_reaction_normal), inside_status(l), passed(l), results(l)%n_rhs)
       end if
     end do
   end subroutine limits_inside_steps

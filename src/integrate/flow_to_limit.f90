@@ -12,9 +12,10 @@ module ellroll_flow_to_limit
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: embedded_pair_t, new_pair
   use ellroll_case_run, only: run_state_t, limit_search_t, track
+  use ellroll_excitation, only: longest_step
   use ellroll_step_control, only: step_control_t, next_step, smallest_step_ulps
   use ellroll_adaptive_run, only: nutation_peak_t, attempt_step, locate_crossing, record_samples_until, end_at_crossing, &
-      nutation_peak_inside, locate_nutation_peak, beyond_rim, slip_inside
+      nutation_peak_inside, locate_nutation_peak, beyond_rim, reaction_inside
   implicit none
   private
 
@@ -59,7 +60,7 @@ contains
     type(observation_t) :: obs
     type(observation_t), allocatable :: untracked(:)
     real(wp), allocatable :: untracked_t(:)
-    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed
+    real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed, h_max
     integer :: status, n_untracked
     integer(i8) :: n_recorded
     met = .false.
@@ -72,7 +73,8 @@ contains
     call ball_derivative(run%ball, t_at, y_at, f_at)
     res%n_rhs = res%n_rhs + 1
     control%order = pair%control_order()
-    call pair%initial_step(run%ball, t_at, y_at, f_at, t_until - t_from, h, res%n_rhs)
+    h_max = min(t_until - t_from, longest_step(run%ball%excitation))
+    call pair%initial_step(run%ball, t_at, y_at, f_at, h_max, h, res%n_rhs)
     allocate (untracked(64), untracked_t(64))
     n_untracked = 0
     do while (t_at < t_until)
@@ -105,8 +107,8 @@ contains
           passed = peak%t - t_at
         end if
       end if
-      if (passed < 0 .and. run%ball%mu > 0) &
-        call slip_inside(pair, run, y_at, f_at, obs%friction_needed, status, passed, res%n_rhs)
+      if (passed < 0 .and. run%ball%reaction_limited()) &
+        call reaction_inside(pair, run, y_at, f_at, obs%friction_needed, obs%reaction_normal, status, passed, res%n_rhs)
       if (status /= status_completed) then        ! the path passed a limit inside the step
         met = .true.
         call track_untracked()
@@ -129,7 +131,7 @@ contains
         untracked_t(n_untracked) = t_at
         call record_samples_until(pair, run, plan, t_at, obs, res)
       end if
-      call control%accept(h, pair%error_norm, t_until - t_from)
+      call control%accept(h, pair%error_norm, h_max)
     end do
     res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
   contains

@@ -6,8 +6,9 @@ module ellroll_slide_regime
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_completed, status_unstable, status_rim
+  use ellroll_excitation, only: excitation_none
   use ellroll_ode, only: no_step_solution
-  use ellroll_events, only: crossing_search_t, max_event_trials
+  use ellroll_events, only: crossing_search_t, peak_search_t, max_event_trials
   use ellroll_cases, only: case_t, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, add_switch, switch_to_rolling
   use ellroll_figures, only: fig_slip_speed_max
@@ -25,7 +26,7 @@ module ellroll_slide_regime
 
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-            add_sliding, end_at_limit, slip_stopped, observe_stopped
+            add_sliding, end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -146,6 +147,117 @@ contains
     n_rhs = n_rhs + 1
     status = limit_status(rolling%ball, new%s(1:6), new%obs)
   end subroutine take
+
+  !> In a cup that moves, whether the path of an embedded pair's accepted
+  !> sliding step from (t, now) of size h (its dense output), which ends
+  !> inside at new, passes a limit between: a lift-off where N dips below
+  !> zero and comes back within the step. N is screened at 1e-3, 1/4, 1/2,
+  !> 3/4 and 1 - 1e-3 of the step and its minima refined as a rolling
+  !> step's (reaction_inside: peak_search_t to 1e-6 of the step). Where the path
+  !> passes a limit, the step is cut to where it is known past it (h, new
+  !> and status that step's).
+  subroutine lift_inside(pair, rolling, sb, t, h, now, new, status, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: h
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(inout) :: new
+    integer, intent(inout) :: status
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), parameter :: resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
+    real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+    type(peak_search_t) :: search
+    real(wp) :: lowered(0:6), x, fx, passed     ! lowered: -N, whose maxima are N's minima
+    integer :: i
+    if (sb%ball%excitation%kind == excitation_none) return    ! (a fixed cup: N >= m g n_z)
+    lowered(0) = -now%obs%reaction_normal
+    lowered(6) = -new%obs%reaction_normal
+    passed = -1
+    do i = 1, 5
+      if (past(theta(i), lowered(i))) exit
+    end do
+    do i = 1, 5
+      if (passed >= 0) exit
+      if (.not. (lowered(i) >= lowered(i - 1) .and. lowered(i) >= lowered(i + 1))) cycle
+      call search%start(theta(i - 1), theta(i), theta(i + 1), lowered(i - 1), lowered(i), lowered(i + 1), resolution)
+      do while (.not. search%done())
+        x = search%trial()
+        if (past(x, fx)) exit
+        call search%report(x, fx)
+      end do
+    end do
+    if (passed < 0) return
+    h = passed * h
+    call take(pair, rolling, sb, t, h, now, new, status, n_rhs)
+  contains
+    !> -N at theta from the dense output; true (passed set) where a limit is passed there.
+    logical function past(at, lowered_at)
+      real(wp), intent(in) :: at
+      real(wp), intent(out) :: lowered_at
+      type(observation_t) :: obs
+      real(wp) :: state(slide_state_size), rate(slide_state_size), slip_speed
+      integer :: met
+      call pair%dense(sb, at, state, n_rhs)
+      call normalize_normal(state)
+      if (at_sliding_rim(state)) then
+        met = status_rim
+        lowered_at = 0
+      else
+        call observe_sliding(sb, t + at * h, state, obs, slip_speed, rate)
+        n_rhs = n_rhs + 1
+        lowered_at = -obs%reaction_normal
+        met = limit_status(rolling%ball, state(1:6), obs)
+      end if
+      past = met /= status_completed
+      if (past) passed = at
+    end function past
+  end subroutine lift_inside
+
+  !> An embedded pair's step from (t, now) of size h, within its tolerance,
+  !> that meets a limit (status): the partial steps towards the limit are
+  !> searched (end_at_limit's bisection) for the last one within the
+  !> tolerance and short of the limit. Where the tolerance, not the limit,
+  !> ends that search (near the rim V_z's 1 / n_z takes a partial step's
+  !> error past it), the step is cut to a partial step within it (the first
+  !> at least half as long as the shortest that is not: h, new and status
+  !> that step's), and the pair's steps go on from there towards the limit,
+  !> so that the limit is located where the path meets it, at any
+  !> tolerance. Otherwise the step is left as it is, for end_at_limit.
+  subroutine within_tolerance_to_limit(pair, rolling, sb, t, h, now, new, status, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t
+    real(wp), intent(inout) :: h
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(inout) :: new
+    integer, intent(inout) :: status
+    integer(i8), intent(inout) :: n_rhs
+    type(crossing_search_t) :: search
+    type(regime_state_t) :: x
+    real(wp) :: trial
+    integer :: k, met
+    logical :: valid, at_limit           ! at_limit: the shortest partial step known invalid meets a limit
+    at_limit = .true.
+    call search%start(h, limit_time_ulps * spacing(t + h))
+    do k = 1, max_event_trials
+      if (search%done()) exit
+      if (.not. at_limit .and. search%valid >= search%invalid / 2) exit
+      trial = search%trial()
+      call take(pair, rolling, sb, t, trial, now, x, met, n_rhs)
+      valid = met == status_completed .and. pair%error_norm <= 1
+      if (.not. valid) at_limit = met /= status_completed
+      call search%report(trial, valid)
+    end do
+    if (at_limit .or. .not. search%valid > 0) then
+      call take(pair, rolling, sb, t, h, now, new, status, n_rhs)    ! (the pair holds the step again)
+      return
+    end if
+    h = search%valid
+    call take(pair, rolling, sb, t, h, now, new, status, n_rhs)
+  end subroutine within_tolerance_to_limit
 
   !> Whether the regime switches between now and new (one step apart):
   !> rolling needs more friction than mu N at new; or the slip, nonzero at

@@ -13,7 +13,7 @@
 module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff
+  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff, status_rim
   use ellroll_events, only: root_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
@@ -24,10 +24,10 @@ module ellroll_slide_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop
-  use ellroll_excitation, only: step_to_sample
+  use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      end_at_limit, slip_stopped, observe_stopped
+      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -241,13 +241,14 @@ contains
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: done
     type(regime_state_t) :: trial
-    real(wp) :: h, h_max, t_next, next_sample_time, factor, window_start
+    real(wp) :: h, h_max, t_next, next_sample_time, factor, window_start, h_rejected
     real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     integer :: status, stalled, hovering, crawling
     integer(i8) :: steps
     logical :: ended, rejected
     h_max = min(cs%t_end, cs%param(p_dt))
     if (.not. ieee_is_finite(h_max) .or. h_max <= 0) h_max = cs%t_end
+    h_max = min(h_max, longest_step(run%ball%excitation))
     call pair%initial_step(sb, t, now%s, now%fs, h_max, h, res%n_rhs)
     h = first_step_fraction * h
     run%maxima%n_samples = 0              ! (Theta's maxima from these step ends alone)
@@ -276,8 +277,14 @@ contains
       call attempt(pair, rolling, sb, t, h, now, trial, status, res, rejected)
       if (rejected) then
         res%n_rejected = res%n_rejected + 1
+        h_rejected = h
         h = h * max(0.2_wp, 0.9_wp * pair%error_norm**(-1.0_wp / pair%control_order()))
         if (h <= 16 * spacing(t)) then
+          if (status /= status_completed) then      ! a limit no step within tolerance reaches: met there
+            call end_at_limit(pair, run, rolling, sb, t, h_rejected, now, tally, res)
+            done = .true.
+            return
+          end if
           res%status = status_unstable
           res%t_final = t
           done = .true.
@@ -345,7 +352,16 @@ contains
     call stop_bracket(pair, rolling, sb, t, h, now, res%n_rhs, h_cut, new, status, taken)
     if (.not. taken) call take(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
     h = h_cut
-    rejected = status == status_completed .and. .not. pair%error_norm <= 1
+    ! a step that passes the rim or lifts off is located only where the
+    ! pair's estimate accepts it, as a rolling step is: near the rim V_z's
+    ! 1 / n_z takes the error of a partial step towards it past the
+    ! tolerance, and the crossing's search (end_at_limit) would stop there
+    rejected = (status == status_completed .or. status == status_rim .or. status == status_liftoff) &
+               .and. .not. pair%error_norm <= 1
+    if (rejected) return
+    if (status == status_completed) call lift_inside(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
+    if (status == status_rim .or. status == status_liftoff) &
+      call within_tolerance_to_limit(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
   end subroutine attempt
 
   !> A step of size h_step from (t, now), through the switches of regime

@@ -6,7 +6,7 @@ module ellroll_excitation
   implicit none
   private
 
-  public :: excitation_t, base_acceleration, set_record, excitation_end, step_to_sample
+  public :: excitation_t, base_acceleration, set_record, excitation_end, step_to_sample, longest_step
   public :: excitation_none, excitation_harmonic, excitation_record, excitation_kind_names
 
   integer, parameter :: excitation_none = 0, excitation_harmonic = 1, excitation_record = 2
@@ -116,6 +116,20 @@ contains
   !> embedded pair's step across such a kink loses its order (its error
   !> stays above the tolerance). A t within 4 units in the last place of a
   !> sample is at it.
+  !> The longest step an embedded pair takes in this cup: half a period of
+  !> harmonic shaking, else no limit. The reaction follows the shaking at
+  !> once, however smooth the state is (a ball at rest takes long steps), and
+  !> a step of half a period holds one dip of N at most (N < 0 lasts less
+  !> than half a period), which the search of the step's dense output for a
+  !> lift-off (reaction_inside: 5 points, 1/8 of a period apart at most)
+  !> brackets; a longer step can hold two, and the crossing located would be
+  !> either.
+  pure real(wp) function longest_step(exc)
+    type(excitation_t), intent(in) :: exc
+    longest_step = huge(1.0_wp)
+    if (exc%kind == excitation_harmonic .and. exc%frequency > 0) longest_step = 0.5_wp / exc%frequency
+  end function longest_step
+
   pure real(wp) function step_to_sample(exc, t, h) result(step)
     type(excitation_t), intent(in) :: exc
     real(wp), intent(in) :: t, h

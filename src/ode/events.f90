@@ -5,11 +5,12 @@
 !> nothing of what the limit or event means.
 module ellroll_events
   use ellroll_kinds, only: wp
+  use ellroll_exact, only: is_zero
   use ellroll_ode, only: hybrid_system_t
   implicit none
   private
 
-  public :: crossing_search_t, root_search_t, event_search_t
+  public :: crossing_search_t, root_search_t, event_search_t, peak_search_t
 
   !> An event search takes at most this many trial states.
   integer, parameter, public :: max_event_trials = 60
@@ -50,6 +51,21 @@ module ellroll_events
     procedure :: begin => begin_event_search
     procedure :: report_state
   end type event_search_t
+
+  !> A maximum of a smooth function bracketed by a < b < c (f(b) >= f(a),
+  !> f(c)), refined by successive parabolas (a golden section where a
+  !> parabola's vertex falls outside the bracket or next to b) until the
+  !> bracket is `resolution` wide or max_event_trials trials are spent.
+  type :: peak_search_t
+    real(wp) :: a = 0, b = 0, c = 0, fa = 0, fb = 0, fc = 0
+    real(wp) :: resolution = 0
+    integer :: trials = 0
+  contains
+    procedure :: start => start_peak
+    procedure :: trial => trial_peak
+    procedure :: report => report_peak
+    procedure :: done => peak_done
+  end type peak_search_t
 
 contains
 
@@ -150,4 +166,64 @@ contains
     if (valid) g = sys%event_value(self%event, y)
     call self%report(offset, g)
   end subroutine report_state
+
+  pure subroutine start_peak(self, a, b, c, fa, fb, fc, resolution)
+    class(peak_search_t), intent(inout) :: self
+    real(wp), intent(in) :: a, b, c, fa, fb, fc, resolution
+    self%a = a
+    self%b = b
+    self%c = c
+    self%fa = fa
+    self%fb = fb
+    self%fc = fc
+    self%resolution = resolution
+    self%trials = 0
+  end subroutine start_peak
+
+  !> The vertex of the parabola through the bracket, or a golden section of
+  !> its longer side.
+  pure real(wp) function trial_peak(self) result(x)
+    class(peak_search_t), intent(in) :: self
+    real(wp), parameter :: golden = 0.381966011250105_wp
+    real(wp) :: numerator, denominator
+    numerator = (self%b - self%a)**2 * (self%fb - self%fc) - (self%b - self%c)**2 * (self%fb - self%fa)
+    denominator = (self%b - self%a) * (self%fb - self%fc) - (self%b - self%c) * (self%fb - self%fa)
+    x = -1
+    if (.not. is_zero(denominator)) x = self%b - 0.5_wp * numerator / denominator
+    if (.not. (x > self%a .and. x < self%c) .or. abs(x - self%b) < 0.25_wp * self%resolution) then
+      if (self%c - self%b > self%b - self%a) then
+        x = self%b + golden * (self%c - self%b)
+      else
+        x = self%b - golden * (self%b - self%a)
+      end if
+    end if
+  end function trial_peak
+
+  pure subroutine report_peak(self, x, fx)
+    class(peak_search_t), intent(inout) :: self
+    real(wp), intent(in) :: x, fx
+    self%trials = self%trials + 1
+    if (fx >= self%fb) then
+      if (x > self%b) then
+        self%a = self%b
+        self%fa = self%fb
+      else
+        self%c = self%b
+        self%fc = self%fb
+      end if
+      self%b = x
+      self%fb = fx
+    else if (x > self%b) then
+      self%c = x
+      self%fc = fx
+    else
+      self%a = x
+      self%fa = fx
+    end if
+  end subroutine report_peak
+
+  pure logical function peak_done(self)
+    class(peak_search_t), intent(in) :: self
+    peak_done = self%c - self%a <= self%resolution .or. self%trials >= max_event_trials
+  end function peak_done
 end module ellroll_events
