@@ -11,7 +11,7 @@
 module ellroll_figures
   use ellroll_records, only: kind_real, kind_int
   use ellroll_params, only: p_capacity
-  use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
+  use ellroll_quantities, only: quantity_count, q_displacement, q_horizontal_force_scaled, q_reaction_normal, &
       q_friction_needed, q_energy, q_surface_residual
   implicit none
   private
@@ -28,12 +28,12 @@ module ellroll_figures
       from_maximum = 3, &      !< the largest value of a step-end quantity (of its change, for a changing one)
       from_maximum_time = 4, & !< the time of that largest value
       from_last = 5, &         !< the quantity at the last step end
-      from_time_beyond = 6     !< the time its root (a squared one's) exceeds the input `threshold`, crossings
+      from_time_beyond = 6     !< the time it exceeds the input `threshold`, crossings
                                !< located by linear interpolation between step ends (NaN where the input is unset)
   !> What is done to the accumulated value at the end of the case.
   integer, parameter, public :: finish_none = 0, &
-      finish_root = 1, &          !< the square root (of a squared quantity)
-      finish_root_per_mass = 2, & !< the square root divided by the ball's mass
+      finish_force = 1, &         !< times 2^exponent(m), m the ball's mass: a force in units of it in N
+      finish_per_mass = 2, &      !< divided by fraction(m) = m / 2^exponent(m): that force per unit mass
       finish_per_start = 3        !< divided by |the quantity at t = 0| (NaN where it is 0 or the quotient overflows)
 
   type :: figure_t
@@ -82,9 +82,9 @@ module ellroll_figures
                from_run), &
       figure_t('displacement_max', 'm', &
                "largest horizontal distance of the centre from the cup's lowest point (cup frame, step ends)", &
-               kind_real, 1, from_maximum, q_displacement_sq, finish_root), &
+               kind_real, 1, from_maximum, q_displacement), &
       figure_t('displacement_max_time', 's', 'time of displacement_max', kind_real, 1, from_maximum_time, &
-               q_displacement_sq), &
+               q_displacement), &
       figure_t('residual_displacement', 'm', &
                "horizontal distance of the centre from the cup's lowest point where it came to rest (NaN: not at rest)", &
                kind_real, 1, from_run), &
@@ -93,17 +93,17 @@ module ellroll_figures
       figure_t('at_rest', '1', '1: at rest for good at t_final (rest_time), 0: moving, or no rolling resistance, ' // &
                'or the cup still moves', kind_int, 1, from_run), &
       figure_t('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball (step ends)', kind_real, &
-               1, from_maximum, q_horizontal_force_sq, finish_root), &
+               1, from_maximum, q_horizontal_force_scaled, finish_force), &
       figure_t('absolute_acceleration_max', 'm/s^2', &
                'largest horizontal absolute acceleration of the centre, |horizontal reaction| / m', kind_real, 1, &
-               from_maximum, q_horizontal_force_sq, finish_root_per_mass), &
+               from_maximum, q_horizontal_force_scaled, finish_per_mass), &
       figure_t('absolute_acceleration_max_time', 's', 'time of absolute_acceleration_max', kind_real, 1, &
-               from_maximum_time, q_horizontal_force_sq), &
+               from_maximum_time, q_horizontal_force_scaled), &
       figure_t('transmissibility', '1', 'harmonic: horizontal |a_C,absolute| / |a_base| at the forcing frequency, ' // &
                'free modes fitted out (NaN: n/a)', kind_real, 1, from_run), &
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
-               kind_real, 1, from_time_beyond, q_displacement_sq, threshold=p_capacity), &
+               kind_real, 1, from_time_beyond, q_displacement, threshold=p_capacity), &
       figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over the step ends ' // &
                'clear of its singular approach', kind_int, 1, from_run), &
       figure_t('sa_linear_periods', 'm/s^2', 'record: 5 %-damped pseudo-spectral acceleration (RotD100) of the ' // &

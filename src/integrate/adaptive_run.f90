@@ -7,6 +7,7 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_norms, only: norm_of
   use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
@@ -244,15 +245,33 @@ contains
   !> step's end is found once).
   pure logical function nutation_peak_inside(y, f, y_new, f_new)
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)     ! (assumed shape: a batch passes lanes' rows)
-    nutation_peak_inside = nutation_trend(y, f) >= 0 .and. nutation_trend(y_new, f_new) < 0
+    nutation_peak_inside = nutation_trend(y, f, lateral_factor(y)) >= 0 .and. &
+                           nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0
   end function nutation_peak_inside
 
   !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
-  !> of either: the part of y' along y cancels, so |n| need not be 1).
-  pure real(wp) function nutation_trend(y, rate)
-    real(wp), intent(in) :: y(:), rate(:)
-    nutation_trend = (y(1) * rate(1) + y(2) * rate(2)) * y(3) - (y(1)**2 + y(2)**2) * rate(3)
+  !> of either: the part of y' along y cancels, so |n| need not be 1), times
+  !> factor^2: the lateral components and their rates taken times factor, a
+  !> power of two (lateral_factor), so that the products of a tiny motion's
+  !> do not underflow.
+  pure real(wp) function nutation_trend(y, rate, factor)
+    real(wp), intent(in) :: y(:), rate(:), factor
+    nutation_trend = ((factor * y(1)) * (factor * rate(1)) + (factor * y(2)) * (factor * rate(2))) * y(3) &
+                     - ((factor * y(1))**2 + (factor * y(2))**2) * rate(3)
   end function nutation_trend
+
+  !> 1, or where the lateral components of y are below 2^-400 (their
+  !> products would lose digits), the power of two that takes the larger to
+  !> [1/2, 1) (a subnormal's towards it): the trend's sign and ratios are the
+  !> same, its round-off not that of the subnormal range.
+  pure real(wp) function lateral_factor(y)
+    real(wp), intent(in) :: y(:)
+    real(wp) :: larger
+    larger = max(abs(y(1)), abs(y(2)))
+    lateral_factor = 1
+    ! (at most 2^1000: a subnormal's exponent goes to -1073, and 2^1073 overflows)
+    if (larger < scale(1.0_wp, -400) .and. larger > 0) lateral_factor = scale(1.0_wp, min(-exponent(larger), 1000))
+  end function lateral_factor
 
   !> The maximum of Theta inside the last attempt (in pair): the root of
   !> d tan(Theta)/dt on its dense output and the interpolant's derivative (a
@@ -270,11 +289,12 @@ contains
     logical, intent(out), optional :: inside
     integer, parameter :: max_iterations = 100
     real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
-    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral
+    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral, factor
     integer :: i, kept_side
     logical :: prepared
     call pair_ball_dense(pair, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
     if (prepared) n_rhs = n_rhs + pair%dense_calls()
+    factor = lateral_factor(y)       ! (one for the step: the trends' ratios are the secant's)
     low = 0
     high = 1
     if (present(upto)) high = upto
@@ -314,7 +334,7 @@ contains
     middle = 0.5_wp * (low + high)
     call pair_ball_dense(pair, ball, middle, y, prepared)
     y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
-    lateral = sqrt(y(1)**2 + y(2)**2)
+    lateral = norm_of(y(1), y(2))
     peak%t = pair%t_old + middle * pair%h
     peak%tan_nutation = lateral / y(3)
     peak%lateral = lateral
@@ -325,7 +345,7 @@ contains
       real(wp) :: state(state_size), rate(max_equations)
       call pair_ball_dense(pair, ball, theta, state, prepared)
       call pair%dense_rate(theta, rate)
-      trend_at = nutation_trend(state, rate(:state_size))
+      trend_at = nutation_trend(state, rate(:state_size), factor)
     end function trend_at
   end subroutine locate_nutation_peak
 

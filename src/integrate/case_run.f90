@@ -8,6 +8,7 @@ module ellroll_case_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8, two_pi
   use ellroll_exact, only: is_zero
+  use ellroll_norms, only: norm_of
   use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
   use ellroll_intensity, only: felt_spectral_acceleration
   use ellroll_status, only: status_completed
@@ -15,7 +16,7 @@ module ellroll_case_run
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
       field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, allocate_fields, fill_unrecorded, set_figure_values
-  use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
+  use ellroll_quantities, only: quantity_count, q_displacement, q_horizontal_force_scaled, q_reaction_normal, &
       q_friction_needed, q_energy, q_surface_residual, q_fit_clearance
   use ellroll_figures, only: figure_slots, fig_sa_linear_periods
   use ellroll_figures, only: fig_theta_max, fig_nutation_maxima, fig_nutation_period, fig_transmissibility, &
@@ -547,14 +548,14 @@ contains
     call add_step_ends(run%stats, q, t)
   end subroutine accumulate
 
-  !> The step-end quantities of an observation (the norms written out, as
+  !> The step-end quantities of an observation (the norms by norm_of, as
   !> the batch's lanes_observe computes them); displacement: of the centre
   !> from the vertical through the lowest point.
   pure function step_quantities(obs) result(q)
     type(observation_t), intent(in) :: obs
     real(wp) :: q(1, quantity_count)
-    q(1, q_displacement_sq) = obs%center(1)**2 + obs%center(2)**2
-    q(1, q_horizontal_force_sq) = obs%reaction(1)**2 + obs%reaction(2)**2
+    q(1, q_displacement) = norm_of(obs%center(1), obs%center(2))
+    q(1, q_horizontal_force_scaled) = obs%horizontal_force_scaled
     q(1, q_reaction_normal) = obs%reaction_normal
     q(1, q_friction_needed) = obs%friction_needed
     q(1, q_energy) = obs%energy

@@ -10,8 +10,8 @@ module ellroll_running
   use ellroll_quantities, only: quantities, quantity_count, q_fit_clearance
   use ellroll_limit_states, only: is_model_limit
   use ellroll_figures, only: figure_t, figures, figure_count, timed, lasting, beyond, from_counter, &
-      from_run, from_maximum, from_maximum_time, from_last, from_time_beyond, finish_none, finish_root, &
-      finish_root_per_mass, finish_per_start, fig_peaks_truncated
+      from_run, from_maximum, from_maximum_time, from_last, from_time_beyond, finish_none, finish_force, &
+      finish_per_mass, finish_per_start, fig_peaks_truncated
   use ellroll_ball_lanes, only: lanes
   use ellroll_results, only: case_result_t
   implicit none
@@ -23,7 +23,7 @@ module ellroll_running
   !> largest value (its change's, for a changing quantity; every quantity is
   !> a magnitude, so they start at 0) and when it was reached, its value at
   !> the last step end; for a time beyond a threshold, the threshold, the
-  !> quantity's root at the last step end (from t = 0 on) and the time so
+  !> quantity at the last step end (from t = 0 on) and the time so
   !> far; and the last step end's time. The same arrays as a batch's with
   !> one row.
   !> The maxima and their times also over the step ends clear of the cup's
@@ -32,7 +32,7 @@ module ellroll_running
   !> limit takes its peaks from those.
   type :: running_t
     real(wp), dimension(1, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
-    real(wp), dimension(1, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
+    real(wp), dimension(1, quantity_count) :: threshold = 0, value_before = 0, time_beyond = 0
     real(wp), dimension(1, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
     integer(i8) :: n_clear(1) = 0, n_unclear(1) = 0
     real(wp) :: last_time(1) = 0
@@ -42,7 +42,7 @@ module ellroll_running
   !> The same for the lanes of a batch, a row per lane.
   type :: running_lanes_t
     real(wp), dimension(lanes, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
-    real(wp), dimension(lanes, quantity_count) :: threshold = 0, root_before = 0, time_beyond = 0
+    real(wp), dimension(lanes, quantity_count) :: threshold = 0, value_before = 0, time_beyond = 0
     real(wp), dimension(lanes, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
     integer(i8) :: n_clear(lanes) = 0, n_unclear(lanes) = 0
     real(wp) :: last_time(lanes) = 0
@@ -80,17 +80,9 @@ contains
       stats%threshold(1, i) = param(f%threshold)
       if (ieee_is_nan(stats%threshold(1, i))) stats%threshold(1, i) = unset
       stats%counting(1) = stats%counting(1) .or. stats%threshold(1, i) < unset
-      stats%root_before(1, i) = root(i, q(1, i))
+      stats%value_before(1, i) = q(1, i)
     end do
   end subroutine start_running
-
-  !> What a time beyond compares: the quantity, or the root of a squared one.
-  pure real(wp) function root(i, value)
-    integer, intent(in) :: i
-    real(wp), intent(in) :: value
-    root = value
-    if (quantities(i)%squared) root = sqrt(value)
-  end function root
 
   !> What an accepted step end at time t with quantities q adds to a case's
   !> statistics (add_row).
@@ -98,7 +90,7 @@ contains
     type(running_t), intent(inout) :: stats
     real(wp), intent(in) :: q(1, quantity_count), t
     call add_row(1, 1, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
-                 stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t)
+                 stats%value_before, stats%time_beyond, stats%last_time, stats%counting, q, t)
     call add_clear(1, 1, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, stats%n_unclear, &
                    q, t)
   end subroutine add_case_step_end
@@ -115,7 +107,7 @@ contains
     do l = 1, lanes
       if (.not. accepted(l)) cycle
       call add_row(lanes, l, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
-                   stats%root_before, stats%time_beyond, stats%last_time, stats%counting, q, t(l))
+                   stats%value_before, stats%time_beyond, stats%last_time, stats%counting, q, t(l))
       call add_clear(lanes, l, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, &
                      stats%n_unclear, q, t(l))
     end do
@@ -151,11 +143,11 @@ contains
   !> the statistics of n rows: the quantities unrolled (constant tests), the
   !> statistics no figure takes dropped; the times beyond only where a
   !> threshold is set (an unset one is huge: nothing is added).
-  pure subroutine add_row(n, l, start, maximum, maximum_time, last, threshold, root_before, time_beyond, last_time, &
+  pure subroutine add_row(n, l, start, maximum, maximum_time, last, threshold, value_before, time_beyond, last_time, &
                           counting, q, t)
     integer, intent(in) :: n, l
     real(wp), intent(in), dimension(n, quantity_count) :: start, threshold, q
-    real(wp), intent(inout), dimension(n, quantity_count) :: maximum, maximum_time, last, root_before, time_beyond
+    real(wp), intent(inout), dimension(n, quantity_count) :: maximum, maximum_time, last, value_before, time_beyond
     real(wp), intent(inout) :: last_time(n)
     logical, intent(in) :: counting(n)
     real(wp), intent(in) :: t
@@ -178,9 +170,9 @@ contains
     if (counting(l)) then
       do j = 1, size(beyond_list)
         i = beyond_list(j)
-        value = root(i, q(l, i))
-        time_beyond(l, i) = time_beyond(l, i) + time_above(root_before(l, i), value, threshold(l, i), t - last_time(l))
-        root_before(l, i) = value
+        value = q(l, i)
+        time_beyond(l, i) = time_beyond(l, i) + time_above(value_before(l, i), value, threshold(l, i), t - last_time(l))
+        value_before(l, i) = value
       end do
     end if
     last_time(l) = t
@@ -215,7 +207,7 @@ contains
     stats%maximum_time(1, :) = lane_stats%maximum_time(l, :)
     stats%last(1, :) = lane_stats%last(l, :)
     stats%threshold(1, :) = lane_stats%threshold(l, :)
-    stats%root_before(1, :) = lane_stats%root_before(l, :)
+    stats%value_before(1, :) = lane_stats%value_before(l, :)
     stats%time_beyond(1, :) = lane_stats%time_beyond(l, :)
     stats%clear_maximum(1, :) = lane_stats%clear_maximum(l, :)
     stats%clear_maximum_time(1, :) = lane_stats%clear_maximum_time(l, :)
@@ -235,7 +227,7 @@ contains
     lane_stats%maximum_time(l, :) = stats%maximum_time(1, :)
     lane_stats%last(l, :) = stats%last(1, :)
     lane_stats%threshold(l, :) = stats%threshold(1, :)
-    lane_stats%root_before(l, :) = stats%root_before(1, :)
+    lane_stats%value_before(l, :) = stats%value_before(1, :)
     lane_stats%time_beyond(l, :) = stats%time_beyond(1, :)
     lane_stats%clear_maximum(l, :) = stats%clear_maximum(1, :)
     lane_stats%clear_maximum_time(l, :) = stats%clear_maximum_time(1, :)
@@ -246,9 +238,9 @@ contains
   end subroutine put_lane
 
   !> The figures made from a case's statistics into res, at the end of the
-  !> case, whose ball has this mass. The roots and quotients are taken of
+  !> case, whose ball has this mass. The scalings and quotients are taken of
   !> the maxima kept: both are correctly rounded and monotonic, so the
-  !> result is the same number as the maximum of the roots or quotients.
+  !> result is the same number as the maximum of the scaled values or quotients.
   !> A case that ended at a model limit (res%status) after step ends not
   !> clear of the cup's curvature takes its maxima over the clear ones
   !> (NaN where none was) and is marked peaks_truncated.
@@ -291,10 +283,10 @@ contains
       end select
       select case (f%finish)
       case (finish_none)
-      case (finish_root)
-        value = sqrt(value)
-      case (finish_root_per_mass)
-        value = sqrt(value) / mass
+      case (finish_force)
+        value = scale(value, exponent(mass))
+      case (finish_per_mass)
+        value = value / fraction(mass)
       case (finish_per_start)
         ! undefined (NaN) where the start is 0, as E0 of a ball at rest
         ! without gravity (the test is also false where the quotient would

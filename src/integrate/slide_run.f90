@@ -18,7 +18,7 @@ module ellroll_slide_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
-  use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
+  use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative, horizontal_force_scaled
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
       slip_stop_time, center_velocity, choose_slip_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t
@@ -142,6 +142,7 @@ contains
     type(sliding_ball_t), intent(in) :: sb
     type(observation_t), intent(inout) :: obs
     obs%reaction = obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode)
+    obs%horizontal_force_scaled = horizontal_force_scaled(obs%reaction, sb%ball%mass)
     obs%friction_needed = sb%ball%mu
     obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
   end subroutine switch_reaction

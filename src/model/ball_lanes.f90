@@ -11,9 +11,10 @@
 !> computes bitwise what it computes in a batch of fixed cups.
 module ellroll_ball_lanes
   use ellroll_kinds, only: wp
+  use ellroll_norms, only: small_sum, norm_up, norm_down
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, constraint_tolerance
   use ellroll_excitation, only: excitation_none
-  use ellroll_quantities, only: quantity_count, q_displacement_sq, q_horizontal_force_sq, q_reaction_normal, &
+  use ellroll_quantities, only: quantity_count, q_displacement, q_horizontal_force_scaled, q_reaction_normal, &
       q_friction_needed, q_energy, q_surface_residual, q_fit_clearance, peak_clearance
   use ellroll_status, only: status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff, status_nonfinite, status_constraint
@@ -32,6 +33,9 @@ module ellroll_ball_lanes
     real(wp), dimension(lanes) :: a2 = 1, b2 = 1, c2 = 1   !< squared semi-axes
     real(wp), dimension(lanes) :: axes2_sum = 3, det_axes2 = 1
     real(wp), dimension(lanes) :: radius = 1, mass = 1, g = 1, inertia_factor = 0.4_wp
+    !> m / 2^exponent(m): the forces the friction ratio and the horizontal
+    !> force are formed from, in units of 2^exponent(m) N (ellroll_quantities)
+    real(wp), dimension(lanes) :: mass_fraction = 1
     real(wp), dimension(lanes) :: g_over_r = 1, inv_one_plus_k = 1, fit_radius = 1, mu = -1
     real(wp), dimension(lanes) :: base_divisor = 1      !< R (1 + k): the moving cup's couple over it
     !> the kernels compute lanes 1 to width only (a lone case: 1; the lanes
@@ -64,10 +68,9 @@ module ellroll_ball_lanes
     !> the absolute acceleration of the centre (a_C + a_base, m/s^2)
     real(wp), dimension(lanes, 3) :: center_acceleration = 0
     real(wp), dimension(lanes) :: tan_nutation = 0, lateral = 0
-    !> the step-end quantities (ellroll_quantities: the displacement and the
-    !> horizontal force squared, so that no square root is taken per step;
-    !> the normal force, the friction needed, the energy, the surface
-    !> residual), a column each
+    !> the step-end quantities (ellroll_quantities: the displacement, the
+    !> horizontal force in units of 2^exponent(m) N, the normal force, the
+    !> friction needed, the energy, the surface residual), a column each
     real(wp) :: quantity(lanes, quantity_count) = 0
     integer, dimension(lanes) :: status = status_completed
   end type lane_outputs_t
@@ -102,6 +105,7 @@ contains
     p%det_axes2(l) = ball%cup%det_axes2
     p%radius(l) = ball%radius
     p%mass(l) = ball%mass
+    p%mass_fraction(l) = fraction(ball%mass)
     p%g(l) = ball%g
     p%inertia_factor(l) = ball%inertia_factor
     p%g_over_r(l) = ball%g / ball%radius
@@ -451,12 +455,12 @@ contains
     type(ball_lanes_t), intent(in) :: p
     real(wp), intent(in) :: y(lanes, state_size), f(lanes, state_size), inv_length(lanes), base(lanes, 3)
     real(wp), intent(inout) :: margin(lanes)
-    real(wp) :: n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m
-    logical :: limit
+    real(wp) :: n1, n2, n3, nd1, nd2, nd3, f1, f2, f3, normal_force, t1, t2, t3, quotient, r, m, up
+    logical :: limit, small
     integer :: l
     do l = 1, p%width
       r = p%radius(l)
-      m = p%mass(l)
+      m = p%mass_fraction(l)
       ! (times 1/|y|: the quotients differ from stage_status's in the last
       ! bit, which moves a limit's decision only within round-off of it)
       n1 = y(l, 1) * inv_length(l)
@@ -472,7 +476,10 @@ contains
       t1 = f1 - normal_force * n1
       t2 = f2 - normal_force * n2
       t3 = f3 - normal_force * n3
-      quotient = sqrt(t1**2 + t2**2 + t3**2) / merge(normal_force, 1.0_wp, normal_force > 0)
+      small = t1**2 + t2**2 + t3**2 < small_sum      ! (norm_of's, written out: lanes_observe)
+      up = merge(norm_up, 1.0_wp, small)
+      quotient = merge(sqrt((up * t1)**2 + (up * t2)**2 + (up * t3)**2) * norm_down, sqrt(t1**2 + t2**2 + t3**2), small) &
+                 / merge(normal_force, 1.0_wp, normal_force > 0)
       ! (a sum of magnitudes is NaN or Inf when one of them is)
       limit = .not. (abs(f1) + abs(f2) + abs(f3) <= huge(1.0_wp) .and. normal_force > 0 &
                      .and. .not. (p%mu(l) > 0 .and. quotient > p%mu(l)))
@@ -494,15 +501,12 @@ contains
     real(wp) :: length, inv_length, n1, n2, n3, w1, w2, w3, horizontal, s, inv_s, p1, p2, p3, lateral
     real(wp) :: nd1, nd2, nd3, ac1, ac2, ac3, f1, f2, f3, normal_force, t1, t2, t3
     real(wp) :: v1, v2, v3, height, energy, residual, an1, an2, an3, inv_s2, trace, det, r, m, fr
-    real(wp) :: p3_lower, p3_upper, quotient, divisor, friction_needed
+    real(wp) :: p3_lower, p3_upper, quotient, divisor, friction_needed, fs1, fs2, fs3, d1, d2, up
     logical :: upright, pressed, finite, fits, slipping
     integer :: l, status
     ! (a fixed cup's 0 adds nothing: the reaction is bitwise that without it)
-    if (present(base)) then
-      b = base
-    else
-      b = 0
-    end if
+    b = 0
+    if (present(base)) b = base
     do l = 1, p%width
       r = p%radius(l)
       m = p%mass(l)
@@ -516,27 +520,28 @@ contains
       inv_s = 1 / s
       p1 = -p%a2(l) * n1 * inv_s
       p2 = -p%b2(l) * n2 * inv_s
-      ! both branches computed (divisors made safe), then one picked: a merge
-      ! of values, which vectorizes; a merge of expressions that may trap
-      ! (divisions) compiles to branches, which do not
-      ! (merge's arguments are plain values: arithmetic inside them may trap
-      ! under IEEE rules, and the compiler keeps such a branch a branch)
+      ! both branches computed (divisors made safe), then one picked: a merge of values
+      ! vectorizes; a merge of expressions that may trap (divisions) compiles to branches
+      ! (arithmetic inside merge's arguments may trap under IEEE rules: a branch stays)
       divisor = s * (s + p%c(l) * n3)
       p3_lower = p%c(l) * horizontal / merge(divisor, 1.0_wp, n3 > 0)
       p3_upper = p%c(l) - p%c2(l) * n3 * inv_s
       p3 = merge(p3_lower, p3_upper, n3 > 0)
-      lateral = sqrt(n1**2 + n2**2)
-      ! upright: n3 > lateral tiny, with the product taken only where n3 is
-      ! within 2 tiny of 0 (lateral <= 1 elsewhere: the test holds); a
-      ! product in the subnormal range costs a microcode assist, about half
-      ! this routine's time
+      ! norms as norm_of (ellroll_norms) takes them, written out so that the loop vectorizes
+      up = merge(norm_up, 1.0_wp, n1**2 + n2**2 < small_sum)
+      lateral = merge(sqrt((up * n1)**2 + (up * n2)**2) * norm_down, sqrt(n1**2 + n2**2), up > 1)
+      ! upright: n3 > lateral tiny, with the product taken only where n3 is within 2 tiny of 0
+      ! (lateral <= 1 elsewhere: the test holds); a subnormal product costs a microcode assist
       upright = n3 > merge(0.0_wp, lateral, n3 > 2 * tiny(1.0_wp) .and. lateral < 2) * tiny(1.0_wp)
       quotient = lateral / merge(n3, 1.0_wp, upright)
       out%tan_nutation(l) = merge(quotient, huge(1.0_wp), upright)
       out%lateral(l) = lateral
       out%normal(l, :) = [n1, n2, n3]
       out%contact(l, :) = [p1, p2, p3]
-      out%quantity(l, q_displacement_sq) = (p1 + r * n1)**2 + (p2 + r * n2)**2
+      d1 = p1 + r * n1
+      d2 = p2 + r * n2
+      up = merge(norm_up, 1.0_wp, d1**2 + d2**2 < small_sum)
+      out%quantity(l, q_displacement) = merge(sqrt((up * d1)**2 + (up * d2)**2) * norm_down, sqrt(d1**2 + d2**2), up > 1)
       ! reaction m (a_C + g e_z), a_C = R (omega' x n + omega x n')
       nd1 = f(l, 1) * inv_length
       nd2 = f(l, 2) * inv_length
@@ -552,14 +557,21 @@ contains
       f2 = m * (ac2 + 0.0_wp)
       f3 = m * (ac3 + p%g(l))
       out%reaction(l, :) = [f1, f2, f3]
-      out%quantity(l, q_horizontal_force_sq) = f1**2 + f2**2
-      normal_force = f1 * n1 + f2 * n2 + f3 * n3
-      out%quantity(l, q_reaction_normal) = normal_force
-      t1 = f1 - normal_force * n1
-      t2 = f2 - normal_force * n2
-      t3 = f3 - normal_force * n3
+      out%quantity(l, q_reaction_normal) = f1 * n1 + f2 * n2 + f3 * n3
+      ! |F_h| and the friction ratio in units of 2^exponent(m) N (observe's): no underflow
+      fs1 = p%mass_fraction(l) * (ac1 + 0.0_wp)
+      fs2 = p%mass_fraction(l) * (ac2 + 0.0_wp)
+      fs3 = p%mass_fraction(l) * (ac3 + p%g(l))
+      up = merge(norm_up, 1.0_wp, fs1**2 + fs2**2 < small_sum)
+      out%quantity(l, q_horizontal_force_scaled) = merge(sqrt((up * fs1)**2 + (up * fs2)**2) * norm_down, &
+                                                         sqrt(fs1**2 + fs2**2), up > 1)
+      normal_force = fs1 * n1 + fs2 * n2 + fs3 * n3
+      t1 = fs1 - normal_force * n1
+      t2 = fs2 - normal_force * n2
+      t3 = fs3 - normal_force * n3
       pressed = normal_force > 0
-      divisor = sqrt(t1**2 + t2**2 + t3**2)
+      up = merge(norm_up, 1.0_wp, t1**2 + t2**2 + t3**2 < small_sum)
+      divisor = merge(sqrt((up * t1)**2 + (up * t2)**2 + (up * t3)**2) * norm_down, sqrt(t1**2 + t2**2 + t3**2), up > 1)
       quotient = divisor / merge(normal_force, 1.0_wp, pressed)
       friction_needed = merge(quotient, huge(1.0_wp), pressed)
       out%quantity(l, q_friction_needed) = friction_needed
@@ -587,13 +599,11 @@ contains
       fits = min(fr * (fr - trace) + det, trace - 2 * fr) > 0
       out%quantity(l, q_fit_clearance) = min(r * (1 + peak_clearance) * (r * (1 + peak_clearance) - trace) + det, &
                                              trace - 2 * (r * (1 + peak_clearance)))
-      ! the limits of limit_status, the first match winning: applied last to
-      ! first. A sum of magnitudes is NaN or Inf when one of them is (in a
-      ! valid state they are far from overflow).
+      ! the limits of limit_status, the first match winning: applied last to first. A sum of
+      ! magnitudes is NaN or Inf when one of them is (a valid state's are far from overflow).
       finite = abs(y(l, 1)) + abs(y(l, 2)) + abs(y(l, 3)) + abs(w1) + abs(w2) + abs(w3) &
                + abs(energy) + abs(f1) + abs(f2) + abs(f3) <= huge(1.0_wp)
-      slipping = friction_needed > p%mu(l)
-      slipping = merge(slipping, .false., p%mu(l) > 0)
+      slipping = merge(friction_needed > p%mu(l), .false., p%mu(l) > 0)
       status = merge(status_slip, status_completed, slipping)
       status = merge(status_liftoff, status, .not. pressed)
       status = merge(status_constraint, status, residual > constraint_tolerance)

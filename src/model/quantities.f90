@@ -10,6 +10,11 @@ module ellroll_quantities
 
   public :: quantity_t, quantities, quantity_count, peak_clearance
 
+  ! The norms are taken with norm_of (ellroll_norms), accurate however small
+  ! the motion. The horizontal force is kept in units of 2^exponent(m) N, m
+  ! the ball's mass (a power of two: the same digits as in N), so that its
+  ! norm and the friction ratio are formed without underflow for any mass.
+
   !> The peaks of a case that ends at a model limit are taken over the step
   !> ends where both principal radii of curvature of the cup at the contact
   !> exceed R (1 + peak_clearance): the approach to no_fit (r_min -> R) is
@@ -19,21 +24,20 @@ module ellroll_quantities
 
   type :: quantity_t
     character(len=24) :: name
-    logical :: squared = .false.   !< the square of what it measures: no root per step (figures take the root)
     logical :: change = .false.    !< the figures take its change from its value at t = 0, |q - q(0)|
   end type quantity_t
 
   type(quantity_t), parameter :: quantities(*) = [ &
-      quantity_t('displacement_sq', squared=.true.), &       ! |C_horizontal|^2, cup frame, m^2
-      quantity_t('horizontal_force_sq', squared=.true.), &   ! horizontal force of the cup on the ball, squared, N^2
+      quantity_t('displacement'), &                          ! |C_horizontal|, cup frame, m
+      quantity_t('horizontal_force_scaled'), &               ! |F_horizontal| of the cup on the ball / 2^exponent(m)
       quantity_t('reaction_normal'), &                       ! normal force, N
       quantity_t('friction_needed'), &                       ! |F_t| / N
       quantity_t('energy', change=.true.), &                 ! J
       quantity_t('surface_residual'), &                      ! of the contact point
       quantity_t('fit_clearance')]                           ! > 0: both principal radii above R (1 + peak_clearance)
   integer, parameter :: quantity_count = size(quantities)
-  integer, parameter, public :: q_displacement_sq = findloc(quantities%name, 'displacement_sq', dim=1), &
-      q_horizontal_force_sq = findloc(quantities%name, 'horizontal_force_sq', dim=1), &
+  integer, parameter, public :: q_displacement = findloc(quantities%name, 'displacement', dim=1), &
+      q_horizontal_force_scaled = findloc(quantities%name, 'horizontal_force_scaled', dim=1), &
       q_reaction_normal = findloc(quantities%name, 'reaction_normal', dim=1), &
       q_friction_needed = findloc(quantities%name, 'friction_needed', dim=1), &
       q_energy = findloc(quantities%name, 'energy', dim=1), &

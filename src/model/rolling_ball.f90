@@ -14,6 +14,7 @@ module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
   use ellroll_exact, only: is_zero
+  use ellroll_norms, only: norm_of, small_sum, norm_up, norm_down
   use ellroll_ode, only: hybrid_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
@@ -24,7 +25,7 @@ module ellroll_rolling_ball
   private
 
   public :: rolling_ball_t, observation_t, state_size
-  public :: initial_state, observe, limit_status, constraint_tolerance, ball_derivative, &
+  public :: initial_state, observe, horizontal_force_scaled, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
             choose_rolling_law, rolling_rate, stiff_rolling
 
@@ -87,10 +88,11 @@ module ellroll_rolling_ball
     real(wp) :: omega(3)
     real(wp) :: contact(3)
     real(wp) :: center(3)
-    real(wp) :: lateral              !< sqrt(n_x^2 + n_y^2): Theta = atan2(lateral, n_z)
+    real(wp) :: lateral              !< |(n_x, n_y)| (norm_of): Theta = atan2(lateral, n_z)
     real(wp) :: tan_nutation         !< tan Theta (huge past the rim): cheap, and ordered like Theta
     real(wp) :: reaction(3)          !< force of the cup on the ball, N
     real(wp) :: reaction_normal      !< N = F . n
+    real(wp) :: horizontal_force_scaled  !< |(F_x, F_y)| / 2^exponent(m) (ellroll_quantities)
     real(wp) :: friction_needed      !< |F_t| / N
     real(wp) :: energy               !< J |w|^2/2 + m |V_C|^2/2 + m g z_C
     real(wp) :: energy_of_motion     !< energy - m g R (the bottom at rest is 0)
@@ -544,13 +546,15 @@ contains
       else if (normal_force <= 0) then
         status = status_liftoff
       else if (ball%mu > 0) then
-        if (sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / normal_force > ball%mu) status = status_slip
+        if (tangential_size(tangential) / normal_force > ball%mu) status = status_slip
       end if
     end if
   end function stage_status
 
   !> The force of the cup on the ball, m (a_C + a_base - g_vec) with
-  !> a_C = R (omega' x n + omega x n'), in the inertial frame.
+  !> a_C = R (omega' x n + omega x n'), in the inertial frame, in units of
+  !> 2^exponent(m) N (its sign and the friction ratio are those in N, and
+  !> a light ball's squares do not underflow).
   pure function reaction_force(ball, t, omega, n, n_dot, omega_dot, base) result(force)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, omega(3), n(3), n_dot(3), omega_dot(3)
@@ -562,7 +566,7 @@ contains
     else if (ball%excitation%kind /= excitation_none) then
       force = force + base_acceleration(ball%excitation, t)
     end if
-    force = ball%mass * force
+    force = fraction(ball%mass) * force
   end function reaction_force
 
   !> Whether the reaction force can end the case: a cup that moves (lift-off)
@@ -604,6 +608,7 @@ contains
     real(wp), intent(in), optional :: base(3)      !< the cup's acceleration at t, when known
     real(wp) :: r, m, inv_length, n(3), inv_s, inv_s2, p(3), n_dot(3), a_center(3)
     real(wp) :: tangential(3), v_center(3), height_above_rest, an(3), trace, det, fit_radius
+    real(wp) :: scaled_force(3), scaled_normal
     r = ball%radius
     m = ball%mass
     inv_length = 1 / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
@@ -613,7 +618,7 @@ contains
     call contact_point(ball%cup, n, p, inv_s)
     obs%contact = p
     obs%center = p + r * n
-    obs%lateral = sqrt(n(1)**2 + n(2)**2)
+    obs%lateral = norm_of(n(1), n(2))
     ! tan Theta where it does not overflow, n_z > lateral tiny; the product is
     ! taken only where n_z is within 2 tiny of 0 (lateral <= 1 elsewhere: the
     ! test holds): one in the subnormal range costs a microcode assist
@@ -635,10 +640,14 @@ contains
     obs%center_acceleration = a_center + obs%base_acceleration
     obs%reaction = m * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
     obs%reaction_normal = obs%reaction(1) * n(1) + obs%reaction(2) * n(2) + obs%reaction(3) * n(3)
-    tangential = obs%reaction - obs%reaction_normal * n
+    ! the horizontal force and the friction ratio from the force in units of
+    ! 2^exponent(m) N: the same digits, and no underflow for a light ball
+    scaled_force = fraction(m) * (obs%center_acceleration + [0.0_wp, 0.0_wp, ball%g])
+    obs%horizontal_force_scaled = norm_of(scaled_force(1), scaled_force(2))
+    scaled_normal = scaled_force(1) * n(1) + scaled_force(2) * n(2) + scaled_force(3) * n(3)
+    tangential = scaled_force - scaled_normal * n
     obs%friction_needed = huge(1.0_wp)
-    if (obs%reaction_normal > 0) obs%friction_needed = &
-      sqrt(tangential(1)**2 + tangential(2)**2 + tangential(3)**2) / obs%reaction_normal
+    if (scaled_normal > 0) obs%friction_needed = tangential_size(tangential) / scaled_normal
     ! z_C - R = z_A - R (1 - n_z), with 1 - n_z = (nx^2 + ny^2)/(1 + n_z): no cancellation
     v_center = r * cross(obs%omega, n)
     height_above_rest = p(3) - r * (n(1)**2 + n(2)**2) / (1 + n(3))
@@ -660,6 +669,28 @@ contains
     fit_radius = r * (1 + peak_clearance)
     obs%fit_clearance = min(fit_radius * (fit_radius - trace) + det, trace - 2 * fit_radius)
   end subroutine observe
+
+  !> |t| as norm_of takes it (scaled where the squares fall below
+  !> small_sum), the normal-size root written as one expression on the
+  !> vector's components, as the compiler contracts it into fused
+  !> multiply-adds in the one-case path.
+  pure real(wp) function tangential_size(t)
+    real(wp), intent(in) :: t(3)
+    real(wp) :: factor
+    tangential_size = sqrt(t(1)**2 + t(2)**2 + t(3)**2)
+    if (t(1)**2 + t(2)**2 + t(3)**2 < small_sum) then
+      factor = norm_up
+      tangential_size = sqrt((factor * t(1))**2 + (factor * t(2))**2 + (factor * t(3))**2) * norm_down
+    end if
+  end function tangential_size
+
+  !> |(F_x, F_y)| / 2^exponent(m) of a force F on a ball of mass m
+  !> (observation_t): the power of two taken out first, so that the squares
+  !> of a light ball's forces do not underflow.
+  pure real(wp) function horizontal_force_scaled(force, mass)
+    real(wp), intent(in) :: force(3), mass
+    horizontal_force_scaled = norm_of(scale(force(1), -exponent(mass)), scale(force(2), -exponent(mass)))
+  end function horizontal_force_scaled
 
   !> The nutation angle Theta, between n and the vertical (rad), from the
   !> lateral and vertical parts of the unit normal.

@@ -24,7 +24,8 @@ module ellroll_sliding_ball
   use ellroll_ode, only: hybrid_system_t
   use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_status, only: status_liftoff, status_nonfinite, status_rim, status_no_fit
-  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, cross
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, cross, &
+      horizontal_force_scaled
   use ellroll_quantities, only: peak_clearance
   implicit none
   private
@@ -554,6 +555,7 @@ contains
     n = obs%normal
     obs%reaction = big_n * n + force
     obs%reaction_normal = big_n
+    obs%horizontal_force_scaled = horizontal_force_scaled(obs%reaction, sb%ball%mass)
     obs%friction_needed = huge(1.0_wp)
     if (big_n > 0) obs%friction_needed = norm2(force) / big_n
     obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]

@@ -1,7 +1,9 @@
 !> Advice on the step of a fixed-step campaign, before it runs: the cases
 !> whose dt is large against the fastest rate of their linearised motion at
-!> the start (spin and curvature), with a step that would do; and, for an
-!> adaptive method, whether dt (its largest step) caps its steps.
+!> the start (spin and curvature), with a step that would do; those whose
+!> dt does not resolve the excitation (a harmonic's period, a record's
+!> samples); and, for an adaptive method, whether dt (its largest step)
+!> caps its steps.
 module ellroll_step_advice
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
@@ -15,7 +17,8 @@ module ellroll_step_advice
   use ellroll_linear, only: fastest_rate
   use ellroll_integrators, only: integrator_t, new_integrator, stability_limit
   use ellroll_input, only: run_input_t
-  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol, p_settle
+  use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol, p_settle, p_excitation_frequency
+  use ellroll_excitation, only: excitation_harmonic, excitation_record
   implicit none
   private
 
@@ -35,7 +38,7 @@ contains
     real(wp), parameter :: warn_above = 0.1_wp, aim = 0.05_wp
     integer, parameter :: listed = 5
     real(wp) :: worst_rate, limit
-    real(wp), allocatable :: rates(:), steps(:)
+    real(wp), allocatable :: rates(:), steps(:), forcing(:)
     integer(i8) :: i, worst, n_coarse, n_unstable
     character(len=:), allocatable :: unstable_cases, cases_of
     class(integrator_t), allocatable :: integrator
@@ -45,12 +48,14 @@ contains
     call new_integrator(trim(inp%campaign%base%method), integrator, err)
     if (err%failed()) return
     limit = stability_limit(integrator)
-    allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1))
+    allocate (rates(0:inp%campaign%n_cases() - 1), steps(0:inp%campaign%n_cases() - 1), &
+              forcing(0:inp%campaign%n_cases() - 1))
     !$omp parallel do schedule(dynamic, 256) num_threads(team_size(0, (inp%campaign%n_cases() + 255) / 256))
     do i = 0, inp%campaign%n_cases() - 1
-      call start_rate(i, rates(i), steps(i))
+      call start_rate(i, rates(i), steps(i), forcing(i))
     end do
     !$omp end parallel do
+    call forcing_advice(inp, steps, forcing, message)
     n_coarse = 0
     n_unstable = 0
     unstable_cases = ''
@@ -72,7 +77,8 @@ contains
     end do
     cases_of = ' of ' // itoa(inp%campaign%n_cases()) // ' cases: '
     if (n_unstable > 0) then
-      message = 'ellroll: warning: ' // itoa(n_unstable) // cases_of // 'dt is beyond ' // &
+      if (len(message) > 0) message = message // achar(10)
+      message = message // 'ellroll: warning: ' // itoa(n_unstable) // cases_of // 'dt is beyond ' // &
           trim(inp%campaign%base%method) // '''s stability for their spin and curvature (dt * rate > ' // &
           format_real(hundredths(limit)) // ', rate the fastest of the motion at the start); they will end ''unstable'':' // &
           unstable_cases
@@ -87,24 +93,80 @@ contains
         format_real(nice_step(aim / worst_rate, inp%plan%interval)) // ' s, or method = ''dop853'''
   contains
     !> Case `index`'s fastest rate at the start and its step; where a bound on
-    !> the rate is within the limit, the bound (the rate is only compared with it).
-    subroutine start_rate(index, rate, dt)
+    !> the rate is within the limit, the bound (the rate is only compared with it);
+    !> forcing: how coarse dt is for its excitation (forcing_advice).
+    subroutine start_rate(index, rate, dt, forcing)
       integer(i8), intent(in) :: index
-      real(wp), intent(out) :: rate, dt
+      real(wp), intent(out) :: rate, dt, forcing
       type(case_t) :: one
       type(rolling_ball_t) :: ball
+      integer :: n
       one = inp%campaign%case_at(index)
       ! an invalid case (set aside later, with its message) is never large:
       ! its start may not be a state at all
       rate = 0
       dt = 0
+      forcing = 0
       if (case_problem(one, inp%plan%interval) /= 0) return
       ball = make_ball(one)
       dt = one%param(p_dt)
+      select case (one%excitation%kind)
+      case (excitation_harmonic)
+        forcing = dt * one%param(p_excitation_frequency)
+      case (excitation_record)
+        n = size(one%excitation%times)
+        ! (as a negative: a record's is dt over its shortest sample spacing)
+        if (n > 1) forcing = -dt / minval(one%excitation%times(2:) - one%excitation%times(:n - 1))
+      end select
       rate = fastest_rate(ball, initial_state(ball, one%param(p_x), one%param(p_y), &
           one%param(p_omega_x:p_omega_z)), enough=warn_above / dt)
     end subroutine start_rate
   end subroutine step_size_advice
+
+  !> Warnings (or '') for the fixed-step cases whose dt does not resolve
+  !> their excitation: forcing(i) is case i's dt * frequency (harmonic), or
+  !> minus dt over its record's shortest sample spacing. A fixed step
+  !> samples the cup's acceleration at its stages only: a harmonic over
+  !> more than 1/20 of its period per step loses its peaks (a sine sampled
+  !> at 40 points per period, the stages' halves, is within 0.3 % of its
+  !> peak; rk4's Simpson quadrature of it within 4e-6), and from dt * f =
+  !> 1/2 on (Nyquist) the stages see an alias of it, or nothing at all
+  !> (dt * f a whole number: every stage at the same phase); a step over
+  !> several record samples skips the ones between its stages.
+  subroutine forcing_advice(inp, steps, forcing, message)
+    type(run_input_t), intent(in) :: inp
+    real(wp), intent(in) :: steps(0:), forcing(0:)
+    character(len=:), allocatable, intent(out) :: message
+    real(wp), parameter :: per_period = 20
+    integer(i8) :: n_harmonic, n_record, worst, worst_record
+    character(len=:), allocatable :: cases_of, lead
+    message = ''
+    n_harmonic = count(forcing * per_period > 1)
+    n_record = count(-forcing > 1 + 1.0e-9_wp)     ! (a spacing of k dt - (k - 1) dt is dt to round-off)
+    cases_of = ' of ' // itoa(size(forcing, kind=i8)) // ' cases: '
+    lead = 'ellroll: warning: ' // trim(inp%path) // ': '
+    if (n_harmonic > 0) then
+      worst = maxloc(forcing, dim=1, kind=i8) - 1
+      message = lead // itoa(n_harmonic) // cases_of // '&integration dt does not resolve the harmonic ' // &
+          'excitation (more than 1/' // itoa(nint(per_period)) // ' of its period per step; case ' // itoa(worst) // &
+          ': &integration dt = ' // format_real(steps(worst)) // ' s, &excitation frequency = ' // &
+          format_real(forcing(worst) / steps(worst)) // ' Hz'
+      if (forcing(worst) >= 0.5_wp) message = message // ', dt * frequency = ' // &
+          format_computed(forcing(worst)) // ' >= 1/2: its stages see an alias of the sine, or none'
+      message = message // '); dt <= ' // &
+          format_real(nice_step(steps(worst) / (per_period * forcing(worst)), inp%plan%interval)) // &
+          ' s would do, or method = ''dop853'''
+    end if
+    if (n_record == 0) return
+    worst_record = minloc(forcing, dim=1, kind=i8) - 1
+    if (len(message) > 0) message = message // achar(10)
+    message = message // lead // itoa(n_record) // cases_of // '&integration dt is longer than the ' // &
+        'spacing of their record''s samples, and a fixed step skips the samples between its stages (case ' // &
+        itoa(worst_record) // ': &integration dt = ' // format_real(steps(worst_record)) // ' s, shortest spacing ' // &
+        format_computed(-steps(worst_record) / forcing(worst_record)) // ' s); dt <= ' // &
+        format_real(nice_step(-steps(worst_record) / forcing(worst_record), inp%plan%interval)) // &
+        ' s would do, or method = ''dop853'''
+  end subroutine forcing_advice
 
   !> A warning (or '') when the method is adaptive and dt, its largest step,
   !> caps its steps: where dt implies at least probe_from steps, the base

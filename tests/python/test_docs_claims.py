@@ -271,3 +271,52 @@ def test_the_readme_states_the_cmake_cmakelists_needs():
     """README: needs CMake >= 3.18."""
     needed = re.search(r"cmake_minimum_required\(VERSION ([0-9.]+)", (ROOT / "CMakeLists.txt").read_text()).group(1)
     assert f"CMake >= {needed}," in (ROOT / "README.md").read_text()
+
+
+def closed_form_periods(a, b, c, radius, k, g, sigma):
+    """docs/model.md, "Linear modes": the roots omega^2 of (1 + k)^2 L1 L2 w^4
+    - ((1 + k) g (L1 + L2) + (k R sigma)^2) w^2 + g^2, the large one by the
+    formula whose signs add, the small one from their product."""
+    l1, l2 = a * a / c - radius, b * b / c - radius
+    quad_a = (1 + k) ** 2 * l1 * l2
+    quad_b = (1 + k) * g * (l1 + l2) + (k * radius * sigma) ** 2
+    fast = (quad_b + np.sqrt(quad_b * quad_b - 4 * quad_a * g * g)) / (2 * quad_a)
+    slow = g * g / (quad_a * fast)
+    return np.sort(2 * np.pi / np.sqrt([fast, slow]))
+
+
+def test_linear_periods_match_the_closed_form_as_docs_accuracy_states(ellroll, tmp_path):
+    """docs/accuracy.md: linear_periods within 1e-9 of the modes' closed form
+    for spins up to 1e5 rad/s, narrow cups (c down to a / 100) included: the
+    narrow cup of a = 1, b = 0.4, c = 0.02 at spin 0 to 1e5 rad/s, and 200
+    seeded cups, balls, inertia factors, g and spins (log-uniform to 1e5)."""
+    narrow = ("&geometry a = 1.0, b = 0.4, c = 0.02 /\n&ball radius = 0.2, weight = 100.0 /\n"
+              "&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /\n"
+              "&integration method = 'rk4', dt = 1e-3, t_end = 0.01 /\n"
+              "&output file = 'out.h5', interval = 0.01, fields = 'none' /\n")
+    sampled = narrow + ("&campaign samples = 200, seed = 11, invalid = 'skip' /\n"
+                        "&sample name = 'a', low = 0.1, high = 10, spacing = 'log' /\n"
+                        "&sample name = 'b', low = 0.1, high = 10, spacing = 'log' /\n"
+                        "&sample name = 'c', low = 0.01, high = 5, spacing = 'log' /\n"
+                        "&sample name = 'radius', low = 0.001, high = 1, spacing = 'log' /\n"
+                        "&sample name = 'omega_z', low = 0.01, high = 1e5, spacing = 'log' /\n"
+                        "&sample name = 'inertia_factor', low = 0.001, high = 0.6666 /\n"
+                        "&sample name = 'g', low = 0.1, high = 30 /\n")
+    swept = narrow + "&sweep name = 'omega_z', values = 0.0, 40.0, 300.0, 1000.0, 1e4, 1e5 /\n"
+    worst = 0.0
+    for text in (swept, sampled):
+        with run_text(ellroll, tmp_path, text) as f:
+            case, periods, status = f["case"], f["summary/linear_periods"][:], f["summary/status"][:]
+            checked = 0
+            for i in np.flatnonzero(status == 1):
+                a, b, c, radius = (float(case[key][i]) for key in ("a", "b", "c", "radius"))
+                if min(a * a, b * b) / c <= radius:
+                    continue
+                truth = closed_form_periods(a, b, c, radius, float(case["inertia_factor"][i]), float(case["g"][i]),
+                                            float(case["omega"][i][2]))
+                error = np.max(np.abs(np.sort(periods[i]) - truth) / truth)
+                worst = max(worst, error)
+                assert error < 1e-9, (i, a, b, c, radius, float(case["omega"][i][2]), periods[i], truth, error)
+                checked += 1
+            assert checked >= 5
+    print("worst relative error", worst)

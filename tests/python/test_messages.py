@@ -7,6 +7,7 @@ The misspellings are generated, seeded: every input variable, group, option
 and command at one and two edits (Damerau: insert, delete, substitute, swap
 neighbours), each asserted where the name is the only nearest known one.
 ELLROLL_FUZZ_BUDGET=N tries N misspellings of each name (default 2)."""
+import math
 import os
 import pathlib
 import pty
@@ -17,6 +18,7 @@ import signal
 import subprocess
 import time
 
+import h5py
 import pytest
 
 from conftest import run
@@ -478,3 +480,48 @@ def test_a_swept_velocity_component_breaking_tangency_names_the_velocity(ellroll
     assert f"case.nml: case 1 (velocity_z = 0.3): velocity = {', '.join(f'{v:g}' for v in velocity)}: " \
            "must be tangent" in result.stderr, result.stderr
     assert "velocity_x = " not in result.stderr and "tangent velocity has vz = 0 m/s" in result.stderr
+
+
+def test_a_fixed_step_that_does_not_resolve_the_excitation_is_said(ellroll, tmp_path):
+    """rk4 at dt = 1e-3 under a vertical 12 m/s^2 at 1000 Hz samples the sine
+    at its zeros only: check and run warn, naming the file, &integration dt and
+    &excitation frequency. The warning is due: dop853 finds the lift-off where
+    the cup's 12 sin(2 pi f t) m/s^2 first reaches -g. Seeded (dt, frequency) pairs warn exactly
+    where dt * frequency > 1/20 (none within 1 % of it); a record warns where
+    dt exceeds its sample spacing."""
+    aliased = dict(BASE, integration="method = 'rk4', dt = 1e-3, t_end = 1.0",
+                   initial="x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0",
+                   excitation="kind = 'harmonic', amplitude = 0.0, 0.0, 12.0, frequency = 1000.0")
+    name = write(tmp_path, aliased, "aliased.nml")
+    for args in (["check"], ["run", "-q"]):
+        result = run(ellroll, *args, name, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        assert "aliased.nml: 1 of 1 cases: &integration dt does not resolve the harmonic excitation" in result.stderr
+        assert "&integration dt = 0.001 s, &excitation frequency = 1000 Hz, dt * frequency = 1 >= 1/2" in result.stderr
+        assert "dt <= 5e-05 s would do" in result.stderr
+    adaptive = dict(aliased, integration="method = 'dop853', rtol = 1e-10, t_end = 1.0")
+    result = run(ellroll, "run", write(tmp_path, adaptive, "adaptive.nml"), "-q", "-o", "adaptive.h5", cwd=tmp_path)
+    assert result.returncode == 0 and "resolve" not in result.stderr, result.stderr
+
+    with h5py.File(tmp_path / "adaptive.h5") as f:
+        assert f["summary/status"][0] == 5        # liftoff
+        truth = (math.pi + math.asin(9.81 / 12.0)) / (2 * math.pi * 1000.0)      # g + 12 sin(2 pi f t) = 0
+        assert abs(f["summary/t_final"][0] - truth) < 1e-9, (f["summary/t_final"][0], truth)
+    rng = random.Random(11)
+    for k in range(12):
+        dt = rng.choice([1e-4, 2e-4, 5e-4, 1e-3])
+        frequency = 10.0 ** rng.uniform(-1, 4)
+        if abs(dt * frequency * 20 - 1) < 0.01:
+            continue
+        case = dict(aliased, integration=f"method = '{rng.choice(['rk4', 'gauss4'])}', dt = {dt!r}, t_end = 0.01",
+                    excitation=f"kind = 'harmonic', amplitude = 0.0, 0.0, 1.0, frequency = {frequency!r}")
+        result = run(ellroll, "check", write(tmp_path, case, f"f{k}.nml"), cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        assert ("does not resolve" in result.stderr) == (dt * frequency > 1 / 20), (dt, frequency, result.stderr)
+    (tmp_path / "ground.csv").write_text("".join(f"{0.002 * i!r}, {math.sin(i)!r}, 0.0\n" for i in range(200)))
+    for dt, said in ((1e-3, False), (2e-3, False), (5e-3, True)):
+        case = dict(aliased, integration=f"method = 'rk4', dt = {dt!r}, t_end = 0.2",
+                    excitation="kind = 'record', record_file = 'ground.csv'")
+        result = run(ellroll, "check", write(tmp_path, case, "record.nml"), cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        assert ("longer than the spacing of their record's samples" in result.stderr) == said, (dt, result.stderr)

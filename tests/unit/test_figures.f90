@@ -15,7 +15,7 @@ program test_figures
   use ellroll_results, only: case_result_t
   use ellroll_params, only: params, p_a, p_b, p_c, p_x, p_omega_x, p_omega_z, p_dt, p_capacity, p_radius, p_g, &
       p_inertia_factor
-  use ellroll_quantities, only: quantity_count, q_displacement_sq
+  use ellroll_quantities, only: quantity_count, q_displacement
   use ellroll_figures, only: fig_time_beyond_capacity
   use ellroll_running, only: running_t, running_lanes_t, start_running, add_step_ends, get_lane, put_lane, &
       finish_running
@@ -52,7 +52,7 @@ contains
     q = 0
     call start_running(stats, q, param)
     do k = 2, size(t)
-      q(1, q_displacement_sq) = d(k)**2
+      q(1, q_displacement) = d(k)
       call add_step_ends(stats, q, t(k))
     end do
     call finish_running(stats, 1.0_wp, res)
@@ -85,7 +85,7 @@ contains
     do k = 1, n_steps
       call random_number(u)
       ql = 0
-      ql(:, q_displacement_sq) = u**2
+      ql(:, q_displacement) = u
       accepted = [(mod(k + l, 3) /= 0, l = 1, lanes)]
       t = t + merge(0.01_wp * (1 + u), 0.0_wp, accepted)
       call add_step_ends(batch, ql, t, accepted)

@@ -111,8 +111,9 @@ contains
   !> rests on: (n1, w1)' does not depend on (n1, w1), nor (n2, w2)' on (n2, w2).
   !> The fast root comes from the same Jacobian both ways; the slow one from
   !> the product omega_x omega_y / omega_f, the 6x6's from the Jacobian. All
-  !> against the modes' closed form (exact_frequencies): the Jacobian's central
-  !> differences leave 4e-10 at |sigma| ~ 300 in both.
+  !> against the modes' closed form (exact_frequencies), the Jacobian taken
+  !> with oscillation_periods' steps (lengths c/a, c/b along n_1, n_2;
+  !> Richardson-extrapolated): 1e-10 in both.
   subroutine check_periods_against_eigenvalues()
     integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]
     type(case_t) :: cup
@@ -130,7 +131,7 @@ contains
       cup = random_cup(draw(1:3))
       ball = make_ball(cup)
       sigma = 300 * (2 * draw(4) - 1)
-      jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma])
+      jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma], lengths=bottom_lengths(cup))
       worst_coupling = max(worst_coupling, maxval(abs([jac(odd, odd), jac(even, even)])) / maxval(abs(jac)))
       call eigenvalues(jac, re, im)
       full = two_pi / pack(im, im > 1.0e-9_wp * maxval(abs(im)))   ! two oscillating modes here
@@ -143,8 +144,8 @@ contains
     end do
     call check_below(worst_coupling, 1.0e-9_wp, 'bottom equilibrium: Jacobian entries the mirror symmetry makes zero')
     call check_below(worst_fast, 1.0e-13_wp, 'fast period: 2x2 closed form against the 6x6 eigenvalues (500 cups)')
-    call check_below(worst_slow, 1.0e-9_wp, 'periods: 2x2 closed form against the modes'' closed form (500 cups)')
-    call check_below(worst_full_slow, 1.0e-9_wp, 'periods: 6x6 eigenvalues against the modes'' closed form (500 cups)')
+    call check_below(worst_slow, 1.0e-10_wp, 'periods: 2x2 closed form against the modes'' closed form (500 cups)')
+    call check_below(worst_full_slow, 1.0e-10_wp, 'periods: 6x6 eigenvalues against the modes'' closed form (500 cups)')
   end subroutine check_periods_against_eigenvalues
 
   !> Over random cups, balls from small to nearly the cup's least radius of
@@ -265,7 +266,7 @@ contains
     integer, parameter :: odd(2) = [1, 4], even(2) = [2, 5]
     real(wp) :: jac(state_size, state_size), squared(2, 2), half_trace, discriminant, roots(2), periods(2)
     complex(wp) :: mu(2)
-    jac = jacobian(make_ball(cup), [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp])
+    jac = jacobian(make_ball(cup), [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, 0.0_wp], lengths=bottom_lengths(cup))
     squared = matmul(jac(odd, even), jac(even, odd))
     half_trace = (squared(1, 1) + squared(2, 2)) / 2
     discriminant = half_trace**2 - (squared(1, 1) * squared(2, 2) - squared(1, 2) * squared(2, 1))
@@ -275,6 +276,17 @@ contains
     call check(equals(periods(1), maxval(roots)) .and. equals(periods(2), minval(roots)), &
                'no spin: periods the quadratic''s own roots, bitwise')
   end subroutine check_no_spin_roots
+
+  !> The Jacobian's step lengths oscillation_periods takes at the bottom:
+  !> c/a and c/b (at most 1) along n_1 and n_2, 1 along the rest.
+  function bottom_lengths(cup) result(lengths)
+    type(case_t), intent(in) :: cup
+    real(wp) :: lengths(state_size)
+    type(rolling_ball_t) :: ball
+    ball = make_ball(cup)
+    lengths = 1
+    lengths(1:2) = min(1.0_wp, ball%cup%c * ball%cup%inv_axes(1:2))
+  end function bottom_lengths
 
   !> The angular frequency of the largest peak of |DFT(hann * x)| within
   !> 10 % of guess, found by golden-section search on the continuous DFT.
