@@ -7,21 +7,27 @@ import sys
 
 import numpy as np
 
-from .reader import NotAnEllrollFile, open as open_run
+from .reader import NotAnEllrollFile, damaged, from_h5py, open as open_run
 from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, save_figure
 from .summary import format_summary
-from .suite import NoIntensityMeasure, NoStripes, format_fragility, format_suite, suite_statistics
+from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, check_limit_state, format_fragility, \
+    format_suite, suite_statistics
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
 
 
+# the most bootstrap resamples of `fragility` (each a fit: 10^5 take minutes)
+MAX_BOOTSTRAP = 100_000
+
+
 def draw(name, run, out, case=0, fmt="png", x_names=None, y_names=None, overwrite=False):
     """Draw figure `name` of `run` into folder `out`; return the file written,
     named after the ellroll file and the figure (FILE_fig2_trace.png), so that
-    the figures of several files can share a folder."""
+    the figures of several files can share a folder. case: a per-case
+    figure's case, its global index (FILE_fig3_nutation_case4.png)."""
     import matplotlib.pyplot as plt
     stem = figure_stem(run, "sweep_" + "_".join(x_names) if name == "sweep" else
                        FILE_STEMS[name] + (f"_case{case}" if case and name != "suite" else ""))
@@ -95,8 +101,38 @@ def check_suite(run, path):
     raise NotAnEllrollFile(f"{path}: not a record suite (give two or more &record groups)")
 
 
+class Parser(argparse.ArgumentParser):
+    """Bad arguments: one line, exit 2 (argparse's own: a usage block first)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
+
+
+def _count(minimum, maximum=None):
+    """An argparse type: an integer from minimum (to maximum)."""
+    def count(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"needs an integer, not {text!r}") from None
+        if value < minimum or (maximum is not None and value > maximum):
+            bounds = f"from {minimum} to {maximum}" if maximum is not None else f"{minimum} or more"
+            raise argparse.ArgumentTypeError(f"needs an integer {bounds}, not {text}")
+        return value
+    return count
+
+
+def _case(text):
+    """An argparse type: a global case index (whether the file holds it is
+    checked once it is open)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"needs a case index (an integer), not {text!r}") from None
+
+
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="ellroll-plot", description=__doc__)
+    parser = Parser(prog="ellroll-plot", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--out", default=".", help="output folder (default: current)")
@@ -108,7 +144,8 @@ def main(argv=None):
                        ("spectrum", "spectrum of the transmitted acceleration against the ground's")]:
         p = sub.add_parser(name, parents=[common], help=text)
         p.add_argument("file")
-        p.add_argument("--case", type=int, default=0, help="case index (default 0)")
+        p.add_argument("--case", type=_case, help="the case, by its global index (as `ellroll summary` lists "
+                       "it; a shard's file holds every N-th); default: the file's first case")
     p = sub.add_parser("sweep", parents=[common], help="summary quantities against swept inputs")
     p.add_argument("file")
     p.add_argument("--x", help="one or two swept inputs, e.g. omega_z or omega_z,radius (default: the swept ones)")
@@ -125,10 +162,12 @@ def main(argv=None):
     p.add_argument("--im", default="scale",
                    help="intensity measure: scale (default), or one the file holds: PGA, PGV, PGD, Sa(T) (at the "
                         "isolator's first period; Sa(T2) its second), Sa(1.0), sa_1")
-    p.add_argument("--bootstrap", type=int, default=200, help="bootstrap resamples for the intervals (default 200)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the bootstrap (default 0)")
-    p.add_argument("--limit-state", default="model_limit",
-                   help="the limit state drawn (default model_limit: rim, no_fit, slip, liftoff)")
+    p.add_argument("--bootstrap", type=_count(0, MAX_BOOTSTRAP), default=200,
+                   help=f"bootstrap resamples for the intervals, 0 to {MAX_BOOTSTRAP} (default 200)")
+    p.add_argument("--seed", type=_count(0), default=0, help="seed of the bootstrap, 0 or more (default 0)")
+    p.add_argument("--limit-state",
+                   help=f"the limit state drawn (default {MODEL_LIMIT_STATE}: rim, no_fit, slip, liftoff), or "
+                        "printed (default: every one)")
     p.add_argument("--format", default="png", choices=["png", "pdf", "svg", "table", "csv", "json"],
                    help="a figure, or the fits (theta, beta, 5-95 %% intervals) printed as table, csv or json")
     p.add_argument("--out", default=".", help="output folder (default: current)")
@@ -138,7 +177,8 @@ def main(argv=None):
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
     p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
     p.add_argument("file")
-    p.add_argument("--case", type=int, default=0, help="case for the per-case figures (default 0)")
+    p.add_argument("--case", type=_case, help="the case of the per-case figures, by its global index "
+                   "(default: the file's first case)")
     p.add_argument("--cases", action="store_true",
                    help=f"the table of every case in index.html (default: the first {REPORT_ROWS}, the rest in "
                         "summary.csv)")
@@ -151,8 +191,11 @@ def main(argv=None):
     p.add_argument("--percentiles", default="linear", choices=["linear", "lognormal"],
                    help="with --suite: numpy's linear percentiles (default) or those of a fitted lognormal")
     args = parser.parse_args(argv)
-    if args.command == "fragility" and args.bootstrap < 0:
-        parser.error("--bootstrap must be 0 or more")
+    for option in ("case", "bootstrap", "seed"):
+        # (argparse hands `--seed=--` over as [] without its type's check)
+        value = getattr(args, option, None)
+        if value is not None and not isinstance(value, int):
+            parser.error(f"argument --{option}: needs an integer, not {value!r}")
     if args.command == "report" and args.out == ".":
         # FILE_report beside FILE ("." or "/" have no name: open_run refuses them, a folder)
         name = pathlib.Path(args.file)
@@ -175,8 +218,12 @@ def main(argv=None):
             with open_run(args.file) as run:
                 check_suite(run, args.file)
                 plots.intensity(run, args.im)           # a clear error before anything is written
+                if args.limit_state is not None:
+                    check_limit_state(run, args.limit_state)
                 if args.format in ("table", "csv", "json"):
                     table, _ = plots.suite_fragility(run, args.im, args.bootstrap, args.seed)
+                    if args.limit_state is not None:
+                        table = _rows_of(table, table["limit_state"] == args.limit_state)
                     sys.stdout.write(format_fragility(table, args.format, args.file))
                     return 0
                 path = pathlib.Path(args.output) if args.output else \
@@ -185,7 +232,8 @@ def main(argv=None):
                 check_target(path, args.overwrite)
                 fig, ax = plt.subplots(figsize=(10, 4.8), layout="constrained")
                 try:
-                    plots.plot_fragility(ax, run, args.im, args.bootstrap, args.seed, args.limit_state)
+                    plots.plot_fragility(ax, run, args.im, args.bootstrap, args.seed,
+                                         args.limit_state or MODEL_LIMIT_STATE)
                     save_figure(fig, path, args.overwrite, args.format)
                 finally:
                     plt.close(fig)
@@ -203,8 +251,9 @@ def main(argv=None):
         else:
             with open_run(args.file) as run:
                 out.mkdir(parents=True, exist_ok=True)     # (once the file opened: no folder for a bad one)
+                if args.command == "report" or args.command in plots.FIELD_NEEDS:
+                    args.case = run.case_index(args.case)       # the global index held (None: the file's first)
                 if args.command == "report":
-                    run.check_case(args.case)
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
                                            args.format, args.overwrite, all_cases=args.cases) + [out / "index.html"]
                 elif args.command == "transmissibility":
@@ -234,12 +283,28 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
-    except (NotAnEllrollFile, NoIntensityMeasure, NoStripes, OutputExists, OSError) as exc:
+    except (NotAnEllrollFile, NoIntensityMeasure, NoStripes, OutputExists) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        if from_h5py(exc):                      # a read the reader does not make (pandas, h5py in suite.py)
+            files = getattr(args, "files", None) or [args.file]
+            print(f"ellroll-plot: error: {damaged(', '.join(map(str, files)), exc)}", file=sys.stderr)
+            return 2
+        if isinstance(exc, OSError):
+            print(f"ellroll-plot: error: {exc}", file=sys.stderr)
+            return 2
+        raise
     for path in written:
         print(path)
     return 0
+
+
+def _rows_of(table, keep):
+    """Rows of a fit table, its attributes kept."""
+    rows = table[keep].reset_index(drop=True)
+    rows.attrs.update(table.attrs)
+    return rows
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@ import numpy as np
 
 from .geometry import energy_bound, surface_residual
 from .reader import NotAnEllrollFile
-from .suite import MODEL_LIMIT_STATE, MODEL_LIMITS, PERCENTILE_TEXT, intensity, limit_state_flags, \
-    suite_fragility, suite_statistics
+from .suite import MODEL_LIMIT_STATE, MODEL_LIMITS, PERCENTILE_TEXT, check_limit_state, intensity, \
+    limit_state_flags, suite_fragility, suite_statistics
 
 # figure -> trajectory fields it cannot be drawn without
 FIELD_NEEDS = {"trace": ("contact",), "nutation": ("nutation",), "reaction": ("reaction", "normal"),
@@ -39,7 +39,7 @@ def require(run, figure, case=None):
 def require_samples(run, case, fields=()):
     """A case that was never run (invalid, pending) or has no finite sample
     of `fields` has nothing to draw: say so, with what to do."""
-    run.check_case(case)
+    case = run.case_index(case)
     status = run.status_name(case)
     if status == "invalid":
         raise NotAnEllrollFile(f"{run.path}: case {case} was never run (status invalid: its inputs were rejected; "
@@ -65,7 +65,7 @@ def _s(items):
     return "s" if len(items) != 1 else ""
 
 
-def cup_moves(run, case=0):
+def cup_moves(run, case=None):
     """Whether the cup of a case is shaken (&excitation kind other than 'none')."""
     try:
         kind = run.case_input("excitation_kind", case)
@@ -80,14 +80,14 @@ def _note(ax, text):
 
 
 def _case_label(run, case):
-    return f"case {case}: {run.status_name(case)}"
+    return f"case {run.case_index(case)}: {run.status_name(case)}"
 
 
 def _file_label(run):
     return pathlib.Path(run.path).name
 
 
-def energy_bound_level(run, case=0):
+def energy_bound_level(run, case=None):
     """Centre height the energy integral allows when the spin about the normal
     keeps its initial value: m g z_C = E0 - J (omega0 . n0)^2 / 2."""
     m, g, radius = run.case_input("mass", case), run.case_input("g", case), run.case_input("radius", case)
@@ -98,12 +98,13 @@ def energy_bound_level(run, case=0):
     return (energy0 - 0.5 * k * m * radius**2 * (omega0 @ n0)**2) / (m * g)
 
 
-def plot_trace(ax, run, case=0):
+def plot_trace(ax, run, case=None):
     """Fig. 2: the contact point's trace in the XY plane (coloured by regime,
     rolling or sliding, when the field regime is stored), the cup's rim, the
     energy bound (the curve the ball does not cross; on a fixed cup, with
     the fields energy, omega and normal stored: otherwise a note says why
     it is left out), start and end."""
+    case = run.case_index(case)              # (None: the file's first case)
     require(run, "trace", case)
     contact = run.trajectory("contact", case)
     valid = np.isfinite(contact[:, 0])
@@ -151,9 +152,10 @@ def _plot_by_regime(ax, x, y, regime):
                     label=label)
 
 
-def plot_nutation(ax, run, case=0):
+def plot_nutation(ax, run, case=None):
     """Fig. 3: the nutation angle Theta against time, theta_max and the
     measured nutation period annotated."""
+    case = run.case_index(case)              # (None: the file's first case)
     require(run, "nutation", case)
     theta = run.trajectory("nutation", case)
     t = run.time
@@ -175,7 +177,7 @@ def plot_nutation(ax, run, case=0):
     return ax
 
 
-def reaction_parts(run, case=0):
+def reaction_parts(run, case=None):
     """Normal force N = F . n, friction |F - N n| and the friction coefficient needed."""
     force = run.trajectory("reaction", case)
     normal = run.trajectory("normal", case)
@@ -184,11 +186,12 @@ def reaction_parts(run, case=0):
     return n_force, tangential, tangential / n_force
 
 
-def plot_reaction(axes, run, case=0):
+def plot_reaction(axes, run, case=None):
     """Normal force F_n (the weight m g as a reference), friction force |F_t|
     and the friction coefficient needed |F_t| / F_n against time, each on its
     own axis (three Axes: the two forces differ by orders of magnitude);
     legends beside."""
+    case = run.case_index(case)              # (None: the file's first case)
     require(run, "reaction", case)
     t = run.time
     n_force, tangential, mu = reaction_parts(run, case)
@@ -210,7 +213,7 @@ def plot_reaction(axes, run, case=0):
     return axes
 
 
-def cup_work(run, case=0):
+def cup_work(run, case=None):
     """The work W(t) done on the ball in the cup's frame by the moving cup
     (the inertial force -m a_base on the centre), W = -m int a_base . dC,
     by the trapezoid rule over the stored samples (its error is of the
@@ -224,12 +227,13 @@ def cup_work(run, case=0):
     return np.concatenate([[0.0], np.cumsum(steps)])
 
 
-def plot_energy(ax, run, case=0):
+def plot_energy(ax, run, case=None):
     """On a fixed cup: the relative energy error and the largest constraint
     error so far against time (log). On a moving cup the energy changes by
     the cup's work, which is no error: the energy change E - E0 and, with
     the fields center and base_acceleration, the cup's work W against time
     (linear), the largest constraint error and |E - E0 - W| noted."""
+    case = run.case_index(case)              # (None: the file's first case)
     require(run, "energy", case)
     t = run.time
     tiny = 1e-18
@@ -425,7 +429,7 @@ def linear_transmissibility(ratio, inertia_factor=0.4):
     return np.abs(1 + k - k * ratio**2) / ((1 + k) * np.abs(1 - ratio**2))
 
 
-def mode_axes(run, case=0):
+def mode_axes(run, case=None):
     """For each linear mode of /summary/linear_periods, the horizontal axes
     (0: x, 1: y) it moves the ball along: about the bottom of a cup without
     spin the modes lie along the principal axes, of periods
@@ -443,7 +447,7 @@ def mode_axes(run, case=0):
     return [(int(np.argmin(np.abs(along - period))),) for period in periods]
 
 
-def excited_axes(run, case=0):
+def excited_axes(run, case=None):
     """The horizontal axes (0: x, 1: y) along which a harmonic excitation shakes the cup."""
     amplitude = np.asarray(run.case_input("excitation_amplitude", case), float)
     return {i for i in (0, 1) if amplitude[i] != 0}
@@ -644,6 +648,7 @@ def plot_fragility(ax, run, im="scale", bootstrap=200, seed=0, limit_state=MODEL
     With an intensity measure other than the scale the cases of a stripe
     have their own intensities: the fraction is drawn at their geometric
     mean. Returns the fit table."""
+    check_limit_state(run, limit_state)
     table, details = suite_fragility(run, im, bootstrap, seed)
     details = [d for d in details if d["row"]["limit_state"] == limit_state]
     if not details:
@@ -712,7 +717,7 @@ def plot_fragility(ax, run, im="scale", bootstrap=200, seed=0, limit_state=MODEL
     return table
 
 
-def acceleration_spectra(run, case=0):
+def acceleration_spectra(run, case=None):
     """Amplitude spectra of the horizontal ground acceleration (the cup's)
     and of the transmitted one (|horizontal reaction| / m, the ball's
     absolute acceleration), from the stored samples: frequency (Hz) and the
@@ -732,13 +737,13 @@ def acceleration_spectra(run, case=0):
     return frequency, amplitude(ground), amplitude(transmitted)
 
 
-def excitation_description(run, case=0):
+def excitation_description(run, case=None):
     """What shakes the cup of a case, for a title: the record by its name
     (a suite's &record name) or file, its factor and scale; or the harmonic
     frequency and amplitude."""
     kind = str(run.case_input("excitation_kind", case)).strip()
     if kind == "record":
-        name = run.record_names()[case]
+        name = run.record_names()[run.row(case)]
         files = _record_files(run, name)
         text = "record " + (f"{name} ({', '.join(files)})" if name and files else name or ", ".join(files) or "?")
         factor = run.case_input("record_factor", case) * run.case_input("scale", case)
@@ -765,10 +770,11 @@ def _record_files(run, name):
     return [pathlib.PurePath(f).name for f in files]
 
 
-def plot_spectrum(ax, run, case=0):
+def plot_spectrum(ax, run, case=None):
     """The transmitted acceleration's spectrum against the ground's (log);
     the title names the file, the case and the record (or the harmonic
     shaking); the legend beside the axes."""
+    case = run.case_index(case)              # (None: the file's first case)
     require(run, "spectrum", case)
     frequency, ground, transmitted = acceleration_spectra(run, case)
     ax.loglog(frequency[1:], ground[1:], lw=0.8, color="0.4", label="ground (cup) acceleration")

@@ -1,13 +1,102 @@
 """Lazy access to an ellroll file: nothing is read until asked for, so a
 file of 10^5 cases costs only what is plotted."""
+import builtins
+import functools
 import os
+import traceback
 
 import h5py
 import numpy as np
 
 
 class NotAnEllrollFile(Exception):
-    """The file is missing, unreadable, not written by ellroll, or lacks what is asked."""
+    """The file is missing, unreadable (a damaged HDF5 file), an unfinished
+    run's work file, not written by ellroll, or lacks what is asked (a case
+    it does not hold included). Its text is one line naming the file."""
+
+
+# the work files of an output OUT.h5 (docs/usage.md): OUT.h5.partial, and a resume's OUT.h5.partial.new
+WORK_SUFFIXES = (".partial.new", ".partial")
+
+
+def from_h5py(exc):
+    """Whether an exception was raised inside h5py (a read of the file
+    failed), not by a caller's mistake."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    return bool(frames) and ("h5py" in frames[-1].filename.replace("\\", "/").split("/")
+                             or frames[-1].filename.startswith("h5py/"))
+
+
+def _reason(exc):
+    text = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc     # (KeyError's str is a repr)
+    return " ".join(str(text).split()) or type(exc).__name__
+
+
+def output_of(path):
+    """OUT.h5 of a work file OUT.h5.partial (or .partial.new); None for another name."""
+    for suffix in WORK_SUFFIXES:
+        if path.endswith(suffix) and len(path) > len(suffix):
+            return path[:-len(suffix)]
+    return None
+
+
+def _resume_advice(path):
+    """How to finish the run whose work file (or output) is at path: the
+    command its lock (OUT.h5.lock) names, with --resume."""
+    output = output_of(path) or path
+    command = None
+    try:
+        with builtins.open(output + ".lock", errors="replace") as handle:    # 'ellroll lock', then '...: COMMAND'
+            note = handle.read(4096).splitlines()
+        if len(note) >= 2 and note[0] == "ellroll lock" and ": ellroll " in note[1]:
+            command = note[1][note[1].index(": ellroll ") + 2:].strip()
+    except OSError:
+        pass
+    if command:
+        resume = command if " --resume" in f" {command} " else command + " --resume"
+        return f"finish it with '{resume}' (the command {output}.lock names, from its folder), then read {output}"
+    return f"finish it with 'ellroll run INPUT -o {output} --resume' (the run's input and options), then read {output}"
+
+
+def _open_failure(path, exc):
+    """One line for a file h5py cannot open."""
+    text = _reason(exc)
+    if isinstance(exc, FileNotFoundError) or "No such file" in text:
+        return f"{path}: no such file"
+    if "temporarily unavailable" in text or "unable to lock file" in text:
+        # HDF5's flock: another process holds the file open to write (ellroll summary says the same)
+        lock = (output_of(path) or path) + ".lock"
+        return (f"{path}: cannot open the HDF5 file: another process has it open to write: a running ellroll, "
+                f"if {lock} exists (it names the process); read it when that run ends")
+    if "already open for write" in text or "consistency flags" in text:
+        # HDF5 marks a file open for write in its superblock until it is closed: a run killed
+        # (kill -9, a node lost) leaves its work file so; h5clear would not recover its cases
+        return (f"{path}: an unfinished run's work file (the run stopped before it closed the file: killed?); "
+                f"{_resume_advice(path)}; do not h5clear it")
+    return f"{path}: cannot open as HDF5 ({text})"
+
+
+def damaged(path, exc):
+    """One line for a read of an ellroll file that failed inside h5py."""
+    work = output_of(path)
+    hint = f"; an unfinished run's work file: {_resume_advice(path)}" if work else ""
+    return f"{path}: a damaged HDF5 file: cannot read it ({_reason(exc)}){hint}"
+
+
+def _reads(method):
+    """A read that fails inside h5py (a damaged file) raises NotAnEllrollFile
+    naming the file, not h5py's own exception."""
+    @functools.wraps(method)
+    def checked(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except NotAnEllrollFile:
+            raise
+        except Exception as exc:
+            if not from_h5py(exc):
+                raise
+            raise NotAnEllrollFile(damaged(self.path, exc)) from None
+    return checked
 
 
 class EllrollFile:
@@ -18,10 +107,34 @@ class EllrollFile:
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
-            raise NotAnEllrollFile(f"{self.path}: cannot open as HDF5 ({exc})") from None
-        if self._h5.attrs.get("program") != "ellroll":
+            raise NotAnEllrollFile(_open_failure(self.path, exc)) from None
+        try:
+            program = self._h5.attrs.get("program")
+            if program != "ellroll":
+                raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no program='ellroll' attribute)")
+            self._check_tables()
+            self.cases                                  # (read once: every case argument is looked up in it)
+        except Exception as exc:
             self._h5.close()
-            raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no program='ellroll' attribute)")
+            if isinstance(exc, NotAnEllrollFile):
+                raise
+            raise NotAnEllrollFile(damaged(self.path, exc)) from None
+
+    def _check_tables(self):
+        """Open every group and dataset of the file and read its attributes:
+        a file whose HDF5 tables are damaged (a flipped bit) fails here, at
+        open, with one message, not later in a figure. Reads no data."""
+        def visit(name, item):
+            if item is None:
+                raise NotAnEllrollFile(damaged(self.path, f"/{name} does not open"))
+            for key in item.attrs:
+                item.attrs[key]
+            if isinstance(item, h5py.Dataset):
+                item.shape, item.dtype, item.chunks
+        self._h5.visititems(visit)
+        for group in ("case", "summary", "trajectory"):
+            if not isinstance(self._h5.get(group), h5py.Group):
+                raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no group /{group})")
 
     def close(self):
         self._h5.close()
@@ -42,10 +155,12 @@ class EllrollFile:
         return self._dataset("summary/status").shape[0]
 
     @property
+    @_reads
     def time(self):
         return self._dataset("time")[:]
 
     @property
+    @_reads
     def fields(self):
         return sorted(set(self._h5["trajectory"]) - {"case", "time"} - set(self._coordinates("trajectory")))
 
@@ -54,6 +169,7 @@ class EllrollFile:
         return sorted(self.summary_figures)
 
     @property
+    @_reads
     def summary_figures(self):
         """The figures of /summary in the file's order (its members are kept
         in the order they were made, the order of ellroll's summary table),
@@ -75,20 +191,64 @@ class EllrollFile:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
 
-    def check_case(self, case):
-        if not 0 <= case < self.n_cases:
-            raise NotAnEllrollFile(f"{self.path}: case {case} out of range (the file has cases 0..{self.n_cases - 1})")
+    @property
+    def cases(self):
+        """The global case index of each case (row) the file holds
+        (/case/index): 0..n-1 for a whole campaign, I, I+N, ... for shard
+        I/N. Every `case` argument is such an index."""
+        if not hasattr(self, "_cases"):
+            rows = self._dataset("summary/status").shape[0]
+            index = self._h5.get("case/index")
+            cases = np.asarray(index[:], dtype=np.int64) if index is not None else np.arange(rows)
+            if cases.shape != (rows,):
+                raise NotAnEllrollFile(damaged(self.path, f"/case/index holds {cases.shape} values, "
+                                                          f"/summary/status {rows}"))
+            self._cases = cases
+            self._rows = {int(c): row for row, c in enumerate(cases)}
+        return self._cases
 
+    def case_index(self, case=None):
+        """The global index of a case; None: the file's first case."""
+        return int(self.cases[self.row(case)])
+
+    def row(self, case=None):
+        """The row that holds a case, by its global index (None: the first
+        row); NotAnEllrollFile naming the cases held where the file holds no
+        such case."""
+        self.cases
+        if case is None:
+            if not self._rows:
+                raise NotAnEllrollFile(f"{self.path}: holds no case")
+            return 0
+        if isinstance(case, (bool, np.bool_)) or not isinstance(case, (int, np.integer)):
+            raise NotAnEllrollFile(f"{self.path}: a case is an integer index, not {case!r}")
+        row = self._rows.get(int(case))
+        if row is None:
+            held = _held(self._cases)
+            if np.array_equal(self._cases, np.arange(len(self._cases))) and len(self._cases):
+                raise NotAnEllrollFile(f"{self.path}: case {case} out of range (the file has cases "
+                                       f"0..{len(self._cases) - 1})")
+            shard = f": shard {self.attrs.get('shard')}" if self._h5.attrs.get("shard") else ""
+            raise NotAnEllrollFile(f"{self.path}: case {case} is not in this file (it holds cases {held}{shard})")
+        return row
+
+    def check_case(self, case):
+        """The row of a case (its global index), or NotAnEllrollFile."""
+        return self.row(case)
+
+    @_reads
     def units(self, name):
         return self._dataset(name).attrs.get("units", "")
 
     # ------------------------------------------------------------ data
-    def trajectory(self, field, case=0):
-        """One case's samples of a trajectory field: (nt,) or (nt, 3)."""
-        self.check_case(case)
-        return self._dataset(f"trajectory/{field}")[case]
+    @_reads
+    def trajectory(self, field, case=None):
+        """One case's samples of a trajectory field: (nt,) or (nt, 3); case:
+        its global index (None: the file's first case)."""
+        return self._dataset(f"trajectory/{field}")[self.row(case)]
 
     @property
+    @_reads
     def inputs(self):
         """{input: (/case dataset, component or None)}: every input the file
         holds, named as a sweep names it (omega_z), in the file's order. Each
@@ -109,11 +269,12 @@ class EllrollFile:
         its /case dataset's (omega)."""
         return self.inputs.get(name, (name, None))
 
-    def case_input(self, name, case=0):
+    @_reads
+    def case_input(self, name, case=None):
         """A resolved input of one case, by its name (omega_z) or /case name (omega)."""
-        self.check_case(case)
+        row = self.row(case)
         dataset, component = self._input(name)
-        value = self._dataset(f"case/{dataset}")[case]
+        value = self._dataset(f"case/{dataset}")[row]
         if component is not None:
             value = value[component]
         return value.decode() if isinstance(value, bytes) else value
@@ -122,12 +283,14 @@ class EllrollFile:
         """The units of an input, by its name (omega_z) or /case name."""
         return self.units("case/" + self._input(name)[0])
 
+    @_reads
     def input_column(self, name):
         """An input over all cases (for sweeps)."""
         dataset, component = self._input(name)
         values = self._dataset(f"case/{dataset}")
         return values[:, component] if component is not None else values[:]
 
+    @_reads
     def swept_inputs(self):
         """The inputs that differ between cases, by name."""
         if self.n_cases < 2:
@@ -153,44 +316,49 @@ class EllrollFile:
         without them, the inputs that differ (swept_inputs) and the record."""
         return self._coordinates("summary") or self.swept_inputs() + (["record"] if any(self.record_names()) else [])
 
+    @_reads
     def record_names(self):
         """Each case's record of a suite (&record name), or blanks."""
         if "case/record" not in self._h5:
             return [""] * self.n_cases
         return [n.decode().strip() if isinstance(n, bytes) else str(n).strip() for n in self._h5["case/record"][:]]
 
+    @_reads
     def summary(self, name, case=None):
+        """A /summary figure over all cases, or of one case (its global index)."""
         ds = self._dataset(f"summary/{name}")
         if case is None:
             return ds[:]
-        self.check_case(case)
-        return ds[case]
+        return ds[self.row(case)]
 
-    def switches(self, case=0):
+    @_reads
+    def switches(self, case=None):
         """One case's switches of regime, in order: (times in s, kinds by
         name, 'to_sliding' or 'to_rolling'), from /switches (a campaign
         with &ball slip = 'slide'); empty for a case that never slid."""
-        self.check_case(case)
+        row = self.row(case)
         if "switches" not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no /switches in this file (no case may slide: "
                                    "&ball slip = 'slide' stores them)")
         group = self._h5["switches"]
-        first, count = int(group["first"][case]), int(group["count"][case])
+        first, count = int(group["first"][row]), int(group["count"][row])
         if count < 0:
-            raise ValueError(f"{self.path}: case {case} was never run ({self.status_name(case)})")
+            raise ValueError(f"{self.path}: case {self.case_index(case)} was never run ({self.status_name(case)})")
         kinds = group["switch_kind"]
         values = np.asarray(kinds.attrs["flag_values"])
         names = np.array(kinds.attrs["flag_meanings"].split())
         codes = kinds[first:first + count]
         return group["switch_time"][first:first + count], names[np.searchsorted(values, codes)]
 
+    @_reads
     def status_names(self):
         """Each case's status by name (the flag_meanings of its flag_values)."""
         return self._status_meanings(self._dataset("summary/status")[:]).tolist()
 
-    def status_name(self, case=0):
-        self.check_case(case)
-        return str(self._status_meanings(self._dataset("summary/status")[case:case + 1])[0])
+    @_reads
+    def status_name(self, case=None):
+        row = self.row(case)
+        return str(self._status_meanings(self._dataset("summary/status")[row:row + 1])[0])
 
     def _status_meanings(self, codes):
         """The flag_meanings of codes; "unknown" for a code outside flag_values (a file
@@ -202,6 +370,18 @@ class EllrollFile:
         codes = np.asarray(codes)
         at = np.minimum(np.searchsorted(values[order], codes), len(values) - 1)
         return np.where(values[order][at] == codes, names[at], "unknown")
+
+
+def _held(cases):
+    """The case indices held, short: 0..9, 0, 4, 8, or 1, 5, 9, ..., 97."""
+    cases = [int(c) for c in cases]
+    if not cases:
+        return "none"
+    if len(cases) > 1 and cases == list(range(cases[0], cases[-1] + 1)):
+        return f"{cases[0]}..{cases[-1]}"
+    if len(cases) <= 6:
+        return ", ".join(map(str, cases))
+    return ", ".join(map(str, cases[:3])) + ", ..., " + str(cases[-1])
 
 
 def open(path):  # noqa: A001 - mirrors h5py.File / xarray.open_dataset naming

@@ -29,9 +29,11 @@ CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, th
 
 
 
-def build_report(run, out, draw, case=0, fmt="png", overwrite=False, all_cases=False):
+def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_cases=False):
     """Draw what applies into out/, write out/index.html; return the paths.
-    all_cases: the per-case table lists every case (else the first REPORT_ROWS)."""
+    all_cases: the per-case table lists every case (else the first REPORT_ROWS);
+    case: the per-case figures' case, its global index (None: the file's first)."""
+    case = run.case_index(case)
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     for page in ("index.html", "summary.csv"):
@@ -78,15 +80,15 @@ def report_columns(run):
 
 
 def _distinct_excitations(run):
-    """One case of each excitation kind (reading the kinds once)."""
+    """One case of each excitation kind (reading the kinds once), by global index."""
     try:
         kinds = [str(k).strip() for k in run.input_column("excitation_kind")]
     except Exception:       # a file without the input: every case decides for itself
-        return range(run.n_cases)
+        return run.cases
     first = {}
     for index, kind in enumerate(kinds):
         first.setdefault(kind, index)
-    return sorted(first.values())
+    return [int(run.cases[row]) for row in sorted(first.values())]
 
 
 def campaign_summary(run, columns):

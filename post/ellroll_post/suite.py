@@ -85,6 +85,15 @@ def limit_state_columns(run):
     return columns
 
 
+def check_limit_state(run, name):
+    """NotAnEllrollFile where the file has no limit state `name` (the
+    model's limits, MODEL_LIMIT_STATE, or one of limit_state_columns)."""
+    known = [MODEL_LIMIT_STATE, *limit_state_columns(run)]
+    if name not in known:
+        from .reader import NotAnEllrollFile
+        raise NotAnEllrollFile(f"{run.path}: no limit state {name} (known: {', '.join(sorted(known))})")
+
+
 def _text(value):
     return value.decode() if isinstance(value, bytes) else str(value)
 

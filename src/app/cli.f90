@@ -138,8 +138,9 @@ contains
     else if (cli%command == 'methods' .or. cli%command == 'inputs') then
       return
     else if (size(cli%paths) == 0) then
-      call usage_error(err, cli%command // ' needs ' // merge('an output file and shard files', &
-                                                             'an input file                 ', cli%command == 'merge'))
+      ! (merge pads its shorter text with blanks: trimmed)
+      call usage_error(err, cli%command // ' needs ' // trim(merge('an output file and shard files', &
+                                                                  'an input file                 ', cli%command == 'merge')))
     else if (cli%command == 'merge' .and. size(cli%paths) < 2) then
       call usage_error(err, 'merge needs an output file and at least one shard file')
     else if (cli%command /= 'merge' .and. size(cli%paths) > 1) then

@@ -1,8 +1,10 @@
 """Every class of bad input: exit 2, a message naming file, line, group,
 variable and value, and no output file created or touched."""
+import re
+
 import pytest
 
-from conftest import PAPER_INPUT, run
+from conftest import PAPER_INPUT, ROOT, run
 
 # (id, edits to the paper's input, words the message must contain)
 CASES = [
@@ -99,6 +101,25 @@ def test_bad_command_line(ellroll, tmp_path, args, words):
     result = run(ellroll, *args, cwd=tmp_path)
     assert result.returncode == 2
     assert words in result.stderr
+
+
+@pytest.mark.parametrize("command, needs", [("run", "an input file"), ("check", "an input file"),
+                                            ("summary", "an input file"), ("modes", "an input file"),
+                                            ("merge", "an output file and shard files")])
+def test_a_command_without_its_file_is_one_trimmed_line(ellroll, tmp_path, command, needs):
+    result = run(ellroll, command, cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr == f"ellroll: error: {command} needs {needs} (see 'ellroll --help')\n", result.stderr
+
+
+def test_the_docs_name_only_commands_ellroll_has(ellroll):
+    """Every `ellroll WORD` the docs write is a command of `ellroll --help`."""
+    usage = run(ellroll, "--help").stdout
+    commands = set(re.findall(r"^  ellroll ([a-z]+)", usage, flags=re.M))
+    assert {"run", "check", "merge", "summary"} <= commands, usage
+    pages = [ROOT / "README.md", ROOT / "post" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    named = {(page.name, word) for page in pages for word in re.findall(r"`ellroll ([a-z]+)", page.read_text())}
+    assert {(page, word) for page, word in named if word not in commands} == set()
 
 
 def test_empty_file(ellroll, tmp_path):

@@ -385,7 +385,7 @@ def test_report_of_a_folder_is_a_clear_error(tmp_path):
         assert result.returncode == 2 and "a folder, not an ellroll file" in result.stderr, result.stderr
         assert "Traceback" not in result.stderr
     result = plot_cli("report", tmp_path / "missing.h5")
-    assert result.returncode == 2 and "cannot open" in result.stderr
+    assert result.returncode == 2 and "missing.h5: no such file" in result.stderr
     assert not (tmp_path / "missing_report").exists()          # nothing made for a file that cannot be read
 
 

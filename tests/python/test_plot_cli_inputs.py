@@ -1,0 +1,326 @@
+"""ellroll-plot and the reader on the inputs that meet them outside a
+tidy campaign, every subcommand over each: a shard's file (--case is the
+global case index, as `ellroll summary` and /case/index give it), an HDF5
+file with one flipped bit in its tables (seeded), a killed run's work file
+(OUT.h5.partial, kill -9), and bad numeric options (seeded). Each ends in
+the figure or text asked for (exit 0) or in one line naming the file and
+the reason (exit 2), never a traceback."""
+import contextlib
+import csv
+import io
+import random
+import shutil
+import traceback
+
+import h5py
+import numpy as np
+import pytest
+
+matplotlib = pytest.importorskip("matplotlib")
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+import ellroll_post  # noqa: E402
+from ellroll_post.cli import main as plot_main  # noqa: E402
+from conftest import ROOT, run  # noqa: E402
+from test_campaign import kill_after_records, record_bytes  # noqa: E402
+
+CUP = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
+&ball        radius = 0.2, weight = 2620.0 /
+&initial     x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = {t_end}{estimate} /
+&output      file = '{name}.h5', interval = 0.02, fields = 'all' /
+"""
+# a harmonic sweep: every per-case figure applies (spectrum: a moving cup), and
+# transmissibility, sweep and workprecision (error_estimate = 'reference') too
+SHAKEN = ("&excitation kind = 'harmonic', amplitude = 0.3, 0.1, 0.0, frequency = 0.5 /\n"
+          "&sweep name = 'excitation_frequency', values = 0.3, 0.4, 0.5, 0.6, 0.7, 0.8 /\n")
+SUITE = ("&excitation kind = 'record' /\n"
+         "&record name = 'SYN1', record_file = 'records/SYN1_H1.AT2', 'records/SYN1_H2.AT2' /\n"
+         "&record name = 'SYN3', record_file = 'records/SYN3_H1.AT2', 'records/SYN3_H2.AT2', factor = 1.5 /\n"
+         "&sweep name = 'scale', values = 1.0, 2.0, 4.0 /\n"
+         "&limit_state name = 'drift', figure = 'displacement_max', capacity = 0.05 /\n")
+PER_CASE = ["trace", "nutation", "reaction", "energy", "spectrum", "report"]
+SUBCOMMANDS = PER_CASE + ["sweep", "transmissibility", "suite", "fragility", "workprecision", "summary"]
+SHARDS = 3
+
+
+def write(folder, name, extra, t_end=2.0, estimate=True):
+    text = CUP.format(name=name, t_end=t_end, estimate=", error_estimate = 'reference'" if estimate else "")
+    (folder / f"{name}.nml").write_text(text + extra)
+    return f"{name}.nml"
+
+
+@pytest.fixture(scope="module")
+def files(ellroll, tmp_path_factory):
+    """The shaken sweep whole (whole.h5) and as shards (shard_I.h5), and a
+    record suite (suite.h5)."""
+    folder = tmp_path_factory.mktemp("plot_inputs")
+    shutil.copytree(ROOT / "input" / "records", folder / "records")
+    shaken = write(folder, "whole", SHAKEN)
+    suite = write(folder, "suite", SUITE, t_end=4.0, estimate=False)
+    runs = [(shaken, ["-o", "whole.h5"]), (suite, [])]
+    runs += [(shaken, ["--shard", f"{i}/{SHARDS}", "-o", f"shard_{i}.h5"]) for i in range(SHARDS)]
+    for name, options in runs:
+        result = run(ellroll, "run", name, "-q", "--threads", 2, *options, cwd=folder)
+        assert result.returncode == 0, result.stderr
+    return folder
+
+
+def cli(*args):
+    """ellroll-plot in this process: (exit code, stdout, stderr); a
+    traceback is returned as standard error with code 'traceback'."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = plot_main([str(a) for a in args])
+        except SystemExit as exc:          # argparse
+            code = exc.code
+        except Exception as exc:           # noqa: BLE001 - a traceback is the failure asserted against
+            code, err = "traceback", io.StringIO("Traceback (most recent call last):\n" + "".join(
+                traceback.format_exception(exc)))
+    plt.close("all")
+    return code, out.getvalue(), err.getvalue()
+
+
+def one_line_error(code, err, *words):
+    """Exit 2 and one line on standard error holding every word."""
+    lines = err.strip().splitlines()
+    assert code == 2 and "Traceback" not in err and len(lines) == 1, (code, err)
+    assert lines[0].startswith("ellroll-plot"), err
+    for word in words:
+        assert word in lines[0], (word, err)
+
+
+def arguments(command, path, out):
+    """The arguments of a subcommand on a file (figures into out)."""
+    if command == "summary":
+        return [command, path]
+    if command == "fragility":
+        return [command, path, "--out", out, "--bootstrap", 0]
+    return [command, path, "--out", out, "--overwrite"]
+
+
+def held_cases(index, shards=SHARDS, cases=6):
+    return list(range(index, cases, shards))
+
+
+# -------------------------------------------------------- shards and --case
+@pytest.mark.parametrize("command", PER_CASE)
+def test_case_is_the_global_index_on_a_shard(files, tmp_path, command):
+    """On shard 1/3 (cases 1 and 4) --case 4 draws global case 4 and says
+    so; no --case draws the shard's first case (1); a case the shard does
+    not hold (0, 2, 5, the row counts 0 and 1 among them) is refused,
+    naming the file and the cases it holds."""
+    shard = files / "shard_1.h5"
+    with h5py.File(shard, "r") as f:
+        assert f["case/index"][:].tolist() == held_cases(1)
+    for case, stem in ((4, "_case4"), (None, "_case1")):
+        code, out, err = cli(*arguments(command, shard, tmp_path), *(["--case", case] if case is not None else []))
+        assert code == 0 and "Traceback" not in err, err
+        if command != "report":
+            assert out.strip().endswith(f"{stem}.png"), out
+        else:
+            index = (tmp_path / "index.html").read_text()
+            assert f"Per-case figures show case {stem[5:]}." in index, index
+    for case in (0, 2, 5, 6, -1):
+        code, _, err = cli(*arguments(command, shard, tmp_path), "--case", case)
+        one_line_error(code, err, "shard_1.h5", f"case {case} ", "holds cases 1, 4")
+
+
+@pytest.mark.parametrize("figure", ["trace", "nutation", "reaction", "energy", "spectrum"])
+def test_a_shards_case_draws_that_cases_data(files, figure):
+    """The API's case arguments are global indices too: a shard's case 4
+    draws the same lines, under the same title, as case 4 of the whole
+    campaign's file; its trajectories, inputs, summary and status are
+    those of case 4."""
+    draw = getattr(ellroll_post, f"plot_{figure}")
+
+    def drawn(path, case):
+        with ellroll_post.open(path) as f:
+            fig, axes = plt.subplots(3, 1) if figure == "reaction" else plt.subplots()
+            draw(axes, f, case)
+            axes = np.atleast_1d(axes)
+            lines = [(ln.get_label(), np.asarray(ln.get_xydata())) for ax in axes for ln in ax.get_lines()]
+            titles = [ax.get_title() for ax in axes]
+            plt.close(fig)
+        return lines, titles
+
+    for shard, case in ((1, 4), (2, 2), (2, 5)):
+        lines, titles = drawn(files / f"shard_{shard}.h5", case)
+        whole_lines, whole_titles = drawn(files / "whole.h5", case)
+        assert [t.replace(f"shard_{shard}.h5", "whole.h5") for t in titles] == whole_titles
+        assert any(f"case {case}: completed" in t for t in titles), titles
+        assert len(lines) == len(whole_lines)
+        for (label, xy), (whole_label, whole_xy) in zip(lines, whole_lines):
+            assert label == whole_label
+            np.testing.assert_array_equal(xy, whole_xy)
+    with ellroll_post.open(files / "shard_1.h5") as s, ellroll_post.open(files / "whole.h5") as w:
+        assert s.cases.tolist() == [1, 4]
+        for case in (1, 4):
+            np.testing.assert_array_equal(s.trajectory("contact", case), w.trajectory("contact", case))
+            assert s.case_input("excitation_frequency", case) == w.case_input("excitation_frequency", case)
+            assert s.summary("theta_max", case) == w.summary("theta_max", case)
+            assert s.status_name(case) == w.status_name(case)
+        np.testing.assert_array_equal(s.trajectory("contact"), w.trajectory("contact", 1))
+        for case in (0, 2, 3, 5):
+            with pytest.raises(ellroll_post.NotAnEllrollFile, match=f"case {case} is not in this file"):
+                s.trajectory("contact", case)
+
+
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_every_subcommand_reads_a_shard(files, tmp_path, command):
+    """A shard's file is an ellroll file: each subcommand draws or prints
+    from it, or says in one line why it cannot (the 2 cases of a shard of
+    a suite are not a suite, for one)."""
+    code, _, err = cli(*arguments(command, files / "shard_1.h5", tmp_path))
+    assert code == 0 or (code == 2 and len(err.strip().splitlines()) == 1 and "shard_1.h5" in err), (code, err)
+    assert "Traceback" not in err, err
+    if command in PER_CASE + ["summary", "sweep", "workprecision"]:
+        assert code == 0, err
+
+
+# ------------------------------------------------------------ damaged files
+def table_bytes(path):
+    """The offsets of the bytes of a file outside its datasets' data: its
+    superblock, object headers, B-trees, heaps (HDF5's tables)."""
+    data = np.zeros(path.stat().st_size, bool)
+
+    def visit(_, item):
+        if isinstance(item, h5py.Dataset):
+            if item.chunks:
+                for i in range(item.id.get_num_chunks()):
+                    info = item.id.get_chunk_info(i)
+                    data[info.byte_offset:info.byte_offset + info.size] = True
+            elif item.id.get_offset() is not None:
+                data[item.id.get_offset():item.id.get_offset() + item.id.get_storage_size()] = True
+    with h5py.File(path, "r") as f:
+        f.visititems(visit)
+    return np.flatnonzero(~data)
+
+
+def flipped(source, target, rng, places):
+    """source with one seeded bit flipped among `places` written to target."""
+    data = bytearray(source.read_bytes())
+    at = int(places[rng.randrange(places.size)])
+    data[at] ^= 1 << rng.randrange(8)
+    target.write_bytes(data)
+    return at
+
+
+@pytest.mark.parametrize("source", ["whole", "suite"])
+def test_a_flipped_bit_in_the_tables_is_one_line(files, tmp_path, source):
+    """10 seeded flips of one bit in a file's HDF5 tables, every subcommand
+    on each: exit 0 (the flip hit nothing read) or 2 with one line naming
+    the file; never a traceback. The reader opens each file or raises
+    NotAnEllrollFile, and what it opens reads whole."""
+    rng = random.Random(8088 + len(source))
+    places = table_bytes(files / f"{source}.h5")
+    refused = 0
+    for flip in range(10):
+        damaged = tmp_path / f"d{flip}.h5"
+        at = flipped(files / f"{source}.h5", damaged, rng, places)
+        for command in SUBCOMMANDS:
+            code, _, err = cli(*arguments(command, damaged, tmp_path / "out"))
+            assert "Traceback" not in err, (at, command, err)
+            assert code in (0, 2) and (code == 0 or len(err.strip().splitlines()) == 1), (at, command, code, err)
+            assert code == 0 or f"d{flip}.h5" in err, (at, command, err)
+        try:
+            with ellroll_post.open(damaged) as f:
+                f.summary_names, f.fields, f.swept_inputs(), f.status_names(), f.trajectory("contact", f.cases[-1])
+        except ellroll_post.NotAnEllrollFile as exc:
+            refused += 1
+            assert str(exc).startswith(str(damaged)) and "\n" not in str(exc), exc
+    assert refused >= 4                     # most flips in the tables damage what is read
+
+
+# ------------------------------------------------------- a killed run's file
+@pytest.fixture(scope="module")
+def killed(ellroll, tmp_path_factory):
+    """A run of 40 cases killed -9 after its second case: its work file
+    OUT.h5.partial (marked open for write), journal and lock are left."""
+    folder = tmp_path_factory.mktemp("killed")
+    name = write(folder, "k", "&sweep name = 'omega_z', start = 5, stop = 50, count = 40 /\n", t_end=3.0,
+                 estimate=False)
+    assert kill_after_records([str(ellroll), "run", name, "-q", "--threads", "1"], folder, folder / "k.h5.journal",
+                              2, record_bytes())
+    assert (folder / "k.h5.partial").exists() and not (folder / "k.h5").exists()
+    return folder
+
+
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_a_killed_runs_work_file_says_resume(killed, tmp_path, command):
+    """Each subcommand on a killed run's OUT.h5.partial: one line saying it
+    is an unfinished run's work file and the command that finishes it (the
+    one its lock names, with --resume); not HDF5's advice to h5clear it."""
+    code, _, err = cli(*arguments(command, killed / "k.h5.partial", tmp_path))
+    one_line_error(code, err, "k.h5.partial", "unfinished run's work file",
+                   "'ellroll run k.nml -q --threads 1 --resume'", "then read", "k.h5")
+    assert "may use <h5clear" not in err
+
+
+def test_the_reader_says_resume_and_so_does_it_after_h5clear(killed, tmp_path):
+    """The reader raises NotAnEllrollFile naming the work file and
+    --resume; with its consistency flags cleared (what h5clear -s does:
+    the superblock's byte 11) the file opens where it can, and every
+    subcommand draws or refuses it in one line."""
+    with pytest.raises(ellroll_post.NotAnEllrollFile, match="unfinished run's work file.*--resume"):
+        ellroll_post.open(killed / "k.h5.partial")
+    cleared = tmp_path / "c.h5.partial"
+    data = bytearray((killed / "k.h5.partial").read_bytes())
+    assert data[:8] == b"\x89HDF\r\n\x1a\n" and data[8] >= 2 and data[11] != 0   # superblock v2+: flags at 11
+    data[11] = 0
+    cleared.write_bytes(data)
+    for command in SUBCOMMANDS:
+        code, _, err = cli(*arguments(command, cleared, tmp_path / "out"))
+        assert "Traceback" not in err and code in (0, 2), (command, err)
+        assert code == 0 or (len(err.strip().splitlines()) == 1 and "c.h5.partial" in err), (command, err)
+
+
+# ------------------------------------------------------------ bad options
+def bad_values(rng, count, huge=True):
+    """Seeded values no numeric option takes: negatives, non-integers,
+    texts, and (huge) integers past any case index or bootstrap count."""
+    makers = [lambda: str(-rng.randint(1, 10**rng.randint(1, 30))), lambda: f"{rng.uniform(-5, 5):.3f}",
+              lambda: rng.choice(["nan", "inf", "-inf", "", "abc", "1e3", "0x10", "2.0", "1/2", "--"])]
+    if huge:
+        makers.append(lambda: str(rng.randint(100_001, 10**rng.randint(6, 60))))
+    return [rng.choice(makers)() for _ in range(count)]
+
+
+NUMERIC = {command: ["--case"] for command in PER_CASE} | {"fragility": ["--bootstrap", "--seed"]}
+
+
+@pytest.mark.parametrize("command, option", [(c, o) for c, options in NUMERIC.items() for o in options])
+def test_bad_numeric_options_are_one_line(files, tmp_path, command, option):
+    """Seeded bad values of each numeric option: exit 2 and one line naming
+    the option (a bad text or bound) or the file (a case it does not hold),
+    nothing written."""
+    path = files / ("suite.h5" if command == "fragility" else "whole.h5")
+    rng = random.Random(f"{command}{option}")
+    for value in bad_values(rng, 10, huge=option != "--seed"):     # (a seed may be any size)
+        for fmt in (["--format", "table"], []) if command == "fragility" else ([],):
+            code, out, err = cli(*arguments(command, path, tmp_path), *fmt, f"{option}={value}")
+            one_line_error(code, err)
+            assert option in err or (option == "--case" and "whole.h5: case" in err), (value, err)
+            assert not out
+    assert not list(tmp_path.glob("*.png"))
+
+
+def test_an_unknown_limit_state_is_refused_in_every_format(files, tmp_path):
+    """--limit-state names a limit state of the file, for the figure and
+    the printed fits alike; a known one prints only its rows."""
+    path = files / "suite.h5"
+    for fmt in ("png", "table", "csv", "json"):
+        code, out, err = cli("fragility", path, "--out", tmp_path, "--bootstrap", 0, "--format", fmt,
+                             "--limit-state", "no_such_state")
+        one_line_error(code, err, "suite.h5", "no limit state no_such_state", "known: drift, model_limit")
+        assert not out
+    code, out, err = cli("fragility", path, "--bootstrap", 0, "--format", "csv", "--limit-state", "model_limit")
+    assert code == 0, err
+    chosen = list(csv.DictReader(io.StringIO(out)))
+    assert chosen and {row["limit_state"] for row in chosen} == {"model_limit"}, out
+    code, out, err = cli("fragility", path, "--bootstrap", 0, "--format", "csv")
+    every = list(csv.DictReader(io.StringIO(out)))
+    assert code == 0 and {row["limit_state"] for row in every} == {"drift", "model_limit"}, out
+    assert [row for row in every if row["limit_state"] == "model_limit"] == chosen
