@@ -11,7 +11,7 @@ module ellroll_norms
   implicit none
   private
 
-  public :: norm_of, small_sum, norm_up, norm_down
+  public :: norm_of, small_sum, norm_up, norm_down, tangential_size, horizontal_force_scaled
 
   interface norm_of
     module procedure norm_of_2, norm_of_3
@@ -43,4 +43,26 @@ contains
     factor = merge(norm_up, 1.0_wp, small)
     norm = merge(sqrt((factor * x)**2 + (factor * y)**2 + (factor * z)**2) * norm_down, sqrt(sum), small)
   end function norm_of_3
+
+  !> |t| as norm_of takes it (scaled where the squares fall below
+  !> small_sum), the normal-size root written as one expression on the
+  !> vector's components, as the compiler contracts it into fused
+  !> multiply-adds in the one-case path.
+  pure real(wp) function tangential_size(t)
+    real(wp), intent(in) :: t(3)
+    real(wp) :: factor
+    tangential_size = sqrt(t(1)**2 + t(2)**2 + t(3)**2)
+    if (t(1)**2 + t(2)**2 + t(3)**2 < small_sum) then
+      factor = norm_up
+      tangential_size = sqrt((factor * t(1))**2 + (factor * t(2))**2 + (factor * t(3))**2) * norm_down
+    end if
+  end function tangential_size
+
+  !> |(F_x, F_y)| / 2^exponent(m) of a force F on a ball of mass m
+  !> (observation_t): the power of two taken out first, so that the squares
+  !> of a light ball's forces do not underflow.
+  pure real(wp) function horizontal_force_scaled(force, mass)
+    real(wp), intent(in) :: force(3), mass
+    horizontal_force_scaled = norm_of(scale(force(1), -exponent(mass)), scale(force(2), -exponent(mass)))
+  end function horizontal_force_scaled
 end module ellroll_norms

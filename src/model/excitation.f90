@@ -127,7 +127,7 @@ contains
   pure real(wp) function longest_step(exc)
     type(excitation_t), intent(in) :: exc
     longest_step = huge(1.0_wp)
-    if (exc%kind == excitation_harmonic .and. exc%frequency > 0) longest_step = 0.5_wp / exc%frequency
+    if (exc%kind == excitation_harmonic .and. exc%frequency >= tiny(1.0_wp)) longest_step = 0.5_wp / exc%frequency
   end function longest_step
 
   pure real(wp) function step_to_sample(exc, t, h) result(step)

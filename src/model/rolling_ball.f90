@@ -14,7 +14,7 @@ module ellroll_rolling_ball
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
   use ellroll_exact, only: is_zero
-  use ellroll_norms, only: norm_of, small_sum, norm_up, norm_down
+  use ellroll_norms, only: norm_of, tangential_size, horizontal_force_scaled
   use ellroll_ode, only: hybrid_system_t
   use ellroll_ellipsoid, only: ellipsoid_t, contact_point, normal_from_contact, surface_residual
   use ellroll_excitation, only: excitation_t, excitation_none, base_acceleration
@@ -343,14 +343,11 @@ contains
         + ball%rolling_at_start(3) * free(3) > 0) ball%rolling_law = law_implicit
   end subroutine choose_rolling_law
 
-  !> A step h from rest (begin_step's mode zero) that the couple does not
-  !> hold, f the derivative there: the ball starts rolling along the drive d,
-  !> f's rolling part (F_t - C) d with |F_t| > C, so the couple's direction
-  !> omega_t / |omega_t| turns at the rate C / |omega_t|, without bound at the
-  !> start; the couple acts against omega_t + h F_t instead (law_implicit, d
-  !> the mode), of derivative C / |h F_t| < 1 / h, for a method whose stages
-  !> solve equations (gauss4: they have no solution in the exact law). A ball
-  !> held (f = 0) or rolling: law_exact.
+  !> A step h from rest that the couple does not hold (f: the derivative):
+  !> the couple's direction turns at C / |omega_t|, without bound at the
+  !> start, so it acts against omega_t + h F_t (law_implicit along the
+  !> drive), whose rate C / |h F_t| < 1 / h gauss4's stages can solve.
+  !> Held (f = 0) or rolling: law_exact.
   pure subroutine released(ball, y, f, h)
     type(rolling_ball_t), intent(inout) :: ball
     real(wp), intent(in) :: y(state_size), f(state_size), h
@@ -669,28 +666,6 @@ contains
     fit_radius = r * (1 + peak_clearance)
     obs%fit_clearance = min(fit_radius * (fit_radius - trace) + det, trace - 2 * fit_radius)
   end subroutine observe
-
-  !> |t| as norm_of takes it (scaled where the squares fall below
-  !> small_sum), the normal-size root written as one expression on the
-  !> vector's components, as the compiler contracts it into fused
-  !> multiply-adds in the one-case path.
-  pure real(wp) function tangential_size(t)
-    real(wp), intent(in) :: t(3)
-    real(wp) :: factor
-    tangential_size = sqrt(t(1)**2 + t(2)**2 + t(3)**2)
-    if (t(1)**2 + t(2)**2 + t(3)**2 < small_sum) then
-      factor = norm_up
-      tangential_size = sqrt((factor * t(1))**2 + (factor * t(2))**2 + (factor * t(3))**2) * norm_down
-    end if
-  end function tangential_size
-
-  !> |(F_x, F_y)| / 2^exponent(m) of a force F on a ball of mass m
-  !> (observation_t): the power of two taken out first, so that the squares
-  !> of a light ball's forces do not underflow.
-  pure real(wp) function horizontal_force_scaled(force, mass)
-    real(wp), intent(in) :: force(3), mass
-    horizontal_force_scaled = norm_of(scale(force(1), -exponent(mass)), scale(force(2), -exponent(mass)))
-  end function horizontal_force_scaled
 
   !> The nutation angle Theta, between n and the vertical (rad), from the
   !> lateral and vertical parts of the unit normal.
