@@ -91,8 +91,12 @@ contains
         call set_error(err, err_output, path // ': cannot open the HDF5 file: another process has it open to ' // &
             'write (' // reason // '): a running ellroll, if ' // lock_of(path) // ' exists (it names the ' // &
             'process); read it when that run ends')
-      else if (index(reason, 'HDF5: ') /= 1 .or. index(reason, 'already open for write') > 0) then
-        ! the system's reason, or a file a killed writer left open
+      else if (index(reason, 'already open for write') > 0) then
+        ! (no process has it open: its writer stopped before closing it)
+        call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
+            "closed the file: killed?); finish it with 'ellroll run INPUT --resume' (the command " // lock_of(path) // &
+            ' names, from its folder); do not h5clear it')
+      else if (index(reason, 'HDF5: ') /= 1) then      ! the system's reason
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
       else                      ! HDF5's own tables do not hold together (a file cut short)
         call set_error(err, err_input, path // ': damaged: HDF5 cannot open it (' // reason(7:) // ')')

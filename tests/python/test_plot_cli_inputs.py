@@ -10,6 +10,7 @@ import csv
 import io
 import random
 import shutil
+import subprocess
 import traceback
 
 import h5py
@@ -257,6 +258,15 @@ def test_a_killed_runs_work_file_says_resume(killed, tmp_path, command):
     one_line_error(code, err, "k.h5.partial", "unfinished run's work file",
                    "'ellroll run k.nml -q --threads 1 --resume'", "then read", "k.h5")
     assert "may use <h5clear" not in err
+
+
+def test_ellroll_summary_of_a_killed_runs_work_file_says_resume(ellroll, killed):
+    """`ellroll summary` on the killed run's OUT.h5.partial names its lock
+    and --resume, not HDF5's advice to h5clear it."""
+    result = subprocess.run([str(ellroll), "summary", "k.h5.partial"], cwd=killed, capture_output=True, text=True)
+    assert result.returncode == 3, result.stderr
+    assert "k.h5.partial: an unfinished run's work file" in result.stderr and "--resume" in result.stderr
+    assert "k.h5.lock" in result.stderr and "h5clear file" not in result.stderr, result.stderr
 
 
 def test_the_reader_says_resume_and_so_does_it_after_h5clear(killed, tmp_path):
