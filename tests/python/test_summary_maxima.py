@@ -54,7 +54,7 @@ def test_fixed_step_theta_max_is_located_between_step_ends(ellroll, tmp_path, se
         # never below a step end (all stored)
         assert s["theta_max"] >= np.max(traj["nutation"]) - 1e-15
         errors.append(abs(s["theta_max"] - truth["theta_max"]))
-    # the step ends alone are off by O(dt^2) (6.9e-8 rad at 1e-3 on the probe's case);
+    # the step ends alone are off by O(dt^2) (6.9e-8 rad at dt 1e-3 on such a case);
     # the parabola's vertex is within a few 1e-10
     assert errors[1] < 2e-9, errors
     assert errors[0] < 8e-9, errors
@@ -71,7 +71,7 @@ def _stop_case(mu, x, omega_z, dt, interval):
                    "against 3.4534 from the samples and vern9, where the substep that crosses the stop ends past it")
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_no_acceleration_spike_at_a_slip_stop(ellroll, tmp_path, seed):
-    """The probe's case (seed 0) and two near it: the friction at the stop's
+    """A case with a slip stop at 1.8665 s (seed 0) and two near it: the friction at the stop's
     state is mu N along rolling's need, so the maxima lie within the stored
     one-sided values (sliding before the stop, rolling after) and agree with
     vern9's (stored every 1e-4 s) and with rk4 at half the step."""
@@ -88,7 +88,7 @@ def test_no_acceleration_spike_at_a_slip_stop(ellroll, tmp_path, seed):
         stored = np.max(np.hypot(traj["reaction"][:, 0], traj["reaction"][:, 1])) / mass
         assert s["absolute_acceleration_max"] >= stored * (1 - 1e-12)
         # a maximum at a stop may be one-sided, never above both sides' samples by more
-        # than the motion moves in a step (the spike was 22 % above)
+        # than the motion moves in a step
         assert s["absolute_acceleration_max"] <= stored * (1 + 1e-3), (s["absolute_acceleration_max"], stored)
         figures.append(s["absolute_acceleration_max"])
     assert abs(figures[0] - figures[1]) <= 1e-4 * figures[1]
