@@ -15,7 +15,7 @@ module ellroll_slide_regime
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, align_slip, sliding_derivative
+      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -376,8 +376,7 @@ contains
     real(wp) :: rate(slide_state_size), big_n, force(3), need(3)
     call sliding_derivative(sb, t, at%s, rate, big_n, force, needed=need)
     if (.not. norm2(need) > 0) return
-    at%obs%reaction = big_n * at%obs%normal + (sb%ball%mu * max(big_n, 0.0_wp) / norm2(need)) * need
-    at%obs%center_acceleration = at%obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
+    call set_reaction(sb, big_n * at%obs%normal + (sb%ball%mu * max(big_n, 0.0_wp) / norm2(need)) * need, at%obs)
   end subroutine observe_stopped
 
   !> The piece of step h from (t, from) to `to` that the integrator has just

@@ -18,9 +18,9 @@ module ellroll_slide_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
-  use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative, horizontal_force_scaled
+  use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      slip_stop_time, center_velocity, choose_slip_law
+      slip_stop_time, center_velocity, choose_slip_law, set_reaction, direction_unresolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop
@@ -141,10 +141,8 @@ contains
   pure subroutine switch_reaction(sb, obs)
     type(sliding_ball_t), intent(in) :: sb
     type(observation_t), intent(inout) :: obs
-    obs%reaction = obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode)
-    obs%horizontal_force_scaled = horizontal_force_scaled(obs%reaction, sb%ball%mass)
+    call set_reaction(sb, obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode), obs)
     obs%friction_needed = sb%ball%mu
-    obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
   end subroutine switch_reaction
 
   !> Fixed steps of dt, each from the state at its start to the grid point
@@ -582,7 +580,7 @@ contains
     t_at = t_at + offset
     now = x
     if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
-    if (now%sliding) call finish_stop(integrator, run, rolling, sb, h - offset, t_at, now, tally, res, offset)
+    if (now%sliding) call finish_stop(integrator, run, rolling, sb, h, h - offset, t_at, now, tally, res, offset)
     if (now%sliding) then
       if (slip_stopped(sb, now, tally)) call observe_stopped(sb, t_at, now)
     end if
@@ -597,7 +595,9 @@ contains
 
   !> A located stop leaves a slip of up to stick_level of the episode's
   !> (where the event's function |u| - stick_level |u_start| crossed, or
-  !> where the slip, below that, turned by a right angle): u reaches zero
+  !> where the slip, below that, turned by a right angle), and so does a
+  !> turn that the step h which found it could not resolve (a slip whose
+  !> direction relaxes within a tenth of h: direction_unresolved): u reaches zero
   !> |u|^2 / (-u . u') later, to second order in that time, with the
   !> friction against u itself (past a turn the step's friction is against
   !> its start's slip, not u), and the piece to there (within room) is
@@ -605,11 +605,11 @@ contains
   !> the first (where the slip's direction still turns, its rate changes
   !> over the piece), so that the switch's time is the stop's to far below
   !> stick_level of the slip's time scale.
-  subroutine finish_stop(integrator, run, rolling, sb, room, t_at, now, tally, res, offset)
+  subroutine finish_stop(integrator, run, rolling, sb, h, room, t_at, now, tally, res, offset)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(inout) :: run, rolling
     type(sliding_ball_t), intent(inout) :: sb
-    real(wp), intent(in) :: room
+    real(wp), intent(in) :: h, room
     real(wp), intent(inout) :: t_at, offset
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
@@ -620,7 +620,10 @@ contains
     real(wp) :: approach, piece, left, first_slip
     integer :: status, k
     logical :: turned
-    if (.not. slip_stopped(sb, now, tally)) return  ! turned
+    if (.not. slip_stopped(sb, now, tally)) then         ! turned
+      res%n_rhs = res%n_rhs + 1
+      if (.not. direction_unresolved(sb, t_at, now%s, h)) return
+    end if
     first_slip = now%slip_speed
     left = room
     do k = 1, finish_pieces

@@ -32,7 +32,8 @@ module ellroll_sliding_ball
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
-            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip
+            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction, &
+            direction_unresolved
 
   integer, parameter :: slide_state_size = 8
 
@@ -388,6 +389,29 @@ contains
     need = -(b - dot_product(b, n) * n) / ((1 + 1 / ball%inertia_factor) / ball%mass)
   end function needed_friction
 
+  !> Whether the direction of the slip at sliding state y relaxes towards
+  !> -F_req in less than a tenth of a step h (tau = |u| / (kappa |F_req|),
+  !> docs/model.md, "The aligned law"): the explicit stages of such a step
+  !> do not resolve it, so that a turn of the slip found inside it is the
+  !> residue of that stiff mode, not the motion's (whose slip stays along
+  !> -F_req as it shrinks).
+  pure logical function direction_unresolved(sb, t, y, h) result(unresolved)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, y(slide_state_size), h
+    real(wp) :: rate(slide_state_size), big_n, need(3), reach
+    call sliding_derivative(sb, t, y, rate, big_n, needed=need)
+    reach = kappa_need(sb, need)
+    unresolved = 10 * norm2(slip_velocity(sb%ball, y)) < h * reach
+  end function direction_unresolved
+
+  !> kappa |F_req|: the rate at which the friction rolling needs, need,
+  !> changes the slip (u' = kappa (F - F_req)).
+  pure real(wp) function kappa_need(sb, need)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: need(3)
+    kappa_need = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)
+  end function kappa_need
+
   !> The angle between two vectors (0 where either is zero).
   pure real(wp) function turn_angle(a, b) result(angle)
     real(wp), intent(in) :: a(3), b(3)
@@ -438,7 +462,7 @@ contains
         call sliding_derivative(sb, t + h, y, scratch, needed=later)
         turn = max(turn, turn_angle(need, later) / h)
         n_rhs = n_rhs + 3
-        reach = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)      ! kappa |F_req|
+        reach = kappa_need(sb, need)
         if (10 * slip < h * reach) allowed = allowed * sb%stiff_allowance          ! (tau < h / 10)
         sb%aligned = slip**2 * turn <= allowed * reach
         if (sb%aligned) then
@@ -538,6 +562,17 @@ contains
     end if
   end subroutine sliding_rhs
 
+  !> The reaction of the cup on the ball in obs, and what follows from it:
+  !> its horizontal size and the centre's absolute acceleration.
+  pure subroutine set_reaction(sb, reaction, obs)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: reaction(3)
+    type(observation_t), intent(inout) :: obs
+    obs%reaction = reaction
+    obs%horizontal_force_scaled = horizontal_force_scaled(reaction, sb%ball%mass)
+    obs%center_acceleration = reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
+  end subroutine set_reaction
+
   !> Every derived output of sliding state y (observe's, with the sliding
   !> reaction N n + F, the friction ratio mu, the energy with V_C) and the
   !> slip speed |u|.
@@ -553,12 +588,10 @@ contains
     rolling_rate(4:6) = dydt(4:6)
     call observe(sb%ball, t, y(1:6), rolling_rate, obs)
     n = obs%normal
-    obs%reaction = big_n * n + force
+    call set_reaction(sb, big_n * n + force, obs)
     obs%reaction_normal = big_n
-    obs%horizontal_force_scaled = horizontal_force_scaled(obs%reaction, sb%ball%mass)
     obs%friction_needed = huge(1.0_wp)
     if (big_n > 0) obs%friction_needed = norm2(force) / big_n
-    obs%center_acceleration = obs%reaction / sb%ball%mass - [0.0_wp, 0.0_wp, sb%ball%g]
     v = center_velocity(y)
     height = obs%contact(3) - sb%ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
     associate (m => sb%ball%mass, r => sb%ball%radius)
