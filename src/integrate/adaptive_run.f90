@@ -13,7 +13,7 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal
+      ball_derivative, normalize_normal, turn_resolved
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_integrators, only: embedded_pair_t, max_equations
@@ -162,7 +162,9 @@ contains
   !> event of the model happens (event_crossed) is cut there first
   !> (shorten_to_event) and, accepted, ends where the model acted
   !> (apply_event): an event, not a discontinuity inside a step for the
-  !> step control to shrink around.
+  !> step control to shrink around. A rolling that turned there at a rate
+  !> the couple takes a tenth of the step or more to stop (turn_resolved)
+  !> goes on from there along its new direction.
   subroutine attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
     class(embedded_pair_t), intent(inout) :: pair
     type(step_control_t), intent(inout) :: control
@@ -189,7 +191,11 @@ contains
     end if
     call project_with_rate(y_new, pair%k(:state_size, pair%end_stage()), f_new)
     if (event /= 0) then
-      call run%ball%apply_event(event, y_new)
+      if (turn_resolved(run%ball, t + h, y_new, f_new, h, pair%atol + pair%rtol)) then
+        call run%ball%begin_step(y_new)          ! the rolling turned in 3D: on along its new direction
+      else
+        call run%ball%apply_event(event, y_new)
+      end if
       call ball_derivative(run%ball, t + h, y_new, f_new)
       res%n_rhs = res%n_rhs + 1
     end if

@@ -13,7 +13,7 @@ module ellroll_fixed_step_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      choose_rolling_law, law_exact, law_held, event_rest, at_rest
+      choose_rolling_law, law_exact, law_held, event_rest, at_rest, turn_resolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_gauss4, only: gauss4_t
@@ -245,7 +245,8 @@ contains
   !> A step of size h from (t, y, f) in which an event of the model happens
   !> (event_crossed): it is cut where the event's function changes sign
   !> (event_search_t on the method's own partial steps, a step that meets a
-  !> limit counting as past it), the model acts there (apply_event), and the
+  !> limit counting as past it), the model acts there (apply_event; an
+  !> embedded pair's rolling that turned in 3D, turn_resolved, goes on), and the
   !> rest of the step is taken from there in the mode the model gives that
   !> state (begin_step), so that the steps stay on the grid of dt. y_new:
   !> the whole step's end, where the event was seen, on entry; the end of
@@ -266,6 +267,7 @@ contains
     type(event_search_t) :: search
     type(run_state_t) :: after
     integer :: k
+    logical :: stops
     call search%begin(run%ball, event, y_new, h, passed)
     do k = 1, max_event_trials
       if (search%done()) exit
@@ -278,7 +280,12 @@ contains
     if (status /= status_completed) return
     t_event = t + search%high
     after = run
-    call after%ball%apply_event(event, y_at)
+    stops = .true.
+    select type (integrator)
+    class is (embedded_pair_t)
+      stops = .not. turn_resolved(run%ball, t + search%high, y_at, f_at, h, integrator%atol + integrator%rtol)
+    end select
+    if (stops) call after%ball%apply_event(event, y_at)
     call after%ball%begin_step(y_at)
     call ball_derivative(after%ball, t + search%high, y_at, f_at)
     n_rhs = n_rhs + 1
