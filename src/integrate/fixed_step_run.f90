@@ -263,7 +263,7 @@ contains
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(out) :: t_event       !< where the model acted (< 0: a limit met first)
     logical, intent(in), optional :: passed  !< y_new is past a model limit (the event counts as passed there)
-    real(wp) :: y_at(state_size), f_at(state_size), offset
+    real(wp) :: y_at(state_size), f_at(state_size), offset, y_rest(state_size)
     type(event_search_t) :: search
     type(run_state_t) :: after
     integer :: k
@@ -280,10 +280,16 @@ contains
     if (status /= status_completed) return
     t_event = t + search%high
     after = run
-    stops = .true.
     select type (integrator)
     class is (embedded_pair_t)
       stops = .not. turn_resolved(run%ball, t + search%high, y_at, f_at, h, integrator%atol + integrator%rtol)
+    class default
+      ! a fixed step rolls on only where the couple could not hold the ball there
+      y_rest = y_at
+      call after%ball%apply_event(event, y_rest)
+      stops = at_rest(after%ball, t + search%high, y_rest)
+      n_rhs = n_rhs + 1
+      if (.not. stops) stops = .not. turn_resolved(run%ball, t + search%high, y_at, f_at, h, 0.0_wp)
     end select
     if (stops) call after%ball%apply_event(event, y_at)
     call after%ball%begin_step(y_at)
