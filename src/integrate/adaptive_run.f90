@@ -13,9 +13,10 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal, turn_resolved
+      ball_derivative, normalize_normal
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
+  use ellroll_turns, only: turn_resolved
   use ellroll_integrators, only: embedded_pair_t, max_equations
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &

@@ -20,7 +20,8 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      slip_stop_time, center_velocity, choose_slip_law, set_reaction, direction_unresolved
+      slip_stop_time, center_velocity, choose_slip_law, set_reaction
+  use ellroll_turns, only: direction_unresolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop

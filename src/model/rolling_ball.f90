@@ -27,7 +27,7 @@ module ellroll_rolling_ball
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, horizontal_force_scaled, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
-            choose_rolling_law, rolling_rate, stiff_rolling, turn_resolved
+            choose_rolling_law, rolling_rate, stiff_rolling
 
   !> How a fixed step directs the couple of rolling resistance
   !> (choose_rolling_law): against the rolling part of omega as it is
@@ -361,25 +361,6 @@ contains
     ball%law_step = h
     ball%rolling_law = law_implicit
   end subroutine released
-
-  !> Whether the rolling part of omega at y, where it has turned by a right
-  !> angle inside a step h of an embedded pair (event_rest's cut; f the
-  !> derivative at y), is the motion's, a rolling that turns in 3D and
-  !> rolls on: the couple C = delta N / (m R^2 (1 + k)) would take a tenth
-  !> of h or more to stop it (|omega_t| >= C h / 10: the step resolves the
-  !> direction's relaxation near a stop), and the ball would roll further
-  !> than the step's error in the meantime (R |omega_t|^2 / (2 C) > R
-  !> tolerance, tolerance = atol + rtol of the pair). Otherwise what is left
-  !> at the cut is the stop's residue (docs/model.md, "The stop is an event").
-  pure logical function turn_resolved(ball, t, y, f, h, tolerance)
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, y(state_size), f(state_size), h, tolerance
-    real(wp) :: couple, rate
-    logical :: stiff
-    call stiff_rolling(ball, t, y, f, h, couple, stiff)
-    rate = norm2(rolling_part(y))
-    turn_resolved = 10 * rate >= couple * h .and. rate**2 > 2 * couple * tolerance
-  end function turn_resolved
 
   !> Whether a step h from (t, y), f the derivative there, is one in which
   !> the couple's direction turns faster than the step (stiff): the ball

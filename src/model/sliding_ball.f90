@@ -32,8 +32,7 @@ module ellroll_sliding_ball
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
-            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction, &
-            direction_unresolved
+            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction
 
   integer, parameter :: slide_state_size = 8
 
@@ -389,29 +388,6 @@ contains
     need = -(b - dot_product(b, n) * n) / ((1 + 1 / ball%inertia_factor) / ball%mass)
   end function needed_friction
 
-  !> Whether the direction of the slip at sliding state y relaxes towards
-  !> -F_req in less than a tenth of a step h (tau = |u| / (kappa |F_req|),
-  !> docs/model.md, "The aligned law"): the explicit stages of such a step
-  !> do not resolve it, so that a turn of the slip found inside it is the
-  !> residue of that stiff mode, not the motion's (whose slip stays along
-  !> -F_req as it shrinks).
-  pure logical function direction_unresolved(sb, t, y, h) result(unresolved)
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, y(slide_state_size), h
-    real(wp) :: rate(slide_state_size), big_n, need(3), reach
-    call sliding_derivative(sb, t, y, rate, big_n, needed=need)
-    reach = kappa_need(sb, need)
-    unresolved = 10 * norm2(slip_velocity(sb%ball, y)) < h * reach
-  end function direction_unresolved
-
-  !> kappa |F_req|: the rate at which the friction rolling needs, need,
-  !> changes the slip (u' = kappa (F - F_req)).
-  pure real(wp) function kappa_need(sb, need)
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: need(3)
-    kappa_need = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)
-  end function kappa_need
-
   !> The angle between two vectors (0 where either is zero).
   pure real(wp) function turn_angle(a, b) result(angle)
     real(wp), intent(in) :: a(3), b(3)
@@ -462,7 +438,7 @@ contains
         call sliding_derivative(sb, t + h, y, scratch, needed=later)
         turn = max(turn, turn_angle(need, later) / h)
         n_rhs = n_rhs + 3
-        reach = kappa_need(sb, need)
+        reach = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)      ! kappa |F_req|
         if (10 * slip < h * reach) allowed = allowed * sb%stiff_allowance          ! (tau < h / 10)
         sb%aligned = slip**2 * turn <= allowed * reach
         if (sb%aligned) then
