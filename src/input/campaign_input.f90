@@ -7,9 +7,10 @@ module ellroll_campaign_input
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, invalid_stop, &
       invalid_skip
-  use ellroll_params, only: params, param_index, p_weight, p_mass
+  use ellroll_params, only: params, param_count, param_index, p_weight, p_mass
   use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, not_finite_entry, max_values
   use ellroll_suggest, only: did_you_mean
+  use ellroll_applies, only: varied_input_reason
   implicit none
   private
 
@@ -238,6 +239,8 @@ contains
           ': name = ''mass'': mass is varied but &ball gives weight; vary weight instead')
     end do
     if (rd%err%failed()) return
+    call check_applies(rd, camp)
+    if (rd%err%failed()) return
     ! counted in reals, naming the group that passes the limit: the lengths
     ! of a few sweeps multiply beyond integer(i8)
     cases = max(1, size(camp%records))
@@ -254,4 +257,57 @@ contains
     if (cases * max(1_i8, v%samples) > max_cases) call rd%fail_value(gi, 'samples', 'the campaign expands to ' // &
         format_real(cases * max(1_i8, v%samples)) // ' cases, more than ' // itoa(max_cases))
   end subroutine build_campaign
+
+  !> Every varied input applies to the campaign's cases as a single value
+  !> of it would (varied_input_reason): a sweep or a sample of one that
+  !> does not is refused at its name, with its values, since its cases
+  !> would all be the same (or all invalid).
+  subroutine check_applies(rd, camp)
+    type(reader_t), intent(inout) :: rd
+    type(campaign_t), intent(in) :: camp
+    logical :: varied(param_count)
+    integer :: k, j, n
+    character(len=:), allocatable :: reason, setting
+    varied = .false.
+    varied(camp%sweeps%param) = .true.
+    varied(camp%samples%param) = .true.
+    do k = 1, size(camp%sweeps)
+      call varied_input_reason(camp%sweeps(k)%param, camp%base, varied, reason)
+      if (len(reason) == 0) cycle
+      associate (values => camp%sweeps(k)%values)
+        n = size(values)
+        if (n <= 4) then
+          setting = format_real(values(1))
+          do j = 2, n
+            setting = setting // ', ' // format_real(values(j))
+          end do
+        else
+          setting = format_real(values(1)) // ', ' // format_real(values(2)) // ', ..., ' // &
+                    format_real(values(n)) // ' (' // itoa(n) // ' values)'
+        end if
+      end associate
+      call rd%fail_value(group_at(rd, 'sweep', camp%sweeps(k)%line), 'name', reason // ' (values = ' // setting // ')')
+      return
+    end do
+    do k = 1, size(camp%samples)
+      call varied_input_reason(camp%samples(k)%param, camp%base, varied, reason)
+      if (len(reason) == 0) cycle
+      associate (s => camp%samples(k))
+        call rd%fail_value(group_at(rd, 'sample', s%line), 'name', reason // ' (low = ' // format_real(s%low) // &
+                           ', high = ' // format_real(s%high) // ')')
+      end associate
+      return
+    end do
+  end subroutine check_applies
+
+  !> The index of the group `name` that starts at `line`.
+  pure integer function group_at(rd, name, line) result(gi)
+    type(reader_t), intent(in) :: rd
+    character(len=*), intent(in) :: name
+    integer, intent(in) :: line
+    do gi = 1, size(rd%file%groups)
+      if (rd%file%groups(gi)%name == name .and. rd%file%groups(gi)%line == line) return
+    end do
+    gi = 0
+  end function group_at
 end module ellroll_campaign_input

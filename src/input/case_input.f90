@@ -18,6 +18,7 @@ module ellroll_case_input
   use ellroll_files, only: work_suffix
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
+  use ellroll_applies, only: excitation_inputs, kind_of_input
   use ellroll_suite_input, only: record_spec_t, load_suite, record_files, note_files
   use ellroll_params, only: params, param_count, param_component, param_width, param_unset_allowed, p_radius, &
       p_weight, p_mass, p_dt, p_scale
@@ -325,24 +326,19 @@ contains
                                            v%sa_periods(:n))
   end subroutine set_intensities
 
-  !> The inputs of &excitation that belong to another kind are refused.
+  !> The inputs of &excitation that belong to another kind are refused
+  !> (a &sweep or &sample of one is refused alike: ellroll_applies).
   logical function only_for_kind(rd, gi, kind) result(ok)
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: kind
-    character(len=*), parameter :: harmonic_inputs(3) = [character(len=9) :: 'amplitude', 'frequency', 'phase']
-    character(len=*), parameter :: record_inputs(3) = [character(len=11) :: 'record_file', 'scale', 'sa_periods']
+    character(len=:), allocatable :: belongs
     integer :: k
     ok = .false.
-    do k = 1, size(harmonic_inputs)
-      if (kind /= 'harmonic' .and. rd%given(gi, trim(harmonic_inputs(k)))) then
-        call rd%fail_value(gi, trim(harmonic_inputs(k)), "applies to kind = 'harmonic' only")
-        return
-      end if
-    end do
-    do k = 1, size(record_inputs)
-      if (kind /= 'record' .and. rd%given(gi, trim(record_inputs(k)))) then
-        call rd%fail_value(gi, trim(record_inputs(k)), "applies to kind = 'record' only")
+    do k = 1, size(excitation_inputs)
+      belongs = trim(kind_of_input(trim(excitation_inputs(k))))
+      if (kind /= belongs .and. rd%given(gi, trim(excitation_inputs(k)))) then
+        call rd%fail_value(gi, trim(excitation_inputs(k)), "applies to kind = '" // belongs // "' only")
         return
       end if
     end do
