@@ -21,6 +21,7 @@ module ellroll_adaptive_run
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
+  use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -28,7 +29,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, attempt_step
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing
+  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing, screen_and_peaks
 
   !> A maximum of the nutation angle located inside a step.
   type :: nutation_peak_t
@@ -62,6 +63,7 @@ contains
     type(observation_t) :: obs
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
+    type(step_screen_t) :: screen
     integer :: status, round_off_attempts
     logical :: peak_inside, done
     real(wp) :: passed                    ! where a slip inside a step is known
@@ -107,13 +109,14 @@ contains
           return
         end if
       end if
-      if (run%ball%reaction_limited()) then
-        call reaction_inside(pair, run, y, f, obs%friction_needed, obs%reaction_normal, status, passed, res%n_rhs)
-        if (status /= status_completed) then
-          call end_in_step(status, passed)
-          return
-        end if
+      call screen_and_peaks(pair, run, y, f, obs%friction_needed, obs%reaction_normal, status, passed, screen, &
+                            res%n_rhs)
+      if (status /= status_completed) then
+        call end_in_step(status, passed)
+        return
       end if
+      call note_screen(screen, 6, obs)
+      call add_step_peaks(pair, run%ball, screen, res%n_rhs, run%stats)
       call record_samples_until(pair, run, plan, t + h, obs, res)
       if (peak_inside) then
         call run%maxima%add_peak(peak%t)
@@ -445,14 +448,16 @@ contains
   !> step from an end shows as a rise to it at the end.) status:
   !> status_completed, or the limit met where the dense output passes it,
   !> at offset from the step's start (for locate_crossing). Its RHS calls
-  !> count in n_rhs.
-  subroutine reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs)
+  !> count in n_rhs. screen: the peak quantities at the points evaluated
+  !> (ellroll_step_peaks), where asked for.
+  subroutine reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs, screen)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
     integer, intent(out) :: status
     real(wp), intent(out) :: offset
     integer(i8), intent(inout) :: n_rhs
+    type(step_screen_t), intent(inout), optional :: screen
     real(wp), parameter :: resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
     real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
     type(observation_t) :: obs
@@ -464,12 +469,14 @@ contains
     slips = run%ball%mu > 0
     lifts = run%ball%excitation%kind /= excitation_none
     call observe(run%ball, pair%t_old, y, f, obs)
+    if (present(screen)) call note_screen(screen, 0, obs)
     friction(0) = obs%friction_needed
     lowered(0) = -obs%reaction_normal
     friction(6) = friction_end
     lowered(6) = -normal_end
     do i = 1, 5
       if (trial(theta(i), friction(i), lowered(i))) return
+      if (present(screen)) call note_screen(screen, i, obs)
     end do
     do i = 1, 5
       if (slips .and. friction(i) >= friction(i - 1) .and. friction(i) >= friction(i + 1)) then
@@ -514,6 +521,27 @@ contains
       end do
     end function peak_passes
   end subroutine reaction_inside
+
+  !> The path inside the last attempt (in pair) from (y, f) checked against
+  !> the reaction's limits where it has them (reaction_inside: status,
+  !> offset), and the screen of its peak quantities (ellroll_step_peaks) at
+  !> the interior points, those reaction_inside evaluates where it runs.
+  subroutine screen_and_peaks(pair, run, y, f, friction_end, normal_end, status, offset, screen, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
+    integer, intent(out) :: status
+    real(wp), intent(out) :: offset
+    type(step_screen_t), intent(inout) :: screen
+    integer(i8), intent(inout) :: n_rhs
+    status = status_completed
+    offset = 0
+    if (run%ball%reaction_limited()) then
+      call reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs, screen)
+    else
+      call screen_step(pair, run%ball, y, f, screen, n_rhs)
+    end if
+  end subroutine screen_and_peaks
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(pair, run, search, res)

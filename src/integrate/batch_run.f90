@@ -27,7 +27,8 @@ module ellroll_batch_run
       track_rolling_resistance, settled, last_fixed_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
-      stop_in_step, record_samples_until, beyond_rim, reaction_inside
+      stop_in_step, record_samples_until, beyond_rim, screen_and_peaks
+  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
@@ -412,8 +413,7 @@ contains
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0 &
-                                                                      .or. balls%moves > 0))
+        dense = accepted        ! (the peak quantities' screen: ellroll_step_peaks)
         if (any(dense)) then
           if (b%cups%moving) then
             call lanes_pair_dense_stages(pairs(1), balls, y, h, k, b%cups, t)
@@ -583,6 +583,7 @@ contains
     real(wp), intent(inout) :: passed(lanes)
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane
+    type(step_screen_t) :: screen
     integer :: l
     inside_status = status_completed
     do l = 1, b%n
@@ -597,12 +598,13 @@ contains
           cycle
         end if
       end if
-      if (b%run(l)%ball%reaction_limited()) then
-        y_lane = b%y(l, :)
-        f_lane = b%f(l, :)
-        call reaction_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
-                             out%quantity(l, q_reaction_normal), inside_status(l), passed(l), results(l)%n_rhs)
-      end if
+      y_lane = b%y(l, :)
+      f_lane = b%f(l, :)
+      call screen_and_peaks(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
+                            out%quantity(l, q_reaction_normal), inside_status(l), passed(l), screen, results(l)%n_rhs)
+      if (inside_status(l) /= status_completed) cycle
+      call note_screen_end(screen, out%quantity(l, :))
+      call add_step_peaks(pairs(l), b%run(l)%ball, screen, results(l)%n_rhs, lane_stats=b%summary%stats, l=l)
     end do
   end subroutine limits_inside_steps
 

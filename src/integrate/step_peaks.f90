@@ -1,0 +1,225 @@
+!> The largest values inside an embedded pair's accepted rolling step of the
+!> quantities whose maxima the summary gives (displacement, horizontal
+!> force, N, friction needed: peak_quantities), on the step's dense output,
+!> so that a maximum is never below the output samples that the same dense
+!> output gives between the step ends. A screen first (the quantities at
+!> screen_theta of the step, those of reaction_inside where it ran); a
+!> peak is refined by successive parabolas (peak_search_t) only where the
+!> screen shows one inside the step that may pass the running maximum.
+module ellroll_step_peaks
+  use ellroll_kinds, only: wp, i8
+  use ellroll_norms, only: norm_of
+  use ellroll_quantities, only: quantity_count, q_displacement, q_horizontal_force_scaled, q_reaction_normal, &
+      q_friction_needed, q_fit_clearance
+  use ellroll_running, only: running_t, running_lanes_t, add_inside
+  use ellroll_events, only: peak_search_t
+  use ellroll_integrators, only: embedded_pair_t
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, &
+      normalize_normal
+  use ellroll_ball_steppers, only: pair_ball_dense
+  implicit none
+  private
+
+  public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks
+
+  integer, parameter :: peak_count = 4
+  !> The quantities (ellroll_quantities) whose maxima are located inside steps.
+  integer, parameter :: peak_quantities(peak_count) = [q_displacement, q_horizontal_force_scaled, &
+                                                       q_reaction_normal, q_friction_needed]
+  !> Where the screen looks, as fractions of the step (reaction_inside's:
+  !> a peak within 1e-3 of the step from an end shows as a fall to it).
+  real(wp), parameter :: near_end = 1.0e-3_wp
+  real(wp), parameter :: screen_theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+  !> A peak is located to this fraction of the step.
+  real(wp), parameter :: resolution = 1.0e-6_wp
+
+  !> The quantities at screen_theta (a column per peak quantity), and the
+  !> fit clearance there (ellroll_quantities).
+  type :: step_screen_t
+    real(wp) :: q(0:6, peak_count) = 0
+    real(wp) :: clearance(0:6) = 0
+  end type step_screen_t
+
+  !> The largest value found inside a step of each peak quantity above the
+  !> running maximum given (found), its time, and whether the cup's
+  !> curvature there is clear (fit_clearance > 0).
+  type :: step_peaks_t
+    logical :: found(peak_count) = .false.
+    logical :: clear(peak_count) = .false.
+    real(wp) :: value(peak_count) = 0, t(peak_count) = 0
+  end type step_peaks_t
+
+contains
+
+  !> The observation obs at screen_theta(i) into the screen (the norms as
+  !> the step ends' quantities are formed: ellroll_case_run's step_quantities).
+  pure subroutine note_screen(screen, i, obs)
+    type(step_screen_t), intent(inout) :: screen
+    integer, intent(in) :: i
+    type(observation_t), intent(in) :: obs
+    screen%q(i, :) = peak_values(obs)
+    screen%clearance(i) = obs%fit_clearance
+  end subroutine note_screen
+
+  !> The step end's quantities (a row of ellroll_quantities, a batch lane's)
+  !> into the screen's end.
+  pure subroutine note_screen_end(screen, q)
+    type(step_screen_t), intent(inout) :: screen
+    real(wp), intent(in) :: q(quantity_count)
+    screen%q(6, :) = q(peak_quantities)
+    screen%clearance(6) = q(q_fit_clearance)
+  end subroutine note_screen_end
+
+  pure function peak_values(obs) result(q)
+    type(observation_t), intent(in) :: obs
+    real(wp) :: q(peak_count)
+    q = [norm_of(obs%center(1), obs%center(2)), obs%horizontal_force_scaled, obs%reaction_normal, obs%friction_needed]
+  end function peak_values
+
+  !> The screen of the last attempt (in pair) from (y, f) at its start, its
+  !> interior points on the dense output (what reaction_inside evaluates
+  !> where it runs); the end's column is the caller's.
+  subroutine screen_step(pair, ball, y, f, screen, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(state_size), f(state_size)
+    type(step_screen_t), intent(inout) :: screen
+    integer(i8), intent(inout) :: n_rhs
+    type(observation_t) :: obs
+    integer :: i
+    call observe(ball, pair%t_old, y, f, obs)
+    call note_screen(screen, 0, obs)
+    do i = 1, 5
+      call dense_observation(pair, ball, screen_theta(i), .true., obs, n_rhs)
+      call note_screen(screen, i, obs)
+    end do
+  end subroutine screen_step
+
+  !> The peaks inside the last attempt (in pair), whose screen is complete,
+  !> that pass the running maxima of one case (stats) or of lane l's (lane
+  !> stats) into them.
+  subroutine add_step_peaks(pair, ball, screen, n_rhs, stats, lane_stats, l)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    type(step_screen_t), intent(in) :: screen
+    integer(i8), intent(inout) :: n_rhs
+    type(running_t), intent(inout), optional :: stats
+    type(running_lanes_t), intent(inout), optional :: lane_stats
+    integer, intent(in), optional :: l
+    type(step_peaks_t) :: peaks
+    integer :: j
+    ! (the maxima over the points clear of the cup's curvature are the
+    ! lower: those a case ended at a model limit gives)
+    if (present(stats)) then
+      call find_step_peaks(pair, ball, screen, stats%clear_maximum(1, peak_quantities), peaks, n_rhs)
+    else
+      call find_step_peaks(pair, ball, screen, lane_stats%clear_maximum(l, peak_quantities), peaks, n_rhs)
+    end if
+    do j = 1, peak_count
+      if (.not. peaks%found(j)) cycle
+      if (present(stats)) then
+        call add_inside(stats, peak_quantities(j), peaks%value(j), peaks%t(j), peaks%clear(j))
+      else
+        call add_inside(lane_stats, l, peak_quantities(j), peaks%value(j), peaks%t(j), peaks%clear(j))
+      end if
+    end do
+  end subroutine add_step_peaks
+
+  !> The peaks inside the last attempt (in pair) of each quantity whose
+  !> screen has a local maximum inside the step that, by the parabola
+  !> through it and its neighbours with twice its rise as margin, may pass
+  !> above (the running maximum, or the larger step end): each located to
+  !> resolution of the step; found where it passes.
+  subroutine find_step_peaks(pair, ball, screen, above, peaks, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    type(step_screen_t), intent(in) :: screen
+    real(wp), intent(in) :: above(peak_count)
+    type(step_peaks_t), intent(out) :: peaks
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: best, vertex, q(0:6)
+    integer :: j, i
+    do j = 1, peak_count
+      q = screen%q(:, j)
+      best = max(above(j), q(0), q(6))
+      do i = 1, 5
+        if (.not. (q(i) >= q(i - 1) .and. q(i) >= q(i + 1))) cycle
+        vertex = parabola_top(screen_theta(i - 1:i + 1), q(i - 1:i + 1))
+        if (.not. q(i) + 2 * (vertex - q(i)) > best) cycle
+        call refine(j, i, best)
+      end do
+    end do
+  contains
+    !> The peak of quantity j bracketed by the screen's points around i.
+    subroutine refine(j, i, best)
+      integer, intent(in) :: j, i
+      real(wp), intent(inout) :: best
+      type(peak_search_t) :: search
+      type(observation_t) :: obs
+      real(wp) :: x, fx, top_clearance
+      call search%start(screen_theta(i - 1), screen_theta(i), screen_theta(i + 1), screen%q(i - 1, j), &
+                        screen%q(i, j), screen%q(i + 1, j), resolution)
+      top_clearance = screen%clearance(i)
+      do while (.not. search%done())
+        x = search%trial()
+        ! (the displacement needs the state only, the forces its rate)
+        call dense_observation(pair, ball, x, peak_quantities(j) /= q_displacement, obs, n_rhs)
+        fx = pick(peak_values(obs), j)
+        if (fx >= search%fb) top_clearance = obs%fit_clearance
+        call search%report(x, fx)
+      end do
+      if (search%fb > best) then
+        best = search%fb
+        peaks%found(j) = .true.
+        peaks%value(j) = search%fb
+        peaks%t(j) = pair%t_old + search%b * pair%h
+        peaks%clear(j) = top_clearance > 0
+      end if
+    end subroutine refine
+  end subroutine find_step_peaks
+
+  pure real(wp) function pick(values, j)
+    real(wp), intent(in) :: values(peak_count)
+    integer, intent(in) :: j
+    pick = values(j)
+  end function pick
+
+  !> The largest value of the parabola through (x(k), v(k)), v(2) >= v(1),
+  !> v(3): v(2) where it is flat or not concave.
+  pure real(wp) function parabola_top(x, v) result(top)
+    real(wp), intent(in) :: x(3), v(3)
+    real(wp) :: d1, d2, curvature, slope
+    top = v(2)
+    d1 = (v(2) - v(1)) / (x(2) - x(1))
+    d2 = (v(3) - v(2)) / (x(3) - x(2))
+    curvature = (d2 - d1) / (x(3) - x(1))          ! half the second derivative
+    if (.not. curvature < 0) return
+    ! the slope at x(2) of the parabola; its vertex lies -slope / (2 curvature) from x(2)
+    slope = d1 + curvature * (x(2) - x(1))
+    top = v(2) - slope**2 / (4 * curvature)
+  end function parabola_top
+
+  !> Every derived output at t_old + theta h of the last attempt, from its
+  !> dense output, the normal projected to unit length, with f there (one
+  !> more RHS call) when with_rate: as the output samples are formed.
+  subroutine dense_observation(pair, ball, theta, with_rate, obs, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: theta
+    logical, intent(in) :: with_rate
+    type(observation_t), intent(out) :: obs
+    integer(i8), intent(inout) :: n_rhs
+    real(wp) :: y(state_size), f(state_size), t
+    logical :: prepared
+    call pair_ball_dense(pair, ball, theta, y, prepared)
+    if (prepared) n_rhs = n_rhs + pair%dense_calls()
+    call normalize_normal(y)
+    t = pair%t_old + theta * pair%h
+    f = 0
+    if (with_rate) then
+      call ball_derivative(ball, t, y, f)
+      n_rhs = n_rhs + 1
+    end if
+    call observe(ball, t, y, f, obs)
+  end subroutine dense_observation
+end module ellroll_step_peaks
