@@ -20,7 +20,8 @@ module ellroll_step_peaks
   implicit none
   private
 
-  public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks
+  public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks, &
+            peak_count, peak_quantities, peak_values, worth_refining, peak_resolution
 
   integer, parameter :: peak_count = 4
   !> The quantities (ellroll_quantities) whose maxima are located inside steps.
@@ -31,7 +32,7 @@ module ellroll_step_peaks
   real(wp), parameter :: near_end = 1.0e-3_wp
   real(wp), parameter :: screen_theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
   !> A peak is located to this fraction of the step.
-  real(wp), parameter :: resolution = 1.0e-6_wp
+  real(wp), parameter :: peak_resolution = 1.0e-6_wp
 
   !> The quantities at screen_theta (a column per peak quantity), and the
   !> fit clearance there (ellroll_quantities).
@@ -137,16 +138,13 @@ contains
     real(wp), intent(in) :: above(peak_count)
     type(step_peaks_t), intent(out) :: peaks
     integer(i8), intent(inout) :: n_rhs
-    real(wp) :: best, vertex, q(0:6)
+    real(wp) :: best, q(0:6)
     integer :: j, i
     do j = 1, peak_count
       q = screen%q(:, j)
       best = max(above(j), q(0), q(6))
       do i = 1, 5
-        if (.not. (q(i) >= q(i - 1) .and. q(i) >= q(i + 1))) cycle
-        vertex = parabola_top(screen_theta(i - 1:i + 1), q(i - 1:i + 1))
-        if (.not. q(i) + 2 * (vertex - q(i)) > best) cycle
-        call refine(j, i, best)
+        if (worth_refining(q, i, best)) call refine(j, i, best)
       end do
     end do
   contains
@@ -158,7 +156,7 @@ contains
       type(observation_t) :: obs
       real(wp) :: x, fx, top_clearance
       call search%start(screen_theta(i - 1), screen_theta(i), screen_theta(i + 1), screen%q(i - 1, j), &
-                        screen%q(i, j), screen%q(i + 1, j), resolution)
+                        screen%q(i, j), screen%q(i + 1, j), peak_resolution)
       top_clearance = screen%clearance(i)
       do while (.not. search%done())
         x = search%trial()
@@ -177,6 +175,19 @@ contains
       end if
     end subroutine refine
   end subroutine find_step_peaks
+
+  !> Whether the screen's values q of a quantity have a local maximum at
+  !> point i whose parabola through its neighbours, with twice its rise
+  !> over q(i) as margin, passes best.
+  pure logical function worth_refining(q, i, best)
+    real(wp), intent(in) :: q(0:6), best
+    integer, intent(in) :: i
+    real(wp) :: vertex
+    worth_refining = .false.
+    if (.not. (q(i) >= q(i - 1) .and. q(i) >= q(i + 1))) return
+    vertex = parabola_top(screen_theta(i - 1:i + 1), q(i - 1:i + 1))
+    worth_refining = q(i) + 2 * (vertex - q(i)) > best
+  end function worth_refining
 
   pure real(wp) function pick(values, j)
     real(wp), intent(in) :: values(peak_count)
