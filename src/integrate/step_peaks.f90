@@ -17,11 +17,12 @@ module ellroll_step_peaks
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, &
       normalize_normal
   use ellroll_ball_steppers, only: pair_ball_dense
+  use ellroll_ellipsoid, only: contact_point
   implicit none
   private
 
   public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks, &
-            peak_count, peak_quantities, peak_values, worth_refining, peak_resolution
+            peak_count, peak_quantities, peak_values, worth_refining, peak_resolution, may_peak_inside
 
   integer, parameter :: peak_count = 4
   !> The quantities (ellroll_quantities) whose maxima are located inside steps.
@@ -31,6 +32,10 @@ module ellroll_step_peaks
   !> a peak within 1e-3 of the step from an end shows as a fall to it).
   real(wp), parameter :: near_end = 1.0e-3_wp
   real(wp), parameter :: screen_theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+  !> The cheap bound's margin (may_peak_inside), of the range of the values
+  !> screened (a force's range over a step is its motion's part; its rates
+  !> are the interpolant's, O(h^3) off).
+  real(wp), parameter :: bound_margin = 0.25_wp, bound_turn = 0.5_wp
   !> A peak is located to this fraction of the step.
   real(wp), parameter :: peak_resolution = 1.0e-6_wp
 
@@ -95,6 +100,65 @@ contains
       call note_screen(screen, i, obs)
     end do
   end subroutine screen_step
+
+  !> A cheap bound, without RHS calls or the dense output: whether the step
+  !> of size h from (t, y0, f0) to (y1, f1) may hold a value of a peak
+  !> quantity above `above` (running maxima) between its ends. The screen
+  !> on the cubic Hermite interpolant of the state (the rates its
+  !> derivative's) has a local maximum that worth_refining takes to pass
+  !> above (or the larger step end) less bound_margin of their range. For a
+  !> fixed cup (the steps whose reaction is not screened: reaction_limited).
+  pure function may_peak_inside(ball, h, y0, f0, y1, f1, above) result(may)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: h, above(peak_count)
+    real(wp), dimension(:), intent(in) :: y0, f0, y1, f1     ! (assumed shape: a batch passes lanes' rows)
+    logical :: may
+    type(step_screen_t) :: screen
+    real(wp) :: y(state_size), rate(state_size), s, q(0:6), length
+    integer :: i, j
+    ! a step over which the ball turns by more than bound_turn rad: the
+    ! interpolant does not follow its forces, the bound is not taken
+    may = .true.
+    if (h * max(norm2(y0(4:6)), norm2(y1(4:6))) > bound_turn) return
+    do i = 0, 6
+      s = screen_theta(i)
+      y = (1 + 2 * s) * (1 - s)**2 * y0 + s * (1 - s)**2 * h * f0 + s**2 * (3 - 2 * s) * y1 &
+          + s**2 * (s - 1) * h * f1
+      rate = 6 * s * (s - 1) * (y0 - y1) / h + (1 - s) * (1 - 3 * s) * f0 + s * (3 * s - 2) * f1
+      length = sqrt(y(1)**2 + y(2)**2 + y(3)**2)
+      y(1:3) = y(1:3) / length
+      rate(1:3) = rate(1:3) / length
+      screen%q(i, :) = fixed_cup_values(ball, y, rate)
+    end do
+    may = .false.
+    do j = 1, peak_count
+      q = screen%q(:, j)
+      do i = 1, 5
+        may = worth_refining(q, i, max(above(j), q(0), q(6)) - bound_margin * (maxval(q) - minval(q)))
+        if (may) return
+      end do
+    end do
+  end function may_peak_inside
+
+  !> The peak quantities of the state y (unit normal) with rate in a fixed
+  !> cup, as observe forms them but in N (a bound's values: no care for a
+  !> light ball's underflow).
+  pure function fixed_cup_values(ball, y, rate) result(q)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(state_size), rate(state_size)
+    real(wp) :: q(peak_count)
+    real(wp) :: n(3), p(3), inv_s, force(3), normal
+    n = y(1:3)
+    call contact_point(ball%cup, n, p, inv_s)
+    p = p + ball%radius * n
+    force = ball%mass * ball%radius * [rate(5) * n(3) - rate(6) * n(2) + y(5) * rate(3) - y(6) * rate(2), &
+                                       rate(6) * n(1) - rate(4) * n(3) + y(6) * rate(1) - y(4) * rate(3), &
+                                       rate(4) * n(2) - rate(5) * n(1) + y(4) * rate(2) - y(5) * rate(1)]
+    force(3) = force(3) + ball%mass * ball%g
+    normal = dot_product(force, n)
+    q = [hypot(p(1), p(2)), scale(hypot(force(1), force(2)), -exponent(ball%mass)), normal, &
+         norm2(force - normal * n) / max(abs(normal), tiny(1.0_wp))]
+  end function fixed_cup_values
 
   !> The peaks inside the last attempt (in pair), whose screen is complete,
   !> that pass the running maxima of one case (stats) or of lane l's (lane
