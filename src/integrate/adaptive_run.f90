@@ -18,10 +18,13 @@ module ellroll_adaptive_run
   use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_turns, only: turn_resolved
   use ellroll_integrators, only: embedded_pair_t, max_equations
+  use ellroll_ball_lanes, only: lanes
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
+  use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks, may_peak_inside, &
+      peak_quantities
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -29,7 +32,7 @@ module ellroll_adaptive_run
 
   public :: nutation_peak_t, adaptive_loop, attempt_step
   public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing
+  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing, screen_and_peaks, project_lanes
 
   !> A maximum of the nutation angle located inside a step.
   type :: nutation_peak_t
@@ -63,8 +66,9 @@ contains
     type(observation_t) :: obs
     type(nutation_peak_t) :: peak
     type(step_control_t) :: control
+    type(step_screen_t) :: screen
     integer :: status, round_off_attempts
-    logical :: peak_inside, done
+    logical :: peak_inside, done, screened
     real(wp) :: passed                    ! where a slip inside a step is known
     real(wp) :: works(2)                  ! the friction's (0) and the couple's over the step
 
@@ -108,12 +112,17 @@ contains
           return
         end if
       end if
-      if (run%ball%reaction_limited()) then
-        call reaction_inside(pair, run, y, f, obs%friction_needed, obs%reaction_normal, status, passed, res%n_rhs)
-        if (status /= status_completed) then
-          call end_in_step(status, passed)
-          return
-        end if
+      screened = run%ball%reaction_limited() .or. may_peak_inside(run%ball, h, y, f, y_new, f_new, &
+                                                                   run%stats%clear_maximum(1, peak_quantities))
+      call screen_and_peaks(pair, run, y, f, obs%friction_needed, obs%reaction_normal, screened, status, passed, &
+                            screen, res%n_rhs)
+      if (status /= status_completed) then
+        call end_in_step(status, passed)
+        return
+      end if
+      if (screened) then
+        call note_screen(screen, 6, obs)
+        call add_step_peaks(pair, run%ball, screen, res%n_rhs, run%stats)
       end if
       call record_samples_until(pair, run, plan, t + h, obs, res)
       if (peak_inside) then
@@ -245,6 +254,22 @@ contains
     f = f_raw
     f(1:3) = f(1:3) / length
   end subroutine project_with_rate
+
+  !> Every lane's attempt's end y_raw back onto the model's manifold, with
+  !> its rate from the end stage (project_with_rate).
+  pure subroutine project_lanes(y_raw, rate, y_new, f_new)
+    real(wp), dimension(lanes, state_size), intent(in) :: y_raw, rate
+    real(wp), dimension(lanes, state_size), intent(out) :: y_new, f_new
+    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
+    integer :: l
+    do l = 1, lanes
+      y_lane = y_raw(l, :)
+      rate_lane = rate(l, :)
+      call project_with_rate(y_lane, rate_lane, f_lane)
+      y_new(l, :) = y_lane
+      f_new(l, :) = f_lane
+    end do
+  end subroutine project_lanes
 
   !> Whether Theta has a maximum in the step from (y, f) to (y_new, f_new):
   !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
@@ -452,14 +477,16 @@ contains
   !> step from an end shows as a rise to it at the end.) status:
   !> status_completed, or the limit met where the dense output passes it,
   !> at offset from the step's start (for locate_crossing). Its RHS calls
-  !> count in n_rhs.
-  subroutine reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs)
+  !> count in n_rhs. screen: the peak quantities at the points evaluated
+  !> (ellroll_step_peaks), where asked for.
+  subroutine reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs, screen)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
     integer, intent(out) :: status
     real(wp), intent(out) :: offset
     integer(i8), intent(inout) :: n_rhs
+    type(step_screen_t), intent(inout), optional :: screen
     real(wp), parameter :: resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
     real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
     type(observation_t) :: obs
@@ -471,12 +498,14 @@ contains
     slips = run%ball%mu > 0
     lifts = run%ball%excitation%kind /= excitation_none
     call observe(run%ball, pair%t_old, y, f, obs)
+    if (present(screen)) call note_screen(screen, 0, obs)
     friction(0) = obs%friction_needed
     lowered(0) = -obs%reaction_normal
     friction(6) = friction_end
     lowered(6) = -normal_end
     do i = 1, 5
       if (trial(theta(i), friction(i), lowered(i))) return
+      if (present(screen)) call note_screen(screen, i, obs)
     end do
     do i = 1, 5
       if (slips .and. friction(i) >= friction(i - 1) .and. friction(i) >= friction(i + 1)) then
@@ -521,6 +550,29 @@ contains
       end do
     end function peak_passes
   end subroutine reaction_inside
+
+  !> The path inside the last attempt (in pair) from (y, f) checked against
+  !> the reaction's limits where it has them (reaction_inside: status,
+  !> offset), and where asked for (screened) the screen of its peak
+  !> quantities (ellroll_step_peaks) at the interior points, those
+  !> reaction_inside evaluates where it runs.
+  subroutine screen_and_peaks(pair, run, y, f, friction_end, normal_end, screened, status, offset, screen, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(in) :: run
+    real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
+    logical, intent(in) :: screened
+    integer, intent(out) :: status
+    real(wp), intent(out) :: offset
+    type(step_screen_t), intent(inout) :: screen
+    integer(i8), intent(inout) :: n_rhs
+    status = status_completed
+    offset = 0
+    if (run%ball%reaction_limited()) then
+      call reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs, screen)
+    else if (screened) then
+      call screen_step(pair, run%ball, y, f, screen, n_rhs)
+    end if
+  end subroutine screen_and_peaks
 
   !> The case ends at the last valid point of a located crossing.
   pure subroutine end_at_crossing(pair, run, search, res)

@@ -26,8 +26,9 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
       track_rolling_resistance, settled, last_fixed_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
-  use ellroll_adaptive_run, only: nutation_peak_t, project_with_rate, nutation_peak_inside, locate_nutation_peak, &
-      stop_in_step, record_samples_until, beyond_rim, reaction_inside
+  use ellroll_adaptive_run, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, &
+      stop_in_step, record_samples_until, beyond_rim, screen_and_peaks, project_lanes
+  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
@@ -369,7 +370,7 @@ contains
     real(wp), dimension(lanes) :: t, h, h_max, t_end, rtol, atol, error_norm
     type(nutation_peak_t) :: peaks(lanes)
     type(step_control_t) :: control(lanes)
-    logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense
+    logical, dimension(lanes) :: accepted, sample_inside, peak_inside, dense, screened
     integer :: inside_status(lanes)
     real(wp) :: passed(lanes)             ! where the path inside a step is known past a limit
     integer(i8) :: attempt
@@ -411,9 +412,11 @@ contains
           if (.not. accepted(l)) cycle
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
           peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
+          ! (the peak quantities' screen: ellroll_step_peaks)
+          screened(l) = run(l)%ball%reaction_limited() .or. may_peak_inside(run(l)%ball, h(l), y(l, :), &
+              f(l, :), y_new(l, :), f_new(l, :), summary%stats%clear_maximum(l, peak_quantities))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. balls%mu > 0 &
-                                                                      .or. balls%moves > 0))
+        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. screened))
         if (any(dense)) then
           if (b%cups%moving) then
             call lanes_pair_dense_stages(pairs(1), balls, y, h, k, b%cups, t)
@@ -423,8 +426,8 @@ contains
         end if
         ! the path past a limit inside the step (past the rim at a maximum of
         ! Theta, or slipping): the step's end is not the case's
-        call limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, peak_inside, peaks, &
-                                 inside_status, passed, results)
+        call limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, screened, peak_inside, &
+                                 peaks, inside_status, passed, results)
         call summary%add(out, t + h, accepted .and. out%status == status_completed .and. inside_status == status_completed)
         do l = 1, n
           if (.not. accepted(l)) cycle
@@ -514,22 +517,6 @@ contains
     end do
   end subroutine judge_attempts
 
-  !> Every lane's attempt's end y_raw back onto the model's manifold, with
-  !> its rate from the end stage (project_with_rate, the one-case code).
-  pure subroutine project_lanes(y_raw, rate, y_new, f_new)
-    real(wp), dimension(lanes, state_size), intent(in) :: y_raw, rate
-    real(wp), dimension(lanes, state_size), intent(out) :: y_new, f_new
-    real(wp), dimension(state_size) :: y_lane, f_lane, rate_lane
-    integer :: l
-    do l = 1, lanes
-      y_lane = y_raw(l, :)
-      rate_lane = rate(l, :)
-      call project_with_rate(y_lane, rate_lane, f_lane)
-      y_new(l, :) = y_lane
-      f_new(l, :) = f_lane
-    end do
-  end subroutine project_lanes
-
   !> The lanes' pairs and step controls with each case's tolerances and
   !> largest step (an idle lane its donor's), and each lane's first step
   !> (initial_step; an idle lane's RHS calls counted nowhere).
@@ -570,19 +557,20 @@ contains
   !> whose dense output is needed (dense) first takes its attempt into its
   !> pair (load_attempt); peak_inside: the lanes with a maximum of Theta
   !> inside, located into peaks.
-  subroutine limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, peak_inside, peaks, &
-                                 inside_status, passed, results)
+  subroutine limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, screened, peak_inside, &
+                                 peaks, inside_status, passed, results)
     type(batch_t), intent(inout) :: b
     class(embedded_pair_t), intent(inout) :: pairs(lanes)
     type(lane_outputs_t), intent(in) :: out
     real(wp), dimension(lanes), intent(in) :: t, h, error_norm
     real(wp), intent(in) :: y_raw(lanes, state_size), k(lanes, state_size, max_pair_stages)
-    logical, dimension(lanes), intent(in) :: accepted, dense, peak_inside
+    logical, dimension(lanes), intent(in) :: accepted, dense, screened, peak_inside
     type(nutation_peak_t), intent(inout) :: peaks(lanes)
     integer, intent(out) :: inside_status(lanes)
     real(wp), intent(inout) :: passed(lanes)
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane
+    type(step_screen_t) :: screen
     integer :: l
     inside_status = status_completed
     do l = 1, b%n
@@ -597,12 +585,14 @@ contains
           cycle
         end if
       end if
-      if (b%run(l)%ball%reaction_limited()) then
-        y_lane = b%y(l, :)
-        f_lane = b%f(l, :)
-        call reaction_inside(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
-                             out%quantity(l, q_reaction_normal), inside_status(l), passed(l), results(l)%n_rhs)
-      end if
+      y_lane = b%y(l, :)
+      f_lane = b%f(l, :)
+      call screen_and_peaks(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
+                            out%quantity(l, q_reaction_normal), screened(l), inside_status(l), passed(l), screen, &
+                            results(l)%n_rhs)
+      if (inside_status(l) /= status_completed .or. .not. screened(l)) cycle
+      call note_screen_end(screen, out%quantity(l, :))
+      call add_step_peaks(pairs(l), b%run(l)%ball, screen, results(l)%n_rhs, lane_stats=b%summary%stats, l=l)
     end do
   end subroutine limits_inside_steps
 

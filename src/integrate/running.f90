@@ -17,7 +17,7 @@ module ellroll_running
   implicit none
   private
 
-  public :: running_t, running_lanes_t, start_running, add_step_ends, get_lane, put_lane, finish_running
+  public :: running_t, running_lanes_t, start_running, add_step_ends, add_inside, get_lane, put_lane, finish_running
 
   !> One case's running statistics, per quantity: its value at t = 0, its
   !> largest value (its change's, for a changing quantity; every quantity is
@@ -61,6 +61,11 @@ module ellroll_running
   interface add_step_ends
     module procedure add_case_step_end, add_lanes_step_ends
   end interface add_step_ends
+
+  !> A value of a quantity located inside a step (a peak between its ends).
+  interface add_inside
+    module procedure add_case_inside, add_lane_inside
+  end interface add_inside
 
 contains
 
@@ -112,6 +117,46 @@ contains
                      stats%n_unclear, q, t(l))
     end do
   end subroutine add_lanes_step_ends
+
+  !> The value of quantity i at time t inside a step (clear: of the cup's
+  !> curvature there) into the case's maxima (add_peak_row).
+  pure subroutine add_case_inside(stats, i, value, t, clear)
+    type(running_t), intent(inout) :: stats
+    integer, intent(in) :: i
+    real(wp), intent(in) :: value, t
+    logical, intent(in) :: clear
+    call add_peak_row(1, 1, stats%maximum, stats%maximum_time, stats%clear_maximum, stats%clear_maximum_time, &
+                      i, value, t, clear)
+  end subroutine add_case_inside
+
+  !> The same into lane l's maxima.
+  pure subroutine add_lane_inside(stats, l, i, value, t, clear)
+    type(running_lanes_t), intent(inout) :: stats
+    integer, intent(in) :: l, i
+    real(wp), intent(in) :: value, t
+    logical, intent(in) :: clear
+    call add_peak_row(lanes, l, stats%maximum, stats%maximum_time, stats%clear_maximum, stats%clear_maximum_time, &
+                      i, value, t, clear)
+  end subroutine add_lane_inside
+
+  !> Row l's maximum of quantity i (not a changing one) and its time, and
+  !> where clear those over the points clear of the cup's curvature, take a
+  !> value between step ends; the step-end statistics (counts, last values,
+  !> times beyond) are the step ends' alone.
+  pure subroutine add_peak_row(n, l, maximum, maximum_time, clear_maximum, clear_maximum_time, i, value, t, clear)
+    integer, intent(in) :: n, l, i
+    real(wp), intent(inout), dimension(n, quantity_count) :: maximum, maximum_time, clear_maximum, clear_maximum_time
+    real(wp), intent(in) :: value, t
+    logical, intent(in) :: clear
+    if (value > maximum(l, i)) then
+      maximum(l, i) = value
+      if (timed(i)) maximum_time(l, i) = t
+    end if
+    if (clear .and. value > clear_maximum(l, i)) then
+      clear_maximum(l, i) = value
+      clear_maximum_time(l, i) = t
+    end if
+  end subroutine add_peak_row
 
   !> Row l's maxima (and their times) over the step ends clear of the
   !> cup's curvature (fit_clearance > 0), taken as add_row takes them over

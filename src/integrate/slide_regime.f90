@@ -21,12 +21,16 @@ module ellroll_slide_regime
   use ellroll_fixed_step_run, only: step_with_events
   use ellroll_step_works, only: step_works
   use ellroll_slip_substeps, only: slide_piece
+  use ellroll_step_peaks, only: step_screen_t, screen_theta, note_screen, peak_count, peak_quantities, peak_values, &
+      worth_refining, peak_resolution
+  use ellroll_running, only: add_inside
   implicit none
   private
 
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-            add_sliding, end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit
+            add_sliding, end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, &
+            add_sliding_peaks, step_screen_t
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -155,8 +159,9 @@ contains
   !> 3/4 and 1 - 1e-3 of the step and its minima refined as a rolling
   !> step's (reaction_inside: peak_search_t to 1e-6 of the step). Where the path
   !> passes a limit, the step is cut to where it is known past it (h, new
-  !> and status that step's).
-  subroutine lift_inside(pair, rolling, sb, t, h, now, new, status, n_rhs)
+  !> and status that step's). screen: the peak quantities at those points
+  !> (ellroll_step_peaks; evaluated for them alone in a fixed cup).
+  subroutine lift_inside(pair, rolling, sb, t, h, now, new, status, n_rhs, screen)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(in) :: sb
@@ -166,17 +171,31 @@ contains
     type(regime_state_t), intent(inout) :: new
     integer, intent(inout) :: status
     integer(i8), intent(inout) :: n_rhs
-    real(wp), parameter :: resolution = 1.0e-6_wp, near_end = 1.0e-3_wp
-    real(wp), parameter :: theta(0:6) = [0.0_wp, near_end, 0.25_wp, 0.5_wp, 0.75_wp, 1 - near_end, 1.0_wp]
+    type(step_screen_t), intent(out) :: screen
+    real(wp), parameter :: resolution = 1.0e-6_wp
     type(peak_search_t) :: search
+    type(observation_t) :: obs
     real(wp) :: lowered(0:6), x, fx, passed     ! lowered: -N, whose maxima are N's minima
+    real(wp) :: state(slide_state_size), rate(slide_state_size), slip_speed
     integer :: i
-    if (sb%ball%excitation%kind == excitation_none) return    ! (a fixed cup: N >= m g n_z)
+    associate (theta => screen_theta)
+    call note_screen(screen, 0, now%obs)
+    if (sb%ball%excitation%kind == excitation_none) then     ! (a fixed cup: N >= m g n_z)
+      do i = 1, 5
+        call pair%dense(sb, theta(i), state, n_rhs)
+        call normalize_normal(state)
+        call observe_sliding(sb, t + theta(i) * h, state, obs, slip_speed, rate)
+        n_rhs = n_rhs + 1
+        call note_screen(screen, i, obs)
+      end do
+      return
+    end if
     lowered(0) = -now%obs%reaction_normal
     lowered(6) = -new%obs%reaction_normal
     passed = -1
     do i = 1, 5
       if (past(theta(i), lowered(i))) exit
+      call note_screen(screen, i, obs)
     end do
     do i = 1, 5
       if (passed >= 0) exit
@@ -191,13 +210,12 @@ contains
     if (passed < 0) return
     h = passed * h
     call take(pair, rolling, sb, t, h, now, new, status, n_rhs)
+    end associate
   contains
     !> -N at theta from the dense output; true (passed set) where a limit is passed there.
     logical function past(at, lowered_at)
       real(wp), intent(in) :: at
       real(wp), intent(out) :: lowered_at
-      type(observation_t) :: obs
-      real(wp) :: state(slide_state_size), rate(slide_state_size), slip_speed
       integer :: met
       call pair%dense(sb, at, state, n_rhs)
       call normalize_normal(state)
@@ -214,6 +232,52 @@ contains
       if (past) passed = at
     end function past
   end subroutine lift_inside
+
+  !> The peaks inside an embedded pair's accepted sliding step from t of
+  !> size h (its dense output), that ended at new, whose screen (lift_inside's)
+  !> shows one that may pass the running maximum (worth_refining): located
+  !> to peak_resolution of the step by successive parabolas, into run's
+  !> maxima (as a rolling step's: ellroll_step_peaks).
+  subroutine add_sliding_peaks(pair, run, sb, t, h, screen, new, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(inout) :: run
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(step_screen_t), intent(inout) :: screen
+    type(regime_state_t), intent(in) :: new
+    integer(i8), intent(inout) :: n_rhs
+    type(peak_search_t) :: search
+    type(observation_t) :: obs
+    real(wp) :: best, x, fx, top_clearance, q(0:6), values(peak_count)
+    real(wp) :: state(slide_state_size), rate(slide_state_size), slip_speed
+    integer :: i, j
+    call note_screen(screen, 6, new%obs)
+    do j = 1, peak_count
+      q = screen%q(:, j)
+      best = max(run%stats%clear_maximum(1, peak_quantities(j)), q(0), q(6))
+      do i = 1, 5
+        if (.not. worth_refining(q, i, best)) cycle
+        call search%start(screen_theta(i - 1), screen_theta(i), screen_theta(i + 1), q(i - 1), q(i), q(i + 1), &
+                          peak_resolution)
+        top_clearance = screen%clearance(i)
+        do while (.not. search%done())
+          x = search%trial()
+          call pair%dense(sb, x, state, n_rhs)
+          call normalize_normal(state)
+          call observe_sliding(sb, t + x * h, state, obs, slip_speed, rate)
+          n_rhs = n_rhs + 1
+          values = peak_values(obs)
+          fx = values(j)
+          if (fx >= search%fb) top_clearance = obs%fit_clearance
+          call search%report(x, fx)
+        end do
+        if (search%fb > best) then
+          best = search%fb
+          call add_inside(run%stats, peak_quantities(j), search%fb, t + search%b * h, top_clearance > 0)
+        end if
+      end do
+    end do
+  end subroutine add_sliding_peaks
 
   !> An embedded pair's step from (t, now) of size h, within its tolerance,
   !> that meets a limit (status): the partial steps towards the limit are

@@ -13,6 +13,7 @@
 module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: equals
   use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff, status_rim
   use ellroll_events, only: root_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
@@ -28,7 +29,7 @@ module ellroll_slide_run
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit
+      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, add_sliding_peaks, step_screen_t
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
   implicit none
   private
@@ -241,6 +242,7 @@ contains
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: done
     type(regime_state_t) :: trial
+    type(step_screen_t) :: screen
     real(wp) :: h, h_max, t_next, next_sample_time, factor, window_start, h_rejected
     real(wp) :: t_stop                    ! t_end, then, settling, latest_end
     integer :: status, stalled, hovering, crawling
@@ -274,7 +276,7 @@ contains
       end if
       if (t_stop - t_next <= 4 * spacing(t_stop)) t_next = t_stop
       h = t_next - t
-      call attempt(pair, rolling, sb, t, h, now, trial, status, res, rejected)
+      call attempt(pair, rolling, sb, t, h, now, trial, status, res, rejected, screen)
       if (rejected) then
         res%n_rejected = res%n_rejected + 1
         h_rejected = h
@@ -299,6 +301,9 @@ contains
       steps = steps + 1
       done = ended
       if (ended) return
+      ! the peaks between the step's ends, where no switch cut it (its dense output is the step's)
+      if (status == status_completed .and. equals(t_next, t + h)) &
+        call add_sliding_peaks(pair, run, sb, t, h, screen, trial, res%n_rhs)
       ! steps too short to reach t_end in any time (a friction that flips at
       ! every stage about u = 0): every max_hover_steps steps the case must
       ! have moved on by crawl_fraction of t_end per step on average
@@ -333,8 +338,8 @@ contains
 
   !> An embedded pair's sliding attempt of size h from (t, now), and whether
   !> its error rejects it: take's step, or its stop bracket's where the slip
-  !> stops in that (h cut to it).
-  subroutine attempt(pair, rolling, sb, t, h, now, new, status, res, rejected)
+  !> stops in that (h cut to it). screen: lift_inside's of an accepted step.
+  subroutine attempt(pair, rolling, sb, t, h, now, new, status, res, rejected, screen)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(inout) :: rolling
     type(sliding_ball_t), intent(inout) :: sb
@@ -345,6 +350,7 @@ contains
     integer, intent(out) :: status
     type(case_result_t), intent(inout) :: res
     logical, intent(out) :: rejected
+    type(step_screen_t), intent(out) :: screen
     real(wp) :: h_cut
     logical :: taken
     call sb%begin_step(now%s)
@@ -359,7 +365,7 @@ contains
     rejected = (status == status_completed .or. status == status_rim .or. status == status_liftoff) &
                .and. .not. pair%error_norm <= 1
     if (rejected) return
-    if (status == status_completed) call lift_inside(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
+    if (status == status_completed) call lift_inside(pair, rolling, sb, t, h, now, new, status, res%n_rhs, screen)
     if (status == status_rim .or. status == status_liftoff) &
       call within_tolerance_to_limit(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
   end subroutine attempt
