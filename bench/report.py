@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Reruns the benchmarks and rewrites docs/performance.md with their output:
 the machine, the date, the commit, and each table beside the command that
-printed it, so the figures in the docs are always today's.
+printed it, so the figures in the docs are always today's; and
+docs/workprecision.png and .csv (docs/accuracy.md's figure) with those of
+bench/workprecision.py's run.
 
     .venv/bin/python bench/report.py [--build build] [--quick]
 
@@ -13,8 +15,10 @@ import datetime
 import os
 import pathlib
 import platform
+import shutil
 import subprocess
 import sys
+import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 INTRO = """# Performance
@@ -30,6 +34,7 @@ The tests (tests/python/test_docs.py) run each command at a tiny size
 # above each command: how tests/python/test_docs.py runs it (docs_blocks.py)
 QUICK_MARKER = "<!-- docs-test: env ELLROLL_BENCH_QUICK=1 (a tiny size; ELLROLL_DOCS_FULL=1 runs it as written) -->\n"
 SHAPE_MARKER = "<!-- docs-test: output shape -->\n"
+WORKPRECISION = "bench/workprecision.py"
 
 
 
@@ -60,7 +65,7 @@ def benches(build, quick):
         ("ellroll-plot on a sampled campaign",
          [python, "bench/plots.py", "--exe", exe, "--cases", "2000" if quick else "100000"]),
         ("Work-precision of the paper's case (also in docs/accuracy.md)",
-         [python, "bench/workprecision.py", "--exe", exe, *(["--quick", "--out", "/tmp"] if quick else [])]),
+         [python, WORKPRECISION, "--exe", exe, *(["--quick"] if quick else [])]),
         ("vern9 against dop853 on 16 cases: one case and batches, rtol 1e-6 to 1e-13",
          [python, "bench/pairs.py", "--exe", exe, *(["--quick"] if quick else [])]),
     ]
@@ -100,22 +105,35 @@ def main():
     parser.add_argument("--build", default=str(ROOT / "build"))
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
+    # bench/workprecision.py writes its figure and CSV in the current folder: it runs in a scratch
+    # one, and docs/accuracy.md's figure and CSV are taken from there
+    scratch = pathlib.Path(tempfile.mkdtemp(prefix="ellroll_bench_"))
+    try:
+        report(pathlib.Path(args.build).absolute(), args.quick, scratch)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def report(build, quick, scratch):
     sections = [INTRO, machine() + "\n"]
-    for title, command in benches(pathlib.Path(args.build), args.quick):
+    for title, command in benches(build, quick):
         text = shown(command)
         print(f"== {text}", file=sys.stderr, flush=True)
-        result = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
+        result = subprocess.run([str(ROOT / w) if w == WORKPRECISION else w for w in command],
+                                cwd=scratch if WORKPRECISION in command else ROOT, capture_output=True, text=True)
         if result.returncode != 0:
             sys.exit(f"bench failed: {text}\n{result.stderr}")
         markers = (QUICK_MARKER if command[0] == sys.executable else "") + SHAPE_MARKER
         sections.append(f"## {title}\n\n{markers}```sh\n{text}\n```\n\n"
                         f"```\n{result.stdout.rstrip()}\n```\n")
     text = "\n".join(sections)
-    if args.quick:
+    if quick:
         print(text)
     else:
+        for name in ("workprecision.png", "workprecision.csv"):
+            shutil.move(scratch / name, ROOT / "docs" / name)
         (ROOT / "docs" / "performance.md").write_text(text)
-        print("wrote docs/performance.md", file=sys.stderr)
+        print("wrote docs/performance.md, docs/workprecision.png and docs/workprecision.csv", file=sys.stderr)
 
 
 if __name__ == "__main__":

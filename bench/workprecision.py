@@ -17,10 +17,12 @@ are below the batch size: these are one-case figures. "rk4 batch",
 of the case (SIMD batches of 8), per case: the cost of one case when many
 are run. (bench/pairs.py sets vern9 against dop853 on 16 different cases.)
 
-    .venv/bin/python bench/workprecision.py [--exe build/ellroll] [--out docs] [--quick]
-writes a table on stdout, workprecision.png and workprecision.csv in --out.
+    .venv/bin/python bench/workprecision.py [--exe build/ellroll] [--out DIR] [--quick]
+writes a table on stdout, workprecision.png and workprecision.csv in --out
+(default: the current folder). The figure and CSV of docs/accuracy.md are
+docs/workprecision.*: bench/report.py puts them there (by hand: --out docs).
 --quick (or ELLROLL_BENCH_QUICK=1): a few points, one process each (a smoke
-test; give --out to keep docs/ as it is).
+test).
 """
 import argparse
 import os
@@ -100,7 +102,7 @@ def error(contact, reference):
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--exe", default=str(ROOT / "build" / "ellroll"))
-    parser.add_argument("--out", default=str(ROOT / "docs"))
+    parser.add_argument("--out", default=".", help="folder of workprecision.png and .csv (default: current)")
     parser.add_argument("--quick", action="store_true", help="fewer points (for a smoke test)")
     args = parser.parse_args()
     args.exe = executable(args.exe)

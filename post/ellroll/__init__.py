@@ -199,6 +199,11 @@ def _literal(value, where):
         # repr: the shortest text that reads back as the same double
         return repr(float(value))
     if isinstance(value, str):
+        # a namelist text ends on its line: a line break would end the group's
+        # text there, and the error would name a line of text nobody wrote
+        if any(mark in value for mark in "\n\r"):
+            shown = repr(value) if len(value) <= 60 else repr(value[:50]) + "..."
+            raise InputError(f"{where}: a text value cannot hold a line break ({shown})", _INPUT)
         return "'" + value.replace("'", "''") + "'"
     if isinstance(value, Record):
         raise InputError(f"{where}: a Record is written for run() and run_arrays(); give namelist() a file name",

@@ -2,6 +2,9 @@
 import argparse
 import csv
 import functools
+import io
+import math
+import os
 import pathlib
 import sys
 
@@ -10,7 +13,7 @@ import numpy as np
 from .reader import NotAnEllrollFile, damaged, from_h5py, open as open_run
 from . import plots
 from .report import REPORT_ROWS, build_report
-from .safe_write import OutputExists, check_target, save_figure
+from .safe_write import OutputExists, check_target, output_folder, save_figure, write_text
 from .summary import format_summary
 from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, check_limit_state, format_fragility, \
     format_suite, suite_statistics
@@ -69,10 +72,8 @@ def workprecision_points(paths):
     points = {}
     for path in paths:
         if str(path).endswith(".csv"):
-            with open(path) as handle:
-                for row in csv.DictReader(handle):
-                    points.setdefault(row["method"], []).append(
-                        (float(row["error_m"]), float(row["time_s"]), float(row["rhs_evaluations"])))
+            for method, point in bench_table(path):
+                points.setdefault(method, []).append(point)
             continue
         with open_run(path) as run:
             errors = run.summary("error_contact")
@@ -83,6 +84,62 @@ def workprecision_points(paths):
             for method, e, t, r in zip(methods, errors, times, rhs):
                 points.setdefault(method, []).append((e, t, r))
     return points
+
+
+# bench/workprecision.py's CSV: the columns read from it
+BENCH_COLUMNS = ("method", "error_m", "time_s", "rhs_evaluations")
+
+
+def bench_table(path):
+    """[(method, (error, seconds, rhs)), ...] of bench/workprecision.py's CSV;
+    NotAnEllrollFile (one line naming the file, and the row and column where
+    a value is bad) for a file that is not such a table or holds no row."""
+    what = f"not a work-precision table (bench/workprecision.py's CSV, columns {', '.join(BENCH_COLUMNS)})"
+    if os.path.isdir(path):
+        raise NotAnEllrollFile(f"{path}: a folder, {what}")
+    try:
+        with open(path, "rb") as handle:
+            data = handle.read()
+    except FileNotFoundError:
+        raise NotAnEllrollFile(f"{path}: no such file") from None
+    except OSError as exc:
+        raise NotAnEllrollFile(f"{path}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise NotAnEllrollFile(f"{path}: not text (not UTF-8), {what}") from None
+    if "\0" in text:
+        raise NotAnEllrollFile(f"{path}: not text (it holds NUL bytes), {what}")
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    try:
+        header = reader.fieldnames
+        if not header:
+            raise NotAnEllrollFile(f"{path}: an empty file, {what}")
+        missing = [c for c in BENCH_COLUMNS if c not in header]
+        if missing:
+            raise NotAnEllrollFile(f"{path}: missing columns {', '.join(missing)}; {what}")
+        rows = []
+        for row in reader:
+            where = f"{path}:{reader.line_num}"
+            values = []
+            for column in BENCH_COLUMNS:
+                value = row.get(column)
+                if value is None:
+                    raise NotAnEllrollFile(f"{where}: no {column} (the row has fewer fields than the header)")
+                if column == "method":
+                    if not value.strip():
+                        raise NotAnEllrollFile(f"{where}: method is empty")
+                    continue
+                try:
+                    values.append(float(value))
+                except ValueError:
+                    raise NotAnEllrollFile(f"{where}: {column} = {value!r} is not a number") from None
+            rows.append((row["method"], tuple(values)))
+    except csv.Error as exc:
+        raise NotAnEllrollFile(f"{path}:{reader.line_num}: not a CSV row ({exc})") from None
+    if not rows:
+        raise NotAnEllrollFile(f"{path}: no rows (a header and no points)")
+    return rows
 
 
 def check_suite(run, path):
@@ -171,8 +228,9 @@ def main(argv=None):
     p.add_argument("--format", default="png", choices=["png", "pdf", "svg", "table", "csv", "json"],
                    help="a figure, or the fits (theta, beta, 5-95 %% intervals) printed as table, csv or json")
     p.add_argument("--out", default=".", help="output folder (default: current)")
-    p.add_argument("-o", "--output", help="the figure's file (default: FILE_fragility.FORMAT in --out)")
-    p.add_argument("--overwrite", action="store_true", help="replace a figure already there")
+    p.add_argument("-o", "--output", help="the figure's file (default: FILE_fragility.FORMAT in --out); with "
+                   "--format table, csv or json the file the fits go in (default: standard output)")
+    p.add_argument("--overwrite", action="store_true", help="replace a figure (or a table) ellroll-plot made")
     p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
     p = sub.add_parser("report", parents=[common], help="every figure that applies, with index.html")
@@ -188,7 +246,7 @@ def main(argv=None):
     p.add_argument("--suite", action="store_true",
                    help="per stripe of a record suite: counts, fraction at a model limit, median and 16-84 %% of "
                         "each response over the completed records")
-    p.add_argument("--percentiles", default="linear", choices=["linear", "lognormal"],
+    p.add_argument("--percentiles", choices=["linear", "lognormal"],
                    help="with --suite: numpy's linear percentiles (default) or those of a fitted lognormal")
     args = parser.parse_args(argv)
     for option in ("case", "bootstrap", "seed"):
@@ -196,6 +254,17 @@ def main(argv=None):
         value = getattr(args, option, None)
         if value is not None and not isinstance(value, int):
             parser.error(f"argument --{option}: needs an integer, not {value!r}")
+    if args.command == "sweep" and args.x is not None:
+        names = args.x.split(",")
+        if not all(names) or len(names) > 2:
+            parser.error(f"argument --x: needs one or two swept inputs, e.g. omega_z or omega_z,radius, "
+                         f"not {args.x!r}")
+        if len(set(names)) < len(names):
+            parser.error(f"argument --x: {names[0]} twice; give two different swept inputs, or one")
+    if args.command == "summary":
+        if args.percentiles is not None and not args.suite:
+            parser.error("argument --percentiles: only with --suite (the percentiles of a record suite's stripes)")
+        args.percentiles = args.percentiles or "linear"
     if args.command == "report" and args.out == ".":
         # FILE_report beside FILE ("." or "/" have no name: open_run refuses them, a folder)
         name = pathlib.Path(args.file)
@@ -224,11 +293,18 @@ def main(argv=None):
                     table, _ = plots.suite_fragility(run, args.im, args.bootstrap, args.seed)
                     if args.limit_state is not None:
                         table = _rows_of(table, table["limit_state"] == args.limit_state)
-                    sys.stdout.write(format_fragility(table, args.format, args.file))
+                    text = format_fragility(table, args.format, args.file)
+                    if not args.output:
+                        sys.stdout.write(text)
+                        return 0
+                    path = pathlib.Path(args.output)
+                    output_folder(path.parent, "-o")
+                    write_text(path, args.overwrite, text)
+                    print(path)
                     return 0
                 path = pathlib.Path(args.output) if args.output else \
                     pathlib.Path(args.out) / f"{figure_stem(run, 'fragility')}.{args.format}"
-                path.parent.mkdir(parents=True, exist_ok=True)
+                output_folder(path.parent, "-o" if args.output else "--out")
                 check_target(path, args.overwrite)
                 fig, ax = plt.subplots(figsize=(10, 4.8), layout="constrained")
                 try:
@@ -241,16 +317,20 @@ def main(argv=None):
             return 0
         out = pathlib.Path(args.out)
         if args.command == "workprecision":
-            out.mkdir(parents=True, exist_ok=True)
+            output_folder(out)
             written = [out / f"{pathlib.Path(args.files[0]).stem}_workprecision.{args.format}"]
             check_target(written[0], args.overwrite)
             points = workprecision_points(args.files)
+            if not any(e > 0 and t > 0 and math.isfinite(e) and math.isfinite(t)
+                       for rows in points.values() for e, t, _ in rows):
+                raise NotAnEllrollFile(f"{', '.join(args.files)}: no point to draw (no positive, finite error "
+                                       "and time)")
             fig, axes = plt.subplots(1, 2, figsize=(12, 4.5), layout="constrained")
             plots.plot_workprecision(axes, points)
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
-                out.mkdir(parents=True, exist_ok=True)     # (once the file opened: no folder for a bad one)
+                output_folder(out)          # (once the file opened: no folder for a bad one)
                 if args.command == "report" or args.command in plots.FIELD_NEEDS:
                     args.case = run.case_index(args.case)       # the global index held (None: the file's first)
                 if args.command == "report":
@@ -268,7 +348,7 @@ def main(argv=None):
                     check_suite(run, args.file)
                     written = [draw("suite", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "sweep":
-                    x_names = args.x.split(",") if args.x else run.swept_inputs()[:2]
+                    x_names = args.x.split(",") if args.x is not None else run.swept_inputs()[:2]
                     if not x_names:
                         raise NotAnEllrollFile(f"{args.file}: no input varies between its cases; nothing to sweep")
                     for name in x_names:

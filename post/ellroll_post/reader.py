@@ -17,6 +17,8 @@ class NotAnEllrollFile(Exception):
 
 # the work files of an output OUT.h5 (docs/usage.md): OUT.h5.partial, and a resume's OUT.h5.partial.new
 WORK_SUFFIXES = (".partial.new", ".partial")
+# the journal of a run's finished cases, OUT.h5.journal, and how it begins
+JOURNAL_SUFFIX, JOURNAL_MAGIC = ".journal", b"ELLROLL"
 
 
 def from_h5py(exc):
@@ -58,11 +60,24 @@ def _resume_advice(path):
     return f"finish it with 'ellroll run INPUT -o {output} --resume' (the run's input and options), then read {output}"
 
 
+def _is_journal(path):
+    """Whether path begins as ellroll's journal of a run does (OUT.h5.journal)."""
+    try:
+        with builtins.open(path, "rb") as handle:
+            return handle.read(len(JOURNAL_MAGIC)) == JOURNAL_MAGIC
+    except OSError:
+        return False
+
+
 def _open_failure(path, exc):
     """One line for a file h5py cannot open."""
     text = _reason(exc)
     if isinstance(exc, FileNotFoundError) or "No such file" in text:
         return f"{path}: no such file"
+    if path.endswith(JOURNAL_SUFFIX) and len(path) > len(JOURNAL_SUFFIX) and _is_journal(path):
+        output = path[:-len(JOURNAL_SUFFIX)]
+        return (f"{path}: ellroll's journal of an unfinished run (the cases it finished, for --resume), not an "
+                f"output file; {_resume_advice(output)}")
     if "temporarily unavailable" in text or "unable to lock file" in text:
         # HDF5's flock: another process holds the file open to write (ellroll summary says the same)
         lock = (output_of(path) or path) + ".lock"

@@ -7,7 +7,13 @@ import pathlib
 import stat
 import tempfile
 
-MARK = "ellroll-plot"              # in every figure's metadata, page and table it writes
+MARK = "ellroll-plot"              # in every figure's metadata and page it writes
+# what marks its tables, whose text is what standard output shows: the report's summary.csv
+# begins with its header; `fragility --format csv|json|table -o FILE` holds its columns,
+# its JSON's interval, or its table's note
+TABLE_HEADS = (b"case,",)
+TABLE_SIGNS = (b"theta,theta_low,theta_high,beta,beta_low,beta_high,", b'\n "interval": "5-95 %",\n',
+               b"\nP(exceed | IM = x) = Phi(ln(x / theta) / beta), fitted by maximum likelihood")
 # matplotlib's metadata keys per format
 FIGURE_METADATA = {"png": {"Software": MARK}, "pdf": {"Creator": MARK}, "svg": {"Creator": MARK}}
 
@@ -23,7 +29,8 @@ def made_by_us(path):
         head = handle.read(1 << 16)
         handle.seek(max(0, os.fstat(handle.fileno()).st_size - (1 << 16)))
         tail = handle.read()
-    return MARK.encode() in head or MARK.encode() in tail or head.startswith(b"case,")
+    return any(sign in head or sign in tail for sign in (MARK.encode(), *TABLE_SIGNS)) or \
+        head.startswith(TABLE_HEADS)
 
 
 def check_target(path, overwrite):
@@ -44,6 +51,27 @@ def check_target(path, overwrite):
     if not made_by_us(path):
         raise OutputExists(f"{path} exists and was not made by ellroll-plot; it is never replaced, "
                            "even with --overwrite")
+
+
+def output_folder(folder, option="--out"):
+    """The folder the outputs go in: an existing one, or one made here whose
+    parent exists (only the last level: a mistyped path is not made from
+    the root down). OutputExists where a file (not a folder) is there or
+    the parent is missing."""
+    folder = pathlib.Path(folder)
+    if folder.is_dir():
+        return folder
+    if folder.exists() or folder.is_symlink():
+        raise OutputExists(f"{option} {folder}: not a folder ({option} names the folder the outputs go in)")
+    parent = folder.parent
+    if not parent.is_dir():
+        raise OutputExists(f"{option} {folder}: no folder {parent} to make it in (ellroll-plot makes only the "
+                           "last level of a folder)")
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise OutputExists(f"{option} {folder}: cannot make the folder ({exc.strerror or exc})") from None
+    return folder
 
 
 def write_file(path, overwrite, write):

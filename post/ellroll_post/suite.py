@@ -220,7 +220,7 @@ def format_suite(table, fmt="table", path=""):
                           indent=1, allow_nan=False)
     if fmt == "csv":
         out = io.StringIO()
-        table.to_csv(out, index=False, lineterminator="\n", na_rep="nan")
+        table.to_csv(out, index=False, lineterminator="\n", na_rep="NaN")     # as the per-case CSV (docs/output.md)
         return out.getvalue()
     if fmt != "table":
         raise ValueError(f"format must be table, csv or json, not {fmt!r}")

@@ -1,0 +1,291 @@
+"""ellroll-plot on the inputs and options that are not what a subcommand
+reads: work-precision CSVs that are not bench/workprecision.py's table
+(seeded), --out that is a file or lies under a missing folder, a run's
+journal, option values that say nothing (--x, --percentiles without
+--suite); and where its tables go: `fragility --format csv|json|table -o
+FILE` writes FILE with the same care as a figure. Each bad input ends in
+one line naming the file or the option and the reason, exit 2, nothing
+written; never a traceback."""
+import csv
+import io
+import math
+import os
+import random
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from ellroll_post import suite  # noqa: E402
+from ellroll_post.cli import workprecision_points  # noqa: E402
+from conftest import ROOT  # noqa: E402
+# (the fixtures: the shaken sweep whole.h5 and the record suite suite.h5; a killed run's files)
+from test_plot_cli_inputs import PER_CASE, SUBCOMMANDS, arguments, cli, files, killed, one_line_error  # noqa: E402,F401
+
+HEADER = ["method", "setting", "error_m", "time_s", "rhs_evaluations"]
+NUMERIC = ["error_m", "time_s", "rhs_evaluations"]
+NOT_NUMBERS = ["abc", "", "1e", "--", "0x10", "1,5", "one", "1.2.3", "e3", "1e3e3", "[1]", "'1'", "1 2"]
+
+
+def good_rows(rng, count):
+    """A table as bench/workprecision.py writes it: per method, error falls as time and RHS rise."""
+    rows = []
+    for i in range(count):
+        method = rng.choice(["ellroll rk4", "ellroll dop853", "SciPy DOP853"])
+        rhs = rng.randint(100, 10**6)
+        rows.append([method, f"dt={rng.choice([0.1, 0.01, 0.001])}", repr(rng.uniform(1e-12, 1e-2)),
+                     repr(rng.uniform(1e-5, 1.0)), str(rhs)])
+    return rows
+
+
+def table_text(header, rows):
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return out.getvalue()
+
+
+def bad_table(rng, folder, trial):
+    """A seeded CSV that is not a drawable work-precision table: (path, words its error line must hold)."""
+    name = folder / f"wp{trial}.csv"
+    rows = good_rows(rng, rng.randint(1, 6))
+    kind = rng.choice(["columns", "value", "short", "binary", "empty", "header", "no_point", "missing"])
+    if kind == "columns":
+        dropped = sorted(rng.sample(["method", *NUMERIC], rng.randint(1, 4)), key=HEADER.index)
+        keep = [i for i, c in enumerate(HEADER) if c not in dropped]
+        rng.shuffle(keep)
+        name.write_text(table_text([HEADER[i] for i in keep], [[r[i] for i in keep] for r in rows]))
+        return name, ["missing columns " + ", ".join(dropped)]
+    if kind == "value":
+        row, column = rng.randrange(len(rows)), rng.choice(NUMERIC)
+        value = rng.choice(NOT_NUMBERS)
+        rows[row][HEADER.index(column)] = value
+        name.write_text(table_text(HEADER, rows))
+        return name, [f"{name}:{row + 2}: {column} = {value!r} is not a number"]
+    if kind == "short":
+        row, cut = rng.randrange(len(rows)), rng.randint(1, 3)
+        rows[row] = rows[row][:len(HEADER) - cut]
+        name.write_text(table_text(HEADER, rows))
+        return name, [f"{name}:{row + 2}: no {HEADER[len(HEADER) - cut]}"]
+    if kind == "binary":
+        data = bytes(rng.randrange(256) for _ in range(rng.randint(1, 200))) + b"\xff\xfe"
+        name.write_bytes(rng.choice([b"", b"\x89HDF\r\n\x1a\n", table_text(HEADER, rows).encode()]) + data)
+        return name, ["not text"]
+    if kind == "empty":
+        name.write_bytes(b"")
+        return name, ["an empty file"]
+    if kind == "header":
+        name.write_text(table_text(HEADER, []))
+        return name, ["no rows"]
+    if kind == "no_point":
+        for row in rows:
+            row[HEADER.index(rng.choice(["error_m", "time_s"]))] = rng.choice(["0", "-1e-3", "nan", "inf", "-inf"])
+        name.write_text(table_text(HEADER, rows))
+        return name, ["no point to draw"]
+    return name, [f"{name}: no such file"]
+
+
+def test_bad_workprecision_tables_are_one_line_and_write_nothing(tmp_path):
+    """60 seeded CSVs that are not bench/workprecision.py's table (columns
+    missing, a value that is not a number, a short row, binary bytes, an
+    empty file, a header alone, no positive finite point, no file): exit 2,
+    one line naming the file (and the row and column of a bad value), no
+    figure."""
+    rng = random.Random(20261127)
+    out = tmp_path / "figures"
+    out.mkdir()
+    for trial in range(60):
+        path, words = bad_table(rng, tmp_path, trial)
+        code, stdout, err = cli("workprecision", path, "--out", out, "--overwrite")
+        one_line_error(code, err, str(path), *words)
+        assert not stdout and list(out.iterdir()) == [], (path, err)
+
+
+def test_a_good_workprecision_table_draws_its_points(tmp_path):
+    """A table as the bench writes it (seeded), its columns in any order:
+    the points read are its numbers, per method; the figure is written."""
+    rng = random.Random(5)
+    rows = good_rows(rng, 12)
+    order = HEADER[:]
+    rng.shuffle(order)
+    path = tmp_path / "wp.csv"
+    path.write_text(table_text(order, [[r[HEADER.index(c)] for c in order] for r in rows]))
+    expected = {}
+    for r in rows:
+        expected.setdefault(r[0], []).append(tuple(float(r[HEADER.index(c)]) for c in NUMERIC))
+    assert workprecision_points([path]) == expected
+    code, stdout, err = cli("workprecision", path, "--out", tmp_path)
+    assert code == 0 and stdout.strip() == str(tmp_path / "wp_workprecision.png"), err
+
+
+# ------------------------------------------------------------------ --out
+def out_arguments(command, files, out):
+    path = files / ("suite.h5" if command in ("suite", "fragility") else "whole.h5")
+    if command == "workprecision":
+        path = files / "whole.h5"
+    args = [command, path, "--out", out]
+    return args + (["--bootstrap", 0] if command == "fragility" else [])
+
+
+FIGURES = [c for c in SUBCOMMANDS if c != "summary"]
+
+
+@pytest.mark.parametrize("command", FIGURES)
+def test_out_must_be_a_folder_and_only_its_last_level_is_made(files, tmp_path, command):
+    """--out naming a file: one line saying --out must be a folder, the file
+    as it was. --out under a folder that is not there (seeded depths): one
+    line naming the missing parent, nothing made. --out whose parent is
+    there: made, the figures in it."""
+    rng = random.Random(command)
+    existing = tmp_path / "l.nml"
+    existing.write_text("&geometry a = 1.0 /\n")
+    code, stdout, err = cli(*out_arguments(command, files, existing))
+    one_line_error(code, err, f"--out {existing}", "not a folder")
+    assert existing.read_text() == "&geometry a = 1.0 /\n" and not stdout
+    for _ in range(3):
+        depth = rng.randint(2, 5)
+        deep = tmp_path.joinpath("typo", *(f"d{rng.randrange(100)}" for _ in range(depth - 1)))
+        code, stdout, err = cli(*out_arguments(command, files, deep))
+        one_line_error(code, err, f"--out {deep}", f"no folder {deep.parent}")
+        assert not (tmp_path / "typo").exists() and not stdout
+    fresh = tmp_path / "fresh"
+    code, stdout, err = cli(*out_arguments(command, files, fresh))
+    assert fresh.is_dir()
+    if command == "transmissibility":       # (whole.h5's cases are too short for one: one line, the file's)
+        one_line_error(code, err, "whole.h5", "no transmissibility")
+        return
+    assert code == 0, err
+    assert stdout and all(pathlib_under(line, fresh) for line in stdout.split()), stdout
+
+
+def pathlib_under(text, folder):
+    return os.path.dirname(os.path.abspath(text)) == str(folder)
+
+
+# ------------------------------------------------------- fragility -o FILE
+@pytest.mark.parametrize("fmt", ["csv", "json", "table"])
+def test_fragility_tables_go_to_o_with_a_figures_care(files, tmp_path, fmt):
+    """`fragility --format csv|json|table -o FILE` writes FILE, its text the
+    one printed without -o (the CSV read back gives the same fits), and
+    prints FILE; kept without --overwrite, replaced with it; never written
+    through a symbolic link, never over a file ellroll-plot did not make;
+    a missing folder above it is one line."""
+    suite_file = files / "suite.h5"
+    common = ["fragility", suite_file, "--bootstrap", 20, "--seed", 3, "--format", fmt]
+    code, printed, err = cli(*common)
+    assert code == 0, err
+    target = tmp_path / f"frag.{fmt}"
+    code, stdout, err = cli(*common, "-o", target)
+    assert code == 0 and stdout.strip() == str(target), err
+    assert target.read_text() == printed
+    if fmt == "csv":
+        rows = list(csv.DictReader(io.StringIO(target.read_text())))
+        assert {r["limit_state"] for r in rows} == {"drift", "model_limit"}
+        assert all(float(r["theta"]) > 0 or math.isnan(float(r["theta"])) for r in rows)
+    stamp = target.stat().st_mtime_ns
+    code, stdout, err = cli(*common, "-o", target)
+    one_line_error(code, err, str(target), "give --overwrite")
+    assert target.stat().st_mtime_ns == stamp and not stdout
+    code, stdout, err = cli(*common, "-o", target, "--overwrite")
+    assert code == 0 and target.read_text() == printed, err
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine\n")
+    link = tmp_path / f"link.{fmt}"
+    link.symlink_to(victim)
+    foreign = tmp_path / f"foreign.{fmt}"
+    foreign.write_text("theta,beta\n1,2\n")
+    for path, words in ((link, "symbolic link"), (foreign, "not made by ellroll-plot")):
+        code, stdout, err = cli(*common, "-o", path, "--overwrite")
+        one_line_error(code, err, str(path), words)
+        assert not stdout
+    assert victim.read_text() == "mine\n" and foreign.read_text() == "theta,beta\n1,2\n" and link.is_symlink()
+    code, stdout, err = cli(*common, "-o", tmp_path / "no" / "such" / "f.csv")
+    one_line_error(code, err, f"no folder {tmp_path / 'no'}")
+    assert not (tmp_path / "no").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([target.name, victim.name, link.name, foreign.name])
+
+
+# ---------------------------------------------------------------- journal
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_a_runs_journal_is_named_as_such(killed, tmp_path, command):
+    """Each subcommand on a killed run's OUT.h5.journal: one line saying it
+    is the journal of an unfinished run, with the command that finishes
+    it (its lock's, with --resume); not HDF5's 'file signature not found'.
+    A file that only has the journal's name is not called one."""
+    code, _, err = cli(*arguments(command, killed / "k.h5.journal", tmp_path))
+    one_line_error(code, err, "k.h5.journal", "journal of an unfinished run",
+                   "'ellroll run k.nml -q --threads 1 --resume'", "then read", "k.h5")
+    assert "signature" not in err
+    other = tmp_path / "notes.journal"
+    other.write_text("a diary\n")
+    code, _, err = cli(*arguments(command, other, tmp_path))
+    one_line_error(code, err, "notes.journal", "cannot open as HDF5")
+    assert "journal of" not in err
+
+
+# ---------------------------------------------------- options that say nothing
+def test_sweep_x_names_one_or_two_different_inputs(files, tmp_path):
+    """--x of `sweep`: seeded lists with an empty name, a name twice, or
+    more than two names: exit 2, one line naming --x, no figure."""
+    rng = random.Random(66)
+    names = ["excitation_frequency", "omega_z", "radius", "theta_max"]
+    values = ["", ",", "excitation_frequency,", ",excitation_frequency", "excitation_frequency,excitation_frequency"]
+    for _ in range(12):
+        picked = [rng.choice(names + [""]) for _ in range(rng.randint(1, 4))]
+        if len(picked) == 1:
+            picked.append(picked[0])
+        values.append(",".join(picked))
+    for value in values:
+        count = len(value.split(","))
+        if count <= 2 and all(value.split(",")) and len(set(value.split(","))) == count:
+            continue
+        code, stdout, err = cli("sweep", files / "whole.h5", "--out", tmp_path, "--x", value)
+        one_line_error(code, err, "--x")
+        assert not stdout
+    assert list(tmp_path.iterdir()) == []
+    code, stdout, err = cli("sweep", files / "whole.h5", "--out", tmp_path, "--x", "excitation_frequency")
+    assert code == 0 and stdout.strip().endswith("whole_sweep_excitation_frequency.png"), err
+
+
+@pytest.mark.parametrize("value", ["linear", "lognormal"])
+def test_percentiles_without_suite_is_refused(files, value):
+    """--percentiles is what `summary --suite` computes: without --suite it
+    is one line, exit 2, nothing printed; with it the suite's table."""
+    code, stdout, err = cli("summary", files / "suite.h5", "--percentiles", value)
+    one_line_error(code, err, "--percentiles", "--suite")
+    assert not stdout
+    code, stdout, err = cli("summary", files / "suite.h5", "--suite", "--percentiles", value, "--format", "csv")
+    assert code == 0 and stdout.startswith("scale,"), err
+
+
+# ------------------------------------------------------------------- docs
+def test_the_suite_csv_writes_nan_as_the_per_case_csv_does(files):
+    """docs/output.md: NaN in the CSVs. A suite table with seeded NaN cells
+    (and the suite file's CSV): every undefined cell is written NaN, never
+    nan, and reads back as the same numbers."""
+    rng = np.random.default_rng(11)
+    values = rng.normal(size=(5, 4))
+    values[rng.random(values.shape) < 0.4] = np.nan
+    table = pd.DataFrame(values, columns=["scale", "x_p16", "x_p50", "x_p84"])
+    text = suite.format_suite(table, "csv")
+    cells = [c for line in text.splitlines()[1:] for c in line.split(",")]
+    assert "nan" not in cells and cells.count("NaN") == int(np.isnan(values).sum())
+    np.testing.assert_array_equal(pd.read_csv(io.StringIO(text)).to_numpy(), values)
+    code, stdout, _ = cli("summary", files / "suite.h5", "--suite", "--format", "csv")
+    assert code == 0 and not re.search(r"(^|,)nan(,|$)", stdout, re.M), stdout
+
+
+def test_the_readme_table_lists_every_subcommand():
+    """post/README.md's ellroll-plot table has a row per subcommand of
+    `ellroll-plot --help`, and no other."""
+    code, stdout, _ = cli("--help")
+    assert code == 0
+    listed = re.search(r"\{([a-z,]+)\}", stdout).group(1).split(",")
+    text = (ROOT / "post" / "README.md").read_text()
+    rows = re.findall(r"^\| `([a-z]+) ", text, re.M)
+    assert sorted(rows) == sorted(listed), (rows, listed)
+    assert set(PER_CASE) < set(listed)

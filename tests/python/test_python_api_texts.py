@@ -1,0 +1,77 @@
+"""Texts in a dict input (ellroll.namelist, ellroll.run): a namelist text
+ends on its line, so a value holding a line break is refused up front,
+naming its group and variable; the error never names a line of the text
+the package wrote (which nobody wrote)."""
+import os
+import pathlib
+import random
+import sys
+
+import pytest
+
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "post"))
+import ellroll  # noqa: E402  (the checkout's package, whatever .venv holds)
+
+BASE = {
+    "geometry": {"a": 1.0, "b": 0.4, "c": 0.2},
+    "ball": {"radius": 0.2, "weight": 2620.0},
+    "initial": {"x": 0.0, "y": 0.0, "omega": [-2.0, 2.0, 20.0]},
+    "integration": {"method": "rk4", "dt": 1.0e-3, "t_end": 0.01},
+    "output": {"file": "t.h5", "interval": 0.01, "fields": ["contact", "theta"]},
+    "sweep": [{"name": "omega_z", "values": [5.0, 10.0]}],
+}
+# (group, variable, index in a list or None) of every text of BASE
+TEXTS = [("integration", "method", None), ("output", "file", None), ("output", "fields", 0),
+         ("output", "fields", 1), ("sweep", "name", None)]
+BREAKS = ["\n", "\r", "\r\n", "\n\n", " /\n&geometry a = 2.0 /\n"]
+
+
+def with_text(rng):
+    """BASE with one seeded text holding a line break: (input, group, variable)."""
+    group, name, index = rng.choice(TEXTS)
+    inputs = {g: ([dict(m) for m in v] if isinstance(v, list) else dict(v)) for g, v in BASE.items()}
+    members = inputs[group][0] if isinstance(inputs[group], list) else inputs[group]
+    old = members[name][index] if index is not None else members[name]
+    at = rng.randint(0, len(old))
+    new = old[:at] + rng.choice(BREAKS) + old[at:]
+    if index is not None:
+        members[name] = list(members[name])
+        members[name][index] = new
+    else:
+        members[name] = new
+    return inputs, group, name
+
+
+def test_a_line_break_in_a_text_is_refused_naming_group_and_variable():
+    """30 seeded inputs, a line break (LF, CR, CRLF, a group's end) put in
+    one text, a list's item included: InputError naming the group and the
+    variable, no line number."""
+    rng = random.Random(1204)
+    for _ in range(30):
+        inputs, group, name = with_text(rng)
+        with pytest.raises(ellroll.InputError) as raised:
+            ellroll.namelist(inputs)
+        message = str(raised.value)
+        assert message.startswith(f"&{group}: {name}: a text value cannot hold a line break"), message
+        assert "\n" not in message and "<input>" not in message, message
+
+
+def test_a_quote_in_a_text_is_written_doubled():
+    """What a text may hold (a quote) still reads back as written."""
+    text = ellroll.namelist({"output": {"file": "it's.h5"}})
+    assert text == "&output\n  file = 'it''s.h5'\n/\n"
+
+
+def test_run_refuses_it_before_the_library_reads_it(tmp_path):
+    """ellroll.run gives the same refusal (nothing run, nothing written)."""
+    library = pathlib.Path(os.environ.get("ELLROLL_LIB", ROOT / "build" / "libellroll.so"))
+    if not library.exists():
+        pytest.skip(f"{library} not built")
+    rng = random.Random(77)
+    for _ in range(5):
+        inputs, group, name = with_text(rng)
+        with pytest.raises(ellroll.InputError, match=f"^&{group}: {name}: a text value cannot hold a line break"):
+            ellroll.run(inputs, path=str(tmp_path / "input.nml"))
+    assert list(tmp_path.iterdir()) == []
