@@ -248,6 +248,8 @@ contains
     integer, intent(in) :: i
     real(wp) :: vertex
     worth_refining = .false.
+    ! (huge: a figure undefined there, as the friction ratio where N <= 0)
+    if (.not. all(abs(q(i - 1:i + 1)) < sqrt(huge(1.0_wp)))) return
     if (.not. (q(i) >= q(i - 1) .and. q(i) >= q(i + 1))) return
     vertex = parabola_top(screen_theta(i - 1:i + 1), q(i - 1:i + 1))
     worth_refining = q(i) + 2 * (vertex - q(i)) > best
