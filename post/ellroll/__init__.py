@@ -623,6 +623,8 @@ def _name_records(message, records):
         message = re.sub(re.escape(path) + r":(\d+)",
                          lambda m: f"Record {record.name!r} row {int(m.group(1)) - 1}", message)
         message = message.replace(f"'{path}'", f"Record {record.name!r}").replace(path, f"Record {record.name!r}")
+        # (a variable's value, then the file's row: the Record named once)
+        message = message.replace(f"Record {record.name!r}: Record {record.name!r} row", f"Record {record.name!r} row")
     return message
 
 

@@ -10,6 +10,7 @@ module ellroll_cli
   use ellroll_version, only: version_string, build_string
   use ellroll_suggest, only: did_you_mean
   use ellroll_files, only: work_suffix
+  use ellroll_threads, only: threads_per_processor
   implicit none
   private
 
@@ -115,8 +116,12 @@ contains
     case ('--threads')
       ios = 1
       if (is_digits(value)) read (value, *, iostat=ios) cli%opts%threads
-      if (ios /= 0 .or. cli%opts%threads < 1) &
+      if (ios /= 0 .and. is_digits(value) .and. verify(value, '0') > 0) then    ! (digits beyond a default integer)
+        call usage_error(err, '--threads ' // value // ': too large (at most ' // itoa(huge(1)) // &
+            '; a run uses at most ' // itoa(threads_per_processor) // ' threads per processor)')
+      else if (ios /= 0 .or. cli%opts%threads < 1) then
         call usage_error(err, '--threads needs a positive number, not ' // value)
+      end if
     case ('--format')
       if (all(value /= [character(len=5) :: 'table', 'csv', 'json'])) then
         call usage_error(err, "--format needs table, csv or json, not '" // value // "'")

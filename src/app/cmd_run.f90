@@ -63,10 +63,14 @@ contains
       if (.not. err%failed()) call run_campaign(inp, opts, provenance(trim(cli%paths(1)), inp%text), err, ran)
     end if
     if (err%failed() .or. rank /= 0) return
-    ! the output is complete: a summary that cannot be read back is a warning
+    ! the output is complete; a summary that cannot be read back leaves
+    ! standard output without it: exit 3, as for standard output that
+    ! cannot be written
     call print_summary(inp%plan%file, 'table', unread)
-    if (unread%failed()) write (error_unit, '(a)') 'ellroll: warning: cannot print the summary: ' // unread%message
     if (.not. cli%opts%quiet) call final_block(inp, wall_clock() - started, ran, advice)
+    if (unread%failed()) call set_error(err, err_output, inp%plan%file // ': complete and in place, but its ' // &
+        'summary cannot be printed (' // unread%message // '); ''ellroll summary ' // inp%plan%file // &
+        ''' prints it')
   end subroutine run_command
 
   !> The end of a run, on stderr beside the progress (stdout holds the

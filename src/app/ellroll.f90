@@ -60,7 +60,11 @@ program ellroll
   ! standard output is an output error (exit 3)
   if (.not. err%failed()) call stdout_error(err)
   status = 0
-  if (err%code > err_interrupted) then
+  if (err%code > err_interrupted .and. cli%command == 'merge') then
+    ! (a merge keeps nothing of its work: it starts afresh)
+    write (error_unit, '(a)') 'ellroll: ' // err%message // '; run it again'
+    status = exit_code(err)
+  else if (err%code > err_interrupted) then
     call resume_line(n_ranks, line)
     write (error_unit, '(a)') 'ellroll: ' // err%message // '; ''' // line // ''' finishes the rest'
     status = exit_code(err)

@@ -1,15 +1,16 @@
 !> What ellroll's HDF5 writer, reader and layout share: hyperslabs (selected
 !> and written), dimension numbering, text types and text attributes.
 module ellroll_hdf5_common
-  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int, c_int64_t
+  use, intrinsic :: iso_c_binding, only: c_loc, c_ptr, c_char, c_null_char, c_int, c_int64_t, c_long_long
   use hdf5
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_checksum, only: text_checksum
   implicit none
   private
 
   public :: hdf5_reason, note_failed_close, hdf5_close_failed, hdf5_quiet, forget_system_failure, system_failure, &
-      hdf5_descriptor
+      hdf5_descriptor, file_identity, hdf5_open_ids
   public :: select_slab, dataset_name, dim_index, new_text_type, write_text_attribute, &
       write_text_slab, write_real_slab, write_int_slab
 
@@ -40,6 +41,16 @@ module ellroll_hdf5_common
       character(kind=c_char), intent(out) :: words(*), file(*)
       integer(c_int), value :: words_size, file_size
     end function c_system_failure
+    integer(c_long_long) function c_object_address(loc, name) bind(c, name='ellroll_hdf5_object_address')
+      import :: c_long_long, c_int64_t, c_char
+      integer(c_int64_t), value :: loc
+      character(kind=c_char), intent(in) :: name(*)
+    end function c_object_address
+    !> How many files, groups, datasets and attributes HDF5 holds open in
+    !> this process: none once a command is done with its files (-1: unknown).
+    integer(c_long_long) function hdf5_open_ids() bind(c, name='ellroll_hdf5_open_ids')
+      import :: c_long_long
+    end function hdf5_open_ids
     integer(c_int) function c_hdf5_descriptor(file) bind(c, name='ellroll_hdf5_descriptor')
       import :: c_int, c_int64_t
       integer(c_int64_t), value :: file      !< an hid_t (int64_t since HDF5 1.10)
@@ -88,6 +99,27 @@ contains
     integer(hid_t), intent(in) :: file
     hdf5_descriptor = c_hdf5_descriptor(int(file, c_int64_t))
   end function hdf5_descriptor
+
+  !> The root attribute file_identity of ellroll's file `file` of campaign
+  !> `id`: the CRC-32C (8 hex digits) of the campaign id and the file
+  !> addresses of /summary/status and /summary/checksum. A copy made by
+  !> another program (h5py, xarray, h5repack) lays its objects out anew and
+  !> does not match; a copy of the bytes (cp) does. '' where an object is
+  !> missing.
+  subroutine file_identity(file, id, identity)
+    integer(hid_t), intent(in) :: file
+    character(len=*), intent(in) :: id
+    character(len=:), allocatable, intent(out) :: identity
+    integer(c_long_long) :: status_at, checksum_at
+    character(len=64) :: text
+    status_at = c_object_address(int(file, c_int64_t), 'summary/status' // c_null_char)
+    checksum_at = c_object_address(int(file, c_int64_t), 'summary/checksum' // c_null_char)
+    identity = ''
+    if (status_at < 0 .or. checksum_at < 0) return
+    write (text, '(i0, a, i0)') status_at, ' ', checksum_at
+    write (text, '(z8.8)') text_checksum(id // ' ' // trim(text))
+    identity = trim(text)
+  end subroutine file_identity
 
   !> The text of a null-terminated C string.
   subroutine text_of(buffer, text)

@@ -145,3 +145,33 @@ int ellroll_hdf5_descriptor(hid_t file)
     int fd = fcntl(*(int *)handle, F_DUPFD_CLOEXEC, 0);
     return fd >= 0 ? fd : dup(*(int *)handle);    /* (a kernel without F_DUPFD_CLOEXEC) */
 }
+
+/* The file address of the object header of `name` (below loc): where HDF5
+ * put it when this file was made. A copy of the file by another program
+ * (h5py, xarray, h5repack) lays its objects out anew. -1: no such object. */
+long long ellroll_hdf5_object_address(hid_t loc, const char *name)
+{
+#if H5_VERSION_GE(1, 12, 0)
+    H5O_info2_t info;
+    haddr_t address;
+    if (H5Oget_info_by_name3(loc, name, &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
+        return -1;
+    if (H5VLnative_token_to_addr(loc, info.token, &address) < 0)
+        return -1;
+    return (long long)address;
+#else
+    H5O_info_t info;
+    if (H5Oget_info_by_name2(loc, name, &info, H5O_INFO_BASIC, H5P_DEFAULT) < 0)
+        return -1;
+    return (long long)info.addr;
+#endif
+}
+
+/* How many files, groups, datasets and attributes HDF5 holds open in this
+ * process (not the datatypes: HDF5's Fortran layer holds its predefined
+ * ones open); -1 where HDF5 cannot say. */
+long long ellroll_hdf5_open_ids(void)
+{
+    ssize_t n = H5Fget_obj_count(H5F_OBJ_ALL, H5F_OBJ_FILE | H5F_OBJ_DATASET | H5F_OBJ_GROUP | H5F_OBJ_ATTR);
+    return n < 0 ? -1 : (long long)n;
+}

@@ -13,7 +13,7 @@ module ellroll_hdf5_reader
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_files, only: path_kind, kind_missing
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, hdf5_quiet, &
-      forget_system_failure, system_failure
+      forget_system_failure, system_failure, file_identity
   implicit none
   private
 
@@ -38,9 +38,13 @@ module ellroll_hdf5_reader
     integer(hid_t) :: file = -1
     character(len=:), allocatable :: path
     integer(i8) :: n_cases = 0
+    !> open failed on a killed run's work file (HDF5 finds it still marked
+    !> open for writing)
+    logical :: unfinished = .false.
   contains
     procedure :: open => open_input
     procedure :: read_failed
+    procedure :: made_here
     procedure :: close => close_input
     procedure :: has
     procedure :: members
@@ -59,7 +63,31 @@ contains
   !> Open the ellroll file at path to read. A file that cannot be read (a
   !> system call failed: EIO) is err_output, 'cannot read it', whatever
   !> it holds; one HDF5 finds damaged, or that is not ellroll's, err_input.
+  !> Where it fails, nothing of HDF5's is left open.
   subroutine open_input(self, path, err)
+    class(h5_input_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    call open_checked(self, path, err)
+    if (err%failed()) call self%close()
+    ! a file HDF5 met a read error in (H5Fis_hdf5's own open and close
+    ! included) may stay in its list of open files, with no id to close
+    if (err%code == err_output) call note_failed_close()
+  end subroutine open_input
+
+  !> Whether the open file is one ellroll made, not a copy of one by another
+  !> program: its root attribute file_identity matches where its objects
+  !> lie (hdf5_common's file_identity).
+  logical function made_here(self)
+    class(h5_input_t), intent(in) :: self
+    character(len=:), allocatable :: stored, id, identity
+    call self%text_attribute('file_identity', stored)
+    call self%text_attribute('campaign_id', id)
+    call file_identity(self%file, id, identity)
+    made_here = len(stored) > 0 .and. stored == identity
+  end function made_here
+
+  subroutine open_checked(self, path, err)
     class(h5_input_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(error_t), intent(inout) :: err
@@ -93,6 +121,7 @@ contains
             'process); read it when that run ends')
       else if (index(reason, 'already open for write') > 0) then
         ! (no process has it open: its writer stopped before closing it)
+        self%unfinished = .true.
         call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
             "closed the file: killed?); finish it with 'ellroll run INPUT --resume' (the command " // lock_of(path) // &
             ' names, from its folder); do not h5clear it')
@@ -110,7 +139,7 @@ contains
     end if
     self%n_cases = self%dataset_length('summary/status')
     if (read_failed(self, err)) return
-  end subroutine open_input
+  end subroutine open_checked
 
   !> Whether an HDF5 call failed in a system call (a read error) since
   !> the file was opened: err then says the file cannot be read, and why.

@@ -19,8 +19,8 @@ module ellroll_hdf5_writer
   use ellroll_strings, only: itoa
   use ellroll_files, only: descriptor_is_at, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
-  use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, write_text_slab, write_real_slab, write_int_slab, &
-      hdf5_quiet, hdf5_descriptor
+  use ellroll_hdf5_common, only: file_identity, hdf5_reason, note_failed_close, write_text_slab, write_real_slab, &
+      write_int_slab, hdf5_quiet, hdf5_descriptor
   use ellroll_hdf5_layout, only: layout_t
   use ellroll_hdf5_groups, only: shared_scales, case_group, trajectory_group, trajectory_label, limit_state_group, &
       switch_group
@@ -252,6 +252,7 @@ contains
     type(layout_t), intent(inout) :: lay
     type(provenance_t), intent(in) :: prov
     integer :: hdferr
+    character(len=:), allocatable :: identity
     if (lay%err%failed()) return
     ! CF-1.10 global attributes, then ellroll's own provenance
     call lay%text_attribute(self%file, 'Conventions', 'CF-1.10')
@@ -272,6 +273,10 @@ contains
     if (lay%err%failed()) return
     call h5ltset_attribute_int_f(self%file, '.', 'n_cases_total', [int(prov%n_cases_total)], 1_size_t, hdferr)
     call lay%check(hdferr, 'write attribute n_cases_total')
+    ! what --overwrite checks before it replaces a file as ellroll's
+    call file_identity(self%file, prov%campaign_id, identity)
+    if (len(identity) == 0) call lay%check(-1, 'find /summary/status and /summary/checksum')
+    call lay%text_attribute(self%file, 'file_identity', identity)
   end subroutine write_provenance
 
   !> Store one case's inputs, trajectories and summary at its slot icase

@@ -6,7 +6,8 @@
 !> written: a damaged shard is refused, and no output is left.
 module ellroll_merge
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_input, err_output
+  use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
+  use ellroll_system, only: catch_stop_signals, stop_signal, signal_name
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
@@ -58,7 +59,11 @@ contains
         return
       end if
     end do
-    if (.not. present(locked)) call files%acquire(err)
+    if (.not. present(locked)) then
+      ! SIGTERM and SIGINT stop the merge between cases: its work file and lock go
+      call catch_stop_signals()
+      call files%acquire(err)
+    end if
     call files%check(files%target, work_target, err)
     if (.not. (err%failed() .or. overwrite)) then
       if (path_kind(files%target) /= kind_missing) &
@@ -69,12 +74,10 @@ contains
     if (.not. err%failed()) then
       call merge_into(files%partial, shard_paths, prov_in, err)
       if (err%code == err_input) call read_error_instead(err)
-      if (err%failed()) then
-        ! (apart from err, which says why the merge failed and keeps it)
-        call files%discard(files%partial, work_partial, cleanup)
-      else
-        call files%commit(files%partial, err)
-      end if
+      if (.not. err%failed()) call files%commit(files%partial, err)
+      ! a merge has no journal to resume from: its work file goes on any
+      ! failure (cleanup apart from err, which says why the merge failed)
+      if (err%failed()) call files%discard(files%partial, work_partial, cleanup)
     end if
     if (.not. present(locked)) call files%release(err)
   end subroutine merge_shards
@@ -90,12 +93,34 @@ contains
     call set_error(err, err_output, file // ': cannot read it: ' // words)
   end subroutine read_error_instead
 
+  !> The shards merged into partial: every shard opened, merged, and closed
+  !> again whatever failed.
   subroutine merge_into(partial, shard_paths, prov_in, err)
     character(len=*), intent(in) :: partial
     character(len=*), intent(in) :: shard_paths(:)
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
     type(h5_input_t), allocatable :: shards(:)
+    integer :: k
+    allocate (shards(size(shard_paths)))
+    do k = 1, size(shard_paths)
+      call shards(k)%open(trim(shard_paths(k)), err)
+      ! a killed run's work file given as a shard is bad input, as a damaged shard is
+      if (shards(k)%unfinished) err%code = err_input
+      if (err%failed()) exit
+    end do
+    if (.not. err%failed()) call merge_opened(shards, partial, shard_paths, prov_in, err)
+    do k = 1, size(shards)
+      call shards(k)%close()
+    end do
+  end subroutine merge_into
+
+  subroutine merge_opened(shards, partial, shard_paths, prov_in, err)
+    type(h5_input_t), intent(in) :: shards(:)
+    character(len=*), intent(in) :: partial
+    character(len=*), intent(in) :: shard_paths(:)
+    type(provenance_t), intent(in) :: prov_in
+    type(error_t), intent(inout) :: err
     integer, allocatable :: shard_of(:)           ! shard file for each shard index
     integer :: k, index, count, n_shards
     character(len=:), allocatable :: id, spec, other_id, stored_file, stored_namelist
@@ -105,11 +130,6 @@ contains
     integer(i8), allocatable :: slots(:), statuses(:), all_cases(:)
     integer(i8) :: i
 
-    allocate (shards(size(shard_paths)))
-    do k = 1, size(shard_paths)
-      call shards(k)%open(trim(shard_paths(k)), err)
-      if (err%failed()) return
-    end do
     call shards(1)%text_attribute('campaign_id', id)
     call shards(1)%text_attribute('shard', spec)
     n_shards = shard_count(spec)
@@ -150,8 +170,8 @@ contains
       end if
     end do
     if (any(shard_of == 0)) then
-      call missing_list(shard_of, spec)
-      call set_error(err, err_input, 'shards missing: ' // spec // ' of ' // itoa(n_shards))
+      call missing_text(shard_of, spec)
+      call set_error(err, err_input, spec)
       return
     end if
 
@@ -182,10 +202,7 @@ contains
       call copy_shard(shards(shard_of(index)), trim(shard_paths(shard_of(index))), index, slots, inp, out, err)
     end do
     call out%close(err)
-    do k = 1, size(shards)
-      call shards(k)%close()
-    end do
-  end subroutine merge_into
+  end subroutine merge_opened
 
   !> Copy the cases of shard `index` (its file at `path`) into `out`, each
   !> checked against its checksum there first.
@@ -225,6 +242,10 @@ contains
       return
     end if
     do slot = 0, size(slots, kind=i8) - 1
+      if (stop_signal() /= 0) then
+        call set_error(err, err_interrupted + stop_signal(), 'merge interrupted by ' // signal_name(stop_signal()))
+        return
+      end if
       call shard%read_case_result(slot, inp%plan%n_samples, res, err)
       if (err%failed()) return
       do i = sw_first(slot + 1) + 1, sw_first(slot + 1) + sw_count(slot + 1)
@@ -327,15 +348,29 @@ contains
     count_pending = count(statuses == status_pending)
   end function count_pending
 
-  pure subroutine missing_list(shard_of, text)
+  !> 'missing shard 0/3 (given: 1/3, 2/3): run it with --shard 0/3', from
+  !> the shard file given for each shard index (0: none).
+  pure subroutine missing_text(shard_of, text)
     integer, intent(in) :: shard_of(0:)
     character(len=:), allocatable, intent(out) :: text
-    integer :: k
-    text = ''
-    do k = 0, size(shard_of) - 1
-      if (shard_of(k) /= 0) cycle
-      if (len(text) > 0) text = text // ', '
-      text = text // itoa(k)
+    character(len=:), allocatable :: missing, given, options
+    integer :: k, n
+    missing = ''
+    given = ''
+    options = ''
+    n = size(shard_of)
+    do k = 0, n - 1
+      if (shard_of(k) == 0) then
+        missing = missing // ', ' // itoa(k) // '/' // itoa(n)
+        options = options // ', --shard ' // itoa(k) // '/' // itoa(n)
+      else
+        given = given // ', ' // itoa(k) // '/' // itoa(n)
+      end if
     end do
-  end subroutine missing_list
+    if (count(shard_of == 0) == 1) then
+      text = 'missing shard ' // missing(3:) // ' (given: ' // given(3:) // '): run it with' // options(2:)
+    else
+      text = 'missing shards ' // missing(3:) // ' (given: ' // given(3:) // '): run them with' // options(2:)
+    end if
+  end subroutine missing_text
 end module ellroll_merge

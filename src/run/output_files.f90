@@ -156,12 +156,24 @@ contains
       if (len(unread) > 0) then              ! no verdict on a file that cannot be read
         call set_error(err, err_output, unread)
       else if (.not. ours) then
-        call set_error(err, err_output, path // ': exists and is not an ellroll ' // trim(merge('work file  ', &
-                     'output file', what /= work_target)) // '; it is never replaced, even with --overwrite: ' // &
-                     'remove it, or choose another output name')
+        call not_ours_text(what, unread)
+        call set_error(err, err_output, path // ': exists and is not ' // unread // &
+                     '; it is never replaced, even with --overwrite: remove it, or choose another output name')
       end if
     end if
   end subroutine check
+
+  !> What a file at a work name is not, when check refuses it.
+  pure subroutine not_ours_text(what, text)
+    integer, intent(in) :: what
+    character(len=:), allocatable, intent(out) :: text
+    if (what == work_target) then
+      text = 'an ellroll output file (not HDF5, not ellroll''s, or a copy of one by another program: its ' // &
+             'file_identity does not match its layout)'
+    else
+      text = 'an ellroll work file'
+    end if
+  end subroutine not_ours_text
 
   !> Whether the file at `path` may be replaced (renamed over) or removed
   !> by this process: in a folder with the sticky bit (/tmp, a shared
@@ -213,6 +225,13 @@ contains
     if (err%failed()) return
     replacing = path_kind(self%target) /= kind_missing
     code = sync_path(finished)
+    if (code == enoent) then
+      if (path_kind(folder_of(finished)) == kind_missing) then
+        call set_error(err, err_output, finished // ': cannot write it to the disk: its folder ' // &
+            folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
+        return
+      end if
+    end if
     if (code /= 0) then
       call set_error(err, err_output, finished // ': cannot write it to the disk: ' // system_error_text(code))
       return
@@ -223,6 +242,13 @@ contains
       code = rename_path(finished, self%target)
     else
       code = rename_new(finished, self%target)
+    end if
+    if (code == enoent) then
+      if (path_kind(folder_of(finished)) == kind_missing) then
+        call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
+            ' into place: its folder ' // folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
+        return
+      end if
     end if
     if (code /= 0) then
       call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
@@ -241,7 +267,9 @@ contains
   end subroutine commit
 
   !> Whether the regular file at path is a file ellroll made of kind `what`
-  !> (ours): an output is an HDF5 file that says it is ellroll's; a work file
+  !> (ours): an output is an HDF5 file that says it is ellroll's and whose
+  !> file_identity matches where its objects lie (not a copy by another
+  !> program: ellroll_hdf5_common's file_identity); a work file
   !> is told by its first bytes: an HDF5 file (signature at byte 0, or at 512
   !> behind the trajectories' label), a label of trajectories in place (a
   !> resume keeps only them), a journal, or an empty or torn beginning of
@@ -264,8 +292,9 @@ contains
     unread = ''
     if (what == work_target) then
       call output%open(path, not_ours)
-      call output%close()
       ours = .not. not_ours%failed()
+      if (ours) ours = output%made_here()
+      call output%close()
       ! (err_output: it could not be read, or a process writes it)
       if (not_ours%code == err_output) unread = not_ours%message
       return

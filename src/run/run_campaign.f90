@@ -28,7 +28,8 @@ module ellroll_run_campaign
   use ellroll_records, only: named_value_t
   use ellroll_journal, only: journal_t
   use ellroll_progress, only: progress_t
-  use ellroll_system, only: stop_signal, signal_name, file_exists
+  use ellroll_system, only: stop_signal, signal_name, file_exists, folder_of
+  use ellroll_files, only: path_kind, kind_missing
   use ellroll_output_files, only: output_files_t, work_partial, work_journal
   use ellroll_output_start, only: decide_start, open_outputs
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
@@ -195,7 +196,13 @@ contains
     ! case, and abandon says so as for an error in the loop; after it,
     ! commit's own message says what is left to do
     if (err%failed()) then
-      if (file_exists(files%partial)) call abandon(run, files, err)
+      if (file_exists(files%partial)) then
+        call abandon(run, files, err)
+      else if (path_kind(folder_of(files%target)) == kind_missing) then
+        ! (its journal and partial file went with it, wherever it went)
+        err%message = err%message // achar(10) // '  ' // files%journal // ', in that folder, keeps the cases ' // &
+            'finished so far: run again with -o naming the output in the folder''s new place and --resume'
+      end if
       return
     end if
     run%timings%ended = wall_clock()

@@ -17,6 +17,8 @@ program test_output
   use ellroll_campaign, only: coordinate_t
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t
   use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_hdf5_common, only: hdf5_open_ids
+  use ellroll_strings, only: itoa
   use ellroll_trajectory_store, only: trajectory_store_t
   use ellroll_system, only: open_for_writing
   use fixtures, only: paper_case
@@ -32,6 +34,7 @@ program test_output
   ! in place: windows of 64 rows, 20 of them at once
   call write_in_any_order_and_read_back(compression=0, n_cases=1280_i8, n_samples=10_i8, rows=64_i8)
   call move_between_stores()
+  call refusals_leave_nothing_open()
   call finish('test_output')
 
 contains
@@ -86,6 +89,44 @@ contains
     open (newunit=k, file=path)
     close (k, status='delete')
   end subroutine write_in_any_order_and_read_back
+
+  !> The reader refuses a file of another program (root attribute program)
+  !> after HDF5 has opened it, and an ellroll file it reads is ellroll's own
+  !> (made_here); either way, once closed, no HDF5 object stays open.
+  subroutine refusals_leave_nothing_open()
+    character(len=*), parameter :: other = 'test_output_other.h5'
+    type(h5_output_t) :: out
+    type(h5_input_t) :: file
+    type(provenance_t) :: prov
+    type(error_t) :: err, refusal
+    logical :: fields(field_count)
+    integer :: unit
+    fields = .false.
+    prov = provenance_t(program='another', version='0', created='now', input_file='-', input_namelist='-', &
+                        command_line='-', campaign_id='0', n_cases_total=1, shard='0/1')
+    call out%create(other, [0_i8], [0.0_wp], fields, paper_case(1.0e-3_wp, 1.0_wp), prov, [coordinate_t ::], err)
+    call out%close(err)
+    call check(.not. err%failed(), 'the file of another program written: ' // err%message)
+    call check(hdf5_open_ids() == 0, 'no HDF5 object open after the writer closed its file')
+    call file%open(other, refusal)
+    call check(index(refusal%message, 'not an ellroll file') > 0, 'another program''s file refused: ' // &
+               refusal%message)
+    call check(hdf5_open_ids() == 0, 'no HDF5 object open after the refusal (found ' // &
+               itoa(hdf5_open_ids()) // ')')
+    call file%close()
+    prov%program = 'ellroll'
+    open (newunit=unit, file=other)
+    close (unit, status='delete')
+    call out%create(other, [0_i8], [0.0_wp], fields, paper_case(1.0e-3_wp, 1.0_wp), prov, [coordinate_t ::], err)
+    call out%close(err)
+    call file%open(other, err)
+    call check(.not. err%failed(), 'an ellroll file read: ' // err%message)
+    call check(file%made_here(), 'an ellroll file is ellroll''s own')
+    call file%close()
+    call check(hdf5_open_ids() == 0, 'no HDF5 object open after an ellroll file was read and closed')
+    open (newunit=unit, file=other)
+    close (unit, status='delete')
+  end subroutine refusals_leave_nothing_open
 
   !> The trajectories read back through the file's label, as a resume
   !> does; a file without a label (compressed), or labelled for another
