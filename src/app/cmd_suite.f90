@@ -442,7 +442,7 @@ contains
         line = ''
         do k = 1, size(columns)
           if (k > 1) line = line // ','
-          call cell(columns(k), s, 'nan', text)
+          call cell(columns(k), s, 'NaN', text)
           line = line // text
         end do
         call put_line(line)
