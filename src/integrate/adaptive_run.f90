@@ -24,7 +24,7 @@ module ellroll_adaptive_run
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
   use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks, may_peak_inside, &
-      peak_quantities
+      peak_quantities, dense_observation
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -448,7 +448,7 @@ contains
     end if
     do while (.not. search%done())
       offset = search%trial()
-      call dense_state(pair, run, offset / pair%h, .true., obs, n_rhs)
+      call dense_observation(pair, run%ball, offset / pair%h, .true., obs, n_rhs)
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
   end subroutine locate_crossing
@@ -520,7 +520,7 @@ contains
     logical function trial(at, friction_at, lowered_at)
       real(wp), intent(in) :: at
       real(wp), intent(out) :: friction_at, lowered_at
-      call dense_state(pair, run, at, .true., obs, n_rhs)
+      call dense_observation(pair, run%ball, at, .true., obs, n_rhs)
       friction_at = obs%friction_needed
       lowered_at = -obs%reaction_normal
       status = limit_status(run%ball, [obs%normal, obs%omega], obs)
@@ -606,7 +606,7 @@ contains
       if (abs(t_sample - (pair%t_old + pair%h)) <= 1.0e-14_wp * max(1.0_wp, t_sample)) then
         call record_sample(res, run%next_sample, obs_end)          ! the step's own end point
       else if (complete) then
-        call dense_state(pair, run, theta, plan%fields(field_reaction), obs, res%n_rhs)
+        call dense_observation(pair, run%ball, theta, plan%fields(field_reaction), obs, res%n_rhs)
         call record_sample(res, run%next_sample, obs)
       else
         call pair_ball_dense(pair, run%ball, theta, y, prepared)
@@ -630,25 +630,4 @@ contains
     if (prepared) n_rhs = n_rhs + pair%dense_calls()
     call normalize_normal(y)
   end subroutine dense_point
-
-  !> Every derived output at t_old + theta h of the last attempt, from its
-  !> dense output, with f there (one more RHS call) when with_rate (the
-  !> limits and the stored reaction need it).
-  subroutine dense_state(pair, run, theta, with_rate, obs, n_rhs)
-    class(embedded_pair_t), intent(inout) :: pair
-    type(run_state_t), intent(in) :: run
-    real(wp), intent(in) :: theta
-    logical, intent(in) :: with_rate
-    type(observation_t), intent(out) :: obs
-    integer(i8), intent(inout) :: n_rhs
-    real(wp) :: y(state_size), f(state_size), t
-    call dense_point(pair, run, theta, y, n_rhs)
-    t = pair%t_old + theta * pair%h
-    f = 0
-    if (with_rate) then
-      call ball_derivative(run%ball, t, y, f)
-      n_rhs = n_rhs + 1
-    end if
-    call observe(run%ball, t, y, f, obs)
-  end subroutine dense_state
 end module ellroll_adaptive_run

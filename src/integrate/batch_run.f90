@@ -570,6 +570,7 @@ contains
     real(wp), intent(inout) :: passed(lanes)
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane
+    real(wp) :: quantity_lane(size(out%quantity, 2))
     type(step_screen_t) :: screen
     integer :: l
     inside_status = status_completed
@@ -591,7 +592,8 @@ contains
                             out%quantity(l, q_reaction_normal), screened(l), inside_status(l), passed(l), screen, &
                             results(l)%n_rhs)
       if (inside_status(l) /= status_completed .or. .not. screened(l)) cycle
-      call note_screen_end(screen, out%quantity(l, :))
+      quantity_lane = out%quantity(l, :)          ! (a contiguous row: no array temporary)
+      call note_screen_end(screen, quantity_lane)
       call add_step_peaks(pairs(l), b%run(l)%ball, screen, results(l)%n_rhs, lane_stats=b%summary%stats, l=l)
     end do
   end subroutine limits_inside_steps

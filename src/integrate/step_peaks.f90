@@ -22,7 +22,8 @@ module ellroll_step_peaks
   private
 
   public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks, &
-            peak_count, peak_quantities, peak_values, worth_refining, peak_resolution, may_peak_inside
+            peak_count, peak_quantities, peak_values, worth_refining, peak_resolution, may_peak_inside, &
+            dense_observation
 
   integer, parameter :: peak_count = 4
   !> The quantities (ellroll_quantities) whose maxima are located inside steps.
