@@ -408,6 +408,7 @@ contains
         ! needs its dense output: the stages for all lanes at once
         sample_inside = .false.
         peak_inside = .false.
+        screened = .false.
         do l = 1, n
           if (.not. accepted(l)) cycle
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
