@@ -81,7 +81,7 @@ module ellroll_figures
                'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', kind_real, 2, &
                from_run), &
       figure_t('displacement_max', 'm', &
-               "largest horizontal distance of the centre from the cup's lowest point (cup frame, step ends)", &
+               "largest horizontal distance of the centre from the cup's lowest point (cup frame; dop853/vern9: inside steps)", &
                kind_real, 1, from_maximum, q_displacement), &
       figure_t('displacement_max_time', 's', 'time of displacement_max', kind_real, 1, from_maximum_time, &
                q_displacement), &
@@ -92,8 +92,8 @@ module ellroll_figures
                'over (NaN: not)', kind_real, 1, from_run), &
       figure_t('at_rest', '1', '1: at rest for good at t_final (rest_time), 0: moving, or no rolling resistance, ' // &
                'or the cup still moves', kind_int, 1, from_run), &
-      figure_t('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball (step ends)', kind_real, &
-               1, from_maximum, q_horizontal_force_scaled, finish_force), &
+      figure_t('horizontal_force_max', 'N', 'largest horizontal force of the cup on the ball (dop853/vern9: inside steps)', &
+               kind_real, 1, from_maximum, q_horizontal_force_scaled, finish_force), &
       figure_t('absolute_acceleration_max', 'm/s^2', &
                'largest horizontal absolute acceleration of the centre, |horizontal reaction| / m', kind_real, 1, &
                from_maximum, q_horizontal_force_scaled, finish_per_mass), &
