@@ -24,7 +24,7 @@ module ellroll_adaptive_run
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
   use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks, may_peak_inside, &
-      peak_quantities, dense_observation
+      peak_quantities, dense_observation, peak_count, peak_values
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -115,7 +115,7 @@ contains
       screened = run%ball%reaction_limited() .or. may_peak_inside(run%ball, h, y, f, y_new, f_new, &
                                                                    run%stats%clear_maximum(1, peak_quantities))
       call screen_and_peaks(pair, run, y, f, obs%friction_needed, obs%reaction_normal, screened, status, passed, &
-                            screen, res%n_rhs)
+                            screen, res%n_rhs, run%stats%clear_maximum(1, peak_quantities), peak_values(obs))
       if (status /= status_completed) then
         call end_in_step(status, passed)
         return
@@ -556,7 +556,8 @@ contains
   !> offset), and where asked for (screened) the screen of its peak
   !> quantities (ellroll_step_peaks) at the interior points, those
   !> reaction_inside evaluates where it runs.
-  subroutine screen_and_peaks(pair, run, y, f, friction_end, normal_end, screened, status, offset, screen, n_rhs)
+  subroutine screen_and_peaks(pair, run, y, f, friction_end, normal_end, screened, status, offset, screen, n_rhs, &
+                              above, finish)
     class(embedded_pair_t), intent(inout) :: pair
     type(run_state_t), intent(in) :: run
     real(wp), intent(in) :: y(state_size), f(state_size), friction_end, normal_end
@@ -565,12 +566,16 @@ contains
     real(wp), intent(out) :: offset
     type(step_screen_t), intent(inout) :: screen
     integer(i8), intent(inout) :: n_rhs
+    !> the running maxima of the peak quantities and their values at the
+    !> step's end (screen_step's bound)
+    real(wp), intent(in) :: above(peak_count), finish(peak_count)
     status = status_completed
     offset = 0
+    screen%none = .false.          ! (a batch's screen serves lane after lane)
     if (run%ball%reaction_limited()) then
       call reaction_inside(pair, run, y, f, friction_end, normal_end, status, offset, n_rhs, screen)
     else if (screened) then
-      call screen_step(pair, run%ball, y, f, screen, n_rhs)
+      call screen_step(pair, run%ball, y, f, screen, n_rhs, above, finish)
     end if
   end subroutine screen_and_peaks
 

@@ -28,7 +28,7 @@ module ellroll_batch_run
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, screen_and_peaks, project_lanes
-  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities
+  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities, peak_count
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
@@ -571,7 +571,7 @@ contains
     real(wp), intent(inout) :: passed(lanes)
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane
-    real(wp) :: quantity_lane(size(out%quantity, 2))
+    real(wp) :: quantity_lane(size(out%quantity, 2)), above(peak_count)
     type(step_screen_t) :: screen
     integer :: l
     inside_status = status_completed
@@ -589,11 +589,12 @@ contains
       end if
       y_lane = b%y(l, :)
       f_lane = b%f(l, :)
+      quantity_lane = out%quantity(l, :)          ! (contiguous rows: no array temporary)
+      above = b%summary%stats%clear_maximum(l, peak_quantities)
       call screen_and_peaks(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
                             out%quantity(l, q_reaction_normal), screened(l), inside_status(l), passed(l), screen, &
-                            results(l)%n_rhs)
+                            results(l)%n_rhs, above, quantity_lane(peak_quantities))
       if (inside_status(l) /= status_completed .or. .not. screened(l)) cycle
-      quantity_lane = out%quantity(l, :)          ! (a contiguous row: no array temporary)
       call note_screen_end(screen, quantity_lane)
       call add_step_peaks(pairs(l), b%run(l)%ball, screen, results(l)%n_rhs, lane_stats=b%summary%stats, l=l)
     end do
