@@ -14,9 +14,10 @@ ctest --test-dir build-debug --output-on-failure -j 2
 echo "== ctest (portable: -DELLROLL_NATIVE=OFF)"
 ctest --test-dir build-portable --output-on-failure -j 2
 echo "== pytest"
-# two workers (pytest-xdist): the tests are independent processes, most of one thread
+# two workers (pytest-xdist): the tests are independent processes, most of one
+# thread; a group of tests that share a costly fixture runs on one worker
 ELLROLL_EXE="$PWD/build/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-debug/ellroll" \
-  ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q -n 2 tests/python
+  ELLROLL_MPI_EXE="$PWD/build-mpi/ellroll" .venv/bin/python -m pytest -q -n 2 --dist loadgroup tests/python
 echo "== pytest on the sanitizer build (-fcheck=all, -fsanitize=address,undefined): fuzz, extreme inputs, the input space, literals, hard cases, limits, dt sweeps"
 ELLROLL_BUILD=sanitize ELLROLL_EXE="$PWD/build-sanitize/ellroll" ELLROLL_DEBUG_EXE="$PWD/build-sanitize/ellroll" \
   .venv/bin/python -m pytest -q -n 2 tests/python/test_fuzz.py tests/python/test_extreme_inputs.py \

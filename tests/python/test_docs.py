@@ -108,6 +108,12 @@ def test_docs_markers_parse_and_every_command_is_in_a_block():
     assert len(RUNNABLE) >= 20
 
 
+# the tests of docs_run on one pytest-xdist worker (--dist loadgroup): the
+# fixture runs every block of the docs, once a worker
+ONE_WORKER = pytest.mark.xdist_group("docs_run")
+
+
+@ONE_WORKER
 @pytest.mark.parametrize("block", RUNNABLE, ids=lambda block: block.name)
 def test_docs_block_runs_as_written(docs_run, block):
     result = next(r for r in docs_run["results"][block.page] if r.block is block)
@@ -116,11 +122,13 @@ def test_docs_block_runs_as_written(docs_run, block):
     assert result.status == "passed", f"{block.name} ({result.status}): {result.message}"
 
 
+@ONE_WORKER
 def test_docs_blocks_leave_the_repository_as_it_was(docs_run):
     changed = [name for name in docs_run["before"] if docs_run["before"][name] != docs_run["after"][name]]
     assert changed == []
 
 
+@ONE_WORKER
 def test_docs_blocks_summary(docs_run, capsys):
     """Prints what ran: blocks found, run, skipped (with the reasons), output checks, time."""
     results = [r for page in ORDER for r in docs_run["results"][page]]
