@@ -6,6 +6,7 @@ module ellroll_limit_state_input
   use ellroll_figures, only: figures
   use ellroll_limit_states, only: limit_state_t, limit_state_figures
   use ellroll_input_reader, only: reader_t, namelist_values_t
+  use ellroll_status, only: status_count, status_name
   implicit none
   private
 
@@ -32,6 +33,11 @@ contains
     end if
     if (.not. is_identifier(name)) then
       call rd%fail_value(gi, 'name', 'must be an identifier: a letter, then letters, digits or _')
+      return
+    end if
+    if (reserved(name)) then
+      call rd%fail_value(gi, 'name', "is a name the suite statistics take for their own columns (model_limit, " // &
+                         "cases, completed, limit, unresolved, a status, undefined_...): choose another")
       return
     end if
     do k = 1, size(states)
@@ -67,6 +73,20 @@ contains
     states = [states, state]
     lines = [lines, rd%file%groups(gi)%line]
   end subroutine add_limit_state
+
+  !> Whether a limit state of this name would take a column or a fragility
+  !> of the suite statistics' own (n_NAME, fraction_NAME beside n_cases,
+  !> n_liftoff, fraction_limit, n_undefined_STATE; the model_limit fragility).
+  pure logical function reserved(name)
+    character(len=*), intent(in) :: name
+    character(len=*), parameter :: own(*) = [character(len=11) :: 'model_limit', 'cases', 'completed', 'limit', &
+                                             'unresolved']
+    integer :: k
+    reserved = any(own == lower(name)) .or. index(lower(name), 'undefined_') == 1
+    do k = 0, status_count - 1
+      if (lower(name) == status_name(k)) reserved = .true.
+    end do
+  end function reserved
 
   pure logical function is_identifier(text)
     character(len=*), intent(in) :: text

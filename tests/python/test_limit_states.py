@@ -151,6 +151,34 @@ def test_bad_limit_states(ellroll, tmp_path, group, words):
         result.stderr
 
 
+STATUS_NAMES = ["pending", "completed", "rim", "no_fit", "slip", "liftoff", "nonfinite", "constraint", "invalid",
+                "unstable"]
+
+
+def test_a_name_the_suite_statistics_take_is_refused(ellroll, whole, tmp_path):
+    """A limit state's columns (n_NAME, n_undefined_NAME, fraction_NAME) and
+    fragility must not be the statistics' own: every name behind an n_ or
+    fraction_ column of a suite's statistics that is not a limit state of
+    its own (cases, completed, limit, liftoff, ...), each status, the model
+    limits' fragility (model_limit) and a name whose n_NAME would be another
+    state's n_undefined_ column are refused, in any case of letters; others
+    alike in form pass."""
+    with ellroll_post.open(whole) as f:
+        columns = list(suite.suite_statistics(f).columns)
+    own = {c.split("_", 1)[1] for c in columns if c.startswith(("n_", "fraction_"))}
+    own -= {state for state in own if state.startswith("undefined_")} | {"drift", "shock", "rest"}
+    assert {"cases", "completed", "limit", "unresolved", "liftoff"} <= own
+    refused = sorted(own | set(STATUS_NAMES) | {"model_limit", "undefined_drift", "Undefined_x", "CASES", "Liftoff"})
+    for name in refused + ["cases_2", "limits", "undefined", "liftoff_x", "model"]:
+        state = f"&limit_state name = '{name}', figure = 'displacement_max', capacity = 0.1 /\n"
+        result = run(ellroll, "check", write(tmp_path, SUITE + state), cwd=tmp_path)
+        if name in refused:
+            assert result.returncode == 2 and f"suite.nml:15: &limit_state: name = '{name}': is a name the suite " \
+                "statistics take" in result.stderr, (name, result.stderr)
+        else:
+            assert result.returncode == 0, (name, result.stderr)
+
+
 def test_a_capacity_of_zero_is_any_value_above_zero(ellroll, tmp_path):
     """capacity = 0 is a bound (every figure a limit state bounds is >= 0):
     sliding_time > 0 flags the cases that slid at all, 0 those that rolled
