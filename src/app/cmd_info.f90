@@ -40,7 +40,7 @@ contains
       '  --overwrite           replace an existing output file', &
       '  --resume              finish an interrupted run (same input, same options)', &
       '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
-      '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file', &
+      '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file (-o)', &
       '  -q, --quiet           no progress lines on stderr', &
       '  --timings             print where the run''s time went: before, in and after the loop', &
       '                        over cases, and each lock of the loop (held and waited for)', &
@@ -69,7 +69,7 @@ contains
         '  --overwrite           replace an existing output file', &
         '  --resume              finish an interrupted run (same input, same options)', &
         '  --threads N           OpenMP threads (default: OMP_NUM_THREADS, or all cores)', &
-        '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file (ellroll merge joins them)', &
+        '  --shard I/N           run only cases I, I+N, I+2N, ... into their own file, -o (ellroll merge joins them)', &
         '  -q, --quiet           no progress lines on stderr', &
         '  --timings             print where the run''s time went'])
     case ('check')

@@ -220,6 +220,25 @@ def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
 
 
+@pytest.mark.parametrize("shard", ["0/2", "1/2", "2/3", "0/1"])
+def test_a_shard_without_its_own_file_is_refused(ellroll, tmp_path, shard):
+    """--shard I/N with N > 1 and no -o: every shard would write the one
+    &output file (the second refused, or replacing the first with
+    --overwrite); refused before anything is written, naming the option and
+    a file of its own. One shard of one (the whole campaign) needs none."""
+    name = write(tmp_path, "&sweep name = 'omega_z', values = 5, 10, 15 /\n")
+    for options in ([], ["--overwrite"]):
+        result = run(ellroll, "run", name, "-q", "--shard", shard, *options, cwd=tmp_path)
+        if shard == "0/1":
+            assert result.returncode == 0 and (tmp_path / "out.h5").exists(), result.stderr
+            continue
+        index = shard.split("/")[0]
+        assert result.returncode == 2 and result.stderr.strip() == (
+            f"ellroll: error: --shard {shard} needs -o naming this shard's own file (e.g. -o "
+            f"out.shard_{index}.h5): every shard of the campaign would write out.h5"), result.stderr
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml"]
+
+
 def journal_wall_times(path, samples_in_record=0):
     """(slot -> wall_time) of the records of a journal (places never
     written, as a kill leaves them, are skipped)."""
@@ -482,8 +501,8 @@ def test_resume_refusals(ellroll, tmp_path):
     result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
     assert result.returncode == 2 and "input differs" in result.stderr
     write(tmp_path, SPIN_RADIUS, t_end=3.0)
-    result = run(ellroll, "run", name, "--resume", "--shard", "0/2", cwd=tmp_path)
-    assert result.returncode == 2 and "other options" in result.stderr
+    result = run(ellroll, "run", name, "--resume", "--shard", "0/2", "-o", "out.h5", cwd=tmp_path)
+    assert result.returncode == 2 and "other options" in result.stderr, result.stderr
     assert run(ellroll, "run", name, "--resume", "-q", cwd=tmp_path).returncode == 0
 
 
