@@ -1,0 +1,63 @@
+"""In-range inputs at the far ends of the documented ranges (axes and radius
+1e-6..1e6 m, spins to 1e6 rad/s, masses to 1e12 kg) under the Debug build,
+which traps invalid, zero-divide and overflow: the build never stops by a
+signal; a case is refused with exit 2 or run to a recorded status. A cup
+far deeper than wide (c >> a, b) has the bottom radii a^2/c, b^2/c, and a
+ball that does not fit them is refused on every build."""
+import random
+import re
+
+import h5py
+import pytest
+
+from conftest import run
+from test_fuzz import CRASH_SIGNS
+
+def status_of(path):
+    with h5py.File(path) as f:
+        status = f["summary/status"]
+        names = dict(zip(status.attrs["flag_values"], status.attrs["flag_meanings"].split()))
+        return names[status[0]]
+
+
+def run_case(exe, folder, name, text):
+    (folder / f"{name}.nml").write_text(text)
+    result = run(exe, "run", f"{name}.nml", "-o", f"{name}.h5", "-q", "--overwrite", cwd=folder, timeout=120)
+    detail = f"{name}:\n{text}\n{result.stdout}\n{result.stderr}"
+    assert not any(sign in result.stderr for sign in CRASH_SIGNS), detail
+    assert result.returncode in (0, 2), detail
+    if result.returncode == 0:
+        assert status_of(folder / f"{name}.h5") != "pending", detail
+    return result
+
+
+def deep_cups(seed, count):
+    rng = random.Random(seed)
+    for _ in range(count):
+        a = 10 ** rng.uniform(-6, -2)
+        b = a * rng.choice([1.0, 1.5, 10 ** rng.uniform(0, 1)])
+        c = 10 ** rng.uniform(2, 6)
+        radius = 10 ** rng.uniform(-6, -3)
+        yield a, b, c, radius
+
+
+@pytest.mark.parametrize("build", ["ellroll", "ellroll_debug"])
+def test_a_ball_wider_than_a_deep_cup_is_refused_with_its_bottom_radii(request, tmp_path, build):
+    exe = request.getfixturevalue(build)
+    for k, (a, b, c, radius) in enumerate([(1e-6, 1e-6, 1e3, 1e-6), (1e-6, 1e-6, 1e2, 1e-6)]
+                                          + list(deep_cups(20, 12))):
+        name = f"cup{k}"
+        text = (f"&geometry a = {a!r}, b = {b!r}, c = {c!r} /\n&ball radius = {radius!r}, weight = 1.0 /\n"
+                "&initial omega = 0, 0, 0 /\n&integration dt = 1.0e-3, t_end = 0.01 /\n"
+                f"&output file = '{name}.h5', interval = 1.0e-3 /\n")
+        (tmp_path / f"{name}.nml").write_text(text)
+        result = run(exe, "check", f"{name}.nml", cwd=tmp_path, timeout=60)
+        detail = f"{text}\n{result.stdout}\n{result.stderr}"
+        assert not any(sign in result.stderr for sign in CRASH_SIGNS), detail
+        # a^2/c <= 1e-4 * 1e-2 < 1e-6 <= radius: no such ball fits
+        assert result.returncode == 2, detail
+        assert "the ball does not fit the cup at the start" in result.stderr, detail
+        radii = [float(v) for v in re.search(r"there are (\S+) m and (\S+) m", result.stderr).groups()]
+        assert radii == pytest.approx(sorted([a * a / c, b * b / c]), rel=1e-9), detail
+        result = run(exe, "run", f"{name}.nml", "-q", cwd=tmp_path, timeout=60)
+        assert result.returncode == 2 and not (tmp_path / f"{name}.h5").exists(), detail
