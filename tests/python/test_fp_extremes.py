@@ -61,3 +61,25 @@ def test_a_ball_wider_than_a_deep_cup_is_refused_with_its_bottom_radii(request, 
         assert radii == pytest.approx(sorted([a * a / c, b * b / c]), rel=1e-9), detail
         result = run(exe, "run", f"{name}.nml", "-q", cwd=tmp_path, timeout=60)
         assert result.returncode == 2 and not (tmp_path / f"{name}.h5").exists(), detail
+
+
+def gauss4_fast_cases(seed, count):
+    rng = random.Random(seed)
+    for _ in range(count):
+        a = rng.uniform(5e4, 2e5)
+        radius = a * a / 1e6 * rng.choice([0.5, 0.9, 0.999, 0.999999])     # up to the bottom radius a^2/c
+        omega = [1e6] + [rng.uniform(-1e6, 1e6) for _ in range(2)]
+        yield (f"&geometry a = {a!r}, b = 1e6, c = 1e6 /\n&ball radius = {radius!r}, weight = 1.0 /\n"
+               "&environment g = 9.81 /\n"
+               f"&initial omega = {omega[0]!r}, {omega[1]!r}, {omega[2]!r} /\n"
+               "&integration method = 'gauss4', dt = 1.0e-3, t_end = 0.01 /\n"
+               "&output file = 'e.h5', interval = 1.0e-3 /\n")
+
+
+def test_gauss4_on_large_fast_balls_ends_each_case_with_a_status(ellroll_debug, tmp_path):
+    cases = ["&geometry a = 97166.96, b = 1e6, c = 1e6 /\n&ball radius = 9441.4, weight = 1.0 /\n"
+             "&environment g = 9.81 /\n&initial omega = 1e6, -818109, -583183 /\n"
+             "&integration method = 'gauss4', dt = 1.0e-3, t_end = 0.01 /\n"
+             "&output file = 'e.h5', interval = 1.0e-3 /\n"] + list(gauss4_fast_cases(21, 8))
+    for k, text in enumerate(cases):
+        assert run_case(ellroll_debug, tmp_path, f"g{k}", text).returncode == 0
