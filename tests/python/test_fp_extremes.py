@@ -83,3 +83,31 @@ def test_gauss4_on_large_fast_balls_ends_each_case_with_a_status(ellroll_debug, 
              "&output file = 'e.h5', interval = 1.0e-3 /\n"] + list(gauss4_fast_cases(21, 8))
     for k, text in enumerate(cases):
         assert run_case(ellroll_debug, tmp_path, f"g{k}", text).returncode == 0
+
+
+def screen_cases(seed, count):
+    rng = random.Random(seed)
+    for _ in range(count):
+        a, b = rng.uniform(1e5, 1e6), rng.uniform(1e5, 1e6)
+        y = b * rng.uniform(0.1, 0.5)
+        mass = rng.choice([1e6, 1e9, 1e12])
+        yield (f"&geometry a = {a!r}, b = {b!r}, c = 1e-06 /\n"
+               f"&ball radius = 1e-06, mass = {mass!r}, mu = 1000000.0, slip = 'end', "
+               "inertia_factor = 0.6666666666666666, rolling_resistance = 0.1 /\n&environment g = 0 /\n"
+               f"&initial x = 0.0, y = {y!r}, omega = 1000000.0, 1000000.0, 1000000.0 /\n"
+               "&integration method = 'dop853', dt = 1.0e-3, t_end = 0.01 /\n"
+               "&excitation kind = 'harmonic', amplitude = -10000.0, -3333.3333333333335, -1428.5714285714287, "
+               "frequency = 990734.1269921708, phase = -1000 /\n&output file = 'e.h5', interval = 1.0e-3 /\n")
+
+
+def test_the_peak_screen_of_a_ball_whose_normal_force_vanishes_ends_with_a_status(ellroll_debug, tmp_path):
+    cases = ["&geometry a = 592272.3041206562, b = 803107.1645036046, c = 1e-06 /\n"
+             "&ball radius = 1e-06, mass = 1000000000000.0, mu = 1000000.0, slip = 'end', "
+             "inertia_factor = 0.6666666666666666, rolling_resistance = 0.1 /\n&environment g = 0 /\n"
+             "&initial x = 0.0, y = 240932.14935108137, omega = 1000000.0, 1000000.0, 1000000.0 /\n"
+             "&integration method = 'dop853', dt = 1.0e-3, t_end = 0.01 /\n"
+             "&excitation kind = 'harmonic', amplitude = -10000.0, -3333.3333333333335, -1428.5714285714287, "
+             "frequency = 990734.1269921708, phase = -1000 /\n&output file = 'e.h5', interval = 1.0e-3 /\n"] \
+        + list(screen_cases(22, 6))
+    for k, text in enumerate(cases):
+        assert run_case(ellroll_debug, tmp_path, f"p{k}", text).returncode == 0
