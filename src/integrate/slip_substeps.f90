@@ -34,8 +34,9 @@ module ellroll_slip_substeps
   integer, parameter :: stall_substeps = 64
   !> Substeps of one piece at most (the rest is then taken whole); a
   !> substep that leaves the motion's scale (speeds beyond beyond_scale
-  !> times the piece's start: a couple whose direction turns far faster than
-  !> round-off-sized substeps) leaves the piece without a solution.
+  !> times the piece's start, with what the start's accelerations add over
+  !> the piece: a couple whose direction turns far faster than round-off-sized
+  !> substeps) leaves the piece without a solution.
   integer, parameter :: max_substeps = 100000
   real(wp), parameter :: beyond_scale = 1.0e3_wp
 
@@ -58,7 +59,7 @@ contains
     logical, intent(out) :: stalled
     integer(i8), intent(inout) :: n_rhs
     real(wp), dimension(slide_state_size) :: y, f, whole, half, halves, f_half
-    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start
+    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start, scale
     integer :: k, accepted
     stalled = .false.
     reached = h
@@ -71,6 +72,10 @@ contains
     slip_before = slip_start
     accepted = 0
     tolerance = slip_tolerance * speed(y0)
+    ! (a start at rest where the friction is weak, mu N far below the weight's
+    ! pull along the cup: the speeds the piece gains are the accelerations'
+    ! reach over it, not the start's speeds)
+    scale = beyond_scale * (speed(y0) + h * (norm2(center_rate(y0, f0)) + sb%ball%radius * norm2(f0(4:6))))
     y = y0
     f = f0
     tau = 0
@@ -93,7 +98,7 @@ contains
       if (integrator%stage_limit /= 0) exit
       error = norm2(slip_velocity(sb%ball, halves) - slip_velocity(sb%ball, whole)) / 15
       if (error <= tolerance .or. s <= 16 * spacing(t + h) .or. k == max_substeps) then
-        if (.not. speed(halves) <= beyond_scale * speed(y0)) then
+        if (.not. speed(halves) <= scale) then
           integrator%stage_limit = no_step_solution       ! the substeps leave the motion's scale
           whole = y
           exit
@@ -133,6 +138,16 @@ contains
       speed = norm2(center_velocity(x)) + sb%ball%radius * norm2(x(4:6)) + reach
     end function speed
   end subroutine slide_piece
+
+  !> The rate of the centre's velocity at sliding state y whose derivative
+  !> is dydt (its z component from V_z = -(n_x V_x + n_y V_y) / n_z, differentiated).
+  pure function center_rate(y, dydt) result(rate)
+    real(wp), intent(in) :: y(slide_state_size), dydt(slide_state_size)
+    real(wp) :: rate(3)
+    rate(1:2) = dydt(7:8)
+    rate(3) = -((dydt(1) * y(7) + y(1) * dydt(7) + dydt(2) * y(8) + y(2) * dydt(8)) * y(3) &
+                - (y(1) * y(7) + y(2) * y(8)) * dydt(3)) / y(3)**2
+  end function center_rate
 
 
 end module ellroll_slip_substeps

@@ -237,7 +237,7 @@ contains
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(state_size), rate(state_size)
     real(wp) :: q(peak_count)
-    real(wp) :: n(3), p(3), inv_s, force(3), normal
+    real(wp) :: n(3), p(3), inv_s, force(3), normal, tangent, ratio, denominator
     n = y(1:3)
     call contact_point(ball%cup, n, p, inv_s)
     p = p + ball%radius * n
@@ -246,8 +246,13 @@ contains
                                        rate(4) * n(2) - rate(5) * n(1) + y(4) * rate(2) - y(5) * rate(1)]
     force(3) = force(3) + ball%mass * ball%g
     normal = dot_product(force, n)
-    q = [hypot(p(1), p(2)), scale(hypot(force(1), force(2)), -exponent(ball%mass)), normal, &
-         norm2(force - normal * n) / max(abs(normal), tiny(1.0_wp))]
+    tangent = norm2(force - normal * n)
+    ! (a ratio past huge where N is near zero: huge, a value the screen leaves
+    ! undecided, not an overflow)
+    denominator = max(abs(normal), tiny(1.0_wp))
+    ratio = huge(1.0_wp)
+    if (denominator > tangent / huge(1.0_wp)) ratio = tangent / denominator
+    q = [hypot(p(1), p(2)), scale(hypot(force(1), force(2)), -exponent(ball%mass)), normal, ratio]
   end function fixed_cup_values
 
   !> The peaks inside the last attempt (in pair), whose screen is complete,

@@ -96,7 +96,7 @@ contains
     type(ellipsoid_t), intent(in) :: cup
     real(wp), intent(in) :: n(3)
     real(wp) :: r(2)
-    real(wp) :: s2, w, u(3), dev, frobenius2, trace_dev, disc, r_max
+    real(wp) :: s2, w, u(3), dev, frobenius2, trace_dev, disc, r_max, sum_k
     integer :: i, j
     s2 = dot_product(n, cup%axes2 * n)
     w = dot_product(cup%excess2, n * n)
@@ -113,8 +113,20 @@ contains
         frobenius2 = frobenius2 + dev * dev
       end do
     end do
-    disc = max(0.0_wp, 2 * frobenius2 - trace_dev**2)
-    r_max = (2 * cup%axes2(3) + trace_dev + sqrt(disc)) / (2 * sqrt(s2))
+    ! the sum of the two eigenvalues of s K as a sum of positive terms,
+    ! sum_j n_j^2 a_j^2 (sum_{i /= j} a_i^2) / s^2 (= 2 c^2 + tr dev, which
+    ! cancels to nothing in a cup far deeper than wide, c >> a, b)
+    sum_k = (n(1)**2 * cup%axes2(1) * (cup%axes2(2) + cup%axes2(3)) &
+             + n(2)**2 * cup%axes2(2) * (cup%axes2(1) + cup%axes2(3)) &
+             + n(3)**2 * cup%axes2(3) * (cup%axes2(1) + cup%axes2(2))) / s2
+    ! their difference squared from dev where dev is small against the sum (a
+    ! nearly spherical cup); else from the sum and the product det(A) / s^2
+    if (frobenius2 <= sum_k**2) then
+      disc = max(0.0_wp, 2 * frobenius2 - trace_dev**2)
+    else
+      disc = max(0.0_wp, sum_k**2 - 4 * (cup%det_axes2 / s2))
+    end if
+    r_max = (sum_k + sqrt(min(disc, sum_k**2))) / (2 * sqrt(s2))
     r(2) = r_max
     r(1) = (cup%det_axes2 / (s2 * s2)) / r_max
   end function principal_radii

@@ -162,7 +162,11 @@ contains
     ay_w = ay(1) * w(1) + ay(2) * w(2) + ay(3) * w(3)
     m = q * (ball%cup%axes2 * w) - ay_w * ay
     x = e * w + length * m
-    rate = r_sigma / denominator
+    ! (D near zero, where the ball no longer fits the cup (an implicit
+    ! method's iterate may go there): no rate whose products overflow)
+    rate = 0
+    if (abs(denominator) > (r_sigma / sqrt(huge(1.0_wp))) * max(abs(x(1)), abs(x(2)), abs(x(3)))) &
+      rate = r_sigma / denominator
     dydt(1:3) = rate * x
     associate (j_star => 1 / (1 + ball%inertia_factor))
       dydt(4:6) = ((j_star * (y(4) * y(1) + y(5) * y(2) + y(6) * y(3)) * inv_length2) * rate) * x &

@@ -14,6 +14,11 @@ module ellroll_gauss4
   !> Steps a Jacobian of the implicit method serves, unless Newton's
   !> iteration slows down before.
   integer, parameter :: jacobian_lifetime = 20
+  !> A Newton iterate whose stage increments pass this many times the
+  !> state's scale (max(|y|, 1)) has left any solution near the start (a step
+  !> far beyond the method's reach): the right-hand side is not evaluated
+  !> there (its products would overflow) and the step has no solution.
+  real(wp), parameter :: stage_reach = 1.0e6_wp
 
   type, extends(integrator_t) :: gauss4_t
     real(wp), allocatable :: jacobian(:, :), lu(:, :)
@@ -62,6 +67,11 @@ contains
       call refresh(self, f_here(:n))
       call iterate(self, size_now)
     end if
+    if (.not. size_now < huge(1.0_wp)) then     ! (the iterates left the state's scale)
+      y_new = y
+      self%stage_limit = no_step_solution
+      return
+    end if
     ! y_new = y + h sum b_i f_i, with f_i from the converged stages
     self%stage_limit = 0
     do i = 1, 2
@@ -89,6 +99,8 @@ contains
       end do
       size_before = huge(1.0_wp)
       do iteration = 1, 12
+        size_now = huge(1.0_wp)
+        if (.not. maxval(abs(z(:n, :))) <= stage_reach * max(maxval(abs(y)), 1.0_wp)) exit
         do i = 1, 2
           stage(:n) = y + z(:n, i)
           call sys%rhs(t + gl_c(i) * h, stage(:n), f(:n, i))

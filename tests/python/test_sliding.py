@@ -499,3 +499,32 @@ def test_long_steps_to_the_stop_take_the_friction_s_work_exactly(ellroll, tmp_pa
         assert s["friction_energy"] == pytest.approx(energy[0] - energy[-1], rel=1e-9), label
         assert s["friction_energy"] == pytest.approx(lost, rel=1e-6), label
         assert s["sliding_time"] == pytest.approx(t_slide, rel=1e-6), label
+
+
+NEAR_RIM = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.01, mass = 1.0, mu = 0.01, slip = 'slide' /
+&initial x = 0.0, y = {y}, omega = 0.0, 0.0, 0.0 /
+&integration {integration}, t_end = 0.2 /
+&output file = 'out.h5', interval = 0.01 /
+"""
+
+
+@pytest.mark.parametrize("y", [0.39999, 0.3999999, 0.399995])
+def test_a_fixed_step_follows_a_start_at_rest_near_the_rim_at_order_four(ellroll, tmp_path, y):
+    # weak friction (mu N far below the weight's pull along the steep wall,
+    # n_z = 0.014 at y = 0.39999): the ball slides down from rest; rk4's
+    # contact converges at order 4 to vern9's
+    def contact(integration):
+        folder = tmp_path / integration.replace(" ", "").replace("'", "").replace(",", "_").replace("=", "")
+        folder.mkdir()
+        with run_text(ellroll, folder, NEAR_RIM.format(y=y, integration=integration)) as f:
+            status = f["summary/status"]
+            names = dict(zip(status.attrs["flag_values"], status.attrs["flag_meanings"].split()))
+            assert names[status[0]] == "completed", integration
+            assert f["summary/t_final"][0] == pytest.approx(0.2, abs=1e-12)
+            return f["trajectory/contact"][0]
+    reference = contact("method = 'vern9', rtol = 1e-12")
+    errors = [np.abs(contact(f"method = 'rk4', dt = {dt!r}") - reference).max() for dt in (1e-3, 5e-4, 2.5e-4)]
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert errors[-1] < 1e-7, errors
+    assert np.all(orders > 3.5) and np.all(orders < 4.7), (errors, orders)
