@@ -437,10 +437,15 @@ contains
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t
     type(regime_state_t), intent(inout) :: at
-    real(wp) :: rate(slide_state_size), big_n, force(3), need(3)
+    real(wp) :: rate(slide_state_size), big_n, force(3), need(3), size_need
+    integer :: e
     call sliding_derivative(sb, t, at%s, rate, big_n, force, needed=need)
-    if (.not. norm2(need) > 0) return
-    call set_reaction(sb, big_n * at%obs%normal + (sb%ball%mu * max(big_n, 0.0_wp) / norm2(need)) * need, at%obs)
+    ! (forces in units of the mass's power of two: a light ball's would underflow in the norm)
+    e = -exponent(sb%ball%mass)
+    size_need = norm2(scale(need, e))
+    if (.not. size_need > 0) return
+    call set_reaction(sb, big_n * at%obs%normal + (scale(sb%ball%mu * max(big_n, 0.0_wp), e) / size_need) * need, &
+                      at%obs)
   end subroutine observe_stopped
 
   !> The piece of step h from (t, from) to `to` that the integrator has just

@@ -567,7 +567,9 @@ contains
     call set_reaction(sb, big_n * n + force, obs)
     obs%reaction_normal = big_n
     obs%friction_needed = huge(1.0_wp)
-    if (big_n > 0) obs%friction_needed = norm2(force) / big_n
+    ! (in units of the mass's power of two: a light ball's force would underflow in the norm)
+    if (big_n > 0) obs%friction_needed = norm2(scale(force, -exponent(sb%ball%mass))) / &
+                                         scale(big_n, -exponent(sb%ball%mass))
     v = center_velocity(y)
     height = obs%contact(3) - sb%ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
     associate (m => sb%ball%mass, r => sb%ball%radius)

@@ -118,3 +118,32 @@ def test_pair_no_acceleration_spike_at_a_slip_stop(ellroll, tmp_path, seed, meth
     stored = np.max(np.hypot(traj["reaction"][:, 0], traj["reaction"][:, 1])) / mass
     assert stored * (1 - 1e-12) <= s["absolute_acceleration_max"] <= stored * (1 + 1e-6), \
         (s["absolute_acceleration_max"], stored)
+
+
+@pytest.mark.parametrize("resistance", [0.0, 1e-3])
+def test_a_slip_stop_gives_the_same_peaks_for_any_mass(ellroll, tmp_path, resistance):
+    """The motion does not depend on the mass: a shaken case sliding from its
+    start and stopping at 0.4636 s (rk4 dt 1e-3) gives the same
+    absolute_acceleration_max and friction_needed_max for masses from 1e-300
+    to 1e12 kg (to the trajectories' own spread, 1e-9), within rk4's error of
+    vern9's at rtol 1e-12; the stop's reaction is mu N along rolling's need
+    however small the forces (their norms taken in units of the mass's
+    power of two)."""
+    def case(mass, method):
+        return (PAPER_CUP + f"&ball radius = 0.2, mass = {mass!r}, mu = 0.05, slip = 'slide', "
+                f"rolling_resistance = {resistance!r} /\n"
+                "&initial x = 0.1, omega = -2.0, 2.0, 20.0 /\n"
+                f"&integration {method}, t_end = 0.5 /\n"
+                "&excitation kind = 'harmonic', amplitude = 3.0, 1.0, 2.0, frequency = 2.0 /\n"
+                "&output file = 'o.h5', interval = 0.01 /\n")
+    reference, _, kinds, _ = _summary(ellroll, tmp_path, "vern9", case(1.0, "method = 'vern9', rtol = 1e-12"))
+    assert list(kinds) == [1, 2]                       # slides at once, stops once
+    for mass in (1.0, 3.0, 1e-30, 1e-100, 1e-200, 1e-250, 1e-300, 1e12):
+        s, _, _, _ = _summary(ellroll, tmp_path, f"rk4_{mass:g}", case(mass, "method = 'rk4', dt = 1e-3"))
+        for name in ("absolute_acceleration_max", "friction_needed_max"):
+            assert abs(s[name] - reference[name]) <= 2e-4 * reference[name], (mass, name, s[name], reference[name])
+            if mass == 1.0:
+                continue
+            assert abs(s[name] - first[name]) <= 1e-9 * first[name], (mass, name, s[name], first[name])
+        if mass == 1.0:
+            first = s
