@@ -3,6 +3,7 @@ file of 10^5 cases costs only what is plotted."""
 import builtins
 import functools
 import os
+import shlex
 import traceback
 
 import h5py
@@ -55,6 +56,13 @@ def _resume_advice(path):
     except OSError:
         pass
     if command:
+        try:
+            words = shlex.split(command)
+        except ValueError:          # (not a shell's words: named as it stands)
+            words = None
+        if words and "--overwrite" in words:
+            # ellroll refuses --resume with --overwrite: a resume continues the run that --overwrite began
+            command = shlex.join(w for w in words if w != "--overwrite")
         resume = command if " --resume" in f" {command} " else command + " --resume"
         return f"finish it with '{resume}' (the command {output}.lock names, from its folder), then read {output}"
     return f"finish it with 'ellroll run INPUT -o {output} --resume' (the run's input and options), then read {output}"
