@@ -247,9 +247,23 @@ class EllrollFile:
             if cases.shape != (rows,):
                 raise NotAnEllrollFile(damaged(self.path, f"/case/index holds {cases.shape} values, "
                                                           f"/summary/status {rows}"))
+            pending = self._pending_rows()
+            if pending.any():
+                # an unfinished file (OUT.h5.partial) writes a case's /case/index with its results; its
+                # pending rows' indices are those of the case dimension, written when the file was made
+                scale = self._h5.get("case/case")
+                if scale is None or scale.shape != (rows,):
+                    raise NotAnEllrollFile(damaged(self.path, f"no /case/case of {rows} values for its "
+                                                              "pending cases"))
+                cases[pending] = np.asarray(scale[:], dtype=np.int64)[pending]
             self._cases = cases
             self._rows = {int(c): row for row, c in enumerate(cases)}
         return self._cases
+
+    def _pending_rows(self):
+        """Whether each row is a case not run yet (status pending: an unfinished run's work file)."""
+        status = self._dataset("summary/status")
+        return np.asarray(self._status_meanings(status[:])) == "pending"
 
     def case_index(self, case=None):
         """The global index of a case; None: the file's first case."""
@@ -289,7 +303,12 @@ class EllrollFile:
     def trajectory(self, field, case=None):
         """One case's samples of a trajectory field: (nt,) or (nt, 3); case:
         its global index (None: the file's first case)."""
-        return self._dataset(f"trajectory/{field}")[self.row(case)]
+        row = self.row(case)
+        dataset = self._dataset(f"trajectory/{field}")
+        if dataset.dtype.kind == "f" and self.status_name(case) == "pending":
+            # a pending case's samples are not written yet: HDF5 reads them as 0, not the fill value
+            return np.full(dataset.shape[1:], np.nan)
+        return dataset[row]
 
     @property
     @_reads

@@ -44,6 +44,53 @@ def whole(ellroll, tmp_path_factory):
     return folder
 
 
+def test_a_sigterm_stopped_work_file_reads_its_finished_cases(ellroll, whole, tmp_path):
+    """Seeded shards I/N stopped by SIGTERM after a seeded number of cases:
+    the work file's cases are I, I+N, ... (its pending ones included); each
+    finished case's status and trajectories are the whole run's, bit for
+    bit; each pending case's trajectories are NaN, never 0; and a per-case
+    figure of case I draws it while one of a pending case says never run."""
+    rng = random.Random(1212)
+    stopped = 0
+    with ellroll_post.open(whole / "w.h5") as full:
+        fields = full.fields
+        for trial in range(4):
+            shards = rng.choice([1, 2, 3])
+            shard = rng.randrange(shards)
+            folder = tmp_path / f"t{trial}"
+            folder.mkdir()
+            name = write(folder, "w", SWEEP, t_end=3.0, estimate=False)
+            code = stop_after_records([str(ellroll), "run", name, "-q", "--threads", "1", "--shard",
+                                       f"{shard}/{shards}", "-o", "s.h5"], folder, folder / "s.h5.journal",
+                                      rng.randint(1, 4))
+            if code == 0:
+                continue            # (it finished first)
+            assert code == 128 + signal.SIGTERM
+            stopped += 1
+            partial = folder / "s.h5.partial"
+            with ellroll_post.open(partial) as part:
+                expected = list(range(shard, CASES, shards))
+                assert part.cases.tolist() == expected
+                status = part.status_names()
+                assert 0 < status.count("completed") and "pending" in status, status
+                for case, name_ in zip(expected, status):
+                    assert part.case_index(case) == case
+                    if name_ == "pending":
+                        for field in fields:
+                            assert np.all(np.isnan(part.trajectory(field, case))), (case, field)
+                        continue
+                    assert name_ == full.status_name(case)
+                    for field in fields:
+                        assert np.array_equal(part.trajectory(field, case), full.trajectory(field, case),
+                                              equal_nan=True), (case, field)
+                first_pending = expected[status.index("pending")]
+            code, _, err = cli("nutation", partial, "--case", first_pending, "--out", folder)
+            one_line_error(code, err, "s.h5.partial", f"case {first_pending} was never run")
+            code, out, err = cli("nutation", partial, "--case", shard, "--out", folder)
+            assert code == 0 and out.strip().endswith(f"case{shard}.png" if shard else ".png"), (code, err)
+    assert stopped >= 2
+
+
 @pytest.mark.parametrize("options", [["--overwrite"], ["--threads", "1", "--overwrite", "-q"],
                                      ["--overwrite", "--shard", "1/2"]])
 def test_the_command_named_for_a_killed_overwrite_run_finishes_it(ellroll, whole, tmp_path, options):
