@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from .reader import NotAnEllrollFile, damaged, from_h5py, open as open_run
+from .reader import NotAnEllrollFile, damaged, from_h5py, not_regular, open as open_run
 from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, output_folder, save_figure, write_text
@@ -95,8 +95,9 @@ def bench_table(path):
     NotAnEllrollFile (one line naming the file, and the row and column where
     a value is bad) for a file that is not such a table or holds no row."""
     what = f"not a work-precision table (bench/workprecision.py's CSV, columns {', '.join(BENCH_COLUMNS)})"
-    if os.path.isdir(path):
-        raise NotAnEllrollFile(f"{path}: a folder, {what}")
+    kind = not_regular(path)
+    if kind:
+        raise NotAnEllrollFile(f"{path}: {kind}, {what}")
     try:
         with open(path, "rb") as handle:
             data = handle.read()

@@ -4,6 +4,7 @@ import builtins
 import functools
 import os
 import shlex
+import stat
 import traceback
 
 import h5py
@@ -49,6 +50,8 @@ def _resume_advice(path):
     output = output_of(path) or path
     command = None
     try:
+        if not_regular(output + ".lock"):
+            raise OSError("not a regular file")
         with builtins.open(output + ".lock", errors="replace") as handle:    # 'ellroll lock', then '...: COMMAND'
             note = handle.read(4096).splitlines()
         if len(note) >= 2 and note[0] == "ellroll lock" and ": ellroll " in note[1]:
@@ -68,8 +71,28 @@ def _resume_advice(path):
     return f"finish it with 'ellroll run INPUT -o {output} --resume' (the run's input and options), then read {output}"
 
 
+# what a file that is not a regular one is, by its stat.S_IS* test (as `ellroll` names them)
+_NOT_REGULAR = (("S_ISDIR", "a folder"), ("S_ISFIFO", "a FIFO (named pipe)"), ("S_ISCHR", "a character device"),
+                ("S_ISBLK", "a block device"), ("S_ISSOCK", "a socket"))
+
+
+def not_regular(path):
+    """What path is where it is there and not a regular file (its link
+    followed), in words; None for a regular or a missing file. A FIFO is
+    never opened: an open waits for a writer, as long as there is none."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    return next((words for test, words in _NOT_REGULAR if getattr(stat, test)(mode)), "not a regular file")
+
+
 def _is_journal(path):
     """Whether path begins as ellroll's journal of a run does (OUT.h5.journal)."""
+    if not_regular(path):
+        return False
     try:
         with builtins.open(path, "rb") as handle:
             return handle.read(len(JOURNAL_MAGIC)) == JOURNAL_MAGIC
@@ -144,8 +167,11 @@ def _read_attribute(attribute):
 class EllrollFile:
     def __init__(self, path):
         self.path = str(path)
-        if os.path.isdir(self.path):
+        what = not_regular(self.path)
+        if what == "a folder":
             raise NotAnEllrollFile(f"{self.path}: a folder, not an ellroll file")
+        if what:
+            raise NotAnEllrollFile(f"{self.path}: {what}, not a regular file (an ellroll file is one)")
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
