@@ -279,10 +279,10 @@ def main(argv=None):
         if args.command == "summary":
             with open_run(args.file) as run:
                 if args.suite:
-                    sys.stdout.write(format_suite(suite_statistics(run, percentiles=args.percentiles), args.format,
-                                                  args.file))
+                    _stdout(format_suite(suite_statistics(run, percentiles=args.percentiles), args.format,
+                                         args.file))
                 else:
-                    sys.stdout.write(format_summary(run, args.format))
+                    _stdout(format_summary(run, args.format))
             return 0
         if args.command == "fragility":
             with open_run(args.file) as run:
@@ -296,12 +296,12 @@ def main(argv=None):
                         table = _rows_of(table, table["limit_state"] == args.limit_state)
                     text = format_fragility(table, args.format, args.file)
                     if not args.output:
-                        sys.stdout.write(text)
+                        _stdout(text)
                         return 0
                     path = pathlib.Path(args.output)
                     output_folder(path.parent, "-o")
                     write_text(path, args.overwrite, text)
-                    print(path)
+                    _stdout(f"{path}\n")
                     return 0
                 path = pathlib.Path(args.output) if args.output else \
                     pathlib.Path(args.out) / f"{figure_stem(run, 'fragility')}.{args.format}"
@@ -314,7 +314,7 @@ def main(argv=None):
                     save_figure(fig, path, args.overwrite, args.format)
                 finally:
                     plt.close(fig)
-            print(path)
+            _stdout(f"{path}\n")
             return 0
         out = pathlib.Path(args.out)
         if args.command == "workprecision":
@@ -364,6 +364,10 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
+        _stdout("".join(f"{path}\n" for path in written))
+    except StandardOutputLost as exc:
+        print(f"ellroll-plot: error: cannot write the standard output: {exc}", file=sys.stderr)
+        return 2
     except (NotAnEllrollFile, NoIntensityMeasure, NoStripes, OutputExists) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
@@ -376,9 +380,29 @@ def main(argv=None):
             print(f"ellroll-plot: error: {exc}", file=sys.stderr)
             return 2
         raise
-    for path in written:
-        print(path)
     return 0
+
+
+class StandardOutputLost(Exception):
+    """Standard output cannot be written (a full disk, a closed pipe)."""
+
+
+def _stdout(text):
+    """Write text to standard output, now (flushed): StandardOutputLost,
+    with the system's reason, where it cannot be written. Standard output is
+    then pointed at os.devnull, so that Python's flush at exit finds nothing
+    to write."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except OSError as exc:
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, sys.stdout.fileno())
+            os.close(null)
+        except (OSError, ValueError, io.UnsupportedOperation):
+            pass
+        raise StandardOutputLost(exc.strerror or str(exc)) from None
 
 
 def _rows_of(table, keep):

@@ -12,6 +12,8 @@ import math
 import os
 import random
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -289,3 +291,22 @@ def test_the_readme_table_lists_every_subcommand():
     rows = re.findall(r"^\| `([a-z]+) ", text, re.M)
     assert sorted(rows) == sorted(listed), (rows, listed)
     assert set(PER_CASE) < set(listed)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+@pytest.mark.parametrize("command", ["nutation", "sweep", "suite", "report", "fragility", "fragility-csv",
+                                     "summary", "workprecision"])
+def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, command):
+    """ellroll-plot with its standard output on a full device (/dev/full):
+    every subcommand, a figure's or the text's, ends in one line naming
+    standard output and the system's reason, exit 2, never a traceback."""
+    source = files / ("suite.h5" if command.startswith(("suite", "fragility")) else "whole.h5")
+    args = arguments(command.split("-")[0], source, tmp_path / "out")
+    if command == "fragility-csv":
+        args += ["--format", "csv"]
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
+                                                                os.environ.get("PYTHONPATH", "")])}
+    with open("/dev/full", "w") as full:
+        result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=full,
+                                stderr=subprocess.PIPE, text=True, env=environment, timeout=300)
+    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
