@@ -331,7 +331,7 @@ def main(argv=None):
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
-                output_folder(out)          # (once the file opened: no folder for a bad one)
+                output_folder(out, make=args.command != "report")   # (once the file opened: no folder for a bad one)
                 if args.command == "report" or args.command in plots.FIELD_NEEDS:
                     args.case = run.case_index(args.case)       # the global index held (None: the file's first)
                 if args.command == "report":

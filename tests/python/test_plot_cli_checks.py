@@ -12,6 +12,7 @@ import math
 import os
 import random
 import re
+import shutil
 import subprocess
 import sys
 
@@ -310,3 +311,54 @@ def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, com
         result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=full,
                                 stderr=subprocess.PIPE, text=True, env=environment, timeout=300)
     one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
+
+
+def folder_state(folder):
+    """{name: bytes} of every file in a folder (hidden ones included)."""
+    return {p.name: p.read_bytes() for p in folder.iterdir()} if folder.exists() else None
+
+
+@pytest.mark.parametrize("source", ["whole", "suite"])
+def test_a_report_that_fails_leaves_its_folder_as_it_was(files, tmp_path, source):
+    """`report --out DIR` where some of the report's files are there already
+    (seeded: which ones, and whether ellroll-plot made them or a user did):
+    without --overwrite, or over a user's file, one line, exit 2, and DIR
+    holds what it held, byte for byte, no new or hidden file; with
+    --overwrite over its own files, the whole report, nothing else."""
+    reference = tmp_path / "reference"
+    code, out, err = cli("report", files / f"{source}.h5", "--out", reference)
+    assert code == 0, err
+    names = sorted(p.name for p in reference.iterdir())
+    assert len(names) >= 4 and "index.html" in names and not any(n.startswith(".") for n in names), names
+    rng = random.Random(1210 + len(source))
+    for trial in range(6):
+        folder = tmp_path / f"out{trial}"
+        folder.mkdir()
+        (folder / "notes.txt").write_text("a user's file\n")
+        there = rng.sample(names, rng.randint(1, 2))
+        users = trial % 3 == 2
+        for name in there:
+            (folder / name).write_bytes(b"a user's file\n" if users else (reference / name).read_bytes())
+        before = folder_state(folder)
+        overwrite = trial % 2 == 1
+        code, out, err = cli("report", files / f"{source}.h5", "--out", folder, *(["--overwrite"] * overwrite))
+        if overwrite and not users:
+            assert code == 0, err
+            assert sorted(folder_state(folder)) == sorted(names + ["notes.txt"]), trial
+            continue
+        one_line_error(code, err, folder.name)
+        assert folder_state(folder) == before, (trial, there, sorted(folder_state(folder)))
+
+
+def test_a_report_of_a_file_with_no_case_makes_nothing(ellroll, files, tmp_path):
+    """An empty shard (7/8 of six cases): `report` says it holds no case,
+    exit 2, and makes no FILE_report folder (nor any other file)."""
+    shutil.copytree(files / "records", tmp_path / "records")
+    shutil.copy(files / "whole.nml", tmp_path / "whole.nml")
+    result = subprocess.run([str(ellroll), "run", "whole.nml", "-q", "--shard", "7/8", "-o", "e.h5"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, _, err = cli("report", tmp_path / "e.h5")
+    one_line_error(code, err, "e.h5", "holds no case")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
