@@ -7,6 +7,7 @@ import math
 import os
 import pathlib
 import sys
+import warnings
 
 import numpy as np
 
@@ -15,8 +16,8 @@ from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, output_folder, save_figure, write_text
 from .summary import format_summary
-from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, check_limit_state, format_fragility, \
-    format_suite, suite_statistics
+from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, PartOfTheCampaign, check_limit_state, \
+    format_fragility, format_suite, suite_statistics
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
@@ -190,6 +191,21 @@ def _case(text):
 
 
 def main(argv=None):
+    """ellroll-plot; a suite's statistics of part of a campaign (suite.PartOfTheCampaign)
+    say so in one warning line on standard error."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PartOfTheCampaign)
+        code = _main(argv)
+    for other in caught:
+        if not issubclass(other.category, PartOfTheCampaign):
+            warnings.showwarning(other.message, other.category, other.filename, other.lineno)
+    if code == 0:           # (an error is its one line)
+        for note in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, PartOfTheCampaign)):
+            print(f"ellroll-plot: warning: {note}", file=sys.stderr)
+    return code
+
+
+def _main(argv=None):
     parser = Parser(prog="ellroll-plot", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)

@@ -15,6 +15,7 @@ import re
 import shutil
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -362,3 +363,56 @@ def test_a_report_of_a_file_with_no_case_makes_nothing(ellroll, files, tmp_path)
     code, _, err = cli("report", tmp_path / "e.h5")
     one_line_error(code, err, "e.h5", "holds no case")
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_suite_statistics_of_a_shard_say_they_are_over_part_of_the_campaign(ellroll, files, tmp_path):
+    """The record suite's shards (seeded I/N): `summary --suite`, `suite` and
+    `fragility` (figure and table) on a shard's file each print what they
+    print for it and one warning line naming the shard, the cases it holds
+    of the campaign's and `ellroll merge`; suite_statistics and
+    suite_fragility warn (PartOfTheCampaign) likewise; on the whole suite
+    and on the merged shards, no warning."""
+    from ellroll_post.suite import PartOfTheCampaign, suite_fragility, suite_statistics
+    import ellroll_post
+    shutil.copytree(files / "records", tmp_path / "records")
+    shutil.copy(files / "suite.nml", tmp_path / "suite.nml")
+    rng = random.Random(1211)
+    shards = rng.choice([2, 3])
+    for i in range(shards):
+        result = subprocess.run([str(ellroll), "run", "suite.nml", "-q", "--shard", f"{i}/{shards}", "-o",
+                                 f"s{i}.h5"], cwd=tmp_path, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+    assert subprocess.run([str(ellroll), "merge", "m.h5", *(f"s{i}.h5" for i in range(shards))], cwd=tmp_path,
+                          capture_output=True).returncode == 0
+    commands = [["summary", "--suite"], ["suite", "--out", tmp_path / "o", "--overwrite"],
+                ["fragility", "--bootstrap", 0, "--out", tmp_path / "o", "--overwrite"],
+                ["fragility", "--bootstrap", 0, "--format", "csv"]]
+    warned = 0
+    for path in [files / "suite.h5", tmp_path / "m.h5", *(tmp_path / f"s{i}.h5" for i in range(shards))]:
+        shard = path.name.startswith("s") and path.name != "suite.h5"
+        with ellroll_post.open(path) as run_:
+            held = len(run_.cases)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                suite_statistics(run_)
+                try:
+                    suite_fragility(run_)
+                except suite.NoStripes:
+                    pass                # (a shard of one scale: no fragility, but the same warning first)
+            notes = [str(w.message) for w in caught if issubclass(w.category, PartOfTheCampaign)]
+            assert bool(notes) == shard, (path, notes)
+        for command in commands:
+            code, out, err = cli(command[0], path, *command[1:])
+            if shard and code == 2 and ("hold" in err or "not a record suite" in err or "no stripes" in err):
+                assert len(err.strip().splitlines()) == 1, err
+                continue                # (a shard of one record or one scale: no suite's figure, one line)
+            assert code == 0 and out, (path, command, err)
+            lines = err.strip().splitlines()
+            if not shard:
+                assert lines == [], (path, command, err)
+                continue
+            index = path.stem[1:]
+            assert lines == [f"ellroll-plot: warning: {path}: over {held} of the campaign's 6 cases only: shard "
+                             f"{index}/{shards} (merge the shards first: ellroll merge)"], (command, err)
+            warned += 1
+    assert warned >= shards                 # (summary --suite of every shard at least)
