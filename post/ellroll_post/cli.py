@@ -354,12 +354,7 @@ def _main(argv=None):
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
                                            args.format, args.overwrite, all_cases=args.cases) + [out / "index.html"]
                 elif args.command == "transmissibility":
-                    if "excitation_frequency" not in run.swept_inputs():
-                        raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
-                                               "(&sweep name = 'excitation_frequency')")
-                    if not np.any(np.isfinite(run.summary("transmissibility"))):
-                        raise NotAnEllrollFile(f"{args.file}: no transmissibility in /summary (every case NaN): the "
-                                               "cup is not shaken harmonically (&excitation kind = 'harmonic')")
+                    plots.require_transmissibility(run)
                     written = [draw("transmissibility", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "suite":
                     check_suite(run, args.file)

@@ -416,3 +416,30 @@ def test_suite_statistics_of_a_shard_say_they_are_over_part_of_the_campaign(ellr
                              f"{index}/{shards} (merge the shards first: ellroll merge)"], (command, err)
             warned += 1
     assert warned >= shards                 # (summary --suite of every shard at least)
+
+
+def test_plot_transmissibility_refuses_what_the_command_refuses(files, tmp_path):
+    """plot_transmissibility on each file: where `ellroll-plot
+    transmissibility` refuses it (no sweep of the excitation frequency), the
+    function raises NotAnEllrollFile with the command's line; where the
+    command draws, so does the function."""
+    import matplotlib.pyplot as plt
+    import ellroll_post
+    from ellroll_post import plots
+    for name in ["whole.h5", "suite.h5", "shard_0.h5", "shard_2.h5"]:
+        code, _, err = cli("transmissibility", files / name, "--out", tmp_path, "--overwrite")
+        fig, ax = plt.subplots()
+        with ellroll_post.open(files / name) as run_:
+            try:
+                plots.plot_transmissibility(ax, run_)
+                refused = None
+            except ellroll_post.NotAnEllrollFile as exc:
+                refused = str(exc)
+        plt.close(fig)
+        if code == 0:
+            assert refused is None, (name, refused)
+        else:
+            one_line_error(code, err, name)
+            assert err.strip() == f"ellroll-plot: error: {refused}", (name, err, refused)
+    code, _, err = cli("transmissibility", files / "suite.h5", "--out", tmp_path)
+    one_line_error(code, err, "needs a sweep of excitation_frequency")
