@@ -134,6 +134,7 @@ def _reads(method):
     naming the file, not h5py's own exception."""
     @functools.wraps(method)
     def checked(self, *args, **kwargs):
+        self._require_open()
         try:
             return method(self, *args, **kwargs)
         except NotAnEllrollFile:
@@ -209,6 +210,11 @@ class EllrollFile:
     def close(self):
         self._h5.close()
 
+    def _require_open(self):
+        """NotAnEllrollFile where the file was closed (close(), or a with block ended)."""
+        if not self._h5.id.valid:
+            raise NotAnEllrollFile(f"{self.path}: closed; ellroll_post.open it again to read it")
+
     def __enter__(self):
         return self
 
@@ -218,6 +224,7 @@ class EllrollFile:
     # ---------------------------------------------------------- layout
     @property
     def attrs(self):
+        self._require_open()
         return dict(self._h5.attrs)
 
     @property
@@ -257,6 +264,7 @@ class EllrollFile:
         return []
 
     def _dataset(self, name):
+        self._require_open()
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
