@@ -206,6 +206,36 @@ class EllrollFile:
         for group in ("case", "summary", "trajectory"):
             if not isinstance(self._h5.get(group), h5py.Group):
                 raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no group /{group})")
+        self._check_shapes()
+
+    def _check_shapes(self):
+        """Every dataset of /case, /summary and /trajectory holds a row per
+        case, each trajectory a sample per time, and /summary/status names
+        its values: else one line (a file another program changed), not a
+        figure's numpy error later. Reads shapes and attributes only."""
+        def changed(what):
+            return NotAnEllrollFile(f"{self.path}: not laid out as ellroll writes its files ({what}; changed by "
+                                    "another program?)")
+        status = self._h5.get("summary/status")
+        if not isinstance(status, h5py.Dataset) or status.ndim != 1:
+            raise changed("no /summary/status of one value per case")
+        for attribute in ("flag_values", "flag_meanings"):
+            if attribute not in status.attrs:
+                raise changed(f"/summary/status has no attribute {attribute}")
+        if len(np.ravel(status.attrs["flag_values"])) != len(str(status.attrs["flag_meanings"]).split()):
+            raise changed("/summary/status: flag_values and flag_meanings differ in length")
+        rows = status.shape[0]
+        time = self._h5.get("time")
+        samples = time.shape[0] if isinstance(time, h5py.Dataset) and time.ndim == 1 else None
+        for group in ("case", "summary", "trajectory"):
+            for name, item in self._h5[group].items():
+                if not isinstance(item, h5py.Dataset) or (group, name) == ("trajectory", "time"):
+                    continue
+                if item.ndim == 0 or item.shape[0] != rows:
+                    raise changed(f"/{group}/{name} holds {item.shape[0] if item.ndim else 'no'} rows, "
+                                  f"/summary/status {rows}")
+                if group == "trajectory" and item.ndim >= 2 and samples is not None and item.shape[1] != samples:
+                    raise changed(f"/{group}/{name} holds {item.shape[1]} samples per case, /time {samples}")
 
     def close(self):
         self._h5.close()

@@ -385,3 +385,51 @@ def test_a_fifo_at_a_killed_runs_lock_is_not_read(killed, tmp_path):
         with pytest.raises(ellroll_post.NotAnEllrollFile, match="unfinished run's work file.*'ellroll run INPUT"):
             ellroll_post.open(tmp_path / "k.h5.partial")
     assert not hung
+
+
+# ------------------------------------------------- a file changed by h5py
+def tampered(source, target, rng):
+    """source with one seeded dataset of /case, /summary or /trajectory
+    remade by h5py at a wrong length (or a trajectory at a wrong sample
+    count), or a status attribute deleted: what was changed."""
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        rows = f["summary/status"].shape[0]
+        if rng.random() < 0.15:
+            name = rng.choice(["flag_values", "flag_meanings"])
+            del f["summary/status"].attrs[name]
+            return name
+        names = [f"{g}/{n}" for g in ("case", "summary", "trajectory") for n, v in f[g].items()
+                 if isinstance(v, h5py.Dataset) and v.ndim >= 1 and v.dtype.kind in "fi"]
+        name = rng.choice(names)
+        shape = list(f[name].shape)
+        if name.startswith("trajectory/") and len(shape) >= 2 and rng.random() < 0.5:
+            shape[1] = max(1, shape[1] + rng.choice([-3, -1, 1, 5]))
+        else:
+            shape[0] = max(0, rows + rng.choice([-rows, -2, -1, 1, 3]))
+        dtype = f[name].dtype
+        del f[name]
+        f.create_dataset(name, data=np.zeros(shape, dtype=dtype))
+    return name
+
+
+def test_a_file_changed_by_another_program_is_one_line(files, tmp_path):
+    """12 seeded files, each with one dataset remade at a wrong length (rows
+    or samples) or a status attribute removed by h5py: the reader refuses
+    each at open with one line naming the file and what is wrong, and so do
+    summary_frame and every subcommand (exit 2); never a traceback."""
+    rng = random.Random(1214)
+    for trial in range(12):
+        source = files / rng.choice(["whole.h5", "suite.h5"])
+        target = tmp_path / f"t{trial}.h5"
+        what = tampered(source, target, rng)
+        with pytest.raises(ellroll_post.NotAnEllrollFile) as raised:
+            ellroll_post.open(target)
+        message = str(raised.value)
+        assert message.startswith(f"{target}: ") and "\n" not in message and what.split("/")[-1] in message, \
+            (what, message)
+        with pytest.raises(ellroll_post.NotAnEllrollFile):
+            ellroll_post.summary_frame(target)
+        for command in SUBCOMMANDS:
+            code, _, err = cli(*arguments(command, target, tmp_path / "out"))
+            one_line_error(code, err, f"t{trial}.h5")
