@@ -411,6 +411,10 @@ def _values(lib, handle):
     return layout, values
 
 
+# the library's escapes in the input's text: \\n a line feed, \\\\ a backslash
+_UNESCAPE = re.compile(r"\\(.)", re.DOTALL)
+
+
 class _Groups(dict):
     """_datasets' {group: [(name, dims, values, attrs), ...]}, with the _Layout they were read by."""
     __slots__ = ("layout",)
@@ -427,13 +431,18 @@ def _datasets(lib, handle):
 
 
 def _attributes(lines):
+    """The library's attributes: a line each (name, kind, value, by tabs); the
+    input's text with its line feeds and backslashes escaped (\\n, \\\\), any
+    other character (a CR of a Windows file, a form feed) as it stands."""
     attrs = {}
-    for line in lines.splitlines():
+    for line in lines.split("\n"):
+        if not line:
+            continue
         name, kind, value = line.split("\t", 2)
         if kind in ("i4", "i8"):
             attrs[name] = np.array(value.split(), dtype=np.int32 if kind == "i4" else np.int64)
         elif name == "input_namelist":
-            attrs[name] = value.replace("\\n", "\n").replace("\\\\", "\\")
+            attrs[name] = _UNESCAPE.sub(lambda m: "\n" if m.group(1) == "n" else m.group(1), value)
         else:
             attrs[name] = value
     return attrs

@@ -7,16 +7,17 @@ import math
 import os
 import pathlib
 import sys
+import warnings
 
 import numpy as np
 
-from .reader import NotAnEllrollFile, damaged, from_h5py, open as open_run
+from .reader import NotAnEllrollFile, damaged, from_h5py, not_regular, open as open_run
 from . import plots
 from .report import REPORT_ROWS, build_report
 from .safe_write import OutputExists, check_target, output_folder, save_figure, write_text
 from .summary import format_summary
-from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, check_limit_state, format_fragility, \
-    format_suite, suite_statistics
+from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, PartOfTheCampaign, check_limit_state, \
+    format_fragility, format_suite, suite_statistics
 
 FILE_STEMS = {"trace": "fig2_trace", "nutation": "fig3_nutation", "reaction": "reaction", "energy": "energy",
               "transmissibility": "transmissibility", "suite": "suite", "spectrum": "spectrum"}
@@ -95,8 +96,9 @@ def bench_table(path):
     NotAnEllrollFile (one line naming the file, and the row and column where
     a value is bad) for a file that is not such a table or holds no row."""
     what = f"not a work-precision table (bench/workprecision.py's CSV, columns {', '.join(BENCH_COLUMNS)})"
-    if os.path.isdir(path):
-        raise NotAnEllrollFile(f"{path}: a folder, {what}")
+    kind = not_regular(path)
+    if kind:
+        raise NotAnEllrollFile(f"{path}: {kind}, {what}")
     try:
         with open(path, "rb") as handle:
             data = handle.read()
@@ -189,6 +191,21 @@ def _case(text):
 
 
 def main(argv=None):
+    """ellroll-plot; a suite's statistics of part of a campaign (suite.PartOfTheCampaign)
+    say so in one warning line on standard error."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PartOfTheCampaign)
+        code = _main(argv)
+    for other in caught:
+        if not issubclass(other.category, PartOfTheCampaign):
+            warnings.showwarning(other.message, other.category, other.filename, other.lineno)
+    if code == 0:           # (an error is its one line)
+        for note in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, PartOfTheCampaign)):
+            print(f"ellroll-plot: warning: {note}", file=sys.stderr)
+    return code
+
+
+def _main(argv=None):
     parser = Parser(prog="ellroll-plot", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     common = argparse.ArgumentParser(add_help=False)
@@ -278,10 +295,10 @@ def main(argv=None):
         if args.command == "summary":
             with open_run(args.file) as run:
                 if args.suite:
-                    sys.stdout.write(format_suite(suite_statistics(run, percentiles=args.percentiles), args.format,
-                                                  args.file))
+                    _stdout(format_suite(suite_statistics(run, percentiles=args.percentiles), args.format,
+                                         args.file))
                 else:
-                    sys.stdout.write(format_summary(run, args.format))
+                    _stdout(format_summary(run, args.format))
             return 0
         if args.command == "fragility":
             with open_run(args.file) as run:
@@ -295,12 +312,12 @@ def main(argv=None):
                         table = _rows_of(table, table["limit_state"] == args.limit_state)
                     text = format_fragility(table, args.format, args.file)
                     if not args.output:
-                        sys.stdout.write(text)
+                        _stdout(text)
                         return 0
                     path = pathlib.Path(args.output)
                     output_folder(path.parent, "-o")
                     write_text(path, args.overwrite, text)
-                    print(path)
+                    _stdout(f"{path}\n")
                     return 0
                 path = pathlib.Path(args.output) if args.output else \
                     pathlib.Path(args.out) / f"{figure_stem(run, 'fragility')}.{args.format}"
@@ -313,7 +330,7 @@ def main(argv=None):
                     save_figure(fig, path, args.overwrite, args.format)
                 finally:
                     plt.close(fig)
-            print(path)
+            _stdout(f"{path}\n")
             return 0
         out = pathlib.Path(args.out)
         if args.command == "workprecision":
@@ -330,19 +347,14 @@ def main(argv=None):
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
-                output_folder(out)          # (once the file opened: no folder for a bad one)
+                output_folder(out, make=args.command != "report")   # (once the file opened: no folder for a bad one)
                 if args.command == "report" or args.command in plots.FIELD_NEEDS:
                     args.case = run.case_index(args.case)       # the global index held (None: the file's first)
                 if args.command == "report":
                     written = build_report(run, out, functools.partial(draw, overwrite=args.overwrite), args.case,
                                            args.format, args.overwrite, all_cases=args.cases) + [out / "index.html"]
                 elif args.command == "transmissibility":
-                    if "excitation_frequency" not in run.swept_inputs():
-                        raise NotAnEllrollFile(f"{args.file}: needs a sweep of excitation_frequency "
-                                               "(&sweep name = 'excitation_frequency')")
-                    if not np.any(np.isfinite(run.summary("transmissibility"))):
-                        raise NotAnEllrollFile(f"{args.file}: no transmissibility in /summary (every case NaN): the "
-                                               "cup is not shaken harmonically (&excitation kind = 'harmonic')")
+                    plots.require_transmissibility(run)
                     written = [draw("transmissibility", run, out, 0, args.format, overwrite=args.overwrite)]
                 elif args.command == "suite":
                     check_suite(run, args.file)
@@ -363,6 +375,10 @@ def main(argv=None):
                     written = [draw("sweep", run, out, 0, args.format, x_names, y_names, args.overwrite)]
                 else:
                     written = [draw(args.command, run, out, args.case, args.format, overwrite=args.overwrite)]
+        _stdout("".join(f"{path}\n" for path in written))
+    except StandardOutputLost as exc:
+        print(f"ellroll-plot: error: cannot write the standard output: {exc}", file=sys.stderr)
+        return 2
     except (NotAnEllrollFile, NoIntensityMeasure, NoStripes, OutputExists) as exc:
         print(f"ellroll-plot: error: {exc}", file=sys.stderr)
         return 2
@@ -375,9 +391,29 @@ def main(argv=None):
             print(f"ellroll-plot: error: {exc}", file=sys.stderr)
             return 2
         raise
-    for path in written:
-        print(path)
     return 0
+
+
+class StandardOutputLost(Exception):
+    """Standard output cannot be written (a full disk, a closed pipe)."""
+
+
+def _stdout(text):
+    """Write text to standard output, now (flushed): StandardOutputLost,
+    with the system's reason, where it cannot be written. Standard output is
+    then pointed at os.devnull, so that Python's flush at exit finds nothing
+    to write."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except OSError as exc:
+        try:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, sys.stdout.fileno())
+            os.close(null)
+        except (OSError, ValueError, io.UnsupportedOperation):
+            pass
+        raise StandardOutputLost(exc.strerror or str(exc)) from None
 
 
 def _rows_of(table, keep):

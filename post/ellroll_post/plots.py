@@ -476,10 +476,23 @@ def log_frequency_axis(ax, low, high):
     ax.tick_params(axis="x", which="minor", labelsize="small")
 
 
+def require_transmissibility(run):
+    """NotAnEllrollFile (one line naming the file) where its cases do not
+    sweep the excitation frequency or hold no transmissibility."""
+    if "excitation_frequency" not in run.swept_inputs():
+        raise NotAnEllrollFile(f"{run.path}: needs a sweep of excitation_frequency "
+                               "(&sweep name = 'excitation_frequency')")
+    if not np.any(np.isfinite(run.summary("transmissibility"))):
+        raise NotAnEllrollFile(f"{run.path}: no transmissibility in /summary (every case NaN): the "
+                               "cup is not shaken harmonically (&excitation kind = 'harmonic')")
+
+
 def plot_transmissibility(ax, run):
     """Transmissibility against the excitation frequency (log-log), with the
     linear resonance frequencies (/summary/linear_periods) of the modes the
-    shaking excites marked, and the linear prediction for each."""
+    shaking excites marked, and the linear prediction for each.
+    NotAnEllrollFile where the file has no such sweep (require_transmissibility)."""
+    require_transmissibility(run)
     frequency = run.input_column("excitation_frequency")
     transmissibility = run.summary("transmissibility")
     order = np.argsort(frequency)

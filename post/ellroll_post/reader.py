@@ -3,6 +3,8 @@ file of 10^5 cases costs only what is plotted."""
 import builtins
 import functools
 import os
+import shlex
+import stat
 import traceback
 
 import h5py
@@ -48,6 +50,8 @@ def _resume_advice(path):
     output = output_of(path) or path
     command = None
     try:
+        if not_regular(output + ".lock"):
+            raise OSError("not a regular file")
         with builtins.open(output + ".lock", errors="replace") as handle:    # 'ellroll lock', then '...: COMMAND'
             note = handle.read(4096).splitlines()
         if len(note) >= 2 and note[0] == "ellroll lock" and ": ellroll " in note[1]:
@@ -55,13 +59,40 @@ def _resume_advice(path):
     except OSError:
         pass
     if command:
+        try:
+            words = shlex.split(command)
+        except ValueError:          # (not a shell's words: named as it stands)
+            words = None
+        if words and "--overwrite" in words:
+            # ellroll refuses --resume with --overwrite: a resume continues the run that --overwrite began
+            command = shlex.join(w for w in words if w != "--overwrite")
         resume = command if " --resume" in f" {command} " else command + " --resume"
         return f"finish it with '{resume}' (the command {output}.lock names, from its folder), then read {output}"
     return f"finish it with 'ellroll run INPUT -o {output} --resume' (the run's input and options), then read {output}"
 
 
+# what a file that is not a regular one is, by its stat.S_IS* test (as `ellroll` names them)
+_NOT_REGULAR = (("S_ISDIR", "a folder"), ("S_ISFIFO", "a FIFO (named pipe)"), ("S_ISCHR", "a character device"),
+                ("S_ISBLK", "a block device"), ("S_ISSOCK", "a socket"))
+
+
+def not_regular(path):
+    """What path is where it is there and not a regular file (its link
+    followed), in words; None for a regular or a missing file. A FIFO is
+    never opened: an open waits for a writer, as long as there is none."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISREG(mode):
+        return None
+    return next((words for test, words in _NOT_REGULAR if getattr(stat, test)(mode)), "not a regular file")
+
+
 def _is_journal(path):
     """Whether path begins as ellroll's journal of a run does (OUT.h5.journal)."""
+    if not_regular(path):
+        return False
     try:
         with builtins.open(path, "rb") as handle:
             return handle.read(len(JOURNAL_MAGIC)) == JOURNAL_MAGIC
@@ -103,6 +134,7 @@ def _reads(method):
     naming the file, not h5py's own exception."""
     @functools.wraps(method)
     def checked(self, *args, **kwargs):
+        self._require_open()
         try:
             return method(self, *args, **kwargs)
         except NotAnEllrollFile:
@@ -136,8 +168,11 @@ def _read_attribute(attribute):
 class EllrollFile:
     def __init__(self, path):
         self.path = str(path)
-        if os.path.isdir(self.path):
+        what = not_regular(self.path)
+        if what == "a folder":
             raise NotAnEllrollFile(f"{self.path}: a folder, not an ellroll file")
+        if what:
+            raise NotAnEllrollFile(f"{self.path}: {what}, not a regular file (an ellroll file is one)")
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
@@ -171,9 +206,44 @@ class EllrollFile:
         for group in ("case", "summary", "trajectory"):
             if not isinstance(self._h5.get(group), h5py.Group):
                 raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no group /{group})")
+        self._check_shapes()
+
+    def _check_shapes(self):
+        """Every dataset of /case, /summary and /trajectory holds a row per
+        case, each trajectory a sample per time, and /summary/status names
+        its values: else one line (a file another program changed), not a
+        figure's numpy error later. Reads shapes and attributes only."""
+        def changed(what):
+            return NotAnEllrollFile(f"{self.path}: not laid out as ellroll writes its files ({what}; changed by "
+                                    "another program?)")
+        status = self._h5.get("summary/status")
+        if not isinstance(status, h5py.Dataset) or status.ndim != 1:
+            raise changed("no /summary/status of one value per case")
+        for attribute in ("flag_values", "flag_meanings"):
+            if attribute not in status.attrs:
+                raise changed(f"/summary/status has no attribute {attribute}")
+        if len(np.ravel(status.attrs["flag_values"])) != len(str(status.attrs["flag_meanings"]).split()):
+            raise changed("/summary/status: flag_values and flag_meanings differ in length")
+        rows = status.shape[0]
+        time = self._h5.get("time")
+        samples = time.shape[0] if isinstance(time, h5py.Dataset) and time.ndim == 1 else None
+        for group in ("case", "summary", "trajectory"):
+            for name, item in self._h5[group].items():
+                if not isinstance(item, h5py.Dataset) or (group, name) == ("trajectory", "time"):
+                    continue
+                if item.ndim == 0 or item.shape[0] != rows:
+                    raise changed(f"/{group}/{name} holds {item.shape[0] if item.ndim else 'no'} rows, "
+                                  f"/summary/status {rows}")
+                if group == "trajectory" and item.ndim >= 2 and samples is not None and item.shape[1] != samples:
+                    raise changed(f"/{group}/{name} holds {item.shape[1]} samples per case, /time {samples}")
 
     def close(self):
         self._h5.close()
+
+    def _require_open(self):
+        """NotAnEllrollFile where the file was closed (close(), or a with block ended)."""
+        if not self._h5.id.valid:
+            raise NotAnEllrollFile(f"{self.path}: closed; ellroll_post.open it again to read it")
 
     def __enter__(self):
         return self
@@ -184,6 +254,7 @@ class EllrollFile:
     # ---------------------------------------------------------- layout
     @property
     def attrs(self):
+        self._require_open()
         return dict(self._h5.attrs)
 
     @property
@@ -223,6 +294,7 @@ class EllrollFile:
         return []
 
     def _dataset(self, name):
+        self._require_open()
         if name not in self._h5:
             raise NotAnEllrollFile(f"{self.path}: no dataset /{name} in this file")
         return self._h5[name]
@@ -239,9 +311,23 @@ class EllrollFile:
             if cases.shape != (rows,):
                 raise NotAnEllrollFile(damaged(self.path, f"/case/index holds {cases.shape} values, "
                                                           f"/summary/status {rows}"))
+            pending = self._pending_rows()
+            if pending.any():
+                # an unfinished file (OUT.h5.partial) writes a case's /case/index with its results; its
+                # pending rows' indices are those of the case dimension, written when the file was made
+                scale = self._h5.get("case/case")
+                if scale is None or scale.shape != (rows,):
+                    raise NotAnEllrollFile(damaged(self.path, f"no /case/case of {rows} values for its "
+                                                              "pending cases"))
+                cases[pending] = np.asarray(scale[:], dtype=np.int64)[pending]
             self._cases = cases
             self._rows = {int(c): row for row, c in enumerate(cases)}
         return self._cases
+
+    def _pending_rows(self):
+        """Whether each row is a case not run yet (status pending: an unfinished run's work file)."""
+        status = self._dataset("summary/status")
+        return np.asarray(self._status_meanings(status[:])) == "pending"
 
     def case_index(self, case=None):
         """The global index of a case; None: the file's first case."""
@@ -281,7 +367,12 @@ class EllrollFile:
     def trajectory(self, field, case=None):
         """One case's samples of a trajectory field: (nt,) or (nt, 3); case:
         its global index (None: the file's first case)."""
-        return self._dataset(f"trajectory/{field}")[self.row(case)]
+        row = self.row(case)
+        dataset = self._dataset(f"trajectory/{field}")
+        if dataset.dtype.kind == "f" and self.status_name(case) == "pending":
+            # a pending case's samples are not written yet: HDF5 reads them as 0, not the fill value
+            return np.full(dataset.shape[1:], np.nan)
+        return dataset[row]
 
     @property
     @_reads

@@ -2,12 +2,15 @@
 that shows them beside the summary table."""
 import html
 import math
+import os
 import pathlib
+import shutil
+import tempfile
 
 import numpy as np
 
 from .plots import FIELD_NEEDS, cup_moves, has_samples
-from .safe_write import MARK, check_target, write_text
+from .safe_write import MARK, _umask, check_target, write_text
 from .summary import format_summary, summary_table
 
 # the per-case figures, drawn for the report's case where the file has their fields
@@ -32,12 +35,37 @@ CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, th
 def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_cases=False):
     """Draw what applies into out/, write out/index.html; return the paths.
     all_cases: the per-case table lists every case (else the first REPORT_ROWS);
-    case: the per-case figures' case, its global index (None: the file's first)."""
+    case: the per-case figures' case, its global index (None: the file's first).
+    The report is made whole in a new folder (beside out, or in an out that
+    exists) and moved into place at its end, each file checked first: a
+    report that fails leaves nothing, and a file without a case makes nothing."""
     case = run.case_index(case)
     out = pathlib.Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     for page in ("index.html", "summary.csv"):
         check_target(out / page, overwrite)
+    there = out.is_dir()
+    staging = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out if there else out.parent))
+    try:
+        made = _draw_report(run, staging, draw, case, fmt, all_cases)
+        names = [path.name for path in made] + ["summary.csv", "index.html"]
+        if there:
+            for name in names:
+                check_target(out / name, overwrite)
+            for name in names:
+                os.replace(staging / name, out / name)
+            staging.rmdir()
+        else:
+            os.chmod(staging, 0o777 & ~_umask())        # as a folder made the usual way would be
+            os.rename(staging, out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return [out / path.name for path in made]
+
+
+def _draw_report(run, out, draw, case, fmt, all_cases):
+    """The report's figures and pages drawn into the folder out (new, empty)."""
+    overwrite = False
     made = []
     swept = run.swept_inputs()
     if swept:

@@ -53,11 +53,11 @@ def check_target(path, overwrite):
                            "even with --overwrite")
 
 
-def output_folder(folder, option="--out"):
+def output_folder(folder, option="--out", make=True):
     """The folder the outputs go in: an existing one, or one made here whose
     parent exists (only the last level: a mistyped path is not made from
-    the root down). OutputExists where a file (not a folder) is there or
-    the parent is missing."""
+    the root down; make=False: only checked, made by its writer). OutputExists
+    where a file (not a folder) is there or the parent is missing."""
     folder = pathlib.Path(folder)
     if folder.is_dir():
         return folder
@@ -67,6 +67,8 @@ def output_folder(folder, option="--out"):
     if not parent.is_dir():
         raise OutputExists(f"{option} {folder}: no folder {parent} to make it in (ellroll-plot makes only the "
                            "last level of a folder)")
+    if not make:
+        return folder
     try:
         folder.mkdir(exist_ok=True)
     except OSError as exc:

@@ -34,6 +34,7 @@ exp(mean -/+ standard deviation of ln y, n - 1 in its denominator) for the
 import io
 import json
 import math
+import warnings
 
 import h5py
 import numpy as np
@@ -119,6 +120,31 @@ def response_figures(run):
     return [n for n in RESPONSE_FIGURES if n in present and run.summary(n).ndim == 1]
 
 
+class PartOfTheCampaign(UserWarning):
+    """Suite statistics or fragilities of a file that holds only part of its
+    campaign's cases (a shard's file, an unfinished run's): over those only."""
+
+
+def part_of_the_campaign(run):
+    """A line saying that the file holds only part of its campaign's cases
+    (a shard, or cases not run yet), or None for a whole campaign."""
+    total = run.attrs.get("n_cases_total")
+    total = int(np.ravel(total)[0]) if total is not None and np.size(total) else run.n_cases
+    finished = int(np.sum(np.array(run.status_names()) != "pending"))
+    if finished >= total:
+        return None
+    shard = str(run.attrs.get("shard", "0/1"))
+    why = (f"shard {shard} (merge the shards first: ellroll merge)" if shard != "0/1" else
+           "an unfinished run (finish it: ellroll run --resume)")
+    return f"{run.path}: over {finished} of the campaign's {total} cases only: {why}"
+
+
+def _warn_part(run):
+    note = part_of_the_campaign(run)
+    if note:
+        warnings.warn(note, PartOfTheCampaign, stacklevel=3)
+
+
 def suite_statistics(run, figures=None, exceeded=None, percentiles="linear"):
     """The per-stripe statistics of an ellroll file (see the module's text)
     as a DataFrame, one row per stripe, sorted by the stripe inputs.
@@ -127,6 +153,7 @@ def suite_statistics(run, figures=None, exceeded=None, percentiles="linear"):
     user limit states added to those in
     the file (limit_state_columns). df.attrs holds 'units' (per column),
     'percentiles' (the definition) and 'stripe_inputs'."""
+    _warn_part(run)
     figures = response_figures(run) if figures is None else list(figures)
     names = stripe_inputs(run)
     inputs = {n: run.input_column(n).astype(float) for n in names}
@@ -408,6 +435,7 @@ def suite_fragility(run, im="scale", bootstrap=0, seed=0, exceeded=None):
     the details hold the points (x, n, z), the fit (or None) and the
     per-case masks for drawing."""
     from .fragility import fit_stripes, separating_step
+    _warn_part(run)
     im_name, x, units = intensity(run, im)
     names = [n for n in stripe_inputs(run) if n != "scale"]
     keys = np.stack([run.input_column(n).astype(float) for n in names], axis=1) if names else \

@@ -34,7 +34,7 @@ contains
     real(wp), intent(in) :: factor
     real(wp), allocatable, intent(out) :: times(:), values(:, :)
     character(len=:), allocatable, intent(out) :: reason
-    integer :: first, last, hash, n, columns, width, rows, word_first, word_last, code, word_at(2, 4)
+    integer :: first, last, hash, n, columns, width, rows, word_first, word_last, code, k, word_at(2, 4)
     real(wp) :: row(4)
     logical :: found, header_allowed, not_numbers, nonfinite, unit_given
     real(wp) :: first_value
@@ -50,6 +50,11 @@ contains
     columns = 0
     header_allowed = .true.
     unit_given = .false.
+    ! (a UTF-8 byte order mark, as a spreadsheet's "CSV UTF-8" begins a file, is no part of the first line)
+    if (file%next == 1 .and. len(file%text) >= 3) then
+      if (iachar(file%text(1:1)) == 239 .and. iachar(file%text(2:2)) == 187 .and. iachar(file%text(3:3)) == 191) &
+        file%next = 4
+    end if
     do
       call take_line(file, first, last, found, hash)
       if (.not. found) exit
@@ -67,8 +72,11 @@ contains
         if (width <= 4) word_at(:, width) = [word_first, word_last]
       end do
       if (width == 0) cycle
-      ! (a line led by a number is a sample, not a header: its error is its own)
-      if (header_allowed) header_allowed = decimal_value(file%text(word_at(1, 1):word_at(2, 1)), first_value) /= decimal_ok
+      ! (a line with a number among its words is a sample, not a header: its error is its own)
+      do k = 1, min(width, 4)
+        if (header_allowed) header_allowed = decimal_value(file%text(word_at(1, k):word_at(2, k)), first_value) &
+                                             /= decimal_ok
+      end do
       if (width < 3 .or. width > 4) then
         if (header_allowed .and. n == 0) then
           header_allowed = .false.

@@ -12,6 +12,10 @@ import math
 import os
 import random
 import re
+import shutil
+import subprocess
+import sys
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -289,3 +293,153 @@ def test_the_readme_table_lists_every_subcommand():
     rows = re.findall(r"^\| `([a-z]+) ", text, re.M)
     assert sorted(rows) == sorted(listed), (rows, listed)
     assert set(PER_CASE) < set(listed)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+@pytest.mark.parametrize("command", ["nutation", "sweep", "suite", "report", "fragility", "fragility-csv",
+                                     "summary", "workprecision"])
+def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, command):
+    """ellroll-plot with its standard output on a full device (/dev/full):
+    every subcommand, a figure's or the text's, ends in one line naming
+    standard output and the system's reason, exit 2, never a traceback."""
+    source = files / ("suite.h5" if command.startswith(("suite", "fragility")) else "whole.h5")
+    args = arguments(command.split("-")[0], source, tmp_path / "out")
+    if command == "fragility-csv":
+        args += ["--format", "csv"]
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
+                                                                os.environ.get("PYTHONPATH", "")])}
+    with open("/dev/full", "w") as full:
+        result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=full,
+                                stderr=subprocess.PIPE, text=True, env=environment, timeout=300)
+    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
+
+
+def folder_state(folder):
+    """{name: bytes} of every file in a folder (hidden ones included)."""
+    return {p.name: p.read_bytes() for p in folder.iterdir()} if folder.exists() else None
+
+
+@pytest.mark.parametrize("source", ["whole", "suite"])
+def test_a_report_that_fails_leaves_its_folder_as_it_was(files, tmp_path, source):
+    """`report --out DIR` where some of the report's files are there already
+    (seeded: which ones, and whether ellroll-plot made them or a user did):
+    without --overwrite, or over a user's file, one line, exit 2, and DIR
+    holds what it held, byte for byte, no new or hidden file; with
+    --overwrite over its own files, the whole report, nothing else."""
+    reference = tmp_path / "reference"
+    code, out, err = cli("report", files / f"{source}.h5", "--out", reference)
+    assert code == 0, err
+    names = sorted(p.name for p in reference.iterdir())
+    assert len(names) >= 4 and "index.html" in names and not any(n.startswith(".") for n in names), names
+    rng = random.Random(1210 + len(source))
+    for trial in range(6):
+        folder = tmp_path / f"out{trial}"
+        folder.mkdir()
+        (folder / "notes.txt").write_text("a user's file\n")
+        there = rng.sample(names, rng.randint(1, 2))
+        users = trial % 3 == 2
+        for name in there:
+            (folder / name).write_bytes(b"a user's file\n" if users else (reference / name).read_bytes())
+        before = folder_state(folder)
+        overwrite = trial % 2 == 1
+        code, out, err = cli("report", files / f"{source}.h5", "--out", folder, *(["--overwrite"] * overwrite))
+        if overwrite and not users:
+            assert code == 0, err
+            assert sorted(folder_state(folder)) == sorted(names + ["notes.txt"]), trial
+            continue
+        one_line_error(code, err, folder.name)
+        assert folder_state(folder) == before, (trial, there, sorted(folder_state(folder)))
+
+
+def test_a_report_of_a_file_with_no_case_makes_nothing(ellroll, files, tmp_path):
+    """An empty shard (7/8 of six cases): `report` says it holds no case,
+    exit 2, and makes no FILE_report folder (nor any other file)."""
+    shutil.copytree(files / "records", tmp_path / "records")
+    shutil.copy(files / "whole.nml", tmp_path / "whole.nml")
+    result = subprocess.run([str(ellroll), "run", "whole.nml", "-q", "--shard", "7/8", "-o", "e.h5"], cwd=tmp_path,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, _, err = cli("report", tmp_path / "e.h5")
+    one_line_error(code, err, "e.h5", "holds no case")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_suite_statistics_of_a_shard_say_they_are_over_part_of_the_campaign(ellroll, files, tmp_path):
+    """The record suite's shards (seeded I/N): `summary --suite`, `suite` and
+    `fragility` (figure and table) on a shard's file each print what they
+    print for it and one warning line naming the shard, the cases it holds
+    of the campaign's and `ellroll merge`; suite_statistics and
+    suite_fragility warn (PartOfTheCampaign) likewise; on the whole suite
+    and on the merged shards, no warning."""
+    from ellroll_post.suite import PartOfTheCampaign, suite_fragility, suite_statistics
+    import ellroll_post
+    shutil.copytree(files / "records", tmp_path / "records")
+    shutil.copy(files / "suite.nml", tmp_path / "suite.nml")
+    rng = random.Random(1211)
+    shards = rng.choice([2, 3])
+    for i in range(shards):
+        result = subprocess.run([str(ellroll), "run", "suite.nml", "-q", "--shard", f"{i}/{shards}", "-o",
+                                 f"s{i}.h5"], cwd=tmp_path, capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+    assert subprocess.run([str(ellroll), "merge", "m.h5", *(f"s{i}.h5" for i in range(shards))], cwd=tmp_path,
+                          capture_output=True).returncode == 0
+    commands = [["summary", "--suite"], ["suite", "--out", tmp_path / "o", "--overwrite"],
+                ["fragility", "--bootstrap", 0, "--out", tmp_path / "o", "--overwrite"],
+                ["fragility", "--bootstrap", 0, "--format", "csv"]]
+    warned = 0
+    for path in [files / "suite.h5", tmp_path / "m.h5", *(tmp_path / f"s{i}.h5" for i in range(shards))]:
+        shard = path.name.startswith("s") and path.name != "suite.h5"
+        with ellroll_post.open(path) as run_:
+            held = len(run_.cases)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                suite_statistics(run_)
+                try:
+                    suite_fragility(run_)
+                except suite.NoStripes:
+                    pass                # (a shard of one scale: no fragility, but the same warning first)
+            notes = [str(w.message) for w in caught if issubclass(w.category, PartOfTheCampaign)]
+            assert bool(notes) == shard, (path, notes)
+        for command in commands:
+            code, out, err = cli(command[0], path, *command[1:])
+            if shard and code == 2 and ("hold" in err or "not a record suite" in err or "no stripes" in err):
+                assert len(err.strip().splitlines()) == 1, err
+                continue                # (a shard of one record or one scale: no suite's figure, one line)
+            assert code == 0 and out, (path, command, err)
+            lines = err.strip().splitlines()
+            if not shard:
+                assert lines == [], (path, command, err)
+                continue
+            index = path.stem[1:]
+            assert lines == [f"ellroll-plot: warning: {path}: over {held} of the campaign's 6 cases only: shard "
+                             f"{index}/{shards} (merge the shards first: ellroll merge)"], (command, err)
+            warned += 1
+    assert warned >= shards                 # (summary --suite of every shard at least)
+
+
+def test_plot_transmissibility_refuses_what_the_command_refuses(files, tmp_path):
+    """plot_transmissibility on each file: where `ellroll-plot
+    transmissibility` refuses it (no sweep of the excitation frequency), the
+    function raises NotAnEllrollFile with the command's line; where the
+    command draws, so does the function."""
+    import matplotlib.pyplot as plt
+    import ellroll_post
+    from ellroll_post import plots
+    for name in ["whole.h5", "suite.h5", "shard_0.h5", "shard_2.h5"]:
+        code, _, err = cli("transmissibility", files / name, "--out", tmp_path, "--overwrite")
+        fig, ax = plt.subplots()
+        with ellroll_post.open(files / name) as run_:
+            try:
+                plots.plot_transmissibility(ax, run_)
+                refused = None
+            except ellroll_post.NotAnEllrollFile as exc:
+                refused = str(exc)
+        plt.close(fig)
+        if code == 0:
+            assert refused is None, (name, refused)
+        else:
+            one_line_error(code, err, name)
+            assert err.strip() == f"ellroll-plot: error: {refused}", (name, err, refused)
+    code, _, err = cli("transmissibility", files / "suite.h5", "--out", tmp_path)
+    one_line_error(code, err, "needs a sweep of excitation_frequency")

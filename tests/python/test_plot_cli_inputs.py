@@ -2,12 +2,15 @@
 tidy campaign, every subcommand over each: a shard's file (--case is the
 global case index, as `ellroll summary` and /case/index give it), an HDF5
 file with one flipped bit in its tables (seeded), a killed run's work file
-(OUT.h5.partial, kill -9), and bad numeric options (seeded). Each ends in
+(OUT.h5.partial, kill -9), bad numeric options (seeded), and a FIFO
+named as the file. Each ends in
 the figure or text asked for (exit 0) or in one line naming the file and
 the reason (exit 2), never a traceback."""
 import contextlib
 import csv
 import io
+import os
+import pathlib
 import random
 import shutil
 import subprocess
@@ -334,3 +337,99 @@ def test_an_unknown_limit_state_is_refused_in_every_format(files, tmp_path):
     every = list(csv.DictReader(io.StringIO(out)))
     assert code == 0 and {row["limit_state"] for row in every} == {"drift", "model_limit"}, out
     assert [row for row in every if row["limit_state"] == "model_limit"] == chosen
+
+
+# ------------------------------------------------------------------- FIFOs
+@contextlib.contextmanager
+def unblocked_after(fifo, seconds=5.0):
+    """A watchdog: where something still waits in an open of `fifo` after
+    `seconds`, open its other end (so that the wait ends) and say so in the
+    list yielded. (A process of its own: a wait inside h5py holds the GIL.)"""
+    mark = pathlib.Path(f"{fifo}.hung")
+    script = f'sleep {seconds}; : > "$2"; while :; do exec 3<>"$1"; sleep 0.05; exec 3>&-; done'
+    watcher = subprocess.Popen(["sh", "-c", script, "sh", str(fifo), str(mark)])
+    hung = []
+    try:
+        yield hung
+    finally:
+        watcher.kill()
+        watcher.wait()
+        if mark.exists():
+            hung.append(str(fifo))
+            mark.unlink()
+
+
+@pytest.mark.parametrize("name", ["ff.h5", "ff.h5.partial", "ff.h5.journal", "ff.csv"])
+def test_a_fifo_given_as_a_file_is_refused_at_once(files, tmp_path, name):
+    """A FIFO named as the file, every subcommand (and the reader): one
+    line naming it as a FIFO, exit 2, never waiting for a writer."""
+    fifo = tmp_path / name
+    os.mkfifo(fifo)
+    for command in SUBCOMMANDS:
+        with unblocked_after(fifo) as hung:
+            code, _, err = cli(*arguments(command, fifo, tmp_path / "out"))
+        assert not hung, (command, err)
+        one_line_error(code, err, f"{name}: a FIFO (named pipe)")
+    with unblocked_after(fifo) as hung:
+        with pytest.raises(ellroll_post.NotAnEllrollFile, match=r"ff\.\S*: a FIFO \(named pipe\), not a regular"):
+            ellroll_post.open(fifo)
+    assert not hung
+
+
+def test_a_fifo_at_a_killed_runs_lock_is_not_read(killed, tmp_path):
+    """A killed run's work file whose OUT.h5.lock is a FIFO: the reader names
+    the work file with the generic command that finishes it, at once."""
+    shutil.copy(killed / "k.h5.partial", tmp_path / "k.h5.partial")
+    os.mkfifo(tmp_path / "k.h5.lock")
+    with unblocked_after(tmp_path / "k.h5.lock") as hung:
+        with pytest.raises(ellroll_post.NotAnEllrollFile, match="unfinished run's work file.*'ellroll run INPUT"):
+            ellroll_post.open(tmp_path / "k.h5.partial")
+    assert not hung
+
+
+# ------------------------------------------------- a file changed by h5py
+def tampered(source, target, rng):
+    """source with one seeded dataset of /case, /summary or /trajectory
+    remade by h5py at a wrong length (or a trajectory at a wrong sample
+    count), or a status attribute deleted: what was changed."""
+    shutil.copy(source, target)
+    with h5py.File(target, "r+") as f:
+        rows = f["summary/status"].shape[0]
+        if rng.random() < 0.15:
+            name = rng.choice(["flag_values", "flag_meanings"])
+            del f["summary/status"].attrs[name]
+            return name
+        names = [f"{g}/{n}" for g in ("case", "summary", "trajectory") for n, v in f[g].items()
+                 if isinstance(v, h5py.Dataset) and v.ndim >= 1 and v.dtype.kind in "fi"]
+        name = rng.choice(names)
+        shape = list(f[name].shape)
+        if name.startswith("trajectory/") and len(shape) >= 2 and rng.random() < 0.5:
+            shape[1] = max(1, shape[1] + rng.choice([-3, -1, 1, 5]))
+        else:
+            shape[0] = max(0, rows + rng.choice([-rows, -2, -1, 1, 3]))
+        dtype = f[name].dtype
+        del f[name]
+        f.create_dataset(name, data=np.zeros(shape, dtype=dtype))
+    return name
+
+
+def test_a_file_changed_by_another_program_is_one_line(files, tmp_path):
+    """12 seeded files, each with one dataset remade at a wrong length (rows
+    or samples) or a status attribute removed by h5py: the reader refuses
+    each at open with one line naming the file and what is wrong, and so do
+    summary_frame and every subcommand (exit 2); never a traceback."""
+    rng = random.Random(1214)
+    for trial in range(12):
+        source = files / rng.choice(["whole.h5", "suite.h5"])
+        target = tmp_path / f"t{trial}.h5"
+        what = tampered(source, target, rng)
+        with pytest.raises(ellroll_post.NotAnEllrollFile) as raised:
+            ellroll_post.open(target)
+        message = str(raised.value)
+        assert message.startswith(f"{target}: ") and "\n" not in message and what.split("/")[-1] in message, \
+            (what, message)
+        with pytest.raises(ellroll_post.NotAnEllrollFile):
+            ellroll_post.summary_frame(target)
+        for command in SUBCOMMANDS:
+            code, _, err = cli(*arguments(command, target, tmp_path / "out"))
+            one_line_error(code, err, f"t{trial}.h5")

@@ -845,3 +845,21 @@ def test_a_bad_record_array_is_named_by_its_record_and_row():
             ellroll.run_arrays(groups)
         message = raised.value.message
         assert f"Record 'quake' row {row}" in message and "ellroll-records-" not in message, message
+
+
+def test_a_closed_file_says_it_is_closed(paper_file):
+    """Every read of an EllrollFile after close() (or its with block):
+    NotAnEllrollFile naming the file as closed, never 'no dataset' nor
+    h5py's own error."""
+    import ellroll_post
+    reads = [lambda r: r.summary("theta_max"), lambda r: r.summary("theta_max", 0),
+             lambda r: r.trajectory("nutation"), lambda r: r.n_cases, lambda r: r.fields, lambda r: r.time,
+             lambda r: r.status_names(), lambda r: r.status_name(0), lambda r: r.attrs, lambda r: r.summary_names,
+             lambda r: r.case_input("radius"), lambda r: r.input_column("radius"), lambda r: r.units("time"),
+             lambda r: r.record_names(), lambda r: r.swept_inputs()]
+    with ellroll_post.open(paper_file) as run_:
+        pass
+    for read in reads:
+        with pytest.raises(ellroll_post.NotAnEllrollFile) as raised:
+            read(run_)
+        assert str(raised.value) == f"{paper_file}: closed; ellroll_post.open it again to read it"

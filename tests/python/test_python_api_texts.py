@@ -75,3 +75,28 @@ def test_run_refuses_it_before_the_library_reads_it(tmp_path):
         with pytest.raises(ellroll.InputError, match=f"^&{group}: {name}: a text value cannot hold a line break"):
             ellroll.run(inputs, path=str(tmp_path / "input.nml"))
     assert list(tmp_path.iterdir()) == []
+
+
+# characters a text's line splitting may take for a line's end, but a namelist does not
+NOT_LINE_FEEDS = ["\r", "\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029"]
+
+
+def test_an_input_text_with_other_line_ends_runs_and_is_kept_as_given():
+    """20 seeded input texts: CRLF or LF line ends, comments holding CR, VT,
+    FF, the separators \\x1c-\\x1e, NEL, U+2028/9, backslashes and a
+    backslash before n: ellroll.run runs each, its input_namelist is the text
+    given, character for character, and its results are the plain text's."""
+    rng = random.Random(1208)
+    plain = ellroll.namelist({**BASE, "output": {"interval": 0.01, "fields": ["contact", "nutation"]}})
+    reference = ellroll.run(plain, threads=1)
+    theta = reference["summary"]["theta_max"].values
+    for _ in range(20):
+        lines = plain.splitlines()
+        for _ in range(rng.randint(1, 3)):
+            comment = "! " + "".join(rng.choice(NOT_LINE_FEEDS + ["\\", "\\n", "\\\\", "a", " "])
+                                     for _ in range(rng.randint(1, 8)))
+            lines.insert(rng.randint(0, len(lines)), comment)
+        text = rng.choice(["\n", "\r\n"]).join(lines) + rng.choice(["\n", "\r\n"])
+        tree = ellroll.run(text, threads=1)
+        assert tree.attrs["input_namelist"] == text, (text, tree.attrs["input_namelist"])
+        assert (tree["summary"]["theta_max"].values == theta).all(), text

@@ -327,3 +327,31 @@ def test_a_csv_s_first_line_led_by_a_number_is_a_sample_with_its_own_error(ellro
     (tmp_path / "rec.csv").write_text(f"{first}\n0.01, 1.0, 0.0\n0.02, 0.0, 0.0\n")
     stderr = refused(ellroll, tmp_path, files="'rec.csv'")
     assert words in stderr, stderr
+
+
+def test_a_csv_with_a_byte_order_mark_or_a_typo_in_its_first_sample(ellroll, tmp_path):
+    """Seeded CSV records (3 or 4 columns, a header line or none): with a
+    UTF-8 byte order mark before the first line (a spreadsheet's "CSV
+    UTF-8") the run is the plain file's, bit for bit; a first sample line
+    with one field mistyped (a letter for a digit) is refused naming line 1,
+    not taken for a header (which would drop the sample at t = 0)."""
+    rng = np.random.default_rng(1213)
+    for trial in range(4):
+        columns = int(rng.choice([3, 4]))
+        times = np.arange(40) * 0.05
+        rows = [[f"{t:.2f}", *(f"{v:.5f}" for v in 0.02 * rng.standard_normal(columns - 1))] for t in times]
+        header = ["time,ax,ay" + (",az" if columns == 4 else "")] if trial % 2 else []
+        text = "\n".join(header + [",".join(r) for r in rows]) + "\n"
+        folder = tmp_path / f"t{trial}"
+        folder.mkdir()
+        (folder / "plain.csv").write_text(text)
+        (folder / "bom.csv").write_bytes(b"\xef\xbb\xbf" + text.encode())
+        plain = run_case(ellroll, folder, "'plain.csv'", "plain", t_end=1.0)
+        bom = run_case(ellroll, folder, "'bom.csv'", "bom", t_end=1.0)
+        assert_same_trajectories(plain, bom)
+        typo = [list(r) for r in rows]
+        field = int(rng.integers(columns))
+        typo[0][field] = typo[0][field].replace("0", "O", 1) if "0" in typo[0][field] else "x" + typo[0][field]
+        (folder / "typo.csv").write_text("\n".join(",".join(r) for r in typo) + "\n")
+        stderr = refused(ellroll, folder, files="'typo.csv'")
+        assert f"typo.csv:1: not numbers: {','.join(typo[0])}" in stderr, stderr
