@@ -334,15 +334,19 @@ contains
     real(wp), intent(inout) :: base_end(lanes, 3)
     type(case_result_t), intent(inout) :: results(:)
     real(wp) :: base_half(lanes, 3)
+    real(wp) :: t(lanes)
+    ! (the product's value through max, an operation of its own: t + h is rounded after t, as the one-case
+    ! loop's, not fused into (step - 1) h + h whatever the inlining; a finite t is its own max with -huge)
+    t = max(real(step - 1, wp) * h, -huge(1.0_wp))
     f_start = b%f
     if (b%balls%resists) then                  ! the modes and laws (f_start: the derivatives in them)
       base_half = 0
-      if (b%cups%moving) call b%cups%at(real(step - 1, wp) * h, base_half)
-      call choose_lane_laws(b%balls, b%run, b%active, b%y, b%f, real(step - 1, wp) * h, h, base_half, f_start, results)
+      if (b%cups%moving) call b%cups%at(t, base_half)
+      call choose_lane_laws(b%balls, b%run, b%active, b%y, b%f, t, h, base_half, f_start, results)
     end if
     if (b%cups%moving) then
-      call b%cups%at(real(step - 1, wp) * h + h/2, base_half)
-      call b%cups%at(real(step - 1, wp) * h + h, base_end)
+      call b%cups%at(t + h/2, base_half)
+      call b%cups%at(t + h, base_end)
       call lanes_fixed_step(integrator, b%balls, b%y, f_start, h, y_new, f_new, inside, base_half, base_end)
       call lanes_observe(b%balls, y_new, f_new, out, base_end)
     else
