@@ -393,6 +393,7 @@ contains
     type(regime_state_t) :: rolled
     if (present(at_rest_only)) then
       rolled%y = stick(sb%ball, now%s)
+      call rolling_start(rolling, rolled%y)
       call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
       call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
       res%n_rhs = res%n_rhs + 1
@@ -403,6 +404,7 @@ contains
     end if
     rolled%sliding = .false.
     rolled%y = stick(sb%ball, now%s)
+    call rolling_start(rolling, rolled%y)
     call ball_derivative(rolling%ball, t, rolled%y, rolled%f)
     call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
     res%n_rhs = res%n_rhs + 1
@@ -416,6 +418,18 @@ contains
       call add_switch(res, t, switch_to_rolling)
     end if
   end subroutine stop_sliding
+
+  !> The rolling model's mode at rolling state y where the ball starts to
+  !> roll (begin_step): with rolling resistance the couple's direction is
+  !> the rolling there, not that of the last rolling step before the slip
+  !> (rolling_mode: a derivative taken against a mode the rolling has
+  !> turned away from would hold the couple against that, and a fixed
+  !> step's first stage with it).
+  pure subroutine rolling_start(rolling, y)
+    type(run_state_t), intent(inout) :: rolling
+    real(wp), intent(in) :: y(state_size)
+    if (rolling%ball%nonsmooth()) call rolling%ball%begin_step(y)
+  end subroutine rolling_start
 
   !> Whether the slip of sliding state now has stopped (stop_sliding): it
   !> has fallen to stick_level of its value at the piece's start or of the
