@@ -4,6 +4,8 @@ closed forms of a ball spinning set down and of a ball launched sliding;
 the friction's work is the energy lost in a triaxial cup with several
 switches; a mu that rolling never reaches gives the rolling run bit for
 bit; the inputs are checked."""
+import random
+
 import h5py
 import numpy as np
 import pytest
@@ -528,3 +530,43 @@ def test_a_fixed_step_follows_a_start_at_rest_near_the_rim_at_order_four(ellroll
     orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert errors[-1] < 1e-7, errors
     assert np.all(orders > 3.5) and np.all(orders < 4.7), (errors, orders)
+
+
+def _stop_with_resistance(resistance, x, y, omega, phase, integration):
+    return ("&geometry a = 1.0, b = 0.4, c = 0.2 /\n"
+            f"&ball radius = 0.2, mass = 1.0, mu = 0.1, slip = 'slide', rolling_resistance = {resistance!r} /\n"
+            f"&initial x = {x!r}, y = {y!r}, omega = {omega[0]!r}, {omega[1]!r}, {omega[2]!r} /\n"
+            f"&integration {integration}, t_end = 0.6 /\n"
+            f"&excitation kind = 'harmonic', amplitude = 3.0, 1.5, 0.0, frequency = 0.7, phase = {phase!r} /\n"
+            "&output file = 'o.h5', interval = 0.01, fields = 'omega', 'regime' /\n")
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_fixed_step_rolls_on_from_a_stop_with_rolling_resistance_in_its_own_direction(ellroll, tmp_path, seed):
+    """A shaken case that slides at once and stops at about 0.446 s, with
+    rolling resistance (1e-4 to 1e-3 m): the rest of rk4's step after the
+    stop rolls with the couple against the stop's own rolling, not against
+    the rolling before the slip began, so omega after the stop stays within
+    rk4's error of vern9's at rtol 1e-13 (2e-9 to 4e-9 rad/s at dt 1e-3 and
+    2.5e-4; a couple of the old direction leaves 4e-7 to 7e-7, at every dt)."""
+    rng = random.Random(seed)
+    resistance = 1e-3 if seed == 0 else rng.uniform(1e-4, 1e-3)
+    x = 0.081953401053387 + (0 if seed == 0 else rng.uniform(-1e-3, 1e-3))
+    omega = (0.6172792100270948, -2.1740820581976408, 3.5983879206424345)
+    args = (resistance, x, -0.24674451151007246, omega, 2.806990937564655)
+    stored = {}
+    for name, integration in (("vern9", "method = 'vern9', rtol = 1e-13"), ("rk4_1e-3", "method = 'rk4', dt = 1e-3"),
+                              ("rk4_2.5e-4", "method = 'rk4', dt = 2.5e-4")):
+        (tmp_path / f"{name}.nml").write_text(_stop_with_resistance(*args, integration))
+        done = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+        with h5py.File(tmp_path / f"{name}.h5") as f:
+            stored[name] = (f["trajectory/omega"][0], f["trajectory/regime"][0], f["switches/switch_time"][:],
+                            f["summary/status"][0])
+    omega_ref, regime, switches, status = stored["vern9"]
+    assert status == 1 and len(switches) == 2 and 0.4 < switches[1] < 0.5     # slides at once, stops once
+    after = np.flatnonzero(np.arange(regime.size) * 0.01 > switches[1] + 0.01)
+    assert after.size > 5 and np.all(regime[after] == 0)
+    for name in ("rk4_1e-3", "rk4_2.5e-4"):
+        error = np.max(np.abs(stored[name][0][after] - omega_ref[after]))
+        assert error < 2e-8, (name, error)
