@@ -345,6 +345,9 @@ contains
     logical :: kept
     kept = run%journal%holds_records() .or. run%resumed
     call keep_finished(run, files)
+    ! a journal its resume refused stays as it is, and the refusal alone says
+    ! what to do (a resume again would meet it again)
+    if (run%resumed .and. run%journal%record_words == 0) return
     if (kept) then
       err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
                     'far; fix the cause and run again with --resume'

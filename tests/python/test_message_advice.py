@@ -1,9 +1,9 @@
-"""Messages that name the real fault: a &sweep with both forms or without
-count."""
+"""Messages that name the real fault and give one way forward: a &sweep
+with both forms or without count, a resume refused for a damaged journal."""
 import pytest
 
 from conftest import run
-from test_campaign import write
+from test_campaign import flip_bits, killed_run, write
 
 
 @pytest.mark.parametrize("sweep, words", [
@@ -22,3 +22,15 @@ def test_sweep_forms(ellroll, tmp_path, sweep, words):
     assert f"camp.nml:6: &sweep: {words}" in result.stderr, result.stderr
     assert len(result.stderr.splitlines()) == 1
 
+
+def test_a_damaged_journal_header_gives_one_way_forward(ellroll, tmp_path):
+    name, _ = killed_run(ellroll, tmp_path)
+    journal = tmp_path / "out.h5.journal"
+    flip_bits(journal, 8, [3, 10])
+    before = journal.read_bytes()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 3
+    assert result.stderr.strip().endswith("so none of its cases can be trusted; start over with --overwrite"), \
+        result.stderr
+    assert "--resume" not in result.stderr and len(result.stderr.splitlines()) == 1
+    assert journal.read_bytes() == before and (tmp_path / "out.h5.partial").exists()
