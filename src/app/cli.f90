@@ -21,6 +21,12 @@ module ellroll_cli
   character(len=*), parameter :: options(*) = [character(len=11) :: &
       '--output', '--threads', '--shard', '--format', '--overwrite', '--resume', '--quiet', '--timings', &
       '--suite', '--help', '--version']
+  !> The options each command takes (long names, blank-separated); any
+  !> other is refused: one ignored would do something else than asked.
+  character(len=*), parameter :: command_options(*) = [character(len=80) :: &
+      'run --output --overwrite --resume --threads --shard --quiet --timings', &
+      'check --output --shard --threads', 'merge --overwrite', 'summary --format --suite', &
+      'methods', 'inputs', 'modes', 'version']
 
   !> What the command line asks for.
   type :: cli_t
@@ -42,9 +48,10 @@ contains
     type(error_t), intent(inout) :: err
     integer :: k, n
     character(len=:), allocatable :: arg, value, hint
+    character(len=11), allocatable :: given(:)     ! the options given, as written
     cli%command = ''
     cli%output_path = ''
-    allocate (cli%paths(0))
+    allocate (cli%paths(0), given(0))
     n = command_argument_count()
     k = 1
     do while (k <= n)
@@ -55,9 +62,13 @@ contains
         cli%command = 'help'
         return
       case ('-V', '--version', 'version')
+        if (len(cli%command) > 0) then
+          call usage_error(err, 'more than one command given (' // cli%command // ', ' // arg // ')')
+          return
+        end if
         cli%command = 'version'
-        return
       case ('-o', '--output', '--threads', '--shard', '--format')
+        given = [character(len=11) :: given, arg]
         if (k == n) then
           call usage_error(err, arg // ' needs a value')
           return
@@ -66,16 +77,9 @@ contains
         call get_argument(k, value)
         call take_value(cli, arg, value, err)
         if (err%failed()) return
-      case ('--overwrite')
-        cli%opts%overwrite = .true.
-      case ('--resume')
-        cli%opts%resume = .true.
-      case ('-q', '--quiet')
-        cli%opts%quiet = .true.
-      case ('--timings')
-        cli%opts%timings = .true.
-      case ('--suite')
-        cli%suite = .true.
+      case ('--overwrite', '--resume', '-q', '--quiet', '--timings', '--suite')
+        given = [character(len=11) :: given, arg]
+        call take_switch(cli, arg)
       case ('run', 'check', 'merge', 'summary', 'methods', 'inputs', 'modes')
         if (len(cli%command) > 0) then
           call usage_error(err, 'more than one command given (' // cli%command // ', ' // arg // ')')
@@ -97,8 +101,50 @@ contains
       end select
       k = k + 1
     end do
-    call check_arguments(cli, err)
+    call check_options(cli%command, given, err)
+    if (.not. err%failed()) call check_arguments(cli, err)
   end subroutine parse_arguments
+
+  !> An option that takes no value.
+  subroutine take_switch(cli, option)
+    type(cli_t), intent(inout) :: cli
+    character(len=*), intent(in) :: option
+    select case (option)
+    case ('--overwrite')
+      cli%opts%overwrite = .true.
+    case ('--resume')
+      cli%opts%resume = .true.
+    case ('-q', '--quiet')
+      cli%opts%quiet = .true.
+    case ('--timings')
+      cli%opts%timings = .true.
+    case ('--suite')
+      cli%suite = .true.
+    end select
+  end subroutine take_switch
+
+  !> The first option given that the command does not take.
+  subroutine check_options(command, given, err)
+    character(len=*), intent(in) :: command
+    character(len=*), intent(in) :: given(:)
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: long
+    integer :: k, c
+    if (len(command) == 0) return
+    ! (the command is the first word of its entry)
+    c = findloc([(index(command_options(k), command // ' ') == 1, k = 1, size(command_options))], .true., dim=1)
+    if (c == 0) return
+    do k = 1, size(given)
+      long = trim(given(k))
+      if (long == '-o') long = '--output'
+      if (long == '-q') long = '--quiet'
+      if (index(trim(command_options(c)) // ' ', ' ' // long // ' ') == 0) then
+        call set_error(err, err_input, command // ' does not take ' // trim(given(k)) // " (see 'ellroll " // &
+                       command // " --help')")
+        return
+      end if
+    end do
+  end subroutine check_options
 
   !> The value of an option that takes one.
   subroutine take_value(cli, option, value, err)
@@ -140,8 +186,8 @@ contains
     type(error_t), intent(inout) :: err
     if (len(cli%command) == 0) then
       call usage_error(err, 'no command given')
-    else if (cli%command == 'methods' .or. cli%command == 'inputs') then
-      return
+    else if (any(cli%command == [character(len=7) :: 'methods', 'inputs', 'version'])) then
+      if (size(cli%paths) > 0) call usage_error(err, cli%command // ' takes no argument (' // trim(cli%paths(1)) // ')')
     else if (size(cli%paths) == 0) then
       ! (merge pads its shorter text with blanks: trimmed)
       call usage_error(err, cli%command // ' needs ' // trim(merge('an output file and shard files', &

@@ -26,16 +26,19 @@ contains
       '', &
       'usage:', &
       '  ellroll run FILE.nml [-o OUT.h5] [options]   integrate every case, write HDF5', &
-      '  ellroll check FILE.nml [-o OUT.h5]           validate, print the cases, write nothing', &
-      '  ellroll merge OUT.h5 SHARD.h5...             join the shard files of a campaign', &
-      '  ellroll summary OUT.h5 [--format F]          the summary of a file: a table, or one row per', &
-      '                                               case as csv or json (NaN as null)', &
+      '  ellroll check FILE.nml [-o OUT.h5] [--shard I/N] [--threads N]', &
+      '                                               validate, print the cases, write nothing', &
+      '  ellroll merge OUT.h5 SHARD.h5... [--overwrite]', &
+      '                                               join the shard files of a campaign', &
+      '  ellroll summary OUT.h5 [--format F] [--suite]', &
+      '                                               the summary of a file: a table, or one row per', &
+      '                                               case (or per stripe) as csv or json (NaN as null)', &
       '  ellroll modes FILE.nml                       small-oscillation periods of every case', &
       '  ellroll methods                              the integration methods', &
       '  ellroll inputs                               the inputs a sweep or sample can vary (Markdown)', &
       '  ellroll --version | --help | COMMAND --help', &
       '', &
-      'options:', &
+      'options (each command takes those its usage lists, and refuses any other):', &
       '  -o, --output OUT.h5   write here instead of &output file', &
       '  --overwrite           replace an existing output file', &
       '  --resume              finish an interrupted run (same input, same options)', &
@@ -74,9 +77,11 @@ contains
         '  --timings             print where the run''s time went'])
     case ('check')
       call put_lines([character(len=help_width) :: &
-        'usage: ellroll check FILE.nml [-o OUT.h5]', &
+        'usage: ellroll check FILE.nml [-o OUT.h5] [--shard I/N] [--threads N]', &
         '', &
         'Reads and validates FILE.nml, prints the resolved cases and the campaign, writes nothing.', &
+        '-o: the output''s name to check (as for run); --shard I/N: the count of that shard''s cases;', &
+        '--threads N: the threads of its checks of every case (the result is the same on any count).', &
         'Bad input: a message naming the file, line, namelist group, variable and value; exit 2.'])
     case ('merge')
       call put_lines([character(len=help_width) :: &
@@ -105,6 +110,9 @@ contains
         'usage: ellroll methods', &
         '', &
         'The integration methods: name, kind (fixed step, adaptive or symmetric), order and when to pick it.'])
+    case ('version')
+      call put_lines([character(len=help_width) :: &
+        'usage: ellroll --version', '', 'The version and the build (Release, Debug, ...) of this ellroll.'])
     case ('inputs')
       call put_lines([character(len=help_width) :: &
         'usage: ellroll inputs', &

@@ -13,7 +13,8 @@ module ellroll_cmd_summary
   use ellroll_results, only: case_result_t, summary_record, count_undefined
   use ellroll_cli, only: cli_t
   use ellroll_errors, only: set_error, err_input
-  use ellroll_files, only: path_kind, kind_folder
+  use ellroll_files, only: path_kind, kind_missing
+  use ellroll_system, only: open_regular_file, file_type_words, close_descriptor, system_error_text
   use ellroll_lapack, only: dlasrt
   use ellroll_cmd_suite, only: print_suite
   implicit none
@@ -45,27 +46,26 @@ contains
     end if
   end subroutine summary_command
 
-  !> A folder, or a file this user may not read, is bad input: said so
+  !> A folder, a FIFO or a device (not opened: a FIFO would wait for a
+  !> writer), or a file this user may not read, is bad input: said so
   !> before HDF5 tries it.
   subroutine check_readable(path, err)
     character(len=*), intent(in) :: path
     type(error_t), intent(inout) :: err
-    integer :: unit, ios
-    character(len=256) :: msg
-    logical :: exists
-    if (path_kind(path) == kind_folder) then
+    integer :: code, fd
+    integer(i8) :: bytes
+    character :: file_type
+    code = open_regular_file(path, fd, bytes, file_type)
+    if (code == 0) then
+      code = close_descriptor(fd)
+    else if (code == -1 .and. file_type == 'd') then
       call set_error(err, err_input, path // ': a folder, not an output file (give the .h5 file in it)')
-      return
+    else if (code == -1) then
+      call set_error(err, err_input, path // ': ' // trim(file_type_words(file_type)) // ', not a regular file')
+    else if (path_kind(path) /= kind_missing) then          ! (none: print_summary says 'no such file')
+      call set_error(err, err_input, path // ': cannot read it (' // system_error_text(code) // &
+                     '); check its permissions')
     end if
-    inquire (file=path, exist=exists)
-    if (.not. exists) return                  ! print_summary says 'no such file'
-    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', status='old', &
-          iostat=ios, iomsg=msg)
-    if (ios /= 0) then
-      call set_error(err, err_input, path // ': cannot read it (' // trim(msg) // '); check its permissions')
-      return
-    end if
-    close (unit)
   end subroutine check_readable
 
   !> The summary of a file: the table (format 'table'), or one row per case

@@ -24,7 +24,7 @@ _ellroll() {
         case "${COMP_WORDS[1]}" in
             run) COMPREPLY=($(compgen -W "-o --output --overwrite --resume --threads --shard -q --quiet --timings \
                               --help" -- "$current")) ;;
-            check|modes) COMPREPLY=($(compgen -W "-o --output --help" -- "$current")) ;;
+            check) COMPREPLY=($(compgen -W "-o --output --shard --threads --help" -- "$current")) ;;
             merge) COMPREPLY=($(compgen -W "--overwrite --help" -- "$current")) ;;
             summary) COMPREPLY=($(compgen -W "--format --suite --help" -- "$current")) ;;
             *) COMPREPLY=($(compgen -W "--help" -- "$current")) ;;

@@ -6,7 +6,13 @@
  * so that --resume finishes the rest. A second SIGINT (Ctrl-C pressed
  * again) ends the process at once, as if it had not been caught; more
  * SIGTERMs change nothing (scancel and a job script's trap may both send
- * one; the batch system's SIGKILL follows if the run does not end). */
+ * one; the batch system's SIGKILL follows if the run does not end).
+ *
+ * SIGPIPE (whoever read standard output or error is gone: a `| head`, a
+ * dropped ssh session's tee) is ignored: the write fails with EPIPE
+ * instead of ending the process. The run goes on, its progress lines and
+ * messages lost, and finishes its file; a summary that cannot be written
+ * to standard output is then exit 3, as any failed write of it. */
 #include <signal.h>
 #include <string.h>
 
@@ -32,6 +38,7 @@ void ellroll_catch_stop_signals(void)
     action.sa_flags = SA_RESTART;
     sigaction(SIGTERM, &action, NULL);
     sigaction(SIGINT, &action, NULL);
+    signal(SIGPIPE, SIG_IGN);
 }
 
 /* The signal that asked the run to stop, or 0. Read atomically: a

@@ -41,7 +41,7 @@ module ellroll_system
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
     !> From here on SIGTERM and SIGINT only ask the run to stop (stop_signal);
-    !> a second one ends the process (src/core/signals.c).
+    !> a second one ends the process; SIGPIPE is ignored (src/core/signals.c).
     subroutine catch_stop_signals() bind(c, name='ellroll_catch_stop_signals')
     end subroutine catch_stop_signals
     !> End the process at once with status, without the exit handlers: after

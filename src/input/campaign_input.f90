@@ -35,7 +35,16 @@ contains
     if (sw%param == 0) return
     listed = rd%given(gi, 'values')
     ranged = rd%given(gi, 'start') .or. rd%given(gi, 'stop') .or. rd%given(gi, 'count')
-    if (listed .eqv. ranged) then
+    if (listed .and. ranged) then
+      do k = 1, 3
+        what = trim(merge('start', 'stop ', k == 1))
+        if (k == 3) what = 'count'
+        if (rd%given(gi, what)) exit
+      end do
+      call rd%fail_value(gi, what, 'values is given too: give either values = v1, v2, ... or start, stop ' // &
+                         'and count, not both')
+      return
+    else if (.not. listed .and. .not. ranged) then
       call rd%fail_missing(gi, 'values', 'give either values = v1, v2, ... or start, stop and count')
       return
     end if
@@ -55,6 +64,10 @@ contains
     else
       if (.not. rd%require_all(gi, [character(len=6) :: 'start', 'stop'], [v%start, v%stop])) return
       if (.not. spaceable(rd, gi, 'stop', 'start', v%start, v%stop, lower(v%spacing) == 'log')) return
+      if (.not. rd%given(gi, 'count')) then
+        call rd%fail_missing(gi, 'count', 'give count = N, how many values from start to stop')
+        return
+      end if
       if (v%count < 1 .or. v%count > max_values * 1000) then
         call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
         return

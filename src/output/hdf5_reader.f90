@@ -12,6 +12,7 @@ module ellroll_hdf5_reader
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_files, only: path_kind, kind_missing
+  use ellroll_system, only: open_regular_file, file_type_words, close_descriptor
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, hdf5_quiet, &
       forget_system_failure, system_failure, file_identity
   implicit none
@@ -91,7 +92,9 @@ contains
     class(h5_input_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(error_t), intent(inout) :: err
-    integer :: hdferr
+    integer :: hdferr, code, fd
+    integer(i8) :: bytes
+    character :: file_type
     logical :: is_hdf5
     character(len=:), allocatable :: program, reason
     self%path = path
@@ -102,6 +105,14 @@ contains
       call set_error(err, err_input, path // ': no such file')
       return
     end if
+    ! (HDF5 would open a FIFO and wait for a writer, past SIGTERM, or read a
+    ! device that may never end)
+    code = open_regular_file(path, fd, bytes, file_type)
+    if (code == -1) then
+      call set_error(err, err_input, path // ': ' // trim(file_type_words(file_type)) // ', not a regular file')
+      return
+    end if
+    if (code == 0) code = close_descriptor(fd)
     call h5fis_hdf5_f(path, is_hdf5, hdferr)
     if (hdferr < 0) then
       call hdf5_reason(reason)

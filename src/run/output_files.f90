@@ -229,8 +229,12 @@ contains
       if (path_kind(folder_of(finished)) == kind_missing) then
         call set_error(err, err_output, finished // ': cannot write it to the disk: its folder ' // &
             folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
-        return
+      else
+        call set_error(err, err_output, finished // ': cannot write it to the disk: it is no longer in its ' // &
+            'folder ' // folder_of(finished) // ' (the folder moved and another made at its name, or the file ' // &
+            'removed, while ellroll wrote in it)')
       end if
+      return
     end if
     if (code /= 0) then
       call set_error(err, err_output, finished // ': cannot write it to the disk: ' // system_error_text(code))
@@ -247,8 +251,12 @@ contains
       if (path_kind(folder_of(finished)) == kind_missing) then
         call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
             ' into place: its folder ' // folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
-        return
+      else
+        call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
+            ' into place: it is no longer in its folder ' // folder_of(finished) // ' (the folder moved and ' // &
+            'another made at its name, or the file removed, while ellroll wrote in it)')
       end if
+      return
     end if
     if (code /= 0) then
       call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &

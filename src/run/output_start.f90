@@ -13,9 +13,9 @@ module ellroll_output_start
   use ellroll_hdf5_writer, only: h5_output_t, provenance_t, written_in_place, describe_writer
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_journal, only: journal_t, journal_header_t, journal_is_torn
-  use ellroll_resume, only: open_for_resume, copy_journaled_cases
+  use ellroll_resume, only: open_for_resume, copy_journaled_cases, discard_unneeded_partial
   use ellroll_system, only: folder_write_error, folder_of, system_error_text
-  use ellroll_files, only: path_kind, kind_regular
+  use ellroll_files, only: path_kind, kind_regular, kind_missing
   use ellroll_output_files, only: output_files_t, check_replace, work_partial, work_journal, work_target
   use ellroll_shards, only: shard_slots, campaign_id
   implicit none
@@ -50,10 +50,13 @@ contains
   !> Whether the run starts afresh or resumes, from the files there and the
   !> options; nothing_to_do for a resume of a complete run. Every file of the
   !> output is ellroll's or absent (else the run is refused, and nothing is
-  !> touched). A journal beside a complete output of this campaign is left
-  !> from a run killed between moving its file into place and removing the
-  !> journal: it goes. A journal killed before its header was complete holds
-  !> nothing finished, and the run starts afresh.
+  !> touched). A journal beside a complete output of this campaign, with no
+  !> work file (.partial, .partial.new) beside it, is left from a run killed
+  !> between moving its file into place and removing the journal: it goes.
+  !> Where a work file is there, the journal's run never moved its file into
+  !> place (an --overwrite of a complete output of the same campaign,
+  !> interrupted): it resumes. A journal killed before its header was
+  !> complete holds nothing finished, and the run starts afresh.
   subroutine decide_start(inp, shard, resume_asked, overwrite, files, resume, nothing_to_do, err)
     type(run_input_t), intent(in) :: inp
     integer, intent(in) :: shard(2)
@@ -61,7 +64,7 @@ contains
     type(output_files_t), intent(in) :: files
     logical, intent(out) :: resume, nothing_to_do
     type(error_t), intent(inout) :: err
-    logical :: journal_exists, target_exists, target_complete
+    logical :: journal_exists, target_exists, target_complete, work_exists
     nothing_to_do = .false.
     resume = resume_asked
     call files%check(files%target, work_target, err)
@@ -74,7 +77,12 @@ contains
     target_complete = .false.
     if (target_exists) target_complete = holds_this_run(files%target, inp, shard, err)
     if (err%failed()) return
-    if (journal_exists .and. target_complete) then
+    ! (the run that wrote the output moved its work file onto it: a work file
+    ! there belongs to a run that has not finished; a resume of a journal
+    ! alone makes .partial.new before it removes .partial)
+    work_exists = path_kind(files%partial) /= kind_missing
+    if (.not. work_exists) work_exists = path_kind(files%resumed) /= kind_missing
+    if (journal_exists .and. target_complete .and. .not. work_exists) then
       write (error_unit, '(a)') 'ellroll: ' // files%target // ': complete; removing the journal of the run ' // &
           'that wrote it (' // files%journal // ')'
       call files%discard(files%journal, work_journal, err)
@@ -202,6 +210,8 @@ contains
     allocate (done(0:n_slots - 1))
     done = .false.
     if (resume) then
+      call discard_unneeded_partial(files, header, err)
+      if (err%failed()) return
       call copy_journaled_cases(journal, journal_places, inp%campaign, shard, files, out, done, err)
     else
       call journal%create(files%journal, header, err)

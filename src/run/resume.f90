@@ -28,7 +28,7 @@ module ellroll_resume
   implicit none
   private
 
-  public :: open_for_resume, copy_journaled_cases
+  public :: open_for_resume, copy_journaled_cases, discard_unneeded_partial
 
 contains
 
@@ -36,7 +36,9 @@ contains
   !> where each slot's record lies, -1 for none). The killed run's file
   !> keeps only its trajectories, and takes back the cases that a resume
   !> killed while copying left in `resumed`; a file with nothing in place
-  !> (the records hold the trajectories whole) is not needed at all.
+  !> (the records hold the trajectories whole) is not needed at all, and goes
+  !> once the resume's file is made (discard_unneeded_partial): till then it
+  !> marks the journal as that of an unfinished run (decide_start).
   subroutine open_for_resume(journal, files, header, places, err)
     type(journal_t), intent(inout) :: journal
     type(output_files_t), intent(in) :: files
@@ -52,9 +54,7 @@ contains
     if (journal%n_damaged > 0) write (error_unit, '(a)') 'ellroll: warning: ' // files%journal // ': ' // &
         itoa(journal%n_damaged) // ' damaged records skipped (their checksum does not match); ' // &
         itoa(count(places < 0)) // ' of ' // itoa(size(places)) // ' cases have no valid record and run'
-    if (.not. any(header%in_place)) then
-      call files%discard(files%partial, work_partial, err)
-    else
+    if (any(header%in_place)) then
       call open_trajectories(files%partial, header, killed_run, unreadable)
       if (path_kind(files%resumed) == kind_regular .and. .not. unreadable%failed()) then
         call open_trajectories(files%resumed, header, copied, unreadable)
@@ -68,6 +68,15 @@ contains
     ! `resumed` are taken back by the next resume, with more room
     call files%discard(files%resumed, work_partial, err)
   end subroutine open_for_resume
+
+  !> The killed run's file, where nothing is in place: once the resume's
+  !> file is made, it is not needed.
+  subroutine discard_unneeded_partial(files, header, err)
+    type(output_files_t), intent(in) :: files
+    type(journal_header_t), intent(in) :: header
+    type(error_t), intent(inout) :: err
+    if (.not. any(header%in_place)) call files%discard(files%partial, work_partial, err)
+  end subroutine discard_unneeded_partial
 
   !> A file's trajectories, open to be moved out of it; the storage of the
   !> rest of it (HDF5's metadata and tables, rebuilt from the journal) is

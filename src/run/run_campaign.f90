@@ -198,8 +198,9 @@ contains
     if (err%failed()) then
       if (file_exists(files%partial)) then
         call abandon(run, files, err)
-      else if (path_kind(folder_of(files%target)) == kind_missing) then
-        ! (its journal and partial file went with it, wherever it went)
+      else if (moved_away(files)) then
+        ! (its journal and partial file went with it, wherever it went; a
+        ! folder made at its name since holds neither)
         err%message = err%message // achar(10) // '  ' // files%journal // ', in that folder, keeps the cases ' // &
             'finished so far: run again with -o naming the output in the folder''s new place and --resume'
       end if
@@ -208,6 +209,14 @@ contains
     run%timings%ended = wall_clock()
     if (opts%timings) call run%timings%report()
   end subroutine finish
+
+  !> Whether the output's folder is gone, or another is at its name: its
+  !> journal is not there.
+  logical function moved_away(files)
+    type(output_files_t), intent(in) :: files
+    moved_away = path_kind(folder_of(files%target)) == kind_missing
+    if (.not. moved_away) moved_away = path_kind(files%journal) == kind_missing
+  end function moved_away
 
   !> Integrate the slots of one block not done yet, write their trajectories
   !> and journal records, then hand their table rows to the writer: each
@@ -345,6 +354,9 @@ contains
     logical :: kept
     kept = run%journal%holds_records() .or. run%resumed
     call keep_finished(run, files)
+    ! a journal its resume refused stays as it is, and the refusal alone says
+    ! what to do (a resume again would meet it again)
+    if (run%resumed .and. run%journal%record_words == 0) return
     if (kept) then
       err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
                     'far; fix the cause and run again with --resume'

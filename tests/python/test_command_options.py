@@ -1,0 +1,101 @@
+"""Every command against every option of `ellroll --help`: an option that
+the command's usage (`ellroll COMMAND --help`) does not list is refused
+with one line naming both, exit 2, nothing written; one it lists is taken."""
+import re
+
+import pytest
+
+from conftest import run
+from test_campaign import write
+
+VALUES = {"-o": "new.h5", "--output": "new.h5", "--threads": "1", "--shard": "0/2", "--format": "csv"}
+
+
+def help_text(ellroll, *words):
+    result = run(ellroll, *words, "--help")
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+def all_options(ellroll):
+    """The options of `ellroll --help` and of every command's usage."""
+    text = help_text(ellroll)
+    found = set(re.findall(r"^\s+(-\w), (--[\w-]+)", text, re.M))
+    names = {name for pair in found for name in pair}
+    names |= set(re.findall(r"^\s+(--[\w-]+)", text, re.M))
+    names |= set(re.findall(r"\[(--?[\w-]+)", text))
+    return sorted(names - {"--help", "--version"})
+
+
+def commands(ellroll):
+    return sorted(set(re.findall(r"^\s+ellroll (\w+)", help_text(ellroll), re.M)))
+
+
+def listed(ellroll, command):
+    """The options the command's usage lists (a short name with its long one)."""
+    usage = help_text(ellroll, command).split("\n\n")[0]
+    names = set(re.findall(r"(--?[\w-]+)", usage.split(command, 1)[1]))
+    for short, long in (("-o", "--output"), ("-q", "--quiet")):
+        if short in names or long in names:
+            names |= {short, long}
+    return names
+
+
+@pytest.fixture(scope="module")
+def files(ellroll, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("options")
+    write(folder, "&sweep name = 'omega_z', values = 10, 20 /\n", t_end=0.2, name="a.nml")
+    for i in range(2):
+        assert run(ellroll, "run", "a.nml", "-q", "--shard", f"{i}/2", "-o", f"s{i}.h5", cwd=folder).returncode == 0
+    return folder
+
+
+def arguments(command):
+    return {"run": ["a.nml", "-o", "x.h5"], "check": ["a.nml"], "modes": ["a.nml"], "merge": ["m.h5", "s0.h5", "s1.h5"],
+            "summary": ["s0.h5"]}.get(command, [])
+
+
+def snapshot(folder):
+    return {p.name: (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.iterdir()}
+
+
+def test_the_help_lists_the_commands_and_options(ellroll):
+    assert commands(ellroll) == ["check", "inputs", "merge", "methods", "modes", "run", "summary"]
+    assert {"-o", "--output", "--overwrite", "--resume", "--threads", "--shard", "-q", "--quiet", "--timings",
+            "--format", "--suite"} <= set(all_options(ellroll))
+
+
+def test_every_command_refuses_every_option_it_does_not_take(ellroll, files):
+    taken = 0
+    for command in commands(ellroll) + ["version"]:
+        ok = listed(ellroll, command) if command != "version" else set()
+        for option in all_options(ellroll):
+            argv = [command, *arguments(command), option] + ([VALUES[option]] if option in VALUES else [])
+            before = snapshot(files)
+            result = run(ellroll, *argv, cwd=files)
+            if option in ok:
+                taken += 1
+                assert "does not take" not in result.stderr, (argv, result.stderr)
+                for name in ("x.h5", "new.h5", "m.h5"):
+                    (files / name).unlink(missing_ok=True)
+                continue
+            assert result.returncode == 2, (argv, result.stderr)
+            assert result.stderr == f"ellroll: error: {command} does not take {option} " \
+                f"(see 'ellroll {command} --help')\n", argv
+            assert result.stdout == "" and snapshot(files) == before, argv
+    assert taken == 9 + 4 + 1 + 2       # run's, check's, merge's, summary's (-o, -q and their long names)
+
+
+def test_merge_refuses_o_and_leaves_the_shards(ellroll, files):
+    before = snapshot(files)
+    for extra in ([], ["--overwrite"]):
+        result = run(ellroll, "merge", "-o", "new.h5", "s0.h5", "s1.h5", *extra, cwd=files)
+        assert result.returncode == 2 and "merge does not take -o" in result.stderr
+    assert snapshot(files) == before
+
+
+@pytest.mark.parametrize("command", ["methods", "inputs", "version"])
+def test_commands_without_files_refuse_an_argument(ellroll, command):
+    result = run(ellroll, command, "extra")
+    assert result.returncode == 2 and result.stdout == ""
+    assert f"{command} takes no argument (extra)" in result.stderr

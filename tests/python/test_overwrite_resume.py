@@ -1,0 +1,70 @@
+"""An --overwrite run of a complete output of the same campaign, stopped
+(SIGTERM, kill -9) half way: --resume finishes it and replaces the old
+file, keeping every case the stopped run had finished."""
+import random
+import signal
+import subprocess
+import time
+
+import h5py
+import pytest
+
+from conftest import run
+from test_campaign import SPIN_RADIUS, assert_same_datasets, journal_wall_times, record_bytes, write
+
+
+@pytest.mark.parametrize("compression", [0, 4])
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGKILL])
+def test_a_stopped_overwrite_of_the_same_campaign_resumes(ellroll, tmp_path, stop, compression):
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
+    text = (tmp_path / name).read_text()
+    (tmp_path / name).write_text(text.replace("interval = 0.01 /", f"interval = 0.01, compression = {compression} /"))
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0        # the old output: complete
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        old_wall = f["summary/wall_time"][:]
+    journal = tmp_path / "out.h5.journal"
+    in_record = 501 * 17 if compression else 0
+    rng = random.Random(12 + stop + compression)
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2", "--overwrite"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 3 * record_bytes(in_record)):
+        time.sleep(0.002)
+    time.sleep(rng.uniform(0.0, 0.02))
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.send_signal(stop)
+    _, stderr = proc.communicate(timeout=30)
+    assert proc.returncode == (128 + stop if stop == signal.SIGTERM else -stop), stderr
+    if stop == signal.SIGTERM:
+        assert f"'ellroll run {name} -q --threads 2 --resume' finishes the rest" in stderr
+    kept = journal_wall_times(journal, in_record)
+    assert 0 < len(kept) < 200 and (tmp_path / "out.h5.partial").exists()
+    result = run(ellroll, "run", name, "-q", "--threads", "2", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "nothing to do" not in result.stderr and "removing the journal" not in result.stderr
+    assert not any((tmp_path / f"out.h5.{end}").exists() for end in ("journal", "partial", "partial.new", "lock"))
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+    assert all(wall[slot] == seconds for slot, seconds in kept.items()), "a finished case was lost"
+    assert any(wall[slot] != old_wall[slot] for slot in kept), "the old file was kept"
+
+
+def test_a_journal_left_after_the_move_into_place_still_goes(ellroll, tmp_path):
+    """The run that wrote the output killed after moving its file into place
+    (no work file left): its journal goes and a resume has nothing to do."""
+    name = write(tmp_path, SPIN_RADIUS, t_end=1.0)
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    # a journal of this campaign beside the complete output, and no work file
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--overwrite", "--threads", "1"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 2 * record_bytes()):
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    (tmp_path / "out.h5.partial").unlink()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "removing the journal of the run that wrote it" in result.stderr and "nothing to do" in result.stderr
+    assert not journal.exists()
