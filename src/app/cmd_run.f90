@@ -46,10 +46,13 @@ contains
     call read_input(trim(cli%paths(1)), cli%output_path, inp, err)
     if (err%failed()) return
     ! (every shard would write the one &output file: each needs its own)
-    if (opts%shard(2) > 1 .and. len(cli%output_path) == 0) call set_error(err, err_input, '--shard ' // &
-        itoa(opts%shard(1)) // '/' // itoa(opts%shard(2)) // ' needs -o naming this shard''s own file (e.g. -o ' // &
-        shard_name(inp%plan%file, opts%shard(1)) // '): every shard of the campaign would write ' // inp%plan%file)
-    if (err%failed()) return
+    if (opts%shard(2) > 1 .and. len(cli%output_path) == 0) then
+      call shard_name(inp%plan%file, opts%shard(1), advice)
+      call set_error(err, err_input, '--shard ' // itoa(opts%shard(1)) // '/' // itoa(opts%shard(2)) // &
+          ' needs -o naming this shard''s own file (e.g. -o ' // advice // '): every shard of the campaign ' // &
+          'would write ' // inp%plan%file)
+      return
+    end if
     call check_output_target(inp%plan%file, inp%path, err)
     if (err%failed()) return
     call catch_stop_signals()
@@ -174,18 +177,15 @@ contains
   end function size_text
 
   !> OUT.h5 with shard I's suffix: OUT.shard_I.h5 (as examples/slurm names them).
-  pure function shard_name(file, shard) result(name)
+  pure subroutine shard_name(file, shard, name)
     character(len=*), intent(in) :: file
     integer, intent(in) :: shard
-    character(len=:), allocatable :: name
-    if (len(file) > 3) then
-      if (file(len(file) - 2:) == '.h5') then
-        name = file(:len(file) - 3) // '.shard_' // itoa(shard) // '.h5'
-        return
-      end if
-    end if
+    character(len=:), allocatable, intent(out) :: name
     name = file // '.shard_' // itoa(shard) // '.h5'
-  end function shard_name
+    if (len(file) > 3) then
+      if (file(len(file) - 2:) == '.h5') name = file(:len(file) - 3) // '.shard_' // itoa(shard) // '.h5'
+    end if
+  end subroutine shard_name
 
   !> Under MPI: rank r runs shard r/N into OUT.rankR.h5; when every rank has
   !> succeeded, rank 0 merges the shards into OUT and removes them.

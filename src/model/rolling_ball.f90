@@ -128,14 +128,12 @@ contains
   !>   D = sigma^4 det L = R sigma E + det(A) L^4,
   !>   n' = R sigma (E w + L M) / D,   w = omega x y,  M = q A w - (A y . w) A y,
   !>   omega' = J* ((omega . y) / L^2 n' + (g / R) (-y_y, y_x, 0) / L).
-  !> The two roots and the quotients by D and L^2 are the only long
-  !> operations, and the longest chain (q, sigma, E, D, 1/D) is a fifth
-  !> shorter than with 1/|y|, 1/q and 1/det L each in turn.
-  !> fits, when asked for: whether y lies where the equations hold, the
-  !> rim not reached and the ball fitting the cup, from the same
-  !> q, sigma and P (fit_indicator). base, when given: the cup's
-  !> acceleration at t (a step that evaluates two stages at one time looks
-  !> it up once).
+  !> The two roots and the quotients by D and L^2 are the only long operations,
+  !> and the longest chain (q, sigma, E, D, 1/D) is a fifth shorter than with
+  !> 1/|y|, 1/q and 1/det L each in turn. fits, when asked for: whether y lies
+  !> where the equations hold, the rim not reached and the ball fitting the
+  !> cup, from the same q, sigma and P (fit_indicator). base, when given: the
+  !> cup's acceleration at t (two stages at one time look it up once).
   pure subroutine ball_derivative(ball, t, y, dydt, fits, base)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
@@ -162,9 +160,7 @@ contains
     ay_w = ay(1) * w(1) + ay(2) * w(2) + ay(3) * w(3)
     m = q * (ball%cup%axes2 * w) - ay_w * ay
     x = e * w + length * m
-    ! (D near zero, where the ball no longer fits the cup (an implicit
-    ! method's iterate may go there): no rate whose products overflow)
-    rate = 0
+    rate = 0                ! (D near 0: no fit, where an implicit method's iterate may go; no overflow)
     if (abs(denominator) > (r_sigma / sqrt(huge(1.0_wp))) * max(abs(x(1)), abs(x(2)), abs(x(3)))) &
       rate = r_sigma / denominator
     dydt(1:3) = rate * x
