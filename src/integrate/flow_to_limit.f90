@@ -103,7 +103,7 @@ contains
         return
       end if
       h = next_step(t_at, h, t_until, control%after_rejection, run%ball%excitation)
-      if (.not. (h > smallest_step_ulps * spacing(t_until))) return     ! (NaN: no step either)
+      if (.not. (h > smallest_step_ulps * spacing(t_until))) exit       ! (NaN: no step either)
       if (run%ball%nonsmooth()) call run%ball%begin_step(y_at)
       call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) cycle
