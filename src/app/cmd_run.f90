@@ -205,7 +205,10 @@ contains
       return
     end if
     target = inp%plan%file
-    shard_files = [character(len=1024) :: (target // '.rank' // itoa(r) // '.h5', r = 0, n_ranks - 1)]
+    allocate (shard_files(n_ranks))
+    do r = 0, n_ranks - 1
+      shard_files(r + 1) = target // '.rank' // itoa(r) // '.h5'
+    end do
     ! rank 0 holds the output's lock until the shards are merged into it
     complete = .false.
     if (rank == 0) then
