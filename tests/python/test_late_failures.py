@@ -226,11 +226,14 @@ def test_a_thread_count_beyond_any_integer_is_too_large(ellroll, campaign):
 
 
 @needs_strace
-def test_an_output_folder_moved_away_is_named_with_the_resume_hint(ellroll, campaign):
+@pytest.mark.parametrize("replaced", [False, True])
+def test_an_output_folder_moved_away_is_named_with_the_resume_hint(ellroll, campaign, replaced):
     """The output's folder moved while the run writes (held at its first
     fsync, of the finished file: it syncs by its descriptor, then the move
-    into place fails): exit 3 naming the folder as gone and the --resume that finishes
-    the run where the folder went, which gives the whole file."""
+    into place fails), and with `replaced` another made at its name: exit 3
+    naming the folder as gone, or the file as no longer in its folder, and
+    the --resume that finishes the run where the folder went, which gives
+    the whole file."""
     folder, _ = campaign
     (folder / "od").mkdir()
     command = [STRACE, "-f", "-o", "/dev/null", "-e", "trace=fsync", "-e", "inject=fsync:delay_enter=1500000:when=1",
@@ -241,37 +244,19 @@ def test_an_output_folder_moved_away_is_named_with_the_resume_hint(ellroll, camp
         time.sleep(0.01)
     time.sleep(0.2)
     (folder / "od").rename(folder / "od2")
+    if replaced:
+        (folder / "od").mkdir()
     _, stderr = process.communicate(timeout=120)
     assert process.returncode == 3, stderr
-    assert "od/x.h5.partial into place: its folder od is gone (moved or removed while ellroll wrote in it)" in stderr
+    if replaced:
+        assert "od/x.h5.partial into place: it is no longer in its folder od (the folder moved and another made " \
+            "at its name" in stderr, stderr
+        assert "x.h5.journal, in that folder, keeps the cases finished so far" in stderr
+        assert not any((folder / "od").iterdir())
+    else:
+        assert "od/x.h5.partial into place: its folder od is gone (moved or removed while ellroll wrote in it)" \
+            in stderr, stderr
     assert "--resume" in stderr and "x.h5.journal" in stderr
-    again = run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "-o", "od2/x.h5", "--resume", cwd=folder)
-    assert again.returncode == 0, again.stderr
-    assert_same_datasets(folder / "whole.h5", folder / "od2" / "x.h5")
-
-
-@needs_strace
-def test_an_output_folder_replaced_by_another_is_named_with_the_resume_hint(ellroll, campaign):
-    """The output's folder moved and a new one made at its name while the
-    run writes: exit 3 saying the file is no longer in its folder, and the
-    --resume that finishes the run where the folder went."""
-    folder, _ = campaign
-    (folder / "od").mkdir()
-    command = [STRACE, "-f", "-o", "/dev/null", "-e", "trace=fsync", "-e", "inject=fsync:delay_enter=1500000:when=1",
-               str(ellroll), "run", "camp.nml", "-q", "--threads", "1", "-o", "od/x.h5"]
-    process = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 30
-    while not (folder / "od" / "x.h5.partial").exists() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    time.sleep(0.2)
-    (folder / "od").rename(folder / "od2")
-    (folder / "od").mkdir()
-    _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 3, stderr
-    assert "od/x.h5.partial into place: it is no longer in its folder od (the folder moved and another made " \
-        "at its name" in stderr, stderr
-    assert "x.h5.journal, in that folder, keeps the cases finished so far" in stderr and "--resume" in stderr
-    assert not any((folder / "od").iterdir())
     again = run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "-o", "od2/x.h5", "--resume", cwd=folder)
     assert again.returncode == 0, again.stderr
     assert_same_datasets(folder / "whole.h5", folder / "od2" / "x.h5")
