@@ -9,7 +9,7 @@
  * one; the batch system's SIGKILL follows if the run does not end).
  *
  * SIGPIPE (whoever read standard output or error is gone: a `| head`, a
- * dropped ssh session's tee) is ignored: the write fails with EPIPE
+ * dropped ssh connection's tee) is ignored: the write fails with EPIPE
  * instead of ending the process. The run goes on, its progress lines and
  * messages lost, and finishes its file; a summary that cannot be written
  * to standard output is then exit 3, as any failed write of it. */
