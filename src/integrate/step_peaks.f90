@@ -100,12 +100,14 @@ contains
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(in), optional :: above(peak_count), finish(peak_count)
     type(observation_t) :: obs
+    real(wp) :: start(peak_count)
     integer :: i
     call observe(ball, pair%t_old, y, f, obs)
     call note_screen(screen, 0, obs)
     screen%none = .false.
     if (present(above) .and. present(finish)) then
-      screen%none = .not. rates_may_peak(pair, ball, screen%q(0, :), finish, above, n_rhs)
+      start = screen%q(0, :)                ! (a contiguous row: no array temporary)
+      screen%none = .not. rates_may_peak(pair, ball, start, finish, above, n_rhs)
       if (screen%none) return
     end if
     do i = 1, 5
