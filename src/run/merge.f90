@@ -348,8 +348,9 @@ contains
     count_pending = count(statuses == status_pending)
   end function count_pending
 
-  !> 'missing shard 0/3 (given: 1/3, 2/3): run it with --shard 0/3', from
-  !> the shard file given for each shard index (0: none).
+  !> 'missing shard 0/3 (given: 1/3, 2/3): run it with --shard 0/3 -o FILE
+  !> (a file of its own) and merge again', from the shard file given for
+  !> each shard index (0: none).
   pure subroutine missing_text(shard_of, text)
     integer, intent(in) :: shard_of(0:)
     character(len=:), allocatable, intent(out) :: text
@@ -362,15 +363,17 @@ contains
     do k = 0, n - 1
       if (shard_of(k) == 0) then
         missing = missing // ', ' // itoa(k) // '/' // itoa(n)
-        options = options // ', --shard ' // itoa(k) // '/' // itoa(n)
+        options = options // ', --shard ' // itoa(k) // '/' // itoa(n) // ' -o FILE'
       else
         given = given // ', ' // itoa(k) // '/' // itoa(n)
       end if
     end do
     if (count(shard_of == 0) == 1) then
-      text = 'missing shard ' // missing(3:) // ' (given: ' // given(3:) // '): run it with' // options(2:)
+      text = 'missing shard ' // missing(3:) // ' (given: ' // given(3:) // '): run it with' // options(2:) // &
+          ' (a file of its own) and merge again'
     else
-      text = 'missing shards ' // missing(3:) // ' (given: ' // given(3:) // '): run them with' // options(2:)
+      text = 'missing shards ' // missing(3:) // ' (given: ' // given(3:) // '): run them with' // options(2:) // &
+          ' (each a file of its own) and merge again'
     end if
   end subroutine missing_text
 end module ellroll_merge

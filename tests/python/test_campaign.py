@@ -168,7 +168,7 @@ def test_shards_merge_to_the_single_run(ellroll, tmp_path):
 
     # refusals: a missing shard, a shard twice, a shard of another campaign
     result = run(ellroll, "merge", "m2.h5", "shard_0.h5", "shard_2.h5", cwd=tmp_path)
-    assert result.returncode == 2 and "missing shard 1/3 (given: 0/3, 2/3): run it with --shard 1/3" in result.stderr
+    assert result.returncode == 2 and "missing shard 1/3 (given: 0/3, 2/3): run it with --shard 1/3 -o FILE (a file of its own) and merge again" in result.stderr
     result = run(ellroll, "merge", "m3.h5", "shard_0.h5", "shard_1.h5", "shard_1.h5", "shard_2.h5", cwd=tmp_path)
     assert result.returncode == 2 and "given twice" in result.stderr
     other = write(tmp_path, SPIN_RADIUS.replace("80", "90"), name="other.nml")

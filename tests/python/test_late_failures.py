@@ -194,10 +194,10 @@ def test_a_missing_shard_is_named_with_its_option(ellroll, campaign):
     make_shards(ellroll, folder, 3)
     result = run(ellroll, "merge", "m.h5", "s1.h5", "s2.h5", cwd=folder)
     assert result.returncode == 2
-    assert "ellroll: error: missing shard 0/3 (given: 1/3, 2/3): run it with --shard 0/3" in result.stderr
+    assert "ellroll: error: missing shard 0/3 (given: 1/3, 2/3): run it with --shard 0/3 -o FILE (a file of its own) and merge again" in result.stderr
     result = run(ellroll, "merge", "m.h5", "s2.h5", cwd=folder)
     assert result.returncode == 2
-    assert "missing shards 0/3, 1/3 (given: 2/3): run them with --shard 0/3, --shard 1/3" in result.stderr
+    assert "missing shards 0/3, 1/3 (given: 2/3): run them with --shard 0/3 -o FILE, --shard 1/3 -o FILE (each a file of its own) and merge again" in result.stderr
     assert leftovers(folder, "m.h5") == [] and not (folder / "m.h5").exists()
 
 
