@@ -11,7 +11,8 @@ module ellroll_norms
   implicit none
   private
 
-  public :: norm_of, small_sum, norm_up, norm_down, tangential_size, horizontal_force_scaled
+  public :: norm_of, small_sum, norm_up, norm_down, tangential_size, horizontal_force_scaled, in_mass_units, &
+      from_mass_units
 
   interface norm_of
     module procedure norm_of_2, norm_of_3
@@ -58,11 +59,26 @@ contains
     end if
   end function tangential_size
 
+  !> A force (or any size proportional to the mass m) in units of
+  !> 2^exponent(m), the mass's power of two: exact, so that norms and
+  !> ratios of forces have the same digits at every ordinary mass, and
+  !> neither underflow for a light ball nor overflow for a heavy one.
+  elemental real(wp) function in_mass_units(force, mass)
+    real(wp), intent(in) :: force, mass
+    in_mass_units = scale(force, -exponent(mass))
+  end function in_mass_units
+
+  !> A size in units of 2^exponent(m) (in_mass_units) back in its own.
+  elemental real(wp) function from_mass_units(value, mass)
+    real(wp), intent(in) :: value, mass
+    from_mass_units = scale(value, exponent(mass))
+  end function from_mass_units
+
   !> |(F_x, F_y)| / 2^exponent(m) of a force F on a ball of mass m
-  !> (observation_t): the power of two taken out first, so that the squares
-  !> of a light ball's forces do not underflow.
+  !> (observation_t), without the squares of a light ball's forces
+  !> underflowing.
   pure real(wp) function horizontal_force_scaled(force, mass)
     real(wp), intent(in) :: force(3), mass
-    horizontal_force_scaled = norm_of(scale(force(1), -exponent(mass)), scale(force(2), -exponent(mass)))
+    horizontal_force_scaled = norm_of(in_mass_units(force(1), mass), in_mass_units(force(2), mass))
   end function horizontal_force_scaled
 end module ellroll_norms

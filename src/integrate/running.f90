@@ -5,8 +5,8 @@
 !> figures are made from them at the end of a case (finish_running).
 module ellroll_running
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
-  use ellroll_kinds, only: wp
-  use ellroll_kinds, only: i8
+  use ellroll_kinds, only: wp, i8
+  use ellroll_norms, only: from_mass_units
   use ellroll_quantities, only: quantities, quantity_count, q_fit_clearance
   use ellroll_limit_states, only: is_model_limit
   use ellroll_figures, only: figure_t, figures, figure_count, timed, lasting, beyond, from_counter, &
@@ -329,7 +329,7 @@ contains
       select case (f%finish)
       case (finish_none)
       case (finish_force)
-        value = scale(value, exponent(mass))
+        value = from_mass_units(value, mass)
       case (finish_per_mass)
         value = value / fraction(mass)
       case (finish_per_start)

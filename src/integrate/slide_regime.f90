@@ -7,6 +7,7 @@ module ellroll_slide_regime
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_completed, status_unstable, status_rim
   use ellroll_excitation, only: excitation_none
+  use ellroll_norms, only: in_mass_units
   use ellroll_ode, only: no_step_solution
   use ellroll_events, only: crossing_search_t, peak_search_t, max_event_trials
   use ellroll_cases, only: case_t, field_regime, field_slip_speed
@@ -452,14 +453,11 @@ contains
     real(wp), intent(in) :: t
     type(regime_state_t), intent(inout) :: at
     real(wp) :: rate(slide_state_size), big_n, force(3), need(3), size_need
-    integer :: e
     call sliding_derivative(sb, t, at%s, rate, big_n, force, needed=need)
-    ! (forces in units of the mass's power of two: a light ball's would underflow in the norm)
-    e = -exponent(sb%ball%mass)
-    size_need = norm2(scale(need, e))
+    size_need = norm2(in_mass_units(need, sb%ball%mass))
     if (.not. size_need > 0) return
-    call set_reaction(sb, big_n * at%obs%normal + (scale(sb%ball%mu * max(big_n, 0.0_wp), e) / size_need) * need, &
-                      at%obs)
+    call set_reaction(sb, big_n * at%obs%normal + (in_mass_units(sb%ball%mu * max(big_n, 0.0_wp), sb%ball%mass) &
+                                                    / size_need) * need, at%obs)
   end subroutine observe_stopped
 
   !> The piece of step h from (t, from) to `to` that the integrator has just

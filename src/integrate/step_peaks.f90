@@ -8,7 +8,7 @@
 !> screen shows one inside the step that may pass the running maximum.
 module ellroll_step_peaks
   use ellroll_kinds, only: wp, i8
-  use ellroll_norms, only: norm_of
+  use ellroll_norms, only: norm_of, in_mass_units
   use ellroll_quantities, only: quantity_count, q_displacement, q_horizontal_force_scaled, q_reaction_normal, &
       q_friction_needed, q_fit_clearance
   use ellroll_running, only: running_t, running_lanes_t, add_inside
@@ -254,7 +254,7 @@ contains
     denominator = max(abs(normal), tiny(1.0_wp))
     ratio = huge(1.0_wp)
     if (denominator > tangent / huge(1.0_wp)) ratio = tangent / denominator
-    q = [hypot(p(1), p(2)), scale(hypot(force(1), force(2)), -exponent(ball%mass)), normal, ratio]
+    q = [hypot(p(1), p(2)), in_mass_units(hypot(force(1), force(2)), ball%mass), normal, ratio]
   end function fixed_cup_values
 
   !> The peaks inside the last attempt (in pair), whose screen is complete,

@@ -27,6 +27,7 @@ module ellroll_sliding_ball
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, ball_derivative, cross, &
       horizontal_force_scaled
   use ellroll_quantities, only: peak_clearance
+  use ellroll_norms, only: in_mass_units
   implicit none
   private
 
@@ -567,9 +568,7 @@ contains
     call set_reaction(sb, big_n * n + force, obs)
     obs%reaction_normal = big_n
     obs%friction_needed = huge(1.0_wp)
-    ! (in units of the mass's power of two: a light ball's force would underflow in the norm)
-    if (big_n > 0) obs%friction_needed = norm2(scale(force, -exponent(sb%ball%mass))) / &
-                                         scale(big_n, -exponent(sb%ball%mass))
+    if (big_n > 0) obs%friction_needed = norm2(in_mass_units(force, sb%ball%mass)) / in_mass_units(big_n, sb%ball%mass)
     v = center_velocity(y)
     height = obs%contact(3) - sb%ball%radius * (n(1)**2 + n(2)**2) / (1 + n(3))
     associate (m => sb%ball%mass, r => sb%ball%radius)

@@ -7,6 +7,7 @@
 !> aligned law").
 module ellroll_turns
   use ellroll_kinds, only: wp
+  use ellroll_norms, only: in_mass_units
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, stiff_rolling
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_derivative, slip_velocity
   implicit none
@@ -46,7 +47,8 @@ contains
     real(wp), intent(in) :: t, y(slide_state_size), h
     real(wp) :: rate(slide_state_size), big_n, need(3), reach
     call sliding_derivative(sb, t, y, rate, big_n, needed=need)
-    reach = (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * norm2(need)      ! kappa |F_req|
+    ! kappa |F_req|, the force in units of the mass's power of two
+    reach = (1 + 1 / sb%ball%inertia_factor) / fraction(sb%ball%mass) * norm2(in_mass_units(need, sb%ball%mass))
     unresolved = 10 * norm2(slip_velocity(sb%ball, y)) < h * reach
   end function direction_unresolved
 end module ellroll_turns
