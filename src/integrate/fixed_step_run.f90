@@ -24,7 +24,8 @@ module ellroll_fixed_step_run
   implicit none
   private
 
-  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event, step_with_events, exact_end, choose_law
+  public :: fixed_step_loop, end_at_limit, fixed_step, step_through_event, step_with_events, exact_end, choose_law, &
+            older_checkpoint_step
 
   !> Each step of the method's own approach to a limit covers this part of
   !> what remains to the nearest offset known to meet it.

@@ -16,7 +16,7 @@ module ellroll_slide_regime
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction
+      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -31,7 +31,7 @@ module ellroll_slide_regime
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
             add_sliding, end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, &
-            add_sliding_peaks, step_screen_t
+            add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -613,4 +613,68 @@ contains
     res%status = crossed
     res%t_final = t + search%valid
   end subroutine end_at_limit
+
+  !> A fixed rolling step h from (t, now) to new whose ends both need less
+  !> friction than mu N: where the parabola through the friction needed at
+  !> t - h (friction_before), t and t + h peaks inside the step above mu,
+  !> the partial step to its vertex is taken, and where that needs more, it
+  !> is the step that crosses (new and piece replaced): the friction needed
+  !> can pass mu N and fall back between two step ends.
+  subroutine graze_inside(integrator, rolling, sb, t, h, friction_before, now, new, n_rhs, piece)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h, friction_before
+    type(regime_state_t), intent(in) :: now
+    type(regime_state_t), intent(inout) :: new
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(inout) :: piece
+    type(regime_state_t) :: x
+    real(wp) :: fa, fb, fc, curvature, vertex, peak
+    integer :: status
+    fa = friction_before
+    fb = now%obs%friction_needed
+    fc = new%obs%friction_needed
+    if (.not. (fa < sb%ball%mu .and. fb < sb%ball%mu .and. fc < sb%ball%mu)) return
+    curvature = fa - 2 * fb + fc
+    if (.not. curvature < 0) return
+    vertex = (fa - fc) / (2 * curvature)
+    if (.not. (vertex > 0 .and. vertex < 1)) return
+    peak = fb - (fa - fc)**2 / (8 * curvature)
+    if (.not. peak > sb%ball%mu) return
+    call take(integrator, rolling, sb, t, vertex * h, now, x, status, n_rhs)
+    if (status /= status_completed) return
+    if (.not. switch_crossed(sb, now, x)) return
+    new = x
+    piece = vertex * h
+  end subroutine graze_inside
+
+  !> The piece of the step to take from (t_at, now): all that remains, or,
+  !> where the slip's time scale (slip_stop_time) puts its stop inside
+  !> it, twice that time where the slip has stopped by then (the stop is
+  !> searched for inside that): past a stop the method's stages throw the
+  !> slip the other way, by the remaining time over the stop's, which
+  !> overflows for a stiff slip (a large mu, a small inertia factor). Where
+  !> the piece is that trial's (taken), new and status are its step.
+  subroutine stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs, piece, new, status, taken)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(inout) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t_at, remaining
+    type(regime_state_t), intent(in) :: now
+    integer(i8), intent(inout) :: n_rhs
+    real(wp), intent(out) :: piece
+    type(regime_state_t), intent(inout) :: new
+    integer, intent(inout) :: status
+    logical, intent(out) :: taken
+    real(wp) :: bracket
+    piece = remaining
+    taken = .false.
+    if (.not. now%sliding .or. sb%aligned) return     ! (aligned: the slip passes zero smoothly)
+    bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
+    if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
+    call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
+    taken = status == status_completed .and. switch_crossed(sb, now, new)
+    if (taken) piece = bracket
+  end subroutine stop_bracket
 end module ellroll_slide_regime

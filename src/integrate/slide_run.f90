@@ -14,23 +14,28 @@ module ellroll_slide_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: equals
-  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff, status_rim
+  use ellroll_status, only: status_pending, status_completed, status_slip, status_unstable, status_liftoff, status_rim, &
+      status_no_fit
+  use ellroll_errors, only: error_t
   use ellroll_events, only: root_search_t, max_event_trials
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t, add_switch, switch_to_sliding
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      slip_stop_time, center_velocity, choose_slip_law, set_reaction
+      center_velocity, choose_slip_law, set_reaction
   use ellroll_turns, only: direction_unresolved
-  use ellroll_integrators, only: integrator_t, embedded_pair_t
+  use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
+  use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
+  use ellroll_fixed_step_run, only: checkpoint_steps, older_checkpoint_step
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, add_sliding_peaks, step_screen_t
-  use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z
+      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, add_sliding_peaks, step_screen_t, &
+      graze_inside, stop_bracket
+  use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z, p_settle
   implicit none
   private
 
@@ -88,9 +93,7 @@ contains
     sb%ball = run%ball
     select type (integrator)
     class is (embedded_pair_t)
-      sb%align_atol = align_fraction * integrator%atol
-      sb%align_rtol = align_fraction * integrator%rtol
-      sb%stiff_allowance = 1 / align_fraction
+      call align_to(integrator, sb)
     end select
     now%y = y
     now%f = f
@@ -137,6 +140,15 @@ contains
     res%reals(fig_slip_speed_max) = tally%slip_speed_max
   end subroutine slide_loop
 
+  !> The aligned slip law's tolerances for the embedded pair's steps.
+  pure subroutine align_to(pair, sb)
+    class(embedded_pair_t), intent(in) :: pair
+    type(sliding_ball_t), intent(inout) :: sb
+    sb%align_atol = align_fraction * pair%atol
+    sb%align_rtol = align_fraction * pair%rtol
+    sb%stiff_allowance = 1 / align_fraction
+  end subroutine align_to
+
   !> The observation of a sliding state at its switch into sliding with
   !> friction mu N against the slip's direction the switch set (where the
   !> state's slip is round-off, the reaction would follow its direction).
@@ -162,11 +174,19 @@ contains
     integer(i8) :: k, n_steps, n_last, every, sample
     real(wp) :: t, t_stop, friction_before, friction_start
     logical :: ended
+    !> the states at the last two checkpoints (every checkpoint_steps steps),
+    !> and the switches made before each
+    type(regime_state_t) :: checkpoint, older_checkpoint
+    integer :: switches_at_checkpoint, switches_at_older
     n_steps = nint(cs%t_end / cs%param(p_dt), i8)
     n_last = last_fixed_step(cs, run)     ! past t_end (settle): on until the ball is at rest
     every = steps_per_sample(cs, plan)
     t = 0
     friction_before = huge(1.0_wp)        ! (unknown before the first step: no parabola)
+    checkpoint = now
+    older_checkpoint = now
+    switches_at_checkpoint = res%n_switches
+    switches_at_older = res%n_switches
     do k = 1, n_last
       if (stop_asked(k)) then
         res%status = status_pending
@@ -177,8 +197,19 @@ contains
                    friction_before=friction_before)
       friction_before = friction_start
       res%n_steps = k
-      if (ended) return
+      if (ended) then
+        if (res%status == status_no_fit .and. older_checkpoint%sliding .and. res%n_switches == switches_at_older) &
+          call end_on_exact_flow(cs, run, rolling, sb, older_checkpoint_step(k - 1) * cs%param(p_dt), older_checkpoint, &
+                                 t, every, tally, res)
+        return
+      end if
       t = k * cs%param(p_dt)
+      if (mod(k, checkpoint_steps) == 0) then
+        older_checkpoint = checkpoint
+        switches_at_older = switches_at_checkpoint
+        checkpoint = now
+        switches_at_checkpoint = res%n_switches
+      end if
       call track_balance(run, res, t, now, tally)
       sample = k / every + 1
       if (mod(k, every) == 0 .and. sample <= plan%n_samples) call record_regime_sample(res, sample, now)
@@ -188,6 +219,61 @@ contains
     end do
     res%t_final = t
   end subroutine fixed_slide
+
+  !> A fixed-step case that met the fit limit sliding (res%status no_fit at
+  !> res%t_final, in the step from t_last), sliding without a switch since
+  !> its older checkpoint (from, at t_from). Near the limit's square-root
+  !> singularity the method's own last steps meet it late (rk4 at dt =
+  !> 1e-3 s, 3e-5 s on a paper-cup case; the trajectory before them is
+  !> accurate to 4e-9 m), so the case ends where the exact flow from the
+  !> checkpoint meets it (the reference pair at its tolerances, as the
+  !> rolling regime's follow_flow_to_limit), where that flow slides all the
+  !> way to the fit limit within two steps after t_last. The sliding time
+  !> ends there with it, and samples after it are dropped (every: the steps
+  !> per sample); the summary keeps what the method's steps added.
+  subroutine end_on_exact_flow(cs, run, rolling, sb, t_from, from, t_last, every, tally, res)
+    type(case_t), intent(in) :: cs
+    type(run_state_t), intent(in) :: run, rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t_from, t_last
+    type(regime_state_t), intent(in) :: from
+    integer(i8), intent(in) :: every
+    type(slide_tally_t), intent(inout) :: tally
+    type(case_result_t), intent(inout) :: res
+    class(embedded_pair_t), allocatable :: pair
+    type(error_t) :: err
+    type(case_t) :: span
+    type(output_plan_t) :: no_samples
+    type(run_state_t) :: flow_run, flow_rolling
+    type(sliding_ball_t) :: flow_sb
+    type(regime_state_t) :: at
+    type(slide_tally_t) :: flow_tally
+    type(case_result_t) :: flow
+    real(wp) :: t, h
+    logical :: done
+    h = cs%param(p_dt)
+    call new_pair(reference_method, pair, err)      ! (a row of the method table: it cannot fail)
+    pair%rtol = reference_rtol
+    pair%atol = reference_atol
+    span = cs
+    span%t_end = min(t_last + 2 * h, max(cs%t_end, t_last + h))
+    span%param(p_settle) = 0
+    flow_run = run
+    flow_rolling = rolling
+    flow_sb = sb
+    call align_to(pair, flow_sb)
+    at = from
+    flow%status = status_completed
+    flow%reals = res%reals                ! (the figures the steps' tracking reads; the flow's own are thrown away)
+    flow%counts = res%counts
+    t = t_from
+    call sliding_piece(pair, span, no_samples, flow_run, flow_rolling, flow_sb, t, at, flow_tally, flow, done)
+    res%n_rhs = res%n_rhs + flow%n_rhs
+    if (.not. (done .and. flow%status == status_no_fit)) return
+    tally%sliding_time = tally%sliding_time + (flow%t_final - res%t_final)
+    if (flow%t_final < t_last) res%n_recorded = min(res%n_recorded, int(flow%t_final / h, i8) / every + 1)
+    res%t_final = flow%t_final
+  end subroutine end_on_exact_flow
 
   !> An embedded pair's case: its rolling pieces are the rolling path's own
   !> (adaptive_loop, which returns where the friction needed passes mu N,
@@ -462,41 +548,6 @@ contains
     ended = .true.
   end subroutine advance
 
-  !> A fixed rolling step h from (t, now) to new whose ends both need less
-  !> friction than mu N: where the parabola through the friction needed at
-  !> t - h (friction_before), t and t + h peaks inside the step above mu,
-  !> the partial step to its vertex is taken, and where that needs more, it
-  !> is the step that crosses (new and piece replaced): the friction needed
-  !> can pass mu N and fall back between two step ends.
-  subroutine graze_inside(integrator, rolling, sb, t, h, friction_before, now, new, n_rhs, piece)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h, friction_before
-    type(regime_state_t), intent(in) :: now
-    type(regime_state_t), intent(inout) :: new
-    integer(i8), intent(inout) :: n_rhs
-    real(wp), intent(inout) :: piece
-    type(regime_state_t) :: x
-    real(wp) :: fa, fb, fc, curvature, vertex, peak
-    integer :: status
-    fa = friction_before
-    fb = now%obs%friction_needed
-    fc = new%obs%friction_needed
-    if (.not. (fa < sb%ball%mu .and. fb < sb%ball%mu .and. fc < sb%ball%mu)) return
-    curvature = fa - 2 * fb + fc
-    if (.not. curvature < 0) return
-    vertex = (fa - fc) / (2 * curvature)
-    if (.not. (vertex > 0 .and. vertex < 1)) return
-    peak = fb - (fa - fc)**2 / (8 * curvature)
-    if (.not. peak > sb%ball%mu) return
-    call take(integrator, rolling, sb, t, vertex * h, now, x, status, n_rhs)
-    if (status /= status_completed) return
-    if (.not. switch_crossed(sb, now, x)) return
-    new = x
-    piece = vertex * h
-  end subroutine graze_inside
-
   !> Whether now slides with a slip within the pair's tolerance of zero,
   !> measured against the contact's speeds (|V_C| + R |omega|).
   logical function hovering_slip(pair, sb, now) result(hovering)
@@ -509,35 +560,6 @@ contains
     scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
     hovering = now%slip_speed <= 10 * (pair%atol + pair%rtol * scale)
   end function hovering_slip
-
-  !> The piece of the step to take from (t_at, now): all that remains, or,
-  !> where the slip's time scale (slip_stop_time) puts its stop inside
-  !> it, twice that time where the slip has stopped by then (the stop is
-  !> searched for inside that): past a stop the method's stages throw the
-  !> slip the other way, by the remaining time over the stop's, which
-  !> overflows for a stiff slip (a large mu, a small inertia factor). Where
-  !> the piece is that trial's (taken), new and status are its step.
-  subroutine stop_bracket(integrator, rolling, sb, t_at, remaining, now, n_rhs, piece, new, status, taken)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t_at, remaining
-    type(regime_state_t), intent(in) :: now
-    integer(i8), intent(inout) :: n_rhs
-    real(wp), intent(out) :: piece
-    type(regime_state_t), intent(inout) :: new
-    integer, intent(inout) :: status
-    logical, intent(out) :: taken
-    real(wp) :: bracket
-    piece = remaining
-    taken = .false.
-    if (.not. now%sliding .or. sb%aligned) return     ! (aligned: the slip passes zero smoothly)
-    bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
-    if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
-    call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
-    taken = status == status_completed .and. switch_crossed(sb, now, new)
-    if (taken) piece = bracket
-  end subroutine stop_bracket
 
   !> The step h from (t_at, now) to past crosses a switch: where (offset, by
   !> a root search on partial steps), the state there, and the regime that

@@ -1,0 +1,70 @@
+"""A ball that slides into the fit limit (where the cup's curvature radius
+falls to the ball's): near the limit's square-root singularity a fixed
+step's own last steps meet it late, far beyond its order (rk4 at dt =
+1e-3 s: 3e-5 s), so a fixed-step case ends where the exact flow from a
+checkpoint a few steps back meets it (docs/model.md, "Where a case ends").
+Seeded sliding starts in the paper's cup, fixed and shaken, with and
+without rolling resistance: rk4's end time against vern9 at rtol 1e-12,
+the sliding time equal to it, and no sample after it."""
+import h5py
+import numpy as np
+import pytest
+
+from conftest import run
+
+CUP = "&geometry a = 1.0, b = 0.4, c = 0.2 /\n"
+
+
+def start(rng):
+    """A sliding start near the cup's bottom, launched along the short axis
+    (towards the sheet's tight curvature), and its scene."""
+    x = float(rng.uniform(0.02, 0.08))
+    vx, vy = float(rng.uniform(0.1, 0.4)), float(rng.choice([-1, 1]) * rng.uniform(1.4, 1.8))
+    mu = float(rng.choice([0.03, 0.05, 0.08]))
+    resistance = float(rng.choice([0.0, 1e-3]))
+    shaken = bool(rng.random() < 0.5)
+    return x, vx, vy, mu, resistance, shaken
+
+
+def text(x, vx, vy, mu, resistance, shaken, integration):
+    # the tangent vz at (x, 0) on the paper cup: v . n = 0 with n along (x / a^2, 0, z / c^2)
+    z = -0.2 * np.sqrt(1 - x**2)
+    vz = float(-vx * (x / 1.0**2) / (z / 0.2**2))
+    lines = [CUP,
+             f"&ball radius = 0.2, mass = 1.0, mu = {mu!r}, slip = 'slide', rolling_resistance = {resistance!r} /\n",
+             f"&initial x = {x!r}, y = 0.0, omega = 0.0, 0.0, 0.0, velocity = {vx!r}, {vy!r}, {vz!r} /\n",
+             f"&integration {integration}, t_end = 1.0 /\n",
+             "&output file = 'out.h5', interval = 0.01 /\n"]
+    if shaken:
+        lines.append("&excitation kind = 'harmonic', amplitude = 2.0, 1.0, 0.0, frequency = 1.5 /\n")
+    return "".join(lines)
+
+
+def summary(ellroll, folder, name, nml):
+    (folder / f"{name}.nml").write_text(nml.replace("'out.h5'", f"'{name}.h5'"))
+    result = run(ellroll, "run", f"{name}.nml", "-q", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(folder / f"{name}.h5", "r") as f:
+        figures = {key: f["summary"][key][0] for key in ("status", "t_final", "sliding_time", "slip_episodes")}
+        figures["time"] = f["trajectory/time"][:]
+        figures["center"] = f["trajectory/center"][0]
+    return figures
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_fixed_step_ends_a_slide_into_the_fit_limit_where_the_exact_flow_does(ellroll, tmp_path, seed):
+    rng = np.random.default_rng(4500 + seed)
+    scene = start(rng)
+    reference = summary(ellroll, tmp_path, "vern9", text(*scene, "method = 'vern9', rtol = 1e-12"))
+    label = f"seed {seed}: {scene}"
+    # every seeded start slides into the fit limit in one episode
+    assert reference["status"] == 3 and reference["slip_episodes"] == 1, label
+    assert reference["sliding_time"] == pytest.approx(reference["t_final"], abs=1e-12), label
+    for dt in (1e-3, 2.5e-4):
+        rk4 = summary(ellroll, tmp_path, f"rk4_{dt}", text(*scene, f"method = 'rk4', dt = {dt}"))
+        assert rk4["status"] == 3, (label, dt)
+        assert abs(rk4["t_final"] - reference["t_final"]) < 2e-9, (label, dt, rk4["t_final"], reference["t_final"])
+        assert rk4["sliding_time"] == pytest.approx(rk4["t_final"], abs=1e-12), (label, dt)
+        inside = rk4["time"] <= rk4["t_final"]
+        assert np.all(np.isfinite(rk4["center"][inside])), (label, dt)
+        assert np.all(np.isnan(rk4["center"][~inside])), (label, dt)
