@@ -6,7 +6,9 @@ module ellroll_hdf5_reader
   use hdf5
   use h5lt
   use h5ds
+  use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
+  use ellroll_strings, only: itoa
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
@@ -266,7 +268,8 @@ contains
     character(len=*), intent(in) :: name
     type(error_t), intent(inout) :: err
     real(wp), allocatable, target :: values(:)
-    allocate (values(self%dataset_length(name)))
+    allocate (values(column_rows(self, name, err)))
+    values = ieee_value(0.0_wp, ieee_quiet_nan)
     call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8], [size(values, kind=i8)], err)
   end function real_column
 
@@ -277,7 +280,8 @@ contains
     integer, intent(in) :: ncomp
     type(error_t), intent(inout) :: err
     real(wp), allocatable, target :: values(:, :)
-    allocate (values(ncomp, self%dataset_length(name)))
+    allocate (values(ncomp, column_rows(self, name, err)))
+    values = ieee_value(0.0_wp, ieee_quiet_nan)
     call self%read_slab(name, H5T_NATIVE_DOUBLE, c_loc(values), [0_i8, 0_i8], &
                         [int(ncomp, i8), size(values, 2, kind=i8)], err)
   end function real_rows
@@ -293,7 +297,8 @@ contains
     character(kind=c_char), pointer :: chars(:)
     integer(hid_t) :: text_type
     integer :: hdferr, k, n
-    allocate (values(self%dataset_length(name)), pointers(self%dataset_length(name)))
+    allocate (values(column_rows(self, name, err)))
+    allocate (pointers(size(values)))
     values = ''
     text_type = new_text_type()
     call self%read_slab(name, text_type, c_loc(pointers), [0_i8], [size(values, kind=i8)], err)
@@ -313,10 +318,30 @@ contains
     character(len=*), intent(in) :: name
     type(error_t), intent(inout) :: err
     integer(i8), allocatable, target :: values(:)
-    allocate (values(self%dataset_length(name)))
+    allocate (values(column_rows(self, name, err)))
+    values = 0
     call self%read_slab(name, h5kind_to_type(i8, H5_INTEGER_KIND), c_loc(values), [0_i8], &
                         [size(values, kind=i8)], err)
   end function int_column
+
+  !> The rows to read of dataset `name`: its length along the case
+  !> dimension. A table of one row per case (under summary/, case/ or
+  !> limit_state/) that holds another number of rows than /summary/status
+  !> (n_cases) is a file changed by another program: err says so, naming
+  !> it, and the rows are n_cases, none read (so that no caller reads or
+  !> writes past the rows it expects).
+  integer(i8) function column_rows(self, name, err) result(rows)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    type(error_t), intent(inout) :: err
+    rows = self%dataset_length(name)
+    if (rows == self%n_cases) return
+    if (index(name, 'summary/') /= 1 .and. index(name, 'case/') /= 1 .and. index(name, 'limit_state/') /= 1) return
+    if (.not. err%failed()) call set_error(err, err_input, self%path // ': not laid out as ellroll writes its ' // &
+        'files (/' // name // ' holds ' // itoa(rows) // ' rows, /summary/status ' // itoa(self%n_cases) // &
+        '; changed by another program?)')
+    rows = self%n_cases
+  end function column_rows
 
   !> Everything stored about the case in slot `slot` (0-based): its status,
   !> summary and the trajectories present in the file.
