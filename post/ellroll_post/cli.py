@@ -282,10 +282,12 @@ def _main(argv=None):
         if args.percentiles is not None and not args.suite:
             parser.error("argument --percentiles: only with --suite (the percentiles of a record suite's stripes)")
         args.percentiles = args.percentiles or "linear"
+    out_option = "--out"
     if args.command == "report" and args.out == ".":
         # FILE_report beside FILE ("." or "/" have no name: open_run refuses them, a folder)
         name = pathlib.Path(args.file)
         args.out = str(name.with_suffix("") if name.name else name) + "_report"
+        out_option = "report folder"
 
     import matplotlib
     matplotlib.use("Agg")
@@ -347,7 +349,8 @@ def _main(argv=None):
             save_figure(fig, written[0], args.overwrite, args.format)
         else:
             with open_run(args.file) as run:
-                output_folder(out, make=args.command != "report")   # (once the file opened: no folder for a bad one)
+                # (once the file opened: no folder for a bad one)
+                output_folder(out, out_option, make=args.command != "report", own=args.command == "report")
                 if args.command == "report" or args.command in plots.FIELD_NEEDS:
                     args.case = run.case_index(args.case)       # the global index held (None: the file's first)
                 if args.command == "report":

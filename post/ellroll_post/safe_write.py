@@ -53,12 +53,16 @@ def check_target(path, overwrite):
                            "even with --overwrite")
 
 
-def output_folder(folder, option="--out", make=True):
+def output_folder(folder, option="--out", make=True, own=False):
     """The folder the outputs go in: an existing one, or one made here whose
     parent exists (only the last level: a mistyped path is not made from
     the root down; make=False: only checked, made by its writer). OutputExists
-    where a file (not a folder) is there or the parent is missing."""
+    where a file (not a folder) is there or the parent is missing, and, for a
+    folder that is itself the output (own: a report's), where a symbolic link
+    is there: it would write into a folder ellroll-plot did not make."""
     folder = pathlib.Path(folder)
+    if own and folder.is_symlink():
+        raise OutputExists(f"{option} {folder} is a symbolic link; ellroll-plot never writes a report through one")
     if folder.is_dir():
         return folder
     if folder.exists() or folder.is_symlink():

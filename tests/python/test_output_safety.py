@@ -172,6 +172,31 @@ def test_ellroll_plot_never_writes_a_file_it_did_not_make(plotted, command):
         assert contents(folder) == before, f"{kind}: a file was replaced or left behind"
 
 
+@pytest.mark.parametrize("given", [False, True], ids=["default_folder", "out_option"])
+@pytest.mark.parametrize("target", ["folder", "dangling"])
+def test_a_report_is_never_written_through_a_link_at_its_folder(plotted, tmp_path, target, given):
+    """The report's folder (FILE_report, or --out) is the report itself: a
+    symbolic link there would put it among another folder's files."""
+    elsewhere = tmp_path / "someone_elses"
+    if target == "folder":
+        elsewhere.mkdir()
+        (elsewhere / "notes.txt").write_text("precious\n")
+    name = "given_report" if given else "out_report"
+    link = plotted / name
+    link.unlink(missing_ok=True)
+    link.symlink_to(elsewhere)
+    try:
+        code, _, err = plot(plotted, "report", "out.h5", *(["--out", name] if given else []))
+    finally:
+        link.unlink()
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert f"{name} is a symbolic link; ellroll-plot never writes a report through one" in lines[0], err
+    assert ("--out" in lines[0]) == given, err
+    if target == "folder":
+        assert sorted(p.name for p in elsewhere.iterdir()) == ["notes.txt"]
+
+
 def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):
     code, _, err = plot(plotted, "workprecision", "out.h5", "--out", "figures_wp")
     assert code == 2 and "no error figures" in err
