@@ -9,7 +9,7 @@ module ellroll_cli
   use ellroll_system, only: utc_timestamp
   use ellroll_version, only: version_string, build_string
   use ellroll_suggest, only: did_you_mean
-  use ellroll_files, only: work_suffix
+  use ellroll_files, only: work_suffix, path_length
   use ellroll_threads, only: threads_per_processor
   implicit none
   private
@@ -35,7 +35,7 @@ module ellroll_cli
     character(len=5) :: summary_format = 'table'          !< ellroll summary --format: table, csv or json
     logical :: suite = .false.                            !< ellroll summary --suite: the statistics per stripe
     character(len=8) :: help_topic = ''                   !< ellroll COMMAND --help: that command's help
-    character(len=1024), allocatable :: paths(:)          !< the files after the command
+    character(len=path_length), allocatable :: paths(:)   !< the files after the command
     type(run_options_t) :: opts
   end type cli_t
 
@@ -97,7 +97,12 @@ contains
           call usage_error(err, "unknown command '" // arg // "'" // hint)
           return
         end if
-        cli%paths = [character(len=1024) :: cli%paths, arg]
+        if (len(arg) > path_length) then
+          call usage_error(err, 'a path of ' // itoa(len(arg)) // ' characters (' // arg(:40) // '...); at most ' // &
+                           itoa(path_length) // ' (the system''s limit)')
+          return
+        end if
+        cli%paths = [character(len=path_length) :: cli%paths, arg]
       end select
       k = k + 1
     end do

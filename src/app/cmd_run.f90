@@ -13,7 +13,7 @@ module ellroll_cmd_run
   use ellroll_output_files, only: output_files_t, check_replace, work_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
   use ellroll_merge, only: merge_shards
-  use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size
+  use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size, path_length
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: format_real
   use ellroll_hdf5_reader, only: h5_input_t
@@ -197,7 +197,7 @@ contains
     type(error_t), intent(inout) :: err
     type(output_files_t) :: files
     character(len=:), allocatable :: target
-    character(len=1024), allocatable :: shard_files(:)
+    character(len=path_length), allocatable :: shard_files(:)
     integer :: r
     logical :: shard_done, complete, all_ok, to_run
     if (opts%shard(2) > 1) then
@@ -286,7 +286,8 @@ contains
     integer :: k
     any_rank_file = .false.
     do k = 1, size(suffixes)
-      if (path_kind(target // '.rank' // itoa(r) // '.h5' // trim(suffixes(k))) /= kind_missing) &
+      ! (a name the system cannot look at, one too long for it, holds no file)
+      if (path_kind(target // '.rank' // itoa(r) // '.h5' // trim(suffixes(k))) > kind_missing) &
         any_rank_file = .true.
     end do
   end function any_rank_file

@@ -10,7 +10,11 @@ module ellroll_files
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
             host_name, process_id
-  public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other
+  public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
+
+  !> The longest path a command takes (Linux's PATH_MAX): the files of its
+  !> command line and the record files resolved against the input's folder.
+  integer, parameter :: path_length = 4096
 
   !> What path_kind finds at a name (a link is not followed).
   integer, parameter :: kind_missing = 0, kind_regular = 1, kind_link = 2, kind_folder = 3, kind_other = 4

@@ -15,7 +15,7 @@ module ellroll_case_input
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
   use ellroll_suggest, only: did_you_mean
-  use ellroll_files, only: work_suffix
+  use ellroll_files, only: work_suffix, path_length
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
   use ellroll_applies, only: excitation_inputs, kind_of_input
@@ -230,9 +230,9 @@ contains
     logical, intent(in) :: suite            !< &record groups give the records
     type(case_t), intent(inout) :: cs
     character(len=:), allocatable, intent(inout) :: files_note   !< the record's files (note_files)
-    integer :: gi, p, k
+    integer :: gi, p
     character(len=:), allocatable :: reason
-    character(len=1024), allocatable :: paths(:)
+    character(len=path_length), allocatable :: paths(:)
     character(len=40), allocatable :: fingerprints(:)
     real(wp), allocatable :: times(:), values(:, :)
     gi = rd%group('excitation', .false.)
@@ -275,8 +275,7 @@ contains
         call rd%fail_value(gi, 'record_file', reason)
         return
       end if
-      call note_files([character(len=1024) :: (adjustl(v%record_file(k)), k = 1, size(paths))], fingerprints, &
-                      files_note)
+      call note_files(adjustl(v%record_file(:size(paths))), fingerprints, files_note)
       call set_record(cs%excitation, times, values)
     case default
       call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")

@@ -4,6 +4,7 @@ module ellroll_suite_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp
   use ellroll_strings, only: itoa, format_real
+  use ellroll_files, only: path_length
   use ellroll_cases, only: case_t
   use ellroll_campaign, only: suite_record_t, use_record
   use ellroll_excitation, only: set_record
@@ -19,8 +20,8 @@ module ellroll_suite_input
     integer :: group = 0
     character(len=32) :: name = ''
     real(wp) :: factor = 1
-    character(len=1024), allocatable :: files(:)       !< as resolved against the input's folder
-    character(len=1024), allocatable :: names(:)       !< as the input gives them
+    character(len=path_length), allocatable :: files(:)  !< as resolved against the input's folder
+    character(len=path_length), allocatable :: names(:)  !< as the input gives them
   end type record_spec_t
 
   !> Largest factor of a record (as the scale of &excitation).
@@ -47,7 +48,7 @@ contains
       end if
     end do
     if (.not. record_files(rd, gi, v%record_file, spec%files)) return
-    spec%names = [character(len=1024) :: (adjustl(v%record_file(k)), k = 1, size(spec%files))]
+    spec%names = adjustl(v%record_file(:size(spec%files)))
     if (.not. (ieee_is_finite(v%factor) .and. v%factor >= 0 .and. v%factor <= max_factor)) then
       call rd%fail_value(gi, 'factor', 'must be between 0 and ' // format_real(max_factor))
       return
@@ -65,7 +66,8 @@ contains
     type(reader_t), intent(inout) :: rd
     integer, intent(in) :: gi
     character(len=*), intent(in) :: names(:)
-    character(len=1024), allocatable, intent(out) :: paths(:)
+    character(len=path_length), allocatable, intent(out) :: paths(:)
+    character(len=:), allocatable :: resolved
     integer :: n, k
     ok = .false.
     n = count(len_trim(names) > 0)
@@ -80,7 +82,13 @@ contains
     end if
     allocate (paths(n))
     do k = 1, n
-      paths(k) = resolve_path(trim(adjustl(names(k))), rd%file%path)
+      resolved = resolve_path(trim(adjustl(names(k))), rd%file%path)
+      if (len(resolved) > path_length) then
+        call rd%fail_value(gi, 'record_file', 'resolved against the input''s folder, a path of ' // &
+                           itoa(len(resolved)) // ' characters; at most ' // itoa(path_length))
+        return
+      end if
+      paths(k) = resolved
     end do
     ok = .true.
   end function record_files

@@ -1,0 +1,50 @@
+"""Paths as long as the system allows: an input deep in folders (its path
+past 1024 characters, each name within 255) is read whole, with a record
+file beside it; a path past the system's 4096 is refused in one line; an
+output name whose work files of other runs could not be named (240
+characters: OUT.h5.rank1.h5.partial passes 255) runs as any other."""
+import os
+
+import h5py
+
+from conftest import ROOT, run
+from test_campaign import write
+
+RECORD = ROOT / "input" / "records" / "SYN1_H1.AT2"
+
+
+def deep_folder(base, length):
+    folder = base
+    while len(str(folder)) < length:
+        folder = folder / ("d" * 200)
+    folder.mkdir(parents=True)
+    return folder
+
+
+def test_an_input_past_1024_characters_is_read_whole(ellroll, tmp_path):
+    folder = deep_folder(tmp_path, 1500)
+    (folder / "SYN1_H1.AT2").write_bytes(RECORD.read_bytes())
+    name = write(folder, "&excitation kind = 'record', record_file = 'SYN1_H1.AT2', 'SYN1_H1.AT2' /\n", t_end=0.1)
+    path = folder / name
+    assert len(str(path)) > 1500
+    for command in (["check"], ["run", "-q"]):
+        result = run(ellroll, *command, str(path), "-o", str(tmp_path / "out.h5"), cwd=tmp_path)
+        assert result.returncode == 0, (command, result.stderr[-300:])
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert f["summary/status"][0] == 1
+
+
+def test_a_path_past_the_system_s_limit_is_refused(ellroll, tmp_path):
+    path = "/".join(["x" * 200] * 25)               # 5024 characters
+    result = run(ellroll, "check", path, cwd=tmp_path)
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1, result.stderr[-300:]
+    assert "a path of 5024 characters" in lines[0] and "at most 4096" in lines[0]
+
+
+def test_an_output_name_too_long_for_other_runs_work_files_runs(ellroll, tmp_path):
+    name = write(tmp_path, "", t_end=0.1)
+    output = "n" * 237 + ".h5"
+    result = run(ellroll, "run", name, "-q", "-o", output, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(os.listdir(tmp_path)) == sorted([name, output])
