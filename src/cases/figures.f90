@@ -61,8 +61,8 @@ module ellroll_figures
                from_run), &
       figure_t('reaction_normal_max', 'N', 'largest normal force over all steps', kind_real, 1, from_maximum, &
                q_reaction_normal), &
-      figure_t('friction_needed_max', '1', 'largest |F_t|/N over all steps', kind_real, 1, from_maximum, &
-               q_friction_needed), &
+      figure_t('friction_needed_max', '1', 'largest |F_t|/N over all steps (NaN: N = 0 at the start)', kind_real, 1, &
+               from_maximum, q_friction_needed), &
       figure_t('energy_drift', '1', 'max |E - E0 + W| / |E0| over the step ends, W the works of ' // &
                'friction and rolling resistance so far', kind_real, 1, from_maximum, q_energy, &
                finish_per_start), &
@@ -78,7 +78,8 @@ module ellroll_figures
       figure_t('n_rhs_reference', '1', 'right-hand side evaluations of the reference run (-1: none)', kind_int, 1, &
                from_run), &
       figure_t('linear_periods', 's', &
-               'small-oscillation periods about the bottom spinning at omega0 . n0 (linearised)', kind_real, 2, &
+               'small-oscillation periods about the bottom of the cup at rest, spinning at omega0 . n0 (linearised)', &
+               kind_real, 2, &
                from_run), &
       figure_t('displacement_max', 'm', &
                "largest horizontal distance of the centre from the cup's lowest point (cup frame; dop853/vern9: inside steps)", &

@@ -7,7 +7,7 @@ module ellroll_running
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_norms, only: from_mass_units
-  use ellroll_quantities, only: quantities, quantity_count, q_fit_clearance
+  use ellroll_quantities, only: quantities, quantity_count, q_fit_clearance, q_friction_needed
   use ellroll_limit_states, only: is_model_limit
   use ellroll_figures, only: figure_t, figures, figure_count, timed, lasting, beyond, from_counter, &
       from_run, from_maximum, from_maximum_time, from_last, from_time_beyond, finish_none, finish_force, &
@@ -328,6 +328,11 @@ contains
       end select
       select case (f%finish)
       case (finish_none)
+        ! the friction ratio where N is not positive (a start that lifts off
+        ! at once, without gravity) is huge, as the slip check takes it: undefined
+        if (f%quantity == q_friction_needed .and. .not. ieee_is_nan(value)) then
+          if (value >= huge(value)) value = ieee_value(value, ieee_quiet_nan)
+        end if
       case (finish_force)
         value = from_mass_units(value, mass)
       case (finish_per_mass)

@@ -11,6 +11,7 @@ module ellroll_linear
   use ellroll_lapack, only: dgeev
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, smooth_part
   use ellroll_ellipsoid, only: bottom_radii
+  use ellroll_excitation, only: excitation_none
   implicit none
   private
 
@@ -93,9 +94,10 @@ contains
     fits_at_bottom = all(bottom_radii(ball%cup) > ball%radius)
   end function fits_at_bottom
 
-  !> The two small-oscillation periods (longer first) about the bottom,
-  !> spinning at sigma; NaN for a mode that does not oscillate, and both NaN
-  !> where the ball cannot sit at the bottom (fits_at_bottom).
+  !> The two small-oscillation periods (longer first) about the bottom of
+  !> the cup at rest, spinning at sigma; NaN for a mode that does not
+  !> oscillate, and both NaN where the ball cannot sit at the bottom
+  !> (fits_at_bottom).
   !> Why 2x2: the cup's mirror x -> -x followed by time reversal maps
   !> (n1, n2, w1, w2) to (-n1, n2, -w1, w2) and keeps the equilibrium, so the
   !> Jacobian J anticommutes with that involution: (n1, w1)' depends on
@@ -114,13 +116,18 @@ contains
     real(wp) :: jac(state_size, state_size), squared(2, 2), half_trace, discriminant, frequencies(2)
     real(wp) :: axis_ratios(2)
     complex(wp) :: mu(2)
+    type(rolling_ball_t) :: at_rest
     periods = ieee_value(0.0_wp, ieee_quiet_nan)
     if (.not. fits_at_bottom(ball)) return
+    ! the isolator's own modes: its cup at rest (a moving cup's vertical
+    ! acceleration at t = 0 would stand in for a part of g)
+    at_rest = ball
+    at_rest%excitation%kind = excitation_none
     ! n_1 and n_2 bend the contact point over c/a and c/b (s = sqrt(c^2 + a^2
     ! n_1^2) about the bottom): a step of eps^(1/3) on a narrow cup leaves
     ! (a/c)^2 eps^(2/3) (9e-8 at a/c = 50)
     axis_ratios = min(1.0_wp, ball%cup%c * ball%cup%inv_axes(1:2))
-    jac = jacobian(ball, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma], &
+    jac = jacobian(at_rest, [0.0_wp, 0.0_wp, 1.0_wp, 0.0_wp, 0.0_wp, sigma], &
                    lengths=[axis_ratios(1), axis_ratios(2), 1.0_wp, 1.0_wp, 1.0_wp, 1.0_wp])
     squared = matmul(jac(odd, even), jac(even, odd))
     half_trace = (squared(1, 1) + squared(2, 2)) / 2
@@ -140,6 +147,9 @@ contains
     ! pure oscillation; a complex pair (flutter) grows while it oscillates
     frequencies = abs(aimag(sqrt(mu)))
     if (.not. all(ieee_is_finite(frequencies))) return
+    ! nothing restores the ball without g: the slower mode's frequency is
+    ! zero (det BC = 0), whatever round-off leaves of it
+    if (.not. ball%g > 0) frequencies(minloc(frequencies, dim=1)) = 0
     where (frequencies > 1.0e-9_wp * maxval(frequencies)) periods = two_pi / frequencies
     ! NaN is tested first: an ordered comparison with it traps where invalid traps
     if (ieee_is_nan(periods(1))) then

@@ -289,7 +289,9 @@ def test_linear_periods_match_the_closed_form_as_docs_accuracy_states(ellroll, t
     """docs/accuracy.md: linear_periods within 1e-9 of the modes' closed form
     for spins up to 1e5 rad/s, narrow cups (c down to a / 100) included: the
     narrow cup of a = 1, b = 0.4, c = 0.02 at spin 0 to 1e5 rad/s, and 200
-    seeded cups, balls, inertia factors, g and spins (log-uniform to 1e5)."""
+    seeded cups, balls, inertia factors, g and spins (log-uniform to 1e5);
+    60 more in a cup shaken up and down from t = 0 at seeded phases (its
+    modes are the cup's at rest)."""
     narrow = ("&geometry a = 1.0, b = 0.4, c = 0.02 /\n&ball radius = 0.2, weight = 100.0 /\n"
               "&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /\n"
               "&integration method = 'rk4', dt = 1e-3, t_end = 0.01 /\n"
@@ -303,8 +305,14 @@ def test_linear_periods_match_the_closed_form_as_docs_accuracy_states(ellroll, t
                         "&sample name = 'inertia_factor', low = 0.001, high = 0.6666 /\n"
                         "&sample name = 'g', low = 0.1, high = 30 /\n")
     swept = narrow + "&sweep name = 'omega_z', values = 0.0, 40.0, 300.0, 1000.0, 1e4, 1e5 /\n"
+    # the modes of the isolator (its cup at rest): a cup shaken up and down
+    # from t = 0 leaves them as they are, whatever its acceleration there
+    shaken = sampled.replace("samples = 200, seed = 11", "samples = 60, seed = 12") + (
+        "&excitation kind = 'harmonic', amplitude = 0.5, 0.2, 3.0, frequency = 0.7 /\n"
+        "&sample name = 'excitation_amplitude_z', low = -8, high = 8 /\n"
+        "&sample name = 'excitation_phase', low = -3.2, high = 3.2 /\n")
     worst = 0.0
-    for text in (swept, sampled):
+    for text in (swept, sampled, shaken):
         with run_text(ellroll, tmp_path, text) as f:
             case, periods, status = f["case"], f["summary/linear_periods"][:], f["summary/status"][:]
             checked = 0
