@@ -29,7 +29,8 @@ module ellroll_figures
       from_maximum_time = 4, & !< the time of that largest value
       from_last = 5, &         !< the quantity at the last step end
       from_time_beyond = 6     !< the time it exceeds the input `threshold`, crossings
-                               !< located by linear interpolation between step ends (NaN where the input is unset)
+                               !< located by linear interpolation between step ends, or the pairs' dense output
+                               !< (NaN where the input is unset)
   !> What is done to the accumulated value at the end of the case.
   integer, parameter, public :: finish_none = 0, &
       finish_force = 1, &         !< times 2^exponent(m), m the ball's mass: a force in units of it in N

@@ -23,8 +23,10 @@ module ellroll_adaptive_run
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
   use ellroll_step_works, only: step_works
+  use ellroll_quantities, only: q_displacement
+  use ellroll_running, only: unset
   use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks, may_peak_inside, &
-      peak_quantities, dense_observation, peak_count, peak_values
+      peak_quantities, dense_observation, peak_count, peak_values, time_beyond_inside
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -140,7 +142,7 @@ contains
       y = y_new
       f = f_new
       res%n_steps = res%n_steps + 1
-      call track_step_end(run, res, t, obs)
+      call track_accepted_end(pair, run, res, t, obs)
       call control%accept(h, pair%error_norm, h_max)
       if (t_stop > cs%t_end) then
         if (settled(run, t)) then
@@ -175,6 +177,30 @@ contains
   !> step control to shrink around. A rolling that turned there at a rate
   !> the couple takes a tenth of the step or more to stop (turn_resolved)
   !> goes on from there along its new direction.
+  !> What the accepted step of the pair to t (its end's observation obs)
+  !> adds to the summary (track_step_end), its time beyond the capacity
+  !> taken on its dense output (time_beyond_inside), where one is set.
+  subroutine track_accepted_end(pair, run, res, t, obs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    real(wp) :: before, r_start, inside
+    associate (stats => run%stats, q => q_displacement)
+      if (.not. stats%threshold(1, q) < unset) then
+        call track_step_end(run, res, t, obs)
+        return
+      end if
+      before = stats%time_beyond(1, q)
+      r_start = stats%value_before(1, q)
+      call track_step_end(run, res, t, obs)
+      call time_beyond_inside(pair, run%ball, stats%threshold(1, q), r_start, stats%value_before(1, q), inside, &
+                              res%n_rhs)
+      stats%time_beyond(1, q) = before + inside
+    end associate
+  end subroutine track_accepted_end
+
   subroutine attempt_step(pair, control, run, t, y, f, h, y_new, f_new, obs, status, res)
     class(embedded_pair_t), intent(inout) :: pair
     type(step_control_t), intent(inout) :: control

@@ -17,7 +17,8 @@ module ellroll_running
   implicit none
   private
 
-  public :: running_t, running_lanes_t, start_running, add_step_ends, add_inside, get_lane, put_lane, finish_running
+  public :: running_t, running_lanes_t, start_running, add_step_ends, add_inside, get_lane, put_lane, finish_running, &
+            unset
 
   !> One case's running statistics, per quantity: its value at t = 0, its
   !> largest value (its change's, for a changing quantity; every quantity is
