@@ -4,6 +4,7 @@
 module ellroll_campaign_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
+  use ellroll_exact, only: equals
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, invalid_stop, &
       invalid_skip
@@ -72,6 +73,11 @@ contains
         call rd%fail_value(gi, 'count', 'must be between 1 and ' // itoa(max_values * 1000))
         return
       end if
+      if (v%count == 1 .and. .not. equals(v%start, v%stop)) then
+        call rd%fail_value(gi, 'count', 'one value cannot run from start to stop (' // format_real(v%start) // &
+                           ' to ' // format_real(v%stop) // '): give count >= 2, or stop = start')
+        return
+      end if
       select case (lower(v%spacing))
       case ('linear')
         sw%values = [(v%start + (v%stop - v%start) * real(k, wp) / max(1, v%count - 1), k = 0, v%count - 1)]
@@ -81,17 +87,21 @@ contains
           return
         end if
         allocate (sw%values(v%count))
-        ! the scalar pow in every build: libmvec's vector pow can differ in the
-        ! last bit, and a value must not depend on the compiler's choice
+        ! evenly spaced exponents of ten, so that decades are exact (0.01, 0.1,
+        ! 1, 10: log10 and 10** are exact there); the scalar pow in every
+        ! build: libmvec's vector pow can differ in the last bit, and a value
+        ! must not depend on the compiler's choice
         !GCC$ novector
         do k = 0, v%count - 1
-          sw%values(k + 1) = v%start * (v%stop / v%start)**(real(k, wp) / max(1, v%count - 1))
+          sw%values(k + 1) = 10.0_wp**(log10(v%start) + (log10(v%stop) - log10(v%start)) * real(k, wp) &
+                                       / max(1, v%count - 1))
         end do
       case default
         call rd%fail_value(gi, 'spacing', "must be 'linear' or 'log'")
         return
       end select
-      if (v%count > 1) sw%values(v%count) = v%stop        ! exactly the end the user wrote
+      sw%values(1) = v%start                               ! exactly the ends the user wrote
+      if (v%count > 1) sw%values(v%count) = v%stop
     end if
     sweeps = [sweeps, sw]
   end subroutine add_sweep

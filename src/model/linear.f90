@@ -12,6 +12,7 @@ module ellroll_linear
   use ellroll_rolling_ball, only: rolling_ball_t, state_size, smooth_part
   use ellroll_ellipsoid, only: bottom_radii
   use ellroll_excitation, only: excitation_none
+  use ellroll_exact, only: is_zero
   implicit none
   private
 
@@ -119,6 +120,13 @@ contains
     type(rolling_ball_t) :: at_rest
     periods = ieee_value(0.0_wp, ieee_quiet_nan)
     if (.not. fits_at_bottom(ball)) return
+    if (is_zero(sigma)) then
+      ! the no-spin pair in closed form: the quadratic's double root of a
+      ! round cup (a = b) would keep half its digits (2e-9)
+      periods = no_spin_periods(ball)
+      if (.not. ieee_is_nan(periods(1))) periods = [maxval(periods), minval(periods)]
+      return
+    end if
     ! the isolator's own modes: its cup at rest (a moving cup's vertical
     ! acceleration at t = 0 would stand in for a part of g)
     at_rest = ball
@@ -131,7 +139,9 @@ contains
                    lengths=[axis_ratios(1), axis_ratios(2), 1.0_wp, 1.0_wp, 1.0_wp, 1.0_wp])
     squared = matmul(jac(odd, even), jac(even, odd))
     half_trace = (squared(1, 1) + squared(2, 2)) / 2
-    discriminant = half_trace**2 - (squared(1, 1) * squared(2, 2) - squared(1, 2) * squared(2, 1))
+    ! (tr/2)^2 - det as ((a - d)/2)^2 + b c: no cancellation where the two
+    ! no-spin frequencies nearly agree (a round cup at a small spin)
+    discriminant = ((squared(1, 1) - squared(2, 2)) / 2)**2 + squared(1, 2) * squared(2, 1)
     if (stable_gyroscopic(sigma, ball%g, half_trace, discriminant)) then
       ! the fast root by the quadratic, the slow from the product (no round-off
       ! floor below: it is as exact as the fast one)

@@ -53,6 +53,17 @@ def assert_same_datasets(a, b):
             assert da[name].tobytes() == db[name].tobytes(), f"{name} differs"
 
 
+@pytest.mark.parametrize("start, stop, count, expected", [
+    (0.01, 10.0, 4, [0.01, 0.1, 1.0, 10.0]), (0.001, 100.0, 6, [0.001, 0.01, 0.1, 1.0, 10.0, 100.0]),
+    (10.0, 1e4, 7, [10.0, 10**1.5, 100.0, 10**2.5, 1000.0, 10**3.5, 1e4])])
+def test_a_log_sweep_over_decades_gives_them_exactly(ellroll, tmp_path, start, stop, count, expected):
+    name = write(tmp_path, f"&sweep name = 'omega_z', start = {start!r}, stop = {stop!r}, count = {count}, "
+                 "spacing = 'log' /\n", t_end=0.01)
+    assert run(ellroll, "run", name, "-q", cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert list(f["case/omega"][:, 2]) == expected
+
+
 def test_grid_expansion_order_and_spacing(ellroll, tmp_path):
     name = write(tmp_path, SPIN_RADIUS + "&sweep name = 'mass', start = 1, stop = 100, count = 3, spacing = 'log' /\n"
                  .replace("mass", "weight").replace("start = 1, stop = 100", "start = 100, stop = 10000"))
@@ -66,7 +77,7 @@ def test_grid_expansion_order_and_spacing(ellroll, tmp_path):
         # the first sweep varies slowest, the last fastest
         np.testing.assert_array_equal(spin, np.repeat([5, 10, 20, 40, 80], 12))
         np.testing.assert_allclose(radius, np.tile(np.repeat([0.05, 0.1, 0.15, 0.2], 3), 5), rtol=1e-15)
-        np.testing.assert_allclose(weight, np.tile([100, 1000, 10000], 20), rtol=1e-14)
+        np.testing.assert_array_equal(weight, np.tile([100, 1000, 10000], 20))     # decades exactly
         assert f.attrs["n_cases_total"] == 60 and f.attrs["shard"] == "0/1"
         assert np.all(f["summary/status"][:] == 1)
 
@@ -611,6 +622,7 @@ def test_a_sweep_with_an_invalid_step_is_advised_and_skipped_under_fp_traps(ellr
     ("&sweep name = 'radius', values = 0.1, start = 0.1, stop = 0.2, count = 2 /\n", "give either values"),
     ("&sweep name = 'omega_z', values = 1, 2 /\n&sweep name = 'omega_z', values = 3 /\n", "already varied"),
     ("&sweep name = 'radius', start = 0, stop = 1, count = 3, spacing = 'log' /\n", "needs start > 0"),
+    ("&sweep name = 'radius', start = 0.1, stop = 0.2, count = 1 /\n", "count = 1: one value cannot run from start"),
     ("&sample name = 'radius', low = 0.1, high = 0.2 /\n", "needs &campaign samples"),
     ("&campaign samples = 3 /\n", "no &sample group"),
     ("&campaign samples = 3 /\n&sample name = 'radius', low = 0.2, high = 0.1 /\n", "must be greater than low"),
