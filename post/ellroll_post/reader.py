@@ -147,6 +147,8 @@ def _reads(method):
 
 
 _TEXT = h5py.string_dtype()
+# the datasets of /case, /summary and /trajectory that ellroll writes as text (every other holds numbers)
+TEXT_DATASETS = ("record", "method", "excitation_kind")
 _TEXT_IN_MEMORY = h5py.h5t.py_create(_TEXT)
 
 
@@ -231,6 +233,10 @@ class EllrollFile:
             for name, item in self._h5[group].items():
                 if not isinstance(item, h5py.Dataset) or (group, name) == ("trajectory", "time"):
                     continue
+                holds = "numbers" if item.dtype.kind in "fiu" else "text"
+                if holds != ("text" if name in TEXT_DATASETS else "numbers"):
+                    raise changed(f"/{group}/{name} holds {holds}, where ellroll writes "
+                                  f"{'text' if holds == 'numbers' else 'numbers'}")
                 if item.ndim == 0 or item.shape[0] != rows:
                     raise changed(f"/{group}/{name} holds {item.shape[0] if item.ndim else 'no'} rows, "
                                   f"/summary/status {rows}")

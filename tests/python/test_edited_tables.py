@@ -4,7 +4,10 @@
 refuses it in one line naming the file and the dataset (exit 2) or, where
 it does not read that dataset, prints as usual; it never reads or writes
 past the rows it expects (no signal, no runtime error on the Debug build).
-Seeded choices of the datasets and their lengths."""
+A dataset rewritten as text where ellroll writes numbers (or the other way)
+is refused by ellroll_post.open and ellroll-plot in one line (exit 2), not
+with a traceback from the figure. Seeded choices of the datasets and their
+lengths."""
 import h5py
 import numpy as np
 import pytest
@@ -77,3 +80,33 @@ def test_a_table_of_another_length_is_refused_or_not_read(ellroll, ellroll_debug
                 # csv and json print every dataset of /summary: none is left unread
                 if name.startswith("summary/") and options in (["--format", "csv"], ["--format", "json"]):
                     assert result.returncode == 2 and f"/{name} holds {rows} rows" in result.stderr, label
+
+
+def retyped(original, folder, name):
+    """A copy with dataset `name` rewritten in the other kind: text where
+    ellroll writes numbers, numbers where it writes text."""
+    path = folder / f"{name.replace('/', '_')}_retyped.h5"
+    path.write_bytes(original.read_bytes())
+    with h5py.File(path, "r+") as f:
+        old = f[name]
+        numbers = old.dtype.kind in "fiu"
+        data = np.full(old.shape, b"a") if numbers else np.zeros(old.shape)
+        del f[name]
+        f[name] = data
+    return path, "text" if numbers else "numbers"
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_a_table_of_another_kind_is_refused_by_the_python_readers(ellroll, original, tmp_path, seed):
+    import ellroll_post
+    from ellroll_post.cli import main
+    from ellroll_post.reader import NotAnEllrollFile
+    rng = np.random.default_rng(9200 + seed)
+    names = [name for name in tables(original) if not name.startswith("limit_state/")]
+    names += ["case/method", "case/record"]
+    for name in rng.choice(names, size=5, replace=False):
+        path, holds = retyped(original, tmp_path, str(name))
+        with pytest.raises(NotAnEllrollFile, match=f"/{name} holds {holds}, where ellroll writes"):
+            ellroll_post.open(path)
+        for command in (["summary"], ["sweep", "--out", str(tmp_path)], ["trace", "--out", str(tmp_path)]):
+            assert main([command[0], str(path), *command[1:]]) == 2, (name, command)
