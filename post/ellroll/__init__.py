@@ -634,6 +634,7 @@ def _name_records(message, records):
         message = message.replace(f"'{path}'", f"Record {record.name!r}").replace(path, f"Record {record.name!r}")
         # (a variable's value, then the file's row: the Record named once)
         message = message.replace(f"Record {record.name!r}: Record {record.name!r} row", f"Record {record.name!r} row")
+        message = message.replace(f"Record {record.name!r}: Record {record.name!r}: ", f"Record {record.name!r}: ")
     return message
 
 

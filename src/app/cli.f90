@@ -68,6 +68,10 @@ contains
         end if
         cli%command = 'version'
       case ('-o', '--output', '--threads', '--shard', '--format')
+        if (given_before(given, arg)) then
+          call usage_error(err, arg // ' given twice; give it once')
+          return
+        end if
         given = [character(len=11) :: given, arg]
         if (k == n) then
           call usage_error(err, arg // ' needs a value')
@@ -75,6 +79,10 @@ contains
         end if
         k = k + 1
         call get_argument(k, value)
+        if (value(1:min(1, len(value))) == '-' .and. any(value == [options, '-o         ', '-q         '])) then
+          call usage_error(err, arg // ' needs a value, not the option ' // value)
+          return
+        end if
         call take_value(cli, arg, value, err)
         if (err%failed()) return
       case ('--overwrite', '--resume', '-q', '--quiet', '--timings', '--suite')
@@ -110,6 +118,21 @@ contains
     if (.not. err%failed()) call check_arguments(cli, err)
   end subroutine parse_arguments
 
+  !> Whether the option (short or long) is among those given so far.
+  pure logical function given_before(given, option)
+    character(len=*), intent(in) :: given(:), option
+    given_before = any(long_name(given) == long_name(option))
+  end function given_before
+
+  !> An option's long name (-o: --output, -q: --quiet).
+  elemental function long_name(option) result(long)
+    character(len=*), intent(in) :: option
+    character(len=11) :: long
+    long = option
+    if (option == '-o') long = '--output'
+    if (option == '-q') long = '--quiet'
+  end function long_name
+
   !> An option that takes no value.
   subroutine take_switch(cli, option)
     type(cli_t), intent(inout) :: cli
@@ -140,9 +163,7 @@ contains
     c = findloc([(index(command_options(k), command // ' ') == 1, k = 1, size(command_options))], .true., dim=1)
     if (c == 0) return
     do k = 1, size(given)
-      long = trim(given(k))
-      if (long == '-o') long = '--output'
-      if (long == '-q') long = '--quiet'
+      long = trim(long_name(given(k)))
       if (index(trim(command_options(c)) // ' ', ' ' // long // ' ') == 0) then
         call set_error(err, err_input, command // ' does not take ' // trim(given(k)) // " (see 'ellroll " // &
                        command // " --help')")

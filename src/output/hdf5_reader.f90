@@ -402,14 +402,17 @@ contains
     if (err%failed()) return
     call h5dopen_f(self%file, name, dset, hdferr)
     if (hdferr < 0) then
-      call set_error(err, err_input, self%path // ': no dataset /' // name)
+      ! (a read error on the way is the file's, not a dataset missing)
+      if (.not. self%read_failed(err)) call set_error(err, err_input, self%path // ': no dataset /' // name)
       return
     end if
     call select_slab(dset, offset, counts, file_space, mem_space, hdferr)
     target_buffer = buffer
     if (hdferr >= 0) call h5dread_f(dset, mem_type, target_buffer, hdferr, mem_space_id=mem_space, &
                                     file_space_id=file_space)
-    if (hdferr < 0) call set_error(err, err_input, self%path // ': cannot read /' // name)
+    if (hdferr < 0) then
+      if (.not. self%read_failed(err)) call set_error(err, err_input, self%path // ': cannot read /' // name)
+    end if
     call h5sclose_f(file_space, hdferr)
     call h5sclose_f(mem_space, hdferr)
     call h5dclose_f(dset, hdferr)

@@ -271,7 +271,7 @@ contains
     end if
     code = remove_path(self%journal)
     if (code /= 0 .and. code /= enoent) call set_error(err, err_output, self%journal // ': the output is ' // &
-        'complete, but its journal cannot be removed: ' // system_error_text(code) // '; remove it by hand')
+        'complete, but the journal at its name cannot be removed: ' // system_error_text(code) // '; remove it by hand')
   end subroutine commit
 
   !> Whether the regular file at path is a file ellroll made of kind `what`

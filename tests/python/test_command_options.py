@@ -55,6 +55,10 @@ def arguments(command):
             "summary": ["s0.h5"]}.get(command, [])
 
 
+def positional(command):
+    return [a for a in arguments(command) if a not in ("-o", "x.h5")]
+
+
 def snapshot(folder):
     return {p.name: (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.iterdir()}
 
@@ -99,3 +103,23 @@ def test_commands_without_files_refuse_an_argument(ellroll, command):
     result = run(ellroll, command, "extra")
     assert result.returncode == 2 and result.stdout == ""
     assert f"{command} takes no argument (extra)" in result.stderr
+
+
+def test_an_option_with_a_value_given_twice_or_an_option_for_its_value_is_refused(ellroll, files):
+    """The last of two values would win without a word (-o a.h5 -o b.h5
+    never writes a.h5), and an option taken as a value (-o -q) names a
+    file '-q': both refused in one line, nothing written."""
+    for command in commands(ellroll):
+        for option in sorted(listed(ellroll, command) & set(VALUES)):
+            for again in {option, {"-o": "--output", "--output": "-o"}.get(option, option)}:
+                argv = [command, *positional(command), option, VALUES[option], again, VALUES[again]]
+                before = snapshot(files)
+                result = run(ellroll, *argv, cwd=files)
+                assert result.returncode == 2 and result.stderr == \
+                    f"ellroll: error: {again} given twice; give it once (see 'ellroll --help')\n", (argv, result.stderr)
+                assert snapshot(files) == before, argv
+            for value in ("-q", "--overwrite", "--threads"):
+                argv = [command, *positional(command), option, value]
+                result = run(ellroll, *argv, cwd=files)
+                assert result.returncode == 2 and f"{option} needs a value, not the option {value}" in result.stderr, \
+                    (argv, result.stderr)

@@ -450,6 +450,10 @@ def test_a_record_given_as_arrays_runs_as_its_csv(program, tmp_path):
                     assert same_bits(tree[group][name].values, file_values(stored)), (group, name)
     with pytest.raises(ellroll.InputError, match="2 or 3"):
         ellroll.Record(time, accelerations[0][:, :1])
+    # a record the program refuses: named once, as the Record
+    with pytest.raises(ellroll.InputError, match="fewer than two samples") as refused:
+        ellroll.run(dict(base, excitation={"kind": "record", "record_file": ellroll.Record([], np.zeros((0, 2)))}))
+    assert str(refused.value).count("Record 'record'") == 1, str(refused.value)
 
 
 def _with_names(groups, names):
