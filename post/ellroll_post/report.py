@@ -10,7 +10,7 @@ import tempfile
 import numpy as np
 
 from .plots import FIELD_NEEDS, cup_moves, has_samples
-from .safe_write import MARK, _umask, check_target, write_text
+from .safe_write import MARK, CannotWrite, _umask, check_target, write_text
 from .summary import format_summary, summary_table
 
 # the per-case figures, drawn for the report's case where the file has their fields
@@ -44,7 +44,11 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
     for page in ("index.html", "summary.csv"):
         check_target(out / page, overwrite)
     there = out.is_dir()
-    staging = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out if there else out.parent))
+    try:
+        staging = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out if there else out.parent))
+    except OSError as exc:
+        raise CannotWrite(f"{out}: cannot write the report in folder {out if there else out.parent} "
+                          f"({exc.strerror or exc})") from None
     try:
         made = _draw_report(run, staging, draw, case, fmt, all_cases)
         names = [path.name for path in made] + ["summary.csv", "index.html"]

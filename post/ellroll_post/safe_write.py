@@ -22,6 +22,11 @@ class OutputExists(Exception):
     """A file the command would write is already there, and may not be replaced."""
 
 
+class CannotWrite(OSError):
+    """A file the command would write cannot be written (the system's reason),
+    named by its own path."""
+
+
 def made_by_us(path):
     """Whether a regular file holds ellroll-plot's mark (figures have it in
     their metadata, pages in a comment, tables in their first line)."""
@@ -85,15 +90,22 @@ def write_file(path, overwrite, write):
     in a new file beside it, moved into place once complete."""
     path = pathlib.Path(path)
     check_target(path, overwrite)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as exc:
+        raise CannotWrite(f"{path}: cannot write files in its folder {path.parent} "
+                          f"({exc.strerror or exc})") from None
     os.close(handle)
     try:
         os.chmod(temporary, 0o666 & ~_umask())        # as a file opened the usual way would be
         write(temporary)
         check_target(path, overwrite)            # (nothing came there meanwhile)
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as exc:
         pathlib.Path(temporary).unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, CannotWrite):
+            # (the system's reason, named by the file asked for, not its temporary one)
+            raise CannotWrite(f"{path}: cannot write it ({exc.strerror or exc})") from None
         raise
     return path
 

@@ -197,6 +197,23 @@ def test_a_report_is_never_written_through_a_link_at_its_folder(plotted, tmp_pat
         assert sorted(p.name for p in elsewhere.iterdir()) == ["notes.txt"]
 
 
+@pytest.mark.parametrize("command", [["trace"], ["report"]], ids=["figure", "report"])
+def test_a_folder_ellroll_plot_cannot_write_in_is_named_not_its_temporary_file(plotted, monkeypatch, command):
+    """A folder the system refuses to write in (read-only, immutable): one
+    line naming the file asked for and the folder, exit 2; never the
+    name of a temporary file of its own."""
+    import tempfile
+
+    def refused(*args, **kwargs):
+        raise PermissionError(1, "Operation not permitted", str(kwargs.get("dir", "")) + "/.tmp_name")
+    monkeypatch.setattr(tempfile, "mkstemp", refused)
+    monkeypatch.setattr(tempfile, "mkdtemp", refused)
+    code, _, err = plot(plotted, *command, "out.h5", "--out", "refused_here")
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err
+    assert "refused_here" in lines[0] and "(Operation not permitted)" in lines[0] and ".tmp_name" not in lines[0], err
+
+
 def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):
     code, _, err = plot(plotted, "workprecision", "out.h5", "--out", "figures_wp")
     assert code == 2 and "no error figures" in err
