@@ -4,7 +4,9 @@ import builtins
 import functools
 import os
 import shlex
+import signal
 import stat
+import time
 import traceback
 
 import h5py
@@ -167,6 +169,47 @@ def _read_attribute(attribute):
     return value
 
 
+# The seconds HDF5 may take to read a file's tables and texts: 50 ms for any
+# ellroll file, where a damaged global heap (the texts' store) can make it
+# loop for ever.
+TABLES_SECONDS = 3.0
+
+
+def _tables_read_in_time(path):
+    """Whether a child process reads every object, attribute and text
+    dataset of the file within TABLES_SECONDS. HDF5 loops for ever on some
+    damaged global heaps (a flipped bit in a heap object's index), inside one
+    call that no thread can stop: the child is killed instead. A child that
+    fails (an exception) counts as in time: the file's own reads then say why."""
+    pid = os.fork()
+    if pid == 0:                                    # (the child: only ever _exit)
+        code = 1
+        try:
+            with h5py.File(path, "r") as f:
+                file_id = f.id
+
+                def visit(name):
+                    item = h5py.h5o.open(file_id, name)
+                    for index in range(h5py.h5a.get_num_attrs(item)):
+                        _read_attribute(h5py.h5a.open(item, index=index))
+                    if h5py.h5i.get_type(item) == h5py.h5i.DATASET and f[name].dtype.kind == "O":
+                        f[name][()]
+                h5py.h5o.visit(file_id, visit)
+            code = 0
+        finally:
+            os._exit(code)
+    deadline = time.monotonic() + TABLES_SECONDS
+    pause = 1e-3
+    while os.waitpid(pid, os.WNOHANG)[0] == 0:
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return False
+        time.sleep(pause)
+        pause = min(2 * pause, 0.05)
+    return True
+
+
 class EllrollFile:
     def __init__(self, path):
         self.path = str(path)
@@ -175,6 +218,9 @@ class EllrollFile:
             raise NotAnEllrollFile(f"{self.path}: a folder, not an ellroll file")
         if what:
             raise NotAnEllrollFile(f"{self.path}: {what}, not a regular file (an ellroll file is one)")
+        if not _tables_read_in_time(self.path):
+            raise NotAnEllrollFile(f"{self.path}: a damaged HDF5 file: HDF5 does not finish reading its tables "
+                                   f"(stopped after {TABLES_SECONDS:g} s)")
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:

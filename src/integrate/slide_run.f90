@@ -452,7 +452,7 @@ contains
                .and. .not. pair%error_norm <= 1
     if (rejected) return
     if (status == status_completed) call lift_inside(pair, rolling, sb, t, h, now, new, status, res%n_rhs, screen)
-    if (status == status_rim .or. status == status_liftoff) &
+    if (status == status_rim .or. status == status_liftoff .or. status == status_no_fit) &
       call within_tolerance_to_limit(pair, rolling, sb, t, h, now, new, status, res%n_rhs)
   end subroutine attempt
 

@@ -14,6 +14,7 @@ import pathlib
 import random
 import shutil
 import subprocess
+import sys
 import traceback
 
 import h5py
@@ -236,6 +237,44 @@ def test_a_flipped_bit_in_the_tables_is_one_line(files, tmp_path, source):
             refused += 1
             assert str(exc).startswith(str(damaged)) and "\n" not in str(exc), exc
     assert refused >= 4                     # most flips in the tables damage what is read
+
+
+def heap_damages(data):
+    """(offset, new bytes) per global heap collection (HDF5's store of the
+    variable-length texts, signature GCOL, version 1): its last object's size
+    two bytes larger, where its data then takes 8 more bytes, so that the next
+    header falls inside the free space's (the damage of a flipped bit on
+    which HDF5 1.10 loops for ever)."""
+    damages, at = [], -1
+    while (at := data.find(b"GCOL", at + 1)) >= 0:
+        if data[at + 4] != 1:
+            continue
+        end = at + int.from_bytes(data[at + 8:at + 16], "little")
+        place, last = at + 16, None
+        while place + 16 <= end and int.from_bytes(data[place:place + 2], "little") != 0:
+            size = int.from_bytes(data[place + 8:place + 16], "little")
+            last = (place, size)
+            place += 16 + (size + 7) // 8 * 8
+        if last is not None and last[1] % 8 in (0, 7):
+            damages.append((last[0] + 8, (last[1] + 2).to_bytes(8, "little")))
+    return damages
+
+
+def test_a_damaged_text_store_never_hangs_a_reader(ellroll, tmp_path):
+    """A damaged global heap on which HDF5 loops for ever inside one call:
+    ellroll_post.open (and so every ellroll-plot command) refuses the file
+    after a bounded time, in one line (exit 2), or reads it; never hangs."""
+    assert run(ellroll, "run", ROOT / "input" / "legeza1990.nml", "-q", "-o", "paper.h5", cwd=tmp_path).returncode == 0
+    source = (tmp_path / "paper.h5").read_bytes()
+    damages = heap_damages(source)
+    assert damages
+    for k, (at, data) in enumerate(damages):
+        damaged = tmp_path / f"heap{k}.h5"
+        damaged.write_bytes(source[:at] + data + source[at + 8:])
+        result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", damaged],
+                                capture_output=True, text=True, timeout=60, cwd=tmp_path)
+        assert result.returncode in (0, 2) and "Traceback" not in result.stderr, (at, result.stderr[-500:])
+        assert result.returncode == 0 or len(result.stderr.strip().splitlines()) == 1, (at, result.stderr)
 
 
 # ------------------------------------------------------- a killed run's file

@@ -68,3 +68,42 @@ def test_a_fixed_step_ends_a_slide_into_the_fit_limit_where_the_exact_flow_does(
         inside = rk4["time"] <= rk4["t_final"]
         assert np.all(np.isfinite(rk4["center"][inside])), (label, dt)
         assert np.all(np.isnan(rk4["center"][~inside])), (label, dt)
+
+
+def fit_limit_theta(b, c, radius, margin):
+    """Theta where a ball sliding up the y-z section of the cup stops
+    fitting: the section's curvature (b c)^-2 / (y^2/b^4 + z^2/c^4)^(3/2)
+    times radius (1 + margin) reaches 1 (the other principal curvature, along
+    x, is smaller there); by bisection on the ellipse's angle."""
+    def excess(phi):
+        y, z = b * np.sin(phi), -c * np.cos(phi)
+        return radius * (1 + margin) / (b * b * c * c * (y * y / b**4 + z * z / c**4) ** 1.5) - 1
+    low, high = 0.0, np.pi / 2
+    for _ in range(200):
+        middle = (low + high) / 2
+        low, high = (middle, high) if excess(middle) < 0 else (low, middle)
+    y, z = b * np.sin(low), -c * np.cos(low)
+    return np.arctan((y / b**2) / (abs(z) / c**2))
+
+
+@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-10",
+                                         "method = 'dop853', rtol = 1e-12", "method = 'vern9', rtol = 1e-10",
+                                         "method = 'vern9', rtol = 1e-12", "method = 'vern9', rtol = 1e-14"])
+def test_every_method_slides_into_the_fit_limit_where_it_is(ellroll, tmp_path, integration):
+    """A ball launched sliding up the cup's y-z section (it stays in it)
+    ends where the section's curvature reaches 1 / (R (1 + fit_margin)):
+    its largest Theta is the closed form's, and the embedded pairs' steps
+    go on to it within their tolerance (a partial step past the tolerance
+    is not the limit)."""
+    text = ("&geometry a = 1.0, b = 0.4, c = 0.2 /\n"
+            "&ball radius = 0.7, weight = 100.0, mu = 0.05, slip = 'slide' /\n"
+            "&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0, velocity = 0.0, 0.7, 0.0 /\n"
+            f"&integration {integration}, t_end = 1.0, fit_margin = 1.0e-3 /\n"
+            "&output file = 'out.h5', interval = 1.0e-3 /\n")
+    figures = summary(ellroll, tmp_path, "case", text)
+    with h5py.File(tmp_path / "case.h5", "r") as f:
+        theta_max = f["summary/theta_max"][0]
+    assert figures["status"] == 3, (integration, figures)
+    assert abs(theta_max - fit_limit_theta(0.4, 0.2, 0.7, 1e-3)) < 1e-10, (integration, theta_max)
+    # the end time of dop853 and vern9 at rtol 1e-14 (they agree to 2e-14 s)
+    assert abs(figures["t_final"] - 0.01668353138409) < 2e-11, (integration, figures["t_final"])

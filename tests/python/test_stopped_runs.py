@@ -91,7 +91,7 @@ def test_a_sigterm_stopped_work_file_reads_its_finished_cases(ellroll, whole, tm
     assert stopped >= 2
 
 
-@pytest.mark.parametrize("options", [["--overwrite"], ["--threads", "1", "--overwrite", "-q"],
+@pytest.mark.parametrize("options", [["--overwrite"], ["-q", "--overwrite"],
                                      ["--overwrite", "--shard", "1/2"]])
 def test_the_command_named_for_a_killed_overwrite_run_finishes_it(ellroll, whole, tmp_path, options):
     """A run started with --overwrite (over a finished output) and killed -9:
