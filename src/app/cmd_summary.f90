@@ -13,8 +13,8 @@ module ellroll_cmd_summary
   use ellroll_results, only: case_result_t, summary_record, count_undefined
   use ellroll_cli, only: cli_t
   use ellroll_errors, only: set_error, err_input
-  use ellroll_files, only: path_kind, kind_missing
-  use ellroll_system, only: open_regular_file, file_type_words, close_descriptor, system_error_text
+  use ellroll_files, only: path_kind, kind_missing, file_size
+  use ellroll_system, only: open_regular_file, file_type_words, close_descriptor, system_error_text, read_watchdog
   use ellroll_lapack, only: dlasrt
   use ellroll_cmd_suite, only: print_suite
   implicit none
@@ -37,13 +37,19 @@ contains
   subroutine summary_command(cli, err)
     type(cli_t), intent(in) :: cli
     type(error_t), intent(inout) :: err
+    integer :: seconds
     call check_readable(trim(cli%paths(1)), err)
     if (err%failed()) return
+    ! (a file read at 50 MB/s, and 10 s more: its tables take 50 ms)
+    seconds = 10 + int(min(max(file_size(trim(cli%paths(1))), 0_i8) / 50000000_i8, 100000_i8))
+    call read_watchdog('ellroll: error: ' // trim(cli%paths(1)) // ': a damaged HDF5 file: HDF5 does not ' // &
+                       'finish reading it (stopped after ' // itoa(seconds) // ' s)', seconds)
     if (cli%suite) then
       call print_suite(trim(cli%paths(1)), trim(cli%summary_format), err)
     else
       call print_summary(trim(cli%paths(1)), trim(cli%summary_format), err)
     end if
+    call read_watchdog('', 0)
   end subroutine summary_command
 
   !> A folder, a FIFO or a device (not opened: a FIFO would wait for a

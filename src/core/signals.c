@@ -15,6 +15,7 @@
  * to standard output is then exit 3, as any failed write of it. */
 #include <signal.h>
 #include <string.h>
+#include <unistd.h>
 
 static volatile sig_atomic_t stop_signal = 0;
 
@@ -55,4 +56,41 @@ int ellroll_stop_signal(void)
 void ellroll_request_stop(int sig)
 {
     __atomic_store_n(&stop_signal, sig, __ATOMIC_RELAXED);
+}
+
+/* A read that HDF5 may never finish: it loops for ever, inside one call, on
+ * some damaged global heaps (the store of variable-length texts). For a
+ * command that writes nothing (summary), an alarm after `seconds` writes
+ * `message` and a newline to standard error and ends the process with
+ * exit 2, as for any damaged input; 0 seconds disarms it. */
+static char watchdog_text[4608];
+static size_t watchdog_length;
+
+static void on_watchdog(int sig)
+{
+    (void)sig;
+    ssize_t written = write(STDERR_FILENO, watchdog_text, watchdog_length);
+    (void)written;
+    _exit(2);
+}
+
+void ellroll_read_watchdog(const char *message, int seconds)
+{
+    struct sigaction action;
+    size_t n;
+    if (seconds <= 0) {
+        alarm(0);
+        return;
+    }
+    n = strlen(message);
+    if (n > sizeof watchdog_text - 1)
+        n = sizeof watchdog_text - 1;
+    memcpy(watchdog_text, message, n);
+    watchdog_text[n] = '\n';
+    watchdog_length = n + 1;
+    memset(&action, 0, sizeof action);
+    action.sa_handler = on_watchdog;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGALRM, &action, NULL);
+    alarm((unsigned)seconds);
 }

@@ -10,7 +10,7 @@ module ellroll_system
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
       system_error_text, open_regular_file, read_text, file_type_words, read_whole_file
-  public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now, shown_command_line
+  public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now, shown_command_line, read_watchdog
 
   interface
     integer(c_int) function c_rename(old, new) bind(c, name='rename')
@@ -51,6 +51,13 @@ module ellroll_system
       import :: c_int
       integer(c_int), value :: status
     end subroutine exit_now
+    !> After `seconds`, write message (null-terminated) and end with exit 2;
+    !> 0 seconds: disarmed (src/core/signals.c, for a read HDF5 may never finish).
+    subroutine c_read_watchdog(message, seconds) bind(c, name='ellroll_read_watchdog')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: message(*)
+      integer(c_int), value :: seconds
+    end subroutine c_read_watchdog
     !> The signal that asked the run to stop, or 0.
     integer(c_int) function stop_signal() bind(c, name='ellroll_stop_signal')
       import :: c_int
@@ -115,6 +122,16 @@ module ellroll_system
   end interface
 
 contains
+
+  !> From now, a read that has not ended after `seconds` ends the process:
+  !> message on standard error, exit 2 (HDF5 loops for ever on some damaged
+  !> global heaps, inside one call). Only where nothing is being written
+  !> (ellroll summary); 0 seconds: disarmed.
+  subroutine read_watchdog(message, seconds)
+    character(len=*), intent(in) :: message
+    integer, intent(in) :: seconds
+    call c_read_watchdog(message // c_null_char, int(seconds, c_int))
+  end subroutine read_watchdog
 
   pure function padded_signal_name(signal) result(name)
     integer, intent(in) :: signal

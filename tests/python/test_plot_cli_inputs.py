@@ -260,21 +260,30 @@ def heap_damages(data):
     return damages
 
 
-def test_a_damaged_text_store_never_hangs_a_reader(ellroll, tmp_path):
+@pytest.mark.parametrize("source", ["paper", "whole", "suite"])
+def test_a_damaged_text_store_never_hangs_a_reader(ellroll, files, tmp_path, source):
     """A damaged global heap on which HDF5 loops for ever inside one call:
-    ellroll_post.open (and so every ellroll-plot command) refuses the file
-    after a bounded time, in one line (exit 2), or reads it; never hangs."""
-    assert run(ellroll, "run", ROOT / "input" / "legeza1990.nml", "-q", "-o", "paper.h5", cwd=tmp_path).returncode == 0
-    source = (tmp_path / "paper.h5").read_bytes()
-    damages = heap_damages(source)
+    `ellroll summary` (every format, --suite), ellroll_post.open and so
+    every ellroll-plot command refuse the file after a bounded time, in one
+    line (exit 2), or read it; never hang."""
+    if source == "paper":
+        assert run(ellroll, "run", ROOT / "input" / "legeza1990.nml", "-q", "-o", "paper.h5",
+                   cwd=tmp_path).returncode == 0
+        original = (tmp_path / "paper.h5").read_bytes()
+    else:
+        original = (files / f"{source}.h5").read_bytes()
+    damages = heap_damages(original)
     assert damages
     for k, (at, data) in enumerate(damages):
         damaged = tmp_path / f"heap{k}.h5"
-        damaged.write_bytes(source[:at] + data + source[at + 8:])
-        result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", damaged],
-                                capture_output=True, text=True, timeout=60, cwd=tmp_path)
-        assert result.returncode in (0, 2) and "Traceback" not in result.stderr, (at, result.stderr[-500:])
-        assert result.returncode == 0 or len(result.stderr.strip().splitlines()) == 1, (at, result.stderr)
+        damaged.write_bytes(original[:at] + data + original[at + 8:])
+        commands = [[sys.executable, "-m", "ellroll_post.cli", "summary", damaged]]
+        commands += [[ellroll, "summary", damaged, *options] for options in ([], ["--format", "csv"], ["--suite"])]
+        for command in commands:
+            result = subprocess.run(command, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+            label = (at, command[1:], result.stderr[-500:])
+            assert result.returncode in (0, 2) and "Traceback" not in result.stderr, label
+            assert result.returncode == 0 or len(result.stderr.strip().splitlines()) == 1, label
 
 
 # ------------------------------------------------------- a killed run's file
