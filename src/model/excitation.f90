@@ -41,8 +41,9 @@ contains
   end subroutine set_record
 
   !> The time from which the cup is at rest for ever: 0 for a fixed cup, the
-  !> last sample of a record (records end at rest: ellroll_record_file),
-  !> never (huge) for a harmonic forcing, 0 for one of zero amplitude.
+  !> last sample of a record (records end at rest: ellroll_record_file), 0
+  !> for one scaled by 0, never (huge) for a harmonic forcing, 0 for one of
+  !> zero amplitude.
   pure real(wp) function excitation_end(exc) result(t)
     type(excitation_t), intent(in) :: exc
     select case (exc%kind)
@@ -51,6 +52,7 @@ contains
     case (excitation_record)
       t = huge(1.0_wp)
       if (all(is_zero(exc%values(:, size(exc%times))))) t = exc%times(size(exc%times))
+      if (is_zero(exc%scale)) t = 0
     case default
       t = 0
     end select

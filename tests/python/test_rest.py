@@ -214,6 +214,17 @@ def test_held_through_the_end_of_a_record(ellroll, tmp_path):
     assert later["residual_displacement"] == after["residual_displacement"]
 
 
+def test_a_record_at_scale_zero_leaves_the_ball_at_rest_for_good(ellroll, tmp_path):
+    """Scale 0: the cup never moves, and a ball set at the bottom with
+    rolling resistance is at rest for good from t = 0 at any t_end (before
+    the record's end too), where it is: residual displacement 0."""
+    shutil.copytree(ROOT / "input" / "records", tmp_path / "records")
+    for t_end in (1.0, 5.0, 25.0):
+        case = run_record(ellroll, tmp_path, t_end, scale=0.0)
+        assert case["at_rest"] == 1 and case["rest_time"] == 0 and case["t_final"] == t_end, case
+        assert case["residual_displacement"] == 0, case
+
+
 SUITE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 &ball radius = 0.2, weight = 2620.0, rolling_resistance = 1.0e-4{slip} /
 &initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
