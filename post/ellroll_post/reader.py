@@ -4,9 +4,9 @@ import builtins
 import functools
 import os
 import shlex
+import select
 import signal
 import stat
-import time
 import traceback
 
 import h5py
@@ -181,8 +181,10 @@ def _tables_read_in_time(path):
     damaged global heaps (a flipped bit in a heap object's index), inside one
     call that no thread can stop: the child is killed instead. A child that
     fails (an exception) counts as in time: the file's own reads then say why."""
+    done_reading, child_end = os.pipe()           # (closed at the child's exit: readable then)
     pid = os.fork()
     if pid == 0:                                    # (the child: only ever _exit)
+        os.close(done_reading)
         code = 1
         try:
             with h5py.File(path, "r") as f:
@@ -198,16 +200,15 @@ def _tables_read_in_time(path):
             code = 0
         finally:
             os._exit(code)
-    deadline = time.monotonic() + TABLES_SECONDS
-    pause = 1e-3
-    while os.waitpid(pid, os.WNOHANG)[0] == 0:
-        if time.monotonic() > deadline:
-            os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            return False
-        time.sleep(pause)
-        pause = min(2 * pause, 0.05)
-    return True
+    os.close(child_end)
+    try:
+        finished = bool(select.select([done_reading], [], [], TABLES_SECONDS)[0])
+    finally:
+        os.close(done_reading)
+    if not finished:
+        os.kill(pid, signal.SIGKILL)
+    os.waitpid(pid, 0)
+    return finished
 
 
 class EllrollFile:
