@@ -30,7 +30,8 @@ The percentiles are numpy's default ('linear': Hyndman and Fan's type 7,
 interpolated between order statistics), or, with percentiles='lognormal',
 those of a lognormal fitted to the values: exp(mean of ln y) for the median,
 exp(mean -/+ standard deviation of ln y, n - 1 in its denominator) for the
-16th and 84th (NaN where a value is <= 0 or fewer than two remain)."""
+16th and 84th (all three NaN where a value is <= 0 or none remains; the 16th
+and 84th NaN where one remains, the median its value)."""
 import io
 import json
 import math
@@ -223,10 +224,13 @@ def _percentiles(values, definition):
         if values.size == 0:
             return math.nan, math.nan, math.nan
         return tuple(float(q) for q in np.percentile(values, [16, 50, 84]))
-    if values.size < 2 or np.any(values <= 0):
+    if values.size == 0 or np.any(values <= 0):
         return math.nan, math.nan, math.nan
     logs = np.log(values)
-    mean, spread = logs.mean(), logs.std(ddof=1)
+    mean = logs.mean()
+    if values.size == 1:          # the sample's spread is undefined, its median not
+        return math.nan, math.exp(mean), math.nan
+    spread = logs.std(ddof=1)
     return math.exp(mean - spread), math.exp(mean), math.exp(mean + spread)
 
 

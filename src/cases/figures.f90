@@ -106,7 +106,7 @@ module ellroll_figures
       figure_t('time_beyond_capacity', 's', &
                "time the centre's horizontal distance from the cup's lowest point exceeds capacity (NaN: unset)", &
                kind_real, 1, from_time_beyond, q_displacement, threshold=p_capacity), &
-      figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over the step ends ' // &
+      figure_t('peaks_truncated', '1', '1: a model limit ended the case, its peaks are over its path ' // &
                'clear of its singular approach', kind_int, 1, from_run), &
       figure_t('sa_linear_periods', 'm/s^2', 'record: 5 %-damped pseudo-spectral acceleration (RotD100) of the ' // &
                'scaled record at linear_periods (NaN: none)', kind_real, 2, from_run), &

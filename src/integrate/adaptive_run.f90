@@ -26,7 +26,7 @@ module ellroll_adaptive_run
   use ellroll_quantities, only: q_displacement
   use ellroll_running, only: unset
   use ellroll_step_peaks, only: step_screen_t, note_screen, screen_step, add_step_peaks, may_peak_inside, &
-      peak_quantities, dense_observation, peak_count, peak_values, time_beyond_inside
+      peak_quantities, dense_observation, peak_count, peak_values, time_beyond_inside, add_clearance_crossing
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
   implicit none
@@ -122,6 +122,7 @@ contains
         call end_in_step(status, passed)
         return
       end if
+      call add_clearance_crossing(pair, run%ball, obs%fit_clearance, 1.0_wp, res%n_rhs, run%stats)
       if (screened) then
         call note_screen(screen, 6, obs)
         call add_step_peaks(pair, run%ball, screen, res%n_rhs, run%stats)
@@ -423,7 +424,11 @@ contains
     type(limit_search_t) :: search
     call locate_crossing(pair, run, status, search, res%n_rhs, invalid)
     call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
-    if (search%found_valid) call track_piece(pair, run, search%valid, search%last_valid, res)
+    if (search%found_valid) then
+      call add_clearance_crossing(pair, run%ball, search%last_valid%fit_clearance, search%valid / pair%h, res%n_rhs, &
+                                  run%stats)
+      call track_piece(pair, run, search%valid, search%last_valid, res)
+    end if
     call end_at_crossing(pair, run, search, res)
     res%n_steps = res%n_steps + 1
     if (present(at) .and. search%found_valid) call dense_point(pair, run, search%valid / pair%h, at, res%n_rhs)

@@ -28,7 +28,8 @@ module ellroll_batch_run
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_adaptive_run, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, &
       stop_in_step, record_samples_until, beyond_rim, screen_and_peaks, project_lanes
-  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities, peak_count
+  use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities, &
+      add_clearance_crossing
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
   use ellroll_params, only: p_atol, p_dt, p_rtol, p_velocity_x
   implicit none
@@ -408,8 +409,8 @@ contains
         else
           call lanes_observe(balls, y_new, f_new, out)
         end if
-        ! a step with a sample, a maximum of Theta or a crossed limit inside
-        ! needs its dense output: the stages for all lanes at once
+        ! a step with a sample, a maximum of Theta, a crossed limit or the cup's
+        ! clearance changing sign inside needs its dense output (all lanes' stages)
         sample_inside = .false.
         peak_inside = .false.
         screened = .false.
@@ -421,7 +422,8 @@ contains
           screened(l) = run(l)%ball%reaction_limited() .or. may_peak_inside(run(l)%ball, h(l), y(l, :), &
               f(l, :), y_new(l, :), f_new(l, :), summary%stats%clear_maximum(l, peak_quantities))
         end do
-        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. screened))
+        dense = sample_inside .or. peak_inside .or. (accepted .and. (out%status /= status_completed .or. screened &
+                .or. (summary%stats%clear_last .neqv. out%quantity(:, q_fit_clearance) > 0)))
         if (any(dense)) then
           if (b%cups%moving) then
             call lanes_pair_dense_stages(pairs(1), balls, y, h, k, b%cups, t)
@@ -555,13 +557,12 @@ contains
     end do
   end subroutine start_pair_lanes
 
-  !> The accepted lanes' attempts (from t, steps h) whose path passes a limit
-  !> inside the step though their end is inside the model (the one-case
-  !> code on the lane): past the rim at a maximum of Theta, or slipping
-  !> (inside_status, and passed: where the path is known past it). A lane
-  !> whose dense output is needed (dense) first takes its attempt into its
-  !> pair (load_attempt); peak_inside: the lanes with a maximum of Theta
-  !> inside, located into peaks.
+  !> The accepted lanes' attempts (from t, steps h) on the one-case code per
+  !> lane: a limit the path passes inside though the end is inside (past the
+  !> rim at a maximum of Theta, or slipping: inside_status, and passed, where
+  !> the path is known past it), the peaks, the clearance's changes of sign.
+  !> A lane whose dense output is needed (dense) first takes its attempt into
+  !> its pair (load_attempt); the maxima of Theta (peak_inside) into peaks.
   subroutine limits_inside_steps(b, pairs, out, t, h, y_raw, k, error_norm, accepted, dense, screened, peak_inside, &
                                  peaks, inside_status, passed, results)
     type(batch_t), intent(inout) :: b
@@ -575,7 +576,7 @@ contains
     real(wp), intent(inout) :: passed(lanes)
     type(case_result_t), intent(inout) :: results(:)
     real(wp), dimension(state_size) :: y_lane, f_lane
-    real(wp) :: quantity_lane(size(out%quantity, 2)), above(peak_count)
+    real(wp) :: quantity_lane(size(out%quantity, 2)), above(size(peak_quantities))
     type(step_screen_t) :: screen
     integer :: l
     inside_status = status_completed
@@ -598,7 +599,10 @@ contains
       call screen_and_peaks(pairs(l), b%run(l), y_lane, f_lane, out%quantity(l, q_friction_needed), &
                             out%quantity(l, q_reaction_normal), screened(l), inside_status(l), passed(l), screen, &
                             results(l)%n_rhs, above, quantity_lane(peak_quantities))
-      if (inside_status(l) /= status_completed .or. .not. screened(l)) cycle
+      if (inside_status(l) /= status_completed) cycle
+      call add_clearance_crossing(pairs(l), b%run(l)%ball, quantity_lane(q_fit_clearance), 1.0_wp, results(l)%n_rhs, &
+                                  lane_stats=b%summary%stats, l=l)
+      if (.not. screened(l)) cycle
       call note_screen_end(screen, quantity_lane)
       call add_step_peaks(pairs(l), b%run(l)%ball, screen, results(l)%n_rhs, lane_stats=b%summary%stats, l=l)
     end do

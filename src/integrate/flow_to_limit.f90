@@ -8,7 +8,9 @@ module ellroll_flow_to_limit
   use ellroll_status, only: status_completed, status_no_fit, status_rim
   use ellroll_cases, only: output_plan_t
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: observation_t, state_size, ball_derivative
+  use ellroll_rolling_ball, only: observation_t, state_size, ball_derivative, observe
+  use ellroll_step_peaks, only: clearance_crossing, peak_count, peak_quantities
+  use ellroll_running, only: add_inside
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: embedded_pair_t, new_pair
   use ellroll_case_run, only: run_state_t, limit_search_t, track, stop_asked
@@ -37,6 +39,16 @@ module ellroll_flow_to_limit
   !> round-off makes the steps creep (docs/accuracy.md, "Near-fit balls on
   !> equal radii"): the cap bounds the time and the memory (untracked).
   integer, parameter :: max_flow_steps = 2000
+
+  !> What the flow's steps add to the summary, held until the flow is known
+  !> to meet a limit: its step ends after the method's last state, and the
+  !> points where its path's clearance of the cup's curvature changes sign
+  !> (their peak values: clearance_crossing).
+  type :: held_t
+    integer :: n = 0
+    type(observation_t), allocatable :: obs(:)
+    real(wp), allocatable :: t(:), crossing_t(:), crossing_values(:, :)
+  end type held_t
 
 contains
 
@@ -69,10 +81,10 @@ contains
     type(limit_search_t) :: search
     type(nutation_peak_t) :: peak
     type(observation_t) :: obs
-    type(observation_t), allocatable :: untracked(:)
-    real(wp), allocatable :: untracked_t(:)
+    type(held_t) :: held
+    logical :: clear
     real(wp) :: t_at, y_at(state_size), f_at(state_size), y_new(state_size), f_new(state_size), h, passed, h_max
-    integer :: status, n_untracked, n_accepted
+    integer :: status, n_accepted
     integer(i8) :: n_attempts
     integer(i8) :: n_recorded
     met = .false.
@@ -84,11 +96,12 @@ contains
     y_at = y_from
     call ball_derivative(run%ball, t_at, y_at, f_at)
     res%n_rhs = res%n_rhs + 1
+    call observe(run%ball, t_at, y_at, f_at, obs)
+    clear = obs%fit_clearance > 0
     control%order = pair%control_order()
     h_max = min(t_until - t_from, longest_step(run%ball%excitation))
     call pair%initial_step(run%ball, t_at, y_at, f_at, h_max, h, res%n_rhs)
-    allocate (untracked(64), untracked_t(64))
-    n_untracked = 0
+    allocate (held%obs(64), held%t(64), held%crossing_t(0), held%crossing_values(peak_count, 0))
     n_accepted = 0
     n_attempts = 0
     do while (t_at < t_until)
@@ -97,7 +110,7 @@ contains
       if (stop_asked(n_attempts) .or. n_accepted >= max_flow_steps) exit
       if (h <= 16 * spacing(t_until)) then          ! the fit limit's singularity (above)
         met = .true.
-        call track_untracked()
+        call release(held, run, res)
         res%status = status_no_fit
         res%t_final = t_at
         return
@@ -108,11 +121,7 @@ contains
       call attempt_step(pair, control, run, t_at, y_at, f_at, h, y_new, f_new, obs, status, res)
       if (pair%error_norm > 1) cycle
       if (status /= status_completed) then
-        met = .true.
-        call track_untracked()
-        call locate_crossing(pair, run, status, search, res%n_rhs)
-        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
-        call end_at_crossing(pair, run, search, res)
+        call end_in_attempt()
         return
       end if
       passed = -1
@@ -126,37 +135,76 @@ contains
       if (passed < 0 .and. run%ball%reaction_limited()) &
         call reaction_inside(pair, run, y_at, f_at, obs%friction_needed, obs%reaction_normal, status, passed, res%n_rhs)
       if (status /= status_completed) then        ! the path passed a limit inside the step
-        met = .true.
-        call track_untracked()
-        call locate_crossing(pair, run, status, search, res%n_rhs, passed)
-        call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
-        call end_at_crossing(pair, run, search, res)
+        call end_in_attempt(passed)
         return
       end if
       n_accepted = n_accepted + 1
+      call note_crossing(obs%fit_clearance, 1.0_wp)
       t_at = t_at + h
       y_at = y_new
       f_at = f_new
       ! the summary takes these only once the flow is known to meet a limit
       if (t_at > t_tracked) then
-        if (n_untracked == size(untracked)) then
-          untracked = [untracked, untracked]
-          untracked_t = [untracked_t, untracked_t]
-        end if
-        n_untracked = n_untracked + 1
-        untracked(n_untracked) = obs
-        untracked_t(n_untracked) = t_at
+        call hold_step_end(held, t_at, obs)
         call record_samples_until(pair, run, plan, t_at, obs, res)
       end if
       call control%accept(h, pair%error_norm, h_max)
     end do
     res%n_recorded = n_recorded          ! the flow stayed inside: its samples are not the case's
   contains
-    subroutine track_untracked()
-      integer :: i
-      do i = 1, n_untracked
-        call track(run, res, untracked_t(i), untracked(i))
-      end do
-    end subroutine track_untracked
+    !> The limit met in the last attempt (at its end, or known past it at
+    !> offset invalid) located, and the case ended there.
+    subroutine end_in_attempt(invalid)
+      real(wp), intent(in), optional :: invalid
+      met = .true.
+      call locate_crossing(pair, run, status, search, res%n_rhs, invalid)
+      if (search%found_valid) call note_crossing(search%last_valid%fit_clearance, search%valid / pair%h)
+      call release(held, run, res)
+      call record_samples_until(pair, run, plan, pair%t_old + search%valid, search%last_trial, res)
+      call end_at_crossing(pair, run, search, res)
+    end subroutine end_in_attempt
+
+    !> Where the path's clearance of the cup's curvature changes sign in the
+    !> last attempt up to theta_end of it (its clearance there: clearance_end),
+    !> kept for the summary's peaks (as add_clearance_crossing): also before
+    !> t_tracked, where the method's steps end on either side of it.
+    subroutine note_crossing(clearance_end, theta_end)
+      real(wp), intent(in) :: clearance_end, theta_end
+      real(wp) :: t, values(peak_count)
+      if (clear .eqv. clearance_end > 0) return
+      call clearance_crossing(pair, run%ball, clear, theta_end, t, values, res%n_rhs)
+      clear = clearance_end > 0
+      held%crossing_t = [held%crossing_t, t]
+      held%crossing_values = reshape([held%crossing_values, values], [peak_count, size(held%crossing_t)])
+    end subroutine note_crossing
   end subroutine follow_flow_to_limit
+
+  pure subroutine hold_step_end(held, t, obs)
+    type(held_t), intent(inout) :: held
+    real(wp), intent(in) :: t
+    type(observation_t), intent(in) :: obs
+    if (held%n == size(held%t)) then
+      held%obs = [held%obs, held%obs]
+      held%t = [held%t, held%t]
+    end if
+    held%n = held%n + 1
+    held%obs(held%n) = obs
+    held%t(held%n) = t
+  end subroutine hold_step_end
+
+  !> What the flow held into the summary.
+  pure subroutine release(held, run, res)
+    type(held_t), intent(in) :: held
+    type(run_state_t), intent(inout) :: run
+    type(case_result_t), intent(inout) :: res
+    integer :: i, j
+    do i = 1, held%n
+      call track(run, res, held%t(i), held%obs(i))
+    end do
+    do i = 1, size(held%crossing_t)
+      do j = 1, peak_count
+        call add_inside(run%stats, peak_quantities(j), held%crossing_values(j, i), held%crossing_t(i), .true.)
+      end do
+    end do
+  end subroutine release
 end module ellroll_flow_to_limit

@@ -29,13 +29,16 @@ module ellroll_running
   !> one row.
   !> The maxima and their times also over the step ends clear of the cup's
   !> curvature alone (fit_clearance > 0; ellroll_quantities' peak_clearance),
-  !> with the counts of step ends clear and not: a case that ends at a model
-  !> limit takes its peaks from those.
+  !> with the counts of step ends clear and not, and whether the last step
+  !> end was clear: a case that ends at a model limit takes its peaks from
+  !> those (and from the points where the path's clearance changes sign
+  !> inside a step: ellroll_step_peaks' add_clearance_crossing).
   type :: running_t
     real(wp), dimension(1, quantity_count) :: start = 0, maximum = 0, maximum_time = 0, last = 0
     real(wp), dimension(1, quantity_count) :: threshold = 0, value_before = 0, time_beyond = 0
     real(wp), dimension(1, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
     integer(i8) :: n_clear(1) = 0, n_unclear(1) = 0
+    logical :: clear_last(1) = .true.
     real(wp) :: last_time(1) = 0
     logical :: counting(1) = .false.    !< some threshold is set: the times beyond are counted
   end type running_t
@@ -46,6 +49,7 @@ module ellroll_running
     real(wp), dimension(lanes, quantity_count) :: threshold = 0, value_before = 0, time_beyond = 0
     real(wp), dimension(lanes, quantity_count) :: clear_maximum = 0, clear_maximum_time = 0
     integer(i8) :: n_clear(lanes) = 0, n_unclear(lanes) = 0
+    logical :: clear_last(lanes) = .true.
     real(wp) :: last_time(lanes) = 0
     logical :: counting(lanes) = .false.
   end type running_lanes_t
@@ -98,7 +102,7 @@ contains
     call add_row(1, 1, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
                  stats%value_before, stats%time_beyond, stats%last_time, stats%counting, q, t)
     call add_clear(1, 1, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, stats%n_unclear, &
-                   q, t)
+                   stats%clear_last, q, t)
   end subroutine add_case_step_end
 
   !> What the accepted lanes' step ends (quantities q, a row per lane, at
@@ -115,7 +119,7 @@ contains
       call add_row(lanes, l, stats%start, stats%maximum, stats%maximum_time, stats%last, stats%threshold, &
                    stats%value_before, stats%time_beyond, stats%last_time, stats%counting, q, t(l))
       call add_clear(lanes, l, stats%start, stats%clear_maximum, stats%clear_maximum_time, stats%n_clear, &
-                     stats%n_unclear, q, t(l))
+                     stats%n_unclear, stats%clear_last, q, t(l))
     end do
   end subroutine add_lanes_step_ends
 
@@ -161,16 +165,19 @@ contains
 
   !> Row l's maxima (and their times) over the step ends clear of the
   !> cup's curvature (fit_clearance > 0), taken as add_row takes them over
-  !> every step end; the step ends clear and not counted.
-  pure subroutine add_clear(n, l, start, clear_maximum, clear_maximum_time, n_clear, n_unclear, q, t)
+  !> every step end; the step ends clear and not counted, and whether this
+  !> one was (clear_last).
+  pure subroutine add_clear(n, l, start, clear_maximum, clear_maximum_time, n_clear, n_unclear, clear_last, q, t)
     integer, intent(in) :: n, l
     real(wp), intent(in), dimension(n, quantity_count) :: start, q
     real(wp), intent(inout), dimension(n, quantity_count) :: clear_maximum, clear_maximum_time
     integer(i8), intent(inout) :: n_clear(n), n_unclear(n)
+    logical, intent(inout) :: clear_last(n)
     real(wp), intent(in) :: t
     real(wp) :: value
     integer :: i
-    if (q(l, q_fit_clearance) > 0) then
+    clear_last(l) = q(l, q_fit_clearance) > 0
+    if (clear_last(l)) then
       do i = 1, quantity_count
         value = q(l, i)
         if (quantities(i)%change) value = abs(value - start(l, i))
@@ -259,6 +266,7 @@ contains
     stats%clear_maximum_time(1, :) = lane_stats%clear_maximum_time(l, :)
     stats%n_clear(1) = lane_stats%n_clear(l)
     stats%n_unclear(1) = lane_stats%n_unclear(l)
+    stats%clear_last(1) = lane_stats%clear_last(l)
     stats%last_time(1) = lane_stats%last_time(l)
     stats%counting(1) = lane_stats%counting(l)
   end subroutine get_lane
@@ -279,6 +287,7 @@ contains
     lane_stats%clear_maximum_time(l, :) = stats%clear_maximum_time(1, :)
     lane_stats%n_clear(l) = stats%n_clear(1)
     lane_stats%n_unclear(l) = stats%n_unclear(1)
+    lane_stats%clear_last(l) = stats%clear_last(1)
     lane_stats%last_time(l) = stats%last_time(1)
     lane_stats%counting(l) = stats%counting(1)
   end subroutine put_lane

@@ -24,7 +24,7 @@ module ellroll_step_peaks
 
   public :: step_screen_t, screen_theta, note_screen, note_screen_end, screen_step, add_step_peaks, &
             peak_count, peak_quantities, peak_values, worth_refining, peak_resolution, may_peak_inside, &
-            dense_observation, time_beyond_inside
+            dense_observation, time_beyond_inside, clearance_crossing, add_clearance_crossing
 
   integer, parameter :: peak_count = 4
   !> The quantities (ellroll_quantities) whose maxima are located inside steps.
@@ -373,6 +373,73 @@ contains
     slope = d1 + curvature * (x(2) - x(1))
     top = v(2) - slope**2 / (4 * curvature)
   end function parabola_top
+
+  !> Where the clearance of the cup's curvature (fit_clearance) changes sign
+  !> in the last attempt (in pair) between its start (clear_start: > 0
+  !> there) and theta_end of the step: the point on the path's clear side,
+  !> located on the dense output by bisection to 2^-50 of that part, its
+  !> time t and peak values (peak_values, with the rate there). A case that
+  !> ends at a model limit takes its peaks over the path clear of the
+  !> curvature: the forces grow steeply towards the limit, and this point,
+  !> unlike the last clear step end, does not move with the steps' round-off.
+  subroutine clearance_crossing(pair, ball, clear_start, theta_end, t, values, n_rhs)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    logical, intent(in) :: clear_start
+    real(wp), intent(in) :: theta_end
+    real(wp), intent(out) :: t, values(peak_count)
+    integer(i8), intent(inout) :: n_rhs
+    integer, parameter :: halvings = 50
+    type(observation_t) :: obs
+    real(wp) :: clear_side, other_side, middle
+    integer :: k
+    clear_side = merge(0.0_wp, theta_end, clear_start)
+    other_side = merge(theta_end, 0.0_wp, clear_start)
+    do k = 1, halvings
+      middle = (clear_side + other_side) / 2
+      call dense_observation(pair, ball, middle, .false., obs, n_rhs)
+      if (obs%fit_clearance > 0) then
+        clear_side = middle
+      else
+        other_side = middle
+      end if
+    end do
+    call dense_observation(pair, ball, clear_side, .true., obs, n_rhs)
+    t = pair%t_old + clear_side * pair%h
+    values = peak_values(obs)
+  end subroutine clearance_crossing
+
+  !> Where the clearance changes sign in the last attempt (in pair) between
+  !> the last step end (clear or not: the statistics' clear_last) and theta_end
+  !> of the step (clearance_end there): clearance_crossing, into the maxima
+  !> clear of the cup's curvature of one case (stats) or of lane l's
+  !> (lane_stats). Nothing where it keeps its sign.
+  subroutine add_clearance_crossing(pair, ball, clearance_end, theta_end, n_rhs, stats, lane_stats, l)
+    class(embedded_pair_t), intent(inout) :: pair
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: clearance_end, theta_end
+    integer(i8), intent(inout) :: n_rhs
+    type(running_t), intent(inout), optional :: stats
+    type(running_lanes_t), intent(inout), optional :: lane_stats
+    integer, intent(in), optional :: l
+    real(wp) :: t, values(peak_count)
+    logical :: clear_start
+    integer :: j
+    if (present(stats)) then
+      clear_start = stats%clear_last(1)
+    else
+      clear_start = lane_stats%clear_last(l)
+    end if
+    if (clear_start .eqv. clearance_end > 0) return
+    call clearance_crossing(pair, ball, clear_start, theta_end, t, values, n_rhs)
+    do j = 1, peak_count
+      if (present(stats)) then
+        call add_inside(stats, peak_quantities(j), values(j), t, .true.)
+      else
+        call add_inside(lane_stats, l, peak_quantities(j), values(j), t, .true.)
+      end if
+    end do
+  end subroutine add_clearance_crossing
 
   !> Every derived output at t_old + theta h of the last attempt, from its
   !> dense output, the normal projected to unit length, with f there (one

@@ -97,7 +97,7 @@ contains
 
   !> The two small-oscillation periods (longer first) about the bottom of
   !> the cup at rest, spinning at sigma; NaN for a mode that does not
-  !> oscillate, and both NaN where the ball cannot sit at the bottom
+  !> oscillate (its period infinite: first), and both NaN where the ball cannot sit at the bottom
   !> (fits_at_bottom).
   !> Why 2x2: the cup's mirror x -> -x followed by time reversal maps
   !> (n1, n2, w1, w2) to (-n1, n2, -w1, w2) and keeps the equilibrium, so the
@@ -147,9 +147,9 @@ contains
       ! floor below: it is as exact as the fast one)
       frequencies(1) = sqrt(-(half_trace - sqrt(discriminant)))
       frequencies(2) = product(two_pi / no_spin_periods(ball)) / frequencies(1)
-      ! (a period that would overflow, from a subnormal g, stays NaN)
+      ! (a period that would overflow, from a subnormal g, stays NaN: the
+      ! longer, first)
       where (frequencies([2, 1]) > two_pi / huge(1.0_wp)) periods = two_pi / frequencies([2, 1])
-      if (ieee_is_nan(periods(1))) periods = periods([2, 1])
       return
     end if
     mu = half_trace + [1, -1] * sqrt(cmplx(discriminant, 0.0_wp, wp))
@@ -161,10 +161,13 @@ contains
     ! zero (det BC = 0), whatever round-off leaves of it
     if (.not. ball%g > 0) frequencies(minloc(frequencies, dim=1)) = 0
     where (frequencies > 1.0e-9_wp * maxval(frequencies)) periods = two_pi / frequencies
-    ! NaN is tested first: an ordered comparison with it traps where invalid traps
-    if (ieee_is_nan(periods(1))) then
+    ! the longer first: a mode that does not oscillate (its period infinite,
+    ! NaN) before one that does (as the slow mode before the gyroscopic one
+    ! without g). NaN is tested first: an ordered comparison with it traps
+    ! where invalid traps.
+    if (ieee_is_nan(periods(2))) then
       periods = periods([2, 1])
-    else if (.not. ieee_is_nan(periods(2))) then
+    else if (.not. ieee_is_nan(periods(1))) then
       if (periods(2) > periods(1)) periods = periods([2, 1])
     end if
   end function oscillation_periods

@@ -150,6 +150,16 @@ def test_lognormal_percentiles_are_the_fitted_lognormals():
         suite.stripe_statistics({"scale": np.ones(4)}, ["completed"] * 4, {"d": values}, percentiles="nearest")
 
 
+@pytest.mark.parametrize("value", [0.07, 2.5, 1e-9])
+def test_a_stripe_of_one_value_has_its_lognormal_median_and_no_spread(value):
+    # ln y has no sample standard deviation with one value; exp(mean ln y) is y
+    table = suite.stripe_statistics({"scale": np.ones(3)}, ["completed", "rim", "no_fit"],
+                                    {"d": np.array([value, 0.3, 0.4])}, percentiles="lognormal")
+    row = table.iloc[0]
+    assert row["d_n"] == 1 and row["d_p50"] == pytest.approx(value, rel=1e-15)
+    assert math.isnan(row["d_p16"]) and math.isnan(row["d_p84"])
+
+
 def test_suite_statistics_of_a_file_keep_limit_cases_and_design_values_apart(small_suite, tmp_path):
     with h5py.File(small_suite, "r") as f:
         n = f["summary/status"].shape[0]
