@@ -110,6 +110,7 @@ contains
                            itoa(path_length) // ' (the system''s limit)')
           return
         end if
+        if (ends_in_blank(arg, err)) return
         cli%paths = [character(len=path_length) :: cli%paths, arg]
       end select
       k = k + 1
@@ -180,7 +181,11 @@ contains
     integer :: ios
     select case (option)
     case ('-o', '--output')
-      if (len_trim(value) == 0) call usage_error(err, option // ' needs a file name, not an empty text')
+      if (len_trim(value) == 0) then
+        call usage_error(err, option // ' needs a file name, not an empty text')
+        return
+      end if
+      if (ends_in_blank(value, err)) return
       if (work_suffix(value) > 0) call usage_error(err, option // ' ' // value // ': ends in ' // &
           value(len(value) - work_suffix(value) + 1:) // ', a suffix of ellroll''s own work files (.partial, ' // &
           '.partial.new, .journal, .lock); choose another output name')
@@ -249,6 +254,17 @@ contains
     character(len=*), intent(in) :: text
     is_digits = len(text) > 0 .and. verify(text, '0123456789') == 0
   end function is_digits
+
+  !> A file name that ends in a blank is refused: the paths are Fortran
+  !> texts, whose trailing blanks do not count, so another file would be
+  !> read or written.
+  logical function ends_in_blank(path, err) result(refused)
+    character(len=*), intent(in) :: path
+    type(error_t), intent(inout) :: err
+    refused = len(path) > len_trim(path)
+    if (refused) call usage_error(err, "'" // path // "': a file name that ends in a blank; " // &
+                                  "ellroll takes no such name (rename the file)")
+  end function ends_in_blank
 
   subroutine usage_error(err, message)
     type(error_t), intent(inout) :: err

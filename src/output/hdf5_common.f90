@@ -170,7 +170,8 @@ contains
     character(len=*), intent(in) :: name, value
     integer, intent(out) :: hdferr
     integer(hid_t) :: text_type, space, attr
-    character(len=len(value)+1, kind=c_char), target :: text
+    ! (on the heap: the input's whole text is one, of any length)
+    character(len=:, kind=c_char), allocatable, target :: text
     type(c_ptr), target :: pointers(1)
     integer :: code
     text = value // c_null_char

@@ -123,3 +123,24 @@ def test_an_option_with_a_value_given_twice_or_an_option_for_its_value_is_refuse
                 result = run(ellroll, *argv, cwd=files)
                 assert result.returncode == 2 and f"{option} needs a value, not the option {value}" in result.stderr, \
                     (argv, result.stderr)
+
+
+@pytest.mark.parametrize("blanks", [" ", "  ", "\t "])
+def test_a_file_name_that_ends_in_a_blank_is_refused_and_no_other_file_is_touched(ellroll, files, blanks):
+    """A Fortran text's trailing blanks do not count: 'x.h5 ' would read or
+    replace x.h5. Every file argument of every command (and -o) that ends in
+    a blank is refused in one line naming it, the files with the name
+    without it (there) untouched."""
+    for command in commands(ellroll):
+        argv = arguments(command)
+        slots = [i for i, a in enumerate(argv) if a != "-o"]
+        for i in slots:
+            edited = list(argv)
+            edited[i] = argv[i] + blanks
+            if command == "run":
+                edited.append("--overwrite")
+            before = snapshot(files)
+            result = run(ellroll, command, *edited, cwd=files)
+            assert result.returncode == 2, (command, edited, result.stderr)
+            assert f"'{edited[i]}': a file name that ends in a blank" in result.stderr, (command, edited, result.stderr)
+            assert snapshot(files) == before, (command, edited)
