@@ -27,7 +27,7 @@ module ellroll_rolling_ball
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, horizontal_force_scaled, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
-            choose_rolling_law, rolling_rate, stiff_rolling
+            choose_rolling_law, rolling_rate, stiff_rolling, rest_rate, rolling_part
 
   !> How a fixed step directs the couple of rolling resistance
   !> (choose_rolling_law): against the rolling part of omega as it is
