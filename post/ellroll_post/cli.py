@@ -1,6 +1,7 @@
 """ellroll-plot: figures, reports and summaries of ellroll HDF5 files."""
 import argparse
 import csv
+import errno
 import functools
 import io
 import math
@@ -406,6 +407,8 @@ def _stdout(text):
     with the system's reason, where it cannot be written. Standard output is
     then pointed at os.devnull, so that Python's flush at exit finds nothing
     to write."""
+    if sys.stdout is None:              # (Python's, where the process started with it closed)
+        raise StandardOutputLost(os.strerror(errno.EBADF))
     try:
         sys.stdout.write(text)
         sys.stdout.flush()

@@ -6,6 +6,7 @@ import os
 import pathlib
 import shutil
 import tempfile
+import urllib.parse
 
 import numpy as np
 
@@ -170,7 +171,9 @@ def _index_html(run, figures, case, shown=REPORT_ROWS, notes=()):
                 f"<table class=\"stats\">\n<tr><th>figure</th><th>min</th><th>median</th><th>max</th><th>cases</th></tr>\n"
                 f"{stats_rows}</table></div>" if stats and run.n_cases > 1 else "")
     prefix = pathlib.Path(run.path).stem + "_"
-    images = "\n".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>'
+    # (a file's name is text: quoted in the link, escaped in the attribute)
+    images = "\n".join(f'<figure><img src="{html.escape(urllib.parse.quote(p.name))}" '
+                       f'alt="{html.escape(p.stem)}"><figcaption>'
                        f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>' for p in figures)
     remarks = "".join(f"<p>{html.escape(n)}</p>\n" for n in notes)
     return f"""<!DOCTYPE html>

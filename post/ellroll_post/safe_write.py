@@ -4,18 +4,32 @@ new temporary file beside it and moved into place when complete, so a command
 that fails leaves nothing behind."""
 import os
 import pathlib
+import re
 import stat
 import tempfile
 
 MARK = "ellroll-plot"              # in every figure's metadata and page it writes
-# what marks its tables, whose text is what standard output shows: the report's summary.csv
-# begins with its header; `fragility --format csv|json|table -o FILE` holds its columns,
-# its JSON's interval, or its table's note
-TABLE_HEADS = (b"case,",)
-TABLE_SIGNS = (b"theta,theta_low,theta_high,beta,beta_low,beta_high,", b'\n "interval": "5-95 %",\n',
-               b"\nP(exceed | IM = x) = Phi(ln(x / theta) / beta), fitted by maximum likelihood")
 # matplotlib's metadata keys per format
 FIGURE_METADATA = {"png": {"Software": MARK}, "pdf": {"Creator": MARK}, "svg": {"Creator": MARK}}
+# Each kind of file it writes carries its mark in a fixed place: a figure's
+# metadata (as matplotlib writes FIGURE_METADATA), a page's generator, a
+# table's own first line (the report's summary.csv, `fragility --format csv`)
+# or its own ending (`--format table`) or key (`--format json`). A file that
+# merely mentions ellroll-plot, or a table that begins with `case,`, is not
+# its own.
+FIGURE_MARKS = (re.compile(rb"\A\x89PNG\r\n\x1a\n.*?tEXtSoftware\x00ellroll-plot", re.S),
+                re.compile(rb"\A%PDF-.*/Creator \(ellroll-plot\)", re.S),
+                re.compile(rb"\A<\?xml[^\n]*\n<!DOCTYPE svg .*?<dc:creator>\s*<cc:Agent>\s*"
+                           rb"<dc:title>ellroll-plot</dc:title>", re.S),
+                re.compile(rb'\A<!DOCTYPE html>\n<html><head><meta charset="utf-8">'
+                           rb'<meta name="generator" content="ellroll-plot">'))
+TABLE_FIRST_LINES = (re.compile(rb"case,([^,\n]*,)*status,t_final \[s\],n_steps,n_rejected,n_rhs,[^\n]*"),
+                     re.compile(rb"([^,\n]*,)*limit_state,im,units,theta,theta_low,theta_high,beta,beta_low,"
+                                rb"beta_high,n_points,n_known,n_exceeded,n_undefined,note\r?"))
+TABLE_JSON_START = b'{\n "file": '
+TABLE_JSON_SIGN = b'\n "interval": "5-95 %",\n'
+TABLE_TEXT_END = (b"P(exceed | IM = x) = Phi(ln(x / theta) / beta), fitted by maximum likelihood to the "
+                  b"binomial counts; intervals 5-95 % of a parametric bootstrap\n")
 
 
 class OutputExists(Exception):
@@ -28,14 +42,18 @@ class CannotWrite(OSError):
 
 
 def made_by_us(path):
-    """Whether a regular file holds ellroll-plot's mark (figures have it in
-    their metadata, pages in a comment, tables in their first line)."""
+    """Whether a regular file holds ellroll-plot's mark in its place (a
+    figure's metadata, a page's generator, a table's first line, ending or
+    key: FIGURE_MARKS and the TABLE_ ones)."""
     with open(path, "rb") as handle:
         head = handle.read(1 << 16)
         handle.seek(max(0, os.fstat(handle.fileno()).st_size - (1 << 16)))
         tail = handle.read()
-    return any(sign in head or sign in tail for sign in (MARK.encode(), *TABLE_SIGNS)) or \
-        head.startswith(TABLE_HEADS)
+    first_line = head.split(b"\n", 1)[0]
+    return (any(mark.match(head) or mark.match(head + tail) for mark in FIGURE_MARKS)
+            or any(line.fullmatch(first_line) for line in TABLE_FIRST_LINES)
+            or (head.startswith(TABLE_JSON_START) and TABLE_JSON_SIGN in head)
+            or tail.endswith(TABLE_TEXT_END))
 
 
 def check_target(path, overwrite):

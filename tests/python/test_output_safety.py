@@ -13,6 +13,7 @@ resume, or shards run with different records, are refused naming the file.
 The end of a run: a kill between moving the output into place and removing
 its journal leaves a complete output that a resume recognises."""
 import os
+import pathlib
 import random
 import re
 import shutil
@@ -20,6 +21,7 @@ import signal
 import subprocess
 import time
 
+import numpy as np
 import pytest
 
 from conftest import ROOT, run
@@ -491,3 +493,43 @@ def test_a_run_on_a_file_system_without_locks_leaves_no_lock_file(ellroll, tmp_p
     assert result.returncode == 0, result.stderr
     assert "the file system cannot lock files (No locks available)" in result.stderr
     assert sorted(p.name for p in folder.iterdir()) == ["camp.nml", "out.h5"]
+
+
+def near_misses(rng, own):
+    """A user's files that look like ellroll-plot's output without being it:
+    texts that mention the tool, tables that begin with `case,`, and the
+    tool's own output with its mark moved out of its place (seeded)."""
+    filler = "".join(rng.choice(list("abc ,\n")) for _ in range(int(rng.integers(10, 400))))
+    yield "#!/bin/sh\nellroll-plot trace run.h5 --out figures\n" + filler
+    yield "notes: ellroll-plot made the figures\n" + filler
+    yield "case,my_comment\n1,fine\n" + filler
+    yield f"case,status\n0,{filler}"
+    yield filler + "\n" + own.decode("latin-1")            # the mark no longer in its place
+    yield "x" + own.decode("latin-1")
+
+
+@pytest.mark.parametrize("command", [["trace"], ["report"], ["trace", "--format", "svg"], ["trace", "--format", "pdf"]],
+                         ids=["png", "report", "svg", "pdf"])
+def test_ellroll_plot_takes_only_its_marks_in_their_place_as_its_own(plotted, command):
+    """A file at an output's name counts as ellroll-plot's by its mark in its
+    place alone (a figure's metadata, a page's generator, a table's first
+    line): a script or notes that mention ellroll-plot, a user's table that
+    begins with `case,`, or its own output with bytes before it are never
+    replaced, even with --overwrite."""
+    figures = f"own_{'_'.join(command)}"
+    code, out, err = plot(plotted, command[0], "out.h5", *command[1:], "--out", figures)
+    assert code == 0, err
+    targets = [plotted / line for line in out.splitlines() if line]
+    if command == ["report"]:
+        targets = [plotted / figures / name for name in ("index.html", "summary.csv")]
+    rng = np.random.default_rng(1700 + len(figures))
+    for target in targets:
+        own = target.read_bytes()
+        for text in near_misses(rng, own):
+            target.write_bytes(text.encode("latin-1"))
+            code, _, err = plot(plotted, command[0], "out.h5", *command[1:], "--out", figures, "--overwrite")
+            assert code == 2 and "not made by ellroll-plot" in err, (target.name, text[:60], err)
+            assert target.read_bytes() == text.encode("latin-1"), target.name
+        target.write_bytes(own)
+    code, _, err = plot(plotted, command[0], "out.h5", *command[1:], "--out", figures, "--overwrite")
+    assert code == 0, err

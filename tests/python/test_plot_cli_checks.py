@@ -314,6 +314,23 @@ def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, com
     one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
 
 
+@pytest.mark.parametrize("command", ["nutation", "report", "fragility-csv", "summary"])
+def test_a_closed_standard_output_is_one_line(files, tmp_path, command):
+    """ellroll-plot started with its standard output closed (`>&-`, as a
+    daemon or a cron line may start it; Python then has no sys.stdout): one
+    line naming standard output and the system's reason, exit 2."""
+    source = files / ("suite.h5" if command.startswith(("suite", "fragility")) else "whole.h5")
+    args = arguments(command.split("-")[0], source, tmp_path / "out")
+    if command == "fragility-csv":
+        args += ["--format", "csv"]
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
+                                                                os.environ.get("PYTHONPATH", "")])}
+    result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=None,
+                            stderr=subprocess.PIPE, text=True, env=environment, timeout=300,
+                            preexec_fn=lambda: os.close(1))
+    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "Bad file descriptor")
+
+
 def folder_state(folder):
     """{name: bytes} of every file in a folder (hidden ones included)."""
     return {p.name: p.read_bytes() for p in folder.iterdir()} if folder.exists() else None

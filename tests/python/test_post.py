@@ -2,11 +2,15 @@
 carry exactly the file's data; the energy bound satisfies the energy
 equation; bad files and arguments give clear errors, not tracebacks."""
 import csv
+import html
+import html.parser
 import io
 import json
+import pathlib
 import re
 import subprocess
 import sys
+import urllib.parse
 
 import h5py
 import numpy as np
@@ -409,3 +413,35 @@ def test_suite_figures_of_a_partial_file_say_its_finished_cases_hold_one_record(
         assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
         assert (f"its {finished} finished cases of {n_cases} hold one record ({first}); a suite's figures need two "
                 "or more") in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize("name", ['r" onerror="alert(1)" x="', "run#1 50%", "a&b <c>", "naïve 'quote'"])
+def test_a_report_names_its_figures_by_any_file_name(paper_file, tmp_path, name):
+    """A file's name goes into the report's links quoted (a '#' or '%' of
+    it is no fragment or escape) and into their text escaped (a quote of it
+    ends no attribute): every figure's link is its file, and the page holds
+    no attribute or tag that the name brought."""
+    source = tmp_path / f"{name}.h5"
+    source.write_bytes(paper_file.read_bytes())
+    out = tmp_path / "report"
+    result = plot_cli("report", source, "--out", out)
+    assert result.returncode == 0, result.stderr
+    index = (out / "index.html").read_text()
+    links = re.findall(r'<img src="([^"]*)" alt="([^"]*)">', index)
+    assert len(links) == len([p for p in out.iterdir() if p.suffix == ".png"]) >= 4, links
+    for src, alt in links:
+        target = urllib.parse.unquote(html.unescape(src))
+        assert (out / target).is_file() and target.startswith(name), (src, target)
+        # a URL path: no fragment, no blank, '%' only as an escape
+        assert re.fullmatch(r"([A-Za-z0-9._~/-]|%[0-9A-F]{2})+", html.unescape(src)), src
+        assert html.unescape(alt) == pathlib.Path(target).stem, alt
+
+    class Images(html.parser.HTMLParser):
+        found = []
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "img":
+                self.found.append([key for key, _ in attrs])
+    parser = Images()
+    parser.feed(index)
+    assert parser.found and all(keys == ["src", "alt"] for keys in parser.found), parser.found
