@@ -27,7 +27,7 @@ module ellroll_trajectory_store
   implicit none
   private
 
-  public :: trajectory_store_t, label_bytes, label_search_bytes
+  public :: trajectory_store_t, label_bytes, label_search_bytes, label_marker
 
   integer(i8), parameter :: piece_words = 2_i8**17      !< a piece of move_in: 1 MiB
   integer, parameter :: label_bytes = 512               !< the label's text, NUL padded

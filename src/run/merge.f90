@@ -77,7 +77,7 @@ contains
       if (.not. err%failed()) call files%commit(files%partial, err)
       ! a merge has no journal to resume from: its work file goes on any
       ! failure (cleanup apart from err, which says why the merge failed)
-      if (err%failed()) call files%discard(files%partial, work_partial, cleanup)
+      if (err%failed()) call files%discard(files%partial, work_partial, cleanup, made=.true.)
     end if
     if (.not. present(locked)) call files%release(err)
   end subroutine merge_shards

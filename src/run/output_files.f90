@@ -18,10 +18,11 @@
 !> warning.
 module ellroll_output_files
   use, intrinsic :: iso_fortran_env, only: error_unit
-  use ellroll_errors, only: error_t, set_error, err_output
+  use ellroll_errors, only: error_t, set_error, err_output, err_input
   use ellroll_strings, only: itoa
   use ellroll_system, only: system_error_text, folder_of, utc_timestamp, shown_command_line
   use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_trajectory_store, only: label_marker, label_search_bytes
   use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
       sync_folder, read_head, lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
   implicit none
@@ -196,13 +197,21 @@ contains
 
   !> Remove a work file (checked first: ours, not a link, not the input);
   !> nothing there is no error.
-  subroutine discard(self, path, what, err)
+  subroutine discard(self, path, what, err, made)
     class(output_files_t), intent(in) :: self
     character(len=*), intent(in) :: path
     integer, intent(in) :: what
     type(error_t), intent(inout) :: err
+    !> this process made the file (a failed run's cleanup): a regular file
+    !> there goes whatever it holds so far
+    logical, intent(in), optional :: made
     integer :: code
-    call self%check(path, what, err)
+    logical :: ours
+    ours = .false.
+    if (present(made)) then
+      if (made) ours = path_kind(path) == kind_regular
+    end if
+    if (.not. ours) call self%check(path, what, err)
     if (err%failed()) return
     if (path_kind(path) == kind_missing) return
     code = remove_path(path)
@@ -293,6 +302,7 @@ contains
         achar(26) // achar(10)
     character(len=*), parameter :: label = 'ellroll:', journal_magic = 'ELLROLL', lock_mark = 'ellroll lock'
     character(len=520) :: head
+    character(len=label_search_bytes) :: window
     integer :: n
     type(h5_input_t) :: output
     type(error_t) :: not_ours
@@ -324,6 +334,17 @@ contains
     case default
       ours = head(1:min(n, 8)) == hdf5_signature(:min(n, 8)) .or. head(1:min(n, 8)) == label(:min(n, 8))
       if (n >= 520) ours = ours .or. (verify(head(:512), char(0)) == 0 .and. head(513:520) == hdf5_signature)
+      ! an HDF5 file without the trajectories' label that opens whole and is
+      ! another program's is not a work file (ellroll's has the label from its
+      ! start on, or is open for write, torn, or says it is ellroll's)
+      if (ours .and. n >= 8 .and. head(1:min(n, 8)) == hdf5_signature) then
+        call read_head(path, window, n)
+        if (index(window(:max(n, 0)), label_marker) == 0) then
+          call output%open(path, not_ours)
+          call output%close()
+          if (not_ours%code == err_input) ours = index(not_ours%message, 'not an ellroll file') == 0
+        end if
+      end if
     end select
   end subroutine look_at
 end module ellroll_output_files

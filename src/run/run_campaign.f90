@@ -361,9 +361,9 @@ contains
       err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
                     'far; fix the cause and run again with --resume'
     else
-      call files%discard(files%partial, work_partial, cleanup)
-      call files%discard(files%resumed, work_partial, cleanup)
-      call files%discard(files%journal, work_journal, cleanup)
+      call files%discard(files%partial, work_partial, cleanup, made=.true.)
+      call files%discard(files%resumed, work_partial, cleanup, made=.true.)
+      call files%discard(files%journal, work_journal, cleanup, made=.true.)
       if (cleanup%failed()) err%message = err%message // achar(10) // '  ' // cleanup%message
     end if
   end subroutine abandon

@@ -21,6 +21,7 @@ import signal
 import subprocess
 import time
 
+import h5py
 import numpy as np
 import pytest
 
@@ -60,11 +61,14 @@ def hostile(folder, name, kind):
         target.symlink_to("victim.txt")
     elif kind == "foreign":
         target.write_bytes(VICTIM)
+    elif kind == "foreign_hdf5":         # another program's HDF5 file: not a work file for its signature
+        with h5py.File(target, "w", libver=("earliest", "v110")) as f:
+            f["precious"] = np.arange(5.0)
     else:
         target.mkdir()
 
 
-@pytest.mark.parametrize("kind", ["link", "foreign", "folder"])
+@pytest.mark.parametrize("kind", ["link", "foreign", "foreign_hdf5", "folder"])
 @pytest.mark.parametrize("name", WORK_NAMES)
 @pytest.mark.parametrize("options", [[], ["--overwrite"], ["--resume"]], ids=["plain", "overwrite", "resume"])
 def test_run_never_writes_a_file_it_did_not_make(ellroll, tmp_path, kind, name, options):
@@ -106,6 +110,8 @@ def test_merge_never_replaces_a_file_it_did_not_make(ellroll, tmp_path, kind, ov
     target = "s0.h5" if kind == "shard" else "merged.csv"
     if kind != "shard":
         hostile(folder, target, kind)
+    if kind == "foreign":                      # and another program's HDF5 file at its work file's name
+        hostile(folder, target + ".partial", "foreign_hdf5")
     before = contents(folder)
     result = run(ellroll, "merge", target, "s0.h5", "s1.h5", *(["--overwrite"] if overwrite else []), cwd=folder)
     assert result.returncode in (2, 3) and f"{target}: " in result.stderr, result.stderr
