@@ -175,6 +175,19 @@ contains
     header%in_place = words(w + 5 + field_count:header_words - 1) == 1
   end function decode_header
 
+  !> Whether a read of the journal at path failed in the system (code > 0:
+  !> its errno; -1 is a short read, 0 none): err says so, and that the
+  !> journal is left as it is for a resume once the disk reads (its cases are
+  !> not judged on a read that failed).
+  logical function unreadable(path, code, err)
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: code
+    type(error_t), intent(inout) :: err
+    unreadable = code > 0
+    if (unreadable) call set_error(err, err_output, path // ': cannot read it: ' // system_error_text(code) // &
+        '; the journal is left as it is: resume again once the disk reads it')
+  end function unreadable
+
   !> Open a journal to resume it; refuse one written for another campaign.
   subroutine open_existing(self, path, expected, err)
     class(journal_t), intent(inout) :: self
@@ -192,6 +205,7 @@ contains
       return
     end if
     code = read_at(self%fd, c_loc(start), 8_i8, 0_i8)
+    if (unreadable(path, code, err)) return
     found_magic = transfer(start(1), found_magic)
     if (code == 0 .and. found_magic(:7) == magic(:7) .and. found_magic /= magic) then
       call set_error(err, err_input, path // ': this run was started by another version of ellroll (journal ' // &
@@ -201,6 +215,7 @@ contains
       return
     end if
     if (code == 0) code = read_at(self%fd, c_loc(start), int(header_bytes, i8), 0_i8)
+    if (unreadable(path, code, err)) return
     if (code /= 0 .or. found_magic /= magic) then
       call set_error(err, err_output, path // ': not a journal of this version of ellroll; start over ' // &
                      'with --overwrite')
@@ -213,6 +228,7 @@ contains
     end if
     found = decode_header(start(2:header_words + 1))
     call read_note(self%fd, start(header_words + 1), found%input_files, code)
+    if (unreadable(path, code, err)) return
     if (code /= 0) then
       call set_error(err, err_output, path // ': the journal''s note of the input''s files is damaged, so none ' // &
                      'of its cases can be trusted; start over with --overwrite')

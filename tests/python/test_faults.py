@@ -222,12 +222,13 @@ def read_ordinals(ellroll, folder, args, path):
     return ordinals
 
 
-@pytest.mark.parametrize("command", ["overwrite", "merge", "resume"])
+@pytest.mark.parametrize("command", ["overwrite", "merge", "resume", "journal"])
 def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_path, command):
     """EIO on a read of the existing output (--overwrite), of a shard
-    (merge; seeded sample of its reads) or of a killed run's lock (--resume):
-    exit 3, 'cannot read it: Input/output error', never advice to remove a
-    file that could not be read, every file left as it was."""
+    (merge; seeded sample of its reads), of a killed run's lock or of its
+    journal's header (--resume): exit 3, 'cannot read it:
+    Input/output error', never advice to remove a file that could not be
+    read or to start over, every file left as it was."""
     base = tmp_path / "base"
     base.mkdir()
     (base / "camp.nml").write_text(CAMPAIGN)
@@ -243,15 +244,22 @@ def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_
         killed = strace([ellroll, "run", "camp.nml", "-q", "--threads", "1"], base,
                          inject="pwritev:signal=SIGKILL:when=5")
         assert killed.returncode != 0 and (base / "out.h5.journal").exists(), killed.stderr
-        # a lock file left as a killed run on another machine's file system may leave it
-        (base / "out.h5.lock").write_text("ellroll lock\nhost h, pid 1, started t: ellroll run camp.nml\n")
-        args, path = ["run", "camp.nml", "-q", "--resume"], "out.h5.lock"
+        args, path = ["run", "camp.nml", "-q", "--resume"], "out.h5.journal"
+        (base / "out.h5.lock").unlink()         # (the killed run's: the resume takes it over, then leaves none)
+        if command == "resume":
+            # a lock file left as a killed run on another machine's file system may leave it
+            (base / "out.h5.lock").write_text("ellroll lock\nhost h, pid 1, started t: ellroll run camp.nml\n")
+            path = "out.h5.lock"
     counting = tmp_path / "counting"
     shutil.copytree(base, counting)
     ordinals = read_ordinals(ellroll, counting, args, path)
     assert ordinals
     rng = random.Random(20261127)
     picked = ordinals if len(ordinals) <= 6 else sorted({ordinals[0], ordinals[-1], *rng.sample(ordinals, 4)})
+    if command == "journal":
+        # the resume's own reads of its magic, header and note (the 3 before only look
+        # at the file: a failed one judges nothing; a record not read reruns its case)
+        picked = ordinals[3:6]
     before = {p.name: p.read_bytes() for p in base.iterdir()}
     for n in picked:
         folder = tmp_path / f"eio{n}"
@@ -266,6 +274,7 @@ def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_
                          "output's lock): "
                          "Input/output error", result.stderr), detail
         assert "remove it" not in result.stderr and "not an ellroll" not in result.stderr, detail
+        assert "--overwrite" not in result.stderr, detail
         assert {p.name: p.read_bytes() for p in folder.iterdir()} == before, detail
         shutil.rmtree(folder)
 
