@@ -7,7 +7,6 @@
 module ellroll_adaptive_run
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
-  use ellroll_norms, only: norm_of
   use ellroll_exact, only: is_zero
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
@@ -17,7 +16,7 @@ module ellroll_adaptive_run
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_turns, only: turn_resolved
-  use ellroll_integrators, only: embedded_pair_t, max_equations
+  use ellroll_integrators, only: embedded_pair_t
   use ellroll_ball_lanes, only: lanes
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
@@ -29,18 +28,15 @@ module ellroll_adaptive_run
       peak_quantities, dense_observation, peak_count, peak_values, time_beyond_inside, add_clearance_crossing
   use ellroll_step_control, only: step_control_t, judged_norm, round_off_step, cannot_follow, next_step
   use ellroll_params, only: p_dt
+  use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
   implicit none
   private
 
-  public :: nutation_peak_t, adaptive_loop, attempt_step
-  public :: project_with_rate, nutation_peak_inside, locate_nutation_peak, stop_in_step, record_samples_until
-  public :: beyond_rim, reaction_inside, locate_crossing, end_at_crossing, screen_and_peaks, project_lanes
+  public :: adaptive_loop, attempt_step
+  public :: project_with_rate, stop_in_step, record_samples_until
+  public :: reaction_inside, locate_crossing, end_at_crossing, screen_and_peaks, project_lanes
 
   !> A maximum of the nutation angle located inside a step.
-  type :: nutation_peak_t
-    real(wp) :: t = 0, tan_nutation = 0
-    real(wp) :: lateral = 0, normal_z = 1     !< of the unit normal there
-  end type nutation_peak_t
 
 contains
 
@@ -106,9 +102,10 @@ contains
         call end_in_step(status)
         return
       end if
-      peak_inside = nutation_peak_inside(y, f, y_new, f_new)
+      peak_inside = nutation_peak_inside(y, f, y_new, f_new, h)
       if (peak_inside) then
         call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
+        peak_inside = peak%found
         if (beyond_rim(peak)) then
           call end_in_step(status_rim, peak%t - t)
           return
@@ -327,116 +324,6 @@ contains
     end do
   end subroutine project_lanes
 
-  !> Whether Theta has a maximum in the step from (y, f) to (y_new, f_new):
-  !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
-  !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
-  !> step's end is found once).
-  pure logical function nutation_peak_inside(y, f, y_new, f_new)
-    real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)     ! (assumed shape: a batch passes lanes' rows)
-    nutation_peak_inside = nutation_trend(y, f, lateral_factor(y)) >= 0 .and. &
-                           nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0
-  end function nutation_peak_inside
-
-  !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
-  !> of either: the part of y' along y cancels, so |n| need not be 1), times
-  !> factor^2: the lateral components and their rates taken times factor, a
-  !> power of two (lateral_factor), so that the products of a tiny motion's
-  !> do not underflow.
-  pure real(wp) function nutation_trend(y, rate, factor)
-    real(wp), intent(in) :: y(:), rate(:), factor
-    nutation_trend = ((factor * y(1)) * (factor * rate(1)) + (factor * y(2)) * (factor * rate(2))) * y(3) &
-                     - ((factor * y(1))**2 + (factor * y(2))**2) * rate(3)
-  end function nutation_trend
-
-  !> 1, or where the lateral components of y are below 2^-400 (their
-  !> products would lose digits), the power of two that takes the larger to
-  !> [1/2, 1) (a subnormal's towards it): the trend's sign and ratios are the
-  !> same, its round-off not that of the subnormal range.
-  pure real(wp) function lateral_factor(y)
-    real(wp), intent(in) :: y(:)
-    real(wp) :: larger
-    larger = max(abs(y(1)), abs(y(2)))
-    lateral_factor = 1
-    ! (at most 2^1000: a subnormal's exponent goes to -1073, and 2^1073 overflows)
-    if (larger < scale(1.0_wp, -400) .and. larger > 0) lateral_factor = scale(1.0_wp, min(-exponent(larger), 1000))
-  end function lateral_factor
-
-  !> The maximum of Theta inside the last attempt (in pair): the root of
-  !> d tan(Theta)/dt on its dense output and the interpolant's derivative (a
-  !> simple root: its time is well conditioned), by regula falsi with the
-  !> Illinois modification (superlinear, the bracket kept) to a bracket of
-  !> 4 units of round-off in theta: about 10 evaluations where bisection
-  !> takes 52. upto: over the part [0, upto] of the step only, where a
-  !> maximum at its end counts (inside: whether it lies inside).
-  subroutine locate_nutation_peak(pair, ball, peak, n_rhs, upto, inside)
-    class(embedded_pair_t), intent(inout) :: pair
-    type(rolling_ball_t), intent(in) :: ball
-    type(nutation_peak_t), intent(out) :: peak
-    integer(i8), intent(inout) :: n_rhs
-    real(wp), intent(in), optional :: upto
-    logical, intent(out), optional :: inside
-    integer, parameter :: max_iterations = 100
-    real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
-    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral, factor
-    integer :: i, kept_side
-    logical :: prepared
-    call pair_ball_dense(pair, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
-    if (prepared) n_rhs = n_rhs + pair%dense_calls()
-    factor = lateral_factor(y)       ! (one for the step: the trends' ratios are the secant's)
-    low = 0
-    high = 1
-    if (present(upto)) high = upto
-    trend_low = trend_at(low)
-    trend_high = trend_at(high)
-    if (present(inside)) inside = trend_low >= 0 .and. trend_high < 0
-    ! a root at an end, where round-off decided the step's test: that end
-    if (trend_low < 0) then
-      high = low
-    else if (trend_high >= 0) then
-      low = high
-    end if
-    kept_side = 0
-    do i = 1, max_iterations
-      if (high - low <= resolution) exit
-      ! round-off may put the secant's root on an end, and the Illinois
-      ! halving may take both ends' trends to zero (a motion of 1e-9 m): halve instead
-      if (trend_low > trend_high) then
-        middle = (low * trend_high - high * trend_low) / (trend_high - trend_low)
-      else
-        middle = low
-      end if
-      if (.not. (middle > low .and. middle < high)) middle = 0.5_wp * (low + high)
-      trend = trend_at(middle)
-      if (trend >= 0) then
-        low = middle
-        trend_low = trend
-        if (kept_side == 1) trend_high = 0.5_wp * trend_high      ! Illinois: the other end stayed twice
-        kept_side = 1
-      else
-        high = middle
-        trend_high = trend
-        if (kept_side == -1) trend_low = 0.5_wp * trend_low
-        kept_side = -1
-      end if
-    end do
-    middle = 0.5_wp * (low + high)
-    call pair_ball_dense(pair, ball, middle, y, prepared)
-    y(1:3) = y(1:3) / sqrt(y(1)**2 + y(2)**2 + y(3)**2)
-    lateral = norm_of(y(1), y(2))
-    peak%t = pair%t_old + middle * pair%h
-    peak%tan_nutation = lateral / y(3)
-    peak%lateral = lateral
-    peak%normal_z = y(3)
-  contains
-    real(wp) function trend_at(theta)
-      real(wp), intent(in) :: theta
-      real(wp) :: state(state_size), rate(max_equations)
-      call pair_ball_dense(pair, ball, theta, state, prepared)
-      call pair%dense_rate(theta, rate)
-      trend_at = nutation_trend(state, rate(:state_size), factor)
-    end function trend_at
-  end subroutine locate_nutation_peak
-
   !> The last attempt (in pair) crossed a limit (status): bisect on its dense
   !> output, record the output samples before the crossing, and end the
   !> case at the last valid point. invalid: the offset from the step's
@@ -512,14 +399,6 @@ contains
       call search%record(offset, limit_status(run%ball, [obs%normal, obs%omega], obs), obs)
     end do
   end subroutine locate_crossing
-
-  !> Whether a maximum of Theta inside a step lies at or past the rim
-  !> (n_z <= 0): the step's ends are inside, the path between is not. Its
-  !> time is where the step's dense output is known to be past the rim.
-  pure logical function beyond_rim(peak)
-    type(nutation_peak_t), intent(in) :: peak
-    beyond_rim = .not. peak%normal_z > 0
-  end function beyond_rim
 
   !> With a limit of the reaction (mu > 0, or a cup that moves:
   !> reaction_limited): whether the path inside the last attempt (in pair),

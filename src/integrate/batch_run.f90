@@ -26,8 +26,8 @@ module ellroll_batch_run
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
       track_rolling_resistance, settled, last_fixed_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
-  use ellroll_adaptive_run, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, &
-      stop_in_step, record_samples_until, beyond_rim, screen_and_peaks, project_lanes
+  use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
+  use ellroll_adaptive_run, only: stop_in_step, record_samples_until, screen_and_peaks, project_lanes
   use ellroll_step_peaks, only: step_screen_t, note_screen_end, add_step_peaks, may_peak_inside, peak_quantities, &
       add_clearance_crossing
   use ellroll_step_control, only: step_control_t, next_step, round_off_step, cannot_follow, judged_norm
@@ -417,7 +417,7 @@ contains
         do l = 1, n
           if (.not. accepted(l)) cycle
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
-          peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :))
+          peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :), h(l))
           ! (the peak quantities' screen: ellroll_step_peaks)
           screened(l) = run(l)%ball%reaction_limited() .or. may_peak_inside(run(l)%ball, h(l), y(l, :), &
               f(l, :), y_new(l, :), f_new(l, :), summary%stats%clear_maximum(l, peak_quantities))
@@ -453,7 +453,7 @@ contains
           if (sample_inside(l)) call record_samples_until(pairs(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, base_end, l, run(l)%ball%radius), &
                                                           results(l))
-          if (peak_inside(l)) then
+          if (peak_inside(l) .and. peaks(l)%found) then
             call run(l)%maxima%add_peak(peaks(l)%t)
             call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
           end if

@@ -16,8 +16,8 @@ module ellroll_flow_to_limit
   use ellroll_case_run, only: run_state_t, limit_search_t, track, stop_asked
   use ellroll_excitation, only: longest_step
   use ellroll_step_control, only: step_control_t, next_step, smallest_step_ulps
-  use ellroll_adaptive_run, only: nutation_peak_t, attempt_step, locate_crossing, record_samples_until, end_at_crossing, &
-      nutation_peak_inside, locate_nutation_peak, beyond_rim, reaction_inside
+  use ellroll_adaptive_run, only: attempt_step, locate_crossing, record_samples_until, end_at_crossing, reaction_inside
+  use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
   implicit none
   private
 
@@ -125,7 +125,7 @@ contains
         return
       end if
       passed = -1
-      if (nutation_peak_inside(y_at, f_at, y_new, f_new)) then
+      if (nutation_peak_inside(y_at, f_at, y_new, f_new, h)) then
         call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         if (beyond_rim(peak)) then
           status = status_rim
