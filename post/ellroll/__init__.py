@@ -613,9 +613,17 @@ def _run_inputs(inputs, threads, path, results):
     if isinstance(inputs, str):
         return _run_text(inputs, threads, path, results)
     _require_groups(inputs)
-    with tempfile.TemporaryDirectory(prefix="ellroll-records-") as folder:
+    try:
+        private = tempfile.TemporaryDirectory(prefix="ellroll-records-")
+    except OSError as exc:
+        raise Error(f"cannot make a private folder for the Records' files in {tempfile.gettempdir()}: "
+                    f"{exc.strerror or exc} (TMPDIR names another)", 3) from None
+    with private as folder:
         records = {}
-        text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
+        try:
+            text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
+        except OSError as exc:
+            raise Error(f"{exc.filename}: cannot write a Record's file: {exc.strerror or exc}", 3) from None
         try:
             return _run_text(text, threads, path, results)
         except Error as error:

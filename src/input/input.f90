@@ -116,6 +116,7 @@ contains
     type(sample_t), allocatable :: draws(:)
     type(namelist_values_t) :: v
     type(record_spec_t), allocatable :: suite(:)
+    integer :: n_records
     type(limit_state_t), allocatable :: states(:)
     integer, allocatable :: state_lines(:)
     character(len=:), allocatable :: reason
@@ -127,6 +128,7 @@ contains
     v%combine = 'grid'; v%invalid = 'stop'; v%samples = 0; v%seed = 0
     v%kind = 'none'; v%record_file = ''; v%factor = 1; v%sa_periods = not_given()
     allocate (sweeps(0), draws(0), suite(0), states(0), state_lines(0))
+    n_records = 0
 
     do gi = 1, size(rd%file%groups)
       associate (grp => rd%file%groups(gi))
@@ -164,13 +166,14 @@ contains
         if (grp%name == 'sweep') call add_sweep(rd, v, gi, sweeps, draws)
         if (grp%name == 'sample') call add_sample(rd, v, gi, sweeps, draws)
         if (grp%name == 'record') then
-          call add_record_group(rd, v, gi, suite)
+          call add_record_group(rd, v, gi, suite, n_records)
           v%record_file = excitation_files
         end if
         if (grp%name == 'limit_state') call add_limit_state(rd, v, gi, states, state_lines)
         if (rd%err%failed()) return
       end associate
     end do
+    suite = suite(:n_records)
     call build_input(rd, v, output_override, sweeps, draws, suite, inp%campaign, inp%plan, inp%input_files)
     if (.not. rd%err%failed()) inp%campaign%base%limit_states = states
   end subroutine read_groups
@@ -650,21 +653,37 @@ contains
 
   !> Groups and assignments in file order, without comments or layout: what
   !> decides whether two inputs describe the same campaign.
+  !> (Its length counted first, then filled: a text grown a group at a time
+  !> takes time growing as the square of the groups' count.)
   pure subroutine canonical_text(file, text)
     type(nml_file_t), intent(in) :: file
     character(len=:), allocatable, intent(out) :: text
-    integer :: gi, k
-    text = ''
+    integer :: gi, k, n
+    n = 0
     do gi = 1, size(file%groups)
-      text = text // '&' // file%groups(gi)%name
+      n = n + 1 + len(file%groups(gi)%name) + 3
       do k = 1, size(file%groups(gi)%items)
-        text = text // ' ' // file%groups(gi)%items(k)%name // '=' // file%groups(gi)%items(k)%value
+        n = n + 2 + len(file%groups(gi)%items(k)%name) + len(file%groups(gi)%items(k)%value)
       end do
-      text = text // ' /' // achar(10)
     end do
+    allocate (character(len=n) :: text)
+    n = 0
+    do gi = 1, size(file%groups)
+      call put('&' // file%groups(gi)%name, text, n)
+      do k = 1, size(file%groups(gi)%items)
+        call put(' ' // file%groups(gi)%items(k)%name // '=' // file%groups(gi)%items(k)%value, text, n)
+      end do
+      call put(' /' // achar(10), text, n)
+    end do
+  contains
+    pure subroutine put(piece, text, n)
+      character(len=*), intent(in) :: piece
+      character(len=*), intent(inout) :: text
+      integer, intent(inout) :: n
+      text(n + 1:n + len(piece)) = piece
+      n = n + len(piece)
+    end subroutine put
   end subroutine canonical_text
-
-
 
   real(wp) function nan()
     nan = ieee_value(0.0_wp, ieee_quiet_nan)

@@ -30,18 +30,22 @@ module ellroll_suite_input
 contains
 
   !> A &record group's name, files and factor, checked.
-  subroutine add_record_group(rd, v, gi, specs)
+  subroutine add_record_group(rd, v, gi, specs, n)
     type(reader_t), intent(inout) :: rd
     type(namelist_values_t), intent(in) :: v
     integer, intent(in) :: gi
+    !> the groups so far, specs(:n); its size doubles as it fills (a copy per
+    !> group would take time growing as the square of their count)
     type(record_spec_t), allocatable, intent(inout) :: specs(:)
+    integer, intent(inout) :: n
     type(record_spec_t) :: spec
+    type(record_spec_t), allocatable :: grown(:)
     integer :: k
     if (len_trim(v%name) == 0) then
       call rd%fail_missing(gi, 'name', "name the record, e.g. name = 'RSN953' (it is stored with each case)")
       return
     end if
-    do k = 1, size(specs)
+    do k = 1, n
       if (specs(k)%name == v%name) then
         call rd%fail_value(gi, 'name', 'already names the &record at line ' // itoa(rd%file%groups(specs(k)%group)%line))
         return
@@ -56,7 +60,13 @@ contains
     spec%group = gi
     spec%name = v%name
     spec%factor = v%factor
-    specs = [specs, spec]
+    if (n == size(specs)) then
+      allocate (grown(max(8, 2 * n)))
+      grown(:n) = specs(:n)
+      call move_alloc(grown, specs)
+    end if
+    n = n + 1
+    specs(n) = spec
   end subroutine add_record_group
 
   !> The files a record_file assignment of group gi names (a CSV, or one

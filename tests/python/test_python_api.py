@@ -4,10 +4,12 @@ gives what its namelist text gives; bad input raises with the program's
 message; runs in threads at once, and on any thread count, agree."""
 import concurrent.futures
 import ctypes
+import errno
 import fractions
 import gc
 import os
 import pathlib
+import re
 import sys
 import tempfile
 import threading
@@ -454,6 +456,29 @@ def test_a_record_given_as_arrays_runs_as_its_csv(program, tmp_path):
     with pytest.raises(ellroll.InputError, match="fewer than two samples") as refused:
         ellroll.run(dict(base, excitation={"kind": "record", "record_file": ellroll.Record([], np.zeros((0, 2)))}))
     assert str(refused.value).count("Record 'record'") == 1, str(refused.value)
+
+
+@pytest.mark.parametrize("fault", ["folder", "write"])
+def test_a_record_file_that_cannot_be_written_raises_ellroll_error(monkeypatch, fault):
+    """A private folder that cannot be made, or a Record's file that cannot
+    be written (a full disk), is an ellroll.Error naming the place and the
+    system's reason (code 3), as any failure that is not the input's."""
+    record = ellroll.Record(np.arange(0, 1.0, 0.1), np.zeros((10, 2)))
+    inputs = {"geometry": {"a": 1.0, "b": 0.4, "c": 0.2}, "ball": {"radius": 0.2, "weight": 2620.0},
+              "initial": {"x": 0.0, "y": 0.0, "omega": [0.0, 0.0, 0.0]},
+              "integration": {"method": "rk4", "dt": 1e-3, "t_end": 0.1},
+              "excitation": {"kind": "record", "record_file": record}}
+    if fault == "folder":
+        monkeypatch.setattr(tempfile, "tempdir", "/nonexistent/ellroll-test")
+        words = "cannot make a private folder for the Records' files in /nonexistent/ellroll-test"
+    else:
+        def full(self, *args, **kwargs):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+        monkeypatch.setattr(pathlib.Path, "write_text", full)
+        words = "cannot write a Record's file: No space left on device"
+    with pytest.raises(ellroll.Error, match=re.escape(words)) as failed:
+        ellroll.run(inputs, threads=1)
+    assert failed.value.code == 3 and not isinstance(failed.value, ellroll.InputError)
 
 
 def _with_names(groups, names):
