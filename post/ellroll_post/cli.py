@@ -7,6 +7,7 @@ import io
 import math
 import os
 import pathlib
+import signal
 import sys
 import warnings
 
@@ -15,7 +16,8 @@ import numpy as np
 from .reader import NotAnEllrollFile, damaged, from_h5py, not_regular, open as open_run
 from . import plots
 from .report import REPORT_ROWS, build_report
-from .safe_write import OutputExists, check_target, output_folder, save_figure, write_text
+from .safe_write import (Interrupted, OutputExists, check_target, forget_stop_requests, output_folder, request_stop,
+                         save_figure, write_text)
 from .summary import format_summary
 from .suite import MODEL_LIMIT_STATE, NoIntensityMeasure, NoStripes, PartOfTheCampaign, check_limit_state, \
     format_fragility, format_suite, suite_statistics
@@ -193,7 +195,27 @@ def _case(text):
 
 def main(argv=None):
     """ellroll-plot; a suite's statistics of part of a campaign (suite.PartOfTheCampaign)
-    say so in one warning line on standard error."""
+    say so in one warning line on standard error. SIGTERM and SIGINT end it
+    in one line, with 128 + the signal's number, nothing half written left."""
+    previous = {}
+    forget_stop_requests()
+    try:
+        for number in (signal.SIGTERM, signal.SIGINT):
+            previous[number] = signal.signal(number, request_stop)
+    except ValueError:                  # (a thread other than the main one: signals are left alone)
+        pass
+    try:
+        return _main_warned(argv)
+    except Interrupted as stop:
+        print(f"ellroll-plot: stopped by {signal.Signals(stop.signum).name}; nothing half written is left",
+              file=sys.stderr)
+        return 128 + stop.signum
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _main_warned(argv):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PartOfTheCampaign)
         code = _main(argv)

@@ -11,7 +11,7 @@ import urllib.parse
 import numpy as np
 
 from .plots import FIELD_NEEDS, cup_moves, has_samples
-from .safe_write import MARK, CannotWrite, _umask, check_target, write_text
+from .safe_write import MARK, CannotWrite, _umask, check_target, stop_point, write_text
 from .summary import format_summary, summary_table
 
 # the per-case figures, drawn for the report's case where the file has their fields
@@ -52,6 +52,7 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
                           f"({exc.strerror or exc})") from None
     try:
         made = _draw_report(run, staging, draw, case, fmt, all_cases)
+        stop_point()
         names = [path.name for path in made] + ["summary.csv", "index.html"]
         if there:
             for name in names:

@@ -32,6 +32,38 @@ TABLE_TEXT_END = (b"P(exceed | IM = x) = Phi(ln(x / theta) / beta), fitted by ma
                   b"binomial counts; intervals 5-95 % of a parametric bootstrap\n")
 
 
+class Interrupted(BaseException):
+    """SIGTERM or SIGINT asked the command to stop (request_stop), met at a
+    stop point: what it was writing goes as on any failure (a BaseException:
+    no `except Exception` takes it)."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+_stop_requested = []          # the signals that asked to stop (request_stop)
+
+
+def request_stop(signum, frame):
+    """A signal handler: the command stops at its next stop point. (An
+    exception raised in the handler itself could land in a weak reference's
+    callback, where Python ignores it.)"""
+    _stop_requested.append(signum)
+
+
+def forget_stop_requests():
+    """A new command (main() again in one process) starts with none."""
+    _stop_requested.clear()
+
+
+def stop_point():
+    """Interrupted where a signal asked to stop: before each file is moved
+    into place, and before a report is."""
+    if _stop_requested:
+        raise Interrupted(_stop_requested[0])
+
+
 class OutputExists(Exception):
     """A file the command would write is already there, and may not be replaced."""
 
@@ -107,6 +139,7 @@ def write_file(path, overwrite, write):
     """Make path with write(temporary_path), checked first (check_target),
     in a new file beside it, moved into place once complete."""
     path = pathlib.Path(path)
+    stop_point()
     check_target(path, overwrite)
     try:
         handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
@@ -117,6 +150,7 @@ def write_file(path, overwrite, write):
     try:
         os.chmod(temporary, 0o666 & ~_umask())        # as a file opened the usual way would be
         write(temporary)
+        stop_point()
         check_target(path, overwrite)            # (nothing came there meanwhile)
         os.replace(temporary, path)
     except BaseException as exc:

@@ -13,8 +13,10 @@ import os
 import random
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -460,3 +462,36 @@ def test_plot_transmissibility_refuses_what_the_command_refuses(files, tmp_path)
             assert err.strip() == f"ellroll-plot: error: {refused}", (name, err, refused)
     code, _, err = cli("transmissibility", files / "suite.h5", "--out", tmp_path)
     one_line_error(code, err, "needs a sweep of excitation_frequency")
+
+
+@pytest.mark.parametrize("stop", ["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_report_stopped_by_a_signal_leaves_nothing_and_says_so_in_one_line(files, tmp_path, stop, overwrite):
+    """`report` stopped by SIGTERM (a batch system's time limit) or SIGINT
+    while it draws, in a new folder or over its own report (--overwrite):
+    one line naming the signal, exit 128 + its number, no hidden temporary
+    folder left anywhere, and an existing report as it was, byte for byte."""
+    source = tmp_path / "whole.h5"
+    shutil.copy(files / "whole.h5", source)
+    report = tmp_path / "whole_report"
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
+                                                                os.environ.get("PYTHONPATH", "")])}
+    command = [sys.executable, "-m", "ellroll_post.cli", "report", str(source)]
+    if overwrite:
+        assert subprocess.run(command, cwd=tmp_path, env=environment, capture_output=True).returncode == 0
+        command.append("--overwrite")
+    before = folder_state(report)
+    process = subprocess.Popen(command, cwd=tmp_path, env=environment, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    # the signal once its temporary folder is there: it is drawing
+    while not any(p.name.startswith(".") for p in [*tmp_path.iterdir(), *(report.iterdir() if report.is_dir() else [])]):
+        assert process.poll() is None and time.monotonic() < deadline, "it ended before it drew"
+        time.sleep(0.005)
+    process.send_signal(getattr(signal, stop))
+    _, err = process.communicate(timeout=60)
+    number = getattr(signal, stop).value
+    assert process.returncode == 128 + number, err
+    assert err == f"ellroll-plot: stopped by {stop}; nothing half written is left\n", err
+    hidden = [p for p in [*tmp_path.iterdir(), *(report.iterdir() if report.is_dir() else [])] if p.name.startswith(".")]
+    assert hidden == [], hidden
+    assert folder_state(report) == before
