@@ -297,40 +297,37 @@ def test_the_readme_table_lists_every_subcommand():
     assert set(PER_CASE) < set(listed)
 
 
-@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def plot_process(args, **options):
+    """ellroll-plot of the checkout (python -m ellroll_post.cli) as its own process."""
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
+                                                                os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stderr=subprocess.PIPE,
+                          text=True, env=environment, timeout=300, **options)
+
+
+@pytest.mark.parametrize("lost", ["full", "closed"])
 @pytest.mark.parametrize("command", ["nutation", "sweep", "suite", "report", "fragility", "fragility-csv",
                                      "summary", "workprecision"])
-def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, command):
-    """ellroll-plot with its standard output on a full device (/dev/full):
-    every subcommand, a figure's or the text's, ends in one line naming
-    standard output and the system's reason, exit 2, never a traceback."""
+def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, command, lost):
+    """ellroll-plot with its standard output on a full device (/dev/full)
+    or closed (`>&-`, as a daemon or a cron line may start it; Python then
+    has no sys.stdout): every subcommand, a figure's or the text's, ends in
+    one line naming standard output and the system's reason, exit 2, never
+    a traceback."""
+    if lost == "full" and not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
     source = files / ("suite.h5" if command.startswith(("suite", "fragility")) else "whole.h5")
     args = arguments(command.split("-")[0], source, tmp_path / "out")
     if command == "fragility-csv":
         args += ["--format", "csv"]
-    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
-                                                                os.environ.get("PYTHONPATH", "")])}
-    with open("/dev/full", "w") as full:
-        result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=full,
-                                stderr=subprocess.PIPE, text=True, env=environment, timeout=300)
-    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
-
-
-@pytest.mark.parametrize("command", ["nutation", "report", "fragility-csv", "summary"])
-def test_a_closed_standard_output_is_one_line(files, tmp_path, command):
-    """ellroll-plot started with its standard output closed (`>&-`, as a
-    daemon or a cron line may start it; Python then has no sys.stdout): one
-    line naming standard output and the system's reason, exit 2."""
-    source = files / ("suite.h5" if command.startswith(("suite", "fragility")) else "whole.h5")
-    args = arguments(command.split("-")[0], source, tmp_path / "out")
-    if command == "fragility-csv":
-        args += ["--format", "csv"]
-    environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "post"),
-                                                                os.environ.get("PYTHONPATH", "")])}
-    result = subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], stdout=None,
-                            stderr=subprocess.PIPE, text=True, env=environment, timeout=300,
-                            preexec_fn=lambda: os.close(1))
-    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "Bad file descriptor")
+    if lost == "full":
+        with open("/dev/full", "w") as full:
+            result = plot_process(args, stdout=full)
+        reason = "No space left on device"
+    else:
+        result = plot_process(args, preexec_fn=lambda: os.close(1))
+        reason = "Bad file descriptor"
+    one_line_error(result.returncode, result.stderr, "cannot write the standard output", reason)
 
 
 def folder_state(folder):
@@ -478,7 +475,7 @@ def test_a_report_stopped_by_a_signal_leaves_nothing_and_says_so_in_one_line(fil
                                                                 os.environ.get("PYTHONPATH", "")])}
     command = [sys.executable, "-m", "ellroll_post.cli", "report", str(source)]
     if overwrite:
-        assert subprocess.run(command, cwd=tmp_path, env=environment, capture_output=True).returncode == 0
+        assert plot_process(command[3:], cwd=tmp_path).returncode == 0
         command.append("--overwrite")
     before = folder_state(report)
     process = subprocess.Popen(command, cwd=tmp_path, env=environment, stderr=subprocess.PIPE, text=True)
