@@ -9,10 +9,12 @@
 module ellroll_cmd_suite
   use ellroll_standard_output, only: put_line
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan, ieee_value, ieee_quiet_nan
+  use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
   use ellroll_strings, only: itoa, real_text
-  use ellroll_status, only: status_name, status_completed, status_rim, status_no_fit, status_slip, status_liftoff
+  use ellroll_status, only: status_name, status_pending, status_completed, status_rim, status_no_fit, status_slip, &
+      status_liftoff
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_lapack, only: dlasrt
   use ellroll_exact, only: equals
@@ -52,6 +54,7 @@ contains
     call file%open(path, err)
     if (err%failed()) return
     allocate (status, source=file%int_column('summary/status', err))
+    call warn_part(file, path, count(status /= status_pending))
     call file%text_attribute('coordinates', coordinates, 'summary/status')
     allocate (inputs(0), input_units(0), states(0), figures(0), figure_units(0))
     first = 1
@@ -96,6 +99,27 @@ contains
     call print_columns(path, format, inputs, stripe_columns(inputs, input_units, keys, int(status), states, flags, &
                                                             figures, figure_units, values), fragility)
   end subroutine print_suite
+
+  !> A file that holds part of its campaign's cases only (a shard's, an
+  !> unfinished run's): one warning line on standard error, as ellroll-plot's
+  !> (its statistics are over those cases).
+  subroutine warn_part(file, path, finished)
+    type(h5_input_t), intent(in) :: file
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: finished
+    character(len=:), allocatable :: shard, why
+    integer :: total
+    total = file%int_attribute('n_cases_total')
+    if (.not. finished < total) return
+    call file%text_attribute('shard', shard)
+    if (len(shard) > 0 .and. shard /= '0/1') then
+      why = 'shard ' // shard // ' (merge the shards first: ellroll merge)'
+    else
+      why = 'an unfinished run (finish it: ellroll run --resume)'
+    end if
+    write (error_unit, '(a)') 'ellroll: warning: ' // path // ': over ' // itoa(finished) // ' of the campaign''s ' // &
+        itoa(total) // ' cases only: ' // why
+  end subroutine warn_part
 
   !> The lognormal fragilities in the scale (ellroll_post.suite.suite_fragility
   !> without its bootstrap): per limit state (the model's, then each user

@@ -53,6 +53,7 @@ module ellroll_hdf5_reader
     procedure :: members
     procedure :: dataset_length
     procedure :: text_attribute
+    procedure :: int_attribute
     procedure :: real_column
     procedure :: int_column
     procedure :: text_column
@@ -261,6 +262,19 @@ contains
     call h5tclose_f(text_type, hdferr)
     call h5aclose_f(attr, hdferr)
   end subroutine text_attribute
+
+  !> A root attribute written as one integer (-1 when absent or unreadable).
+  integer function int_attribute(self, name) result(value)
+    class(h5_input_t), intent(in) :: self
+    character(len=*), intent(in) :: name
+    integer :: found(1), hdferr
+    logical :: exists
+    value = -1
+    call h5aexists_by_name_f(self%file, '.', name, exists, hdferr)
+    if (hdferr < 0 .or. .not. exists) return
+    call h5ltget_attribute_int_f(self%file, '.', name, found, hdferr)
+    if (hdferr >= 0) value = found(1)
+  end function int_attribute
 
   !> A whole 1-D real dataset (e.g. one value per case).
   function real_column(self, name, err) result(values)

@@ -431,6 +431,14 @@ def test_suite_statistics_of_a_shard_say_they_are_over_part_of_the_campaign(ellr
             assert lines == [f"ellroll-plot: warning: {path}: over {held} of the campaign's 6 cases only: shard "
                              f"{index}/{shards} (merge the shards first: ellroll merge)"], (command, err)
             warned += 1
+        # ellroll's own `summary --suite` (no Python needed) says the same
+        for form in ("table", "csv", "json"):
+            result = subprocess.run([str(ellroll), "summary", str(path), "--suite", "--format", form],
+                                    capture_output=True, text=True)
+            assert result.returncode == 0 and result.stdout, (path, form, result.stderr)
+            expected = [f"ellroll: warning: {path}: over {held} of the campaign's 6 cases only: shard "
+                        f"{path.stem[1:]}/{shards} (merge the shards first: ellroll merge)"] if shard else []
+            assert result.stderr.strip().splitlines() == expected, (path, form, result.stderr)
     assert warned >= shards                 # (summary --suite of every shard at least)
 
 
