@@ -129,6 +129,10 @@ contains
     if (err%failed()) return
 
     s%clean = file%text
+    ! a UTF-8 byte-order mark (some editors save one) is no text
+    if (n >= 3) then
+      if (file%text(1:3) == char(239) // char(187) // char(191)) s%clean(1:3) = ''
+    end if
     allocate (s%groups(0))
     do while (s%i <= n)
       call scan_character(s, err)

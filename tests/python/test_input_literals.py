@@ -82,3 +82,21 @@ def test_a_text_variable_refuses_an_unquoted_value(ellroll, ellroll_debug, tmp_p
         result, left, line = refused(exe, folder, group, f"{name} = {value}")
         assert_refused(result, left, line, group, name, value,
                        f"is not a valid value for {base} (it takes a text in quotes, e.g. {base} = 'value')")
+
+
+def test_a_byte_order_mark_is_no_text(ellroll, tmp_path):
+    """A UTF-8 byte-order mark at the file's start (some editors save one)
+    is read as nothing: the run is the one of the file without it, its
+    campaign the same (a resume or merge takes either)."""
+    import h5py
+    import numpy as np
+    text = PAPER_INPUT.read_text().replace("t_end = 30.0", "t_end = 0.5")
+    (tmp_path / "plain.nml").write_text(text)
+    (tmp_path / "marked.nml").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    for name in ("plain", "marked"):
+        result = run(ellroll, "run", f"{name}.nml", "-q", "-o", f"{name}.h5", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "plain.h5", "r") as a, h5py.File(tmp_path / "marked.h5", "r") as b:
+        assert a.attrs["campaign_id"] == b.attrs["campaign_id"]
+        for field in ("contact", "omega", "nutation"):
+            assert np.array_equal(a[f"trajectory/{field}"][:], b[f"trajectory/{field}"][:], equal_nan=True)
