@@ -348,13 +348,16 @@ contains
     class(h5_input_t), intent(in) :: self
     character(len=*), intent(in) :: name
     type(error_t), intent(inout) :: err
+    integer(i8) :: rows_read
     rows = self%dataset_length(name)
     if (rows == self%n_cases) return
     if (index(name, 'summary/') /= 1 .and. index(name, 'case/') /= 1 .and. index(name, 'limit_state/') /= 1) return
-    if (.not. err%failed()) call set_error(err, err_input, self%path // ': not laid out as ellroll writes its ' // &
-        'files (/' // name // ' holds ' // itoa(rows) // ' rows, /summary/status ' // itoa(self%n_cases) // &
-        '; changed by another program?)')
+    rows_read = rows
     rows = self%n_cases
+    if (err%failed()) return
+    if (read_failed(self, err)) return        ! (a length a read error left unread is no verdict on the file)
+    call set_error(err, err_input, self%path // ': not laid out as ellroll writes its files (/' // name // &
+        ' holds ' // itoa(rows_read) // ' rows, /summary/status ' // itoa(self%n_cases) // '; changed by another program?)')
   end function column_rows
 
   !> Everything stored about the case in slot `slot` (0-based): its status,

@@ -222,7 +222,7 @@ def read_ordinals(ellroll, folder, args, path):
     return ordinals
 
 
-@pytest.mark.parametrize("command", ["overwrite", "merge", "resume", "journal"])
+@pytest.mark.parametrize("command", ["overwrite", "merge", "resume", "journal", "summary"])
 def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_path, command):
     """EIO on a read of the existing output (--overwrite), of a shard
     (merge; seeded sample of its reads), of a killed run's lock or of its
@@ -232,9 +232,11 @@ def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_
     base = tmp_path / "base"
     base.mkdir()
     (base / "camp.nml").write_text(CAMPAIGN)
-    if command == "overwrite":
+    if command in ("overwrite", "summary"):
         assert subprocess.run([str(ellroll), "run", "camp.nml", "-q"], cwd=base).returncode == 0
         args, path = ["run", "camp.nml", "-q", "--overwrite"], "out.h5"
+        if command == "summary":
+            args = ["summary", "out.h5"]
     elif command == "merge":
         for shard in ("0/2", "1/2"):
             assert subprocess.run([str(ellroll), "run", "camp.nml", "-q", "--shard", shard, "-o", f"s{shard[0]}.h5"],
