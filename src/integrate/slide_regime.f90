@@ -16,7 +16,7 @@ module ellroll_slide_regime
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
       observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time
+      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time, stick_loss
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -410,7 +410,7 @@ contains
     call observe(rolling%ball, t, rolled%y, rolled%f, rolled%obs)
     res%n_rhs = res%n_rhs + 1
     rolled%slip_speed = 0
-    tally%friction_energy = tally%friction_energy + (now%obs%energy - rolled%obs%energy)
+    tally%friction_energy = tally%friction_energy + stick_loss(sb%ball, now%s)
     now = rolled
     if (rolled%obs%friction_needed > sb%ball%mu) then
       call start_sliding(sb, t, now, res, tally)
@@ -439,7 +439,8 @@ contains
     type(sliding_ball_t), intent(in) :: sb
     type(regime_state_t), intent(in) :: now
     type(slide_tally_t), intent(in) :: tally
-    stopped = .not. now%slip_speed > stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max)
+    stopped = .not. now%slip_speed > max(stick_level * max(2 * norm2(sb%slip_at_start), tally%episode_slip_max), &
+                                         sb%slip_floor)
   end function slip_stopped
 
   !> The reaction (and the centre's acceleration) of sliding state `at`

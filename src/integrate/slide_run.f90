@@ -23,7 +23,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      center_velocity, choose_slip_law, set_reaction
+      center_velocity, choose_slip_law, set_reaction, stop_floor
   use ellroll_turns, only: direction_unresolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
@@ -73,8 +73,8 @@ contains
   !> until the ball is at rest for good, as the rolling loops; latest_end;
   !> a sliding step end is never at rest: track_balance)
   !> or the limit it meets. A start whose friction exceeds mu (res%status
-  !> slip), or with a velocity of the centre that is not rolling's, starts
-  !> sliding; a start whose normal force does not push (rolling's,
+  !> slip), or with a velocity of the centre that is not rolling's (its
+  !> slip above the round-off stop_floor counts as stopped), starts sliding; a start whose normal force does not push (rolling's,
   !> res%status liftoff, or the sliding start's) ends at t = 0.
   subroutine slide_loop(integrator, cs, plan, run, y, f, res)
     class(integrator_t), intent(inout) :: integrator
@@ -102,7 +102,7 @@ contains
     if (all(ieee_is_finite(velocity))) then
       now%s = sliding_from_rolling(sb%ball, y)
       now%s(7:8) = velocity(1:2)
-      if (norm2(slip_velocity(sb%ball, now%s)) > 0) then
+      if (norm2(slip_velocity(sb%ball, now%s)) > stop_floor(sb%ball, now%s)) then
         now%sliding = .true.
         call sb%begin_step(now%s)
         call observe_sliding(sb, 0.0_wp, now%s, now%obs, now%slip_speed, now%fs)

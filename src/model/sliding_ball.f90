@@ -33,7 +33,8 @@ module ellroll_sliding_ball
 
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
-            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction
+            slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction, stop_floor, &
+            stick_loss
 
   integer, parameter :: slide_state_size = 8
 
@@ -65,6 +66,10 @@ module ellroll_sliding_ball
     !> up to the stop stays smooth inside the step that is cut there
     real(wp) :: slip_mode(3) = 0
     real(wp) :: slip_at_start(3) = 0
+    !> the slip counts as stopped below this (m/s) whatever its start's:
+    !> stick_level of a slip near the round-off of V_C - R omega x n lies
+    !> below that noise, which no step can bring it under (stop_floor)
+    real(wp) :: slip_floor = 0
     !> the step's friction lies along the friction rolling needs (its slip
     !> on the slow manifold: choose_slip_law), not against u / |u|
     logical :: aligned = .false.
@@ -159,6 +164,17 @@ contains
     y(1:3) = s(1:3)
     y(4:6) = s(4:6) - cross(n, impulse) / (ball%inertia_factor * ball%mass * ball%radius)
   end function stick
+
+  !> The energy the stick of sliding state s takes: |u|^2 / (2 (1/m +
+  !> R^2/J)), u the slip (tangent), in closed form: the difference of the
+  !> energies before and after is round-off where u is small.
+  pure real(wp) function stick_loss(ball, s)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: s(slide_state_size)
+    real(wp) :: u(3)
+    u = slip_velocity(ball, s)
+    stick_loss = dot_product(u, u) / (2 * (1 / ball%mass + 1 / (ball%inertia_factor * ball%mass)))
+  end function stick_loss
 
   !> The slip's time scale at sliding state y with normal force N: the
   !> friction alone takes |u| at the rate mu N (1/m + R^2/J) (the part of
@@ -624,6 +640,7 @@ contains
     real(wp) :: u(3)
     u = resolved_slip(self%ball, y)
     self%slip_at_start = u
+    self%slip_floor = stop_floor(self%ball, y)
     if (norm2(u) > 0) self%slip_mode = u / norm2(u)
   end subroutine sliding_begin_step
 
@@ -636,7 +653,7 @@ contains
     event = 0
     start = resolved_slip(self%ball, y_start)
     if (norm2(start) <= 0) return
-    if (stick_value(slip_velocity(self%ball, y_end), start) <= 0) event = event_stick
+    if (stick_value(slip_velocity(self%ball, y_end), start, stop_floor(self%ball, y_start)) <= 0) event = event_stick
   end function sliding_event_crossed
 
   !> The slip at sliding state y, zero where it is within the round-off of
@@ -649,8 +666,25 @@ contains
     real(wp), intent(in) :: y(:)
     real(wp) :: u(3)
     u = slip_velocity(ball, y)
-    if (norm2(u) <= 16 * epsilon(1.0_wp) * (norm2(center_velocity(y)) + ball%radius * norm2(y(4:6)))) u = 0
+    if (norm2(u) <= slip_noise(ball, y)) u = 0
   end function resolved_slip
+
+  !> The round-off of the slip V_C - R omega x n at sliding state y: 16 eps
+  !> of its terms' size.
+  pure real(wp) function slip_noise(ball, y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:)
+    slip_noise = 16 * epsilon(1.0_wp) * (norm2(center_velocity(y)) + ball%radius * norm2(y(4:6)))
+  end function slip_noise
+
+  !> The slip below which a piece from sliding state y counts it as stopped
+  !> whatever its start's: a few times its noise (slip_noise), where the
+  !> slip of a stage past the stop jitters.
+  pure real(wp) function stop_floor(ball, y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:)
+    stop_floor = 4 * slip_noise(ball, y)
+  end function stop_floor
 
   !> event_stick's function at the step's start: |u|^2 there.
   pure real(wp) function sliding_event_start_value(self, event) result(g)
@@ -666,18 +700,19 @@ contains
     integer, intent(in) :: event
     real(wp), intent(in), contiguous :: y(:)
     g = 1
-    if (event == event_stick) g = stick_value(slip_velocity(self%ball, y), self%slip_at_start)
+    if (event == event_stick) g = stick_value(slip_velocity(self%ball, y), self%slip_at_start, self%slip_floor)
   end function sliding_event_value
 
-  !> The lesser of |u| - stick_level |u_start| (it falls through zero just
-  !> before the stop, at a rate bounded away from zero) and the slip along
-  !> u_start (it falls through zero where the slip has turned by a right
-  !> angle), times |u_start|: positive at the start, continuous.
-  pure real(wp) function stick_value(u, start) result(g)
-    real(wp), intent(in) :: u(3), start(3)
+  !> The lesser of |u| - max(stick_level |u_start|, floor) (it falls through
+  !> zero just before the stop, at a rate bounded away from zero) and the
+  !> slip along u_start (it falls through zero where the slip has turned by
+  !> a right angle), times |u_start|: continuous, positive at a start above
+  !> the floor.
+  pure real(wp) function stick_value(u, start, floor) result(g)
+    real(wp), intent(in) :: u(3), start(3), floor
     real(wp) :: size_start
     size_start = norm2(start)
-    g = min(size_start * (norm2(u) - stick_level * size_start), dot_product(u, start))
+    g = min(size_start * (norm2(u) - max(stick_level * size_start, floor)), dot_product(u, start))
   end function stick_value
 
   pure real(wp) function sliding_event_tolerance(event) result(tolerance)
