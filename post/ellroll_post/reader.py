@@ -1,12 +1,14 @@
 """Lazy access to an ellroll file: nothing is read until asked for, so a
 file of 10^5 cases costs only what is plotted."""
 import builtins
+import fcntl
 import functools
 import os
 import shlex
 import select
 import signal
 import stat
+import struct
 import traceback
 
 import h5py
@@ -44,6 +46,35 @@ def output_of(path):
         if path.endswith(suffix) and len(path) > len(suffix):
             return path[:-len(suffix)]
     return None
+
+
+# struct flock as Linux lays it out: l_type, l_whence, l_start, l_len, l_pid (padded to 8 bytes)
+_FLOCK = "@hhqqi0q"
+
+
+def lock_holder(path):
+    """The note of the process that holds the lock of the output whose
+    file is at path (OUT.h5.lock, an fcntl lock: it holds whatever
+    HDF5_USE_FILE_LOCKING says) on one line, 'host h, pid p, started t:
+    command'; None where no process holds it. Nothing is taken (F_GETLK),
+    so a resume starting meanwhile is not refused."""
+    lock = (output_of(path) or path) + ".lock"
+    try:
+        fd = os.open(lock, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except (OSError, ValueError):
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        query = struct.pack(_FLOCK, fcntl.F_WRLCK, os.SEEK_SET, 0, 0, 0)
+        if struct.unpack(_FLOCK, fcntl.fcntl(fd, fcntl.F_GETLK, query))[0] == fcntl.F_UNLCK:
+            return None
+        note = os.pread(fd, 4096, 0).decode(errors="replace").splitlines()
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    return note[1] if len(note) >= 2 and note[1].strip() else "starting"
 
 
 def _resume_advice(path):
@@ -117,6 +148,11 @@ def _open_failure(path, exc):
         return (f"{path}: cannot open the HDF5 file: another process has it open to write: a running ellroll, "
                 f"if {lock} exists (it names the process); read it when that run ends")
     if "already open for write" in text or "consistency flags" in text:
+        holder = lock_holder(path)
+        if holder:
+            # HDF5's flock off (HDF5_USE_FILE_LOCKING=FALSE): the output's own lock tells (as ellroll summary)
+            return (f"{path}: a running ellroll writes it ({holder}, holding {(output_of(path) or path)}.lock); "
+                    f"read it when that run ends")
         # HDF5 marks a file open for write in its superblock until it is closed: a run killed
         # (kill -9, a node lost) leaves its work file so; h5clear would not recover its cases
         return (f"{path}: an unfinished run's work file (the run stopped before it closed the file: killed?); "

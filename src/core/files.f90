@@ -9,7 +9,7 @@ module ellroll_files
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
-            host_name, process_id
+            lock_held, holder_line, host_name, process_id
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
 
   !> The longest path a command takes (Linux's PATH_MAX): the files of its
@@ -78,6 +78,12 @@ module ellroll_files
       character(kind=c_char), intent(out) :: holder(*)
       integer(c_int), value :: size
     end function c_lock_output
+    integer(c_int) function c_lock_held(path, holder, size) bind(c, name='ellroll_lock_held')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+      character(kind=c_char), intent(out) :: holder(*)
+      integer(c_int), value :: size
+    end function c_lock_held
     integer(c_int) function c_unlock_output(fd, path) bind(c, name='ellroll_unlock_output')
       import :: c_int, c_char
       integer(c_int), value :: fd
@@ -218,6 +224,30 @@ contains
     holder = repeat(' ', n)
     holder = transfer(buffer(:n), holder)
   end subroutine lock_output
+
+  !> Whether another process holds the lock of an output at path (nothing
+  !> taken), with the note it left there (holder).
+  logical function lock_held(path, holder)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: holder
+    character(kind=c_char) :: buffer(1024)
+    integer :: n
+    lock_held = c_lock_held(path // c_null_char, buffer, size(buffer)) == 1
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    holder = repeat(' ', n)
+    holder = transfer(buffer(:n), holder)
+  end function lock_held
+
+  !> The note of a lock's holder on one line: 'host h, pid p, started t:
+  !> command' ('starting' before its holder wrote it).
+  pure function holder_line(note) result(line)
+    character(len=*), intent(in) :: note
+    character(len=:), allocatable :: line
+    line = note(index(note, achar(10)) + 1:)
+    if (index(line, achar(10)) > 0) line = line(:index(line, achar(10)) - 1)
+    if (len_trim(line) == 0) line = 'starting'
+  end function holder_line
 
   !> Release a lock of lock_output (its file removed first): 0 or an errno value.
   integer function unlock_output(fd, path)

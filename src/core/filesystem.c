@@ -287,6 +287,34 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
     return -EAGAIN;
 }
 
+/* Whether another process holds the lock of an output at path (fcntl
+ * F_GETLK: nothing taken, so a resume starting meanwhile is not refused):
+ * 1 with its note copied into holder (null-terminated), 0 where no lock
+ * file of ellroll's is held there (none, not a regular file, a link). */
+int ellroll_lock_held(const char *path, char *holder, int size)
+{
+    holder[0] = '\0';
+    int fd;
+    do {
+        fd = open(path, O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+    } while (fd < 0 && errno == EINTR);
+    if (fd < 0)
+        return 0;
+    struct stat info;
+    struct flock lock;
+    memset(&lock, 0, sizeof lock);
+    lock.l_type = F_WRLCK;
+    lock.l_whence = SEEK_SET;
+    int held = fstat(fd, &info) == 0 && S_ISREG(info.st_mode) && fcntl(fd, F_GETLK, &lock) == 0
+               && lock.l_type != F_UNLCK;
+    if (held) {
+        ssize_t got = pread(fd, holder, (size_t)(size - 1), 0);
+        holder[got > 0 ? got : 0] = '\0';
+    }
+    close(fd);
+    return held;
+}
+
 /* Release a lock of ellroll_lock_output: the file removed, then the lock
  * (closing the descriptor releases it; a failed close loses nothing: the
  * file held only the note). 0 or the errno of the removal. */

@@ -13,7 +13,7 @@ module ellroll_hdf5_reader
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_files, only: path_kind, kind_missing
+  use ellroll_files, only: path_kind, kind_missing, lock_held, holder_line
   use ellroll_system, only: open_regular_file, file_type_words, close_descriptor
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, hdf5_quiet, &
       forget_system_failure, system_failure, file_identity
@@ -99,7 +99,7 @@ contains
     integer(i8) :: bytes
     character :: file_type
     logical :: is_hdf5
-    character(len=:), allocatable :: program, reason
+    character(len=:), allocatable :: program, reason, holder
     self%path = path
     call h5open_f(hdferr)
     call hdf5_quiet()
@@ -134,11 +134,17 @@ contains
             'write (' // reason // '): a running ellroll, if ' // lock_of(path) // ' exists (it names the ' // &
             'process); read it when that run ends')
       else if (index(reason, 'already open for write') > 0) then
-        ! (no process has it open: its writer stopped before closing it)
-        self%unfinished = .true.
-        call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
-            "closed the file: killed?); finish it with 'ellroll run INPUT --resume' (the command " // lock_of(path) // &
-            ' names, from its folder); do not h5clear it')
+        if (lock_held(lock_of(path), holder)) then
+          ! (HDF5's flock off, HDF5_USE_FILE_LOCKING=FALSE: the output's own lock tells)
+          call set_error(err, err_output, path // ': a running ellroll writes it (' // holder_line(holder) // &
+              ', holding ' // lock_of(path) // '); read it when that run ends')
+        else
+          ! (no process has it open: its writer stopped before closing it)
+          self%unfinished = .true.
+          call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
+              "closed the file: killed?); finish it with 'ellroll run INPUT --resume' (the command " // &
+              lock_of(path) // ' names, from its folder); do not h5clear it')
+        end if
       else if (index(reason, 'HDF5: ') /= 1) then      ! the system's reason
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)
       else                      ! HDF5's own tables do not hold together (a file cut short)

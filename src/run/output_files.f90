@@ -24,7 +24,8 @@ module ellroll_output_files
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: label_marker, label_search_bytes
   use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
-      sync_folder, read_head, lock_output, unlock_output, host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
+      sync_folder, read_head, lock_output, unlock_output, holder_line, host_name, process_id, kind_missing, kind_regular, &
+      kind_link, kind_folder
   implicit none
   private
 
@@ -87,9 +88,8 @@ contains
     if (fd >= 0) then
       self%lock_fd = fd
     else if (fd == -eagain) then
-      call note_of(holder)
       call set_error(err, err_output, self%target // ': another ellroll process writes this output (' // &
-          holder // '); nothing of its files was touched: wait for it to end, or choose another output')
+          holder_line(holder) // '); nothing of its files was touched: wait for it to end, or choose another output')
     else if (fd == -eexist) then
       call set_error(err, err_output, self%lock // ': exists and is not a lock file of ellroll''s (a link, a ' // &
           'folder or another file); it is never replaced: remove it, or choose another output')
@@ -99,14 +99,6 @@ contains
     else
       call set_error(err, err_output, self%lock // ': cannot take the output''s lock: ' // system_error_text(-fd))
     end if
-  contains
-    !> The holder's note on one line: 'host h, pid p, started t: command'.
-    subroutine note_of(note)
-      character(len=:), allocatable, intent(inout) :: note
-      note = note(index(note, achar(10)) + 1:)
-      if (index(note, achar(10)) > 0) note = note(:index(note, achar(10)) - 1)
-      if (len_trim(note) == 0) note = 'starting'
-    end subroutine note_of
   end subroutine acquire
 
   !> Release the output's lock (its file removed); err reports a failure

@@ -18,7 +18,9 @@ import random
 import re
 import shutil
 import signal
+import socket
 import subprocess
+import sys
 import time
 
 import h5py
@@ -318,6 +320,32 @@ def test_reading_the_partial_file_of_a_running_run_says_a_run_writes_it(ellroll,
     assert result.returncode == 3
     assert ("out.h5.partial: cannot open the HDF5 file: another process has it open to write (" in result.stderr
             and "a running ellroll, if out.h5.lock exists (it names the process)" in result.stderr), result.stderr
+
+
+@pytest.mark.parametrize("reader", ["ellroll", "ellroll-plot"])
+def test_without_hdf5_file_locks_the_outputs_lock_tells_a_running_run(ellroll, tmp_path, reader):
+    """With HDF5_USE_FILE_LOCKING=FALSE (as clusters set it for their file
+    systems) HDF5 cannot tell a work file that a live run writes from a
+    killed run's: the readers ask the output's own lock (OUT.h5.lock). While
+    the run writes, they name it and its process; after a SIGKILL they call
+    the file unfinished, with the resume."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    writer = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists():
+        time.sleep(0.01)
+    command = ([str(ellroll)] if reader == "ellroll" else [sys.executable, "-m", "ellroll_post.cli"]) + \
+        ["summary", "out.h5.partial"]
+    env = dict(os.environ, HDF5_USE_FILE_LOCKING="FALSE")
+    writer.send_signal(signal.SIGSTOP)             # (alive, its lock held, while the reader starts)
+    running = subprocess.run(command, cwd=folder, capture_output=True, text=True, env=env, timeout=120)
+    writer.send_signal(signal.SIGKILL)
+    writer.wait(timeout=60)
+    killed = subprocess.run(command, cwd=folder, capture_output=True, text=True, env=env, timeout=120)
+    assert running.returncode in (2, 3) and \
+        f"out.h5.partial: a running ellroll writes it (host {socket.gethostname()}, pid {writer.pid}, started " \
+        in running.stderr and "holding out.h5.lock); read it when that run ends" in running.stderr, running.stderr
+    assert killed.returncode in (2, 3) and "out.h5.partial: an unfinished run's work file" in killed.stderr and \
+        "--resume" in killed.stderr, killed.stderr
 
 
 # ---- the end of a run, and signals
