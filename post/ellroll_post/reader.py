@@ -4,6 +4,7 @@ import builtins
 import fcntl
 import functools
 import os
+import re
 import shlex
 import select
 import signal
@@ -133,6 +134,17 @@ def _is_journal(path):
         return False
 
 
+# how HDF5 names a system call's failure in its error stack
+_SYSTEM_FAILURE = re.compile(r"errno = \d+, error message = '([^']*)'")
+
+
+def read_failure(exc):
+    """The system's reason where a read of the file failed in a system call
+    (EIO of a failing disk: the file is not judged by it), else None."""
+    found = _SYSTEM_FAILURE.search(_reason(exc))
+    return found.group(1) if found else None
+
+
 def _open_failure(path, exc):
     """One line for a file h5py cannot open."""
     text = _reason(exc)
@@ -157,11 +169,16 @@ def _open_failure(path, exc):
         # (kill -9, a node lost) leaves its work file so; h5clear would not recover its cases
         return (f"{path}: an unfinished run's work file (the run stopped before it closed the file: killed?); "
                 f"{_resume_advice(path)}; do not h5clear it")
+    if read_failure(exc):
+        return f"{path}: cannot read it: {read_failure(exc)}"
     return f"{path}: cannot open as HDF5 ({text})"
 
 
 def damaged(path, exc):
-    """One line for a read of an ellroll file that failed inside h5py."""
+    """One line for a read of an ellroll file that failed inside h5py: a
+    system call's failure (as `ellroll summary` says it), or damage."""
+    if read_failure(exc):
+        return f"{path}: cannot read it: {read_failure(exc)}"
     work = output_of(path)
     hint = f"; an unfinished run's work file: {_resume_advice(path)}" if work else ""
     return f"{path}: a damaged HDF5 file: cannot read it ({_reason(exc)}){hint}"
@@ -263,7 +280,12 @@ class EllrollFile:
         except (OSError, ValueError) as exc:
             raise NotAnEllrollFile(_open_failure(self.path, exc)) from None
         try:
-            program = self._h5.attrs.get("program")
+            try:
+                program = self._h5.attrs["program"]
+            except KeyError as exc:         # (no such attribute, or its read failed: damaged() tells which)
+                if read_failure(exc):
+                    raise
+                program = None
             if program != "ellroll":
                 raise NotAnEllrollFile(f"{self.path}: not an ellroll file (no program='ellroll' attribute)")
             self._check_tables()

@@ -17,6 +17,7 @@ import random
 import re
 import shutil
 import subprocess
+import sys
 
 import pytest
 
@@ -279,6 +280,34 @@ def test_a_read_error_is_said_as_such_not_as_a_verdict_on_the_file(ellroll, tmp_
         assert "--overwrite" not in result.stderr, detail
         assert {p.name: p.read_bytes() for p in folder.iterdir()} == before, detail
         shutil.rmtree(folder)
+
+
+def test_ellroll_plot_says_a_read_error_as_such(ellroll, tmp_path):
+    """EIO at a seeded sample of ellroll-plot's reads of a good output
+    (its root attributes, tables and data, in the parent and in the child
+    that times the tables): 'cannot read it: Input/output error', exit 2,
+    as `ellroll summary` says it: never 'not an ellroll file' nor
+    'damaged' for a good file on a failing disk."""
+    (tmp_path / "camp.nml").write_text(CAMPAIGN)
+    assert subprocess.run([str(ellroll), "run", "camp.nml", "-q"], cwd=tmp_path).returncode == 0
+    args = ["-m", "ellroll_post.cli", "summary", "out.h5"]
+    trace = tmp_path / "reads.txt"
+    assert subprocess.run([STRACE, "-f", "-P", "out.h5", "-e", "trace=pread64", "-o", str(trace), sys.executable,
+                           *args], cwd=tmp_path, capture_output=True, timeout=120).returncode == 0
+    # strace counts when= in each process (the parent and its child that times the tables): n hits the
+    # n-th read of each that reads as many
+    pids = [line.split()[0] for line in trace.read_text().splitlines() if "pread64(" in line]
+    reads = max(pids.count(pid) for pid in set(pids))
+    assert reads > 10
+    rng = random.Random(20261127)
+    for n in sorted({1, reads, *rng.sample(range(1, reads + 1), 6)}):
+        result = subprocess.run([STRACE, "-f", "-o", "/dev/null", "-P", "out.h5", "-e", "trace=pread64", "-e",
+                                 f"inject=pread64:error=EIO:when={n}", sys.executable, *args], cwd=tmp_path,
+                                capture_output=True, text=True, timeout=120)
+        detail = f"EIO at read #{n} of out.h5:\n{result.stderr}"
+        no_crash(result, detail)
+        assert result.returncode == 2, detail
+        assert result.stderr.endswith("ellroll-plot: error: out.h5: cannot read it: Input/output error\n"), detail
 
 
 def test_a_write_error_on_a_worker_thread_prints_no_hdf5_error_stack(ellroll, tmp_path):
