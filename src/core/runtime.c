@@ -9,8 +9,8 @@
  * time (setting the trim threshold also fixes the mmap threshold at its
  * default): the next batch page-faults its memory in again, about 6 ns per
  * case-step of a batch storing every field at 100 Hz (bench/throughput) and
- * 4 % of a campaign (perf, when the writer's windows were still freed and
- * allocated; they are recycled now, src/output). Up to 256 MiB of freed
+ * 4 % of a campaign (perf, with the writer's windows freed and allocated
+ * each time; src/output recycles them). Up to 256 MiB of freed
  * heap is kept for reuse and blocks up to 32 MiB come from the heap; peak
  * memory does not change. Other C libraries (no M_TRIM_THRESHOLD): nothing.
  *
@@ -21,6 +21,7 @@
 #include <malloc.h>
 #endif
 #include <signal.h>
+#include <sys/resource.h>
 
 void ellroll_crc32c_init(void);
 
@@ -34,4 +35,23 @@ void ellroll_tune_runtime(void)
 #endif
     signal(SIGXFSZ, SIG_IGN);
     ellroll_crc32c_init(); /* before threads compute checksums */
+}
+
+/* Room for `needed` open files: the soft limit on descriptors raised
+ * towards the hard one where it is lower (a merge holds every shard open,
+ * and a job array's thousand shards pass the usual soft limit of 1024).
+ * The soft limit after it; -1 where it cannot be read. */
+long ellroll_open_files_room(long needed)
+{
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_NOFILE, &limit) != 0)
+        return -1;
+    if (limit.rlim_cur != RLIM_INFINITY && (rlim_t)needed > limit.rlim_cur) {
+        rlim_t wanted = limit.rlim_max == RLIM_INFINITY || (rlim_t)needed < limit.rlim_max
+                        ? (rlim_t)needed : limit.rlim_max;
+        struct rlimit raised = {wanted, limit.rlim_max};
+        if (setrlimit(RLIMIT_NOFILE, &raised) == 0)
+            limit.rlim_cur = wanted;
+    }
+    return limit.rlim_cur == RLIM_INFINITY || limit.rlim_cur > (rlim_t)(1L << 40) ? 1L << 40 : (long)limit.rlim_cur;
 }

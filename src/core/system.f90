@@ -10,6 +10,7 @@ module ellroll_system
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
       system_error_text, open_regular_file, read_text, file_type_words, read_whole_file
+  public :: open_files_room
   public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now, shown_command_line, read_watchdog
 
   interface
@@ -44,6 +45,12 @@ module ellroll_system
     !> a second one ends the process; SIGPIPE is ignored (src/core/signals.c).
     subroutine catch_stop_signals() bind(c, name='ellroll_catch_stop_signals')
     end subroutine catch_stop_signals
+    !> Room for `needed` open files: the soft limit raised towards the hard
+    !> one where it is lower; the soft limit after it (-1: unknown).
+    integer(c_long) function open_files_room(needed) bind(c, name='ellroll_open_files_room')
+      import :: c_long
+      integer(c_long), value :: needed
+    end function open_files_room
     !> End the process at once with status, without the exit handlers: after
     !> a failed write, HDF5's handler would close a file whose writes failed
     !> and can crash doing so. The caller flushes its units first.

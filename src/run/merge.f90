@@ -5,9 +5,10 @@
 !> the shard stores of the case: ellroll_case_checksum) before it is
 !> written: a damaged shard is refused, and no output is left.
 module ellroll_merge
+  use, intrinsic :: iso_c_binding, only: c_long
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
-  use ellroll_system, only: catch_stop_signals, stop_signal, signal_name
+  use ellroll_system, only: catch_stop_signals, stop_signal, signal_name, open_files_room
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
@@ -24,6 +25,10 @@ module ellroll_merge
   private
 
   public :: merge_shards
+
+  !> Open files a merge needs beside its shards: the output, its work file
+  !> and lock, the standard streams, HDF5's and the libraries' own.
+  integer, parameter :: spare_files = 64
 
 contains
 
@@ -102,6 +107,14 @@ contains
     type(error_t), intent(inout) :: err
     type(h5_input_t), allocatable :: shards(:)
     integer :: k
+    integer(c_long) :: room
+    room = open_files_room(int(size(shard_paths), c_long) + spare_files)
+    if (room >= 0 .and. room < size(shard_paths) + spare_files) then
+      call set_error(err, err_output, itoa(size(shard_paths)) // ' shards: a merge holds every shard open and ' // &
+          'needs about ' // itoa(size(shard_paths) + spare_files) // ' open files, where this process may open ' // &
+          itoa(int(room)) // ' (the hard limit, ulimit -Hn): raise it')
+      return
+    end if
     allocate (shards(size(shard_paths)))
     do k = 1, size(shard_paths)
       call shards(k)%open(trim(shard_paths(k)), err)

@@ -3,6 +3,7 @@ and resume, refusals, invalid cases, progress."""
 import os
 import random
 import re
+import resource
 import signal
 import struct
 import subprocess
@@ -228,6 +229,39 @@ def test_a_shard_past_the_last_case_is_empty_and_merges(ellroll, tmp_path):
     with h5py.File(tmp_path / "s2.h5", "r") as f:
         assert f["summary/status"].shape == (0,) and f["trajectory/contact"].shape[0] == 0
     assert run(ellroll, "merge", "merged.h5", "s0.h5", "s1.h5", "s2.h5", cwd=tmp_path).returncode == 0
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
+
+
+def merge_under_limit(ellroll, folder, soft, hard, shards):
+    def limit():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+    return subprocess.run([str(ellroll), "merge", "merged.h5", *shards], cwd=folder, capture_output=True,
+                          text=True, timeout=120, preexec_fn=limit)
+
+
+def test_a_merge_of_more_shards_than_the_soft_open_file_limit(ellroll, tmp_path):
+    """A merge holds every shard open: 120 shards under a soft limit of 64
+    open files (as a job array's thousand shards under the usual 1024) merge
+    to the single run; under a hard limit of 64 the merge is refused before
+    it opens a shard, naming the count and the limit, and leaves nothing."""
+    count = 120
+    name = write(tmp_path, f"&sweep name = 'omega_z', start = 5, stop = 40, count = {count} /\n", t_end=0.01)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    shards = [f"s{index}.h5" for index in range(count)]
+    for index, shard in enumerate(shards):
+        assert run(ellroll, "run", name, "-q", "--shard", f"{index}/{count}", "-o", shard,
+                   cwd=tmp_path).returncode == 0
+    before = sorted(p.name for p in tmp_path.iterdir())
+    refused = merge_under_limit(ellroll, tmp_path, 64, 64, shards)
+    assert refused.returncode == 3 and refused.stderr == (
+        f"ellroll: error: {count} shards: a merge holds every shard open and needs about {count + 64} open files, "
+        "where this process may open 64 (the hard limit, ulimit -Hn): raise it\n"), refused.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    hard = resource.getrlimit(resource.RLIMIT_NOFILE)[1]
+    if hard != resource.RLIM_INFINITY and hard < count + 64:
+        pytest.skip(f"this machine's hard limit on open files is {hard}")
+    merged = merge_under_limit(ellroll, tmp_path, 64, hard, shards)
+    assert merged.returncode == 0, merged.stderr
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "merged.h5")
 
 
