@@ -36,8 +36,6 @@ module ellroll_adaptive_run
   public :: project_with_rate, stop_in_step, record_samples_until
   public :: reaction_inside, locate_crossing, end_at_crossing, screen_and_peaks, project_lanes
 
-  !> A maximum of the nutation angle located inside a step.
-
 contains
 
   !> An embedded pair with its step-size control (step_control_t): accept

@@ -325,6 +325,12 @@ contains
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t, v
     real(wp) :: d1, d3, numerator, denominator, t_peak, peak, shift
+    ! a state tracked again at its time (a switch of regime, then the step
+    ! that ends there) adds nothing: as a third sample it would make a flat
+    ! top of a rising Theta
+    if (self%n_samples > 0) then
+      if (.not. t > self%t(3)) return
+    end if
     ! (shifted element by element: the array constructor built temporaries)
     self%t(1) = self%t(2)
     self%t(2) = self%t(3)
