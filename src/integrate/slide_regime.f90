@@ -3,24 +3,21 @@
 !> the switches' functions, the making of a switch, the works and the end
 !> at a model limit; ellroll_slide_run's loops locate the switches.
 module ellroll_slide_regime
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_status, only: status_completed, status_unstable, status_rim
-  use ellroll_excitation, only: excitation_none
   use ellroll_norms, only: in_mass_units
   use ellroll_ode, only: no_step_solution
-  use ellroll_events, only: crossing_search_t, peak_search_t, max_event_trials
+  use ellroll_events, only: peak_search_t
   use ellroll_cases, only: case_t, field_regime, field_slip_speed
   use ellroll_results, only: case_result_t, add_switch, switch_to_rolling
   use ellroll_figures, only: fig_slip_speed_max
-  use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, &
-      observe
+  use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
       at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time, stick_loss
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
-  use ellroll_step_works, only: step_works
+  use ellroll_step_works, only: step_works, gauss_nodes, gauss_weights
   use ellroll_slip_substeps, only: slide_piece
   use ellroll_step_peaks, only: step_screen_t, screen_theta, note_screen, peak_count, peak_quantities, peak_values, &
       worth_refining, peak_resolution
@@ -30,15 +27,10 @@ module ellroll_slide_regime
 
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-            add_sliding, end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, &
-            add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
+            add_sliding, slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
-  !> A fixed step's partial step towards a limit is the method's own growth
-  !> where it and its two halves differ by more than this (its normal, and
-  !> its energy against the energy at its start).
-  real(wp), parameter :: halves_tolerance = 0.1_wp
 
   !> The state of a run that may slide: the regime and its state.
   type :: regime_state_t
@@ -153,87 +145,6 @@ contains
     status = limit_status(rolling%ball, new%s(1:6), new%obs)
   end subroutine take
 
-  !> In a cup that moves, whether the path of an embedded pair's accepted
-  !> sliding step from (t, now) of size h (its dense output), which ends
-  !> inside at new, passes a limit between: a lift-off where N dips below
-  !> zero and comes back within the step. N is screened at 1e-3, 1/4, 1/2,
-  !> 3/4 and 1 - 1e-3 of the step and its minima refined as a rolling
-  !> step's (reaction_inside: peak_search_t to 1e-6 of the step). Where the path
-  !> passes a limit, the step is cut to where it is known past it (h, new
-  !> and status that step's). screen: the peak quantities at those points
-  !> (ellroll_step_peaks; evaluated for them alone in a fixed cup).
-  subroutine lift_inside(pair, rolling, sb, t, h, now, new, status, n_rhs, screen)
-    class(embedded_pair_t), intent(inout) :: pair
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t
-    real(wp), intent(inout) :: h
-    type(regime_state_t), intent(in) :: now
-    type(regime_state_t), intent(inout) :: new
-    integer, intent(inout) :: status
-    integer(i8), intent(inout) :: n_rhs
-    type(step_screen_t), intent(out) :: screen
-    real(wp), parameter :: resolution = 1.0e-6_wp
-    type(peak_search_t) :: search
-    type(observation_t) :: obs
-    real(wp) :: lowered(0:6), x, fx, passed     ! lowered: -N, whose maxima are N's minima
-    real(wp) :: state(slide_state_size), rate(slide_state_size), slip_speed
-    integer :: i
-    associate (theta => screen_theta)
-    call note_screen(screen, 0, now%obs)
-    if (sb%ball%excitation%kind == excitation_none) then     ! (a fixed cup: N >= m g n_z)
-      do i = 1, 5
-        call pair%dense(sb, theta(i), state, n_rhs)
-        call normalize_normal(state)
-        call observe_sliding(sb, t + theta(i) * h, state, obs, slip_speed, rate)
-        n_rhs = n_rhs + 1
-        call note_screen(screen, i, obs)
-      end do
-      return
-    end if
-    lowered(0) = -now%obs%reaction_normal
-    lowered(6) = -new%obs%reaction_normal
-    passed = -1
-    do i = 1, 5
-      if (past(theta(i), lowered(i))) exit
-      call note_screen(screen, i, obs)
-    end do
-    do i = 1, 5
-      if (passed >= 0) exit
-      if (.not. (lowered(i) >= lowered(i - 1) .and. lowered(i) >= lowered(i + 1))) cycle
-      call search%start(theta(i - 1), theta(i), theta(i + 1), lowered(i - 1), lowered(i), lowered(i + 1), resolution)
-      do while (.not. search%done())
-        x = search%trial()
-        if (past(x, fx)) exit
-        call search%report(x, fx)
-      end do
-    end do
-    if (passed < 0) return
-    h = passed * h
-    call take(pair, rolling, sb, t, h, now, new, status, n_rhs)
-    end associate
-  contains
-    !> -N at theta from the dense output; true (passed set) where a limit is passed there.
-    logical function past(at, lowered_at)
-      real(wp), intent(in) :: at
-      real(wp), intent(out) :: lowered_at
-      integer :: met
-      call pair%dense(sb, at, state, n_rhs)
-      call normalize_normal(state)
-      if (at_sliding_rim(state)) then
-        met = status_rim
-        lowered_at = 0
-      else
-        call observe_sliding(sb, t + at * h, state, obs, slip_speed, rate)
-        n_rhs = n_rhs + 1
-        lowered_at = -obs%reaction_normal
-        met = limit_status(rolling%ball, state(1:6), obs)
-      end if
-      past = met /= status_completed
-      if (past) passed = at
-    end function past
-  end subroutine lift_inside
-
   !> The peaks inside an embedded pair's accepted sliding step from t of
   !> size h (its dense output), that ended at new, whose screen (lift_inside's)
   !> shows one that may pass the running maximum (worth_refining): located
@@ -279,50 +190,6 @@ contains
       end do
     end do
   end subroutine add_sliding_peaks
-
-  !> An embedded pair's step from (t, now) of size h, within its tolerance,
-  !> that meets a limit (status): the partial steps towards the limit are
-  !> searched (end_at_limit's bisection) for the last one within the
-  !> tolerance and short of the limit. Where the tolerance, not the limit,
-  !> ends that search (near the rim V_z's 1 / n_z takes a partial step's
-  !> error past it), the step is cut to a partial step within it (the first
-  !> at least half as long as the shortest that is not: h, new and status
-  !> that step's), and the pair's steps go on from there towards the limit,
-  !> so that the limit is located where the path meets it, at any
-  !> tolerance. Otherwise the step is left as it is, for end_at_limit.
-  subroutine within_tolerance_to_limit(pair, rolling, sb, t, h, now, new, status, n_rhs)
-    class(embedded_pair_t), intent(inout) :: pair
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t
-    real(wp), intent(inout) :: h
-    type(regime_state_t), intent(in) :: now
-    type(regime_state_t), intent(inout) :: new
-    integer, intent(inout) :: status
-    integer(i8), intent(inout) :: n_rhs
-    type(crossing_search_t) :: search
-    type(regime_state_t) :: x
-    real(wp) :: trial
-    integer :: k, met
-    logical :: valid, at_limit           ! at_limit: the shortest partial step known invalid meets a limit
-    at_limit = .true.
-    call search%start(h, limit_time_ulps * spacing(t + h))
-    do k = 1, max_event_trials
-      if (search%done()) exit
-      if (.not. at_limit .and. search%valid >= search%invalid / 2) exit
-      trial = search%trial()
-      call take(pair, rolling, sb, t, trial, now, x, met, n_rhs)
-      valid = met == status_completed .and. pair%error_norm <= 1
-      if (.not. valid) at_limit = met /= status_completed
-      call search%report(trial, valid)
-    end do
-    if (at_limit .or. .not. search%valid > 0) then
-      call take(pair, rolling, sb, t, h, now, new, status, n_rhs)    ! (the pair holds the step again)
-      return
-    end if
-    h = search%valid
-    call take(pair, rolling, sb, t, h, now, new, status, n_rhs)
-  end subroutine within_tolerance_to_limit
 
   !> Whether the regime switches between now and new (one step apart):
   !> rolling needs more friction than mu N at new; or the slip, nonzero at
@@ -489,9 +356,48 @@ contains
       call add_sliding(sb, h, from, to, tally, work(1))
       if (rolling%ball%rolling_resistance > 0) call add_step_resistance(run, res, t + h, work(2), to%obs)
     class default
+      if (present(at_stop)) then
+        if (at_stop .and. from%sliding) then
+          call stop_piece_work(integrator, rolling, sb, t, h, from, work(1), res%n_rhs)
+          if (work(1) >= 0) then
+            call add_sliding(sb, h, from, to, tally, work(1))
+            return
+          end if
+        end if
+      end if
       call add_sliding(sb, h, from, to, tally)
     end select
   end subroutine add_sliding_step
+
+  !> The friction's work mu N |u| over a fixed step's piece of size h from
+  !> `from` that ends where the slip stops: Gauss's 4 nodes, each the
+  !> method's partial step from the piece's start. Such a piece may be a
+  !> whole slip (a stiff one, shorter than a step), over which the
+  !> trapezoid's error does not fall with the step (0.5 % where N changes
+  !> by 1.6 % over the slip). -1 where a partial step met a limit.
+  subroutine stop_piece_work(integrator, rolling, sb, t, h, from, work, n_rhs)
+    class(integrator_t), intent(inout) :: integrator
+    type(run_state_t), intent(in) :: rolling
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: t, h
+    type(regime_state_t), intent(in) :: from
+    real(wp), intent(out) :: work
+    integer(i8), intent(inout) :: n_rhs
+    type(run_state_t) :: scratch
+    type(regime_state_t) :: x
+    integer :: i, status
+    scratch = rolling
+    work = 0
+    do i = 1, size(gauss_nodes)
+      call take(integrator, scratch, sb, t, gauss_nodes(i) * h, from, x, status, n_rhs)
+      if (status /= status_completed) then
+        work = -1
+        return
+      end if
+      work = work + gauss_weights(i) * sb%ball%mu * x%obs%reaction_normal * x%slip_speed
+    end do
+    work = h * work
+  end subroutine stop_piece_work
 
   !> A piece of step h from `from` to `to` adds to the sliding figures:
   !> its time, the friction's work mu N |u| (`work` where given, else the
@@ -514,106 +420,6 @@ contains
     tally%slip_speed_max = max(tally%slip_speed_max, to%slip_speed)
     tally%episode_slip_max = max(tally%episode_slip_max, to%slip_speed)
   end subroutine add_sliding
-
-  !> Whether the integrator's last step is within its tolerance (a fixed
-  !> step always is).
-  pure logical function within_tolerance(integrator) result(within)
-    class(integrator_t), intent(in) :: integrator
-    within = .true.
-    select type (integrator)
-    class is (embedded_pair_t)
-      within = integrator%error_norm <= 1
-    end select
-  end function within_tolerance
-
-  !> Whether a fixed-step method's step h from (t, now) to x agrees with
-  !> the same method's two half steps (normal and energy within
-  !> halves_tolerance; an embedded pair's own estimate judges its steps).
-  !> Next to the rim a partial step's stages meet V_z's 1 / n_z and its end
-  !> can be far off without meeting any limit.
-  logical function agrees_with_halves(integrator, rolling, sb, t, h, now, x, n_rhs) result(agrees)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h
-    type(regime_state_t), intent(in) :: now, x
-    integer(i8), intent(inout) :: n_rhs
-    type(regime_state_t) :: middle, halves
-    integer :: status
-    agrees = .true.
-    select type (integrator)
-    class is (embedded_pair_t)
-      return
-    end select
-    agrees = .false.
-    call take(integrator, rolling, sb, t, h / 2, now, middle, status, n_rhs)
-    if (status /= status_completed) return
-    call take(integrator, rolling, sb, t + h / 2, h / 2, middle, halves, status, n_rhs)
-    if (status /= status_completed) return
-    agrees = norm2(halves%obs%normal - x%obs%normal) <= halves_tolerance .and. &
-             abs(halves%obs%energy - x%obs%energy) <= halves_tolerance * abs(now%obs%energy)
-  end function agrees_with_halves
-
-  !> The step h from (t, now) met a limit: the case ends where the method's
-  !> partial steps from now first meet it (to limit_time_ulps of t), with
-  !> its status; the last valid state (not only short of the limit: within
-  !> an embedded pair's tolerance, or, towards the rim, agreeing with a
-  !> fixed step's halves: there a partial step's stages can pass it and come
-  !> back far off) adds to the summary.
-  subroutine end_at_limit(integrator, run, rolling, sb, t, h, now, tally, res, switch_first, before, at_before)
-    class(integrator_t), intent(inout) :: integrator
-    type(run_state_t), intent(inout) :: run
-    type(run_state_t), intent(inout) :: rolling
-    type(sliding_ball_t), intent(in) :: sb
-    real(wp), intent(in) :: t, h
-    type(regime_state_t), intent(in) :: now
-    type(slide_tally_t), intent(inout) :: tally
-    type(case_result_t), intent(inout) :: res
-    !> (where asked) the regime switches before the limit, at the last valid
-    !> state (at_before, a piece `before` from now): nothing is ended or added
-    logical, intent(out), optional :: switch_first
-    real(wp), intent(out), optional :: before
-    type(regime_state_t), intent(out), optional :: at_before
-    type(crossing_search_t) :: search
-    type(regime_state_t) :: x, last_valid
-    real(wp) :: trial
-    integer :: status, crossed, k
-    logical :: valid
-    call take(integrator, rolling, sb, t, h, now, x, crossed, res%n_rhs)
-    last_valid = now
-    call search%start(h, limit_time_ulps * spacing(t + h))
-    do k = 1, max_event_trials
-      if (search%done()) exit
-      trial = search%trial()
-      call take(integrator, rolling, sb, t, trial, now, x, status, res%n_rhs)
-      valid = status == status_completed
-      if (valid) valid = within_tolerance(integrator)
-      if (valid .and. crossed == status_rim) valid = agrees_with_halves(integrator, rolling, sb, t, trial, now, x, &
-                                                                         res%n_rhs)
-      if (valid) then
-        last_valid = x
-      else if (status /= status_completed) then
-        crossed = status
-      end if
-      call search%report(trial, valid)
-    end do
-    if (present(switch_first)) then
-      switch_first = search%valid > 0
-      if (switch_first) switch_first = switch_crossed(sb, now, last_valid)
-      if (switch_first) then
-        before = search%valid
-        at_before = last_valid
-        return
-      end if
-    end if
-    if (search%valid > 0) then
-      call add_sliding(sb, search%valid, now, last_valid, tally)
-      call track_balance(run, res, t + search%valid, last_valid, tally)
-    end if
-    if (crossed == status_completed) crossed = status_unstable
-    res%status = crossed
-    res%t_final = t + search%valid
-  end subroutine end_at_limit
 
   !> A fixed rolling step h from (t, now) to new whose ends both need less
   !> friction than mu N: where the parabola through the friction needed at

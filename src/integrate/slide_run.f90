@@ -33,8 +33,8 @@ module ellroll_slide_run
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      end_at_limit, slip_stopped, observe_stopped, lift_inside, within_tolerance_to_limit, add_sliding_peaks, step_screen_t, &
-      graze_inside, stop_bracket
+      slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
+  use ellroll_slide_limits, only: end_at_limit, lift_inside, within_tolerance_to_limit
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z, p_settle
   implicit none
   private

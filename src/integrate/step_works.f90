@@ -15,7 +15,14 @@ module ellroll_step_works
   implicit none
   private
 
-  public :: step_works
+  public :: step_works, gauss_nodes, gauss_weights
+
+  ! the roots of P_4 on [-1, 1], +-sqrt(3/7 -+ 2/7 sqrt(6/5)), and their
+  ! weights (18 +- sqrt(30)) / 36, mapped onto [0, 1]
+  real(wp), parameter :: inner = 0.33998104358485626480_wp, outer = 0.86113631159405257522_wp
+  real(wp), parameter :: gauss_nodes(4) = 0.5_wp + 0.5_wp * [-outer, -inner, inner, outer]
+  real(wp), parameter :: gauss_weights(4) = [0.34785484513745385737_wp, 0.65214515486254614263_wp, &
+                                             0.65214515486254614263_wp, 0.34785484513745385737_wp] / 2
 
 contains
 
@@ -38,23 +45,17 @@ contains
     integer(i8), intent(inout) :: n_rhs
     type(sliding_ball_t), intent(in), optional :: sb
     logical, intent(in), optional :: fresh
-    ! the roots of P_4 on [-1, 1], +-sqrt(3/7 -+ 2/7 sqrt(6/5)), and their
-    ! weights (18 +- sqrt(30)) / 36, mapped onto [0, 1]
-    real(wp), parameter :: inner = 0.33998104358485626480_wp, outer = 0.86113631159405257522_wp
-    real(wp), parameter :: nodes(4) = 0.5_wp + 0.5_wp * [-outer, -inner, inner, outer]
-    real(wp), parameter :: weights(4) = [0.34785484513745385737_wp, 0.65214515486254614263_wp, &
-                                         0.65214515486254614263_wp, 0.34785484513745385737_wp] / 2
     real(wp) :: s(slide_state_size), y(state_size), f(state_size), power(2), at, theta(4)
     type(observation_t) :: obs
     class(embedded_pair_t), allocatable :: stepper
     integer :: i
     work = 0
-    theta = (h / pair%h) * nodes
+    theta = (h / pair%h) * gauss_nodes
     if (present(fresh) .and. present(sb)) then
       if (fresh) allocate (stepper, source=pair)      ! (the pair keeps its last step)
     end if
-    do i = 1, size(nodes)
-      at = t + nodes(i) * h
+    do i = 1, size(gauss_nodes)
+      at = t + gauss_nodes(i) * h
       if (allocated(stepper)) then
         call stepper%step(sb, pair%t_old, pair%y_old(:slide_state_size), pair%k(:slide_state_size, 1), &
                           theta(i) * pair%h, s, n_rhs)
@@ -69,9 +70,9 @@ contains
         call observe(ball, at, y, f, obs)
         power = [0.0_wp, -resistance_power(ball, obs%normal, obs%omega, obs%reaction_normal)]
       end if
-      work = work + weights(i) * power
+      work = work + gauss_weights(i) * power
     end do
-    n_rhs = n_rhs + size(nodes)
+    n_rhs = n_rhs + size(gauss_nodes)
     work = h * work
   end subroutine step_works
 end module ellroll_step_works

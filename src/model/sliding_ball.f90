@@ -577,6 +577,10 @@ contains
     real(wp), intent(out) :: dydt(slide_state_size)
     real(wp) :: big_n, force(3), rolling_rate(state_size), v(3), n(3), height
     call sliding_rate(sb, t, y, dydt, big_n, force)
+    ! the aligned law's friction is mu N along f plus its error, which does
+    ! not scale with N (|u| f' / kappa): the model's friction is mu N, also
+    ! as N falls to zero before a lift-off
+    if (sb%aligned .and. big_n > 0 .and. norm2(force) > 0) force = (sb%ball%mu * big_n / norm2(force)) * force
     rolling_rate(1:3) = dydt(1:3)
     rolling_rate(4:6) = dydt(4:6)
     call observe(sb%ball, t, y(1:6), rolling_rate, obs)
