@@ -523,7 +523,12 @@ class EllrollFile:
 
     @_reads
     def input_column(self, name):
-        """An input over all cases (for sweeps)."""
+        """An input over all cases (for sweeps): a varied one from its
+        coordinate in /summary, written for every case (a stopped run's
+        pending ones too, whose /case rows are not), another from /case."""
+        if name in self._coordinates("summary") and f"summary/{name}" in self._h5 \
+                and self._h5[f"summary/{name}"].dtype.kind == "f":
+            return self._h5[f"summary/{name}"][:]
         dataset, component = self._input(name)
         values = self._dataset(f"case/{dataset}")
         return values[:, component] if component is not None else values[:]

@@ -168,6 +168,14 @@ def suite_statistics(run, figures=None, exceeded=None, percentiles="linear"):
     return table
 
 
+def unique_keys(keys):
+    """The distinct rows of a table of stripe keys in np.unique's order,
+    all NaN in one place taken as one value (np.unique keeps each NaN row)."""
+    seen = {tuple(None if np.isnan(v) else float(v) for v in row) for row in keys}
+    ordered = sorted(seen, key=lambda row: tuple((v is None, 0.0 if v is None else v) for v in row))
+    return [np.array([np.nan if v is None else v for v in row], dtype=float) for row in ordered]
+
+
 def stripe_statistics(inputs, status, figures, exceeded=None, percentiles="linear"):
     """The per-stripe statistics of a table of cases: `inputs` {name:
     per-case value} (the stripe inputs), `status` per-case names, `figures`
@@ -188,7 +196,7 @@ def stripe_statistics(inputs, status, figures, exceeded=None, percentiles="linea
     limit = np.isin(status, MODEL_LIMITS)
     keys = np.stack([np.asarray(v, dtype=float) for v in inputs.values()], axis=1) if inputs else np.zeros((n, 0))
     rows = []
-    for key in (np.unique(keys, axis=0) if n else []):
+    for key in unique_keys(keys):
         mask = np.all((keys == key) | (np.isnan(keys) & np.isnan(key)), axis=1)
         inside, beyond = mask & completed, mask & limit
         known = inside.sum() + beyond.sum()

@@ -5,8 +5,10 @@ reader not installed is skipped with its reason."""
 import csv
 import io
 import shutil
+import signal
 import subprocess
 import sys
+import time
 
 import h5py
 import numpy as np
@@ -153,6 +155,44 @@ def test_csv_of_both_tools_byte_identical(ellroll, files):
     invalid = [row for row in rows[1:] if row[3] == "invalid"]
     assert invalid and invalid[0][header.index("theta_max [rad]")] == "NaN"
     assert rows[1][header.index("n_steps")] == "500" and rows[1][1] == "10"
+
+
+STOPPED = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial x = 0.0, y = 0.0, omega = -2.0, 2.0, 20.0 /
+&integration method = 'rk4', dt = 1.0e-3, t_end = 20.0 /
+&output file = 'k.h5', interval = 0.05 /
+&sweep name = 'omega_z', start = 1, stop = 100, count = 300 /
+&sweep name = 'rolling_resistance', values = 0.0, 1e-4 /
+"""
+
+
+def test_a_stopped_runs_summary_is_the_same_from_both_tools(ellroll, tmp_path):
+    """A run stopped by SIGTERM (its OUT.h5.partial, pending cases in it):
+    both tools write the same CSV, the pending cases' swept inputs their
+    values (the file's coordinates, in /summary), and --suite's stripes
+    (one per case here) count every case of the campaign once."""
+    (tmp_path / "a.nml").write_text(STOPPED)
+    writer = subprocess.Popen([str(ellroll), "run", "a.nml", "-q", "--threads", "1"], cwd=tmp_path,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while not (tmp_path / "k.h5.journal").exists():
+        time.sleep(0.01)
+    time.sleep(0.2)
+    writer.send_signal(signal.SIGTERM)
+    assert writer.wait(timeout=60) != 0
+    path = tmp_path / "k.h5.partial"
+    for options in ([], ["--suite"]):
+        fortran = run(ellroll, "summary", path, "--format", "csv", *options)
+        python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(path), "--format", "csv",
+                                 *options], capture_output=True, text=True)
+        rows = list(csv.DictReader(io.StringIO(python.stdout)))
+        if options:
+            assert len(rows) == 600 and sum(int(row["n_cases"]) for row in rows) == 600, python.stderr[-300:]
+            assert [row["n_cases"] for row in csv.DictReader(io.StringIO(fortran.stdout))] == ["1"] * 600
+        else:
+            assert fortran.stdout == python.stdout and fortran.stdout, python.stderr[-300:]
+            pending = [row for row in rows if row["status"] == "pending"]
+            assert pending and all(row["omega_z [rad/s]"] != "NaN" for row in pending)
 
 
 def test_docs_snippet(files, tmp_path):
