@@ -24,8 +24,8 @@ module ellroll_output_files
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: label_marker, label_search_bytes
   use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
-      sync_folder, read_head, lock_output, unlock_output, holder_line, host_name, process_id, kind_missing, kind_regular, &
-      kind_link, kind_folder
+      sync_folder, read_head, lock_output, unlock_output, holder_line, descriptor_is_at, host_name, process_id, &
+      kind_missing, kind_regular, kind_link, kind_folder
   implicit none
   private
 
@@ -50,6 +50,7 @@ module ellroll_output_files
     procedure :: check
     procedure :: discard
     procedure :: commit
+    procedure :: lock_lost
   end type output_files_t
 
 contains
@@ -188,7 +189,8 @@ contains
   end subroutine check_replace
 
   !> Remove a work file (checked first: ours, not a link, not the input);
-  !> nothing there is no error.
+  !> nothing there is no error. Where this process's lock was removed
+  !> (lock_lost) nothing is removed: the file may be another run's.
   subroutine discard(self, path, what, err, made)
     class(output_files_t), intent(in) :: self
     character(len=*), intent(in) :: path
@@ -199,6 +201,7 @@ contains
     logical, intent(in), optional :: made
     integer :: code
     logical :: ours
+    if (self%lock_lost()) return          ! (the file at path may be another run's)
     ours = .false.
     if (present(made)) then
       if (made) ours = path_kind(path) == kind_regular
@@ -211,6 +214,15 @@ contains
                                                        system_error_text(code))
   end subroutine discard
 
+  !> Whether the output's lock file this process holds is no longer at its
+  !> name (removed by hand): another run may hold the output now, and the
+  !> files at its names be that run's.
+  logical function lock_lost(self)
+    class(output_files_t), intent(in) :: self
+    lock_lost = .false.
+    if (self%lock_fd >= 0) lock_lost = .not. descriptor_is_at(self%lock_fd, self%lock)
+  end function lock_lost
+
   !> The finished file (`finished`, closed) to the disk and moved over the
   !> output, then the journal removed: the output is in place, complete,
   !> before the record of its cases goes. A failure leaves both (a resume
@@ -222,6 +234,12 @@ contains
     integer :: code
     logical :: replacing
     if (err%failed()) return
+    if (self%lock_lost()) then
+      call set_error(err, err_output, self%lock // ': the output''s lock was removed while this process ' // &
+          'wrote it (another run may write ' // self%target // ' now); ' // finished // ' is not moved into ' // &
+          'place, and no file at its names is touched')
+      return
+    end if
     call self%check(self%target, work_target, err)
     if (err%failed()) return
     replacing = path_kind(self%target) /= kind_missing

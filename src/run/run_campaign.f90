@@ -177,6 +177,7 @@ contains
     type(output_files_t), intent(inout) :: files
     type(run_options_t), intent(in) :: opts
     type(error_t), intent(inout) :: err
+    logical :: lock_lost
     if (run%first_err%failed()) then
       err = run%first_err
       call abandon(run, files, err)
@@ -190,7 +191,9 @@ contains
     end if
     call run%out%close(err)
     call run%journal%close(err)
+    lock_lost = files%lock_lost()       ! (commit then moves nothing, and says why)
     call files%commit(files%partial, err)
+    if (lock_lost) return
     ! a write error before the finished file moved into place (closing it:
     ! /switches, metadata; or its sync or rename): the journal keeps every
     ! case, and abandon says so as for an error in the loop; after it,
@@ -354,6 +357,8 @@ contains
     logical :: kept
     kept = run%journal%holds_records() .or. run%resumed
     call keep_finished(run, files)
+    ! (files at the output's names may be another run's: none is touched)
+    if (files%lock_lost()) return
     ! a journal its resume refused stays as it is, and the refusal alone says
     ! what to do (a resume again would meet it again)
     if (run%resumed .and. run%journal%record_words == 0) return

@@ -322,6 +322,38 @@ def test_reading_the_partial_file_of_a_running_run_says_a_run_writes_it(ellroll,
             and "a running ellroll, if out.h5.lock exists (it names the process)" in result.stderr), result.stderr
 
 
+@pytest.mark.parametrize("second", ["--overwrite", "--resume"])
+def test_a_run_whose_lock_was_removed_moves_nothing_into_place(ellroll, tmp_path, second):
+    """Run A's lock file removed by hand while it runs (a 'stale lock'
+    cleanup), run B then takes the output (--overwrite, or --resume of A's
+    journal) and finishes: A, finishing after it, refuses to commit (exit
+    3), and leaves B's output and every file at the output's names as B
+    left them."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    first = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists():
+        time.sleep(0.01)
+    first.send_signal(signal.SIGSTOP)
+    (folder / "out.h5.lock").unlink()
+    (folder / "b.nml").write_text(CAMPAIGN.format(t_end=0.2))
+    taken = run(ellroll, "run", "b.nml", "-q", "-o", "out.h5", second, cwd=folder)
+    if second == "--resume":
+        # B resumes A's journal: a changed input is refused, nothing written; run A's input instead
+        assert taken.returncode != 0
+        taken = run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "--resume", cwd=folder)
+    assert taken.returncode == 0, taken.stderr
+    left = {p.name: p.read_bytes() for p in folder.iterdir()}
+    first.send_signal(signal.SIGCONT)
+    assert first.wait(timeout=120) == 3
+    message = first.stderr.read()
+    assert "out.h5.lock: the output's lock was removed while this process wrote it (another run may write " \
+           "out.h5 now); out.h5.partial is not moved into place, and no file at its names is touched" in message, \
+        message
+    assert "--resume" not in message, message
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == left
+    assert "out.h5" in left and "out.h5.lock" not in left and "out.h5.journal" not in left
+
+
 @pytest.mark.parametrize("reader", ["ellroll", "ellroll-plot"])
 def test_without_hdf5_file_locks_the_outputs_lock_tells_a_running_run(ellroll, tmp_path, reader):
     """With HDF5_USE_FILE_LOCKING=FALSE (as clusters set it for their file
