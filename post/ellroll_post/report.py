@@ -2,6 +2,7 @@
 that shows them beside the summary table."""
 import html
 import math
+import contextlib
 import os
 import pathlib
 import shutil
@@ -57,16 +58,47 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
         if there:
             for name in names:
                 check_target(out / name, overwrite)
-            for name in names:
-                os.replace(staging / name, out / name)
+            _move_in(staging, out, names)
             staging.rmdir()
         else:
             os.chmod(staging, 0o777 & ~_umask())        # as a folder made the usual way would be
             os.rename(staging, out)
+    except CannotWrite as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise CannotWrite(str(exc).replace(str(staging), str(out))) from None     # (the name the user gave)
+    except OSError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise CannotWrite(f"{out}: cannot move the report into place ({exc.strerror or exc})") from None
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
     return [out / path.name for path in made]
+
+
+def _move_in(staging, out, names):
+    """The report's files moved from staging into the folder out that
+    exists, each file there first kept aside: where a move fails, the
+    files already moved are taken back out and the kept ones put back, so
+    that the folder is as it was."""
+    kept = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.kept.", dir=out))
+    moved = []
+    try:
+        for name in names:
+            had = os.path.lexists(out / name)
+            if had:
+                os.rename(out / name, kept / name)
+            moved.append((name, had))
+            os.replace(staging / name, out / name)
+    except BaseException:
+        for name, had in reversed(moved):
+            with contextlib.suppress(OSError):
+                if had:
+                    os.replace(kept / name, out / name)
+                elif os.path.lexists(out / name) and not os.path.lexists(staging / name):
+                    os.remove(out / name)
+        raise
+    finally:
+        shutil.rmtree(kept, ignore_errors=True)
 
 
 def _draw_report(run, out, draw, case, fmt, all_cases):

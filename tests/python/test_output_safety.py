@@ -224,6 +224,43 @@ def test_a_folder_ellroll_plot_cannot_write_in_is_named_not_its_temporary_file(p
     assert "refused_here" in lines[0] and "(Operation not permitted)" in lines[0] and ".tmp_name" not in lines[0], err
 
 
+def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_path):
+    """`ellroll-plot report --overwrite` over an existing report, EIO at
+    each rename it makes (its figures into the staging folder, the old
+    files kept aside, the new ones moved in): exit 2 and the old report
+    byte for byte, nothing hidden left, the message naming the report's own
+    folder (the first old file kept aside, the last new file moved in, and
+    a seeded one of the renames)."""
+    if shutil.which("strace") is None:
+        pytest.skip("strace is not installed")
+    folder = folder_with(tmp_path)
+    assert run(ellroll, "run", "camp.nml", "-q", cwd=folder).returncode == 0
+    assert plot(folder, "report", "out.h5")[0] == 0
+    old = {p.name: p.read_bytes() for p in (folder / "out_report").iterdir()}
+    (folder / "camp.nml").write_text(CAMPAIGN.format(t_end=0.3))
+    assert run(ellroll, "run", "camp.nml", "-q", "--overwrite", cwd=folder).returncode == 0
+    command = [sys.executable, "-m", "ellroll_post.cli", "report", "out.h5", "--overwrite"]
+    renames = ["-e", "trace=rename,renameat,renameat2"]
+    trace = tmp_path / "renames.txt"
+    shutil.copytree(folder, tmp_path / "counting")
+    assert subprocess.run(["strace", "-f", "-qq", "-o", str(trace), *renames, *command], cwd=tmp_path / "counting",
+                          capture_output=True, timeout=300).returncode == 0
+    # (strace counts when= in each process: the one that renames most)
+    pids = [line.split()[0] for line in trace.read_text().splitlines() if re.search(r"\brename(at2?)?\(", line)]
+    count = max(pids.count(pid) for pid in set(pids))
+    assert count >= 2 * len(old)           # (each figure into staging; each old file kept aside, each new moved in)
+    rng = random.Random(20261127)
+    for n in sorted({count - 2 * len(old) + 1, count, rng.randrange(1, count + 1)}):
+        result = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, *renames,
+                                 "-e", f"inject=rename,renameat,renameat2:error=EIO:when={n}", *command],
+                                cwd=folder, capture_output=True, text=True, timeout=300)
+        now = {p.name: p.read_bytes() for p in (folder / "out_report").iterdir()}
+        assert not [p for p in folder.rglob(".*")], (n, result.stderr)
+        assert result.returncode == 2 and now == old, (n, result.stderr)
+        assert result.stderr.startswith("ellroll-plot: error: out_report") and ".out_report." not in result.stderr, \
+            result.stderr
+
+
 def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):
     code, _, err = plot(plotted, "workprecision", "out.h5", "--out", "figures_wp")
     assert code == 2 and "no error figures" in err
