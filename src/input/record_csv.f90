@@ -189,8 +189,13 @@ contains
       return
     end if
     if (nonfinite) then
-      reason = line_prefix(file) // 'a value is not finite'
-      return
+      do k = 1, width
+        if (names_nonfinite(file%text(word_at(1, k):word_at(2, k)))) then
+          reason = line_prefix(file) // 'value ' // itoa(k) // ' is not finite: ' // &
+                   file%text(word_at(1, k):word_at(2, k))
+          return
+        end if
+      end do
     end if
     if (.not. abs(row(1)) <= max_record_time) then
       reason = line_prefix(file) // 'time ' // format_real(row(1)) // ' s is beyond +-' // &

@@ -281,5 +281,5 @@ def test_a_records_errors_name_it_once(tmp_path):
               "    print(error)\n")
     result = subprocess.run([sys.executable, "-c", script, str(ROOT / "post")], capture_output=True, text=True,
                             env=dict(os.environ, ELLROLL_LIB=library), timeout=120)
-    assert "record_file = Record 'n' row 0: a value is not finite" in result.stdout, result.stdout + result.stderr
+    assert "record_file = Record 'n' row 0: value 2 is not finite: nan" in result.stdout, result.stdout + result.stderr
     assert result.stdout.count("Record 'n'") == 1, result.stdout

@@ -148,7 +148,7 @@ def test_record_equal_to_a_harmonic(ellroll, tmp_path):
 
 @pytest.mark.parametrize("content,words", [
     ("0, 0, 0\n0.5, 1, 1\n0.4, 1, 1\n20, 0, 0\n", "rec.csv:3: time 0.4 s does not increase"),
-    ("0, 0, 0\n1, nan, 1\n20, 0, 0\n", "rec.csv:2: a value is not finite"),
+    ("0, 0, 0\n1, nan, 1\n20, 0, 0\n", "rec.csv:2: value 2 is not finite: nan"),
     ("1, 0, 0\n5, 1, 1\n20, 0, 0\n", "rec.csv: the record starts at 1 s; it must cover t = 0"),
     ("0, 0\n20, 0\n", "expected 3 or 4 numbers"),
     ("0, 0, 0\n1, x, 1\n20, 0, 0\n", "rec.csv:2: not numbers"),
