@@ -611,7 +611,8 @@ def run(inputs, threads=None, *, path=None):
 def _run_inputs(inputs, threads, path, results):
     """The library's run of an input, its results as results(lib, handle) reads them."""
     if isinstance(inputs, str):
-        return _run_text(inputs, threads, path, results)
+        # (a file's last line must end with a line break; a string built in code often has none)
+        return _run_text(inputs if inputs.endswith("\n") or not inputs else inputs + "\n", threads, path, results)
     _require_groups(inputs)
     try:
         private = tempfile.TemporaryDirectory(prefix="ellroll-records-")

@@ -100,3 +100,16 @@ def test_an_input_text_with_other_line_ends_runs_and_is_kept_as_given():
         tree = ellroll.run(text, threads=1)
         assert tree.attrs["input_namelist"] == text, (text, tree.attrs["input_namelist"])
         assert (tree["summary"]["theta_max"].values == theta).all(), text
+
+
+@pytest.mark.parametrize("end", ["", " ", "\t", "\r", "  ! a comment"])
+def test_an_input_text_without_a_final_line_break_runs_as_with_one(end):
+    """A text built in code or stripped ends without a line break (a file
+    must end with one): ellroll.run runs it as the text with one, its
+    results the same bitwise."""
+    plain = ellroll.namelist({**BASE, "output": {"interval": 0.01, "fields": ["contact", "nutation"]}})
+    assert plain.endswith("\n")
+    reference = ellroll.run(plain, threads=1)
+    tree = ellroll.run(plain.rstrip("\n") + end, threads=1)
+    assert (tree["summary"]["theta_max"].values == reference["summary"]["theta_max"].values).all()
+    assert (tree["trajectory"]["contact"].values == reference["trajectory"]["contact"].values).all()
