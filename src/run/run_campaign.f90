@@ -83,7 +83,7 @@ contains
     integer(i8), intent(out), optional :: ran      !< the cases this call integrated
     character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
-    logical :: resume, nothing_to_do
+    logical :: resume, nothing_to_do, orphan
     type(output_files_t) :: files
     type(run_state_t) :: run
 
@@ -99,10 +99,21 @@ contains
     if (present(ran)) ran = 0
     call files%acquire(err)
     if (err%failed()) return
+    orphan = file_exists(files%partial)
     call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
     if (.not. (err%failed() .or. nothing_to_do)) then
       run%shard = opts%shard
       run%resumed = resume
+      ! (a mistyped -o, or a journal lost: said, so that a campaign run again from its start is no surprise)
+      if (opts%resume .and. .not. (resume .or. opts%quiet)) then
+        if (orphan) then
+          write (error_unit, '(a)') 'ellroll: resuming ' // files%target // ': no journal ' // files%journal // &
+              ' (the work file ' // files%partial // ' without it holds no case a resume can trust); running all cases'
+        else
+          write (error_unit, '(a)') 'ellroll: resuming ' // files%target // ': no journal ' // files%journal // &
+              ', so no case is kept; running all cases'
+        end if
+      end if
       call open_outputs(inp, opts%shard, prov_in, files, resume, run%out, run%journal, run%done, err)
       if (.not. err%failed()) then
         run%n_slots = size(run%done, kind=i8)

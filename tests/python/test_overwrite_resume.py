@@ -68,3 +68,28 @@ def test_a_journal_left_after_the_move_into_place_still_goes(ellroll, tmp_path):
     assert result.returncode == 0, result.stderr
     assert "removing the journal of the run that wrote it" in result.stderr and "nothing to do" in result.stderr
     assert not journal.exists()
+
+
+@pytest.mark.parametrize("left", ["nothing", "work file"])
+def test_a_resume_with_no_journal_says_so_and_runs_every_case(ellroll, tmp_path, left):
+    """--resume where the output has no journal (a mistyped -o, a journal
+    lost; a killed run's work file left without it): one line saying so,
+    then every case run, the output the plain run's."""
+    name = write(tmp_path, SPIN_RADIUS, t_end=0.05)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    if left == "work file":
+        killed = subprocess.run(["strace", "-f", "-o", "/dev/null", "-e", "inject=pwritev:signal=SIGKILL:when=3",
+                                 str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path,
+                                capture_output=True)
+        assert killed.returncode != 0 and (tmp_path / "out.h5.partial").exists()
+        (tmp_path / "out.h5.journal").unlink()
+        (tmp_path / "out.h5.lock").unlink(missing_ok=True)
+    result = run(ellroll, "run", name, "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    first = result.stderr.splitlines()[0]
+    if left == "work file":
+        assert first == ("ellroll: resuming out.h5: no journal out.h5.journal (the work file out.h5.partial without "
+                         "it holds no case a resume can trust); running all cases"), result.stderr
+    else:
+        assert first == "ellroll: resuming out.h5: no journal out.h5.journal, so no case is kept; running all cases"
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
