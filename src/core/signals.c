@@ -8,6 +8,10 @@
  * SIGTERMs change nothing (scancel and a job script's trap may both send
  * one; the batch system's SIGKILL follows if the run does not end).
  *
+ * SIGHUP (the terminal or ssh connection that started the run closed) stops
+ * it as SIGTERM does, where it is not ignored (nohup): its lock and files
+ * are left as a stopped run leaves them, for --resume.
+ *
  * SIGPIPE (whoever read standard output or error is gone: a `| head`, a
  * dropped ssh connection's tee) is ignored: the write fails with EPIPE
  * instead of ending the process. The run goes on, its progress lines and
@@ -39,6 +43,9 @@ void ellroll_catch_stop_signals(void)
     action.sa_flags = SA_RESTART;
     sigaction(SIGTERM, &action, NULL);
     sigaction(SIGINT, &action, NULL);
+    struct sigaction hangup;
+    if (sigaction(SIGHUP, NULL, &hangup) == 0 && hangup.sa_handler != SIG_IGN)
+        sigaction(SIGHUP, &action, NULL);
     signal(SIGPIPE, SIG_IGN);
 }
 

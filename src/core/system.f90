@@ -41,7 +41,7 @@ module ellroll_system
     !> the heap keeps freed memory for reuse; SIGXFSZ is ignored.
     subroutine tune_runtime() bind(c, name='ellroll_tune_runtime')
     end subroutine tune_runtime
-    !> From here on SIGTERM and SIGINT only ask the run to stop (stop_signal);
+    !> From here on SIGTERM, SIGINT and SIGHUP (unless ignored) only ask the run to stop (stop_signal);
     !> a second one ends the process; SIGPIPE is ignored (src/core/signals.c).
     subroutine catch_stop_signals() bind(c, name='ellroll_catch_stop_signals')
     end subroutine catch_stop_signals
@@ -144,6 +144,8 @@ contains
     integer, intent(in) :: signal
     character(len=8) :: name
     select case (signal)
+    case (1)
+      name = 'SIGHUP'
     case (2)
       name = 'SIGINT'
     case (15)

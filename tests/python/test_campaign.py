@@ -357,9 +357,10 @@ def test_kill_and_resume_equals_an_uninterrupted_run(ellroll, tmp_path, compress
             assert wall[slot] == seconds, "a case finished before the kill was computed again"
 
 
-@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
 def test_a_stop_signal_keeps_the_finished_cases_and_says_how_to_resume(ellroll, tmp_path, stop):
-    """SIGTERM (Slurm's time limit) or SIGINT half way: the run drops the
+    """SIGTERM (Slurm's time limit), SIGINT or SIGHUP (the terminal or ssh
+    connection closed) half way: the run drops the
     cases under way, keeps the journaled ones, exits within seconds with
     128 + the signal's number, and prints the command that finishes it; that
     command gives the uninterrupted run's file."""
@@ -377,7 +378,7 @@ def test_a_stop_signal_keeps_the_finished_cases_and_says_how_to_resume(ellroll, 
     assert time.monotonic() - sent < 5
     assert proc.returncode == 128 + stop, stderr
     kept = journal_wall_times(journal)
-    name_of = {signal.SIGTERM: "SIGTERM", signal.SIGINT: "SIGINT"}[stop]
+    name_of = {signal.SIGTERM: "SIGTERM", signal.SIGINT: "SIGINT", signal.SIGHUP: "SIGHUP"}[stop]
     command = f"ellroll run {name} -q --threads 2 --resume"
     assert f"ellroll: interrupted by {name_of} after {len(kept)} of 200 cases; '{command}' finishes the rest" \
         in stderr, stderr
@@ -388,6 +389,23 @@ def test_a_stop_signal_keeps_the_finished_cases_and_says_how_to_resume(ellroll, 
     with h5py.File(tmp_path / "out.h5", "r") as f:
         wall = f["summary/wall_time"][:]
         assert all(wall[slot] == seconds for slot, seconds in kept.items())
+
+
+def test_a_run_under_nohup_goes_on_through_a_hangup(ellroll, tmp_path):
+    """SIGHUP ignored by the run's parent (nohup): the run stays deaf to it
+    and finishes the uninterrupted run's file."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=10.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
+    while proc.poll() is None and not (tmp_path / "out.h5.journal").exists():
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.send_signal(signal.SIGHUP)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 0, stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
 
 
 def test_a_stop_signal_ends_a_long_case_within_milliseconds(ellroll, tmp_path):
