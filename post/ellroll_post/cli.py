@@ -269,7 +269,7 @@ def _main(argv=None):
                    help="a figure, or the fits (theta, beta, 5-95 %% intervals) printed as table, csv or json")
     p.add_argument("--out", default=".", help="output folder (default: current)")
     p.add_argument("-o", "--output", help="the figure's file (default: FILE_fragility.FORMAT in --out); with "
-                   "--format table, csv or json the file the fits go in (default: standard output)")
+                   "--format table, csv or json the file the fits go in (default, or -: standard output)")
     p.add_argument("--overwrite", action="store_true", help="replace a figure (or a table) ellroll-plot made")
     p = sub.add_parser("workprecision", parents=[common], help="error against time and RHS evaluations")
     p.add_argument("files", nargs="+", help="ellroll files run with error_estimate = 'reference', or a bench CSV")
@@ -326,6 +326,11 @@ def _main(argv=None):
                     _stdout(format_summary(run, args.format))
             return 0
         if args.command == "fragility":
+            if args.output == "":
+                raise OutputExists("-o '': give a file name (or leave -o out: the table goes to standard output)")
+            if args.output == "-" and args.format not in ("table", "csv", "json"):
+                raise OutputExists(f"-o -: a {args.format} figure goes to a file; standard output takes --format "
+                                   "table, csv or json")
             with open_run(args.file) as run:
                 check_suite(run, args.file)
                 plots.intensity(run, args.im)           # a clear error before anything is written
@@ -336,7 +341,7 @@ def _main(argv=None):
                     if args.limit_state is not None:
                         table = _rows_of(table, table["limit_state"] == args.limit_state)
                     text = format_fragility(table, args.format, args.file)
-                    if not args.output:
+                    if args.output in (None, "-"):           # ('-': standard output, as the usual tools take it)
                         _stdout(text)
                         return 0
                     path = pathlib.Path(args.output)

@@ -176,7 +176,8 @@ def pathlib_under(text, folder):
 @pytest.mark.parametrize("fmt", ["csv", "json", "table"])
 def test_fragility_tables_go_to_o_with_a_figures_care(files, tmp_path, fmt):
     """`fragility --format csv|json|table -o FILE` writes FILE, its text the
-    one printed without -o (the CSV read back gives the same fits), and
+    one printed without -o or with -o - (-o '' and a figure to - are one
+    line each; the CSV read back gives the same fits), and
     prints FILE; kept without --overwrite, replaced with it; never written
     through a symbolic link, never over a file ellroll-plot did not make;
     a missing folder above it is one line."""
@@ -184,6 +185,19 @@ def test_fragility_tables_go_to_o_with_a_figures_care(files, tmp_path, fmt):
     common = ["fragility", suite_file, "--bootstrap", 20, "--seed", 3, "--format", fmt]
     code, printed, err = cli(*common)
     assert code == 0, err
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        code, dashed, err = cli(*common, "-o", "-")          # standard output, as the usual tools take '-'
+        assert code == 0 and dashed == printed, err
+        code, stdout, err = cli(*common, "-o", "")
+        one_line_error(code, err, "-o '': give a file name")
+        assert not stdout
+        code, stdout, err = cli("fragility", suite_file, "--bootstrap", 20, "--format", "png", "-o", "-")
+        one_line_error(code, err, "-o -: a png figure goes to a file")
+    finally:
+        os.chdir(cwd)
+    assert not list(tmp_path.iterdir())
     target = tmp_path / f"frag.{fmt}"
     code, stdout, err = cli(*common, "-o", target)
     assert code == 0 and stdout.strip() == str(target), err
