@@ -523,15 +523,18 @@ class EllrollFile:
 
     @_reads
     def input_column(self, name):
-        """An input over all cases (for sweeps): a varied one from its
-        coordinate in /summary, written for every case (a stopped run's
-        pending ones too, whose /case rows are not), another from /case."""
-        if name in self._coordinates("summary") and f"summary/{name}" in self._h5 \
-                and self._h5[f"summary/{name}"].dtype.kind == "f":
-            return self._h5[f"summary/{name}"][:]
+        """An input over all cases (for sweeps), from /case; a varied one's
+        rows /case does not hold yet (a stopped run's pending cases) from
+        its coordinate in /summary, written for every case."""
         dataset, component = self._input(name)
         values = self._dataset(f"case/{dataset}")
-        return values[:, component] if component is not None else values[:]
+        values = values[:, component] if component is not None else values[:]
+        coordinate = f"summary/{name}"
+        if values.dtype.kind == "f" and name in self._coordinates("summary") and coordinate in self._h5 \
+                and self._h5[coordinate].dtype.kind == "f" and np.isnan(values).any():
+            unwritten = np.isnan(values)
+            values[unwritten] = self._h5[coordinate][:][unwritten]
+        return values
 
     @_reads
     def swept_inputs(self):

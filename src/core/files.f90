@@ -239,15 +239,14 @@ contains
     holder = transfer(buffer(:n), holder)
   end function lock_held
 
-  !> The note of a lock's holder on one line: 'host h, pid p, started t:
-  !> command' ('starting' before its holder wrote it).
-  pure function holder_line(note) result(line)
-    character(len=*), intent(in) :: note
-    character(len=:), allocatable :: line
-    line = note(index(note, achar(10)) + 1:)
-    if (index(line, achar(10)) > 0) line = line(:index(line, achar(10)) - 1)
-    if (len_trim(line) == 0) line = 'starting'
-  end function holder_line
+  !> The note of a lock's holder made its one line: 'host h, pid p, started
+  !> t: command' ('starting' before its holder wrote it).
+  pure subroutine holder_line(note)
+    character(len=:), allocatable, intent(inout) :: note
+    note = note(index(note, achar(10)) + 1:)
+    if (index(note, achar(10)) > 0) note = note(:index(note, achar(10)) - 1)
+    if (len_trim(note) == 0) note = 'starting'
+  end subroutine holder_line
 
   !> Release a lock of lock_output (its file removed first): 0 or an errno value.
   integer function unlock_output(fd, path)

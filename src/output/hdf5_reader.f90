@@ -136,7 +136,8 @@ contains
       else if (index(reason, 'already open for write') > 0) then
         if (lock_held(lock_of(path), holder)) then
           ! (HDF5's flock off, HDF5_USE_FILE_LOCKING=FALSE: the output's own lock tells)
-          call set_error(err, err_output, path // ': a running ellroll writes it (' // holder_line(holder) // &
+          call holder_line(holder)
+          call set_error(err, err_output, path // ': a running ellroll writes it (' // holder // &
               ', holding ' // lock_of(path) // '); read it when that run ends')
         else
           ! (no process has it open: its writer stopped before closing it)

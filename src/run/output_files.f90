@@ -89,8 +89,9 @@ contains
     if (fd >= 0) then
       self%lock_fd = fd
     else if (fd == -eagain) then
+      call holder_line(holder)
       call set_error(err, err_output, self%target // ': another ellroll process writes this output (' // &
-          holder_line(holder) // '); nothing of its files was touched: wait for it to end, or choose another output')
+          holder // '); nothing of its files was touched: wait for it to end, or choose another output')
     else if (fd == -eexist) then
       call set_error(err, err_output, self%lock // ': exists and is not a lock file of ellroll''s (a link, a ' // &
           'folder or another file); it is never replaced: remove it, or choose another output')
