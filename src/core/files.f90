@@ -217,12 +217,8 @@ contains
     integer, intent(out) :: fd
     character(len=:), allocatable, intent(out) :: holder
     character(kind=c_char) :: buffer(1024)     ! (a note: host, pid, time and a command of at most 400)
-    integer :: n
     fd = c_lock_output(path // c_null_char, me // c_null_char, buffer, size(buffer))
-    n = findloc(buffer, c_null_char, dim=1) - 1
-    if (n < 0) n = size(buffer)
-    holder = repeat(' ', n)
-    holder = transfer(buffer(:n), holder)
+    call text_of(buffer, holder)
   end subroutine lock_output
 
   !> Whether another process holds the lock of an output at path (nothing
@@ -231,12 +227,8 @@ contains
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: holder
     character(kind=c_char) :: buffer(1024)
-    integer :: n
     lock_held = c_lock_held(path // c_null_char, buffer, size(buffer)) == 1
-    n = findloc(buffer, c_null_char, dim=1) - 1
-    if (n < 0) n = size(buffer)
-    holder = repeat(' ', n)
-    holder = transfer(buffer(:n), holder)
+    call text_of(buffer, holder)
   end function lock_held
 
   !> The note of a lock's holder made its one line: 'host h, pid p, started
@@ -255,15 +247,23 @@ contains
     unlock_output = c_unlock_output(fd, path // c_null_char)
   end function unlock_output
 
+  !> The text a C function left in buffer, up to its NUL (all of it where
+  !> none ends it).
+  pure subroutine text_of(buffer, text)
+    character(kind=c_char), intent(in) :: buffer(:)
+    character(len=:), allocatable, intent(out) :: text
+    integer :: n
+    n = findloc(buffer, c_null_char, dim=1) - 1
+    if (n < 0) n = size(buffer)
+    text = repeat(' ', n)
+    text = transfer(buffer(:n), text)
+  end subroutine text_of
+
   !> This machine's host name.
   subroutine host_name(name)
     character(len=:), allocatable, intent(out) :: name
     character(kind=c_char) :: buffer(256)
-    integer :: n
     call c_host_name(buffer, size(buffer))
-    n = findloc(buffer, c_null_char, dim=1) - 1
-    if (n < 0) n = size(buffer)
-    name = repeat(' ', n)
-    name = transfer(buffer(:n), name)
+    call text_of(buffer, name)
   end subroutine host_name
 end module ellroll_files
