@@ -676,6 +676,19 @@ _WAIT = 0.05                # s: how often the main thread looks up from a run
 _worker = None              # the main thread's runs: (thread, its queue of jobs)
 
 
+def _forget_the_worker():
+    """A forked child has only the thread that forked: the parent's worker
+    and the locks held in its other threads are not there."""
+    global _lock, _flight_lock, _in_flight, _worker
+    _lock = threading.Lock()
+    _flight_lock = threading.Lock()
+    _in_flight = 0
+    _worker = None
+
+
+os.register_at_fork(after_in_child=_forget_the_worker)
+
+
 def _work(jobs):
     while True:
         function, args, box, done = jobs.get()

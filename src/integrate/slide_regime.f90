@@ -457,7 +457,8 @@ contains
   end subroutine graze_inside
 
   !> The piece of the step to take from (t_at, now): all that remains, or,
-  !> where the slip's time scale (slip_stop_time) puts its stop inside
+  !> where the slip's time scale (slip_stop_time; with F_req, where that
+  !> also lies inside it) puts its stop inside
   !> it, twice that time where the slip has stopped by then (the stop is
   !> searched for inside that): past a stop the method's stages throw the
   !> slip the other way, by the remaining time over the stop's, which
@@ -474,12 +475,23 @@ contains
     type(regime_state_t), intent(inout) :: new
     integer, intent(inout) :: status
     logical, intent(out) :: taken
-    real(wp) :: bracket
+    real(wp) :: bracket, within, rate(slide_state_size), need(3)
     piece = remaining
     taken = .false.
     if (.not. now%sliding .or. sb%aligned) return     ! (aligned: the slip passes zero smoothly)
     bracket = 2 * slip_stop_time(sb%ball, now%s, now%obs%reaction_normal)
     if (.not. bracket < remaining .or. .not. bracket > 0) return    ! (no slip: nothing to bracket)
+    select type (integrator)
+    class is (embedded_pair_t)
+      ! where rolling can go on the slip stops within slip_stop_time with
+      ! F_req: a pair's step far longer than that leaves the slip at the size
+      ! of its error, turning, not at zero, within tolerance (a fixed step's
+      ! piece there is taken in substeps: slide_piece)
+      call sliding_derivative(sb, t_at, now%s, rate, needed=need)
+      n_rhs = n_rhs + 1
+      within = slip_stop_time(sb%ball, now%s, now%obs%reaction_normal, need)
+      if (within < remaining / 2) bracket = 2 * within
+    end select
     call take(integrator, rolling, sb, t_at, bracket, now, new, status, n_rhs)
     taken = status == status_completed .and. switch_crossed(sb, now, new)
     if (taken) piece = bracket

@@ -522,7 +522,7 @@ contains
         slip_before = now%slip_speed
         now = new
         if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
-        if (now%sliding .and. .not. stop_at_switch .and. now%slip_speed >= slip_before) then
+        if (now%sliding .and. held .and. now%slip_speed >= slip_before) then
           ! a slip that the friction removes within a fixed step, and that
           ! did not fall over this one: the method's stages around u = 0 do
           ! not resolve its stop (the friction's direction turns there), and
@@ -643,8 +643,8 @@ contains
     type(regime_state_t), intent(inout) :: now
     type(slide_tally_t), intent(inout) :: tally
     type(case_result_t), intent(inout) :: res
-    real(wp), parameter :: finish_level = 1.0e-3_wp
-    integer, parameter :: finish_pieces = 4
+    real(wp), parameter :: finish_level = 1.0e-6_wp
+    integer, parameter :: finish_pieces = 8
     type(regime_state_t) :: x
     real(wp) :: approach, piece, left, first_slip
     integer :: status, k

@@ -23,7 +23,7 @@ module ellroll_slip_substeps
 
   !> A piece is taken in substeps where its slip at the start is below this
   !> many times the friction's reach over it (mu N (1/m + R^2/J) h).
-  real(wp), parameter :: stiff_reach = 2
+  real(wp), parameter :: stiff_reach = 8
   !> A substep's error in the slip, against |V_C| + R |omega| + the
   !> friction's reach over the piece.
   real(wp), parameter :: slip_tolerance = 2.0e-12_wp
@@ -66,7 +66,8 @@ contains
     reach = sb%ball%mu * max(big_n, 0.0_wp) * (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * h
     if (.not. norm2(slip_velocity(sb%ball, y0)) < stiff_reach * reach) then
       call integrator%step(sb, t, y0, f0, h, y_end, n_rhs)
-      return
+      if (integrator%stage_limit /= 0) return
+      if (.not. norm2(slip_velocity(sb%ball, y_end)) < stiff_reach * reach) return
     end if
     slip_start = norm2(slip_velocity(sb%ball, y0))
     slip_before = slip_start

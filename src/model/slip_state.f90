@@ -102,14 +102,21 @@ contains
   !> friction alone takes |u| at the rate mu N (1/m + R^2/J) (the part of
   !> du/dt that the friction makes; docs/model.md), so the slip stops in
   !> about |u| / (mu N (1/m + R^2/J)) where that rate outweighs the
-  !> others (a large mu, a small inertia factor: a stiff slip). Infinite
-  !> where the normal force does not push.
-  pure real(wp) function slip_stop_time(ball, y, normal_force) result(time)
+  !> others (a large mu, a small inertia factor: a stiff slip). With the
+  !> friction rolling needs there (needed, F_req), the time within which
+  !> the slip stops where that rate holds: with u' = (1/m + R^2/J) (F - F_req)
+  !> and F = -mu N u/|u|, |u| falls at (mu N - |F_req|) (1/m + R^2/J) at
+  !> least. Infinite where the normal force does not push, or rolling
+  !> needs mu N or more.
+  pure real(wp) function slip_stop_time(ball, y, normal_force, needed) result(time)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: y(slide_state_size), normal_force
+    real(wp), intent(in), optional :: needed(3)
     real(wp) :: rate, size_u
     time = huge(1.0_wp)
-    rate = ball%mu * normal_force * (1 + 1 / ball%inertia_factor) / ball%mass
+    rate = ball%mu * normal_force
+    if (present(needed)) rate = rate - norm2(needed)
+    rate = rate * (1 + 1 / ball%inertia_factor) / ball%mass
     size_u = norm2(slip_velocity(ball, y))
     if (rate > 0 .and. size_u / huge(1.0_wp) < rate) time = size_u / rate
   end function slip_stop_time

@@ -892,3 +892,28 @@ def test_a_closed_file_says_it_is_closed(paper_file):
         with pytest.raises(ellroll_post.NotAnEllrollFile) as raised:
             read(run_)
         assert str(raised.value) == f"{paper_file}: closed; ellroll_post.open it again to read it"
+
+
+def test_runs_in_forked_children_after_the_parent_ran(tmp_path):
+    """A fork-based multiprocessing pool (Linux's default) after the parent's
+    own ellroll.run: each child has only the thread that forked, not the
+    parent's worker thread; its runs finish with the results the parent gets
+    for the same texts, bitwise."""
+    script = tmp_path / "pool.py"
+    script.write_text(f"""
+import multiprocessing, sys
+sys.path.insert(0, {str(ROOT / 'post')!r})
+import ellroll, numpy as np
+text = open({str(ROOT / 'input' / 'legeza1990.nml')!r}).read().replace("t_end = 30.0", "t_end = 1.0")
+def theta_max(wz):
+    out = ellroll.run(text.replace("omega = -2.0, 2.0, 20.0", f"omega = -2.0, 2.0, {{wz}}"), threads=1)
+    return np.asarray(out["summary"]["theta_max"]).tobytes().hex()
+if __name__ == "__main__":
+    parent = [theta_max(wz) for wz in (10.0, 20.0, 30.0)]
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        children = pool.map(theta_max, [10.0, 20.0, 30.0])
+    print(parent == children, parent)
+""")
+    result = run(sys.executable, str(script), cwd=tmp_path, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("True"), result.stdout
