@@ -16,6 +16,7 @@ module ellroll_cmd_suite
   use ellroll_status, only: status_name, status_pending, status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff
   use ellroll_hdf5_reader, only: h5_input_t
+  use ellroll_system, only: read_watchdog
   use ellroll_lapack, only: dlasrt
   use ellroll_exact, only: equals
   use ellroll_fragility_mle, only: fit_stripes
@@ -94,6 +95,7 @@ contains
       values(:, k) = file%real_column('summary/' // trim(figures(k)), err)
     end do
     call file%close()
+    call read_watchdog('', 0)         ! (read: the time its rows take to print, to a pipe read late, is not HDF5's)
     if (err%failed()) return
     call fragility_json(inputs, keys, int(status), states, flags, fragility)
     call print_columns(path, format, inputs, stripe_columns(inputs, input_units, keys, int(status), states, flags, &

@@ -102,6 +102,7 @@ contains
       columns = summary_columns(file, err)
     end if
     call file%close()
+    call read_watchdog('', 0)         ! (read: the time its rows take to print, to a pipe read late, is not HDF5's)
     if (err%failed()) return
     select case (format)
     case ('csv')

@@ -49,3 +49,21 @@ def test_standard_output_closed_from_the_start(ellroll, campaign):
     _, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 3 and b"cannot write the standard output" in stderr, stderr
     assert_complete(folder)
+
+
+@pytest.mark.parametrize("args", [["--format", "csv"], ["--format", "json"], ["--suite", "--format", "csv"]])
+def test_a_summary_printed_to_a_pipe_read_late_is_whole(ellroll, campaign, args):
+    """`ellroll summary out.h5 --format csv | less`, left 11 s before it is
+    read: past the 10 s that a damaged file's reads may take, but the rows
+    wait on the reader, not on HDF5. Every row, exit 0, as printed to a file."""
+    folder, _ = campaign
+    whole = run(ellroll, "summary", "whole.h5", *args, cwd=folder)
+    assert whole.returncode == 0 and len(whole.stdout) > 65536, (whole.stderr, len(whole.stdout))   # (past a pipe's buffer)
+    proc = subprocess.Popen([str(ellroll), "summary", "whole.h5", *args], cwd=folder, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        proc.wait(timeout=11)
+    except subprocess.TimeoutExpired:
+        pass
+    out, err = proc.communicate(timeout=60)
+    assert (proc.returncode, err) == (0, "") and out == whole.stdout
