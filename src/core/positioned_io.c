@@ -87,7 +87,7 @@ int ellroll_read_at(int fd, void *buffer, int64_t bytes, int64_t offset)
 /* Give the file system back the blocks of bytes `from` .. `to` - 1 that
  * are no longer needed (they read as zeros after), to the last whole block
  * before `to` (or the file's end): a block shared with bytes still needed
- * stays. The file keeps its size. Returns where the freed bytes end (`from` when no whole block
+ * stays, and a file with another name (a hard link) keeps every byte. The file keeps its size. Returns where the freed bytes end (`from` when no whole block
  * lies in between), or -errno: EOPNOTSUPP where the file system cannot. */
 int64_t ellroll_release_range(int fd, int64_t from, int64_t to)
 {
@@ -95,6 +95,8 @@ int64_t ellroll_release_range(int fd, int64_t from, int64_t to)
     struct stat info;
     if (fstat(fd, &info) != 0)
         return -errno;
+    if (info.st_nlink > 1)          /* another name holds it (a backup made with ln): its bytes stay */
+        return from;
     int64_t block = info.st_blksize > 0 ? (int64_t)info.st_blksize : 4096;
     if (to > (int64_t)info.st_size)
         to = ((int64_t)info.st_size + block - 1) / block * block;

@@ -93,3 +93,36 @@ def test_a_resume_with_no_journal_says_so_and_runs_every_case(ellroll, tmp_path,
     else:
         assert first == "ellroll: resuming out.h5: no journal out.h5.journal, so no case is kept; running all cases"
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+
+
+def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(ellroll, tmp_path):
+    """A backup of the killed run's work file made with a hard link (ln,
+    cp -al, rsnapshot) before --resume: the resume frees no room in a file
+    that another name holds, so the backup keeps its bytes and its blocks,
+    and a resume from the backup keeps every case the killed run finished."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 8 * record_bytes(0)):
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.kill()
+    proc.wait(timeout=30)
+    kept = journal_wall_times(journal, 0)
+    backup = tmp_path / "backup"
+    backup.mkdir()
+    (backup / "out.h5.partial").hardlink_to(tmp_path / "out.h5.partial")
+    (backup / "out.h5.journal").write_bytes(journal.read_bytes())
+    (backup / name).write_bytes((tmp_path / name).read_bytes())
+    before = (backup / "out.h5.partial").read_bytes(), (backup / "out.h5.partial").stat().st_blocks
+    result = run(ellroll, "run", name, "-q", "--threads", "2", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    assert ((backup / "out.h5.partial").read_bytes(), (backup / "out.h5.partial").stat().st_blocks) == before
+    result = run(ellroll, "run", name, "-q", "--threads", "2", "--resume", cwd=backup)
+    assert result.returncode == 0 and "damaged" not in result.stderr, result.stderr
+    with h5py.File(backup / "out.h5", "r") as f:
+        wall = f["summary/wall_time"][:]
+    assert len(kept) >= 8 and all(wall[slot] == seconds for slot, seconds in kept.items()), "a finished case was lost"
