@@ -119,7 +119,7 @@ contains
       ! its slip is round-off there: the friction stored is mu N along the
       ! switch's direction (-slip_mode), as the steps from it take it
       if (now%obs%reaction_normal > 0) call switch_reaction(sb, now%obs)
-      call record_regime_sample(res, 1_i8, now)         ! the start slides from t = 0
+      call restart_samples(cs, run, res, now)     ! the start slides from t = 0: the rolling state never acts
     end if
     if (now%sliding) then
       res%status = merge(status_liftoff, status_completed, now%obs%reaction_normal <= 0)

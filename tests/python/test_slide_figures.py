@@ -62,3 +62,31 @@ def test_the_friction_ratio_of_a_sliding_ball_is_mu_up_to_a_lift_off(ellroll, tm
         if sliding is not None:
             kept &= sliding
         assert np.all(tangent[kept] <= 0.3 * big_n[kept] * (1 + 1e-9) + 1e-9), np.max(tangent[kept] / big_n[kept])
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+@pytest.mark.parametrize("integration", ["method = 'rk4', dt = 1e-4", "method = 'dop853', rtol = 1e-10",
+                                         "method = 'vern9', rtol = 1e-12"])
+def test_a_start_that_slides_at_once_takes_its_maxima_from_the_sliding_state(ellroll, tmp_path, seed, integration):
+    """A ball at rest in a cup whose acceleration at t = 0 needs more
+    friction than mu N slides from t = 0: the rolling state there never
+    acts. friction_needed_max is mu (every state slides), and the summary's
+    horizontal force is no larger than the stored samples' (1e-4 s apart)
+    by more than 1e-6 of them (the rolling state's, m (k / (1 + k)) |a(0)|,
+    may lie above)."""
+    rng = np.random.default_rng(seed)
+    mu = float(rng.uniform(0.02, 0.08))
+    amplitude = [float(v) for v in rng.uniform(3.0, 6.0, size=2) * rng.choice([-1.0, 1.0], size=2)]
+    text = CUP + (f"&ball radius = 0.2, mass = 1.0, mu = {mu!r}, slip = 'slide' /\n&initial omega = 0, 0, 0 /\n"
+                  f"&integration {integration}, t_end = 0.2 /\n"
+                  f"&excitation kind = 'harmonic', amplitude = {amplitude[0]!r}, {amplitude[1]!r}, 0, "
+                  f"frequency = 0.5, phase = 1.5707963267948966 /\n"
+                  "&output file = 'out.h5', interval = 1e-4 /\n")
+    with run_text(ellroll, tmp_path, text) as f:
+        summary = {key: f[f"summary/{key}"][0] for key in ("status", "friction_needed_max", "horizontal_force_max")}
+        kinds, times = f["switches/switch_kind"][:], f["switches/switch_time"][:]
+        reaction, normal = f["trajectory/reaction"][0], f["trajectory/normal"][0]
+    assert summary["status"] == 1 and kinds[0] == 1 and times[0] == 0
+    assert summary["friction_needed_max"] == pytest.approx(mu, rel=1e-12)
+    samples = np.max(np.hypot(reaction[:, 0], reaction[:, 1]))
+    assert samples <= summary["horizontal_force_max"] <= samples * (1 + 1e-6)
