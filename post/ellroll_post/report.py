@@ -2,7 +2,6 @@
 that shows them beside the summary table."""
 import html
 import math
-import contextlib
 import os
 import pathlib
 import shutil
@@ -79,9 +78,11 @@ def _move_in(staging, out, names):
     """The report's files moved from staging into the folder out that
     exists, each file there first kept aside: where a move fails, the
     files already moved are taken back out and the kept ones put back, so
-    that the folder is as it was."""
+    that the folder is as it was. An old file that cannot be put back stays
+    in the folder it was kept in, which the error names."""
     kept = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.kept.", dir=out))
     moved = []
+    stranded = []
     try:
         for name in names:
             had = os.path.lexists(out / name)
@@ -89,16 +90,22 @@ def _move_in(staging, out, names):
                 os.rename(out / name, kept / name)
             moved.append((name, had))
             os.replace(staging / name, out / name)
-    except BaseException:
+    except BaseException as exc:
         for name, had in reversed(moved):
-            with contextlib.suppress(OSError):
+            try:
                 if had:
                     os.replace(kept / name, out / name)
                 elif os.path.lexists(out / name) and not os.path.lexists(staging / name):
                     os.remove(out / name)
+            except OSError:
+                stranded.append(name)
+        if stranded and isinstance(exc, OSError):
+            raise CannotWrite(f"{out}: cannot move the report into place ({exc.strerror or exc}), nor put the old "
+                              f"one back: {', '.join(sorted(stranded))} of it are in {kept}") from None
         raise
     finally:
-        shutil.rmtree(kept, ignore_errors=True)
+        if not stranded:
+            shutil.rmtree(kept, ignore_errors=True)
 
 
 def _draw_report(run, out, draw, case, fmt, all_cases):

@@ -259,6 +259,25 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
         assert result.returncode == 2 and now == old, (n, result.stderr)
         assert result.stderr.startswith("ellroll-plot: error: out_report") and ".out_report." not in result.stderr, \
             result.stderr
+    # a disk that fails from then on (EIO at every rename from the n-th, the
+    # putting back included): each old file is in the folder or, byte for
+    # byte, in the kept folder that the one-line message names
+    for n in sorted({count - len(old) + 1, rng.randrange(count - 2 * len(old) + 1, count + 1)}):
+        result = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, *renames,
+                                 "-e", f"inject=rename,renameat,renameat2:error=EIO:when={n}+", *command],
+                                cwd=folder, capture_output=True, text=True, timeout=300)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1 and lines[0].startswith("ellroll-plot: error: out_report"), \
+            (n, result.stderr)
+        kept = [p for p in (folder / "out_report").glob(".out_report.kept.*")]
+        assert len(kept) <= 1 and (not kept or str(kept[0].relative_to(folder)) in lines[0]), (n, result.stderr)
+        for name, data in old.items():
+            found = [p.read_bytes() for p in [folder / "out_report" / name, *(k / name for k in kept)] if p.exists()]
+            assert data in found, (n, name, result.stderr)
+        for k in kept:                          # (the user puts them back)
+            for p in k.iterdir():
+                os.replace(p, folder / "out_report" / p.name)
+            k.rmdir()
 
 
 def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):
