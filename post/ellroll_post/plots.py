@@ -1,4 +1,5 @@
 """Figures of ellroll files, each drawn on given matplotlib Axes (or a Figure)."""
+import os
 import pathlib
 import re
 
@@ -83,8 +84,19 @@ def _case_label(run, case):
     return f"case {run.case_index(case)}: {run.status_name(case)}"
 
 
+def name_text(name):
+    """A file or record name as text: bytes that are not UTF-8 (a name
+    from an old archive) shown as \\xNN."""
+    return os.fsencode(name).decode("utf-8", "backslashreplace")
+
+
+def _drawn_as_is(text):
+    """Text that matplotlib draws as it is: a '$' starts no mathtext."""
+    return text.replace("$", r"\$")
+
+
 def _file_label(run):
-    return pathlib.Path(run.path).name
+    return _drawn_as_is(name_text(pathlib.Path(run.path).name))
 
 
 def energy_bound_level(run, case=None):
@@ -757,7 +769,8 @@ def excitation_description(run, case=None):
     kind = str(run.case_input("excitation_kind", case)).strip()
     if kind == "record":
         name = run.record_names()[run.row(case)]
-        files = _record_files(run, name)
+        files = [_drawn_as_is(name_text(f)) for f in _record_files(run, name)]
+        name = _drawn_as_is(name_text(name))
         text = "record " + (f"{name} ({', '.join(files)})" if name and files else name or ", ".join(files) or "?")
         factor = run.case_input("record_factor", case) * run.case_input("scale", case)
         return text + (f", scaled by {factor:g}" if factor != 1 else "")

@@ -10,7 +10,7 @@ import urllib.parse
 
 import numpy as np
 
-from .plots import FIELD_NEEDS, cup_moves, has_samples
+from .plots import FIELD_NEEDS, cup_moves, has_samples, name_text
 from .safe_write import MARK, CannotWrite, _umask, check_target, stop_point, write_text
 from .summary import format_summary, summary_table
 
@@ -212,11 +212,14 @@ def _index_html(run, figures, case, shown=REPORT_ROWS, notes=()):
                 f"{stats_rows}</table></div>" if stats and run.n_cases > 1 else "")
     prefix = pathlib.Path(run.path).stem + "_"
     # (a file's name is text: quoted in the link, escaped in the attribute)
-    images = "\n".join(f'<figure><img src="{html.escape(urllib.parse.quote(p.name))}" '
+    # (its bytes, as the file system has them, in the link: a name need not be UTF-8)
+    images = "\n".join(f'<figure><img src="{html.escape(urllib.parse.quote(os.fsencode(p.name)))}" '
                        f'alt="{html.escape(p.stem)}"><figcaption>'
-                       f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>' for p in figures)
+                       f'{html.escape(_caption(p.stem.removeprefix(prefix)))}</figcaption></figure>'
+                       for p in figures)
     remarks = "".join(f"<p>{html.escape(n)}</p>\n" for n in notes)
-    return f"""<!DOCTYPE html>
+    # (a name that is not UTF-8 shown with its bytes as \xNN)
+    return name_text(f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><meta name="generator" content="{MARK}"><title>ellroll report: {html.escape(run.path)}</title>
 <style>body{{font-family:sans-serif;margin:2em;max-width:80em}} img{{max-width:100%}} figure{{margin:1em 0}}
 div.wide{{overflow-x:auto;max-width:100%}}
@@ -239,7 +242,7 @@ Per-case figures show case {case}.</p>
 <h2>Input</h2>
 <pre>{html.escape(str(attrs.get('input_namelist', '')))}</pre>
 </body></html>
-"""
+""")
 
 
 def _count(n, noun):

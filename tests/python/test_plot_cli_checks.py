@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+import urllib.parse
 import warnings
 
 import numpy as np
@@ -514,3 +515,21 @@ def test_a_report_stopped_by_a_signal_leaves_nothing_and_says_so_in_one_line(fil
     hidden = [p for p in [*tmp_path.iterdir(), *(report.iterdir() if report.is_dir() else [])] if p.name.startswith(".")]
     assert hidden == [], hidden
     assert folder_state(report) == before
+
+
+@pytest.mark.parametrize("name", [os.fsdecode(b"r\xe9.h5"), "x$^$y.h5"])
+def test_a_file_name_not_utf8_or_with_dollars_is_drawn_as_it_is(files, tmp_path, name):
+    """A file name whose bytes are not UTF-8 (an old archive's Latin-1) or
+    that holds '$' pairs (matplotlib's mathtext): the figures that name the
+    file draw it as text, and the report's page shows it with its bytes as
+    \\xNN, a valid UTF-8 page whose links reach the figures."""
+    shutil.copy(files / "suite.h5", tmp_path / name)
+    for command in ("reaction", "energy", "spectrum", "fragility", "report"):
+        code, _, err = cli(*arguments(command, tmp_path / name, tmp_path / "out"))
+        assert code == 0 and err == "", (command, err)
+    report = tmp_path / "out" if (tmp_path / "out" / "index.html").exists() else tmp_path / (name[:-3] + "_report")
+    page = (report / "index.html").read_bytes().decode("utf-8")
+    shown = os.fsencode(name).decode("utf-8", "backslashreplace")
+    assert f"/{shown}</title>" in page
+    for link in re.findall(r'<img src="([^"]+)"', page):
+        assert (report / os.fsdecode(urllib.parse.unquote_to_bytes(link))).is_file(), link
