@@ -158,7 +158,7 @@ contains
     type(output_plan_t), intent(in) :: plan
     type(case_result_t), intent(inout) :: results(:)
     type(lane_outputs_t) :: out
-    type(lane_sample_block_t) :: samples
+    type(lane_sample_block_t), allocatable :: samples    ! (139 kB: on the heap; a thread's stack may be 256 KiB)
     real(wp), dimension(lanes, state_size) :: y_new, f_new, f_start, y_checkpoint, y_older_checkpoint
     real(wp), dimension(lanes, 3) :: base_end
     real(wp) :: h(lanes), t
@@ -167,9 +167,8 @@ contains
     ! step with an output sample ((n_samples - 1) every)
     integer(i8) :: due(lanes), last_sample(lanes)
     logical :: accepted(lanes), inside(lanes), sample_now(lanes), passed(lanes)
-    integer :: i
+    integer :: i, l
     real(wp), dimension(state_size) :: y_lane, f_lane, checkpoint_lane, y_new_lane, f_new_lane
-    integer :: l
     associate (run => b%run, balls => b%balls, summary => b%summary, y => b%y, f => b%f, active => b%active, &
                n => b%n, donor => b%donor)
       do l = 1, lanes
@@ -182,6 +181,7 @@ contains
       end do
       due = every
       last_sample = (plan%n_samples - 1) * every
+      allocate (samples)
       samples%fields = plan%fields
       base_end = 0
       step = 0
