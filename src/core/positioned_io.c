@@ -87,8 +87,10 @@ int ellroll_read_at(int fd, void *buffer, int64_t bytes, int64_t offset)
 /* Give the file system back the blocks of bytes `from` .. `to` - 1 that
  * are no longer needed (they read as zeros after), to the last whole block
  * before `to` (or the file's end): a block shared with bytes still needed
- * stays, and a file with another name (a hard link) keeps every byte. The file keeps its size. Returns where the freed bytes end (`from` when no whole block
- * lies in between), or -errno: EOPNOTSUPP where the file system cannot. */
+ * stays, and a file with another name (a hard link) keeps every byte. The
+ * file keeps its size. Returns where the freed bytes end (`from` when no
+ * whole block lies in between), or -errno: EOPNOTSUPP where the file system
+ * cannot. */
 int64_t ellroll_release_range(int fd, int64_t from, int64_t to)
 {
 #ifdef FALLOC_FL_PUNCH_HOLE

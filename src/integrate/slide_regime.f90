@@ -457,9 +457,9 @@ contains
   end subroutine graze_inside
 
   !> The piece of the step to take from (t_at, now): all that remains, or,
-  !> where the slip's time scale (slip_stop_time; with F_req, where that
-  !> also lies inside it) puts its stop inside
-  !> it, twice that time where the slip has stopped by then (the stop is
+  !> where the slip's time scale (slip_stop_time; for a pair, with F_req
+  !> where that also lies inside it) puts its stop inside it, twice that
+  !> time where the slip has stopped by then (the stop is
   !> searched for inside that): past a stop the method's stages throw the
   !> slip the other way, by the remaining time over the stop's, which
   !> overflows for a stiff slip (a large mu, a small inertia factor). Where

@@ -523,12 +523,12 @@ contains
         now = new
         if (now%stopped_at >= 0) run%stopped_at = now%stopped_at
         if (now%sliding .and. held .and. now%slip_speed >= slip_before) then
-          ! a slip that the friction removes within a fixed step, and that
-          ! did not fall over this one: the method's stages around u = 0 do
-          ! not resolve its stop (the friction's direction turns there), and
-          ! it jitters at the size of a step's friction impulse: it stops
-          ! here where rolling can go on (the stop then has an error of up
-          ! to a step or two)
+          ! the held rest of a step that chattered, whose slip the friction
+          ! removes within a step and did not fall over it: it jitters at the
+          ! size of a step's friction impulse and stops here where rolling
+          ! can go on (the stop then has an error of up to a step or two).
+          ! Elsewhere a slip that does not fall is the motion's (rolling
+          ! needs close to mu N), which the substeps resolve.
           if (now%slip_speed <= sb%ball%mu * now%obs%reaction_normal * remaining &
               * (1 / sb%ball%mass + 1 / (sb%ball%inertia_factor * sb%ball%mass))) &
             call stop_sliding(rolling, sb, t_at + remaining, now, res, tally, at_rest_only=.true.)

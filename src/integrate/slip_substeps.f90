@@ -21,8 +21,11 @@ module ellroll_slip_substeps
 
   public :: slide_piece
 
-  !> A piece is taken in substeps where its slip at the start is below this
-  !> many times the friction's reach over it (mu N (1/m + R^2/J) h).
+  !> A piece is taken in substeps where its slip at the start, or at the end
+  !> of the plain step, is below this many times the friction's reach over
+  !> it (mu N (1/m + R^2/J) h): there the slip's direction turns within the
+  !> step, which an explicit step does not resolve (a stop found from there
+  !> is off by the slip left over its approach rate).
   real(wp), parameter :: stiff_reach = 8
   !> A substep's error in the slip, against |V_C| + R |omega| + the
   !> friction's reach over the piece.
