@@ -624,7 +624,8 @@ def _run_inputs(inputs, threads, path, results):
         try:
             text = namelist(_with_record_files(inputs, pathlib.Path(folder), records))
         except OSError as exc:
-            raise Error(f"{exc.filename}: cannot write a Record's file: {exc.strerror or exc}", 3) from None
+            # (a failed write names no file: the folder it was written in)
+            raise Error(f"{exc.filename or folder}: cannot write a Record's file: {exc.strerror or exc}", 3) from None
         try:
             return _run_text(text, threads, path, results)
         except Error as error:

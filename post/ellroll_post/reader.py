@@ -97,6 +97,10 @@ def _resume_advice(path):
             words = shlex.split(command)
         except ValueError:          # (not a shell's words: named as it stands)
             words = None
+        if words and len(words) > 1 and words[1] == "merge":
+            # (merge takes no --resume: run again, it starts afresh from the shards)
+            return f"finish it by running '{command}' again (the command {output}.lock names, from its folder), " \
+                   f"then read {output}"
         if words and "--overwrite" in words:
             # ellroll refuses --resume with --overwrite: a resume continues the run that --overwrite began
             command = shlex.join(w for w in words if w != "--overwrite")

@@ -143,8 +143,8 @@ contains
           ! (no process has it open: its writer stopped before closing it)
           self%unfinished = .true.
           call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
-              "closed the file: killed?); finish it with 'ellroll run INPUT --resume' (the command " // &
-              lock_of(path) // ' names, from its folder); do not h5clear it')
+              "closed the file: killed?); finish it with the command " // lock_of(path) // &
+              ' names, from its folder (a run with --resume; a merge again, as it stands); do not h5clear it')
         end if
       else if (index(reason, 'HDF5: ') /= 1) then      ! the system's reason
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)

@@ -481,3 +481,19 @@ def test_a_file_changed_by_another_program_is_one_line(files, tmp_path):
         for command in SUBCOMMANDS:
             code, _, err = cli(*arguments(command, target, tmp_path / "out"))
             one_line_error(code, err, f"t{trial}.h5")
+
+
+def test_a_killed_merge_s_work_file_says_run_it_again(ellroll, killed, tmp_path):
+    """A merge killed before it closed its file leaves OUT.h5.partial and a
+    lock naming the merge: both readers say to run that merge again, as it
+    stands (merge takes no --resume; `run --resume` would run the campaign
+    anew)."""
+    shutil.copy(killed / "k.h5.partial", tmp_path / "m.h5.partial")
+    (tmp_path / "m.h5.lock").write_text("ellroll lock\nnode7 pid 4242: ellroll merge m.h5 s0.h5 s1.h5\n")
+    code, _, err = cli("summary", tmp_path / "m.h5.partial")
+    one_line_error(code, err, "m.h5.partial", "unfinished run's work file",
+                   "finish it by running 'ellroll merge m.h5 s0.h5 s1.h5' again", "then read", "m.h5")
+    assert "--resume" not in err
+    result = subprocess.run([str(ellroll), "summary", "m.h5.partial"], cwd=tmp_path, capture_output=True, text=True)
+    assert result.returncode == 3 and "m.h5.lock names" in result.stderr, result.stderr
+    assert "a merge again, as it stands" in result.stderr and "'ellroll run INPUT --resume'" not in result.stderr

@@ -10,6 +10,7 @@ import gc
 import os
 import pathlib
 import re
+import subprocess
 import sys
 import tempfile
 import threading
@@ -917,3 +918,31 @@ if __name__ == "__main__":
     result = run(sys.executable, str(script), cwd=tmp_path, timeout=30)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("True"), result.stdout
+
+
+def test_a_record_s_file_that_cannot_be_written_names_its_folder(tmp_path):
+    """A Record's CSV that the disk refuses part way (here the file size
+    limit, as a full TMPDIR would): Error 3 naming the private folder in
+    TMPDIR and the system's reason, and the folder removed."""
+    script = tmp_path / "record.py"
+    script.write_text(f"""
+import resource, signal, sys
+sys.path.insert(0, {str(ROOT / 'post')!r})
+import ellroll, numpy as np
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+resource.setrlimit(resource.RLIMIT_FSIZE, (100 * 1024, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+t = np.arange(0, 60, 0.001)
+try:
+    ellroll.run({{"geometry": {{"a": 1.0, "b": 0.4, "c": 0.2}}, "ball": {{"radius": 0.2, "weight": 2620.0}},
+                 "initial": {{"x": 0.0, "y": 0.0, "omega": [0.0, 0.0, 0.0]}},
+                 "integration": {{"method": "rk4", "dt": 1e-3, "t_end": 0.1}},
+                 "excitation": {{"kind": "record", "record_file": ellroll.Record(t, np.zeros((t.size, 2)))}}}})
+except ellroll.Error as error:
+    print(error.code, error.message)
+""")
+    result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                            env={**os.environ, "TMPDIR": str(tmp_path)})
+    private = str(tmp_path / "ellroll-records-")
+    assert result.returncode == 0 and result.stdout.startswith(f"3 {private}"), (result.stdout, result.stderr)
+    assert "cannot write a Record's file: File too large" in result.stdout
+    assert not list(tmp_path.glob("ellroll-records-*"))
