@@ -534,10 +534,15 @@ class EllrollFile:
         values = self._dataset(f"case/{dataset}")
         values = values[:, component] if component is not None else values[:]
         coordinate = f"summary/{name}"
-        if values.dtype.kind == "f" and name in self._coordinates("summary") and coordinate in self._h5 \
-                and self._h5[coordinate].dtype.kind == "f" and np.isnan(values).any():
+        if name not in self._coordinates("summary") or coordinate not in self._h5:
+            return values
+        if values.dtype.kind == "f" and self._h5[coordinate].dtype.kind == "f" and np.isnan(values).any():
             unwritten = np.isnan(values)
             values[unwritten] = self._h5[coordinate][:][unwritten]
+        elif values.dtype.kind == "O" and self._h5[coordinate].dtype.kind == "O":     # (a suite's record names)
+            unwritten = np.array([not bytes(v).strip() for v in values], dtype=bool)
+            if unwritten.any():
+                values[unwritten] = self._h5[coordinate][:][unwritten]
         return values
 
     @_reads
@@ -571,7 +576,7 @@ class EllrollFile:
         """Each case's record of a suite (&record name), or blanks."""
         if "case/record" not in self._h5:
             return [""] * self.n_cases
-        return [n.decode().strip() if isinstance(n, bytes) else str(n).strip() for n in self._h5["case/record"][:]]
+        return [n.decode().strip() if isinstance(n, bytes) else str(n).strip() for n in self.input_column("record")]
 
     @_reads
     def summary(self, name, case=None):

@@ -167,19 +167,44 @@ STOPPED = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 """
 
 
+def stop_a_run(ellroll, folder, name, journal):
+    """Run name in folder, stopped by SIGTERM 0.2 s after its journal appears."""
+    writer = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "1"], cwd=folder,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while not (folder / journal).exists():
+        time.sleep(0.01)
+    time.sleep(0.2)
+    writer.send_signal(signal.SIGTERM)
+    assert writer.wait(timeout=60) != 0
+
+
+def test_a_stopped_suite_s_record_names_are_the_same_from_both_tools(ellroll, tmp_path):
+    """A record suite stopped by SIGTERM: both tools write the same CSV,
+    the pending cases' record named (from /summary's coordinate), as the
+    reader's record_names and input_column give it."""
+    import ellroll_post
+    from test_records import SUITE, write_suite_records
+    write_suite_records(tmp_path)
+    (tmp_path / "s.nml").write_text(SUITE.replace("values = 1.0, 2.0", "start = 0.5, stop = 2.0, count = 200"))
+    stop_a_run(ellroll, tmp_path, "s.nml", "suite.h5.journal")
+    path = tmp_path / "suite.h5.partial"
+    fortran = run(ellroll, "summary", path, "--format", "csv")
+    python = subprocess.run([sys.executable, "-m", "ellroll_post.cli", "summary", str(path), "--format", "csv"],
+                            capture_output=True, text=True)
+    pending = [row for row in csv.DictReader(io.StringIO(python.stdout)) if row["status"] == "pending"]
+    assert pending and all(row["record"] in ("first", "second", "third") for row in pending), python.stderr[-300:]
+    assert fortran.stdout == python.stdout
+    with ellroll_post.open(path) as f:
+        assert all(f.record_names()) and len(set(f.record_names())) == 3
+
+
 def test_a_stopped_runs_summary_is_the_same_from_both_tools(ellroll, tmp_path):
     """A run stopped by SIGTERM (its OUT.h5.partial, pending cases in it):
     both tools write the same CSV, the pending cases' swept inputs their
     values (the file's coordinates, in /summary), and --suite's stripes
     (one per case here) count every case of the campaign once."""
     (tmp_path / "a.nml").write_text(STOPPED)
-    writer = subprocess.Popen([str(ellroll), "run", "a.nml", "-q", "--threads", "1"], cwd=tmp_path,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    while not (tmp_path / "k.h5.journal").exists():
-        time.sleep(0.01)
-    time.sleep(0.2)
-    writer.send_signal(signal.SIGTERM)
-    assert writer.wait(timeout=60) != 0
+    stop_a_run(ellroll, tmp_path, "a.nml", "k.h5.journal")
     path = tmp_path / "k.h5.partial"
     for options in ([], ["--suite"]):
         fortran = run(ellroll, "summary", path, "--format", "csv", *options)
