@@ -9,7 +9,7 @@ module ellroll_files
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
-            lock_held, holder_line, host_name, process_id
+            lock_held, holder_line, host_name, process_id, text_of
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
 
   !> The longest path a command takes (Linux's PATH_MAX): the files of its

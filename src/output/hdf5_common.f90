@@ -6,6 +6,7 @@ module ellroll_hdf5_common
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_output
   use ellroll_checksum, only: text_checksum
+  use ellroll_files, only: text_of
   implicit none
   private
 
@@ -120,17 +121,6 @@ contains
     write (text, '(z8.8)') text_checksum(id // ' ' // trim(text))
     identity = trim(text)
   end subroutine file_identity
-
-  !> The text of a null-terminated C string.
-  subroutine text_of(buffer, text)
-    character(kind=c_char), intent(in) :: buffer(:)
-    character(len=:), allocatable, intent(out) :: text
-    integer :: n
-    n = findloc(buffer, c_null_char, dim=1) - 1
-    if (n < 0) n = size(buffer)
-    text = repeat(' ', n)
-    text = transfer(buffer(:n), text)
-  end subroutine text_of
 
   !> h5dsattach_scale_f counts dimensions in C order from 1 (unlike the
   !> Fortran-order dataspace calls); `dim` is the h5py index, from 0.
