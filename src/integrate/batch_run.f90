@@ -24,7 +24,7 @@ module ellroll_batch_run
   use ellroll_excitation, only: longest_step
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
-      track_rolling_resistance, settled, last_fixed_step
+      track_rolling_resistance, settled, last_fixed_step, fixed_step_time
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
   use ellroll_adaptive_run, only: stop_in_step, record_samples_until, screen_and_peaks, project_lanes
@@ -213,7 +213,7 @@ contains
           call run(l)%maxima%add(t, out%tan_nutation(l))
           if (step == n_last(l) .or. (step >= n_steps(l) .and. n_last(l) > n_steps(l) .and. settled(run(l), t))) then
             call samples%flush(l, results(l))
-            results(l)%t_final = t
+            results(l)%t_final = fixed_step_time(cases(l), step, t)
             call summary%store(l, run(l), results(l))
             active(l) = .false.
           else if (samples%count(l) == block_samples) then

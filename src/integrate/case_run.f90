@@ -37,7 +37,7 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, stopping, &
-            latest_end, settled, last_fixed_step, reach_stop
+            latest_end, settled, last_fixed_step, fixed_step_time, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
             accumulate, record_sample, record_geometry_sample, stored
 
@@ -244,6 +244,18 @@ contains
     n_last = nint(cs%t_end / cs%param(p_dt), i8)
     if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_last)
   end function last_fixed_step
+
+  !> The time a fixed-step case has reached after `steps` steps: t (steps
+  !> dt, as the steps computed it), but t_end itself after its last regular
+  !> step. t_end is a whole number of steps, where the product can be an
+  !> ulp off it (3 x 0.1 = 0.30000000000000004).
+  pure real(wp) function fixed_step_time(cs, steps, t)
+    type(case_t), intent(in) :: cs
+    integer(i8), intent(in) :: steps
+    real(wp), intent(in) :: t
+    fixed_step_time = t
+    if (steps == nint(cs%t_end / cs%param(p_dt), i8)) fixed_step_time = cs%t_end
+  end function fixed_step_time
 
   !> Whether the ball is at rest for good at the step end t just tracked:
   !> at rest, and the cup at rest for ever from t on (a ball held while the

@@ -18,7 +18,7 @@ module ellroll_fixed_step_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_gauss4, only: gauss4_t
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step, fixed_step_time
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -94,7 +94,7 @@ contains
         if (settled(run, t)) exit
       end if
     end do
-    res%t_final = t
+    res%t_final = fixed_step_time(cs, res%n_steps, t)
   end subroutine fixed_step_loop
 
   !> One step of size h from (t, y, f) in the mode the model gives y

@@ -28,7 +28,7 @@ module ellroll_slide_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
   use ellroll_fixed_step_run, only: checkpoint_steps, older_checkpoint_step
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step, fixed_step_time
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
@@ -217,7 +217,7 @@ contains
         if (settled(run, t)) exit
       end if
     end do
-    res%t_final = t
+    res%t_final = fixed_step_time(cs, res%n_steps, t)
   end subroutine fixed_slide
 
   !> A fixed-step case that met the fit limit sliding (res%status no_fit at
