@@ -32,7 +32,7 @@ The tests (tests/python/test_docs.py) run each command at a tiny size
 (ELLROLL_BENCH_QUICK=1) and check that it prints the tables shown.
 """
 # above each command: how tests/python/test_docs.py runs it (docs_blocks.py)
-QUICK_MARKER = "<!-- docs-test: env ELLROLL_BENCH_QUICK=1 (a tiny size; ELLROLL_DOCS_FULL=1 runs it as written) -->\n"
+QUICK_MARKER = "<!-- docs-test: env ELLROLL_BENCH_QUICK=1 (a tiny size; ELLROLL_TEST_FULL=1 runs it as written) -->\n"
 SHAPE_MARKER = "<!-- docs-test: output shape -->\n"
 WORKPRECISION = "bench/workprecision.py"
 

@@ -226,15 +226,21 @@ def _read_attribute(attribute):
     return value
 
 
-# The seconds HDF5 may take to read a file's tables and texts: 50 ms for any
-# ellroll file, where a damaged global heap (the texts' store) can make it
-# loop for ever.
-TABLES_SECONDS = 3.0
+def tables_seconds(path):
+    """The seconds HDF5 may take to read a file's tables and texts: the file
+    read at 50 MB/s, and 3 s more (they take 50 ms for an ellroll file of
+    a few cases), where a damaged global heap (the texts' store) can make it
+    loop for ever."""
+    try:
+        size = os.stat(path).st_size
+    except OSError:                                 # (the open then says why)
+        size = 0
+    return 3.0 + size / 50e6
 
 
-def _tables_read_in_time(path):
+def _tables_read_in_time(path, seconds):
     """Whether a child process reads every object, attribute and text
-    dataset of the file within TABLES_SECONDS. HDF5 loops for ever on some
+    dataset of the file within `seconds`. HDF5 loops for ever on some
     damaged global heaps (a flipped bit in a heap object's index), inside one
     call that no thread can stop: the child is killed instead. A child that
     fails (an exception) counts as in time: the file's own reads then say why."""
@@ -259,12 +265,15 @@ def _tables_read_in_time(path):
             os._exit(code)
     os.close(child_end)
     try:
-        finished = bool(select.select([done_reading], [], [], TABLES_SECONDS)[0])
+        finished = bool(select.select([done_reading], [], [], seconds)[0])
     finally:
         os.close(done_reading)
     if not finished:
         os.kill(pid, signal.SIGKILL)
-    os.waitpid(pid, 0)
+    try:
+        os.waitpid(pid, 0)
+    except ChildProcessError:                       # (SIGCHLD ignored: the system reaped it)
+        pass
     return finished
 
 
@@ -276,9 +285,10 @@ class EllrollFile:
             raise NotAnEllrollFile(f"{self.path}: a folder, not an ellroll file")
         if what:
             raise NotAnEllrollFile(f"{self.path}: {what}, not a regular file (an ellroll file is one)")
-        if not _tables_read_in_time(self.path):
+        seconds = tables_seconds(self.path)
+        if not _tables_read_in_time(self.path, seconds):
             raise NotAnEllrollFile(f"{self.path}: a damaged HDF5 file: HDF5 does not finish reading its tables "
-                                   f"(stopped after {TABLES_SECONDS:g} s)")
+                                   f"(stopped after {seconds:.3g} s)")
         try:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
@@ -402,11 +412,14 @@ class EllrollFile:
 
     def _coordinates(self, group):
         """The varied inputs a group holds as coordinates of its cases (CF's
-        `coordinates` attribute, the same on each of its variables)."""
-        for item in self._h5[group].values():
-            if "coordinates" in item.attrs:
-                return item.attrs["coordinates"].split()
-        return []
+        `coordinates` attribute, the same on each of its variables); looked
+        up once a group (a figure asks often, and the lookup visits every
+        member)."""
+        known = self.__dict__.setdefault("_coordinates_of", {})
+        if group not in known:
+            known[group] = next((item.attrs["coordinates"].split() for item in self._h5[group].values()
+                                 if "coordinates" in item.attrs), [])
+        return list(known[group])
 
     def _dataset(self, name):
         self._require_open()

@@ -11,7 +11,7 @@ import urllib.parse
 import numpy as np
 
 from .plots import FIELD_NEEDS, cup_moves, has_samples, name_text
-from .safe_write import MARK, CannotWrite, _umask, check_target, stop_point, write_text
+from .safe_write import MARK, CannotWrite, _umask, check_target, stop_point, sync_to_disk, write_text
 from .summary import format_summary, summary_table
 
 # the per-case figures, drawn for the report's case where the file has their fields
@@ -71,6 +71,7 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+    sync_to_disk(out if there else out.parent, out)
     return [out / path.name for path in made]
 
 

@@ -150,6 +150,7 @@ def write_file(path, overwrite, write):
     try:
         os.chmod(temporary, 0o666 & ~_umask())        # as a file opened the usual way would be
         write(temporary)
+        sync_to_disk(temporary)                          # (on the disk before its name replaces an old file's)
         stop_point()
         check_target(path, overwrite)            # (nothing came there meanwhile)
         os.replace(temporary, path)
@@ -159,7 +160,26 @@ def write_file(path, overwrite, write):
             # (the system's reason, named by the file asked for, not its temporary one)
             raise CannotWrite(f"{path}: cannot write it ({exc.strerror or exc})") from None
         raise
+    sync_to_disk(path.parent, path)              # (the new name on the disk too)
     return path
+
+
+def sync_to_disk(path, made=None):
+    """fsync a file or a folder: a crash after the move then finds the new
+    file whole, not an empty one in the old one's place. For the folder
+    that now holds `made`, a failure says that `made` is there but may not
+    last (CannotWrite)."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(descriptor)
+        finally:
+            os.close(descriptor)
+    except OSError as exc:
+        if made is None:
+            raise
+        raise CannotWrite(f"{made}: written, but the disk did not confirm its folder {path} "
+                          f"({exc.strerror or exc}); it may not last a crash") from None
 
 
 def _umask():

@@ -11,6 +11,29 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 # test of a numerical property (long runs) is left out, and the random
 # searches take a smaller budget (the sanitizer looks for memory errors)
 SANITIZED = os.environ.get("ELLROLL_BUILD") == "sanitize"
+# The README's test command meets a large product of cases (damaged files x
+# subcommands, failures x places) by a seeded cover: each item of every
+# factor at least once, in turn. ELLROLL_TEST_FULL=1 runs every combination
+# (and the larger budgets of test_faults, test_sliding_truth and the docs).
+FULL = os.environ.get("ELLROLL_TEST_FULL", "0") not in ("", "0")
+
+
+def in_turn(items, k):
+    """What the k-th case of a product meets of `items`: every item with
+    ELLROLL_TEST_FULL, else the one at k in turn."""
+    items = list(items)
+    return items if FULL else [items[k % len(items)]]
+
+
+def pairs_in_turn(first, second):
+    """The parameter pairs of first x second: every pair with
+    ELLROLL_TEST_FULL, else each item of first with one of second in turn
+    (and every item of second met)."""
+    first, second = list(first), list(second)
+    if FULL:
+        return [(a, b) for a in first for b in second]
+    count = max(len(first), len(second))
+    return [(first[k % len(first)], second[k % len(second)]) for k in range(count)]
 PAPER_INPUT = ROOT / "input" / "legeza1990.nml"
 
 

@@ -27,7 +27,7 @@ quick run prints fewer rows) every line without a number must be printed as
 shown, and every printed line with numbers must begin, up to its first number
 or colon, like a line shown.
 
-ELLROLL_DOCS_FULL=1 ignores the markers' ELLROLL_BENCH_QUICK: the benches of
+ELLROLL_TEST_FULL=1 ignores the markers' ELLROLL_BENCH_QUICK: the benches of
 docs/performance.md then run at the sizes written (many minutes).
 """
 import dataclasses
@@ -41,9 +41,10 @@ import sys
 import threading
 import time
 
+from conftest import FULL
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 QUICK = "ELLROLL_BENCH_QUICK"
-FULL = os.environ.get("ELLROLL_DOCS_FULL", "0") not in ("", "0")
 BLOCK_TIMEOUT = 3600 if FULL else 300
 MARKER = re.compile(r"^<!--\s*docs-test:\s*(.*?)\s*-->\s*$")
 FENCE = re.compile(r"^```\s*(\S*)\s*$")

@@ -139,7 +139,7 @@ def test_docs_blocks_summary(docs_run, capsys):
              f"on {sum(bool(PARSED[p]) for p in PARSED)} pages; {len(ran)} run, {len(skipped)} skipped, "
              f"{sum(r.checks for r in results)} output checks; {docs_run['seconds']:.1f} s, "
              f"{sum(r.cpu for r in results):.1f} s of CPU"
-             + (" (ELLROLL_DOCS_FULL)" if docs_blocks.FULL else "")]
+             + (" (ELLROLL_TEST_FULL)" if docs_blocks.FULL else "")]
     lines += [f"  skipped {r.block.name}: {r.message}" for r in skipped]
     for page in ORDER:
         if docs_run["results"][page]:

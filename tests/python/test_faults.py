@@ -10,7 +10,7 @@ finished output.
 The calls are counted in an undisturbed run (those of the dynamic loader,
 before the program opens its input, are left out). CI walks a seeded sample
 of the calls of every kind, the first and last of each among them;
-ELLROLL_FAULT_FULL=1 walks every call with EIO, ENOSPC and SIGKILL."""
+ELLROLL_TEST_FULL=1 walks every call with EIO, ENOSPC and SIGKILL."""
 import os
 import pathlib
 import random
@@ -21,11 +21,11 @@ import sys
 
 import pytest
 
+from conftest import FULL
 from test_campaign import assert_same_datasets
 from test_fuzz import CRASH_SIGNS
 from test_output_safety import printed_folder
 
-FULL = os.environ.get("ELLROLL_FAULT_FULL") == "1"
 SAMPLE_PER_KIND = 3          # in CI: the first, the last and this many more of each kind
 WRITE_CALLS = ["pwrite64", "pwritev", "write", "fsync", "ftruncate", "rename", "renameat2", "unlink", "close"]
 STRACE = shutil.which("strace")
@@ -89,7 +89,7 @@ def chosen(ordinals, seed):
 
 def faults(points, seed):
     """(call, ordinal, fault) to inject: in CI each point gets one of EIO,
-    ENOSPC and SIGKILL in turn; with ELLROLL_FAULT_FULL all three."""
+    ENOSPC and SIGKILL in turn; with ELLROLL_TEST_FULL all three."""
     kinds = ["error=EIO", "error=ENOSPC", "signal=SIGKILL"]
     if FULL:
         return [(name, n, kind) for name, n in points for kind in kinds]

@@ -38,7 +38,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import FULL, SANITIZED, run
 from test_fuzz import CRASH_SIGNS as FORTRAN_CRASH_SIGNS
 
 # and the sanitizer's reports, some of which let the program go on
@@ -655,6 +655,8 @@ def random_trials(rows, all_methods, adaptive_methods, n, seed):
 
 
 def run_trials(exe, trials, tmp_path, title):
+    if SANITIZED and not (THOROUGH or FULL):
+        trials = trials[::2]            # (the sanitizer's pass meets every second input; the Debug pass all)
     with concurrent.futures.ThreadPoolExecutor(WORKERS) as pool:
         outcomes = list(pool.map(lambda it: execute(exe, it[1], tmp_path / f"t{it[0]}", it[0]), enumerate(trials)))
     exits = {}

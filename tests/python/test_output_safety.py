@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, run
+from conftest import FULL, ROOT, run
 from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes
 
 
@@ -229,8 +229,8 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
     each rename it makes (its figures into the staging folder, the old
     files kept aside, the new ones moved in): exit 2 and the old report
     byte for byte, nothing hidden left, the message naming the report's own
-    folder (the first old file kept aside, the last new file moved in, and
-    a seeded one of the renames)."""
+    folder (the first old file kept aside, the last new file moved in, and,
+    with ELLROLL_TEST_FULL, a seeded one of the renames)."""
     if shutil.which("strace") is None:
         pytest.skip("strace is not installed")
     folder = folder_with(tmp_path)
@@ -243,15 +243,15 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
     renames = ["-e", "trace=rename,renameat,renameat2"]
     trace = tmp_path / "renames.txt"
     shutil.copytree(folder, tmp_path / "counting")
-    assert subprocess.run(["strace", "-f", "-qq", "-o", str(trace), *renames, *command], cwd=tmp_path / "counting",
+    assert subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", str(trace), *renames, *command], cwd=tmp_path / "counting",
                           capture_output=True, timeout=300).returncode == 0
     # (strace counts when= in each process: the one that renames most)
     pids = [line.split()[0] for line in trace.read_text().splitlines() if re.search(r"\brename(at2?)?\(", line)]
     count = max(pids.count(pid) for pid in set(pids))
     assert count >= 2 * len(old)           # (each figure into staging; each old file kept aside, each new moved in)
     rng = random.Random(20261127)
-    for n in sorted({count - 2 * len(old) + 1, count, rng.randrange(1, count + 1)}):
-        result = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, *renames,
+    for n in sorted({count - 2 * len(old) + 1, count, *([rng.randrange(1, count + 1)] if FULL else [])}):
+        result = subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", os.devnull, *renames,
                                  "-e", f"inject=rename,renameat,renameat2:error=EIO:when={n}", *command],
                                 cwd=folder, capture_output=True, text=True, timeout=300)
         now = {p.name: p.read_bytes() for p in (folder / "out_report").iterdir()}
@@ -262,8 +262,8 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
     # a disk that fails from then on (EIO at every rename from the n-th, the
     # putting back included): each old file is in the folder or, byte for
     # byte, in the kept folder that the one-line message names
-    for n in sorted({count - len(old) + 1, rng.randrange(count - 2 * len(old) + 1, count + 1)}):
-        result = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, *renames,
+    for n in sorted({count - len(old) + 1, *([rng.randrange(count - 2 * len(old) + 1, count + 1)] if FULL else [])}):
+        result = subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", os.devnull, *renames,
                                  "-e", f"inject=rename,renameat,renameat2:error=EIO:when={n}+", *command],
                                 cwd=folder, capture_output=True, text=True, timeout=300)
         lines = result.stderr.strip().splitlines()
@@ -278,6 +278,41 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
             for p in k.iterdir():
                 os.replace(p, folder / "out_report" / p.name)
             k.rmdir()
+
+
+@pytest.mark.parametrize("command", [["trace", "--case", "1"], ["report"]], ids=["figure", "report"])
+def test_a_disk_that_does_not_confirm_a_write_keeps_the_old_output(plotted, tmp_path, command):
+    """fsync fails (EIO, strace) on ellroll-plot --overwrite: at the first
+    one (the new file's own, before its name replaces the old one's), the
+    old figure or report stays, the same file (inode) and bytes, nothing
+    hidden left, exit 2 in one line naming it; at the last one (the folder
+    that holds the new name), exit 2 in one line saying the new file is
+    written but may not last a crash."""
+    if shutil.which("strace") is None:
+        pytest.skip("strace is not installed")
+    folder = tmp_path / "w"
+    shutil.copytree(plotted, folder)
+    full = [sys.executable, "-m", "ellroll_post.cli", *command[:1], "out.h5", *command[1:], "--overwrite"]
+    assert subprocess.run(full, cwd=folder, capture_output=True, timeout=300).returncode == 0
+    made = folder / ("out_report" if command[0] == "report" else "out_fig2_trace_case1.png")
+    files = sorted(made.iterdir()) if made.is_dir() else [made]
+    old = {p: (p.stat().st_ino, p.read_bytes()) for p in files}
+    trace = tmp_path / "fsyncs.txt"
+    assert subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", str(trace), "-e", "trace=fsync", *full], cwd=folder,
+                          capture_output=True, timeout=300).returncode == 0
+    count = trace.read_text().count("fsync(")
+    assert count >= 2 * len(files)                  # (each file, and the folder it is moved into)
+    old = {p: (p.stat().st_ino, p.read_bytes()) for p in files}
+    for when, expected in ((1, "cannot write"), (count, "written, but the disk did not confirm")):
+        result = subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", os.devnull, "-e", "trace=fsync",
+                                 "-e", f"inject=fsync:error=EIO:when={when}", *full],
+                                cwd=folder, capture_output=True, text=True, timeout=300)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1 and expected in lines[0], (when, result.stderr)
+        assert made.name in lines[0] and "Input/output error" in lines[0], (when, result.stderr)
+        assert not [p for p in folder.rglob(".*")], (when, result.stderr)
+        if when == 1:
+            assert {p: (p.stat().st_ino, p.read_bytes()) for p in files} == old, result.stderr
 
 
 def test_ellroll_plot_workprecision_leaves_nothing_when_it_fails(plotted):

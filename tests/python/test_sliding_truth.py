@@ -5,16 +5,14 @@ cup and under a record, W_cup = -m int a_base . dC computed here from the
 stored centre (docs/model.md, "Sliding with Coulomb friction"); the slip
 threshold of harmonic shaking from the linearised rolling model; the
 friction's energy per cycle above it against a reference at tight
-tolerance. ELLROLL_SLIDE_FULL=1 adds the slower references."""
-import os
+tolerance. ELLROLL_TEST_FULL=1 adds the slower references."""
 
 import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import FULL, run
 
-FULL = os.environ.get("ELLROLL_SLIDE_FULL", "0") not in ("", "0")
 A, B, C, R, K, G = 1.0, 0.4, 0.2, 0.2, 0.4, 9.81          # the paper's cup and ball, J = K m R^2
 
 CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
