@@ -253,7 +253,8 @@ contains
   !> state (begin_step), so that the steps stay on the grid of dt. y_new:
   !> the whole step's end, where the event was seen, on entry; the end of
   !> the step taken through it on return.
-  subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event, passed)
+  recursive subroutine step_through_event(integrator, run, event, t, y, f, h, y_new, f_new, obs, status, n_rhs, t_event, &
+                                          passed)
     class(integrator_t), intent(inout) :: integrator
     type(run_state_t), intent(in) :: run
     integer, intent(in) :: event
@@ -265,10 +266,10 @@ contains
     integer(i8), intent(inout) :: n_rhs
     real(wp), intent(out) :: t_event       !< where the model acted (< 0: a limit met first)
     logical, intent(in), optional :: passed  !< y_new is past a model limit (the event counts as passed there)
-    real(wp) :: y_at(state_size), f_at(state_size), offset, y_rest(state_size)
+    real(wp) :: y_at(state_size), f_at(state_size), offset, y_rest(state_size), t_later
     type(event_search_t) :: search
     type(run_state_t) :: after
-    integer :: k
+    integer :: k, later
     logical :: stops
     call search%begin(run%ball, event, y_new, h, passed)
     do k = 1, max_event_trials
@@ -297,7 +298,18 @@ contains
     call after%ball%begin_step(y_at)
     call ball_derivative(after%ball, t + search%high, y_at, f_at)
     n_rhs = n_rhs + 1
-    call fixed_step(integrator, after, t + search%high, y_at, f_at, h - search%high, y_new, f_new, obs, status, n_rhs)
+    if (implicit_stages(integrator)) then
+      ! gauss4's stages cannot follow a couple that turns at the event (from
+      ! rest it turns without bound): the rest of the step is a step of its
+      ! own, in the law of a step from rest (step_with_events: released, or
+      ! held), and the model's last act in it is the step's event
+      call step_with_events(integrator, after, t + search%high, y_at, f_at, h - search%high, y_new, f_new, obs, &
+                            status, n_rhs, later, t_later)
+      if (later /= 0 .and. t_later >= 0) t_event = t_later
+    else
+      call fixed_step(integrator, after, t + search%high, y_at, f_at, h - search%high, y_new, f_new, obs, status, &
+                      n_rhs)
+    end if
   end subroutine step_through_event
 
   !> The step at which the older of the two checkpoints lies after n_done
