@@ -84,7 +84,7 @@ contains
         return
       end if
       h = next_step(t, h, t_stop, control%after_rejection, run%ball%excitation)
-      if (round_off_step(t, h)) round_off_attempts = round_off_attempts + 1
+      if (round_off_step(t, h, cs%t_end)) round_off_attempts = round_off_attempts + 1
       if (cannot_follow(h, round_off_attempts, res%n_steps + res%n_rejected)) then
         res%status = status_unstable
         res%t_final = t
@@ -133,7 +133,7 @@ contains
         call step_works(pair, run%ball, t, h, works, res%n_rhs)
         call add_step_resistance(run, res, t + h, works(2), obs)
       end if
-      if (.not. round_off_step(t, h)) round_off_attempts = 0
+      if (.not. round_off_step(t, h, cs%t_end)) round_off_attempts = 0
       t = t + h
       y = y_new
       f = f_new

@@ -457,7 +457,7 @@ contains
             call run(l)%maxima%add_peak(peaks(l)%t)
             call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
           end if
-          if (.not. round_off_step(t(l), h(l))) round_off_attempts(l) = 0
+          if (.not. round_off_step(t(l), h(l), t_end(l))) round_off_attempts(l) = 0
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1
           if (b%cups%moving) call track_cups(b, out, base_end, t, lane_only(l))
@@ -489,7 +489,7 @@ contains
     do l = 1, lanes
       if (.not. b%active(l)) cycle
       h(l) = next_step(t(l), h(l), t_end(l), control(l)%after_rejection, b%run(l)%ball%excitation)
-      if (round_off_step(t(l), h(l))) round_off_attempts(l) = round_off_attempts(l) + 1
+      if (round_off_step(t(l), h(l), t_end(l))) round_off_attempts(l) = round_off_attempts(l) + 1
       if (cannot_follow(h(l), round_off_attempts(l), results(l)%n_steps + results(l)%n_rejected)) then
         results(l)%status = status_unstable
         results(l)%t_final = t(l)

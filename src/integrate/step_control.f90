@@ -34,8 +34,9 @@ module ellroll_step_control
   real(wp), parameter :: error_norm_floor = 2.6e-7_wp, log_previous_floor = log(1.0e-4_wp)
 
   !> A step of at most smallest_step_ulps eps |t| (16 to 32 units in the
-  !> last place of t; follow_flow_to_limit: 16 units of its end) or not a
-  !> number is round-off: Hairer's "step size too small". Such steps
+  !> last place of t, or of t_end before t reaches it; follow_flow_to_limit:
+  !> 16 units of its end) or not a number is round-off: Hairer's "step size
+  !> too small". Such steps
   !> still take the state on where its motion outruns the clock: next to the
   !> fit limit's square-root singularity (fit_margin 0) some 20-50 of them
   !> reach the limit, across a ramp of 1e-9 s in a record at t = 1000 s at
@@ -75,14 +76,16 @@ contains
     end if
   end function judged_norm
 
-  !> Whether a step h from t is round-off: at most smallest_step_ulps eps |t|,
-  !> or not a number.
-  pure logical function round_off_step(t, h)
-    real(wp), intent(in) :: t, h
+  !> Whether a step h from t, in a case that ends at t_end, is round-off:
+  !> at most smallest_step_ulps eps max(|t|, t_end), or not a number. (Near
+  !> t = 0, eps |t| bounds no step: pure relative control of a component
+  !> that is zero but for round-off accepts steps of 1e-101 s there, for ever.)
+  pure logical function round_off_step(t, h, t_end)
+    real(wp), intent(in) :: t, h, t_end
     if (ieee_is_nan(h)) then            ! (tested first: an ordered comparison with NaN traps)
       round_off_step = .true.
     else
-      round_off_step = h <= (smallest_step_ulps * epsilon(1.0_wp)) * abs(t)
+      round_off_step = h <= (smallest_step_ulps * epsilon(1.0_wp)) * max(abs(t), t_end)
     end if
   end function round_off_step
 

@@ -92,3 +92,42 @@ def test_a_case_ending_inside_a_step_counts_the_piece_before_its_end(ellroll, tm
         assert found[name]["theta_max"] == pytest.approx(found["rk4"]["theta_max"], abs=1e-10)
         assert found[name]["rolling_resistance_energy"] == pytest.approx(found["rk4"]["rolling_resistance_energy"],
                                                                         rel=1e-4)
+
+
+ROUND_CUP = """&geometry a = 1.0, b = {b!r}, c = 0.2 /
+&ball radius = 0.05, weight = 2620.0 /
+&initial x = {x!r}, y = {y!r}, omega = 0.0, 0.0, 0.0 /
+&integration method = '{method}', rtol = 1e-6, atol = {atol!r}, t_end = {t_end!r} /
+&output file = 'out.h5', interval = {t_end!r} /
+{sweep}"""
+
+
+@pytest.mark.parametrize("build", ["release", "debug"])
+@pytest.mark.parametrize("method", ["dop853", "vern9"])
+def test_pure_relative_control_of_a_round_off_component_ends_and_never_hangs(ellroll, ellroll_debug, tmp_path,
+                                                                            build, method):
+    """A ball at rest off the axis of a cup of revolution (a = b, or b =
+    0.999 a), atol = 0 or 1e-100: a component that symmetry keeps at zero
+    holds round-off, which pure relative control can never accept, and steps
+    of 1e-101 s were accepted for ever at t = 0 (a case of 1e-8 s never
+    ended). Each case ends within the timeout, one and in a batch: a case
+    that cannot follow ends 'unstable' at its start, t_final below 1e-12
+    of t_end; atol = 1e-30 completes. Seeded starts."""
+    exe = ellroll if build == "release" else ellroll_debug
+    rng = np.random.default_rng(6100 + (method == "vern9"))
+    for k, (b, atol, t_end) in enumerate([(1.0, 0.0, 1e-8), (0.999, 0.0, 1.0), (1.0, 1e-100, 0.5), (1.0, 1e-30, 1e-8)]):
+        x, y = (float(v) for v in rng.uniform(0.2, 0.5, 2))
+        sweep = "&sweep name = 'x', values = 0.3, 0.4 /\n" if k == 1 else ""
+        folder = tmp_path / f"c{k}"
+        folder.mkdir()
+        (folder / "case.nml").write_text(ROUND_CUP.format(b=b, x=x, y=y, method=method, atol=atol, t_end=t_end,
+                                                          sweep=sweep))
+        result = run(exe, "run", "case.nml", "-q", cwd=folder, timeout=60)
+        assert result.returncode == 0 and not any(sign in result.stderr for sign in CRASH_SIGNS), result.stderr
+        with h5py.File(folder / "out.h5") as f:
+            status, t_final = f["summary/status"][:], f["summary/t_final"][:]
+        label = (b, atol, t_end, x, y, status, t_final)
+        if atol > 1e-50:
+            assert (status == 1).all(), label
+        else:
+            assert ((status == 9) & (t_final < 1e-12 * t_end) | (status == 1)).all() and (status == 9).any(), label

@@ -43,9 +43,15 @@ contains
   subroutine round_off_thresholds()
     real(wp) :: nan
     nan = ieee_value(1.0_wp, ieee_quiet_nan)
-    call check(round_off_step(1.0_wp, 16 * epsilon(1.0_wp)) .and. .not. round_off_step(1.0_wp, 17 * epsilon(1.0_wp)) &
-               .and. round_off_step(0.0_wp, 0.0_wp) .and. .not. round_off_step(0.0_wp, tiny(1.0_wp)) &
-               .and. round_off_step(1.0_wp, nan), 'round-off steps: 16 ulp of t, 0 and NaN')
+    call check(round_off_step(1.0_wp, 16 * epsilon(1.0_wp), 0.5_wp) &
+               .and. .not. round_off_step(1.0_wp, 17 * epsilon(1.0_wp), 0.5_wp) &
+               .and. round_off_step(0.0_wp, 0.0_wp, 0.0_wp) .and. .not. round_off_step(0.0_wp, tiny(1.0_wp), 0.0_wp) &
+               .and. round_off_step(1.0_wp, nan, 1.0_wp), 'round-off steps: 16 ulp of t, 0 and NaN')
+    ! before t reaches t_end, 16 ulp of t_end: at t = 0 a step of 1e-101 s
+    ! is round-off in a case of 1e-8 s
+    call check(round_off_step(0.0_wp, 1.0e-101_wp, 1.0e-8_wp) .and. round_off_step(1.0e-20_wp, 16 * 1.0e-8_wp * &
+               epsilon(1.0_wp), 1.0e-8_wp) .and. .not. round_off_step(0.0_wp, 17 * 1.0e-8_wp * epsilon(1.0_wp), &
+               1.0e-8_wp), 'round-off steps: 16 ulp of t_end before t reaches it')
     call check(.not. cannot_follow(1.0e-3_wp, 100000, 0_i8) .and. cannot_follow(1.0e-3_wp, 100001, 0_i8) &
                .and. cannot_follow(0.0_wp, 0, 0_i8) .and. cannot_follow(nan, 0, 0_i8) &
                .and. .not. cannot_follow(1.0e-3_wp, 0, 999999999999_i8) .and. cannot_follow(1.0e-3_wp, 0, 10_i8**12), &
