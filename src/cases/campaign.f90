@@ -12,10 +12,12 @@ module ellroll_campaign
   private
 
   public :: campaign_t, sweep_t, sample_t, suite_record_t, coordinate_t, use_record, uniform_hash
-  public :: combine_grid, combine_zip, invalid_stop, invalid_skip
+  public :: combine_grid, combine_zip, invalid_stop, invalid_skip, max_cases
 
   integer, parameter :: combine_grid = 1, combine_zip = 2
   integer, parameter :: invalid_stop = 1, invalid_skip = 2
+  !> The most cases a campaign holds (and so an ellroll file's rows).
+  integer(i8), parameter :: max_cases = 100000000_i8
   integer(i8), parameter :: mask32 = 4294967295_i8
 
   type :: sweep_t

@@ -7,7 +7,7 @@ module ellroll_campaign_input
   use ellroll_exact, only: equals
   use ellroll_strings, only: lower, itoa, join, format_real
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t, combine_grid, combine_zip, invalid_stop, &
-      invalid_skip
+      invalid_skip, max_cases
   use ellroll_params, only: params, param_count, param_index, p_weight, p_mass
   use ellroll_input_reader, only: reader_t, namelist_values_t, count_given, not_finite_entry, max_values
   use ellroll_suggest, only: did_you_mean
@@ -16,8 +16,6 @@ module ellroll_campaign_input
   private
 
   public :: add_sweep, add_sample, build_campaign
-
-  integer(i8), parameter :: max_cases = 100000000_i8
 
 contains
 

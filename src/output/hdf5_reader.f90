@@ -12,6 +12,7 @@ module ellroll_hdf5_reader
   use ellroll_errors, only: error_t, set_error, err_input, err_output
   use ellroll_records, only: named_value_t, kind_int
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
+  use ellroll_campaign, only: max_cases
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
   use ellroll_files, only: path_kind, kind_missing, lock_held, holder_line
   use ellroll_system, only: open_regular_file, file_type_words, close_descriptor
@@ -160,6 +161,12 @@ contains
     end if
     self%n_cases = self%dataset_length('summary/status')
     if (read_failed(self, err)) return
+    if (self%n_cases > max_cases) then     ! (its tables would be read whole: gigabytes of rows no run wrote)
+      call set_error(err, err_input, path // ': not laid out as ellroll writes its files (/summary/status holds ' // &
+                     itoa(self%n_cases) // ' rows, more than the ' // itoa(max_cases) // &
+                     ' cases of any campaign; changed by another program?)')
+      self%n_cases = 0
+    end if
   end subroutine open_checked
 
   !> Whether an HDF5 call failed in a system call (a read error) since

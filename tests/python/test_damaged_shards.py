@@ -187,3 +187,46 @@ def test_merge_refuses_a_shard_cut_short_with_exit_2_naming_it(ellroll, shards, 
     assert result.returncode == 2, result.stderr
     assert "ellroll: error: s1.h5: damaged" in result.stderr, result.stderr
     assert not any((tmp_path / name).exists() for name in WORK_NAMES)
+
+
+def declared_rows(source, target, rows):
+    """source's file rewritten by h5py (libver up to v110) with each numeric
+    per-case table declared `rows` long, chunked, its rows past the file's
+    own never written (so the file stays small)."""
+    with h5py.File(source, "r") as f, h5py.File(target, "w", libver=("earliest", "v110")) as g:
+        cases = f["summary/status"].shape[0]
+        g.attrs.update(dict(f.attrs))
+
+        def copy(name, item):
+            if isinstance(item, h5py.Group):
+                g.require_group(name).attrs.update(dict(item.attrs))
+                return
+            if item.shape and item.shape[0] == cases and item.dtype.kind in "fiu":
+                made = g.create_dataset(name, shape=(rows, *item.shape[1:]), dtype=item.dtype,
+                                        chunks=(1, *(min(s, 1024) for s in item.shape[1:])))
+                made[:cases] = item[()]
+            else:
+                made = g.create_dataset(name, data=item[()])
+            made.attrs.update({k: v for k, v in item.attrs.items()
+                               if k not in ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")})
+        f.visititems(copy)
+
+
+@pytest.mark.parametrize("rows", [10**8 + 1, 10**10, 2**40])
+def test_tables_declared_longer_than_any_campaign_are_refused_in_one_line(ellroll, shards, tmp_path, rows):
+    """A file whose tables say they hold more rows than the 1e8 cases of any
+    campaign (another program's rewrite; a few MB on the disk): `ellroll
+    summary` (every format) and `merge` refuse it in one line naming it,
+    exit 2, before reading its tables whole (80 GB at 1e10 rows: the
+    allocation failed with a backtrace), and merge leaves nothing."""
+    folder, _ = shards
+    declared_rows(folder / "s1.h5", tmp_path / "big.h5", rows)
+    shutil.copy(folder / "s0.h5", tmp_path / "s0.h5")
+    for command in (["summary", "big.h5"], ["summary", "big.h5", "--format", "json"], ["summary", "big.h5", "--suite"],
+                    ["merge", "m.h5", "s0.h5", "big.h5"]):
+        result = run(ellroll, *command, cwd=tmp_path, timeout=60)
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1, (command, result.stderr[-2000:])
+        assert lines[0].startswith("ellroll: error: big.h5: not laid out as ellroll writes its files") and \
+            f"holds {rows} rows" in lines[0], (command, lines)
+    assert not any((tmp_path / name).exists() for name in WORK_NAMES)
