@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Sets up, builds (Release, Debug, portable, MPI, sanitizers) and runs every
-# test: ctest on the Release, Debug and portable builds, then pytest (which
+# Sets up, builds (Release, Debug, MPI, sanitizers) and runs every test: ctest
+# on the Release and Debug builds, then pytest (which
 # also uses Debug and MPI), then the tests of inputs and model limits again on
 # the sanitizer build (memory errors and undefined behaviour stop it).
 set -euo pipefail
@@ -11,8 +11,10 @@ echo "== ctest (Release)"
 ctest --test-dir build --output-on-failure -j 2
 echo "== ctest (Debug: -fcheck=all, FP traps)"
 ctest --test-dir build-debug --output-on-failure -j 2
-echo "== ctest (portable: -DELLROLL_NATIVE=OFF)"
-ctest --test-dir build-portable --output-on-failure -j 2
+if [ "${ELLROLL_TEST_FULL:-0}" != 0 ]; then        # (the larger budgets: README)
+  echo "== ctest (portable: -DELLROLL_NATIVE=OFF)"
+  ctest --test-dir build-portable --output-on-failure -j 2
+fi
 echo "== pytest"
 # two workers (pytest-xdist): the tests are independent processes, most of one
 # thread; a group of tests that share a costly fixture runs on one worker

@@ -79,3 +79,31 @@ def paper_file(ellroll, tmp_path_factory):
     result = run(ellroll, "run", "legeza1990.nml", cwd=folder)
     assert result.returncode == 0, result.stderr
     return folder / "legeza1990.h5"
+
+
+def plot_in_process(*args, cwd=None):
+    """ellroll-plot's main(argv) in this process, as `python -m
+    ellroll_post.cli ARGS` would run it from cwd (its entry point runs as a
+    process in test_figures and the docs' tests): a CompletedProcess with the
+    exit code and what it printed. (A second interpreter and matplotlib's
+    import cost a second a call.)"""
+    import contextlib
+    import io
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from ellroll_post.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as exc:          # argparse
+                code = exc.code
+    finally:
+        os.chdir(here)
+        plt.close("all")
+    return subprocess.CompletedProcess(["ellroll-plot", *map(str, args)], code, out.getvalue(), err.getvalue())

@@ -279,33 +279,38 @@ def heap_damages(data):
     return damages
 
 
-@pytest.mark.parametrize("source", ["paper", "whole", "suite"])
-def test_a_damaged_text_store_never_hangs_a_reader(ellroll, files, tmp_path, source):
-    """A damaged global heap on which HDF5 loops for ever inside one call:
-    `ellroll summary` (every format, --suite), ellroll_post.open and so
-    every ellroll-plot command refuse the file after a bounded time, in one
-    line (exit 2), or read it; never hang. (The readers wait side by side.)"""
-    if source == "paper":
-        assert run(ellroll, "run", ROOT / "input" / "legeza1990.nml", "-q", "-o", "paper.h5",
-                   cwd=tmp_path).returncode == 0
-        original = (tmp_path / "paper.h5").read_bytes()
-    else:
-        original = (files / f"{source}.h5").read_bytes()
-    damages = heap_damages(original)
-    assert damages
+def test_a_damaged_text_store_never_hangs_a_reader(ellroll, files, tmp_path):
+    """A damaged global heap on which HDF5 loops for ever inside one call
+    (the paper's file, a shaken sweep's, a suite's): `ellroll summary`
+    (every format, --suite), ellroll_post.open and so every ellroll-plot
+    command refuse the file after a bounded time, in one line (exit 2), or
+    read it; never hang. (The readers of every file wait side by side.)"""
+    assert run(ellroll, "run", ROOT / "input" / "legeza1990.nml", "-q", "-o", "paper.h5", cwd=tmp_path).returncode == 0
     readers = []
-    for k, (at, data) in enumerate(damages):
-        damaged = tmp_path / f"heap{k}.h5"
-        damaged.write_bytes(original[:at] + data + original[at + 8:])
-        commands = [[sys.executable, "-m", "ellroll_post.cli", "summary", damaged]]
-        commands += [[ellroll, "summary", damaged, *options] for options in ([], ["--format", "csv"], ["--suite"])]
-        readers += [(at, command, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                                   cwd=tmp_path)) for command in commands]
+    for source in ("paper", "whole", "suite"):
+        original = (tmp_path / "paper.h5" if source == "paper" else files / f"{source}.h5").read_bytes()
+        damages = heap_damages(original)
+        assert damages, source
+        readers += damaged_text_readers(ellroll, tmp_path, source, original, damages)
     for at, command, reader in readers:
         _, err = reader.communicate(timeout=60)
         label = (at, command[1:], err[-500:])
         assert reader.returncode in (0, 2) and "Traceback" not in err, label
         assert reader.returncode == 0 or len(err.strip().splitlines()) == 1, label
+
+
+def damaged_text_readers(ellroll, tmp_path, source, original, damages):
+    """Each damage of `original` written to its own file, and every reader
+    of it started: [(offset, command, process)]."""
+    readers = []
+    for k, (at, data) in enumerate(damages):
+        damaged = tmp_path / f"{source}_heap{k}.h5"
+        damaged.write_bytes(original[:at] + data + original[at + 8:])
+        commands = [[sys.executable, "-m", "ellroll_post.cli", "summary", damaged]]
+        commands += [[ellroll, "summary", damaged, *options] for options in ([], ["--format", "csv"], ["--suite"])]
+        readers += [(at, command, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                                   cwd=tmp_path)) for command in commands]
+    return readers
 
 
 # ------------------------------------------------------- a killed run's file

@@ -8,8 +8,6 @@ import io
 import json
 import pathlib
 import re
-import subprocess
-import sys
 import urllib.parse
 
 import h5py
@@ -21,12 +19,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import ellroll_post  # noqa: E402
-from conftest import run  # noqa: E402
+from conftest import plot_in_process, run  # noqa: E402
 from test_campaign import BASE  # noqa: E402
 
 
 def plot_cli(*args):
-    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], capture_output=True, text=True)
+    return plot_in_process(*args)
 
 
 @pytest.fixture(scope="module")

@@ -417,3 +417,23 @@ def test_a_spinning_stop_in_lanes_is_the_case_alone_bitwise_in_debug(ellroll_deb
                             continue
                         assert np.asarray(lanes[group][name][j]).tobytes() == np.asarray(item[0]).tobytes(), \
                             (spin, group, name)
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_a_ball_spinning_on_the_spot_is_at_rest_and_keeps_its_spin(ellroll, tmp_path, method):
+    """At the bottom, spinning at 5 rad/s about the cup's normal (the
+    vertical there), with rolling resistance: its contact point never moves
+    (the rolling part of omega is zero), so it is at rest from t = 0
+    (at_rest 1, rest_time 0, residual_displacement 0), and with no pivoting
+    friction in the model its spin, and its kinetic energy J w^2 / 2, stay
+    to round-off (docs/output.md)."""
+    text = CUP.format(resistance=", rolling_resistance = 1e-3", x=0.0, integration=METHODS[method], t_end=2.0,
+                      settle="", excitation="").replace("omega = 0.0, 0.0, 0.0", "omega = 0.0, 0.0, 5.0")
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll, "run", "case.nml", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        s = {k: f["summary"][k][0] for k in ("status", "at_rest", "rest_time", "residual_displacement")}
+        omega, contact = f["trajectory/omega"][0], f["trajectory/contact"][0]
+    assert s["status"] == 1 and s["at_rest"] == 1 and s["rest_time"] == 0 and s["residual_displacement"] == 0, s
+    assert np.abs(omega - [0.0, 0.0, 5.0]).max() < 1e-12 and np.abs(contact).max() < 1e-15, (s, omega[-1])

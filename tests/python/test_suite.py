@@ -11,8 +11,6 @@ import io
 import json
 import math
 import shutil
-import subprocess
-import sys
 import time
 
 import h5py
@@ -27,13 +25,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import ellroll_post  # noqa: E402
 from ellroll_post import cli, suite  # noqa: E402
 from ellroll_post.fragility import fit_stripes  # noqa: E402
-from conftest import ROOT, run  # noqa: E402
+from conftest import ROOT, plot_in_process, run  # noqa: E402
 
 SCALES = (40.0, 70.0, 80.0, 90.0, 120.0)
 
 
 def plot_cli(*args):
-    return subprocess.run([sys.executable, "-m", "ellroll_post.cli", *map(str, args)], capture_output=True, text=True)
+    return plot_in_process(*args)
 
 
 @pytest.fixture(scope="module")
