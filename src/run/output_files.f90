@@ -236,9 +236,14 @@ contains
     logical :: replacing
     if (err%failed()) return
     if (self%lock_lost()) then
-      call set_error(err, err_output, self%lock // ': the output''s lock was removed while this process ' // &
-          'wrote it (another run may write ' // self%target // ' now); ' // finished // ' is not moved into ' // &
-          'place, and no file at its names is touched')
+      if (path_kind(folder_of(finished)) == kind_missing) then     ! (the lock went with its folder)
+        call say_folder_lost(finished, self%target // ': cannot move the finished file ' // finished // &
+                             ' into place', err)
+      else
+        call set_error(err, err_output, self%lock // ': the output''s lock was removed while this process ' // &
+            'wrote it (another run may write ' // self%target // ' now); ' // finished // ' is not moved into ' // &
+            'place, and no file at its names is touched')
+      end if
       return
     end if
     call self%check(self%target, work_target, err)
@@ -246,14 +251,7 @@ contains
     replacing = path_kind(self%target) /= kind_missing
     code = sync_path(finished)
     if (code == enoent) then
-      if (path_kind(folder_of(finished)) == kind_missing) then
-        call set_error(err, err_output, finished // ': cannot write it to the disk: its folder ' // &
-            folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
-      else
-        call set_error(err, err_output, finished // ': cannot write it to the disk: it is no longer in its ' // &
-            'folder ' // folder_of(finished) // ' (the folder moved and another made at its name, or the file ' // &
-            'removed, while ellroll wrote in it)')
-      end if
+      call say_folder_lost(finished, finished // ': cannot write it to the disk', err)
       return
     end if
     if (code /= 0) then
@@ -268,14 +266,8 @@ contains
       code = rename_new(finished, self%target)
     end if
     if (code == enoent) then
-      if (path_kind(folder_of(finished)) == kind_missing) then
-        call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
-            ' into place: its folder ' // folder_of(finished) // ' is gone (moved or removed while ellroll wrote in it)')
-      else
-        call set_error(err, err_output, self%target // ': cannot move the finished file ' // finished // &
-            ' into place: it is no longer in its folder ' // folder_of(finished) // ' (the folder moved and ' // &
-            'another made at its name, or the file removed, while ellroll wrote in it)')
-      end if
+      call say_folder_lost(finished, self%target // ': cannot move the finished file ' // finished // ' into place', &
+                           err)
       return
     end if
     if (code /= 0) then
@@ -293,6 +285,20 @@ contains
     if (code /= 0 .and. code /= enoent) call set_error(err, err_output, self%journal // ': the output is ' // &
         'complete, but the journal at its name cannot be removed: ' // system_error_text(code) // '; remove it by hand')
   end subroutine commit
+
+  !> err for a finished file that is not where it was written (`doing`
+  !> failed): its folder gone, or the file no longer in that folder.
+  subroutine say_folder_lost(finished, doing, err)
+    character(len=*), intent(in) :: finished, doing
+    type(error_t), intent(inout) :: err
+    if (path_kind(folder_of(finished)) == kind_missing) then
+      call set_error(err, err_output, doing // ': its folder ' // folder_of(finished) // &
+          ' is gone (moved or removed while ellroll wrote in it)')
+    else
+      call set_error(err, err_output, doing // ': it is no longer in its folder ' // folder_of(finished) // &
+          ' (the folder moved and another made at its name, or the file removed, while ellroll wrote in it)')
+    end if
+  end subroutine say_folder_lost
 
   !> Whether the regular file at path is a file ellroll made of kind `what`
   !> (ours): an output is an HDF5 file that says it is ellroll's and whose

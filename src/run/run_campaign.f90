@@ -204,7 +204,11 @@ contains
     call run%journal%close(err)
     lock_lost = files%lock_lost()       ! (commit then moves nothing, and says why)
     call files%commit(files%partial, err)
-    if (lock_lost) return
+    ! (a lock gone with its folder: the run's files went there too, and the
+    ! advice below says how to finish it; a lock removed by hand: none)
+    if (lock_lost) then
+      if (path_kind(folder_of(files%target)) /= kind_missing) return
+    end if
     ! a write error before the finished file moved into place (closing it:
     ! /switches, metadata; or its sync or rename): the journal keeps every
     ! case, and abandon says so as for an error in the loop; after it,

@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import FULL, run
 from test_fuzz import CRASH_SIGNS
 
 CASE = """&geometry a = 1.0, b = 0.4, c = 0.2 /
@@ -112,10 +112,13 @@ def test_pure_relative_control_of_a_round_off_component_ends_and_never_hangs(ell
     of 1e-101 s were accepted for ever at t = 0 (a case of 1e-8 s never
     ended). Each case ends within the timeout, one and in a batch: a case
     that cannot follow ends 'unstable' at its start, t_final below 1e-12
-    of t_end; atol = 1e-30 completes. Seeded starts."""
+    of t_end; atol = 1e-30 completes. Seeded starts. (The Debug build, 20
+    times slower at its 1e5 round-off attempts, takes the first and the
+    last; all with ELLROLL_TEST_FULL.)"""
     exe = ellroll if build == "release" else ellroll_debug
     rng = np.random.default_rng(6100 + (method == "vern9"))
-    for k, (b, atol, t_end) in enumerate([(1.0, 0.0, 1e-8), (0.999, 0.0, 1.0), (1.0, 1e-100, 0.5), (1.0, 1e-30, 1e-8)]):
+    cases = [(1.0, 0.0, 1e-8), (0.999, 0.0, 1.0), (1.0, 1e-100, 0.5), (1.0, 1e-30, 1e-8)]
+    for k, (b, atol, t_end) in enumerate(cases if build == "release" or FULL else cases[::3]):
         x, y = (float(v) for v in rng.uniform(0.2, 0.5, 2))
         sweep = "&sweep name = 'x', values = 0.3, 0.4 /\n" if k == 1 else ""
         folder = tmp_path / f"c{k}"
