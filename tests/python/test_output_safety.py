@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import FULL, ROOT, in_turn, run
+from conftest import FULL, ROOT, in_turn, plot_in_process, run
 from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes
 
 
@@ -146,18 +146,8 @@ def plotted(ellroll, tmp_path_factory):
 
 
 def plot(folder, *argv):
-    from ellroll_post.cli import main
-    import contextlib
-    import io
-    out, err = io.StringIO(), io.StringIO()
-    cwd = os.getcwd()
-    os.chdir(folder)
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = main(list(argv))
-    finally:
-        os.chdir(cwd)
-    return code, out.getvalue(), err.getvalue()
+    result = plot_in_process(*argv, cwd=folder)
+    return result.returncode, result.stdout, result.stderr
 
 
 @pytest.mark.parametrize("command", PLOT_COMMANDS, ids=[c[0] for c in PLOT_COMMANDS])

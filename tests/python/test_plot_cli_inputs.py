@@ -27,8 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import ellroll_post  # noqa: E402
-from ellroll_post.cli import main as plot_main  # noqa: E402
-from conftest import ROOT, in_turn, run  # noqa: E402
+from conftest import ROOT, in_turn, plot_in_process, run  # noqa: E402
 from test_campaign import kill_after_records, record_bytes  # noqa: E402
 
 CUP = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
@@ -76,17 +75,11 @@ def files(ellroll, tmp_path_factory):
 def cli(*args):
     """ellroll-plot in this process: (exit code, stdout, stderr); a
     traceback is returned as standard error with code 'traceback'."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = plot_main([str(a) for a in args])
-        except SystemExit as exc:          # argparse
-            code = exc.code
-        except Exception as exc:           # noqa: BLE001 - a traceback is the failure asserted against
-            code, err = "traceback", io.StringIO("Traceback (most recent call last):\n" + "".join(
-                traceback.format_exception(exc)))
-    plt.close("all")
-    return code, out.getvalue(), err.getvalue()
+    try:
+        result = plot_in_process(*args)
+    except Exception as exc:           # noqa: BLE001 - a traceback is the failure asserted against
+        return "traceback", "", "Traceback (most recent call last):\n" + "".join(traceback.format_exception(exc))
+    return result.returncode, result.stdout, result.stderr
 
 
 def one_line_error(code, err, *words):
