@@ -288,7 +288,13 @@ def _main(argv=None):
                         "each response over the completed records")
     p.add_argument("--percentiles", choices=["linear", "lognormal"],
                    help="with --suite: numpy's linear percentiles (default) or those of a fitted lognormal")
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        # said by the parser they were given to: after the subcommand, its own (its name, its --help)
+        words = [str(word) for word in (sys.argv[1:] if argv is None else argv)]
+        first = words.index(unknown[0]) if unknown[0] in words else len(words)
+        given_to = sub.choices[args.command] if args.command in words[:first] else parser
+        given_to.error(f"unrecognized arguments: {' '.join(unknown)}")
     for option in ("case", "bootstrap", "seed"):
         # (argparse hands `--seed=--` over as [] without its type's check)
         value = getattr(args, option, None)

@@ -535,3 +535,16 @@ def test_a_file_name_not_utf8_or_with_dollars_is_drawn_as_it_is(files, tmp_path,
     assert f"/{shown}</title>" in page
     for link in re.findall(r'<img src="([^"]+)"', page):
         assert (report / os.fsdecode(urllib.parse.unquote_to_bytes(link))).is_file(), link
+
+
+def test_an_unknown_option_is_named_by_the_subcommand_it_follows(files, tmp_path):
+    """`ellroll-plot SUBCOMMAND FILE --no-such 3` (every subcommand): one
+    line, exit 2, naming the subcommand and its --help, as its other option
+    errors do; an unknown option before the subcommand is ellroll-plot's."""
+    for command in SUBCOMMANDS:
+        source = files / ("suite.h5" if command in ("suite", "fragility") else "whole.h5")
+        code, _, err = cli(*arguments(command, source, tmp_path / "out"), "--no-such", 3)
+        one_line_error(code, err, f"ellroll-plot {command}: error: unrecognized arguments: --no-such 3",
+                       f"(see 'ellroll-plot {command} --help')")
+    code, _, err = cli("--no-such", "summary", files / "whole.h5")
+    one_line_error(code, err, "ellroll-plot: error: unrecognized arguments: --no-such", "(see 'ellroll-plot --help')")
