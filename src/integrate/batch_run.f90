@@ -24,7 +24,7 @@ module ellroll_batch_run
   use ellroll_excitation, only: longest_step
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
-      track_rolling_resistance, settled, last_fixed_step, fixed_step_time
+      track_rolling_resistance, settled, regular_steps, last_fixed_step, fixed_step_time
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
   use ellroll_adaptive_run, only: stop_in_step, record_samples_until, screen_and_peaks, project_lanes
@@ -174,7 +174,7 @@ contains
       do l = 1, lanes
         i = merge(l, donor, active(l))
         h(l) = cases(i)%param(p_dt)
-        n_steps(l) = nint(cases(i)%t_end / cases(i)%param(p_dt), i8)
+        n_steps(l) = regular_steps(cases(i))
         n_last(l) = last_fixed_step(cases(i), run(i))
         every(l) = steps_per_sample(cases(i), plan)
         if (l <= n) active(l) = active(l) .and. n_last(l) > 0

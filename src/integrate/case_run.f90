@@ -37,7 +37,7 @@ module ellroll_case_run
   private
 
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, stopping, &
-            latest_end, settled, last_fixed_step, fixed_step_time, reach_stop
+            latest_end, settled, regular_steps, last_fixed_step, fixed_step_time, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
             accumulate, record_sample, record_geometry_sample, stored
 
@@ -236,12 +236,18 @@ contains
     end if
   end subroutine reach_stop
 
+  !> The fixed steps (of dt) from 0 to t_end, a whole number of them.
+  pure integer(i8) function regular_steps(cs)
+    type(case_t), intent(in) :: cs
+    regular_steps = nint(cs%t_end / cs%param(p_dt), i8)
+  end function regular_steps
+
   !> The last fixed step (of dt) case cs may take: t_end's, or latest_end's
   !> where it settles past t_end.
   pure integer(i8) function last_fixed_step(cs, run) result(n_last)
     type(case_t), intent(in) :: cs
     type(run_state_t), intent(in) :: run
-    n_last = nint(cs%t_end / cs%param(p_dt), i8)
+    n_last = regular_steps(cs)
     if (latest_end(cs, run) > cs%t_end) n_last = max(nint(latest_end(cs, run) / cs%param(p_dt), i8), n_last)
   end function last_fixed_step
 
@@ -254,7 +260,7 @@ contains
     integer(i8), intent(in) :: steps
     real(wp), intent(in) :: t
     fixed_step_time = t
-    if (steps == nint(cs%t_end / cs%param(p_dt), i8)) fixed_step_time = cs%t_end
+    if (steps == regular_steps(cs)) fixed_step_time = cs%t_end
   end function fixed_step_time
 
   !> Whether the ball is at rest for good at the step end t just tracked:

@@ -18,7 +18,8 @@ module ellroll_fixed_step_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_gauss4, only: gauss4_t
-  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, last_fixed_step, fixed_step_time
+  use ellroll_case_run, only: run_state_t, track, record_sample, stop_asked, stopping, settled, &
+      regular_steps, last_fixed_step, fixed_step_time
   use ellroll_flow_to_limit, only: follow_flow_to_limit
   use ellroll_params, only: p_dt
   implicit none
@@ -52,7 +53,7 @@ contains
     integer(i8) :: k, n_steps, n_last, every, sample
     integer :: status, event
 
-    n_steps = nint(cs%t_end / cs%param(p_dt), i8)
+    n_steps = regular_steps(cs)
     n_last = last_fixed_step(cs, run)     ! past t_end (settle): on until the ball is at rest
     every = steps_per_sample(cs, plan)
     t = 0

@@ -28,7 +28,8 @@ module ellroll_slide_run
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
   use ellroll_fixed_step_run, only: checkpoint_steps, older_checkpoint_step
-  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, last_fixed_step, fixed_step_time
+  use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, regular_steps, last_fixed_step, &
+      fixed_step_time
   use ellroll_adaptive_run, only: adaptive_loop
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
@@ -178,7 +179,7 @@ contains
     !> and the switches made before each
     type(regime_state_t) :: checkpoint, older_checkpoint
     integer :: switches_at_checkpoint, switches_at_older
-    n_steps = nint(cs%t_end / cs%param(p_dt), i8)
+    n_steps = regular_steps(cs)
     n_last = last_fixed_step(cs, run)     ! past t_end (settle): on until the ball is at rest
     every = steps_per_sample(cs, plan)
     t = 0

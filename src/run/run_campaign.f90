@@ -207,7 +207,7 @@ contains
     ! (a lock gone with its folder: the run's files went there too, and the
     ! advice below says how to finish it; a lock removed by hand: none)
     if (lock_lost) then
-      if (path_kind(folder_of(files%target)) /= kind_missing) return
+      if (.not. folder_gone(files)) return
     end if
     ! a write error before the finished file moved into place (closing it:
     ! /switches, metadata; or its sync or rename): the journal keeps every
@@ -232,9 +232,15 @@ contains
   !> journal is not there.
   logical function moved_away(files)
     type(output_files_t), intent(in) :: files
-    moved_away = path_kind(folder_of(files%target)) == kind_missing
+    moved_away = folder_gone(files)
     if (.not. moved_away) moved_away = path_kind(files%journal) == kind_missing
   end function moved_away
+
+  !> Whether the output's folder is gone (moved or removed, no other at its name).
+  logical function folder_gone(files)
+    type(output_files_t), intent(in) :: files
+    folder_gone = path_kind(folder_of(files%target)) == kind_missing
+  end function folder_gone
 
   !> Integrate the slots of one block not done yet, write their trajectories
   !> and journal records, then hand their table rows to the writer: each

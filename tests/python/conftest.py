@@ -34,6 +34,8 @@ def pairs_in_turn(first, second):
         return [(a, b) for a in first for b in second]
     count = max(len(first), len(second))
     return [(first[k % len(first)], second[k % len(second)]) for k in range(count)]
+
+
 PAPER_INPUT = ROOT / "input" / "legeza1990.nml"
 
 
