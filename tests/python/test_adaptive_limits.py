@@ -108,9 +108,9 @@ def test_pure_relative_control_of_a_round_off_component_ends_and_never_hangs(ell
                                                                             build, method):
     """A ball at rest off the axis of a cup of revolution (a = b, or b =
     0.999 a), atol = 0 or 1e-100: a component that symmetry keeps at zero
-    holds round-off, which pure relative control can never accept, and steps
-    of 1e-101 s were accepted for ever at t = 0 (a case of 1e-8 s never
-    ended). Each case ends within the timeout, one and in a batch: a case
+    holds round-off, which pure relative control can never accept: its
+    steps shrink to 1e-101 s and less at t = 0, where 16 ulp of t bound
+    none. Each case ends within the timeout, one and in a batch: a case
     that cannot follow ends 'unstable' at its start, t_final below 1e-12
     of t_end; atol = 1e-30 completes. Seeded starts. (The Debug build, 20
     times slower at its 1e5 round-off attempts, takes the first and the

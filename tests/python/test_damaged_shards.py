@@ -217,8 +217,8 @@ def test_tables_declared_longer_than_any_campaign_are_refused_in_one_line(ellrol
     """A file whose tables say they hold more rows than the 1e8 cases of any
     campaign (another program's rewrite; a few MB on the disk): `ellroll
     summary` (every format) and `merge` refuse it in one line naming it,
-    exit 2, before reading its tables whole (80 GB at 1e10 rows: the
-    allocation failed with a backtrace), and merge leaves nothing."""
+    exit 2, before reading its tables whole (80 GB at 1e10 rows, more than
+    the memory holds), and merge leaves nothing."""
     folder, _ = shards
     declared_rows(folder / "s1.h5", tmp_path / "big.h5", rows)
     shutil.copy(folder / "s0.h5", tmp_path / "s0.h5")
