@@ -11,7 +11,7 @@ module ellroll_adaptive_run
   use ellroll_status, only: status_pending, status_completed, status_no_fit, status_rim, status_unstable, status_slip
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
-  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, rest_rate, rolling_part, &
+  use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
       ball_derivative, normalize_normal
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
@@ -223,7 +223,6 @@ contains
     end if
     call project_with_rate(y_new, pair%k(:state_size, pair%end_stage()), f_new)
     if (event /= 0) then
-      call dense_short_of_stop(pair, run%ball, t, y, f, h, y_new, res%n_rhs)
       if (turn_resolved(run%ball, t + h, y_new, f_new, h, pair%atol + pair%rtol)) then
         call run%ball%begin_step(y_new)          ! the rolling turned in 3D: on along its new direction
       else
@@ -235,34 +234,6 @@ contains
     call observe(run%ball, t + h, y_new, f_new, obs)
     status = limit_status(run%ball, y_new, obs)
   end subroutine attempt_step
-
-  !> An attempt from (t, y, f) that ends where the rolling stops (at y_new,
-  !> shorten_to_event) has its last stages there, at omega_t near 0, where
-  !> the couple's law is a resting ball's (against the drive), not the
-  !> flow's up to the stop: the step's end does not take them (their
-  !> weights are 0), its interpolant does (samples inside the step up to
-  !> 4e-3 rad/s off in omega, the couple's work over it 1e-6 of itself).
-  !> The pair then holds, for its dense output, the attempt that ends short
-  !> of the stop by 2^-30 of the step (16 times that, and on, while omega_t
-  !> there is within 100 rest rates), the step's own error norm kept (the
-  !> step control's); the points between there and the stop lie on its
-  !> polynomial a hair past its end.
-  subroutine dense_short_of_stop(pair, ball, t, y, f, h, y_new, n_rhs)
-    class(embedded_pair_t), intent(inout) :: pair
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, y(state_size), f(state_size), h, y_new(state_size)
-    integer(i8), intent(inout) :: n_rhs
-    real(wp) :: short(state_size), error_norm
-    integer :: k
-    if (norm2(rolling_part(y_new)) > 100 * rest_rate(ball, y_new)) return     ! (a turn: its stages roll)
-    error_norm = pair%error_norm
-    do k = 1, 8
-      call pair_ball_step(pair, ball, t, y, f, h * (1 - 2.0_wp**(4 * k - 34)), short)
-      n_rhs = n_rhs + pair%attempt_calls()
-      if (norm2(rolling_part(short)) > 100 * rest_rate(ball, short)) exit
-    end do
-    pair%error_norm = error_norm
-  end subroutine dense_short_of_stop
 
   !> The attempt of size h from (t, y, f), which ended at y_new past an
   !> event of the model (event_crossed), cut to end where the event's

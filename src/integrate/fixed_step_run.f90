@@ -13,8 +13,8 @@ module ellroll_fixed_step_run
   use ellroll_cases, only: case_t, output_plan_t, steps_per_sample
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: observation_t, state_size, observe, limit_status, ball_derivative, normalize_normal, &
-      choose_rolling_law, law_exact, law_held, event_rest, at_rest
-  use ellroll_turns, only: turn_resolved
+      law_exact, law_held, event_rest, at_rest
+  use ellroll_turns, only: turn_resolved, choose_rolling_law
   use ellroll_integrators, only: integrator_t, embedded_pair_t, stability_limit
   use ellroll_ball_steppers, only: ball_fixed_step
   use ellroll_gauss4, only: gauss4_t

@@ -264,7 +264,7 @@ contains
     real(wp) :: inv_length, n1, n2, n3, g1, g2, g3, t1, t2, t3, normal_force, resistance, spin, o1, o2, o3, rate, rest
     real(wp) :: d1, d2, d3, drive_size, inertia, divisor, quotient, e1, e2, e3, m, r
     real(wp) :: along, a1, a2, a3, ahead_size
-    logical :: rolling, past, held, resists, ahead, by_mode
+    logical :: moving, rolling, past, held, resists, ahead, by_mode
     integer :: l, i
     do l = 1, p%width
       r = p%radius(l)
@@ -287,8 +287,9 @@ contains
       o3 = y(l, 6) - spin * n3
       rate = sqrt(o1 * o1 + o2 * o2 + o3 * o3)
       rest = 1.0e-12_wp * (p%rest_scale(l) + sqrt(y(l, 4) * y(l, 4) + y(l, 5) * y(l, 5) + y(l, 6) * y(l, 6)))
-      rolling = rate > rest
-      past = o1 * p%rolling_mode(l, 1) + o2 * p%rolling_mode(l, 2) + o3 * p%rolling_mode(l, 3) < 0
+      moving = rate > rest
+      rolling = moving .or. (p%rolls(l) > 0 .and. p%law(l) < 1.5_wp)     ! (at the stop: the flow's law)
+      past = o1 * p%rolling_mode(l, 1) + o2 * p%rolling_mode(l, 2) + o3 * p%rolling_mode(l, 3) < 0 .or. .not. moving
       ! the step's law: law_implicit against omega_t + h F_t (rolling_rate's
       ! F_t, from dydt without the couple), law_held against the mode
       along = dydt(l, 4) * n1 + dydt(l, 5) * n2 + dydt(l, 6) * n3

@@ -27,7 +27,7 @@ module ellroll_rolling_ball
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, horizontal_force_scaled, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
-            choose_rolling_law, rolling_rate, stiff_rolling, rest_rate, rolling_part
+            rolling_rate, rest_rate, rolling_part, couple_inertia
 
   !> How a fixed step directs the couple of rolling resistance
   !> (choose_rolling_law): against the rolling part of omega as it is
@@ -134,13 +134,14 @@ contains
   !> where the equations hold, the rim not reached and the ball fitting the
   !> cup, from the same q, sigma and P (fit_indicator). base, when given: the
   !> cup's acceleration at t (two stages at one time look it up once).
-  pure subroutine ball_derivative(ball, t, y, dydt, fits, base)
+  pure subroutine ball_derivative(ball, t, y, dydt, fits, base, resting)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t
     real(wp), intent(in) :: y(state_size)
     real(wp), intent(out) :: dydt(state_size)
     logical, intent(out), optional :: fits
     real(wp), intent(in), optional :: base(3)
+    logical, intent(in), optional :: resting   !< at rest, the couple a resting ball's whatever the step's mode
     real(wp) :: r, length2, length, inv_length2, ay(3), q, sigma, r_sigma, pq, e, denominator, w(3), ay_w, m(3), x(3)
     real(wp) :: rate
     r = ball%radius
@@ -178,7 +179,7 @@ contains
         end if
       end if
     end associate
-    if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt, base)
+    if (ball%rolling_resistance > 0) call resist_rolling(ball, t, y, length, dydt, base, resting)
   end subroutine ball_derivative
 
   !> The couple of rolling resistance, delta N against the rolling part
@@ -192,13 +193,15 @@ contains
   !> The sums and norms are written out in the order the batch's
   !> lanes_resist_rolling takes them (base: the cup's acceleration at t,
   !> when known).
-  pure subroutine resist_rolling(ball, t, y, length, dydt, base)
+  pure subroutine resist_rolling(ball, t, y, length, dydt, base, resting)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size), length
     real(wp), intent(inout) :: dydt(state_size)
     real(wp), intent(in), optional :: base(3)
+    logical, intent(in), optional :: resting
     real(wp) :: n(3), omega_t(3), gravity(3), drive(3), turn(3), normal_force, resistance, rate, drive_size, inv_length
     real(wp) :: ahead(3), ahead_size
+    logical :: moving, flows
     inv_length = 1 / length
     n = y(1:3) * inv_length
     gravity = [0.0_wp, 0.0_wp, -ball%g]
@@ -215,7 +218,12 @@ contains
     resistance = ball%rolling_resistance * max(normal_force, 0.0_wp)
     omega_t = y(4:6) - (y(4) * n(1) + y(5) * n(2) + y(6) * n(3)) * n
     rate = sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3))
-    if (rate > rest_rate(ball, y)) then
+    moving = rate > rest_rate(ball, y)
+    ! a stage at the stop of a step that began rolling keeps the flow's law (against the mode), so
+    ! that the step's stages and interpolant are smooth up to the stop
+    flows = ball%rolling_law /= law_implicit .and. sum(ball%rolling_mode**2) > 0
+    if (present(resting)) flows = flows .and. .not. resting
+    if (moving .or. flows) then
       if (ball%rolling_law == law_implicit) then
         ! against omega_t + h F_t, F_t from dydt without the couple (yet)
         ahead = omega_t + ball%law_step * rolling_rate(y, dydt)
@@ -225,9 +233,9 @@ contains
         else
           dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
         end if
-      else if (ball%rolling_law == law_held .or. omega_t(1) * ball%rolling_mode(1) + omega_t(2) * ball%rolling_mode(2) &
-               + omega_t(3) * ball%rolling_mode(3) < 0) then
-        ! held, or past the stop inside the step cut there
+      else if (ball%rolling_law == law_held .or. .not. moving .or. omega_t(1) * ball%rolling_mode(1) &
+               + omega_t(2) * ball%rolling_mode(2) + omega_t(3) * ball%rolling_mode(3) < 0) then
+        ! held, or at or past the stop inside the step cut there
         dydt(4:6) = dydt(4:6) - (resistance / couple_inertia(ball)) * ball%rolling_mode
       else
         dydt(4:6) = dydt(4:6) - (resistance / (rate * couple_inertia(ball))) * omega_t
@@ -272,7 +280,7 @@ contains
     if (.not. ball%rolling_resistance > 0) return
     omega_t = rolling_part(y)
     if (sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3)) > rest_rate(ball, y)) return
-    call ball_derivative(ball, t, y, dydt)
+    call ball_derivative(ball, t, y, dydt, resting=.true.)
     at_rest = all(is_zero(dydt))
   end function at_rest
 
@@ -311,81 +319,6 @@ contains
     self%rolling_law = law_exact
     if (self%rolling_resistance > 0) call set_rolling_mode(self, y)
   end subroutine ball_begin_step
-
-  !> The law of the couple for a fixed step h from (t, y), f = the
-  !> derivative there with the couple against omega_t (after begin_step):
-  !> where its direction would turn faster than the step (stiff_rolling:
-  !> C h > |omega_t|, C the couple over the rolling inertia), law_implicit
-  !> where the implicit Euler step's rolling part, omega_t + h F_t, is
-  !> longer than C h and F_t leans the way the ball rolls (the ball rolls
-  !> on through the step: the couple against where it goes), else law_held
-  !> (it stops inside the step: the couple against where it went; the stop
-  !> event locates it). docs/model.md, "Rolling resistance".
-  pure subroutine choose_rolling_law(ball, t, y, f, h, release)
-    type(rolling_ball_t), intent(inout) :: ball
-    real(wp), intent(in) :: t, y(state_size), f(state_size), h
-    logical, intent(in), optional :: release   !< a step from rest that the couple lets go: law_implicit (released)
-    real(wp) :: couple, free(3), ahead(3)
-    logical :: stiff
-    ball%rolling_law = law_exact
-    if (present(release)) then
-      if (release) call released(ball, y, f, h)
-      if (ball%rolling_law /= law_exact) return
-    end if
-    call stiff_rolling(ball, t, y, f, h, couple, stiff)
-    if (.not. stiff) return
-    free = rolling_rate(y, f) + couple * ball%rolling_mode        ! f's couple taken out
-    ahead = ball%rolling_at_start + h * free
-    ball%law_step = h
-    ball%rolling_law = law_held
-    if (sqrt(ahead(1) * ahead(1) + ahead(2) * ahead(2) + ahead(3) * ahead(3)) > couple * h .and. &
-        ball%rolling_at_start(1) * free(1) + ball%rolling_at_start(2) * free(2) &
-        + ball%rolling_at_start(3) * free(3) > 0) ball%rolling_law = law_implicit
-  end subroutine choose_rolling_law
-
-  !> A step h from rest that the couple does not hold (f: the derivative):
-  !> the couple's direction turns at C / |omega_t|, without bound at the
-  !> start, so it acts against omega_t + h F_t (law_implicit along the
-  !> drive), whose rate C / |h F_t| < 1 / h gauss4's stages can solve.
-  !> Held (f = 0) or rolling: law_exact.
-  pure subroutine released(ball, y, f, h)
-    type(rolling_ball_t), intent(inout) :: ball
-    real(wp), intent(in) :: y(state_size), f(state_size), h
-    real(wp) :: start(3), rate
-    ball%rolling_law = law_exact
-    if (.not. ball%rolling_resistance > 0 .or. sum(ball%rolling_mode**2) > 0) return
-    start = rolling_rate(y, f)
-    rate = sqrt(start(1) * start(1) + start(2) * start(2) + start(3) * start(3))
-    if (.not. rate > 0) return
-    ball%rolling_mode = start / rate
-    ball%law_step = h
-    ball%rolling_law = law_implicit
-  end subroutine released
-
-  !> Whether a step h from (t, y), f the derivative there, is one in which
-  !> the couple's direction turns faster than the step (stiff): the ball
-  !> rolls (begin_step's mode) and C h > |omega_t|, couple = C = delta N /
-  !> (m R^2 (1 + k)) (N as resist_rolling takes it, from f's n').
-  pure subroutine stiff_rolling(ball, t, y, f, h, couple, stiff)
-    type(rolling_ball_t), intent(in) :: ball
-    real(wp), intent(in) :: t, y(state_size), f(state_size), h
-    real(wp), intent(out) :: couple
-    logical, intent(out) :: stiff
-    real(wp) :: n(3), gravity(3), turn(3), inv_length
-    couple = 0
-    stiff = .false.
-    if (.not. (ball%rolling_resistance > 0 .and. sum(ball%rolling_mode**2) > 0)) return
-    inv_length = 1 / sqrt(y(1) * y(1) + y(2) * y(2) + y(3) * y(3))
-    n = y(1:3) * inv_length
-    gravity = [0.0_wp, 0.0_wp, -ball%g]
-    if (ball%excitation%kind /= excitation_none) gravity = gravity - base_acceleration(ball%excitation, t)
-    turn = cross(f(1:3), n)
-    couple = ball%rolling_resistance * max(ball%mass * (ball%radius * (y(4) * turn(1) + y(5) * turn(2) &
-             + y(6) * turn(3)) * inv_length - (gravity(1) * n(1) + gravity(2) * n(2) + gravity(3) * n(3))), 0.0_wp) &
-             / couple_inertia(ball)
-    stiff = couple * h > sqrt(ball%rolling_at_start(1) * ball%rolling_at_start(1) &
-            + ball%rolling_at_start(2) * ball%rolling_at_start(2) + ball%rolling_at_start(3) * ball%rolling_at_start(3))
-  end subroutine stiff_rolling
 
   !> The rate of the rolling part omega_t = omega - (omega . n) n at y
   !> with derivative f: its projection on the tangent plane less (omega .
@@ -439,7 +372,9 @@ contains
     class(rolling_ball_t), intent(inout) :: self
     integer, intent(in) :: event
     real(wp), intent(inout), contiguous :: y(:)
-    if (event == event_rest .and. self%rolling_resistance > 0) call come_to_rest(y)
+    if (.not. (event == event_rest .and. self%rolling_resistance > 0)) return
+    call come_to_rest(y)
+    call set_rolling_mode(self, y)        ! (at rest: no mode)
   end subroutine ball_apply_event
 
   !> With rolling resistance, whether the rolling stops inside a step from
