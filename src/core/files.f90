@@ -9,7 +9,7 @@ module ellroll_files
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
-            lock_held, holder_line, host_name, process_id, text_of
+            lock_held, holder_line, resume_advice, host_name, process_id, text_of
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
 
   !> The longest path a command takes (Linux's PATH_MAX): the files of its
@@ -239,6 +239,33 @@ contains
     if (index(note, achar(10)) > 0) note = note(:index(note, achar(10)) - 1)
     if (len_trim(note) == 0) note = 'starting'
   end subroutine holder_line
+
+  !> How to finish the unfinished run of `output` whose lock's note is
+  !> `note` ('' where none could be read): run the command the note names
+  !> again with --resume (without --overwrite, which a resume refuses), or
+  !> a merge again as it stands.
+  pure function resume_advice(output, note) result(advice)
+    character(len=*), intent(in) :: output, note
+    character(len=:), allocatable :: advice, command
+    integer :: at
+    command = note
+    call holder_line(command)
+    at = index(command, ': ellroll ')
+    if (at == 0) then
+      advice = "finish it with 'ellroll run INPUT -o " // output // " --resume' (the run's input and options)"
+      return
+    end if
+    command = trim(command(at + 2:)) // ' '
+    if (index(command, 'ellroll merge ') == 1) then
+      advice = "finish it by running '" // trim(command) // "' again (the command " // output // &
+               ".lock names, from its folder)"
+      return
+    end if
+    at = index(command, ' --overwrite ')
+    if (at > 0) command = command(:at) // command(at + len(' --overwrite '):)
+    if (index(command, ' --resume ') == 0) command = command // '--resume '
+    advice = "finish it with '" // trim(command) // "' (the command " // output // ".lock names, from its folder)"
+  end function resume_advice
 
   !> Release a lock of lock_output (its file removed first): 0 or an errno value.
   integer function unlock_output(fd, path)

@@ -289,8 +289,9 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
 
 /* Whether another process holds the lock of an output at path (fcntl
  * F_GETLK: nothing taken, so a resume starting meanwhile is not refused):
- * 1 with its note copied into holder (null-terminated), 0 where no lock
- * file of ellroll's is held there (none, not a regular file, a link). */
+ * 1, or 0 where no lock file of ellroll's is held there (none, not a
+ * regular file, a link); a regular file's note is copied into holder
+ * (null-terminated), held or not (a killed run's names its command). */
 int ellroll_lock_held(const char *path, char *holder, int size)
 {
     holder[0] = '\0';
@@ -305,9 +306,9 @@ int ellroll_lock_held(const char *path, char *holder, int size)
     memset(&lock, 0, sizeof lock);
     lock.l_type = F_WRLCK;
     lock.l_whence = SEEK_SET;
-    int held = fstat(fd, &info) == 0 && S_ISREG(info.st_mode) && fcntl(fd, F_GETLK, &lock) == 0
-               && lock.l_type != F_UNLCK;
-    if (held) {
+    int regular = fstat(fd, &info) == 0 && S_ISREG(info.st_mode);
+    int held = regular && fcntl(fd, F_GETLK, &lock) == 0 && lock.l_type != F_UNLCK;
+    if (regular) {
         ssize_t got = pread(fd, holder, (size_t)(size - 1), 0);
         holder[got > 0 ? got : 0] = '\0';
     }

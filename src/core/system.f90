@@ -1,7 +1,7 @@
 !> The few operating-system services the program needs, through the C library.
 module ellroll_system
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_size_t, c_ptr, &
-      c_null_ptr, c_associated, c_int64_t
+      c_null_ptr, c_associated, c_int64_t, c_loc
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: itoa
   implicit none
@@ -273,10 +273,23 @@ contains
         code = read_text(fd, text)
         if (code > 0) reason = 'cannot read ' // path // ': ' // system_error_text(code)
         if (code < 0) reason = path // ': the file shrank while it was read'
+        if (code == 0) then
+          if (.not. ends_at(fd, bytes)) reason = path // ': the file holds more than its size (' // &
+              itoa(bytes) // ' bytes): it grew while it was read, or it is not a file on a disk (/proc, /sys); ' // &
+              what // ' is read from a regular file'
+        end if
       end if
     end if
     code = close_descriptor(fd)
   end subroutine read_whole_file
+
+  !> Whether the file open as fd ends at byte `bytes` (nothing there to read).
+  logical function ends_at(fd, bytes)
+    integer, intent(in) :: fd
+    integer(i8), intent(in) :: bytes
+    character(kind=c_char), target :: past(1)
+    ends_at = read_at(fd, c_loc(past), 1_i8, bytes) /= 0
+  end function ends_at
 
   !> The first len(text) bytes of the file open as fd: 0, an errno value,
   !> or -1 where the file ends first.

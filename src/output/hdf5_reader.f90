@@ -14,7 +14,7 @@ module ellroll_hdf5_reader
   use ellroll_cases, only: field_count, field_names, field_ncomp, field_descriptions
   use ellroll_campaign, only: max_cases
   use ellroll_results, only: case_result_t, summary_record, set_summary_value
-  use ellroll_files, only: path_kind, kind_missing, lock_held, holder_line
+  use ellroll_files, only: path_kind, kind_missing, lock_held, holder_line, resume_advice
   use ellroll_system, only: open_regular_file, file_type_words, close_descriptor
   use ellroll_hdf5_common, only: hdf5_reason, note_failed_close, select_slab, new_text_type, hdf5_quiet, &
       forget_system_failure, system_failure, file_identity
@@ -144,8 +144,8 @@ contains
           ! (no process has it open: its writer stopped before closing it)
           self%unfinished = .true.
           call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
-              "closed the file: killed?); finish it with the command " // lock_of(path) // &
-              ' names, from its folder (a run with --resume; a merge again, as it stands); do not h5clear it')
+              "closed the file: killed?); " // resume_advice(path(:len(path) - trimmed(path)), holder) // &
+              ', then read ' // path(:len(path) - trimmed(path)) // '; do not h5clear it')
         end if
       else if (index(reason, 'HDF5: ') /= 1) then      ! the system's reason
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)

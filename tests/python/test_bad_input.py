@@ -128,6 +128,17 @@ def test_empty_file(ellroll, tmp_path):
     assert result.returncode == 2 and "empty.nml:1: the file is empty" in result.stderr
 
 
+@pytest.mark.parametrize("path", ["/proc/self/status", "/proc/self/environ", "/proc/cpuinfo"])
+def test_a_file_that_holds_more_than_its_size_is_refused_as_such(ellroll, tmp_path, path):
+    """procfs gives its files size 0 and text: not 'empty', but not a file on a disk."""
+    for command in ("check", "run"):
+        result = run(ellroll, command, path, cwd=tmp_path)
+        assert result.returncode == 2, result.stderr
+        assert f"{path}: the file holds more than its size (0 bytes)" in result.stderr, result.stderr
+        assert "regular file" in result.stderr and len(result.stderr.splitlines()) == 1, result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 # Every list input of the namelist, a number that is not finite (each
 # spelling gfortran reads) at its first, a middle and its last place: the
 # list is refused, naming the value and its place. (A trailing NaN is where

@@ -332,12 +332,33 @@ def test_a_killed_runs_work_file_says_resume(killed, tmp_path, command):
 
 
 def test_ellroll_summary_of_a_killed_runs_work_file_says_resume(ellroll, killed):
-    """`ellroll summary` on the killed run's OUT.h5.partial names its lock
-    and --resume, not HDF5's advice to h5clear it."""
+    """`ellroll summary` on the killed run's OUT.h5.partial names the command
+    its lock holds, with --resume, as ellroll-plot does (the same words);
+    not HDF5's advice to h5clear it."""
     result = subprocess.run([str(ellroll), "summary", "k.h5.partial"], cwd=killed, capture_output=True, text=True)
     assert result.returncode == 3, result.stderr
-    assert "k.h5.partial: an unfinished run's work file" in result.stderr and "--resume" in result.stderr
-    assert "k.h5.lock" in result.stderr and "h5clear file" not in result.stderr, result.stderr
+    assert "k.h5.partial: an unfinished run's work file" in result.stderr and "h5clear file" not in result.stderr
+    advice = "finish it with 'ellroll run k.nml -q --threads 1 --resume' (the command k.h5.lock names, from its folder)"
+    assert f"{advice}, then read k.h5; do not h5clear it" in result.stderr, result.stderr
+    _, _, err = cli("summary", killed / "k.h5.partial")
+    assert "finish it with 'ellroll run k.nml -q --threads 1 --resume' (the command " in err, err
+
+
+def test_ellroll_summary_of_a_killed_run_without_its_lock_names_the_generic_command(ellroll, killed, tmp_path):
+    """Without a lock of ellroll's beside it (none, or a FIFO there, not
+    read): the generic command, at once."""
+    shutil.copy(killed / "k.h5.partial", tmp_path / "k.h5.partial")
+    for lock in ("none", "fifo"):
+        if lock == "fifo":
+            os.mkfifo(tmp_path / "k.h5.lock")
+        result = subprocess.run([str(ellroll), "summary", "k.h5.partial"], cwd=tmp_path, capture_output=True,
+                                text=True, timeout=20)
+        assert result.returncode == 3, result.stderr
+        assert "finish it with 'ellroll run INPUT -o k.h5 --resume' (the run's input and options)" in result.stderr
+    os.remove(tmp_path / "k.h5.lock")       # a lock naming a run with --overwrite, which a resume refuses
+    (tmp_path / "k.h5.lock").write_text("ellroll lock\nnode7 pid 4242: ellroll run k.nml --overwrite -q\n")
+    result = subprocess.run([str(ellroll), "summary", "k.h5.partial"], cwd=tmp_path, capture_output=True, text=True)
+    assert "finish it with 'ellroll run k.nml -q --resume' (the command k.h5.lock names" in result.stderr, result.stderr
 
 
 def test_the_reader_says_resume_and_so_does_it_after_h5clear(killed, tmp_path):
@@ -516,5 +537,6 @@ def test_a_killed_merge_s_work_file_says_run_it_again(ellroll, killed, tmp_path)
                    "finish it by running 'ellroll merge m.h5 s0.h5 s1.h5' again", "then read", "m.h5")
     assert "--resume" not in err
     result = subprocess.run([str(ellroll), "summary", "m.h5.partial"], cwd=tmp_path, capture_output=True, text=True)
-    assert result.returncode == 3 and "m.h5.lock names" in result.stderr, result.stderr
-    assert "a merge again, as it stands" in result.stderr and "'ellroll run INPUT --resume'" not in result.stderr
+    assert result.returncode == 3, result.stderr
+    assert ("finish it by running 'ellroll merge m.h5 s0.h5 s1.h5' again (the command m.h5.lock names, from its "
+            "folder), then read m.h5") in result.stderr and "--resume" not in result.stderr, result.stderr
