@@ -11,7 +11,7 @@ module ellroll_ball_steppers
   use ellroll_excitation, only: excitation_none, base_acceleration
   use ellroll_integrator, only: integrator_t
   use ellroll_rk4, only: rk4_t
-  use ellroll_embedded_pair, only: embedded_pair_t, width, max_pair_stages
+  use ellroll_embedded_pair, only: embedded_pair_t, width, max_pair_stages, stage_clamp
   use ellroll_ball_lanes, only: lanes, ball_lanes_t, lane_outputs_t, lanes_derivative, lanes_observe
   use ellroll_excitation_lanes, only: excitation_lanes_t
   use ellroll_status, only: status_completed
@@ -21,14 +21,6 @@ module ellroll_ball_steppers
   public :: ball_fixed_step, rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_fixed_step, lanes_rk4_step, &
             lanes_pair_attempt, lanes_pair_dense_stages
 
-  !> An embedded pair's stage input is held within +-stage_clamp in every
-  !> component. Only a step far too long for the motion leaves that range
-  !> (|n| is 1 at a step's start, and no valid case turns at 1e20 rad/s):
-  !> Hairer's starting step may move the state by more than its own size,
-  !> and the quadratic growth of omega' then takes the later stages past
-  !> overflow. Clamped, they stay finite (the model's terms are of degree
-  !> five at most in the state), and the error norm rejects the attempt.
-  real(wp), parameter :: stage_clamp = 1.0e20_wp
 
 contains
 

@@ -59,6 +59,16 @@ module ellroll_embedded_pair
   !> short enough step of any error: ellroll_step_control's judged_norm).
   real(wp), parameter, public :: tolerance_ratio_cap = 1.0e150_wp
 
+  !> An embedded pair's stage input is held within +-stage_clamp in every
+  !> component (every system's: the ball rolling or sliding). Only a step
+  !> far too long for the motion leaves that range (|n| is 1 at a step's
+  !> start, and no valid case turns at 1e20 rad/s or slides at 1e20 m/s):
+  !> Hairer's starting step may move the state by more than its own size,
+  !> and the quadratic growth of omega' then takes the later stages past
+  !> overflow. Clamped, they stay finite (the model's terms are of degree
+  !> five at most in the state), and the error norm rejects the attempt.
+  real(wp), parameter, public :: stage_clamp = 1.0e20_wp
+
   !> What the run loops need to know of an embedded pair beyond its
   !> arithmetic: stage end_stage is f(t + h, y_new), the dense-output stages
   !> follow it up to stages_dense; the error estimate is O(h^control_order),
@@ -184,6 +194,7 @@ contains
     self%k(:n, 1) = f0
     do s = 2, self%end_stage()                ! the last stage input is y_new
       call self%stage_columns(s, 1, self%k, start, steps, stage)
+      if (.not. all(abs(stage(:n)) <= stage_clamp)) stage(:n) = min(max(stage(:n), -stage_clamp), stage_clamp)
       call sys%rhs(t + self%node(s) * h, stage(:n), self%k(:n, s))
     end do
     y_new = stage(:n)

@@ -101,3 +101,51 @@ def test_a_case_that_may_slide_ends_with_a_status_within_its_energy(ellroll_debu
         tolerance = 1e-4 if "rk4" in text else 1e-5
         assert abs(end - e0 + friction + resistance) <= tolerance * e0, where
 
+
+
+def launch(index):
+    """Launch `index` of a seeded family of sliding starts at the centre of
+    cups from 0.1 to 3 m, 0.3 to 50 m/s in any direction, an embedded pair
+    at any tolerance from rtol 1e-2 to 1e-7: a long first attempt moves the
+    stages far from the motion."""
+    rng = np.random.default_rng([SEED, index])
+    a = float(10 ** rng.uniform(-1, 0.5))
+    b = a * float(rng.uniform(0.3, 1))
+    c = float(rng.uniform(0.1, 0.6)) * b
+    radius = float(rng.uniform(0.1, 0.9)) * min(a * a / c, b * b / c, b)
+    speed, angle = float(10 ** rng.uniform(-0.5, 1.7)), float(rng.uniform(0, 2 * np.pi))
+    vx, vy = float(speed * np.cos(angle)), float(speed * np.sin(angle))
+    method, rtol = str(rng.choice(["dop853", "vern9"])), float(10 ** rng.uniform(-7, -2))
+    return (f"&geometry a = {a!r}, b = {b!r}, c = {c!r} /\n"
+            f"&ball radius = {radius!r}, weight = 100.0, mu = {float(10 ** rng.uniform(-2, 0))!r}, slip = 'slide' /\n"
+            f"&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, {float(rng.normal(0, 5))!r}, "
+            f"velocity = {vx!r}, {vy!r}, 0.0 /\n"
+            f"&integration method = '{method}', t_end = 2.0, rtol = {rtol!r} /\n"
+            f"&output file = 'out.h5', interval = 0.01, fields = 'none' /\n")
+
+
+# the paper's cup, a ball launched at speed along x: (speed m/s, method, rtol)
+FAST_LAUNCHES = [(40.0, "vern9", 1e-4), (100.0, "vern9", 0.1), (1e3, "dop853", 0.1), (1e6, "vern9", 0.1)]
+
+
+def fast_launch(speed, method, rtol):
+    return ("&geometry a = 1.0, b = 0.4, c = 0.2 /\n"
+            "&ball radius = 0.2, weight = 2620.0, mu = 0.1, slip = 'slide' /\n"
+            f"&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0, velocity = {speed}, 0.0, 0.0 /\n"
+            f"&integration method = '{method}', t_end = 1.0, rtol = {rtol} /\n"
+            "&output file = 'out.h5', interval = 0.01 /\n")
+
+
+@pytest.mark.parametrize("index", range(24))
+def test_a_launch_at_any_tolerance_ends_with_a_status_on_the_debug_build(ellroll_debug, tmp_path, index):
+    """Every launch of the family, and fast launches in the paper's cup at
+    loose tolerances, end with exit 0 and a status on the Debug build: an
+    attempt far too long is rejected, its stages held finite (no
+    floating-point trap)."""
+    text = fast_launch(*FAST_LAUNCHES[index]) if index < len(FAST_LAUNCHES) else launch(index)
+    (tmp_path / "case.nml").write_text(text)
+    result = run(ellroll_debug, "run", "case.nml", "-q", cwd=tmp_path, timeout=90)
+    assert result.returncode == 0, f"{text}\n{result.stderr[-2000:]}"
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        status = f["summary/status"].attrs["flag_meanings"].split()[f["summary/status"][0]]
+    assert status in STATUSES, text
