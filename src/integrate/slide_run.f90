@@ -26,7 +26,7 @@ module ellroll_slide_run
       center_velocity, choose_slip_law, set_reaction, stop_floor
   use ellroll_turns, only: direction_unresolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
-  use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol
+  use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol, follow_flow_to_limit
   use ellroll_fixed_step_run, only: checkpoint_steps, older_checkpoint_step
   use ellroll_case_run, only: run_state_t, stop_asked, sample_due, reach_stop, settled, regular_steps, last_fixed_step, &
       fixed_step_time
@@ -199,7 +199,7 @@ contains
       friction_before = friction_start
       res%n_steps = k
       if (ended) then
-        if (res%status == status_no_fit .and. older_checkpoint%sliding .and. res%n_switches == switches_at_older) &
+        if (res%status == status_no_fit .and. res%n_switches == switches_at_older) &
           call end_on_exact_flow(cs, run, rolling, sb, older_checkpoint_step(k - 1) * cs%param(p_dt), older_checkpoint, &
                                  t, every, tally, res)
         return
@@ -221,17 +221,18 @@ contains
     res%t_final = fixed_step_time(cs, res%n_steps, t)
   end subroutine fixed_slide
 
-  !> A fixed-step case that met the fit limit sliding (res%status no_fit at
-  !> res%t_final, in the step from t_last), sliding without a switch since
-  !> its older checkpoint (from, at t_from). Near the limit's square-root
-  !> singularity the method's own last steps meet it late (rk4 at dt =
-  !> 1e-3 s, 3e-5 s on a paper-cup case; the trajectory before them is
-  !> accurate to 4e-9 m), so the case ends where the exact flow from the
-  !> checkpoint meets it (the reference pair at its tolerances, as the
-  !> rolling regime's follow_flow_to_limit), where that flow slides all the
-  !> way to the fit limit within two steps after t_last. The sliding time
-  !> ends there with it, and samples after it are dropped (every: the steps
-  !> per sample); the summary keeps what the method's steps added.
+  !> A fixed-step case that met the fit limit (res%status no_fit at
+  !> res%t_final, in the step from t_last) in the regime it had, without a
+  !> switch, since its older checkpoint (from, at t_from). Near the limit's
+  !> square-root singularity the method's own last steps meet it late (rk4
+  !> at dt = 1e-3 s, 3e-5 s on a paper-cup case; the trajectory before them
+  !> is accurate to 4e-9 m), so the case ends where the exact flow from the
+  !> checkpoint meets it (the reference pair at its tolerances: the rolling
+  !> regime's follow_flow_to_limit, as a case with slip = 'end' ends), where
+  !> that flow stays in the regime all the way to the fit limit within two
+  !> steps after t_last. A sliding time ends there with it, and samples
+  !> after it are dropped (every: the steps per sample); the summary keeps
+  !> what the method's steps added.
   subroutine end_on_exact_flow(cs, run, rolling, sb, t_from, from, t_last, every, tally, res)
     type(case_t), intent(in) :: cs
     type(run_state_t), intent(in) :: run, rolling
@@ -253,25 +254,29 @@ contains
     real(wp) :: t, h
     logical :: done
     h = cs%param(p_dt)
-    call new_pair(reference_method, pair, err)      ! (a row of the method table: it cannot fail)
-    pair%rtol = reference_rtol
-    pair%atol = reference_atol
     span = cs
     span%t_end = min(t_last + 2 * h, max(cs%t_end, t_last + h))
     span%param(p_settle) = 0
-    flow_run = run
     flow_rolling = rolling
-    flow_sb = sb
-    call align_to(pair, flow_sb)
-    at = from
     flow%status = status_completed
     flow%reals = res%reals                ! (the figures the steps' tracking reads; the flow's own are thrown away)
     flow%counts = res%counts
-    t = t_from
-    call sliding_piece(pair, span, no_samples, flow_run, flow_rolling, flow_sb, t, at, flow_tally, flow, done)
+    if (from%sliding) then
+      call new_pair(reference_method, pair, err)      ! (a row of the method table: it cannot fail)
+      pair%rtol = reference_rtol
+      pair%atol = reference_atol
+      flow_run = run
+      flow_sb = sb
+      call align_to(pair, flow_sb)
+      at = from
+      t = t_from
+      call sliding_piece(pair, span, no_samples, flow_run, flow_rolling, flow_sb, t, at, flow_tally, flow, done)
+    else
+      call follow_flow_to_limit(flow_rolling, no_samples, t_from, from%y, t_last, span%t_end, flow, done)
+    end if
     res%n_rhs = res%n_rhs + flow%n_rhs
     if (.not. (done .and. flow%status == status_no_fit)) return
-    tally%sliding_time = tally%sliding_time + (flow%t_final - res%t_final)
+    if (from%sliding) tally%sliding_time = tally%sliding_time + (flow%t_final - res%t_final)
     if (flow%t_final < t_last) res%n_recorded = min(res%n_recorded, int(flow%t_final / h, i8) / every + 1)
     res%t_final = flow%t_final
   end subroutine end_on_exact_flow

@@ -107,3 +107,32 @@ def test_every_method_slides_into_the_fit_limit_where_it_is(ellroll, tmp_path, i
     assert abs(theta_max - fit_limit_theta(0.4, 0.2, 0.7, 1e-3)) < 1e-10, (integration, theta_max)
     # the end time of dop853 and vern9 at rtol 1e-14 (they agree to 2e-14 s)
     assert abs(figures["t_final"] - 0.01668353138409) < 2e-11, (integration, figures["t_final"])
+
+
+ROLLING_INTO_THE_LIMIT = """&geometry a = 1.3739787267446895, b = 1.0050223695556615, c = 0.08088146783420326 /
+&ball radius = 0.7400073816178254, mass = 78.89268133301036, inertia_factor = 0.6186746855486748{ball} /
+&initial x = -0.2772070880830273, y = -0.28710143540818256, omega = -1.5691786315189653, -3.2365549718941296, -1.3113007154402954 /
+&integration {integration}, t_end = 1.0 /
+{scene}&output file = 'out.h5', interval = 0.01, fields = 'none' /
+"""
+
+
+@pytest.mark.parametrize("scene", ["", "&sweep name = 'omega_z', start = -1.4, stop = -1.2, count = 8 /\n",
+                                   "&excitation kind = 'harmonic', amplitude = 0.6, 0.3, 0.8, frequency = 0.477 /\n"])
+def test_a_ball_that_may_slide_rolls_into_the_fit_limit_where_the_exact_flow_does(ellroll, tmp_path, scene):
+    """A ball that rolls into the fit limit with slip = 'slide' (mu too large
+    for it ever to slide) ends as the rolling model does (slip = 'end'),
+    bitwise, alone, in a batch of lanes and in a shaken cup, and within
+    2e-9 s of vern9 at rtol 1e-13 with rk4 at dt = 1e-3."""
+    def ends(ball, integration):
+        (tmp_path / "case.nml").write_text(ROLLING_INTO_THE_LIMIT.format(ball=ball, integration=integration,
+                                                                         scene=scene))
+        result = run(ellroll, "run", "case.nml", "-q", "--overwrite", "--threads", "2", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        with h5py.File(tmp_path / "out.h5", "r") as f:
+            assert np.all(f["summary/status"][:] == 3)          # no_fit
+            return f["summary/t_final"][:]
+    sliding = ends(", mu = 100.0, slip = 'slide'", "method = 'rk4', dt = 1e-3")
+    assert np.array_equal(sliding, ends(", mu = 100.0, slip = 'end'", "method = 'rk4', dt = 1e-3"))
+    reference = ends("", "method = 'vern9', rtol = 1e-13, atol = 1e-15")
+    assert np.abs(sliding - reference).max() < 2e-9, sliding - reference
