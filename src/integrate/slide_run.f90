@@ -54,6 +54,9 @@ module ellroll_slide_run
   !> Steps shorter on average than this part of t_end over max_hover_steps
   !> steps crawl: the case would take more than 1e7 steps (it ends unstable).
   real(wp), parameter :: crawl_fraction = 1.0e-7_wp
+  !> A slip within this multiple of the pair's tolerances where the steps
+  !> crawl dies at the pair's error level: it stops there where rolling can go on.
+  real(wp), parameter :: crawl_slip = 1.0e3_wp
   !> The error the aligned slip law may leave in the slip (choose_slip_law):
   !> this part of an embedded pair's tolerance. A fixed-step method keeps the
   !> full law (its substeps resolve the small slip: slip_substeps).
@@ -402,6 +405,12 @@ contains
       if (mod(steps, int(max_hover_steps, i8)) == 0) then
         crawling = merge(1, 0, t_next - window_start < max_hover_steps * crawl_fraction * cs%t_end)
         window_start = t_next
+        if (crawling > 0 .and. hovering_slip(pair, sb, now, crawl_slip)) then
+          ! a slip that dies at the pair's error level, where the full law's direction is stiff:
+          ! the steps crawl, and it stops there if rolling can go on
+          call stop_sliding(rolling, sb, t_next, now, res, tally, at_rest_only=.true.)
+          if (.not. now%sliding) crawling = 0
+        end if
       end if
       stalled = merge(stalled + 1, 0, t_next - t <= 16 * spacing(t_next))
       hovering = merge(hovering + 1, 0, hovering_slip(pair, sb, now))
@@ -556,15 +565,18 @@ contains
 
   !> Whether now slides with a slip within the pair's tolerance of zero,
   !> measured against the contact's speeds (|V_C| + R |omega|).
-  logical function hovering_slip(pair, sb, now) result(hovering)
+  logical function hovering_slip(pair, sb, now, times) result(hovering)
     class(embedded_pair_t), intent(in) :: pair
     type(sliding_ball_t), intent(in) :: sb
     type(regime_state_t), intent(in) :: now
-    real(wp) :: scale
+    real(wp), intent(in), optional :: times     !< the tolerances' multiple (10)
+    real(wp) :: scale, multiple
     hovering = .false.
     if (.not. now%sliding) return            ! (a rolling state's s is not set)
+    multiple = 10
+    if (present(times)) multiple = times
     scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
-    hovering = now%slip_speed <= 10 * (pair%atol + pair%rtol * scale)
+    hovering = now%slip_speed <= multiple * (pair%atol + pair%rtol * scale)
   end function hovering_slip
 
   !> The step h from (t_at, now) to past crosses a switch: where (offset, by

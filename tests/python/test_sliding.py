@@ -568,3 +568,35 @@ def test_a_fixed_step_rolls_on_from_a_stop_with_rolling_resistance_in_its_own_di
     for name in ("rk4_1e-3", "rk4_2.5e-4"):
         error = np.max(np.abs(stored[name][0][after] - omega_ref[after]))
         assert error < 2e-8, (name, error)
+
+
+GRAZING = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, mu = 0.05, slip = 'slide' /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration {integration}, t_end = 10.0 /
+&excitation kind = 'harmonic', amplitude = 1.4356991971190205, 0.7178495985595102, 0.0, frequency = 1.25 /
+&output file = 'out.h5', interval = 0.01, fields = 'center' /
+"""
+
+
+def test_a_slip_that_dies_at_the_pairs_error_level_stops_at_tight_tolerances(ellroll, tmp_path):
+    """Harmonic shaking of the paper's cup 1e-4 above the slip threshold (mu
+    = 0.05, 1.25 Hz): a slip episode ends where rolling needs nearly mu N,
+    its slip falling to the size of the pair's error, where the full law's
+    direction is stiff and dop853's steps at rtol 1e-11 and 1e-12 crawl
+    (1e-11 s) until the slip counts as stopped (after 1e5 of them). The
+    case completes with vern9's 28 switches at rtol 1e-12: that stop within
+    2e-5 s (the crawl's span), every other switch within 1e-8 s, the centre
+    within 1e-9 m (the slip there is 1e-8 m/s and less)."""
+    cases = {}
+    for integration in ("method = 'vern9', rtol = 1e-12", "method = 'dop853', rtol = 1e-12, atol = 1e-14",
+                        "method = 'dop853', rtol = 1e-11, atol = 1e-13"):
+        with run_text(ellroll, tmp_path, GRAZING.format(integration=integration)) as f:
+            assert f["summary/status"][0] == 1, integration           # completed
+            cases[integration] = f["switches/switch_time"][:], f["trajectory/center"][0]
+    (switches, center), *others = cases.values()
+    assert len(switches) == 28
+    for other_switches, other_center in others:
+        late = np.sort(np.abs(other_switches - switches))
+        assert late[-1] < 2e-5 and late[-2] < 1e-8, late
+        assert np.abs(other_center - center).max() < 1e-9
