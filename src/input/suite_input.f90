@@ -41,6 +41,7 @@ contains
     type(record_spec_t) :: spec
     type(record_spec_t), allocatable :: grown(:)
     integer :: k
+    logical :: valid
     if (len_trim(v%name) == 0) then
       call rd%fail_missing(gi, 'name', "name the record, e.g. name = 'RSN953' (it is stored with each case)")
       return
@@ -53,7 +54,10 @@ contains
     end do
     if (.not. record_files(rd, gi, v%record_file, spec%files)) return
     spec%names = adjustl(v%record_file(:size(spec%files)))
-    if (.not. (ieee_is_finite(v%factor) .and. v%factor >= 0 .and. v%factor <= max_factor)) then
+    ! (nested: a NaN must not meet the comparisons, which trap in the Debug build)
+    valid = ieee_is_finite(v%factor)
+    if (valid) valid = v%factor >= 0 .and. v%factor <= max_factor
+    if (.not. valid) then
       call rd%fail_value(gi, 'factor', 'must be between 0 and ' // format_real(max_factor))
       return
     end if

@@ -548,6 +548,14 @@ def non_table_trials(rows, all_methods, adaptive_methods, rng):
             case.groups.setdefault("campaign", {}).setdefault("invalid", "'skip'")
             text = "; ".join(f"&{g} " + ", ".join(f"{n} = {v[:40]}" for n, v in items.items()) for g, items in groups)
             trials.append(make_trial(adaptive_methods, case, text))
+    # a suite's &record: its factor at its bounds (0, 1000), beyond them and the specials
+    for value in [0.0, 1.0, 1000.0, math.nextafter(1000.0, INF), math.nextafter(0.0, -INF)] + SPECIALS:
+        k += 1
+        for method in methods_for(all_methods, k):
+            case = Case(rows, method).assign("excitation", "kind", "'record'")
+            case.files["record.csv"] = RECORD_CSV
+            case.add_group("record", {"name": "'R1'", "record_file": "'record.csv'", "factor": fortran(value)})
+            trials.append(make_trial(adaptive_methods, case, f"&record factor = {fortran(value)}"))
     for (group, variable), (low, high) in TIME_INPUTS.items():
         values = [low, high, math.nextafter(low, INF), math.nextafter(high, -INF), math.nextafter(high, INF),
                   -0.0] + SPECIALS + [rng.uniform(low, high) for _ in range(2)]
