@@ -8,7 +8,7 @@ module ellroll_record_csv
   use ellroll_exact, only: equals
   use ellroll_decimal, only: decimal_value, decimal_ok
   use ellroll_record_text, only: text_file_t, take_line, next_word, names_nonfinite, count_lines, line_prefix, &
-      first_word
+      first_word, empty_column
   use ellroll_record_units, only: unit_t, unit_of, within_bound, beyond_bound, max_record_points, known_units
   implicit none
   private
@@ -95,6 +95,11 @@ contains
         exit
       end if
       header_allowed = .false.
+      if (empty_column(file%text(first:last)) > 0) then
+        reason = line_prefix(file) // 'column ' // itoa(empty_column(file%text(first:last))) // ' is empty, and ' // &
+                 'the values after it would move into its place; give 0 where the ground does not move'
+        exit
+      end if
       if (columns == 0) columns = width
       call check_row(file, word_at, width, columns, nonfinite, unit, factor, row, reason)
       if (len(reason) > 0) exit

@@ -9,7 +9,7 @@ module ellroll_record_text
   private
 
   public :: text_file_t, max_record_bytes, read_record_text, take_line, is_blank, next_word, names_nonfinite, &
-            quoted, count_lines, line_prefix, first_word
+            empty_column, quoted, count_lines, line_prefix, first_word
 
   !> Largest record file, bytes (1 GiB): it is read whole into memory.
   integer(i8), parameter :: max_record_bytes = 2_i8**30
@@ -104,6 +104,32 @@ contains
     end if
     last = k - 1
   end subroutine next_word
+
+  !> In a line whose values a comma or semicolon parts, the column of the
+  !> first empty value that a value follows ('0,,1.5,0': 2), else 0. Such a
+  !> line's words would shift its later values into the column before them.
+  pure integer function empty_column(line) result(column)
+    character(len=*), intent(in) :: line
+    integer :: k, field
+    logical :: empty
+    column = 0
+    if (scan(line, ',;') == 0) return
+    field = 1
+    empty = .true.
+    do k = 1, len(line)
+      select case (line(k:k))
+      case (',', ';')
+        if (empty .and. column == 0) column = field
+        field = field + 1
+        empty = .true.
+      case (' ', achar(9), achar(13))
+      case default
+        empty = .false.
+        if (column > 0) return               ! (a value after the empty one)
+      end select
+    end do
+    column = 0                               ! (empty values at the end shift nothing)
+  end function empty_column
 
   !> 'nan', 'inf', 'infinity' with any sign and case: numbers, but not finite.
   pure logical function names_nonfinite(word)

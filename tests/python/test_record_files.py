@@ -251,6 +251,28 @@ def test_a_csv_row_is_decimal_numbers_only(ellroll, tmp_path, row):
     assert f"rec.csv:2: not numbers: {row}" in stderr, stderr
 
 
+@pytest.mark.parametrize("row,column", [("1,,0.5,0", 2), (",1,0.5,0", 1), ("1;0.5;;0.2", 3), ("1, ,0.5,0", 2),
+                                        ("1,0.5,,,0", 3)])
+def test_a_csv_row_with_an_empty_value_before_others_is_refused(ellroll, tmp_path, row, column):
+    """A spreadsheet's empty cell ('1,,0.5,0': ax left blank) would shift the
+    values after it into its column (ay read as ax): refused, naming it."""
+    (tmp_path / "rec.csv").write_text(f"time,ax,ay,az\n0,0,0,0\n{row}\n20,0,0,0\n")
+    stderr = refused(ellroll, tmp_path, files="'rec.csv'")
+    assert f"rec.csv:3: column {column} is empty" in stderr, stderr
+
+
+@pytest.mark.parametrize("rows", ["0,0,0,\n1,0.5,0,\n20,0,0,\n", "0 0 0\n1 0.5 0\n20 0 0\n",
+                                  "0;0;0;;\n1;0.5;0;;\n20;0;0;;\n"])
+def test_empty_values_at_a_rows_end_shift_nothing(ellroll, tmp_path, rows):
+    """Separators at the end of a row (a trailing comma) leave every value
+    in its column: the record is the one without them."""
+    (tmp_path / "rec.csv").write_text(rows)
+    (tmp_path / "plain.csv").write_text("0,0,0\n1,0.5,0\n20,0,0\n")
+    a = run_case(ellroll, tmp_path, "'rec.csv'", "a", t_end=2.0)
+    b = run_case(ellroll, tmp_path, "'plain.csv'", "b", t_end=2.0)
+    assert_same_trajectories(a, b)
+
+
 def test_mutated_csv_files_end_cleanly_in_the_debug_build(ellroll_debug, tmp_path):
     """Deleted, doubled and changed characters: a result or a clean error.
     60 files, seeded; ELLROLL_FUZZ_BUDGET=N runs N."""
