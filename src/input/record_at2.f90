@@ -271,6 +271,7 @@ contains
     real(wp), intent(out) :: dt
     character(len=:), allocatable, intent(out) :: reason
     character(len=len(text)) :: line, number
+    character(len=:), allocatable :: unit
     integer :: at, ios, code, first, last
     line = lower(text)
     reason = ''
@@ -294,6 +295,11 @@ contains
         return
       end if
       number = number_after(line, at + 2)
+      unit = unit_after(line, at + 2, number)
+      if (len(unit) > 0 .and. all(unit /= [character(len=7) :: 's', 'sec', 'secs', 'second', 'seconds'])) then
+        reason = "DT's unit '" // unit // "' is not seconds; write DT in SEC ('NPTS= n, DT= dt SEC')"
+        return
+      end if
       call drop_seconds(number)
       code = decimal_value(trim(number), dt)
     else                                                        ! n dt NPTS, DT
@@ -328,6 +334,29 @@ contains
       if (number(last:last) == 's') number(last:) = ' '
     end if
   end subroutine drop_seconds
+
+  !> The unit of the number (its text: number, as number_after found it
+  !> after position `from`): the letters written against its end ('0.01sec'),
+  !> else the letters that start the next word ('0.01 sec,'), else '' (also
+  !> where the number's text is letters alone).
+  pure function unit_after(line, from, number) result(unit)
+    character(len=*), intent(in) :: line, number
+    integer, intent(in) :: from
+    character(len=:), allocatable :: unit
+    character(len=*), parameter :: letters = 'abcdefghijklmnopqrstuvwxyz'
+    integer :: last, rest, stop, digits
+    unit = ''
+    last = len_trim(number)
+    digits = verify(number(:last), letters, back=.true.)
+    if (digits == 0) return                 ! (letters alone: not a number, said so after)
+    unit = number(digits + 1:last)
+    if (len(unit) > 0) return
+    rest = from + index(line(from:), number(:last)) + last - 1      ! just past the number
+    rest = rest - 1 + verify(line(rest:) // '#', ' ,')
+    if (rest > len(line)) return
+    stop = verify(line(rest:) // '#', letters)
+    unit = line(rest:rest + stop - 2)
+  end function unit_after
 
   !> The text of the number after position `from` and an optional '=' (up
   !> to a blank or a comma), or '?'.

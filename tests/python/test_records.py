@@ -142,6 +142,10 @@ BAD = [
     ("no NPTS", lambda: "a\nb\nc\nDT= .01 SEC\n .1 .2 .3 .4\n", "H1.AT2:4: no NPTS"),
     ("short header", lambda: "a\nb\n", "H1.AT2:3: the file ends in its header"),
     ("zero DT", lambda: "a\nb\nc\nNPTS=   4, DT= 0.0 SEC\n .1 .2 .3 .4\n", "DT = 0 s must be between"),
+    # a unit other than seconds, against the number or apart (the number alone would be read as seconds)
+    ("DT in MSEC", lambda: "a\nb\nc\nNPTS=   4, DT= 20 MSEC\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'msec' is not"),
+    ("DT in min", lambda: "a\nb\nc\nNPTS=   4, DT=0.02min\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'min' is not"),
+    ("DT in USEC", lambda: "a\nb\nc\nNPTS=4, DT= 20000 USEC,\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'usec' is not"),
 ]
 
 
@@ -152,7 +156,8 @@ def header(npts):
 # The fourth line as PEER files write it, and as hands and other tools do:
 # the unit against the number, no blanks, lower case
 DT_LINES = ["NPTS=   4, DT=0.01SEC", "NPTS=4,DT=.01 SEC", "NPTS= 4, DT=0.0100s", "npts=     4, dt=   .0100 sec",
-            "NPTS=   4, DT= 1.0E-02 SEC", "NPTS=   4, DT=1.0e-2sec   (synthetic)"]
+            "NPTS=   4, DT= 1.0E-02 SEC", "NPTS=   4, DT=1.0e-2sec   (synthetic)", "NPTS= 4, DT= .01 seconds",
+            "NPTS= 4, DT= .01", "NPTS= 4, DT= .01 (s)", "NPTS= 4, DT= .01 SECS, 2001 record"]
 
 
 @pytest.mark.parametrize("line", DT_LINES)
