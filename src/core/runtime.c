@@ -22,6 +22,7 @@
 #endif
 #include <signal.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 void ellroll_crc32c_init(void);
 
@@ -54,4 +55,20 @@ long ellroll_open_files_room(long needed)
             limit.rlim_cur = wanted;
     }
     return limit.rlim_cur == RLIM_INFINITY || limit.rlim_cur > (rlim_t)(1L << 40) ? 1L << 40 : (long)limit.rlim_cur;
+}
+
+/* The memory this process may hold, bytes: the machine's physical memory,
+ * or the soft limit on its address space (ulimit -v) where that is lower;
+ * -1 where neither can be read. */
+long long ellroll_memory_room(void)
+{
+    long long room = -1;
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    if (pages > 0 && page > 0)
+        room = (long long)pages * page;
+    struct rlimit limit;
+    if (getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY
+        && (room < 0 || (long long)limit.rlim_cur < room))
+        room = (long long)limit.rlim_cur;
+    return room;
 }

@@ -1,7 +1,7 @@
 !> The few operating-system services the program needs, through the C library.
 module ellroll_system
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_size_t, c_ptr, &
-      c_null_ptr, c_associated, c_int64_t, c_loc
+      c_null_ptr, c_associated, c_int64_t, c_loc, c_long_long
   use ellroll_kinds, only: wp, i8
   use ellroll_strings, only: itoa
   implicit none
@@ -10,7 +10,7 @@ module ellroll_system
   public :: rename_file, remove_file, utc_timestamp, file_exists, tune_runtime, folder_write_error, folder_of
   public :: open_for_writing, open_for_reading, write_pieces_at, read_at, release_range, close_descriptor, &
       system_error_text, open_regular_file, read_text, file_type_words, read_whole_file
-  public :: open_files_room
+  public :: open_files_room, memory_room
   public :: catch_stop_signals, stop_signal, request_stop, signal_name, exit_now, shown_command_line, read_watchdog
 
   interface
@@ -51,6 +51,11 @@ module ellroll_system
       import :: c_long
       integer(c_long), value :: needed
     end function open_files_room
+    !> The memory this process may hold, bytes: the machine's, or ulimit -v
+    !> where lower (-1: unknown).
+    integer(c_long_long) function memory_room() bind(c, name='ellroll_memory_room')
+      import :: c_long_long
+    end function memory_room
     !> End the process at once with status, without the exit handlers: after
     !> a failed write, HDF5's handler would close a file whose writes failed
     !> and can crash doing so. The caller flushes its units first.

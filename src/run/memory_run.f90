@@ -24,6 +24,7 @@ module ellroll_memory_run
   use ellroll_params, only: params, param_count, param_dataset
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
+  use ellroll_results_room, only: check_room
   use ellroll_shards, only: campaign_id
   use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
@@ -114,6 +115,8 @@ contains
     call refuse_invalid_cases(inp, invalid, messages, out%err)
     if (out%err%failed()) return
     n_cases = inp%campaign%n_cases()
+    call check_room(label, inp, n_cases, out%err)
+    if (out%err%failed()) return
     allocate (out%results(0:n_cases - 1))
     do i = 0, n_cases - 1
       if (invalid(i)) out%results(i)%status = status_invalid

@@ -946,3 +946,33 @@ except ellroll.Error as error:
     assert result.returncode == 0 and result.stdout.startswith(f"3 {private}"), (result.stdout, result.stderr)
     assert "cannot write a Record's file: File too large" in result.stdout
     assert not list(tmp_path.glob("ellroll-records-*"))
+
+
+@pytest.mark.skipif(SANITIZED, reason="the sanitizer's shadow memory takes more address space than the limit")
+def test_results_beyond_the_processs_memory_raise_before_any_is_taken(tmp_path):
+    """3000 cases of 10,001 samples of every field (about 8 GiB held) in a
+    process limited to 3 GiB (ulimit -v): ellroll.InputError (code 2) naming the
+    input, the sizes and the way out, at once; the process lives on and runs
+    the next input. A failed allocation would end the calling process."""
+    script = tmp_path / "room.py"
+    script.write_text(f"""
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+sys.path.insert(0, {str(ROOT / 'post')!r})
+import ellroll
+paper = open({str(ROOT / 'input' / 'legeza1990.nml')!r}).read()
+big = paper.replace("t_end = 30.0", "t_end = 10.0").replace("interval = 0.01", "interval = 1.0e-3") + \\
+    "&campaign samples = 3000, seed = 1 /\\n&sample name = 'omega_z', low = 5, high = 50 /\\n"
+try:
+    ellroll.run(big, threads=1, path="big.nml")
+except ellroll.InputError as e:
+    print(e.code, e)
+out = ellroll.run(paper.replace("t_end = 30.0", "t_end = 1.0"), threads=1)
+print("then", int(out["summary"]["status"][0]))
+""")
+    result = run(sys.executable, str(script), cwd=tmp_path, timeout=60)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("2 big.nml: the results of 3000 cases, 10001 samples of 17 values each, need about "
+                               "8 GiB of memory, more than this process may hold (3 GiB)"), result.stdout
+    assert lines[1] == "then 1", result.stdout
