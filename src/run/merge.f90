@@ -191,9 +191,17 @@ contains
     call shards(1)%text_attribute('input_file', prov%input_file)
     call shards(1)%text_attribute('input_namelist', prov%input_namelist)
     call read_input_text(prov%input_file, prov%input_namelist, partial, inp, err)
-    if (err%failed()) return
+    if (err%failed()) then
+      ! (the files it names are read again, from where its path leads from here)
+      err%message = 'merge reads again the input ' // trim(shard_paths(1)) // ' stores, with its files, from ' // &
+          'this folder: ' // err%message // '; run the merge from the folder the shards ran in (where ' // &
+          prov%input_file // ' is)'
+      return
+    end if
     if (campaign_id(inp) /= id) then
-      call set_error(err, err_input, trim(shard_paths(1)) // ': the stored input does not match its campaign id')
+      call set_error(err, err_input, trim(shard_paths(1)) // ': the input it stores, read again from this ' // &
+          'folder with its files, is not the campaign it ran (a file it reads, such as a record, differs from the ' // &
+          "one the shards read): run the merge from the folder the shards ran in, with the files they read")
       return
     end if
 

@@ -581,6 +581,31 @@ def test_shards_run_with_different_records_are_not_merged(ellroll, tmp_path):
     assert not (folder / "out.h5").exists()
 
 
+def test_a_merge_from_another_folder_says_where_it_reads_the_input_again(ellroll, tmp_path):
+    """Shards run in the suite's folder, merged from the folder above it: the
+    merge reads the stored input's record files again from there. Without
+    them there, and with an edited copy there, it names what it read from
+    where and the way out (the folder the shards ran in); from there the
+    merge is made."""
+    folder = record_folder(tmp_path)
+    for k in (0, 1):
+        assert run(ellroll, "run", "suite.nml", "-q", "--shard", f"{k}/2", "-o", f"s{k}.h5", cwd=folder).returncode == 0
+    above = folder.parent
+    shards = [f"{folder.name}/s0.h5", f"{folder.name}/s1.h5"]
+    result = run(ellroll, "merge", "out.h5", *shards, cwd=above)
+    assert result.returncode == 2, result.stderr
+    assert f"merge reads again the input {folder.name}/s0.h5 stores, with its files, from this folder: suite.nml:" \
+           in result.stderr and "cannot open records/SYN1_H1.AT2" in result.stderr, result.stderr
+    assert "run the merge from the folder the shards ran in (where suite.nml is)" in result.stderr, result.stderr
+    shutil.copytree(folder / "records", above / "records")
+    change_a_value(above / "records" / "SYN1_H1.AT2")
+    result = run(ellroll, "merge", "out.h5", *shards, cwd=above)
+    assert result.returncode == 2 and "is not the campaign it ran (a file it reads, such as a record, differs" \
+        in result.stderr, result.stderr
+    assert not (above / "out.h5").exists()
+    assert run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", cwd=folder).returncode == 0
+
+
 @pytest.mark.parametrize("what", ["output", "record"])
 def test_a_fifo_is_refused_without_waiting(ellroll, tmp_path, what):
     folder = record_folder(tmp_path)
