@@ -32,6 +32,7 @@ program scene_cost
   type(error_t) :: err
   real(wp) :: best(n_scenes), seconds, times(n_record), values(3, n_record)
   integer :: repeats, k, s
+  logical :: held
 
   call tune_runtime()
   repeats = repeats_argument(default=5)
@@ -49,9 +50,10 @@ program scene_cost
     times(k) = real(k - 1, wp) * 0.01_wp
     values(:, k) = 0.3_wp * [sin(two_pi * 0.7_wp * times(k)), cos(two_pi * 1.1_wp * times(k)), 0.0_wp]
   end do
-  call set_record(scenes(2)%excitation, times, values)
+  call set_record(scenes(2)%excitation, times, values, held)
   times(2:n_record - 1) = times(2:n_record - 1) + 1.0e-4_wp * sin(real([(k, k = 2, n_record - 1)], wp))
-  call set_record(scenes(3)%excitation, times, values)
+  call set_record(scenes(3)%excitation, times, values, held)
+  if (.not. held) error stop 'no room for the records'
   scenes(4)%excitation%kind = excitation_harmonic
   scenes(4)%param(p_excitation_amplitude_x:p_excitation_amplitude_z) = [0.3_wp, 0.2_wp, 0.0_wp]
   scenes(4)%param(p_excitation_frequency) = 0.7_wp

@@ -66,6 +66,7 @@ module ellroll_campaign
     procedure :: n_cases
     procedure :: case_at
     procedure :: coordinates
+    procedure :: record_places
   end type campaign_t
 
 contains
@@ -163,13 +164,22 @@ contains
     end do
   end function coordinates
 
+  !> The places in the record store (ellroll_record_store) of every record
+  !> the campaign reads (0 where none), to give them back after its run.
+  pure function record_places(self) result(places)
+    class(campaign_t), intent(in) :: self
+    integer, allocatable :: places(:)
+    integer :: k
+    places = [self%base%excitation%record]
+    if (allocated(self%records)) places = [places, (self%records(k)%motion%record, k = 1, size(self%records))]
+  end function record_places
+
   !> The case shaken by record `rec` of the suite (at the case's own scale).
   pure subroutine use_record(cs, rec)
     type(case_t), intent(inout) :: cs
     type(suite_record_t), intent(in) :: rec
     cs%excitation%kind = rec%motion%kind
-    cs%excitation%times = rec%motion%times
-    cs%excitation%values = rec%motion%values
+    cs%excitation%record = rec%motion%record
     cs%excitation%step = rec%motion%step
     cs%record_name = rec%name
     cs%record_factor = rec%factor

@@ -20,6 +20,7 @@
 #ifdef __linux__
 #include <malloc.h>
 #endif
+#include <pthread.h>
 #include <signal.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -71,4 +72,18 @@ long long ellroll_memory_room(void)
         && (room < 0 || (long long)limit.rlim_cur < room))
         room = (long long)limit.rlim_cur;
     return room;
+}
+
+/* The lock of the record store (ellroll_record_store): runs of the library
+ * read inputs on several threads at once, with or without OpenMP. */
+static pthread_mutex_t record_store_lock = PTHREAD_MUTEX_INITIALIZER;
+
+void ellroll_lock_record_store(void)
+{
+    pthread_mutex_lock(&record_store_lock);
+}
+
+void ellroll_unlock_record_store(void)
+{
+    pthread_mutex_unlock(&record_store_lock);
 }

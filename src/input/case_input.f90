@@ -11,6 +11,7 @@ module ellroll_case_input
       field_regime, field_slip_speed
   use ellroll_campaign, only: campaign_t, sweep_t, sample_t
   use ellroll_excitation, only: excitation_none, excitation_harmonic, excitation_record, set_record
+  use ellroll_record_store, only: record_samples, no_room_for_record
   use ellroll_integrators, only: method_names, methods
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
@@ -235,6 +236,7 @@ contains
     character(len=path_length), allocatable :: paths(:)
     character(len=40), allocatable :: fingerprints(:)
     real(wp), allocatable :: times(:), values(:, :)
+    logical :: held
     gi = rd%group('excitation', .false.)
     if (gi == 0) then
       if (suite) cs%excitation%kind = excitation_record
@@ -276,7 +278,8 @@ contains
         return
       end if
       call note_files(adjustl(v%record_file(:size(paths))), fingerprints, files_note)
-      call set_record(cs%excitation, times, values)
+      call set_record(cs%excitation, times, values, held)
+      if (.not. held) call rd%fail_value(gi, 'record_file', no_room_for_record)
     case default
       call rd%fail_value(gi, 'kind', "must be 'none', 'harmonic' or 'record'")
     end select
@@ -313,7 +316,7 @@ contains
     if (allocated(campaign%records)) then
       if (size(campaign%records) > 0) then
         do k = 1, size(campaign%records)
-          associate (motion => campaign%records(k)%motion)
+          associate (motion => record_samples(campaign%records(k)%motion%record))
             campaign%records(k)%intensity = intensity_of(motion%times, motion%values, v%sa_periods(:n))
           end associate
         end do
@@ -321,8 +324,9 @@ contains
         return
       end if
     end if
-    campaign%base%intensity = intensity_of(campaign%base%excitation%times, campaign%base%excitation%values, &
-                                           v%sa_periods(:n))
+    associate (motion => record_samples(campaign%base%excitation%record))
+      campaign%base%intensity = intensity_of(motion%times, motion%values, v%sa_periods(:n))
+    end associate
   end subroutine set_intensities
 
   !> The inputs of &excitation that belong to another kind are refused

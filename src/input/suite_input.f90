@@ -8,6 +8,7 @@ module ellroll_suite_input
   use ellroll_cases, only: case_t
   use ellroll_campaign, only: suite_record_t, use_record
   use ellroll_excitation, only: set_record
+  use ellroll_record_store, only: no_room_for_record
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, resolve_path
   implicit none
@@ -119,6 +120,7 @@ contains
     character(len=:), allocatable :: reason
     character(len=40), allocatable :: fingerprints(:)
     integer :: k
+    logical :: held
     allocate (records(size(specs)))
     do k = 1, size(specs)
       if (allocated(fingerprints)) deallocate (fingerprints)
@@ -129,7 +131,11 @@ contains
         return
       end if
       call note_files(specs(k)%names, fingerprints, files_note)
-      call set_record(records(k)%motion, times, specs(k)%factor * values)
+      call set_record(records(k)%motion, times, specs(k)%factor * values, held)
+      if (.not. held) then
+        call rd%fail_value(specs(k)%group, 'record_file', no_room_for_record)
+        return
+      end if
       records(k)%name = specs(k)%name
       records(k)%factor = specs(k)%factor
     end do

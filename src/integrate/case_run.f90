@@ -10,6 +10,7 @@ module ellroll_case_run
   use ellroll_exact, only: is_zero
   use ellroll_norms, only: norm_of
   use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
+  use ellroll_record_store, only: record_samples
   use ellroll_intensity, only: felt_spectral_acceleration
   use ellroll_status, only: status_completed
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
@@ -280,7 +281,8 @@ contains
     integer, intent(in) :: k
     real(wp) :: next(2), one(1)
     next = sa
-    one = felt_spectral_acceleration(cs%excitation%times, cs%excitation%values, [period])
+    one = felt_spectral_acceleration(record_samples(cs%excitation%record)%times, record_samples(cs%excitation%record)%values, &
+                                     [period])
     next(k) = cs%param(p_scale) * one(1)
   end function spectral_at
 

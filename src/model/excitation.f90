@@ -3,6 +3,7 @@
 module ellroll_excitation
   use ellroll_kinds, only: wp, two_pi
   use ellroll_exact, only: equals, is_zero
+  use ellroll_record_store, only: record_samples, store_record
   implicit none
   private
 
@@ -18,22 +19,26 @@ module ellroll_excitation
     real(wp) :: frequency = 0           !< harmonic: Hz
     real(wp) :: phase = 0               !< harmonic: rad
     real(wp) :: scale = 1               !< record: factor on its values
-    real(wp), allocatable :: times(:)   !< record: s, strictly increasing
-    real(wp), allocatable :: values(:, :)  !< record: (3, n) m/s^2
+    !> record: its samples' place in the record store (record_samples(record)%times,
+    !> s, strictly increasing, and %values, (3, n) m/s^2), shared by copies
+    integer :: record = 0
     real(wp) :: step = 0                !< record: times(k) = (k - 1) step exactly, or 0
   end type excitation_t
 
 contains
 
-  !> The cup moved by a record of these samples; a grid of equal steps is
-  !> found by its index.
-  pure subroutine set_record(exc, times, values)
+  !> The cup moved by a record of these samples, stored once (ellroll_
+  !> record_store; stored false where there is no place or memory left for
+  !> them); a grid of equal steps is found by its index.
+  subroutine set_record(exc, times, values, held)
     type(excitation_t), intent(inout) :: exc
     real(wp), intent(in) :: times(:), values(:, :)
+    logical, intent(out) :: held
     integer :: k
+    call store_record(times, values, exc%record)
+    held = exc%record > 0
+    if (.not. held) return
     exc%kind = excitation_record
-    exc%times = times
-    exc%values = values
     exc%step = times(2)
     do k = 1, size(times)
       if (.not. equals(times(k), real(k - 1, wp) * exc%step)) exc%step = 0
@@ -50,9 +55,11 @@ contains
     case (excitation_harmonic)
       t = merge(0.0_wp, huge(1.0_wp), all(is_zero(exc%amplitude)))
     case (excitation_record)
-      t = huge(1.0_wp)
-      if (all(is_zero(exc%values(:, size(exc%times))))) t = exc%times(size(exc%times))
-      if (is_zero(exc%scale)) t = 0
+      associate (times => record_samples(exc%record)%times, values => record_samples(exc%record)%values)
+        t = huge(1.0_wp)
+        if (all(is_zero(values(:, size(times))))) t = times(size(times))
+        if (is_zero(exc%scale)) t = 0
+      end associate
     case default
       t = 0
     end select
@@ -70,19 +77,21 @@ contains
     case (excitation_harmonic)
       a = exc%amplitude * sin(two_pi * exc%frequency * t + exc%phase)
     case (excitation_record)
-      low = 1
-      high = size(exc%times)
-      if (t <= exc%times(low)) then
-        a = exc%scale * exc%values(:, low)
-        return
-      else if (t >= exc%times(high)) then
-        a = exc%scale * exc%values(:, high)
-        return
-      end if
-      low = sample_before(exc, t)
-      high = low + 1
-      weight = (t - exc%times(low)) / (exc%times(high) - exc%times(low))
-      a = exc%scale * ((1 - weight) * exc%values(:, low) + weight * exc%values(:, high))
+      associate (times => record_samples(exc%record)%times, values => record_samples(exc%record)%values)
+        low = 1
+        high = size(times)
+        if (t <= times(low)) then
+          a = exc%scale * values(:, low)
+          return
+        else if (t >= times(high)) then
+          a = exc%scale * values(:, high)
+          return
+        end if
+        low = sample_before(exc, t)
+        high = low + 1
+        weight = (t - times(low)) / (times(high) - times(low))
+        a = exc%scale * ((1 - weight) * values(:, low) + weight * values(:, high))
+      end associate
     case default
       a = 0
     end select
@@ -95,22 +104,24 @@ contains
     type(excitation_t), intent(in) :: exc
     real(wp), intent(in) :: t
     integer :: high, mid
-    low = 1
-    high = size(exc%times)
-    if (exc%step > 0) then
-      low = min(max(int(t * (1 / exc%step)) + 1, 1), high - 1)
-      if (exc%times(low) > t) low = low - 1
-      if (exc%times(low + 1) <= t) low = low + 1
-      high = low + 1
-    end if
-    do while (high - low > 1)
-      mid = (low + high) / 2
-      if (exc%times(mid) <= t) then
-        low = mid
-      else
-        high = mid
+    associate (times => record_samples(exc%record)%times)
+      low = 1
+      high = size(times)
+      if (exc%step > 0) then
+        low = min(max(int(t * (1 / exc%step)) + 1, 1), high - 1)
+        if (times(low) > t) low = low - 1
+        if (times(low + 1) <= t) low = low + 1
+        high = low + 1
       end if
-    end do
+      do while (high - low > 1)
+        mid = (low + high) / 2
+        if (times(mid) <= t) then
+          low = mid
+        else
+          high = mid
+        end if
+      end do
+    end associate
   end function sample_before
 
   !> The step h from t, cut to end at the record's next sample where it
@@ -139,19 +150,21 @@ contains
     real(wp) :: kink
     step = h
     if (exc%kind /= excitation_record) return
-    n = size(exc%times)
-    if (t < exc%times(1)) then
-      next = 1
-    else if (t < exc%times(n)) then
-      next = sample_before(exc, t) + 1
-    else
-      return
-    end if
-    kink = exc%times(next)
-    if (kink - t <= 4 * spacing(kink)) then
-      if (next == n) return
-      kink = exc%times(next + 1)
-    end if
-    if (t + h > kink) step = kink - t
+    associate (times => record_samples(exc%record)%times)
+      n = size(times)
+      if (t < times(1)) then
+        next = 1
+      else if (t < times(n)) then
+        next = sample_before(exc, t) + 1
+      else
+        return
+      end if
+      kink = times(next)
+      if (kink - t <= 4 * spacing(kink)) then
+        if (next == n) return
+        kink = times(next + 1)
+      end if
+      if (t + h > kink) step = kink - t
+    end associate
   end function step_to_sample
 end module ellroll_excitation

@@ -10,6 +10,7 @@ module ellroll_excitation_lanes
   use ellroll_kinds, only: wp, two_pi
   use ellroll_excitation, only: excitation_t, excitation_none, excitation_harmonic, excitation_record
   use ellroll_ball_lanes, only: lanes
+  use ellroll_record_store, only: record_samples
   implicit none
   private
 
@@ -89,31 +90,33 @@ contains
     real(wp), intent(out) :: a1, a2, a3
     integer :: n, low
     real(wp) :: weight
-    n = size(exc%times)
-    if (t <= exc%times(1)) then
-      low = 1
-      weight = 0
-    else if (t >= exc%times(n)) then
-      low = n
-      weight = 0
-    else
-      ! times(1) < t < times(n): both searches stop inside the record
-      low = min(max(cursor, 1), n - 1)
-      do while (exc%times(low) > t)
-        low = low - 1
-      end do
-      do while (exc%times(low + 1) <= t)
-        low = low + 1
-      end do
-      cursor = low
-      weight = (t - exc%times(low)) / (exc%times(low + 1) - exc%times(low))
-      a1 = exc%scale * ((1 - weight) * exc%values(1, low) + weight * exc%values(1, low + 1))
-      a2 = exc%scale * ((1 - weight) * exc%values(2, low) + weight * exc%values(2, low + 1))
-      a3 = exc%scale * ((1 - weight) * exc%values(3, low) + weight * exc%values(3, low + 1))
-      return
-    end if
-    a1 = exc%scale * exc%values(1, low)
-    a2 = exc%scale * exc%values(2, low)
-    a3 = exc%scale * exc%values(3, low)
+    associate (times => record_samples(exc%record)%times, values => record_samples(exc%record)%values)
+      n = size(times)
+      if (t <= times(1)) then
+        low = 1
+        weight = 0
+      else if (t >= times(n)) then
+        low = n
+        weight = 0
+      else
+        ! times(1) < t < times(n): both searches stop inside the record
+        low = min(max(cursor, 1), n - 1)
+        do while (times(low) > t)
+          low = low - 1
+        end do
+        do while (times(low + 1) <= t)
+          low = low + 1
+        end do
+        cursor = low
+        weight = (t - times(low)) / (times(low + 1) - times(low))
+        a1 = exc%scale * ((1 - weight) * values(1, low) + weight * values(1, low + 1))
+        a2 = exc%scale * ((1 - weight) * values(2, low) + weight * values(2, low + 1))
+        a3 = exc%scale * ((1 - weight) * values(3, low) + weight * values(3, low + 1))
+        return
+      end if
+      a1 = exc%scale * values(1, low)
+      a2 = exc%scale * values(2, low)
+      a3 = exc%scale * values(3, low)
+    end associate
   end subroutine record_at
 end module ellroll_excitation_lanes

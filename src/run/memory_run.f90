@@ -3,10 +3,10 @@
 !> blocks and batches, so the results are bitwise the file's), and the
 !> results laid out as the file's datasets (ellroll_file_layout): the root's
 !> scales, /case, /trajectory and /summary, each dataset with its units,
-!> long name, dimensions and attributes. The C interface (src/capi) hands
-!> them out. No file is read but the records the input names; nothing is
-!> written, nothing printed; every call keeps its state in its own
-!> memory_output_t, so that calls may run at the same time.
+!> long name, dimensions and attributes, which the C interface (src/capi)
+!> hands out. No file is read but the records the input names; nothing is
+!> written or printed; every call keeps its state in its own memory_output_t
+!> (calls may run at the same time).
 module ellroll_memory_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   !$ use omp_lib, only: omp_get_max_threads, omp_set_num_threads
@@ -25,6 +25,7 @@ module ellroll_memory_run
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_results_room, only: check_room
+  use ellroll_record_store, only: release_records
   use ellroll_shards, only: campaign_id
   use ellroll_switch_store, only: switch_store_t, switch_flag_meanings
   use ellroll_block_run, only: simulate_block, uses_batches, lanes
@@ -45,8 +46,7 @@ module ellroll_memory_run
 
   !> One dataset as the file holds it, in memory. Shapes and dimensions are
   !> as h5py and numpy show them (C order: the case first), the reverse of
-  !> Fortran's; the values are stored in Fortran's order, which is the same
-  !> memory.
+  !> Fortran's; the values are in Fortran's order, which is the same memory.
   type :: memory_dataset_t
     character(len=16) :: group = ''          !< '' (the root), 'case', 'trajectory' or 'summary'
     character(len=32) :: name = ''
@@ -89,28 +89,30 @@ contains
     character(len=*), intent(in) :: label, text
     integer, intent(in) :: threads
     type(memory_output_t), intent(inout) :: out
+    type(run_input_t) :: inp
     integer :: default_threads
     ! every parallel loop of the run on `threads` threads, as `ellroll run
     ! --threads` sets it (for the calling thread only; put back at the end)
     default_threads = 0
     !$ default_threads = omp_get_max_threads()
     !$ call omp_set_num_threads(team_size(threads, huge(1_i8)))
-    call run_input(label, text, threads, out)
+    ! (no file written: the plan needs no &output file; the records read are
+    ! given back after the run, as the library runs many inputs)
+    call read_input_text(label, text, '(memory)', inp, out%err)
+    if (.not. out%err%failed()) call run_input(label, threads, inp, out)
+    call release_records(inp%campaign%record_places())
     !$ call omp_set_num_threads(default_threads)
   end subroutine run_in_memory
 
-  subroutine run_input(label, text, threads, out)
-    character(len=*), intent(in) :: label, text
+  subroutine run_input(label, threads, inp, out)
+    character(len=*), intent(in) :: label
     integer, intent(in) :: threads
+    type(run_input_t), intent(in) :: inp
     type(memory_output_t), intent(inout) :: out
-    type(run_input_t) :: inp
     logical, allocatable :: invalid(:)
     character(len=:), allocatable :: messages
     integer(i8) :: i, n_cases
     integer :: sig
-    ! no file is written: a name for the plan, which then needs no &output file
-    call read_input_text(label, text, '(memory)', inp, out%err)
-    if (out%err%failed()) return
     call find_invalid_cases(inp, invalid, messages)
     call refuse_invalid_cases(inp, invalid, messages, out%err)
     if (out%err%failed()) return

@@ -19,6 +19,7 @@ module ellroll_step_advice
   use ellroll_input, only: run_input_t
   use ellroll_params, only: p_dt, p_omega_x, p_omega_z, p_x, p_y, p_rtol, p_settle, p_excitation_frequency
   use ellroll_excitation, only: excitation_harmonic, excitation_record
+  use ellroll_record_store, only: record_samples
   implicit none
   private
 
@@ -114,9 +115,11 @@ contains
       case (excitation_harmonic)
         forcing = dt * one%param(p_excitation_frequency)
       case (excitation_record)
-        n = size(one%excitation%times)
-        ! (as a negative: a record's is dt over its shortest sample spacing)
-        if (n > 1) forcing = -dt / minval(one%excitation%times(2:) - one%excitation%times(:n - 1))
+        associate (times => record_samples(one%excitation%record)%times)
+          n = size(times)
+          ! (as a negative: a record's is dt over its shortest sample spacing)
+          if (n > 1) forcing = -dt / minval(times(2:) - times(:n - 1))
+        end associate
       end select
       rate = fastest_rate(ball, initial_state(ball, one%param(p_x), one%param(p_y), &
           one%param(p_omega_x:p_omega_z)), enough=warn_above / dt)

@@ -1,6 +1,9 @@
 """Ground-motion records: PEER NGA .AT2 files, one per axis, equal bitwise to
 the same record as a CSV in m/s^2 for every header style and layout; scale;
 the ground at rest past a record's end; bad files named by file and line."""
+import resource
+import subprocess
+
 import h5py
 import numpy as np
 import pytest
@@ -290,3 +293,23 @@ def test_a_suite_is_the_same_for_any_thread_count_and_sharding(ellroll, tmp_path
     assert run(ellroll, "merge", "merged.h5", "s0.h5", "s1.h5", cwd=tmp_path).returncode == 0
     assert_same_datasets(tmp_path / "one.h5", tmp_path / "two.h5")
     assert_same_datasets(tmp_path / "one.h5", tmp_path / "merged.h5")
+
+
+def test_a_long_record_is_held_once_for_every_case_of_a_batch(ellroll, tmp_path):
+    """A record of 2e6 samples (64 MB in memory) shaking 16 cases (two SIMD
+    batches) in a process limited to 1.2 GB of address space (ulimit -v):
+    held once, the cases complete. (A copy per case, ball and lane took 25
+    of them for a batch of 8.)"""
+    n = 2_000_000
+    values = " ".join(f"{0.01 * np.sin(k / 50):.4E}" for k in range(n))
+    (tmp_path / "long.AT2").write_text(f"PEER\nX\nACCELERATION TIME SERIES IN UNITS OF G\nNPTS= {n}, DT= 0.0010 SEC\n"
+                                       f"{values}\n")
+    (tmp_path / "cup.nml").write_text(CUP.format(files="'long.AT2'", t_end=0.5, extra="")
+                                      + "&sweep name = 'scale', start = 1, stop = 2, count = 16 /\n")
+    limit = 1200 << 20
+    result = subprocess.run([str(ellroll), "run", "cup.nml", "-q", "--threads", "1"], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=120,
+                            preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (limit, limit)))
+    assert result.returncode == 0, result.stderr
+    with h5py.File(tmp_path / "out.h5", "r") as f:
+        assert np.all(f["summary/status"][:] == 1)

@@ -513,6 +513,7 @@ contains
     integer, parameter :: n_record = 201
     real(wp) :: times(n_record), values(3, n_record)
     integer :: k
+    logical :: held
     cs = paper_case(1.0e-3_wp, 3.0_wp)
     cs%param(p_rolling_resistance) = 2.0e-3_wp
     cs(1)%param(p_omega_x:p_omega_z) = [-2.0_wp, 2.0_wp, 0.0_wp]           ! rolls, turns, stops
@@ -530,7 +531,8 @@ contains
       values(:, k) = [1.5_wp * sin(5.0_wp * times(k)), 0.8_wp * sin(3.0_wp * times(k)), 0.0_wp] &
                      * merge(1.0_wp, 0.0_wp, k < n_record)
     end do
-    call set_record(cs(6)%excitation, times, values)
+    call set_record(cs(6)%excitation, times, values, held)
+    if (.not. held) error stop 'no room for the records'
     cs(6)%param(p_settle) = 5
     cs(6)%param(p_rolling_resistance) = 1.0e-2_wp
     cs(6)%t_end = 1.0_wp
@@ -550,6 +552,7 @@ contains
     integer, parameter :: n_even = 401, n_uneven = 300
     real(wp) :: times(n_even), values(3, n_even), uneven(n_uneven), jitter(n_uneven)
     integer :: k
+    logical :: held
     cs = paper_case(1.0e-3_wp, 3.0_wp)
     do k = 1, 5
       cs(k)%excitation%kind = excitation_harmonic
@@ -575,9 +578,10 @@ contains
     call random_number(jitter)
     uneven = [(0.0135_wp * (k - 1) + 0.006_wp * jitter(k), k = 1, n_uneven)]
     uneven(1) = 0
-    call set_record(cs(7)%excitation, times, values)
+    call set_record(cs(7)%excitation, times, values, held)
     cs(7)%param(p_scale) = 1.5_wp
-    call set_record(cs(8)%excitation, uneven, values(:, :n_uneven))
+    call set_record(cs(8)%excitation, uneven, values(:, :n_uneven), held)
+    if (.not. held) error stop 'no room for the records'
     cs(8)%param(p_scale) = 0.7_wp
     cs(8)%param(p_omega_x:p_omega_z) = [2.0_wp, 1.0_wp, 30.0_wp]
     cs(1)%excitation%kind = excitation_none                            ! a fixed cup among them
