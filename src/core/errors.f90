@@ -29,12 +29,20 @@ contains
     failed = self%code /= err_none
   end function failed
 
+  !> The error `code` with its message, a control character of it (from a
+  !> file or a name it quotes: an escape sequence would reach the terminal)
+  !> shown as '?'; the line breaks and tabs of the program's own messages kept.
   pure subroutine set_error(err, code, message)
     type(error_t), intent(inout) :: err
     integer, intent(in) :: code
     character(len=*), intent(in) :: message
+    integer :: k, c
     err%code = code
     err%message = message
+    do k = 1, len(message)
+      c = iachar(message(k:k))
+      if ((c < 32 .and. c /= 9 .and. c /= 10) .or. c == 127) err%message(k:k) = '?'
+    end do
   end subroutine set_error
 
   integer pure function exit_code(err)

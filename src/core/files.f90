@@ -244,9 +244,10 @@ contains
   !> `note` ('' where none could be read): run the command the note names
   !> again with --resume (without --overwrite, which a resume refuses), or
   !> a merge again as it stands.
-  pure function resume_advice(output, note) result(advice)
+  pure subroutine resume_advice(output, note, advice)
     character(len=*), intent(in) :: output, note
-    character(len=:), allocatable :: advice, command
+    character(len=:), allocatable, intent(out) :: advice
+    character(len=:), allocatable :: command
     integer :: at
     command = note
     call holder_line(command)
@@ -265,7 +266,7 @@ contains
     if (at > 0) command = command(:at) // command(at + len(' --overwrite '):)
     if (index(command, ' --resume ') == 0) command = command // '--resume '
     advice = "finish it with '" // trim(command) // "' (the command " // output // ".lock names, from its folder)"
-  end function resume_advice
+  end subroutine resume_advice
 
   !> Release a lock of lock_output (its file removed first): 0 or an errno value.
   integer function unlock_output(fd, path)

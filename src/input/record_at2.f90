@@ -295,7 +295,7 @@ contains
         return
       end if
       number = number_after(line, at + 2)
-      unit = unit_after(line, at + 2, number)
+      call unit_after(line, at + 2, number, unit)
       if (len(unit) > 0 .and. all(unit /= [character(len=7) :: 's', 'sec', 'secs', 'second', 'seconds'])) then
         reason = "DT's unit '" // unit // "' is not seconds; write DT in SEC ('NPTS= n, DT= dt SEC')"
         return
@@ -339,10 +339,10 @@ contains
   !> after position `from`): the letters written against its end ('0.01sec'),
   !> else the letters that start the next word ('0.01 sec,'), else '' (also
   !> where the number's text is letters alone).
-  pure function unit_after(line, from, number) result(unit)
+  pure subroutine unit_after(line, from, number, unit)
     character(len=*), intent(in) :: line, number
     integer, intent(in) :: from
-    character(len=:), allocatable :: unit
+    character(len=:), allocatable, intent(out) :: unit
     character(len=*), parameter :: letters = 'abcdefghijklmnopqrstuvwxyz'
     integer :: last, rest, stop, digits
     unit = ''
@@ -356,7 +356,7 @@ contains
     if (rest > len(line)) return
     stop = verify(line(rest:) // '#', letters)
     unit = line(rest:rest + stop - 2)
-  end function unit_after
+  end subroutine unit_after
 
   !> The text of the number after position `from` and an optional '=' (up
   !> to a blank or a comma), or '?'.

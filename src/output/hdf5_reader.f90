@@ -143,9 +143,10 @@ contains
         else
           ! (no process has it open: its writer stopped before closing it)
           self%unfinished = .true.
+          call resume_advice(path(:len(path) - trimmed(path)), holder, reason)
           call set_error(err, err_output, path // ": an unfinished run's work file (its run stopped before it " // &
-              "closed the file: killed?); " // resume_advice(path(:len(path) - trimmed(path)), holder) // &
-              ', then read ' // path(:len(path) - trimmed(path)) // '; do not h5clear it')
+              "closed the file: killed?); " // reason // ', then read ' // path(:len(path) - trimmed(path)) // &
+              '; do not h5clear it')
         end if
       else if (index(reason, 'HDF5: ') /= 1) then      ! the system's reason
         call set_error(err, err_output, path // ': cannot open the HDF5 file: ' // reason)

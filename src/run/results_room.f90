@@ -32,14 +32,14 @@ contains
     if (.not. (room > 0 .and. needed > room)) return
     call set_error(err, err_input, label // ': the results of ' // itoa(n_cases) // ' cases, ' // &
         itoa(inp%plan%n_samples) // ' samples of ' // itoa(sum(field_ncomp, mask=inp%plan%fields)) // &
-        ' values each, need about ' // gib(needed) // ' of memory, more than this process may hold (' // gib(room) // &
+        ' values each, need about ' // itoa(gib(needed)) // ' GiB of memory, more than this process may hold (' // &
+        itoa(gib(room)) // ' GiB' // &
         '): store fewer fields, fewer samples (a longer interval) or fewer cases at a time, or write them to a ' // &
         "file with 'ellroll run', which holds a case's results only until they are written")
   contains
-    pure function gib(bytes) result(text)
+    pure integer(i8) function gib(bytes)
       real(wp), intent(in) :: bytes
-      character(len=:), allocatable :: text
-      text = itoa(max(1_i8, nint(bytes / 2.0_wp**30, i8))) // ' GiB'
+      gib = max(1_i8, nint(bytes / 2.0_wp**30, i8))
     end function gib
   end subroutine check_room
 end module ellroll_results_room

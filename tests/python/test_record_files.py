@@ -273,6 +273,15 @@ def test_empty_values_at_a_rows_end_shift_nothing(ellroll, tmp_path, rows):
     assert_same_trajectories(a, b)
 
 
+def test_control_characters_a_message_quotes_are_shown_as_question_marks(ellroll, tmp_path):
+    """A record line of control bytes (ESC, CR, form feed, bell, DEL) quoted
+    in the error: none of them reaches the terminal, the message is one line."""
+    (tmp_path / "rec.csv").write_bytes(b"0, 0, 0\n1, \x1b[31mred\x1b[0m\x0c\x07\x7f\r, 2\n20, 0, 0\n")
+    stderr = refused(ellroll, tmp_path, files="'rec.csv'")
+    assert "rec.csv:2: not numbers: 1, ?[31mred?[0m" in stderr, repr(stderr)
+    assert len(stderr.splitlines()) == 1 and not any(ord(c) < 32 and c != "\n" or ord(c) == 127 for c in stderr)
+
+
 def test_mutated_csv_files_end_cleanly_in_the_debug_build(ellroll_debug, tmp_path):
     """Deleted, doubled and changed characters: a result or a clean error.
     60 files, seeded; ELLROLL_FUZZ_BUDGET=N runs N."""
