@@ -301,7 +301,8 @@ def test_a_long_record_is_held_once_for_every_case_of_a_batch(ellroll, tmp_path)
     held once, the cases complete. (A copy per case, ball and lane took 25
     of them for a batch of 8.)"""
     n = 2_000_000
-    values = " ".join(f"{0.01 * np.sin(k / 50):.4E}" for k in range(n))
+    period = " ".join(f"{0.01 * np.sin(2 * np.pi * k / 1000):.4E}" for k in range(1000))
+    values = " ".join([period] * (n // 1000))
     (tmp_path / "long.AT2").write_text(f"PEER\nX\nACCELERATION TIME SERIES IN UNITS OF G\nNPTS= {n}, DT= 0.0010 SEC\n"
                                        f"{values}\n")
     (tmp_path / "cup.nml").write_text(CUP.format(files="'long.AT2'", t_end=0.5, extra="")
