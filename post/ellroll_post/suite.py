@@ -35,6 +35,7 @@ and 84th NaN where one remains, the median its value)."""
 import io
 import json
 import math
+import re
 import warnings
 
 import h5py
@@ -378,9 +379,13 @@ def intensity(run, im="scale"):
     lower = {n.lower(): n for n in found}
     wanted = im.lower().replace(" ", "")
     name = lower.get(wanted)
-    if name is None and wanted.startswith("sa"):
+    spelled = re.fullmatch(r"sa(?:\((t\d?|[^()]+)\)|_([^()]+))", wanted)
+    if name is None and wanted.startswith("sa") and spelled is None:
+        raise NoIntensityMeasure(f"{run.path}: {im} is not an intensity measure's name: Sa is spelled Sa(T), "
+                                 "Sa(T2), Sa(1.0) or sa_1")
+    if name is None and spelled is not None:
         sa = [n for n in found if n.lower().startswith("sa")]
-        period = wanted[2:].strip("_()")
+        period = spelled[1] or spelled[2]
         own = {"": "sa_linear_periods_1", "t": "sa_linear_periods_1", "t1": "sa_linear_periods_1",
                "t2": "sa_linear_periods_2"}
         if period in own and own[period] in found:

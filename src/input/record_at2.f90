@@ -281,6 +281,9 @@ contains
     if (at == 0) then
       reason = "no NPTS on the fourth line (expected 'NPTS= n, DT= dt SEC' or 'n dt NPTS, DT')"
       return
+    else if (index(line(at + 4:), 'npts') > 0) then
+      reason = 'NPTS is given twice: ' // trim(line)
+      return
     end if
     if (index(adjustl(line(at + 4:)), '=') == 1) then           ! NPTS= n, DT= dt SEC
       number = number_after(line, at + 4)

@@ -148,6 +148,7 @@ BAD = [
     # a unit other than seconds, against the number or apart (the number alone would be read as seconds)
     ("DT in MSEC", lambda: "a\nb\nc\nNPTS=   4, DT= 20 MSEC\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'msec' is not"),
     ("DT in min", lambda: "a\nb\nc\nNPTS=   4, DT=0.02min\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'min' is not"),
+    ("NPTS twice", lambda: "a\nb\nc\nNPTS=   4, NPTS= 6, DT= .01 SEC\n .1 .2 .3 .4\n", "H1.AT2:4: NPTS is given twice"),
     ("DT in USEC", lambda: "a\nb\nc\nNPTS=4, DT= 20000 USEC,\n .1 .2 .3 .4\n", "H1.AT2:4: DT's unit 'usec' is not"),
 ]
 

@@ -393,6 +393,12 @@ def test_fragility_command_on_a_real_suite(small_suite, tmp_path, capsys):
     assert "no intensity measure Sa(7.5)" in error and "scale" in error and "pga" in error \
         and "Traceback" not in error
     assert not (tmp_path / "small_fragility.png").exists()
+    for spelling in ("Sa(", "Sa", "Sa)", "Sa()", "Sa(1", "sa_", "Sa((1))"):
+        assert cli.main(["fragility", str(small_suite), "--im", spelling, "--out", str(tmp_path)]) == 2, spelling
+        error = capsys.readouterr().err
+        assert f"{spelling} is not an intensity measure's name: Sa is spelled Sa(T), Sa(T2), Sa(1.0) or sa_1" \
+            in error and "Traceback" not in error, error
+    assert not (tmp_path / "small_fragility.png").exists()
 
 
 def test_fragility_says_what_it_leaves_out_and_refuses_a_campaign_without_stripes(ellroll, small_suite, tmp_path,
