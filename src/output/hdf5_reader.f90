@@ -106,7 +106,17 @@ contains
     call hdf5_quiet()
     call forget_system_failure()
     if (path_kind(path) == kind_missing) then
-      call set_error(err, err_input, path // ': no such file')
+      if (path_kind(path // '.partial') == kind_missing) then
+        call set_error(err, err_input, path // ': no such file')
+      else if (lock_held(lock_of(path), holder)) then
+        call holder_line(holder)
+        call set_error(err, err_input, path // ': not there yet: a running ellroll writes it (' // holder // &
+            ', holding ' // lock_of(path) // ') into ' // path // '.partial; read it when that run ends')
+      else
+        call resume_advice(path, holder, reason)
+        call set_error(err, err_input, path // ': not there: ' // path // ".partial is its unfinished run's " // &
+            'work file; ' // reason // ', then read ' // path)
+      end if
       return
     end if
     ! (HDF5 would open a FIFO and wait for a writer, past SIGTERM, or read a

@@ -16,6 +16,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 import traceback
 
 import h5py
@@ -342,6 +343,40 @@ def test_ellroll_summary_of_a_killed_runs_work_file_says_resume(ellroll, killed)
     assert f"{advice}, then read k.h5; do not h5clear it" in result.stderr, result.stderr
     _, _, err = cli("summary", killed / "k.h5.partial")
     assert "finish it with 'ellroll run k.nml -q --threads 1 --resume' (the command " in err, err
+
+
+def test_the_output_of_a_killed_run_is_said_to_be_unfinished_not_missing(ellroll, killed):
+    """`ellroll summary OUT.h5` and a merge naming it, where only the killed
+    run's OUT.h5.partial is: not 'no such file', but its work file and the
+    command that finishes it."""
+    for command in (["summary", "k.h5"], ["merge", "m.h5", "k.h5"]):
+        result = subprocess.run([str(ellroll), *command], cwd=killed, capture_output=True, text=True)
+        assert result.returncode == 2, result.stderr
+        assert ("k.h5: not there: k.h5.partial is its unfinished run's work file; finish it with 'ellroll run k.nml "
+                "-q --threads 1 --resume' (the command k.h5.lock names, from its folder), then read k.h5") \
+            in result.stderr, result.stderr
+    assert not (killed / "m.h5").exists()
+
+
+def test_the_output_of_a_running_run_names_the_process_that_writes_it(ellroll, tmp_path):
+    """`ellroll summary OUT.h5` while a run still writes OUT.h5.partial: the
+    process its lock names, and to read it when that run ends."""
+    name = write(tmp_path, "live", "&sweep name = 'omega_z', start = 5, stop = 50, count = 400 /\n", t_end=30.0,
+                 estimate=False)
+    process = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "1"], cwd=tmp_path,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 20
+        while not (tmp_path / "live.h5.lock").exists() or "pid" not in (tmp_path / "live.h5.lock").read_text():
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.02)
+        result = subprocess.run([str(ellroll), "summary", "live.h5"], cwd=tmp_path, capture_output=True, text=True)
+        assert result.returncode == 2, result.stderr
+        assert "live.h5: not there yet: a running ellroll writes it (" in result.stderr and \
+            f"pid {process.pid}" in result.stderr and "read it when that run ends" in result.stderr, result.stderr
+    finally:
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=30)
 
 
 def test_ellroll_summary_of_a_killed_run_without_its_lock_names_the_generic_command(ellroll, killed, tmp_path):
