@@ -153,7 +153,13 @@ def _open_failure(path, exc):
     """One line for a file h5py cannot open."""
     text = _reason(exc)
     if isinstance(exc, FileNotFoundError) or "No such file" in text:
-        return f"{path}: no such file"
+        if not os.path.lexists(path + ".partial"):
+            return f"{path}: no such file"
+        holder = lock_holder(path)            # (its run's work file is there: as `ellroll summary` says it)
+        if holder:
+            return (f"{path}: not there yet: a running ellroll writes it ({holder}, holding {path}.lock) into "
+                    f"{path}.partial; read it when that run ends")
+        return f"{path}: not there: {path}.partial is its unfinished run's work file; {_resume_advice(path)}"
     if path.endswith(JOURNAL_SUFFIX) and len(path) > len(JOURNAL_SUFFIX) and _is_journal(path):
         output = path[:-len(JOURNAL_SUFFIX)]
         return (f"{path}: ellroll's journal of an unfinished run (the cases it finished, for --resume), not an "

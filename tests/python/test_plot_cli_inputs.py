@@ -356,6 +356,9 @@ def test_the_output_of_a_killed_run_is_said_to_be_unfinished_not_missing(ellroll
                 "-q --threads 1 --resume' (the command k.h5.lock names, from its folder), then read k.h5") \
             in result.stderr, result.stderr
     assert not (killed / "m.h5").exists()
+    with pytest.raises(ellroll_post.NotAnEllrollFile, match=r"k\.h5: not there: \S*k\.h5\.partial is its unfinished "
+                       r"run's work file; finish it with 'ellroll run k\.nml -q --threads 1 --resume'"):
+        ellroll_post.open(killed / "k.h5")
 
 
 def test_the_output_of_a_running_run_names_the_process_that_writes_it(ellroll, tmp_path):
@@ -374,6 +377,9 @@ def test_the_output_of_a_running_run_names_the_process_that_writes_it(ellroll, t
         assert result.returncode == 2, result.stderr
         assert "live.h5: not there yet: a running ellroll writes it (" in result.stderr and \
             f"pid {process.pid}" in result.stderr and "read it when that run ends" in result.stderr, result.stderr
+        with pytest.raises(ellroll_post.NotAnEllrollFile, match=f"live\\.h5: not there yet: a running ellroll "
+                           f"writes it \\(.*pid {process.pid}"):
+            ellroll_post.open(tmp_path / "live.h5")
     finally:
         process.send_signal(signal.SIGTERM)
         process.wait(timeout=30)
