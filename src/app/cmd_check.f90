@@ -17,6 +17,7 @@ module ellroll_cmd_check
   use ellroll_shards, only: shard_slots
   use ellroll_output_start, only: check_output_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice
+  use ellroll_disk_room, only: output_bytes, output_room, disk_room_advice, shard_size
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_cli, only: cli_t
   implicit none
@@ -42,6 +43,8 @@ contains
     if (len(messages) > 0) write (error_unit, '(a)') messages
     call dt_cap_advice(inp, messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages
+    call disk_room_advice(inp, shard_size(inp%campaign%n_cases(), cli%opts%shard(1), cli%opts%shard(2)), messages)
+    if (len(messages) > 0) write (error_unit, '(a)') messages
     call find_invalid_cases(inp, invalid, messages)
     call refuse_invalid_cases(inp, invalid, messages, err)
     if (err%failed()) return
@@ -59,7 +62,7 @@ contains
     real(wp) :: y(state_size), f(state_size), n0(3), radii(2), periods(2), bytes
     integer(i8) :: n_cases, i, n_local
     integer :: k
-    character(len=:), allocatable :: line
+    character(len=:), allocatable :: line, room
     cs = inp%campaign%base
     ball = make_ball(cs)
     call put_line('base case (resolved input):')
@@ -134,6 +137,10 @@ contains
     bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
     call size_text(bytes, line)
     call put_line('  trajectory data before compression = ' // line // ' (' // itoa(n_local) // ' cases)')
+    call size_text(output_bytes(inp, n_local), line)
+    call size_text(max(output_room(inp), 0.0_wp), room)
+    if (output_room(inp) < 0) room = 'unknown'
+    call put_line('  the output and its journal, uncompressed, about ' // line // '; free on its file system ' // room)
   end subroutine describe
 
   !> bytes in KiB (whole), MiB or GiB (one decimal).

@@ -12,6 +12,7 @@ module ellroll_cmd_run
   use ellroll_output_start, only: check_output_target, holds_this_run
   use ellroll_output_files, only: output_files_t, check_replace, work_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
+  use ellroll_disk_room, only: disk_room_advice, shard_size
   use ellroll_merge, only: merge_shards
   use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size, path_length
   use ellroll_kinds, only: wp, i8
@@ -59,6 +60,8 @@ contains
     opts%advice_seconds = wall_clock()
     call step_size_advice(inp, advice)
     call dt_cap_advice(inp, cap)
+    if (len(cap) > 0) advice = trim(advice // achar(10) // cap)
+    call disk_room_advice(inp, shard_size(inp%campaign%n_cases(), opts%shard(1), opts%shard(2)), cap)
     if (len(cap) > 0) advice = trim(advice // achar(10) // cap)
     if (advice(1:min(1, len(advice))) == achar(10)) advice = advice(2:)
     opts%advice_seconds = wall_clock() - opts%advice_seconds

@@ -9,7 +9,7 @@ module ellroll_files
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
-            lock_held, holder_line, resume_advice, host_name, process_id, text_of
+            lock_held, holder_line, resume_advice, host_name, process_id, text_of, free_bytes
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
 
   !> The longest path a command takes (Linux's PATH_MAX): the files of its
@@ -78,6 +78,10 @@ module ellroll_files
       character(kind=c_char), intent(out) :: holder(*)
       integer(c_int), value :: size
     end function c_lock_output
+    integer(c_long_long) function free_bytes_c(path) bind(c, name='ellroll_free_bytes')
+      import :: c_long_long, c_char
+      character(kind=c_char), intent(in) :: path(*)
+    end function free_bytes_c
     integer(c_int) function c_lock_held(path, holder, size) bind(c, name='ellroll_lock_held')
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
@@ -267,6 +271,12 @@ contains
     if (index(command, ' --resume ') == 0) command = command // '--resume '
     advice = "finish it with '" // trim(command) // "' (the command " // output // ".lock names, from its folder)"
   end subroutine resume_advice
+
+  !> The bytes free to this user on the file system holding path (-1: unknown).
+  integer(c_long_long) function free_bytes(path)
+    character(len=*), intent(in) :: path
+    free_bytes = free_bytes_c(path // c_null_char)
+  end function free_bytes
 
   !> Release a lock of lock_output (its file removed first): 0 or an errno value.
   integer function unlock_output(fd, path)

@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 #include <linux/capability.h>
@@ -409,4 +410,14 @@ int ellroll_read_text(int fd, char *text, int64_t bytes)
         done += got;
     }
     return 0;
+}
+
+/* The bytes free to this user on the file system that holds path; -1
+ * where it cannot be told. */
+long long ellroll_free_bytes(const char *path)
+{
+    struct statvfs info;
+    if (statvfs(path, &info) != 0)
+        return -1;
+    return (long long)info.f_bavail * (long long)info.f_frsize;
 }

@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import FULL, ROOT, in_turn, plot_in_process, run
+from conftest import FULL, PAPER_INPUT, ROOT, in_turn, plot_in_process, run
 from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes
 
 
@@ -711,3 +711,23 @@ def test_ellroll_plot_takes_only_its_marks_in_their_place_as_its_own(plotted, co
         target.write_bytes(own)
     code, _, err = plot(plotted, command[0], "out.h5", *command[1:], "--out", figures, "--overwrite")
     assert code == 0, err
+
+
+def test_check_and_run_say_when_the_output_passes_the_free_space(ellroll, tmp_path):
+    """An output of about 124 TiB (1e5 cases of 1e7 samples): `check` gives
+    its size and the free space of its file system, and warns that a run
+    would stop (exit 3) when the disk is full, its journal keeping the cases
+    finished. A small output gets no warning."""
+    paper = PAPER_INPUT.read_text()
+    big = paper.replace("t_end = 30.0", "t_end = 10000.0").replace("interval = 0.01", "interval = 1.0e-3")
+    (tmp_path / "big.nml").write_text(big + "&sweep name = 'omega_z', start = 5, stop = 50, count = 100000 /\n")
+    result = run(ellroll, "check", "big.nml", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert re.search(r"the output and its journal, uncompressed, about 12\d{4}\.\d GiB; free on its file system "
+                     r"[\d.]+ [KMG]iB", result.stdout), result.stdout
+    assert re.search(r"ellroll: warning: \S+ and its journal take about 12\d{4}\.\d GiB, more than the [\d.]+ GiB free on "
+                     r"its file system: the run stops \(exit 3\) when it is full", result.stderr), result.stderr
+    (tmp_path / "small.nml").write_text(paper)
+    result = run(ellroll, "check", "small.nml", cwd=tmp_path)
+    assert result.returncode == 0 and "warning" not in result.stderr, result.stderr
+    assert list(p.name for p in tmp_path.iterdir() if p.suffix != ".nml") == []
