@@ -6,18 +6,18 @@ module ellroll_cmd_check
   use ellroll_standard_output, only: put_line
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_strings, only: itoa, format_real
+  use ellroll_strings, only: itoa, format_real, size_text
   use ellroll_records, only: named_value_t, kind_real, kind_int
   use ellroll_input, only: run_input_t, read_input
-  use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, field_ncomp, get_param
+  use ellroll_cases, only: case_t, case_record, make_ball, field_count, field_names, get_param
   use ellroll_params, only: params, p_dt, p_g, p_omega_x, p_omega_z, p_radius, p_x, p_y
   use ellroll_ellipsoid, only: principal_radii, normal_from_contact
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, initial_state, observe, state_size
   use ellroll_linear, only: no_spin_periods, fits_at_bottom
-  use ellroll_shards, only: shard_slots
+  use ellroll_shards, only: shard_size
   use ellroll_output_start, only: check_output_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice
-  use ellroll_disk_room, only: output_bytes, output_room, disk_room_advice, shard_size
+  use ellroll_disk_room, only: output_bytes, output_room, disk_room_advice
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_cli, only: cli_t
   implicit none
@@ -59,7 +59,7 @@ contains
     type(rolling_ball_t) :: ball
     type(case_t) :: cs
     type(observation_t) :: obs
-    real(wp) :: y(state_size), f(state_size), n0(3), radii(2), periods(2), bytes
+    real(wp) :: y(state_size), f(state_size), n0(3), radii(2), periods(2), free
     integer(i8) :: n_cases, i, n_local
     integer :: k
     character(len=:), allocatable :: line, room
@@ -91,7 +91,7 @@ contains
     end if
 
     n_cases = inp%campaign%n_cases()
-    n_local = size(shard_slots(n_cases, shard), kind=i8)
+    n_local = shard_size(n_cases, shard(1), shard(2))
     call put_line('campaign: ' // itoa(n_cases) // ' cases')
     if (shard(2) > 1) call put_line('  this shard (' // itoa(shard(1)) // '/' // &
         itoa(shard(2)) // '): ' // itoa(n_local) // ' cases')
@@ -134,27 +134,14 @@ contains
       if (inp%plan%fields(k)) line = line // ' ' // trim(field_names(k))
     end do
     call put_line(line)
-    bytes = 8.0_wp * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) * real(n_local, wp)
-    call size_text(bytes, line)
+    call size_text(inp%plan%case_bytes() * real(n_local, wp), line)
     call put_line('  trajectory data before compression = ' // line // ' (' // itoa(n_local) // ' cases)')
     call size_text(output_bytes(inp, n_local), line)
-    call size_text(max(output_room(inp), 0.0_wp), room)
-    if (output_room(inp) < 0) room = 'unknown'
+    free = output_room(inp)
+    call size_text(max(free, 0.0_wp), room)
+    if (free < 0) room = 'unknown'
     call put_line('  the output and its journal, uncompressed, about ' // line // '; free on its file system ' // room)
   end subroutine describe
-
-  !> bytes in KiB (whole), MiB or GiB (one decimal).
-  subroutine size_text(bytes, text)
-    real(wp), intent(in) :: bytes
-    character(len=:), allocatable, intent(out) :: text
-    if (bytes < 2.0_wp**20) then
-      text = format_real(real(nint(bytes / 1024), wp)) // ' KiB'
-    else if (bytes < 2.0_wp**30) then
-      text = format_real(real(nint(10 * bytes / 2.0_wp**20), wp) / 10) // ' MiB'
-    else
-      text = format_real(real(nint(10 * bytes / 2.0_wp**30), wp) / 10) // ' GiB'
-    end if
-  end subroutine size_text
 
   subroutine print_values(rec)
     type(named_value_t), intent(in) :: rec(:)

@@ -12,7 +12,8 @@ module ellroll_cmd_run
   use ellroll_output_start, only: check_output_target, holds_this_run
   use ellroll_output_files, only: output_files_t, check_replace, work_target
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
-  use ellroll_disk_room, only: disk_room_advice, shard_size
+  use ellroll_disk_room, only: disk_room_advice
+  use ellroll_shards, only: shard_size
   use ellroll_merge, only: merge_shards
   use ellroll_files, only: path_kind, kind_regular, kind_missing, file_size, path_length
   use ellroll_kinds, only: wp, i8

@@ -101,6 +101,7 @@ module ellroll_cases
     integer :: compression = 0          !< deflate level of the trajectories, 0 (none) to 9
   contains
     procedure :: times => output_times
+    procedure :: case_bytes => trajectory_bytes
   end type output_plan_t
 
 contains
@@ -112,6 +113,12 @@ contains
     integer(i8) :: i
     times = [(real(i, wp) * plan%interval, i = 0, plan%n_samples - 1)]
   end function output_times
+
+  !> The bytes of one case's stored trajectories, uncompressed.
+  pure real(wp) function trajectory_bytes(plan)
+    class(output_plan_t), intent(in) :: plan
+    trajectory_bytes = 8 * real(plan%n_samples, wp) * sum(field_ncomp, mask=plan%fields)
+  end function trajectory_bytes
 
   pure real(wp) function get_param(cs, p) result(value)
     type(case_t), intent(in) :: cs

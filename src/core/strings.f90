@@ -13,7 +13,7 @@ module ellroll_strings
   implicit none
   private
 
-  public :: lower, itoa, join, format_real, format_computed, real_text, text_hash, excerpt
+  public :: lower, itoa, join, format_real, format_computed, real_text, text_hash, excerpt, size_text
   ! the lengths of itoa and format_real, for a caller's own result length
   ! (gfortran 12 cannot nest len(itoa(x)) of a derived type's component there)
   public :: decimal_width, real_text_length
@@ -133,6 +133,19 @@ contains
     call real_text(x, buffer, n)
     text = buffer(:n)
   end function format_real
+
+  !> A size of bytes in KiB (whole), MiB or GiB (one decimal).
+  pure subroutine size_text(bytes, text)
+    real(wp), intent(in) :: bytes
+    character(len=:), allocatable, intent(out) :: text
+    if (bytes < 2.0_wp**20) then
+      text = format_real(real(nint(bytes / 1024), wp)) // ' KiB'
+    else if (bytes < 2.0_wp**30) then
+      text = format_real(real(nint(10 * bytes / 2.0_wp**20), wp) / 10) // ' MiB'
+    else
+      text = format_real(real(nint(10 * bytes / 2.0_wp**30), wp) / 10) // ' GiB'
+    end if
+  end subroutine size_text
 
   !> The double nearest x rounded to 10 significant digits (x itself where
   !> not finite, or so large that the rounding could pass huge()).

@@ -21,7 +21,6 @@ module ellroll_ball_steppers
   public :: ball_fixed_step, rk4_ball_step, pair_ball_step, pair_ball_dense, lanes_fixed_step, lanes_rk4_step, &
             lanes_pair_attempt, lanes_pair_dense_stages
 
-
 contains
 
   !> One step of a fixed-step method on the ball from (t, y, f): its fused

@@ -28,7 +28,7 @@ module ellroll_excitation
 contains
 
   !> The cup moved by a record of these samples, stored once (ellroll_
-  !> record_store; stored false where there is no place or memory left for
+  !> record_store; held false where there is no place or memory left for
   !> them); a grid of equal steps is found by its index.
   subroutine set_record(exc, times, values, held)
     type(excitation_t), intent(inout) :: exc

@@ -1,7 +1,7 @@
 !> The samples of the records that shake the cups, held once and shared by
 !> every case, ball and SIMD lane that uses them: an excitation_t names its
-!> record by its place here. (A record of 1e7 samples is 320 MB; a copy per
-!> case, per ball and per lane took 25 of them for a batch of 8.) Records
+!> record by its place here. (A record of 1e7 samples is 320 MB, and a
+!> batch of 8 cases holds 8 cases, 8 balls and 8 lanes shaken by it.) Records
 !> are stored as an input is read and given back when the library's run of
 !> it ends (a program's live until it exits); a slot is taken and given back
 !> under a lock, as runs of the library may read inputs on several threads

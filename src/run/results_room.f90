@@ -27,8 +27,7 @@ contains
     type(error_t), intent(inout) :: err
     real(wp) :: needed, room
     room = real(memory_room(), wp)
-    needed = real(n_cases, wp) * (2 * 8 * real(inp%plan%n_samples, wp) * sum(field_ncomp, mask=inp%plan%fields) &
-                                  + 2048)
+    needed = real(n_cases, wp) * (2 * inp%plan%case_bytes() + 2048)
     if (.not. (room > 0 .and. needed > room)) return
     call set_error(err, err_input, label // ': the results of ' // itoa(n_cases) // ' cases, ' // &
         itoa(inp%plan%n_samples) // ' samples of ' // itoa(sum(field_ncomp, mask=inp%plan%fields)) // &

@@ -8,7 +8,7 @@ module ellroll_shards
   implicit none
   private
 
-  public :: shard_slots, campaign_id
+  public :: shard_slots, shard_size, campaign_id
 
 contains
 
@@ -22,6 +22,14 @@ contains
     ! floor division: a shard past the last case gets none (truncation gave it one)
     indices = [(int(shard(1), i8) + j * shard(2), j = 0, floor(real(n_total - shard(1) - 1, wp) / shard(2), i8))]
   end function shard_slots
+
+  !> How many cases shard I of N has (shard_slots' size, not made).
+  elemental integer(i8) function shard_size(n_total, index, count)
+    integer(i8), intent(in) :: n_total
+    integer, intent(in) :: index, count
+    shard_size = 0
+    if (index < n_total .and. count > 0) shard_size = (n_total - 1 - index) / count + 1
+  end function shard_size
 
   !> The id of the campaign of an input. (A record file changed gives
   !> another id: its fingerprint is part of it.)

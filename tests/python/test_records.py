@@ -299,8 +299,8 @@ def test_a_suite_is_the_same_for_any_thread_count_and_sharding(ellroll, tmp_path
 def test_a_long_record_is_held_once_for_every_case_of_a_batch(ellroll, tmp_path):
     """A record of 2e6 samples (64 MB in memory) shaking 16 cases (two SIMD
     batches) in a process limited to 1.2 GB of address space (ulimit -v):
-    held once, the cases complete. (A copy per case, ball and lane took 25
-    of them for a batch of 8.)"""
+    held once for all, the cases complete. (A copy per case, ball and lane
+    would be 25 of them for a batch of 8.)"""
     n = 2_000_000
     period = " ".join(f"{0.01 * np.sin(2 * np.pi * k / 1000):.4E}" for k in range(1000))
     values = " ".join([period] * (n // 1000))
