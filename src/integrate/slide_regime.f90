@@ -45,6 +45,9 @@ module ellroll_slide_regime
     !> that found it (slide_piece)
     real(wp) :: reached = 0
     real(wp) :: stopped_at = -1     !< where a fixed step's rest event (rolling) was made (< 0: none)
+    !> the friction's and the couple's works over the piece that led here,
+    !> where a fixed step's substeps summed them (slide_piece; < 0: not)
+    real(wp) :: works(2) = -1
   end type regime_state_t
 
   !> What the sliding adds to the summary as it goes.
@@ -126,7 +129,7 @@ contains
       call integrator%step(sb, t, now%s, now%fs, h, new%s, n_rhs)
     class default
       call slide_piece(integrator, sb, t, h, now%s, now%fs, now%obs%reaction_normal, new%s, new%reached, new%stalled, &
-                       n_rhs)
+                       new%works, n_rhs)
     end select
     call normalize_normal(new%s)
     if (integrator%stage_limit == no_step_solution) then
@@ -356,6 +359,11 @@ contains
       call add_sliding(sb, h, from, to, tally, work(1))
       if (rolling%ball%rolling_resistance > 0) call add_step_resistance(run, res, t + h, work(2), to%obs)
     class default
+      if (to%works(1) >= 0 .and. abs(to%reached - h) <= 4 * spacing(h)) then     ! (the substeps' works)
+        call add_sliding(sb, h, from, to, tally, to%works(1))
+        if (rolling%ball%rolling_resistance > 0) call add_step_resistance(run, res, t + h, to%works(2), to%obs)
+        return
+      end if
       if (present(at_stop)) then
         if (at_stop .and. from%sliding) then
           call stop_piece_work(integrator, rolling, sb, t, h, from, work(1), res%n_rhs)

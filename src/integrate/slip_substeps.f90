@@ -8,14 +8,19 @@
 !> and keeps that excess: the slip then stops late by a part of the step).
 !> Such a piece is taken in substeps of the same method, each judged by step
 !> doubling on the slip (its error to slip_tolerance of the contact's
-!> speeds) and extrapolated (order 5 for rk4).
+!> speeds) and extrapolated (order 5 for rk4). So is a piece over which the
+!> couple of rolling resistance may turn (omega_t passing near zero: a ball
+!> with backspin), whose jump in omega' a plain step would take with an error
+!> of the step's size; its works are then the substeps' trapezoids.
 module ellroll_slip_substeps
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use ellroll_kinds, only: wp, i8
   use ellroll_ode, only: no_step_solution
   use ellroll_integrators, only: integrator_t
   use ellroll_case_run, only: stopping
-  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity
+  use ellroll_rolling_ball, only: rolling_part, state_size
+  use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, slip_velocity, center_velocity, couple_steady_at, &
+      dissipation
   implicit none
   private
 
@@ -54,23 +59,32 @@ contains
   !> The piece has no solution (no_step_solution) once the run is asked to
   !> stop (stopping), or where a substep it takes (shrunk to round-off, or
   !> the rest taken whole after max_substeps) leaves the motion's scale.
-  subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, n_rhs)
+  !> works: the friction's and the couple's works over the whole piece where
+  !> the couple's turn put it in substeps, else -1 (the caller's trapezoid).
+  subroutine slide_piece(integrator, sb, t, h, y0, f0, big_n, y_end, reached, stalled, works, n_rhs)
     class(integrator_t), intent(inout) :: integrator
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, h, y0(slide_state_size), f0(slide_state_size), big_n
-    real(wp), intent(out) :: y_end(slide_state_size), reached
+    real(wp), intent(out) :: y_end(slide_state_size), reached, works(2)
     logical, intent(out) :: stalled
     integer(i8), intent(inout) :: n_rhs
     real(wp), dimension(slide_state_size) :: y, f, whole, half, halves, f_half
-    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start, scale
+    real(wp) :: reach, tolerance, tau, s, error, slip, slip_before, slip_start, scale, power(2), power_before(2)
+    real(wp) :: turn_reach
     integer :: k, accepted
+    logical :: small_slip, turning
     stalled = .false.
     reached = h
+    works = -1
     reach = sb%ball%mu * max(big_n, 0.0_wp) * (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * h
-    if (.not. norm2(slip_velocity(sb%ball, y0)) < stiff_reach * reach) then
+    small_slip = norm2(slip_velocity(sb%ball, y0)) < stiff_reach * reach
+    turning = .false.
+    if (sb%ball%rolling_resistance > 0) turning = .not. couple_steady_at(y0, f0, h)
+    if (.not. (small_slip .or. turning)) then
       call integrator%step(sb, t, y0, f0, h, y_end, n_rhs)
       if (integrator%stage_limit /= 0) return
-      if (.not. norm2(slip_velocity(sb%ball, y_end)) < stiff_reach * reach) return
+      small_slip = norm2(slip_velocity(sb%ball, y_end)) < stiff_reach * reach
+      if (.not. small_slip) return
     end if
     slip_start = norm2(slip_velocity(sb%ball, y0))
     slip_before = slip_start
@@ -83,6 +97,7 @@ contains
     y = y0
     f = f0
     tau = 0
+    if (turning) call add_works(t, 0.0_wp)
     s = h / 64
     do k = 1, max_substeps
       if (stopping()) then
@@ -101,6 +116,12 @@ contains
       n_rhs = n_rhs + 1
       if (integrator%stage_limit /= 0) exit
       error = norm2(slip_velocity(sb%ball, halves) - slip_velocity(sb%ball, whole)) / 15
+      ! a substep over which omega_t turns by more than a right angle holds the
+      ! couple's turn, whose jump in omega' step doubling may not see (a turn
+      ! near the substep's middle): its slip errs by up to the jump's reach
+      if (turning) then
+        if (dot_product(rolling_part(y(1:state_size)), rolling_part(halves(1:state_size))) < 0) error = max(error, turn_reach * s)
+      end if
       if (error <= tolerance .or. s <= 16 * spacing(t + h) .or. k == max_substeps) then
         if (.not. speed(halves) <= scale) then
           integrator%stage_limit = no_step_solution       ! the substeps leave the motion's scale
@@ -109,12 +130,13 @@ contains
         end if
         tau = tau + s
         y = halves + (halves - whole) / 15
+        if (turning) call add_works(t + tau, s)
         if (tau >= h) exit
         call sb%rhs(t + tau, y, f)
         n_rhs = n_rhs + 1
         if (sb%event_crossed(y0, y) /= 0) exit      ! the stop: the caller locates it, from the sign there
         accepted = accepted + 1
-        if (mod(accepted, stall_substeps) == 0) then
+        if (small_slip .and. mod(accepted, stall_substeps) == 0) then
           slip = norm2(slip_velocity(sb%ball, y))
           stalled = slip < slip_start .and. slip > slip_before / 2
           if (stalled) exit
@@ -134,7 +156,24 @@ contains
       y_end = y
       reached = min(tau, h)
     end if
+    if (integrator%stage_limit /= 0 .or. tau < h .or. .not. turning) works = -1
   contains
+    !> The works' trapezoid over the substep of `size` ending at (at, y) (0: the
+    !> piece's start, and turn_reach, the couple's jump 2 delta N / J in omega' in u).
+    subroutine add_works(at, size)
+      real(wp), intent(in) :: at, size
+      power = dissipation(sb, at, y)
+      n_rhs = n_rhs + 1
+      if (size > 0) then
+        works = works + 0.5_wp * size * (power_before + power)
+      else
+        works = 0
+        turn_reach = 2 * sb%ball%rolling_resistance * max(big_n, 0.0_wp) &
+                     / (sb%ball%inertia_factor * sb%ball%mass * sb%ball%radius)
+      end if
+      power_before = power
+    end subroutine add_works
+
     !> The speeds of the centre and of the contact's turning at sliding state x,
     !> with the friction's reach over the piece: the motion's scale.
     real(wp) function speed(x)

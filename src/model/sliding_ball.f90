@@ -37,7 +37,7 @@ module ellroll_sliding_ball
   public :: sliding_ball_t, slide_state_size, sliding_from_rolling, rolling_from_sliding, stick, sliding_derivative, &
             observe_sliding, slip_velocity, slip_rate, center_velocity, friction_direction, resistance_power, &
             slip_stop_time, dissipation, at_sliding_rim, choose_slip_law, align_slip, set_reaction, stop_floor, &
-            stick_loss, stick_level
+            stick_loss, stick_level, couple_steady_at
 
   !> The event of the sliding regime: the slip stops.
   integer, parameter, public :: event_stick = 1
@@ -371,12 +371,19 @@ contains
   logical function couple_steady(sb, t, y, h) result(steady)
     class(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t, y(slide_state_size), h
-    real(wp) :: rate(slide_state_size), n(3), omega_t(3)
+    real(wp) :: rate(slide_state_size)
     call sb%rhs(t, y, rate)
+    steady = couple_steady_at(y, rate, h)
+  end function couple_steady
+
+  !> couple_steady where the rate at y is known.
+  pure logical function couple_steady_at(y, rate, h) result(steady)
+    real(wp), intent(in) :: y(slide_state_size), rate(slide_state_size), h
+    real(wp) :: n(3), omega_t(3)
     n = y(1:3) / norm2(y(1:3))
     omega_t = y(4:6) - dot_product(y(4:6), n) * n
     steady = norm2(omega_t) > 2 * h * norm2(rate(4:6))
-  end function couple_steady
+  end function couple_steady_at
 
   !> An aligned step's end: the slip turned onto -F_req at its size,
   !> u = -|u| F_req / |F_req|, by an impulse P of the cup at A (m dV_C = P,
