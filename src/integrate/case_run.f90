@@ -12,7 +12,7 @@ module ellroll_case_run
   use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
   use ellroll_record_store, only: record_samples
   use ellroll_intensity, only: felt_spectral_acceleration
-  use ellroll_status, only: status_completed
+  use ellroll_status, only: status_completed, status_pending
   use ellroll_cases, only: case_t, output_plan_t, make_ball, field_contact, field_center, field_omega, &
       field_normal, field_nutation, field_reaction, field_energy, field_base_acceleration, &
       field_regime, field_slip_speed
@@ -197,7 +197,12 @@ contains
     if (is_model_limit(res%status)) call cut_at_limit(cs, run, res)
     periods = oscillation_periods(run%ball, run%spin0)
     call set_figure_values(res, fig_linear_periods, periods)
-    if (cs%excitation%kind == excitation_record) then
+    ! (Sa runs over the whole record, seconds for one of 1e7 samples: a case
+    ! that ends as the run is asked to stop is dropped with those under way)
+    if (cs%excitation%kind == excitation_record .and. res%status /= status_pending) then
+      if (stopping()) res%status = status_pending
+    end if
+    if (cs%excitation%kind == excitation_record .and. res%status /= status_pending) then
       do k = 1, 2          ! (NaN apart: a mode that does not oscillate)
         if (ieee_is_finite(periods(k))) res%reals(figure_slots(fig_sa_linear_periods)) = &
             spectral_at(cs, periods(k), k, res%reals(figure_slots(fig_sa_linear_periods)))

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, run, run_shards_and_merge
+from conftest import FULL, ROOT, run, run_shards_and_merge
 
 BASE = """&geometry    a = 1.0, b = 0.4, c = 0.2 /
 &ball        radius = 0.2, weight = 2620.0 /
@@ -438,6 +438,45 @@ def test_a_stop_signal_ends_a_long_case_within_milliseconds(ellroll, tmp_path):
     assert time.monotonic() - sent < 1.0
     assert proc.returncode == 143
     assert "interrupted by SIGTERM after 0 of 1 cases; 'ellroll run long.nml -q --resume'" in stderr
+
+
+@pytest.mark.skipif(not FULL, reason="a record of 3e6 samples: set ELLROLL_TEST_FULL=1")
+def test_a_stop_signal_does_not_wait_for_a_batchs_spectra_over_a_long_record(ellroll, tmp_path):
+    """Eight cases in one batch on a record of 3e6 samples: after the steps,
+    each case's Sa at its linear periods runs over the whole record (about
+    0.2 s a case here). SIGTERM as the loop starts ends the run within a
+    third of the uninterrupted loop's time (one case's Sa, not the batch's),
+    and the resume gives the uninterrupted run's bits."""
+    values = np.random.default_rng(3).standard_normal(3_000_000) * 0.01
+    with open(tmp_path / "long.AT2", "w") as f:
+        f.write(f"PEER\nX\nACCELERATION TIME SERIES IN UNITS OF G\nNPTS= {values.size}, DT= 0.0010 SEC\n")
+        f.write(" ".join(f"{v:.7E}" for v in values) + "\n")
+    (tmp_path / "long.nml").write_text("""&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 5e-4, t_end = 1.0 /
+&excitation kind = 'record', record_file = 'long.AT2', 'long.AT2' /
+&output file = 'out.h5', interval = 0.1 /
+&sweep name = 'scale', start = 1, stop = 8, count = 8 /
+""")
+    whole = run(ellroll, "run", "long.nml", "-q", "--threads", "1", "--timings", "-o", "whole.h5", cwd=tmp_path)
+    assert whole.returncode == 0, whole.stderr
+    loop = float(re.search(r"([0-9.]+) s in the loop", whole.stdout + whole.stderr).group(1))
+    proc = subprocess.Popen([str(ellroll), "run", "long.nml", "-q", "--threads", "1"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    journal = tmp_path / "out.h5.journal"
+    while proc.poll() is None and not journal.exists():
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.send_signal(signal.SIGTERM)
+    sent = time.monotonic()
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 143, stderr
+    assert time.monotonic() - sent < loop / 3, (time.monotonic() - sent, loop)
+    assert "interrupted by SIGTERM after 0 of 8 cases" in stderr
+    result = run(ellroll, "run", "long.nml", "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
 
 
 def killed_run(ellroll, tmp_path, records=2):
