@@ -162,19 +162,23 @@ def _open_failure(path, exc):
         return f"{path}: not there: {path}.partial is its unfinished run's work file; {_resume_advice(path)}"
     if path.endswith(JOURNAL_SUFFIX) and len(path) > len(JOURNAL_SUFFIX) and _is_journal(path):
         output = path[:-len(JOURNAL_SUFFIX)]
+        holder = lock_holder(output)
+        if holder:
+            return (f"{path}: ellroll's journal of a running ellroll ({holder}, holding {output}.lock: the cases "
+                    f"it finished), not an output file; read {output} when that run ends")
         return (f"{path}: ellroll's journal of an unfinished run (the cases it finished, for --resume), not an "
                 f"output file; {_resume_advice(output)}")
-    if "temporarily unavailable" in text or "unable to lock file" in text:
-        # HDF5's flock: another process holds the file open to write (ellroll summary says the same)
-        lock = (output_of(path) or path) + ".lock"
-        return (f"{path}: cannot open the HDF5 file: another process has it open to write: a running ellroll, "
-                f"if {lock} exists (it names the process); read it when that run ends")
-    if "already open for write" in text or "consistency flags" in text:
+    locked = "temporarily unavailable" in text or "unable to lock file" in text
+    if locked or "already open for write" in text or "consistency flags" in text:
+        # HDF5's flock: another process holds the file open to write; with its flock off
+        # (HDF5_USE_FILE_LOCKING=FALSE) its writer's mark: the output's own lock names the run (as ellroll summary)
         holder = lock_holder(path)
         if holder:
-            # HDF5's flock off (HDF5_USE_FILE_LOCKING=FALSE): the output's own lock tells (as ellroll summary)
             return (f"{path}: a running ellroll writes it ({holder}, holding {(output_of(path) or path)}.lock); "
                     f"read it when that run ends")
+        if locked:
+            return (f"{path}: cannot open the HDF5 file: another process has it open to write; read it when that "
+                    f"process ends")
         # HDF5 marks a file open for write in its superblock until it is closed: a run killed
         # (kill -9, a node lost) leaves its work file so; h5clear would not recover its cases
         return (f"{path}: an unfinished run's work file (the run stopped before it closed the file: killed?); "

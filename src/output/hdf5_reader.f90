@@ -133,23 +133,31 @@ contains
       call set_error(err, err_output, path // ': cannot read it: ' // reason)
       return
     else if (.not. is_hdf5) then
-      if (.not. read_failed(self, err)) call set_error(err, err_input, path // ': not an HDF5 file')
+      if (read_failed(self, err)) return
+      if (len(path) > 8) then
+        if (path(len(path) - 7:) == '.journal') then
+          if (begins_as_journal(path)) then
+            call say_journal(path(:len(path) - 8), err)
+            return
+          end if
+        end if
+      end if
+      call set_error(err, err_input, path // ': not an HDF5 file')
       return
     end if
     call h5fopen_f(path, H5F_ACC_RDONLY_F, self%file, hdferr)
     if (hdferr < 0) then
       call hdf5_reason(reason)
-      if (index(reason, 'temporarily unavailable') > 0) then
-        ! (HDF5's flock: EAGAIN) another process has it open to write
-        call set_error(err, err_output, path // ': cannot open the HDF5 file: another process has it open to ' // &
-            'write (' // reason // '): a running ellroll, if ' // lock_of(path) // ' exists (it names the ' // &
-            'process); read it when that run ends')
-      else if (index(reason, 'already open for write') > 0) then
+      if (index(reason, 'temporarily unavailable') > 0 .or. index(reason, 'already open for write') > 0) then
+        ! (HDF5's flock: EAGAIN, another process has it open to write; with its
+        ! flock off, HDF5_USE_FILE_LOCKING=FALSE, the writer's mark in the file)
         if (lock_held(lock_of(path), holder)) then
-          ! (HDF5's flock off, HDF5_USE_FILE_LOCKING=FALSE: the output's own lock tells)
-          call holder_line(holder)
+          call holder_line(holder)        ! (the output's own lock names the run)
           call set_error(err, err_output, path // ': a running ellroll writes it (' // holder // &
               ', holding ' // lock_of(path) // '); read it when that run ends')
+        else if (index(reason, 'temporarily unavailable') > 0) then
+          call set_error(err, err_output, path // ': cannot open the HDF5 file: another process has it open to ' // &
+              'write (' // reason // '); read it when that process ends')
         else
           ! (no process has it open: its writer stopped before closing it)
           self%unfinished = .true.
@@ -471,6 +479,37 @@ contains
       if (path(len(path) - 7:) == '.partial') trimmed = 8
     end if
   end function trimmed
+
+  !> Whether the regular file at path begins as ellroll's journals do.
+  logical function begins_as_journal(path)
+    character(len=*), intent(in) :: path
+    character(len=7) :: head
+    integer :: unit, code
+    begins_as_journal = .false.
+    open (newunit=unit, file=path, access='stream', form='unformatted', action='read', status='old', iostat=code)
+    if (code /= 0) return
+    read (unit, iostat=code) head
+    begins_as_journal = code == 0 .and. head == 'ELLROLL'
+    close (unit, iostat=code)          ! (a file only read: nothing is lost)
+  end function begins_as_journal
+
+  !> OUT.journal, the cases a run of `output` has finished (in the journal's
+  !> own format), read as an output: err says what to read instead.
+  subroutine say_journal(output, err)
+    character(len=*), intent(in) :: output
+    type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: holder, reason
+    if (lock_held(output // '.lock', holder)) then
+      call holder_line(holder)
+      call set_error(err, err_input, output // ".journal: ellroll's journal of a running ellroll (" // holder // &
+          ', holding ' // output // '.lock: the cases it finished), not an output file; read ' // output // &
+          ' when that run ends')
+    else
+      call resume_advice(output, holder, reason)
+      call set_error(err, err_input, output // ".journal: ellroll's journal of an unfinished run (the cases it " // &
+          'finished, for --resume), not an output file; ' // reason // ', then read ' // output)
+    end if
+  end subroutine say_journal
 
   !> The lock file of the output whose file (OUT, OUT.partial or
   !> OUT.partial.new) is at path: OUT.lock.

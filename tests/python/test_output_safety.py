@@ -27,6 +27,8 @@ import h5py
 import numpy as np
 import pytest
 
+import ellroll_post
+
 from conftest import FULL, PAPER_INPUT, ROOT, in_turn, plot_in_process, run
 from test_campaign import JOURNAL_HEADER, assert_same_datasets, record_bytes
 
@@ -393,20 +395,39 @@ def test_the_lock_names_the_holders_whole_command_line(ellroll, tmp_path, target
 
 
 def test_reading_the_partial_file_of_a_running_run_says_a_run_writes_it(ellroll, tmp_path):
-    """`ellroll summary OUT.h5.partial` while the run writes it: HDF5's own
-    lock refuses the reader (exit 3), and the message says that a process
-    writes the file and which lock file names it; once the run ends the
-    output reads."""
+    """`ellroll summary` of OUT.h5.partial or OUT.h5.journal while the run
+    writes them: HDF5's own lock refuses the reader (exit 3), or the journal
+    is not an output (exit 2); each message names the running process (its
+    pid, from the lock) and says to read out.h5 when that run ends, as the
+    Python reader does. Once the run is stopped, the journal's says how to
+    finish the run."""
     folder = folder_with(tmp_path, t_end=LONG)
     writer = start(ellroll, folder)
     while not (folder / "out.h5.journal").exists():
         time.sleep(0.01)
-    result = run(ellroll, "summary", "out.h5.partial", cwd=folder)
+    partial = run(ellroll, "summary", "out.h5.partial", cwd=folder)
+    journal = run(ellroll, "summary", "out.h5.journal", cwd=folder)
+    readers = []
+    for name in ("out.h5.partial", "out.h5.journal"):
+        with pytest.raises(ellroll_post.NotAnEllrollFile) as caught:
+            ellroll_post.open(folder / name)
+        readers.append(str(caught.value))
     writer.send_signal(signal.SIGTERM)
     writer.wait(timeout=60)
-    assert result.returncode == 3
-    assert ("out.h5.partial: cannot open the HDF5 file: another process has it open to write (" in result.stderr
-            and "a running ellroll, if out.h5.lock exists (it names the process)" in result.stderr), result.stderr
+    stopped = run(ellroll, "summary", "out.h5.journal", cwd=folder)
+    holder = f"pid {writer.pid}, started "
+    assert partial.returncode == 3
+    assert partial.stderr.startswith("ellroll: error: out.h5.partial: a running ellroll writes it (host ")
+    assert holder in partial.stderr and "holding out.h5.lock); read it when that run ends" in partial.stderr
+    assert journal.returncode == 2
+    assert journal.stderr.startswith("ellroll: error: out.h5.journal: ellroll's journal of a running ellroll (host ")
+    assert holder in journal.stderr and "not an output file; read out.h5 when that run ends" in journal.stderr
+    assert readers[0].startswith(f"{folder / 'out.h5.partial'}: a running ellroll writes it (host ")
+    assert readers[1].startswith(f"{folder / 'out.h5.journal'}: ellroll's journal of a running ellroll (host ")
+    assert holder in readers[0] and holder in readers[1]
+    assert stopped.returncode == 2
+    assert ("out.h5.journal: ellroll's journal of an unfinished run (the cases it finished, for --resume), not an "
+            "output file; finish it with 'ellroll run INPUT -o out.h5 --resume'") in stopped.stderr, stopped.stderr
 
 
 @pytest.mark.parametrize("second", ["--overwrite", "--resume"])
