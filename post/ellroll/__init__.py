@@ -20,6 +20,7 @@ in the build/ folder of the checkout the package comes from (pip install -e
 post/, as .ci/setup installs it), then in the lib/ folder beside the bin/
 of the `ellroll` on PATH (cmake --install's layout).
 """
+import builtins
 import ctypes
 import numbers
 import os
@@ -38,6 +39,8 @@ __all__ = ["run", "run_arrays", "namelist", "Record", "Error", "InputError", "li
 # the error classes of `ellroll run`'s exit codes
 _INTERNAL, _INPUT = 1, 2
 _REAL, _INT, _TEXT = 1, 2, 3
+# the most bytes a record file may hold (docs/inputs.md), as the run reads it
+RECORD_FILE_LIMIT = 2**30
 
 
 class Error(Exception):
@@ -84,8 +87,31 @@ class Record:
 
     def csv_text(self):
         """The record as a CSV file's text: `time, ax, ay[, az]`, m/s^2."""
+        return "".join(self._csv_chunks())
+
+    def _csv_chunks(self, rows=65536):
+        """csv_text in pieces of `rows` rows."""
         columns = np.column_stack([self.time, self.acceleration])
-        return "".join(", ".join(repr(float(v)) for v in row) + "\n" for row in columns)
+        for start in range(0, len(columns), rows):
+            yield "".join(", ".join(repr(float(v)) for v in row) + "\n" for row in columns[start:start + rows])
+
+    def write_csv(self, path):
+        """Write csv_text to a new file at path, piece by piece; InputError
+        as soon as it passes what a record file may hold (1 GiB), or where
+        its rows could not fit there even at their shortest."""
+        rows, width = len(self.time), 1 + self.acceleration.shape[1]
+        shortest_row = 3 * width + 2 * (width - 1) + 1          # "0.0, 0.0, 0.0\n"
+        if rows * shortest_row > RECORD_FILE_LIMIT:
+            raise InputError(f"Record {self.name!r}: {rows} rows of {width} numbers take at least "
+                             f"{rows * shortest_row} bytes as CSV, more than a record file may hold (1 GiB)", _INPUT)
+        written = 0
+        with builtins.open(path, "x", encoding="ascii") as handle:
+            for chunk in self._csv_chunks():
+                written += len(chunk)
+                if written > RECORD_FILE_LIMIT:
+                    raise InputError(f"Record {self.name!r}: its CSV text passes {RECORD_FILE_LIMIT} bytes, more "
+                                     f"than a record file may hold (1 GiB)", _INPUT)
+                handle.write(chunk)
 
 
 def _real_array(values, argument, name):
@@ -658,7 +684,7 @@ def _with_record_files(groups, folder, records):
             return value
         if id(value) not in written:
             target = folder / f"{len(written) + 1}_{value.name}.csv"
-            target.write_text(value.csv_text())
+            value.write_csv(target)
             written[id(value)] = str(target)
             records[str(target)] = value
         return written[id(value)]

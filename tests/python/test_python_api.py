@@ -473,13 +473,34 @@ def test_a_record_file_that_cannot_be_written_raises_ellroll_error(monkeypatch, 
         monkeypatch.setattr(tempfile, "tempdir", "/nonexistent/ellroll-test")
         words = "cannot make a private folder for the Records' files in /nonexistent/ellroll-test"
     else:
-        def full(self, *args, **kwargs):
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
-        monkeypatch.setattr(pathlib.Path, "write_text", full)
+        def full(self, path):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+        monkeypatch.setattr(ellroll.Record, "write_csv", full)
         words = "cannot write a Record's file: No space left on device"
     with pytest.raises(ellroll.Error, match=re.escape(words)) as failed:
         ellroll.run(inputs, threads=1)
     assert failed.value.code == 3 and not isinstance(failed.value, ellroll.InputError)
+
+
+@pytest.mark.parametrize("rows", [40, 400])
+def test_a_record_beyond_what_a_record_file_may_hold_is_refused_as_it_is_written(monkeypatch, tmp_path, rows):
+    """A Record whose CSV text passes the record files' limit (1 GiB, here
+    made 1000 bytes) is an InputError naming it, raised once the text passes
+    the limit (40 rows of about 50 bytes: after the first piece), or before
+    any is written where its rows could not fit even at their shortest (400
+    rows of at least 14 bytes); the private folder is gone after it."""
+    monkeypatch.setattr(ellroll, "RECORD_FILE_LIMIT", 1000)
+    record = ellroll.Record(np.arange(rows) * 0.0123456789, np.full((rows, 2), 0.987654321), name="long")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    inputs = {"geometry": {"a": 1.0, "b": 0.4, "c": 0.2}, "ball": {"radius": 0.2, "weight": 2620.0},
+              "initial": {"x": 0.0, "y": 0.0, "omega": [0.0, 0.0, 0.0]},
+              "integration": {"method": "rk4", "dt": 1e-3, "t_end": 0.1},
+              "excitation": {"kind": "record", "record_file": record}}
+    words = "its CSV text passes 1000 bytes" if rows == 40 else f"{rows} rows of 3 numbers take at least 5600 bytes"
+    with pytest.raises(ellroll.InputError, match=re.escape(f"Record 'long': {words}")):
+        ellroll.run(inputs, threads=1)
+    assert list(tmp_path.iterdir()) == []
+    assert len(record.csv_text()) > 1000
 
 
 def _with_names(groups, names):
