@@ -206,8 +206,12 @@ contains
       end if
       cli%summary_format = value
     case ('--shard')
-      if (.not. parse_shard(value, cli%opts%shard)) &
+      if (parse_shard(value, cli%opts%shard)) return
+      if (shard_too_large(value)) then
+        call usage_error(err, '--shard ' // value // ': too large (N at most ' // itoa(huge(1)) // ')')
+      else
         call usage_error(err, '--shard needs I/N with 0 <= I < N, not ' // value)
+      end if
     end select
   end subroutine take_value
 
@@ -248,6 +252,28 @@ contains
     read (text(slash+1:), *, iostat=ios2) shard(2)
     ok = ios1 == 0 .and. ios2 == 0 .and. shard(2) >= 1 .and. shard(1) >= 0 .and. shard(1) < shard(2)
   end function parse_shard
+
+  !> Whether text is I/N in digits with N beyond a default integer (an I
+  !> beyond it is not below N: the usual message says so).
+  logical function shard_too_large(text) result(large)
+    character(len=*), intent(in) :: text
+    integer :: slash
+    slash = index(text, '/')
+    large = .false.
+    if (slash < 2 .or. slash == len(text)) return
+    if (is_digits(text(:slash-1)) .and. is_digits(text(slash+1:))) &
+      large = beyond_integer(text(slash+1:))
+  contains
+    pure logical function beyond_integer(digits)
+      character(len=*), intent(in) :: digits
+      character(len=:), allocatable :: significant, most
+      significant = digits(min(verify(digits, '0'), len(digits)):)
+      if (verify(digits, '0') == 0) significant = '0'
+      most = itoa(huge(1))
+      beyond_integer = len(significant) > len(most)
+      if (len(significant) == len(most)) beyond_integer = significant > most
+    end function beyond_integer
+  end function shard_too_large
 
   !> Whether text is one or more decimal digits and nothing else.
   pure logical function is_digits(text)

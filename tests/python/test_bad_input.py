@@ -243,11 +243,21 @@ def test_malformed_shards_are_refused_and_good_ones_taken(ellroll, tmp_path):
     for spec in shard_specs(rng, 60):
         result = run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path)
         assert result.returncode == 2, spec
-        assert f"--shard needs I/N with 0 <= I < N, not {spec} " in result.stderr, (spec, result.stderr)
+        index, _, count = spec.partition("/")
+        if re.fullmatch("[0-9]+", index) and re.fullmatch("[0-9]+", count) and int(count) > 2147483647:
+            assert f"--shard {spec}: too large (N at most 2147483647) " in result.stderr, (spec, result.stderr)
+        else:
+            assert f"--shard needs I/N with 0 <= I < N, not {spec} " in result.stderr, (spec, result.stderr)
     for _ in range(5):
         count = rng.randint(1, 40)
         spec = f"{rng.randrange(count)}/{count}"
         assert run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path).returncode == 0, spec
+    # N beyond a default integer (leading zeros do not count; an I beyond it is not below N)
+    assert run(ellroll, "check", "case.nml", "--shard", "1/2147483647", cwd=tmp_path).returncode == 0
+    for spec in ("1/2147483648", "1/99999999999", "0/9999999999999999999999", "0001/00002147483648"):
+        result = run(ellroll, "check", "case.nml", "--shard", spec, cwd=tmp_path)
+        assert result.returncode == 2, spec
+        assert f"--shard {spec}: too large (N at most 2147483647) " in result.stderr, (spec, result.stderr)
     for threads in ["2/3", "2 x", "1.5", "+2", "0x2", ""]:
         result = run(ellroll, "check", "case.nml", "--threads", threads, cwd=tmp_path)
         assert result.returncode == 2 and f"--threads needs a positive number, not {threads} " in result.stderr, \
