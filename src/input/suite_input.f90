@@ -160,7 +160,7 @@ contains
   pure subroutine changed_files(before, now, names)
     character(len=*), intent(in) :: before, now
     character(len=:), allocatable, intent(out) :: names
-    integer :: first, last, n
+    integer :: first, last, n, cut
     names = ''
     n = 0
     first = 1
@@ -169,7 +169,10 @@ contains
       if (last < first) last = len(now) + 1
       if (index(achar(10) // before // achar(10), achar(10) // now(first:last - 1) // achar(10)) == 0) then
         if (n > 0) names = names // ', '
-        names = names // now(first:index(now(first:last - 1) // ':', ':') + first - 2)
+        ! (the name before the line's last ': ': the fingerprint holds none, a name may)
+        cut = index(now(first:last - 1), ': ', back=.true.)
+        if (cut == 0) cut = last - first + 1
+        names = names // now(first:first + cut - 2)
         n = n + 1
       end if
       first = last + 1

@@ -602,6 +602,27 @@ def test_shards_run_with_different_records_are_not_merged(ellroll, tmp_path):
     assert not (folder / "out.h5").exists()
 
 
+@pytest.mark.parametrize("name", ["r.csv", "r: 5 bytes, crc32c 00000000.csv"])
+def test_a_record_changed_between_shards_is_named_whole(ellroll, tmp_path, name):
+    """A record whose name holds ': ' (as the fingerprint of a file does
+    after the name): the merge's refusal names it whole (as a resume's does)."""
+    (tmp_path / name).write_text("0,0,0\n0.5,0.2,0.1\n1,0,0\n")
+    (tmp_path / "n.nml").write_text(f"""&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0 /
+&initial omega = 0.0, 0.0, 0.0 /
+&integration method = 'rk4', dt = 1e-3, t_end = 1.0 /
+&excitation kind = 'record', record_file = '{name}' /
+&output interval = 0.1 /
+&sweep name = 'scale', values = 1, 2 /
+""")
+    assert run(ellroll, "run", "n.nml", "-q", "--shard", "0/2", "-o", "s0.h5", cwd=tmp_path).returncode == 0
+    (tmp_path / name).write_text("0,0,0\n0.5,0.3,0.1\n1,0,0\n")
+    assert run(ellroll, "run", "n.nml", "-q", "--shard", "1/2", "-o", "s1.h5", cwd=tmp_path).returncode == 0
+    result = run(ellroll, "merge", "out.h5", "s0.h5", "s1.h5", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert f"s1.h5: ran with other contents of record file {name} than s0.h5;" in result.stderr, result.stderr
+
+
 def test_a_merge_from_another_folder_says_where_it_reads_the_input_again(ellroll, tmp_path):
     """Shards run in the suite's folder, merged from the folder above it: the
     merge reads the stored input's record files again from there. Without
