@@ -465,8 +465,10 @@ def _attributes(lines):
         if not line:
             continue
         name, kind, value = line.split("\t", 2)
-        if kind in ("i4", "i8"):
-            attrs[name] = np.array(value.split(), dtype=np.int32 if kind == "i4" else np.int64)
+        if kind in ("i1", "i4", "i8"):
+            attrs[name] = np.array(value.split(), dtype={"i1": np.int8, "i4": np.int32, "i8": np.int64}[kind])
+        elif kind == "f8":
+            attrs[name] = np.array(value.split(), dtype=np.float64)
         elif name == "input_namelist":
             attrs[name] = _UNESCAPE.sub(lambda m: "\n" if m.group(1) == "n" else m.group(1), value)
         else:
@@ -500,8 +502,9 @@ def _dataset(xr, variables, attrs=None):
 
 
 _GROUPS = ("", "case", "summary", "trajectory")
-# groups of some runs only: /switches where a case may slide
-_OPTIONAL_GROUPS = ("switches",)
+# groups of some runs only: /limit_state where the input gives limit states,
+# /switches where a case may slide
+_OPTIONAL_GROUPS = ("limit_state", "switches")
 
 
 def _groups_of(groups):
@@ -591,7 +594,8 @@ def run_arrays(inputs, threads=None, *, path=None):
     """Run an input in memory; its results as plain numpy arrays.
 
     The same run as run() without xarray: {group: {name: array}} for the
-    groups '' (the root's scales), 'case', 'summary' and 'trajectory', and
+    groups '' (the root's scales), 'case', 'summary' and 'trajectory' (and
+    'limit_state', 'switches' where the run has them), and
     the arrays' dimension names, units and long names in
     `attributes[group][name]` ({'dims': (...), 'units': ..., 'long_name': ...,
     and flag_values / flag_meanings where the file has them}), returned as

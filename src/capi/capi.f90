@@ -26,7 +26,7 @@
 !> functions return their full length. Datasets count from 0; `what`: 0
 !> group ('' for the root), 1 name, 2 units, 3 long name, 4 dimensions
 !> (space-separated), 5 other attributes (a line 'NAME<tab>TYPE<tab>VALUE'
-!> each, TYPE str, i4 or i8); i = -1 with what = 5: the root's attributes.
+!> each, TYPE str, i1, i4 or i8 for integers, f8 for doubles); i = -1 with what = 5: the root's attributes.
 !> kind: 1 float64, 2 int64, 3 text (itemsize bytes each, blank-padded);
 !> values in C order, shape[0] cases (or samples, components) first. A
 !> caller may take a dataset's values out of the run instead of copying

@@ -77,7 +77,8 @@ def assert_tree_is_file(tree, path):
     in the tree with the same bits, units and long name (wall_time aside),
     and the tree has nothing the file lacks."""
     with h5py.File(path, "r") as f:
-        for group in ("", "case", "summary", "trajectory"):
+        assert sorted(tree.children) == sorted(name for name, item in f.items() if isinstance(item, h5py.Group))
+        for group in ("", *tree.children):
             node = tree[group] if group else tree
             ds = node.to_dataset(inherit=False)
             # /trajectory/time: the file's own copy of the root's time scale,
@@ -92,7 +93,8 @@ def assert_tree_is_file(tree, path):
                 stored, memory = held[name], inherited[name]
                 assert memory.attrs["units"] == text(stored.attrs["units"]), (group, name)
                 assert memory.attrs["long_name"] == text(stored.attrs["long_name"]), (group, name)
-                for attribute in ("flag_values", "flag_meanings", "input_names", "_FillValue"):
+                for attribute in ("flag_values", "flag_meanings", "input_names", "_FillValue", "figure", "capacity",
+                                  "capacity_units"):
                     # (a real dataset's NaN _FillValue is the file's alone: NaN is missing in memory)
                     if attribute in stored.attrs and (attribute != "_FillValue" or stored.dtype.kind == "i"):
                         expected = text(stored.attrs[attribute])
@@ -304,7 +306,7 @@ def plain_tree(groups, root_attrs):
     group (its scales and its `coordinates` as coordinates), joined by DataTree.from_dict."""
     import xarray as xr
     datasets = {}
-    for group in ("", "case", "summary", "trajectory"):
+    for group in ("", "case", "summary", "trajectory", *(g for g in ("limit_state", "switches") if g in groups)):
         variables = groups.get(group, [])
         coordinates = {name for name, dims, _, _ in variables if dims == (name,)}
         for _, _, _, attrs in variables:
@@ -318,7 +320,7 @@ def plain_tree(groups, root_attrs):
 
 
 @pytest.mark.parametrize("relative", ["input/legeza1990.nml", "input/spin_sweep.nml", "input/isolator_suite.nml",
-                                      "input/hard/slip.nml"])
+                                      "input/hard/slip.nml", "input/isolator_slide.nml"])
 def test_the_tree_is_what_xarrays_plain_constructors_make(relative, monkeypatch):
     """run()'s DataTree, made without xarray's merges, is identical() to the one
     Dataset(data_vars, coords) and DataTree.from_dict make of the same run's datasets:
