@@ -206,7 +206,7 @@ int ellroll_read_head(const char *path, char *buffer, int size)
  * which then holds `me` (who holds it). A descriptor (>= 0) while it is
  * held; -EAGAIN when another process holds it, its `me` copied into holder
  * (null-terminated); -EEXIST when path is not a lock file (a link, a
- * folder, or a file that holds something else); other -errno (a file
+ * folder, a file with other names, or a file that holds something else); other -errno (a file
  * system without locks: -ENOLCK and the like, the file made for the lock
  * removed, a file that was there left alone). A process
  * that releases its lock removes the file first, so one that locked the
@@ -233,7 +233,9 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
             return -errno;
         }
         struct stat info;
-        if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+        /* (a lock file of ours has one name: one with more is another's file,
+         * empty or not, which a note written here would change) */
+        if (fstat(fd, &info) != 0 || !S_ISREG(info.st_mode) || (!created && info.st_nlink > 1)) {
             close(fd);
             return -EEXIST;
         }

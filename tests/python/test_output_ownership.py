@@ -73,3 +73,21 @@ def test_overwrite_replaces_ellrolls_file_and_a_byte_copy_of_it(ellroll, folder)
         assert result.returncode == 0, result.stderr
     with h5py.File(folder / "cp.h5") as f:
         assert len(f.attrs["file_identity"]) == 8 and f.attrs["program"] == "ellroll"
+
+
+@pytest.mark.parametrize("contents", [b"", b"ellroll lock\n", b"somebody's notes\n"], ids=["empty", "lock-like", "text"])
+def test_a_file_with_other_names_at_the_lock_is_never_written(ellroll, folder, contents):
+    """OUT.h5.lock as another name (a hard link) of somebody's file, empty,
+    beginning as a lock note, or holding text: run and merge refuse it (exit
+    3) naming it, and the file keeps its bytes and both names."""
+    (folder / "notes.txt").write_bytes(contents)
+    (folder / "out.h5.lock").hardlink_to(folder / "notes.txt")
+    for i in range(2):
+        made = run(ellroll, "run", "camp.nml", "-q", "--shard", f"{i}/2", "-o", f"s{i}.h5", cwd=folder)
+        assert made.returncode == 0, made.stderr
+    for command in (["run", "camp.nml", "-q"], ["merge", "out.h5", "s0.h5", "s1.h5"]):
+        result = run(ellroll, *command, cwd=folder)
+        assert result.returncode == 3, result.stderr
+        assert "out.h5.lock: exists and is not" in result.stderr and "never replaced" in result.stderr, result.stderr
+        assert (folder / "notes.txt").read_bytes() == contents and (folder / "out.h5.lock").stat().st_nlink == 2
+        assert not (folder / "out.h5").exists()
