@@ -12,7 +12,7 @@ module ellroll_cmd_suite
   use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_strings, only: itoa, real_text
+  use ellroll_strings, only: itoa, real_text, json_text
   use ellroll_status, only: status_name, status_pending, status_completed, status_rim, status_no_fit, status_slip, &
       status_liftoff
   use ellroll_hdf5_reader, only: h5_input_t
@@ -433,7 +433,7 @@ contains
     if (size(columns) > 0) n = size(columns(1)%values)
     select case (format)
     case ('json')
-      line = '{"file": "' // path // '", "percentiles": "linear", "stripe_inputs": ['
+      line = '{"file": "' // json_text(path) // '", "percentiles": "linear", "stripe_inputs": ['
       do k = 1, size(inputs)
         if (k > 1) line = line // ', '
         line = line // '"' // trim(inputs(k)) // '"'

@@ -6,7 +6,7 @@ module ellroll_cmd_summary
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite, ieee_is_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t
-  use ellroll_strings, only: itoa, format_real, real_text
+  use ellroll_strings, only: itoa, format_real, real_text, json_text
   use ellroll_status, only: status_count, status_name, status_pending, status_invalid, status_completed
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_records, only: named_value_t, kind_int
@@ -303,13 +303,6 @@ contains
       at = at + 1
     end do
   end function marked
-
-  !> Text inside a JSON string (backslashes and quotes escaped).
-  pure function json_text(raw) result(text)
-    character(len=*), intent(in) :: raw
-    character(len=len(raw) + count_marks(raw, '\"', '\')) :: text
-    text = marked(raw, '\"', '\')
-  end function json_text
 
   !> A campaign's figures over its completed cases: the smallest, the median
   !> (of an even count, the mean of the middle two) and the largest, to six

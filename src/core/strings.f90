@@ -16,7 +16,7 @@ module ellroll_strings
   public :: lower, itoa, join, format_real, format_computed, real_text, text_hash, excerpt, size_text
   ! the lengths of itoa and format_real, for a caller's own result length
   ! (gfortran 12 cannot nest len(itoa(x)) of a derived type's component there)
-  public :: decimal_width, real_text_length
+  public :: decimal_width, real_text_length, json_text
 
   !> An integer as text, without blanks.
   interface itoa
@@ -241,5 +241,100 @@ contains
       n = len_trim(buffer)
     end if
   end subroutine real_text
+
+  pure integer function json_length(raw) result(length)
+    character(len=*), intent(in) :: raw
+    integer :: k, n
+    length = 0
+    k = 1
+    do while (k <= len(raw))
+      n = utf8_length(raw, k)
+      length = length + piece_length(raw, k, n)
+      k = k + max(n, 1)
+    end do
+  end function json_length
+
+  !> The length in JSON of the character at raw(k:), a UTF-8 sequence of n
+  !> bytes (0: not one).
+  pure integer function piece_length(raw, k, n) result(length)
+    character(len=*), intent(in) :: raw
+    integer, intent(in) :: k, n
+    integer :: code
+    code = iachar(raw(k:k))
+    if (raw(k:k) == '"' .or. raw(k:k) == '\' .or. code == 10 .or. code == 9 .or. code == 13) then
+      length = 2
+    else if (code < 32) then
+      length = 6
+    else if (n == 0) then
+      length = 6                  ! \ufffd
+    else
+      length = n
+    end if
+  end function piece_length
+
+  !> The bytes of the well-formed UTF-8 sequence that begins at raw(k:)
+  !> (1 to 4; 0 where none does: a stray continuation byte, an overlong
+  !> form, a surrogate, beyond U+10FFFF, or cut short).
+  pure integer function utf8_length(raw, k) result(n)
+    character(len=*), intent(in) :: raw
+    integer, intent(in) :: k
+    integer :: lead, second, low, high, j
+    lead = iachar(raw(k:k))
+    n = 0
+    if (lead < 128) then
+      n = 1
+      return
+    end if
+    low = 128
+    high = 191
+    select case (lead)
+    case (194:223); n = 2
+    case (224); n = 3; low = 160
+    case (225:236, 238:239); n = 3
+    case (237); n = 3; high = 159
+    case (240); n = 4; low = 144
+    case (241:243); n = 4
+    case (244); n = 4; high = 143
+    case default; return
+    end select
+    if (k + n - 1 > len(raw)) then
+      n = 0
+      return
+    end if
+    second = iachar(raw(k + 1:k + 1))
+    if (second < low .or. second > high) n = 0
+    do j = k + 2, k + n - 1
+      if (iachar(raw(j:j)) < 128 .or. iachar(raw(j:j)) > 191) n = 0
+    end do
+  end function utf8_length
+  !> raw as the inside of a JSON string (RFC 8259): quote and backslash
+  !> escaped, control characters as \u00XX (\n, \t, \r by name), UTF-8
+  !> sequences as they are, and each byte of anything else (a name in
+  !> another encoding) as U+FFFD: the text stays valid UTF-8, as JSON must.
+  pure function json_text(raw) result(text)
+    character(len=*), intent(in) :: raw
+    character(len=json_length(raw)) :: text
+    integer :: k, at, n, code
+    character(len=*), parameter :: hex = '0123456789abcdef', replacement = '\ufffd'
+    k = 1
+    at = 0
+    do while (k <= len(raw))
+      code = iachar(raw(k:k))
+      n = utf8_length(raw, k)
+      if (raw(k:k) == '"' .or. raw(k:k) == '\') then
+        text(at + 1:at + 2) = '\' // raw(k:k)
+      else if (code == 10 .or. code == 9 .or. code == 13) then
+        text(at + 1:at + 2) = '\' // merge('n', merge('t', 'r', code == 9), code == 10)
+      else if (code < 32) then
+        text(at + 1:at + 6) = '\u00' // hex(code / 16 + 1:code / 16 + 1) // hex(mod(code, 16) + 1:mod(code, 16) + 1)
+      else if (n == 0) then
+        text(at + 1:at + len(replacement)) = replacement
+      else
+        text(at + 1:at + n) = raw(k:k + n - 1)
+      end if
+      at = at + piece_length(raw, k, n)
+      k = k + max(n, 1)
+    end do
+  end function json_text
 
 end module ellroll_strings

@@ -286,6 +286,36 @@ def test_summary_rows_name_the_varied_inputs_alike_in_both_tools(ellroll, swept_
     assert [c["omega_z"] for c in data["cases"]] == [10, 10, 40, 40]
 
 
+# pieces of file names: (bytes, what a JSON reader must read back); invalid
+# UTF-8 gives U+FFFD for each of its bytes
+NAME_PIECES = [(b"a", "a"), (b"Z9", "Z9"), (b'"', '"'), (b"\\", "\\"), (b"\t", "\t"), (b"\x01", "\x01"),
+               (b"\x1f", "\x1f"), (b"\x7f", "\x7f"), ("\u00e9".encode(), "\u00e9"), ("\u20ac".encode(), "\u20ac"),
+               ("\U0001f600".encode(), "\U0001f600"), (b"\xff", "\ufffd"), (b"\xc0\xaf", "\ufffd" * 2),
+               (b"\xed\xa0\x80", "\ufffd" * 3), (b"\xe2\x82", "\ufffd" * 2), (b"\xf4\x90\x80\x80", "\ufffd" * 4),
+               (b"\x80", "\ufffd")]
+
+
+def test_summary_json_of_any_file_name_is_valid_utf8_json(ellroll, swept_file, tmp_path):
+    """`summary --format json` of files named with quotes, backslashes,
+    control characters, UTF-8 of 1 to 4 bytes and bytes that are no UTF-8
+    (seeded): the output is strict JSON in UTF-8, its "file" the name with
+    each byte of a malformed sequence as U+FFFD."""
+    import json
+    import random
+    rng = random.Random(41)
+    for _ in range(12):
+        pieces = [rng.choice(NAME_PIECES) for _ in range(rng.randint(1, 6))]
+        name = b"".join(p for p, _ in pieces) + b".h5"
+        target = bytes(tmp_path) + b"/" + name
+        shutil.copyfile(swept_file, target)
+        result = subprocess.run([str(ellroll), "summary", name, "--format", "json"], cwd=tmp_path,
+                                capture_output=True)
+        assert result.returncode == 0, (name, result.stderr)
+        data = json.loads(result.stdout.decode("utf-8"), parse_constant=lambda token: pytest.fail(token))
+        assert data["file"] == "".join(text for _, text in pieces) + ".h5", name
+        assert len(data["cases"]) == 4
+
+
 def test_summary_of_a_file_without_coordinates_or_a_figure(ellroll, swept_file, tmp_path):
     """A file another version wrote, without the coordinate datasets and
     without a summary figure, still gives its summary rows in both tools."""
