@@ -13,7 +13,7 @@ module ellroll_slide_regime
   use ellroll_figures, only: fig_slip_speed_max
   use ellroll_rolling_ball, only: observation_t, state_size, limit_status, normalize_normal, ball_derivative, observe
   use ellroll_sliding_ball, only: sliding_ball_t, slide_state_size, sliding_from_rolling, observe_sliding, stick, &
-      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time, stick_loss
+      at_sliding_rim, stick_level, align_slip, sliding_derivative, set_reaction, slip_stop_time, stick_loss, center_velocity
   use ellroll_integrators, only: integrator_t, embedded_pair_t
   use ellroll_case_run, only: run_state_t, track, restart_case, record_sample, stored, add_step_resistance
   use ellroll_fixed_step_run, only: step_with_events
@@ -27,7 +27,8 @@ module ellroll_slide_regime
 
   public :: regime_state_t, slide_tally_t, limit_time_ulps, take, restart_samples, track_balance, &
             record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-            add_sliding, slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
+            add_sliding, slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket, &
+            hovering_slip, switch_reaction
 
   !> Model limits are located to this many units in the last place of t.
   real(wp), parameter :: limit_time_ulps = 16
@@ -504,4 +505,30 @@ contains
     taken = status == status_completed .and. switch_crossed(sb, now, new)
     if (taken) piece = bracket
   end subroutine stop_bracket
+
+  !> Whether now slides with a slip within the pair's tolerance of zero,
+  !> measured against the contact's speeds (|V_C| + R |omega|).
+  logical function hovering_slip(pair, sb, now, times) result(hovering)
+    class(embedded_pair_t), intent(in) :: pair
+    type(sliding_ball_t), intent(in) :: sb
+    type(regime_state_t), intent(in) :: now
+    real(wp), intent(in), optional :: times     !< the tolerances' multiple (10)
+    real(wp) :: scale, multiple
+    hovering = .false.
+    if (.not. now%sliding) return            ! (a rolling state's s is not set)
+    multiple = 10
+    if (present(times)) multiple = times
+    scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
+    hovering = now%slip_speed <= multiple * (pair%atol + pair%rtol * scale)
+  end function hovering_slip
+
+  !> The observation of a sliding state at its switch into sliding with
+  !> friction mu N against the slip's direction the switch set (where the
+  !> state's slip is round-off, the reaction would follow its direction).
+  pure subroutine switch_reaction(sb, obs)
+    type(sliding_ball_t), intent(in) :: sb
+    type(observation_t), intent(inout) :: obs
+    call set_reaction(sb, obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode), obs)
+    obs%friction_needed = sb%ball%mu
+  end subroutine switch_reaction
 end module ellroll_slide_regime

@@ -23,7 +23,7 @@ module ellroll_slide_run
   use ellroll_figures, only: fig_sliding_time, fig_slip_episodes, fig_friction_energy, fig_slip_speed_max
   use ellroll_rolling_ball, only: state_size, observe, observation_t, ball_derivative
   use ellroll_sliding_ball, only: sliding_ball_t, sliding_from_rolling, observe_sliding, slip_velocity, slip_rate, &
-      center_velocity, choose_slip_law, set_reaction, stop_floor
+      choose_slip_law, stop_floor
   use ellroll_turns, only: direction_unresolved
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_pair
   use ellroll_flow_to_limit, only: reference_method, reference_rtol, reference_atol, follow_flow_to_limit
@@ -34,7 +34,8 @@ module ellroll_slide_run
   use ellroll_excitation, only: step_to_sample, longest_step
   use ellroll_slide_regime, only: regime_state_t, slide_tally_t, take, restart_samples, track_balance, &
       record_regime_sample, switch_crossed, switch_value, start_sliding, stop_sliding, add_sliding_step, &
-      slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket
+      slip_stopped, observe_stopped, add_sliding_peaks, step_screen_t, graze_inside, stop_bracket, hovering_slip, &
+      switch_reaction
   use ellroll_slide_limits, only: end_at_limit, lift_inside, within_tolerance_to_limit
   use ellroll_params, only: p_dt, p_velocity_x, p_velocity_z, p_settle
   implicit none
@@ -153,16 +154,6 @@ contains
     sb%stiff_allowance = 1 / align_fraction
   end subroutine align_to
 
-  !> The observation of a sliding state at its switch into sliding with
-  !> friction mu N against the slip's direction the switch set (where the
-  !> state's slip is round-off, the reaction would follow its direction).
-  pure subroutine switch_reaction(sb, obs)
-    type(sliding_ball_t), intent(in) :: sb
-    type(observation_t), intent(inout) :: obs
-    call set_reaction(sb, obs%reaction_normal * (obs%normal - sb%ball%mu * sb%slip_mode), obs)
-    obs%friction_needed = sb%ball%mu
-  end subroutine switch_reaction
-
   !> Fixed steps of dt, each from the state at its start to the grid point
   !> after it, through the switches inside it (advance).
   subroutine fixed_slide(integrator, cs, plan, run, rolling, sb, now, tally, res)
@@ -234,11 +225,15 @@ contains
   !> regime's follow_flow_to_limit, as a case with slip = 'end' ends), where
   !> that flow stays in the regime all the way to the fit limit within two
   !> steps after t_last. A sliding time ends there with it, and samples
-  !> after it are dropped (every: the steps per sample); the summary keeps
-  !> what the method's steps added.
+  !> after it are dropped (every: the steps per sample). A rolling flow's
+  !> step ends after t_last, and where it leaves the cup's curvature, add
+  !> to the summary's peaks as slip = 'end''s do (the peaks grow without
+  !> bound towards the limit); the works, and a sliding flow's summary,
+  !> keep what the method's steps added.
   subroutine end_on_exact_flow(cs, run, rolling, sb, t_from, from, t_last, every, tally, res)
     type(case_t), intent(in) :: cs
-    type(run_state_t), intent(in) :: run, rolling
+    type(run_state_t), intent(inout) :: run
+    type(run_state_t), intent(in) :: rolling
     type(sliding_ball_t), intent(in) :: sb
     real(wp), intent(in) :: t_from, t_last
     type(regime_state_t), intent(in) :: from
@@ -275,10 +270,13 @@ contains
       t = t_from
       call sliding_piece(pair, span, no_samples, flow_run, flow_rolling, flow_sb, t, at, flow_tally, flow, done)
     else
-      call follow_flow_to_limit(flow_rolling, no_samples, t_from, from%y, t_last, span%t_end, flow, done)
+      flow_run = run                      ! (the summary's tracking, with the rolling steps' ball)
+      flow_run%ball = rolling%ball
+      call follow_flow_to_limit(flow_run, no_samples, t_from, from%y, t_last, span%t_end, flow, done)
     end if
     res%n_rhs = res%n_rhs + flow%n_rhs
     if (.not. (done .and. flow%status == status_no_fit)) return
+    if (.not. from%sliding) run%stats = flow_run%stats       ! (the peaks; the works are the steps')
     if (from%sliding) tally%sliding_time = tally%sliding_time + (flow%t_final - res%t_final)
     if (flow%t_final < t_last) res%n_recorded = min(res%n_recorded, int(flow%t_final / h, i8) / every + 1)
     res%t_final = flow%t_final
@@ -562,22 +560,6 @@ contains
     res%t_final = t_at
     ended = .true.
   end subroutine advance
-
-  !> Whether now slides with a slip within the pair's tolerance of zero,
-  !> measured against the contact's speeds (|V_C| + R |omega|).
-  logical function hovering_slip(pair, sb, now, times) result(hovering)
-    class(embedded_pair_t), intent(in) :: pair
-    type(sliding_ball_t), intent(in) :: sb
-    type(regime_state_t), intent(in) :: now
-    real(wp), intent(in), optional :: times     !< the tolerances' multiple (10)
-    real(wp) :: scale, multiple
-    hovering = .false.
-    if (.not. now%sliding) return            ! (a rolling state's s is not set)
-    multiple = 10
-    if (present(times)) multiple = times
-    scale = norm2(center_velocity(now%s)) + sb%ball%radius * norm2(now%s(4:6))
-    hovering = now%slip_speed <= multiple * (pair%atol + pair%rtol * scale)
-  end function hovering_slip
 
   !> The step h from (t_at, now) to past crosses a switch: where (offset, by
   !> a root search on partial steps), the state there, and the regime that
