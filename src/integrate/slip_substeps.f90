@@ -78,8 +78,7 @@ contains
     works = -1
     reach = sb%ball%mu * max(big_n, 0.0_wp) * (1 + 1 / sb%ball%inertia_factor) / sb%ball%mass * h
     small_slip = norm2(slip_velocity(sb%ball, y0)) < stiff_reach * reach
-    turning = .false.
-    if (sb%ball%rolling_resistance > 0) turning = .not. couple_steady_at(y0, f0, h)
+    turning = couple_turns(sb, y0, f0, big_n, h)
     if (.not. (small_slip .or. turning)) then
       call integrator%step(sb, t, y0, f0, h, y_end, n_rhs)
       if (integrator%stage_limit /= 0) return
@@ -181,6 +180,21 @@ contains
       speed = norm2(center_velocity(x)) + sb%ball%radius * norm2(x(4:6)) + reach
     end function speed
   end subroutine slide_piece
+
+  !> Whether the couple of rolling resistance may turn over a piece h from
+  !> sliding state y (rate f, normal force big_n) faster than a plain step
+  !> follows: omega_t passes near zero (couple_steady_at), or it is small
+  !> against the couple's reach over the piece, delta N h / J, where its
+  !> direction relaxes faster than the step (as a small slip's).
+  pure logical function couple_turns(sb, y, f, big_n, h) result(turns)
+    type(sliding_ball_t), intent(in) :: sb
+    real(wp), intent(in) :: y(slide_state_size), f(slide_state_size), big_n, h
+    turns = .false.
+    if (.not. sb%ball%rolling_resistance > 0) return
+    turns = .not. couple_steady_at(y, f, h) .or. norm2(rolling_part(y(1:state_size))) < stiff_reach * &
+            sb%ball%rolling_resistance * max(big_n, 0.0_wp) * h / (sb%ball%inertia_factor * sb%ball%mass * &
+            sb%ball%radius**2)
+  end function couple_turns
 
   !> The rate of the centre's velocity at sliding state y whose derivative
   !> is dydt (its z component from V_z = -(n_x V_x + n_y V_y) / n_z, differentiated).
