@@ -3,11 +3,13 @@
 !> existing one is opened, removed or renamed without following a link, and
 !> every answer is an errno value (0: done) that system_error_text words.
 module ellroll_files
-  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_long_long, c_size_t
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_long_long, c_size_t, c_int64_t
+  use ellroll_kinds, only: i8
   implicit none
   private
 
-  public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, &
+  public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, file_identity, &
+            descriptor_identity, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
             lock_held, holder_line, resume_advice, host_name, process_id, text_of, free_bytes
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
@@ -41,6 +43,16 @@ module ellroll_files
       integer(c_int), value :: fd
       character(kind=c_char), intent(in) :: path(*)
     end function c_descriptor_is_at
+    integer(c_int) function c_file_identity(path, identity) bind(c, name='ellroll_file_identity')
+      import :: c_int, c_char, c_int64_t
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int64_t), intent(out) :: identity(2)
+    end function c_file_identity
+    integer(c_int) function c_descriptor_identity(fd, identity) bind(c, name='ellroll_descriptor_identity')
+      import :: c_int, c_int64_t
+      integer(c_int), value :: fd
+      integer(c_int64_t), intent(out) :: identity(2)
+    end function c_descriptor_identity
     integer(c_int) function c_remove_path(path) bind(c, name='ellroll_remove_path')
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
@@ -137,6 +149,25 @@ contains
     character(len=*), intent(in) :: path
     descriptor_is_at = c_descriptor_is_at(fd, path // c_null_char) == 1
   end function descriptor_is_at
+
+  !> The identity (device, inode) of the regular file at path, a link not
+  !> followed; 0 where none is there.
+  function file_identity(path) result(identity)
+    character(len=*), intent(in) :: path
+    integer(i8) :: identity(2)
+    integer(c_int64_t) :: found(2)
+    identity = 0
+    if (c_file_identity(path // c_null_char, found) == 1) identity = found
+  end function file_identity
+
+  !> The identity (device, inode) of the file open as fd; 0 where unknown.
+  function descriptor_identity(fd) result(identity)
+    integer, intent(in) :: fd
+    integer(i8) :: identity(2)
+    integer(c_int64_t) :: found(2)
+    identity = 0
+    if (c_descriptor_identity(fd, found) == 1) identity = found
+  end function descriptor_identity
 
   !> Remove the name path (a link itself, not its target): 0 or an errno value.
   integer function remove_path(path)

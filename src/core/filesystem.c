@@ -79,6 +79,29 @@ int ellroll_descriptor_is_at(int fd, const char *path)
     return S_ISREG(named.st_mode) && open_file.st_dev == named.st_dev && open_file.st_ino == named.st_ino;
 }
 
+/* The identity (device, inode) of the regular file at path, a link not
+ * followed: 1, or 0 where no regular file is there. */
+int ellroll_file_identity(const char *path, int64_t identity[2])
+{
+    struct stat named;
+    if (lstat(path, &named) != 0 || !S_ISREG(named.st_mode))
+        return 0;
+    identity[0] = (int64_t)named.st_dev;
+    identity[1] = (int64_t)named.st_ino;
+    return 1;
+}
+
+/* The identity (device, inode) of the file open as fd: 1, or 0. */
+int ellroll_descriptor_identity(int fd, int64_t identity[2])
+{
+    struct stat open_file;
+    if (fstat(fd, &open_file) != 0)
+        return 0;
+    identity[0] = (int64_t)open_file.st_dev;
+    identity[1] = (int64_t)open_file.st_ino;
+    return 1;
+}
+
 /* Remove the file at path (a link itself, never its target): 0 or errno. */
 int ellroll_remove_path(const char *path)
 {

@@ -17,7 +17,7 @@ module ellroll_hdf5_writer
   use ellroll_campaign, only: coordinate_t
   use ellroll_system, only: close_descriptor, system_error_text
   use ellroll_strings, only: itoa
-  use ellroll_files, only: descriptor_is_at, rename_path
+  use ellroll_files, only: descriptor_is_at, descriptor_identity, rename_path
   use ellroll_trajectory_store, only: trajectory_store_t, label_bytes, label_search_bytes
   use ellroll_hdf5_common, only: file_identity, hdf5_reason, note_failed_close, write_text_slab, write_real_slab, &
       write_int_slab, hdf5_quiet, hdf5_descriptor
@@ -100,6 +100,9 @@ module ellroll_hdf5_writer
     integer :: window_rows = 1                       !< cases per window
     character(len=11), allocatable :: row_groups(:)  !< the group of each row entry
     type(switch_store_t) :: switches                 !< the switches of regime, written at close
+    !> the file's identity (device, inode) as it was made: the file this
+    !> process writes, whatever is moved to its name later
+    integer(i8) :: identity(2) = 0
   contains
     procedure :: create
     procedure :: row => case_row
@@ -218,6 +221,8 @@ contains
       call set_error(lay%err, err_output, lay%path // ': cannot take the descriptor of the file HDF5 made')
     else if (.not. descriptor_is_at(own, lay%path)) then
       call set_error(lay%err, err_output, lay%path // ': was replaced while it was being created')
+    else
+      self%identity = descriptor_identity(own)
     end if
     if (lay%err%failed()) return
     lay%file = self%file

@@ -75,9 +75,10 @@ contains
         call set_error(err, err_output, target // ': output file exists; pass --overwrite to replace it')
     end if
     if (path_kind(files%target) /= kind_missing) call check_replace(files%target, err)
+    call files%note_target()
     call files%discard(files%partial, work_partial, err)
     if (.not. err%failed()) then
-      call merge_into(files%partial, shard_paths, prov_in, err)
+      call merge_into(files, shard_paths, prov_in, err)
       if (err%code == err_input) call read_error_instead(err)
       if (.not. err%failed()) call files%commit(files%partial, err)
       ! a merge has no journal to resume from: its work file goes on any
@@ -98,10 +99,10 @@ contains
     call set_error(err, err_output, file // ': cannot read it: ' // words)
   end subroutine read_error_instead
 
-  !> The shards merged into partial: every shard opened, merged, and closed
+  !> The shards merged into files%partial: every shard opened, merged, and closed
   !> again whatever failed.
-  subroutine merge_into(partial, shard_paths, prov_in, err)
-    character(len=*), intent(in) :: partial
+  subroutine merge_into(files, shard_paths, prov_in, err)
+    type(output_files_t), intent(inout) :: files
     character(len=*), intent(in) :: shard_paths(:)
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
@@ -122,15 +123,15 @@ contains
       if (shards(k)%unfinished) err%code = err_input
       if (err%failed()) exit
     end do
-    if (.not. err%failed()) call merge_opened(shards, partial, shard_paths, prov_in, err)
+    if (.not. err%failed()) call merge_opened(shards, files, shard_paths, prov_in, err)
     do k = 1, size(shards)
       call shards(k)%close()
     end do
   end subroutine merge_into
 
-  subroutine merge_opened(shards, partial, shard_paths, prov_in, err)
+  subroutine merge_opened(shards, files, shard_paths, prov_in, err)
     type(h5_input_t), intent(in) :: shards(:)
-    character(len=*), intent(in) :: partial
+    type(output_files_t), intent(inout) :: files
     character(len=*), intent(in) :: shard_paths(:)
     type(provenance_t), intent(in) :: prov_in
     type(error_t), intent(inout) :: err
@@ -190,7 +191,7 @@ contains
 
     call shards(1)%text_attribute('input_file', prov%input_file)
     call shards(1)%text_attribute('input_namelist', prov%input_namelist)
-    call read_input_text(prov%input_file, prov%input_namelist, partial, inp, err)
+    call read_input_text(prov%input_file, prov%input_namelist, files%partial, inp, err)
     if (err%failed()) then
       ! (the files it names are read again, from where its path leads from here)
       err%message = 'merge reads again the input ' // trim(shard_paths(1)) // ' stores, with its files, from ' // &
@@ -215,8 +216,9 @@ contains
     prov%n_cases_total = inp%campaign%n_cases()
     prov%shard = '0/1'
     all_cases = [(i, i = 0, inp%campaign%n_cases() - 1)]
-    call out%create(partial, all_cases, inp%plan%times(), inp%plan%fields, inp%campaign%base, &
+    call out%create(files%partial, all_cases, inp%plan%times(), inp%plan%fields, inp%campaign%base, &
                     prov, inp%campaign%coordinates(all_cases), err, inp%plan%compression)
+    if (.not. err%failed()) call files%note_written(out%identity)
     do index = 0, n_shards - 1
       if (err%failed()) exit
       slots = shard_slots(inp%campaign%n_cases(), [index, n_shards])

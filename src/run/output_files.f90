@@ -23,7 +23,8 @@ module ellroll_output_files
   use ellroll_system, only: system_error_text, folder_of, utc_timestamp, shown_command_line
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: label_marker, label_search_bytes
-  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
+  use ellroll_kinds, only: i8
+  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, file_identity, &
       sync_folder, read_head, lock_output, unlock_output, holder_line, descriptor_is_at, host_name, process_id, &
       kind_missing, kind_regular, kind_link, kind_folder
   implicit none
@@ -43,8 +44,14 @@ module ellroll_output_files
     character(len=:), allocatable :: target, partial, resumed, journal, lock
     character(len=:), allocatable :: input          !< the input file (never written), '' if none
     integer :: lock_fd = -1
+    !> the identities (device, inode; 0: none) of the output checked when
+    !> the run began, of the file it writes and of its journal: the end
+    !> moves and removes only these (another file moved to one of their
+    !> names while the run wrote stays where it is)
+    integer(i8) :: target_identity(2) = 0, written_identity(2) = 0, journal_identity(2) = 0
   contains
     procedure :: name => name_files
+    procedure :: note_target, note_written, note_journal
     procedure :: acquire
     procedure :: release
     procedure :: check
@@ -66,6 +73,26 @@ contains
     self%lock = target // '.lock'
     self%input = input
   end subroutine name_files
+
+  !> The output at the target's name as it was checked (none: 0).
+  subroutine note_target(self)
+    class(output_files_t), intent(inout) :: self
+    self%target_identity = file_identity(self%target)
+  end subroutine note_target
+
+  !> The file this process writes is the one of this identity (its writer's:
+  !> whatever is moved to its name later is not it).
+  subroutine note_written(self, identity)
+    class(output_files_t), intent(inout) :: self
+    integer(i8), intent(in) :: identity(2)
+    self%written_identity = identity
+  end subroutine note_written
+
+  !> The journal at its name is this run's (just made or opened).
+  subroutine note_journal(self)
+    class(output_files_t), intent(inout) :: self
+    self%journal_identity = file_identity(self%journal)
+  end subroutine note_journal
 
   !> Take the output's lock; refuse (exit 3) where another process holds
   !> it, naming it, or where the lock's name holds something else. Its note
@@ -248,7 +275,24 @@ contains
     end if
     call self%check(self%target, work_target, err)
     if (err%failed()) return
-    replacing = path_kind(self%target) /= kind_missing
+    if (any(self%written_identity /= 0)) then
+      if (any(file_identity(finished) /= self%written_identity)) then
+        call set_error(err, err_output, finished // ': not the file this run wrote (another file was moved to ' // &
+            'its name while it ran); nothing is moved into place or removed')
+        return
+      end if
+    end if
+    ! the output checked when the run began is replaced, and only it; where
+    ! none was, none made since (by another process) is
+    replacing = any(self%target_identity /= 0)
+    if (replacing) replacing = path_kind(self%target) /= kind_missing
+    if (replacing) then
+      if (any(file_identity(self%target) /= self%target_identity)) then
+        call set_error(err, err_output, self%target // ': not the output this run was to replace (another file ' // &
+            'was moved to its name while it ran); it stays, and ' // finished // ' is not moved into place')
+        return
+      end if
+    end if
     code = sync_path(finished)
     if (code == enoent) then
       call say_folder_lost(finished, finished // ': cannot write it to the disk', err)
@@ -258,8 +302,6 @@ contains
       call set_error(err, err_output, finished // ': cannot write it to the disk: ' // system_error_text(code))
       return
     end if
-    ! a file at the output's name, checked above, is replaced; where none
-    ! was, none made since (by another process, while the sync took) is
     if (replacing) then
       code = rename_path(finished, self%target)
     else
@@ -268,6 +310,11 @@ contains
     if (code == enoent) then
       call say_folder_lost(finished, self%target // ': cannot move the finished file ' // finished // ' into place', &
                            err)
+      return
+    end if
+    if (code == eexist) then
+      call set_error(err, err_output, self%target // ': a file was made at its name while this run wrote it; ' // &
+          'it stays, and ' // finished // ' is not moved into place')
       return
     end if
     if (code /= 0) then
@@ -279,6 +326,12 @@ contains
     if (code /= 0) then
       call set_error(err, err_output, self%target // ': in place, but its folder''s entry cannot be written ' // &
                      'to the disk: ' // system_error_text(code))
+      return
+    end if
+    if (all(self%journal_identity == 0)) return            ! (a merge has none)
+    if (any(file_identity(self%journal) /= self%journal_identity)) then
+      write (error_unit, '(a)') 'ellroll: warning: ' // self%journal // ': not the journal this run wrote ' // &
+          '(another file was moved to its name while it ran); left as it is'
       return
     end if
     code = remove_path(self%journal)

@@ -121,6 +121,11 @@ contains
         call set_error(err, err_output, files%target // ': output file exists; pass --overwrite to replace it')
       end if
     end if
+    ! a resume replaces only an output of its own campaign (an --overwrite
+    ! stopped half way): another at the output's name is somebody's result
+    if (resume .and. journal_exists .and. target_exists .and. .not. (target_complete .or. err%failed())) &
+      call set_error(err, err_output, files%target // ': holds the output of another input or shard, which a ' // &
+          'resume never replaces; move it away, then resume')
     ! the finished file goes over the output at the end: refused now where
     ! it could not (a sticky folder, another user's file), not after the run
     if (target_exists .and. .not. nothing_to_do) call check_replace(files%target, err)
@@ -165,7 +170,7 @@ contains
     type(run_input_t), intent(in) :: inp
     integer, intent(in) :: shard(2)
     type(provenance_t), intent(in) :: prov_in
-    type(output_files_t), intent(in) :: files
+    type(output_files_t), intent(inout) :: files
     logical, intent(in) :: resume
     type(h5_output_t), intent(inout) :: out
     type(journal_t), intent(inout) :: journal
@@ -199,6 +204,7 @@ contains
     if (resume) then
       call open_for_resume(journal, files, header, journal_places, err)
       if (err%failed()) return
+      call files%note_journal()
     end if
     times = inp%plan%times()
     writing = files%partial
@@ -207,6 +213,7 @@ contains
                     inp%campaign%coordinates(globals), err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count
     if (err%failed()) return          ! (the run, abandoned, closes the file and removes it)
+    call files%note_written(out%identity)
     allocate (done(0:n_slots - 1))
     done = .false.
     if (resume) then
@@ -215,6 +222,7 @@ contains
       call copy_journaled_cases(journal, journal_places, inp%campaign, shard, files, out, done, err)
     else
       call journal%create(files%journal, header, err)
+      if (.not. err%failed()) call files%note_journal()
     end if
   end subroutine open_outputs
 end module ellroll_output_start

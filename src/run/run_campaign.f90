@@ -102,6 +102,7 @@ contains
     orphan = file_exists(files%partial)
     call decide_start(inp, opts%shard, opts%resume, opts%overwrite, files, resume, nothing_to_do, err)
     if (.not. (err%failed() .or. nothing_to_do)) then
+      call files%note_target()
       run%shard = opts%shard
       run%resumed = resume
       ! (a mistyped -o, or a journal lost: said, so that a campaign run again from its start is no surprise)
