@@ -11,6 +11,7 @@ module ellroll_files
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, file_identity, &
             descriptor_identity, &
             rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
+            unlock_keeping, &
             lock_held, holder_line, resume_advice, host_name, process_id, text_of, free_bytes
   public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
 
@@ -53,6 +54,11 @@ module ellroll_files
       integer(c_int), value :: fd
       integer(c_int64_t), intent(out) :: identity(2)
     end function c_descriptor_identity
+    integer(c_int) function c_unlock_keeping(fd, path, note) bind(c, name='ellroll_unlock_keeping')
+      import :: c_int, c_char
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(in) :: path(*), note(*)
+    end function c_unlock_keeping
     integer(c_int) function c_remove_path(path) bind(c, name='ellroll_remove_path')
       import :: c_int, c_char
       character(kind=c_char), intent(in) :: path(*)
@@ -255,6 +261,14 @@ contains
     fd = c_lock_output(path // c_null_char, me // c_null_char, buffer, size(buffer))
     call text_of(buffer, holder)
   end subroutine lock_output
+
+  !> Release a lock of lock_output with `note` put back in its file (kept):
+  !> 0 or an errno value.
+  integer function unlock_keeping(fd, path, note)
+    integer, intent(in) :: fd
+    character(len=*), intent(in) :: path, note
+    unlock_keeping = c_unlock_keeping(fd, path // c_null_char, note // c_null_char)
+  end function unlock_keeping
 
   !> Whether another process holds the lock of an output at path (nothing
   !> taken), with the note it left there (holder).

@@ -301,6 +301,10 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
             close(fd);
             continue;
         }
+        if (!created) {                       /* a killed run's note, for a refusal to put back */
+            ssize_t got = pread(fd, holder, (size_t)(size - 1), 0);
+            holder[got > 0 ? got : 0] = '\0';
+        }
         size_t length = strlen(me);
         if (ftruncate(fd, 0) != 0 || pwrite(fd, me, length, 0) != (ssize_t)length) {
             int code = errno;
@@ -349,6 +353,20 @@ int ellroll_unlock_output(int fd, const char *path)
 {
     int code = 0;
     if (ellroll_descriptor_is_at(fd, path) && unlink(path) != 0)
+        code = errno;
+    close(fd);
+    return code;
+}
+
+/* Release a lock of ellroll_lock_output that a refused command took over
+ * from a killed run: the killed run's note put back, the file kept. 0 or
+ * errno. */
+int ellroll_unlock_keeping(int fd, const char *path, const char *note)
+{
+    int code = 0;
+    size_t length = strlen(note);
+    if (ellroll_descriptor_is_at(fd, path) &&
+        (ftruncate(fd, 0) != 0 || pwrite(fd, note, length, 0) != (ssize_t)length))
         code = errno;
     close(fd);
     return code;

@@ -24,9 +24,9 @@ module ellroll_output_files
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_trajectory_store, only: label_marker, label_search_bytes
   use ellroll_kinds, only: i8
-  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, file_identity, &
-      sync_folder, read_head, lock_output, unlock_output, holder_line, descriptor_is_at, host_name, process_id, &
-      kind_missing, kind_regular, kind_link, kind_folder
+  use ellroll_files, only: path_kind, same_file, remove_path, rename_path, rename_new, sticky_refusal, sync_path, &
+      file_identity, sync_folder, read_head, lock_output, unlock_output, unlock_keeping, holder_line, descriptor_is_at, &
+      host_name, process_id, kind_missing, kind_regular, kind_link, kind_folder
   implicit none
   private
 
@@ -49,6 +49,10 @@ module ellroll_output_files
     !> moves and removes only these (another file moved to one of their
     !> names while the run wrote stays where it is)
     integer(i8) :: target_identity(2) = 0, written_identity(2) = 0, journal_identity(2) = 0
+    !> the note of a killed run's lock file this process took over: put
+    !> back where it is refused before it touches a file (it names the
+    !> command that finishes that run)
+    character(len=:), allocatable :: killed_note
   contains
     procedure :: name => name_files
     procedure :: note_target, note_written, note_journal
@@ -115,6 +119,7 @@ contains
     call lock_output(self%lock, me, fd, holder)
     if (fd >= 0) then
       self%lock_fd = fd
+      self%killed_note = holder
     else if (fd == -eagain) then
       call holder_line(holder)
       call set_error(err, err_output, self%target // ': another ellroll process writes this output (' // &
@@ -132,11 +137,23 @@ contains
 
   !> Release the output's lock (its file removed); err reports a failure
   !> unless it holds an error already.
-  subroutine release(self, err)
+  subroutine release(self, err, refused)
     class(output_files_t), intent(inout) :: self
     type(error_t), intent(inout) :: err
+    logical, intent(in), optional :: refused     !< before it touched a file (a killed run's note put back)
     integer :: code
+    logical :: restore
     if (self%lock_fd < 0) return
+    restore = .false.
+    if (present(refused) .and. allocated(self%killed_note)) restore = refused .and. len(self%killed_note) > 0
+    if (restore) then
+      code = unlock_keeping(self%lock_fd, self%lock, self%killed_note)
+      self%lock_fd = -1
+      if (code /= 0 .and. .not. err%failed()) &
+        call set_error(err, err_output, self%lock // ': cannot put back the note of the run it names: ' // &
+                       system_error_text(code))
+      return
+    end if
     code = unlock_output(self%lock_fd, self%lock)
     self%lock_fd = -1
     if (code /= 0 .and. .not. err%failed()) &

@@ -16,7 +16,7 @@ module ellroll_run_campaign
   use ellroll_threads, only: team_size
   use, intrinsic :: iso_fortran_env, only: error_unit
   use ellroll_kinds, only: wp, i8
-  use ellroll_errors, only: error_t, set_error, err_interrupted
+  use ellroll_errors, only: error_t, set_error, err_interrupted, err_input
   use ellroll_strings, only: itoa
   use ellroll_status, only: status_invalid
   use ellroll_cases, only: case_t
@@ -83,11 +83,12 @@ contains
     integer(i8), intent(out), optional :: ran      !< the cases this call integrated
     character(len=:), allocatable :: messages
     logical, allocatable :: invalid(:)
-    logical :: resume, nothing_to_do, orphan
+    logical :: resume, nothing_to_do, orphan, opened
     type(output_files_t) :: files
     type(run_state_t) :: run
 
     run%timings%started = wall_clock()
+    opened = .false.
     call files%name(inp%plan%file, inp%path)
 
     ! invalid cases: stop before any work, or skip them
@@ -115,6 +116,7 @@ contains
               ', so no case is kept; running all cases'
         end if
       end if
+      opened = .true.
       call open_outputs(inp, opts%shard, prov_in, files, resume, run%out, run%journal, run%done, err)
       if (.not. err%failed()) then
         run%n_slots = size(run%done, kind=i8)
@@ -132,7 +134,10 @@ contains
         call finish(run, files, opts, err)
       end if
     end if
-    call files%release(err)
+    ! (a command refused before it opened the outputs, or for its input,
+    ! leaves a killed run's lock as it found it: its note names the command
+    ! that finishes that run)
+    call files%release(err, refused=err%failed() .and. (.not. opened .or. err%code == err_input))
   end subroutine run_campaign
 
   !> Invalid cases skipped: recorded, never integrated.

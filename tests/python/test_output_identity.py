@@ -88,3 +88,27 @@ def test_a_resume_never_replaces_another_campaigns_output(ellroll, tmp_path):
     result = run(ellroll, "run", "camp.nml", "-q", "--resume", cwd=folder)
     assert result.returncode == 0, result.stderr
     assert_same_datasets(folder / "whole.h5", folder / "out.h5")
+
+
+def test_a_refused_command_leaves_a_killed_runs_lock_as_it_found_it(ellroll, tmp_path):
+    """A run killed: its lock names its command line. A plain run again
+    (exit 3, an interrupted run exists) and a resume of another input
+    (exit 2) are refused and leave that note in place, so that every reader
+    still names the command that finishes the run; that resume does."""
+    folder = folder_with(tmp_path, t_end=LONG)
+    writer = start(ellroll, folder)
+    while not (folder / "out.h5.journal").exists() and writer.poll() is None:
+        time.sleep(0.002)
+    writer.kill()
+    writer.wait()
+    note = (folder / "out.h5.lock").read_bytes()
+    assert b"ellroll run camp.nml -q --threads 1" in note
+    (folder / "other.nml").write_text((folder / "camp.nml").read_text().replace(f"t_end = {LONG}", "t_end = 0.2"))
+    for command, code in ((["camp.nml", "-q"], 3), (["other.nml", "-q", "-o", "out.h5", "--resume"], 2)):
+        result = run(ellroll, "run", *command, cwd=folder)
+        assert result.returncode == code, result.stderr
+        assert (folder / "out.h5.lock").read_bytes() == note, command
+    result = run(ellroll, "summary", "out.h5.partial", cwd=folder)
+    assert "finish it with 'ellroll run camp.nml -q --threads 1 --resume'" in result.stderr, result.stderr
+    assert run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "--resume", cwd=folder).returncode == 0
+    assert not (folder / "out.h5.lock").exists()
