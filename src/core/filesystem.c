@@ -302,8 +302,16 @@ int ellroll_lock_output(const char *path, const char *me, char *holder, int size
             continue;
         }
         if (!created) {                       /* a killed run's note, for a refusal to put back */
-            ssize_t got = pread(fd, holder, (size_t)(size - 1), 0);
-            holder[got > 0 ? got : 0] = '\0';
+            ssize_t got;
+            do {
+                got = pread(fd, holder, (size_t)(size - 1), 0);
+            } while (got < 0 && errno == EINTR);
+            if (got < 0) {                    /* unread: nothing is taken over */
+                int code = errno;
+                close(fd);
+                return -code;
+            }
+            holder[got] = '\0';
         }
         size_t length = strlen(me);
         if (ftruncate(fd, 0) != 0 || pwrite(fd, me, length, 0) != (ssize_t)length) {

@@ -64,7 +64,7 @@ contains
     type(output_files_t), intent(in) :: files
     logical, intent(out) :: resume, nothing_to_do
     type(error_t), intent(inout) :: err
-    logical :: journal_exists, target_exists, target_complete, work_exists
+    logical :: journal_exists, target_exists, target_complete, target_ours, work_exists
     nothing_to_do = .false.
     resume = resume_asked
     call files%check(files%target, work_target, err)
@@ -75,7 +75,8 @@ contains
     target_exists = path_kind(files%target) == kind_regular
     journal_exists = path_kind(files%journal) == kind_regular
     target_complete = .false.
-    if (target_exists) target_complete = holds_this_run(files%target, inp, shard, err)
+    target_ours = .false.
+    if (target_exists) target_complete = holds_this_run(files%target, inp, shard, err, target_ours)
     if (err%failed()) return
     ! (the run that wrote the output moved its work file onto it: a work file
     ! there belongs to a run that has not finished; a resume of a journal
@@ -122,10 +123,10 @@ contains
       end if
     end if
     ! a resume replaces only an output of its own campaign (an --overwrite
-    ! stopped half way): another at the output's name is somebody's result
-    if (resume .and. journal_exists .and. target_exists .and. .not. (target_complete .or. err%failed())) &
-      call set_error(err, err_output, files%target // ': holds the output of another input or shard, which a ' // &
-          'resume never replaces; move it away, then resume')
+    ! stopped half way, of any shard): another input's is somebody's result
+    if (resume .and. journal_exists .and. target_exists .and. .not. (target_ours .or. err%failed())) &
+      call set_error(err, err_output, files%target // ': holds the output of another input, which a resume ' // &
+          'never replaces; move it away, then resume')
     ! the finished file goes over the output at the end: refused now where
     ! it could not (a sticky folder, another user's file), not after the run
     if (target_exists .and. .not. nothing_to_do) call check_replace(files%target, err)
@@ -139,17 +140,19 @@ contains
   !> Whether the output at path is complete and of this campaign and shard.
   !> A file that cannot be read (a read error) is no answer: with `err`,
   !> that is an error (exit 3).
-  logical function holds_this_run(path, inp, shard, err) result(holds)
+  logical function holds_this_run(path, inp, shard, err, campaign) result(holds)
     character(len=*), intent(in) :: path
     type(run_input_t), intent(in) :: inp
     integer, intent(in) :: shard(2)
     type(error_t), intent(inout), optional :: err
+    logical, intent(out), optional :: campaign     !< whether it is of this campaign, any shard, complete or not
     type(h5_input_t) :: existing
     type(error_t) :: unreadable
     character(len=:), allocatable :: id, spec
     integer(i8), allocatable :: status(:)
     logical :: read_error
     holds = .false.
+    if (present(campaign)) campaign = .false.
     call existing%open(path, unreadable)
     if (.not. unreadable%failed()) then
       call existing%text_attribute('campaign_id', id)
@@ -159,6 +162,7 @@ contains
       call existing%close()
       holds = .not. unreadable%failed() .and. id == campaign_id(inp) .and. &
               spec == itoa(shard(1)) // '/' // itoa(shard(2)) .and. .not. any(status == status_pending)
+      if (present(campaign)) campaign = .not. unreadable%failed() .and. id == campaign_id(inp)
     end if
     if (present(err) .and. unreadable%code == err_output) err = unreadable
   end function holds_this_run

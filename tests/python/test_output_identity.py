@@ -81,7 +81,7 @@ def test_a_resume_never_replaces_another_campaigns_output(ellroll, tmp_path):
     os.rename(folder / "other.h5", folder / "out.h5")
     result = run(ellroll, "run", "camp.nml", "-q", "--resume", cwd=folder)
     assert result.returncode == 3
-    assert "out.h5: holds the output of another input or shard, which a resume never replaces; move it away, " \
+    assert "out.h5: holds the output of another input, which a resume never replaces; move it away, " \
            "then resume" in result.stderr, result.stderr
     assert (folder / "out.h5").read_bytes() == theirs and (folder / "out.h5.journal").exists()
     os.rename(folder / "out.h5", folder / "theirs.h5")
