@@ -3,13 +3,13 @@
 !> the command line that finishes an interrupted run.
 module ellroll_cli
   use ellroll_errors, only: error_t, set_error, err_input
-  use ellroll_strings, only: itoa
+  use ellroll_strings, only: itoa, excerpt
   use ellroll_hdf5_writer, only: provenance_t
   use ellroll_run_campaign, only: run_options_t
   use ellroll_system, only: utc_timestamp
   use ellroll_version, only: version_string, build_string
   use ellroll_suggest, only: did_you_mean
-  use ellroll_files, only: work_suffix, path_length
+  use ellroll_files, only: output_name_problem, path_length
   use ellroll_threads, only: threads_per_processor
   implicit none
   private
@@ -178,6 +178,7 @@ contains
     type(cli_t), intent(inout) :: cli
     character(len=*), intent(in) :: option, value
     type(error_t), intent(inout) :: err
+    character(len=:), allocatable :: reason
     integer :: ios
     select case (option)
     case ('-o', '--output')
@@ -186,9 +187,8 @@ contains
         return
       end if
       if (ends_in_blank(value, err)) return
-      if (work_suffix(value) > 0) call usage_error(err, option // ' ' // value // ': ends in ' // &
-          value(len(value) - work_suffix(value) + 1:) // ', a suffix of ellroll''s own work files (.partial, ' // &
-          '.partial.new, .journal, .lock); choose another output name')
+      call output_name_problem(value, reason)
+      if (len(reason) > 0) call usage_error(err, option // ' ' // excerpt(value) // ': ' // reason)
       cli%output_path = value
     case ('--threads')
       ios = 1

@@ -5,19 +5,24 @@
 module ellroll_files
   use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char, c_long, c_long_long, c_size_t, c_int64_t
   use ellroll_kinds, only: i8
+  use ellroll_strings, only: itoa
   implicit none
   private
 
   public :: path_kind, file_size, create_new_file, same_file, descriptor_is_at, remove_path, rename_path, file_identity, &
-            descriptor_identity, &
-            rename_new, sticky_refusal, work_suffix, sync_path, sync_folder, read_head, lock_output, unlock_output, &
-            unlock_keeping, &
-            lock_held, holder_line, resume_advice, host_name, process_id, text_of, free_bytes
-  public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length
+            descriptor_identity, one_name, rename_new, sticky_refusal, work_suffix, output_name_problem, sync_path, sync_folder, &
+            read_head, lock_output, unlock_output, unlock_keeping, lock_held, holder_line, resume_advice, host_name, &
+            process_id, text_of, free_bytes
+  public :: kind_missing, kind_regular, kind_link, kind_folder, kind_other, path_length, output_name_length
 
-  !> The longest path a command takes (Linux's PATH_MAX): the files of its
-  !> command line and the record files resolved against the input's folder.
-  integer, parameter :: path_length = 4096
+  !> The longest path a command takes (Linux's PATH_MAX less its closing
+  !> NUL): the files of its command line and the record files resolved
+  !> against the input's folder.
+  integer, parameter :: path_length = 4095
+
+  !> The longest output name: its longest work file's name (OUT.partial.new)
+  !> must be a path too.
+  integer, parameter :: output_name_length = path_length - len('.partial.new')
 
   !> What path_kind finds at a name (a link is not followed).
   integer, parameter :: kind_missing = 0, kind_regular = 1, kind_link = 2, kind_folder = 3, kind_other = 4
@@ -54,6 +59,11 @@ module ellroll_files
       integer(c_int), value :: fd
       integer(c_int64_t), intent(out) :: identity(2)
     end function c_descriptor_identity
+    integer(c_int) function c_one_name(fd, path, copy) bind(c, name='ellroll_one_name')
+      import :: c_int, c_char
+      integer(c_int), value :: fd
+      character(kind=c_char), intent(in) :: path(*), copy(*)
+    end function c_one_name
     integer(c_int) function c_unlock_keeping(fd, path, note) bind(c, name='ellroll_unlock_keeping')
       import :: c_int, c_char
       integer(c_int), value :: fd
@@ -175,6 +185,17 @@ contains
     if (c_descriptor_identity(fd, found) == 1) identity = found
   end function descriptor_identity
 
+  !> The file open as fd at path with no other name: fd itself where it has
+  !> one; else a descriptor of a copy (made at copy, then moved over path),
+  !> which takes fd's place (fd stays open for the caller to close); or
+  !> -errno, nothing changed. Writing to it then leaves a backup made with ln
+  !> or cp -al as it was.
+  integer function one_name(fd, path, copy)
+    integer, intent(in) :: fd
+    character(len=*), intent(in) :: path, copy
+    one_name = c_one_name(fd, path // c_null_char, copy // c_null_char)
+  end function one_name
+
   !> Remove the name path (a link itself, not its target): 0 or an errno value.
   integer function remove_path(path)
     character(len=*), intent(in) :: path
@@ -221,6 +242,21 @@ contains
     end do
     n = 0
   end function work_suffix
+
+  !> Why path cannot name an output, or '': it ends in a work file's suffix,
+  !> or its work files' names would be longer than a path can be.
+  subroutine output_name_problem(path, reason)
+    character(len=*), intent(in) :: path
+    character(len=:), allocatable, intent(out) :: reason
+    reason = ''
+    if (work_suffix(path) > 0) then
+      reason = 'ends in ' // path(len(path) - work_suffix(path) + 1:) // ', a suffix of ellroll''s own work ' // &
+               'files (.partial, .partial.new, .journal, .lock); choose another output name'
+    else if (len(path) > output_name_length) then
+      reason = itoa(len(path)) // ' characters; an output''s name has at most ' // itoa(output_name_length) // &
+               ' (its work file OUT.partial.new must fit the system''s limit on a path)'
+    end if
+  end subroutine output_name_problem
 
   !> The file at path to the disk (fsync): 0 or an errno value.
   integer function sync_path(path)

@@ -140,6 +140,60 @@ int ellroll_rename_new(const char *old, const char *new_path)
     return rename(old, new_path) == 0 ? 0 : errno;
 }
 
+/* A file of one name in place of the regular file open as fd at path when
+ * another name holds it too (a backup made with ln or cp -al), so that
+ * writing to it leaves the other name's bytes as they are: its bytes are
+ * copied to a new file at `copy` (O_EXCL), synced, and moved over path,
+ * which must still name fd's file. Returns fd itself when the file has one
+ * name, else a new descriptor (read and write) of the copy, which the
+ * caller takes in fd's place; or -errno, with no copy left (-EEXIST: a
+ * file is at `copy`). */
+int ellroll_one_name(int fd, const char *path, const char *copy)
+{
+    struct stat info;
+    if (fstat(fd, &info) != 0)
+        return -errno;
+    if (info.st_nlink <= 1)
+        return fd;
+    int out;
+    do {
+        out = open(copy, O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, info.st_mode & 07777);
+    } while (out < 0 && errno == EINTR);
+    if (out < 0)
+        return -errno;
+    char buffer[65536];
+    int code = 0;
+    for (off_t at = 0; code == 0;) {
+        ssize_t got = pread(fd, buffer, sizeof buffer, at);
+        if (got < 0 && errno == EINTR)
+            continue;
+        if (got <= 0) {
+            code = got < 0 ? errno : 0;
+            break;
+        }
+        for (ssize_t done = 0; done < got && code == 0;) {
+            ssize_t put = pwrite(out, buffer + done, (size_t)(got - done), at + done);
+            if (put < 0 && errno != EINTR)
+                code = errno;
+            else if (put > 0)
+                done += put;
+        }
+        at += got;
+    }
+    if (code == 0 && fsync(out) != 0)
+        code = errno;
+    if (code == 0 && !ellroll_descriptor_is_at(fd, path))
+        code = ENOENT;                       /* the name went elsewhere meanwhile */
+    if (code == 0 && rename(copy, path) != 0)
+        code = errno;
+    if (code != 0) {
+        unlink(copy);
+        close(out);
+        return -code;
+    }
+    return out;
+}
+
 /* Whether this process holds CAP_FOWNER (the right to remove another
  * user's file from a sticky folder). */
 static int may_override_owners(void)

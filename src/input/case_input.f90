@@ -16,7 +16,7 @@ module ellroll_case_input
   use ellroll_record_file, only: load_ground_motion
   use ellroll_input_reader, only: reader_t, namelist_values_t, max_fields, count_given, not_finite_entry
   use ellroll_suggest, only: did_you_mean
-  use ellroll_files, only: work_suffix, path_length
+  use ellroll_files, only: output_name_problem, path_length
   use ellroll_intensity, only: intensity_of
   use ellroll_campaign_input, only: build_campaign
   use ellroll_applies, only: excitation_inputs, kind_of_input
@@ -366,10 +366,9 @@ contains
       plan%file = trim(output_override)
     else if (len_trim(v%file) > 0) then
       plan%file = trim(adjustl(v%file))
-      if (work_suffix(plan%file) > 0) then
-        call rd%fail_value(gi, 'file', 'ends in ' // plan%file(len(plan%file) - work_suffix(plan%file) + 1:) // &
-                           ', a suffix of ellroll''s own work files (.partial, .partial.new, .journal, .lock); ' // &
-                           'choose another name')
+      call output_name_problem(plan%file, hint)
+      if (len(hint) > 0) then
+        call rd%fail_value(gi, 'file', hint)
         return
       end if
     else

@@ -29,7 +29,7 @@ module ellroll_journal
   use ellroll_checksum, only: checksum, checksum_start, fold_reals
   use ellroll_system, only: open_for_writing, open_for_reading, write_pieces_at, read_at, close_descriptor, &
       system_error_text
-  use ellroll_files, only: create_new_file, file_size
+  use ellroll_files, only: create_new_file, file_size, one_name
   use ellroll_suite_input, only: changed_files
   implicit none
   private
@@ -197,7 +197,7 @@ contains
     integer(i8), target :: start(header_bytes / 8)
     character(len=8) :: found_magic
     type(journal_header_t) :: found
-    integer :: code
+    integer :: code, shared
     self%path = path
     self%fd = open_for_writing(path)
     if (self%fd < 0) then
@@ -250,6 +250,23 @@ contains
       call set_error(err, err_input, path // ': this run was started with other options (shard, output ' // &
           'or case count); resume it with the same command, or start over with --overwrite')
       return
+    end if
+    ! (a backup made with ln or cp -al keeps its journal as it is)
+    code = one_name(self%fd, path, path // '.new')
+    if (code < 0) then
+      call set_error(err, err_output, path // ': it has another name (a backup made with ln or cp -al?), ' // &
+          'and its copy for this resume to write to cannot be made at ' // path // '.new: ' // &
+          system_error_text(-code))
+      return
+    end if
+    if (code /= self%fd) then
+      shared = self%fd
+      self%fd = code
+      code = close_descriptor(shared)
+      if (code /= 0) then
+        call set_error(err, err_output, path // ': cannot close the journal''s other name: ' // system_error_text(code))
+        return
+      end if
     end if
     self%header = found
     self%record_words = words_per_record(found)

@@ -9,7 +9,7 @@ module ellroll_merge
   use ellroll_kinds, only: wp, i8
   use ellroll_errors, only: error_t, set_error, err_input, err_output, err_interrupted
   use ellroll_system, only: catch_stop_signals, stop_signal, signal_name, open_files_room
-  use ellroll_strings, only: itoa
+  use ellroll_strings, only: itoa, excerpt
   use ellroll_status, only: status_pending
   use ellroll_input, only: run_input_t, read_input_text
   use ellroll_results, only: case_result_t, add_switch
@@ -18,7 +18,7 @@ module ellroll_merge
   use ellroll_hdf5_reader, only: h5_input_t
   use ellroll_suite_input, only: changed_files
   use ellroll_shards, only: shard_slots, campaign_id
-  use ellroll_files, only: same_file, path_kind, kind_missing, work_suffix
+  use ellroll_files, only: same_file, path_kind, kind_missing, output_name_problem
   use ellroll_output_files, only: output_files_t, check_replace, work_partial, work_target
   use ellroll_hdf5_common, only: system_failure
   implicit none
@@ -46,14 +46,14 @@ contains
     type(output_files_t), intent(in), optional :: locked
     type(output_files_t) :: files
     type(error_t) :: cleanup
+    character(len=:), allocatable :: reason
     integer :: k
-    call files%name(target, '')
-    if (work_suffix(target) > 0) then
-      call set_error(err, err_input, 'merge: output ' // target // ': ends in ' // &
-          target(len(target) - work_suffix(target) + 1:) // ', a suffix of ellroll''s own work files (.partial, ' // &
-          '.partial.new, .journal, .lock); choose another output name')
+    call output_name_problem(target, reason)
+    if (len(reason) > 0) then
+      call set_error(err, err_input, 'merge: output ' // excerpt(target) // ': ' // reason)
       return
     end if
+    call files%name(target, '')
     do k = 1, size(shard_paths)
       if (target == trim(shard_paths(k))) then
         call set_error(err, err_input, target // ': is also given as a shard to merge; choose another output')

@@ -6,9 +6,13 @@ the messages of a missing shard, a killed run's work file given as a shard,
 a thread count beyond any integer and an output folder moved away during a
 run. The faults are injected with strace at each call of a kind, or at a
 seeded sample of them."""
+import os
+import pathlib
+import platform
 import random
 import re
 import shutil
+import signal
 import subprocess
 import time
 
@@ -20,6 +24,7 @@ from test_fuzz import CRASH_SIGNS
 
 STRACE = shutil.which("strace")
 needs_strace = pytest.mark.skipif(STRACE is None, reason="strace is not installed")
+FSYNC = {"x86_64": 74, "aarch64": 82}.get(platform.machine())
 
 # 12 cases of rk4, every field stored
 CAMPAIGN = """&geometry a = 1.0, b = 0.4, c = 0.2 /
@@ -264,6 +269,43 @@ def test_an_output_folder_moved_away_is_named_with_the_resume_hint(ellroll, camp
     again = run(ellroll, "run", "camp.nml", "-q", "--threads", "1", "-o", "od2/x.h5", "--resume", cwd=folder)
     assert again.returncode == 0, again.stderr
     assert_same_datasets(folder / "whole.h5", folder / "od2" / "x.h5")
+
+
+def held_in(tracer, call):
+    """The traced child of tracer one of whose threads is in system call
+    number call, or None."""
+    try:
+        for pid in open(f"/proc/{tracer}/task/{tracer}/children").read().split():
+            for task in pathlib.Path(f"/proc/{pid}/task").iterdir():
+                if (task / "syscall").read_text().split()[:1] == [str(call)]:
+                    return int(pid)
+    except OSError:                 # a thread or the process ended while read
+        pass
+    return None
+
+
+@needs_strace
+@pytest.mark.skipif(FSYNC is None, reason="fsync's system call number is known for x86_64 and aarch64")
+def test_a_signal_while_the_finished_file_moves_into_place_changes_nothing(ellroll, campaign):
+    """usage.md: a SIGTERM after the last case, while the finished file is
+    synced (held there 1.5 s) and moved into place, changes nothing: exit
+    0, the summary printed, the file an undisturbed run's, no work file."""
+    folder, summary = campaign
+    command = [STRACE, "-f", "-o", "/dev/null", "-e", "trace=fsync", "-e", "inject=fsync:delay_enter=1500000:when=1",
+               str(ellroll), "run", "camp.nml", "-q", "--threads", "1", "-o", "x.h5"]
+    process = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    child = None
+    while child is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+        child = held_in(process.pid, FSYNC)
+    assert child is not None
+    os.kill(child, signal.SIGTERM)
+    stdout, stderr = process.communicate(timeout=120)
+    assert process.returncode == 0 and "interrupted" not in stderr, stderr
+    assert stdout.splitlines()[0] == summary.splitlines()[0].replace("whole.h5", "x.h5")
+    assert_same_datasets(folder / "whole.h5", folder / "x.h5")
+    assert sorted(p.name for p in folder.glob("x.h5*")) == ["x.h5"]
 
 
 def test_a_records_errors_name_it_once(tmp_path):

@@ -96,10 +96,11 @@ def test_a_resume_with_no_journal_says_so_and_runs_every_case(ellroll, tmp_path,
 
 
 def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(ellroll, tmp_path):
-    """A backup of the killed run's work file made with a hard link (ln,
-    cp -al, rsnapshot) before --resume: the resume frees no room in a file
-    that another name holds, so the backup keeps its bytes and its blocks,
-    and a resume from the backup keeps every case the killed run finished."""
+    """A backup of the killed run's work file and journal made with hard
+    links (ln, cp -al, rsnapshot) before --resume: the resume frees no room
+    in a file that another name holds and writes its journal records to a
+    copy of one name, so the backup keeps its bytes and its blocks, and a
+    resume from the backup keeps every case the killed run finished."""
     name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
     journal = tmp_path / "out.h5.journal"
@@ -114,13 +115,16 @@ def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(el
     backup = tmp_path / "backup"
     backup.mkdir()
     (backup / "out.h5.partial").hardlink_to(tmp_path / "out.h5.partial")
-    (backup / "out.h5.journal").write_bytes(journal.read_bytes())
+    (backup / "out.h5.journal").hardlink_to(journal)
     (backup / name).write_bytes((tmp_path / name).read_bytes())
     before = (backup / "out.h5.partial").read_bytes(), (backup / "out.h5.partial").stat().st_blocks
+    journal_before = journal.read_bytes()
     result = run(ellroll, "run", name, "-q", "--threads", "2", "--resume", cwd=tmp_path)
     assert result.returncode == 0, result.stderr
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
     assert ((backup / "out.h5.partial").read_bytes(), (backup / "out.h5.partial").stat().st_blocks) == before
+    assert (backup / "out.h5.journal").read_bytes() == journal_before
+    assert sorted(p.name for p in tmp_path.glob("out.h5*")) == ["out.h5"]
     result = run(ellroll, "run", name, "-q", "--threads", "2", "--resume", cwd=backup)
     assert result.returncode == 0 and "damaged" not in result.stderr, result.stderr
     with h5py.File(backup / "out.h5", "r") as f:

@@ -94,6 +94,19 @@ def test_at2_equals_the_csv_bitwise(ellroll, tmp_path, layout):
         assert np.abs(base[:, 0]).max() > 0.3 and np.all(base[:, 2] == 0)
 
 
+def test_one_at2_file_shakes_along_x_only(ellroll, tmp_path):
+    """inputs.md: an axis without a file is at rest; one AT2 file is x."""
+    x = ground(5)
+    write_at2(tmp_path / "H1.AT2", x, DT)
+    write_csv(tmp_path / "rec.csv", [x, np.zeros(len(x))], DT)
+    alone = run_case(ellroll, tmp_path, "'H1.AT2'", "alone", t_end=5.0)
+    csv = run_case(ellroll, tmp_path, "'rec.csv'", "csv", t_end=5.0)
+    assert_same_trajectories(alone, csv)
+    with h5py.File(alone, "r") as f:
+        base = f["trajectory/base_acceleration"][0]
+        assert np.abs(base[:, 0]).max() > 0.3 and np.all(base[:, 1:] == 0)
+
+
 def test_scale_two_equals_the_doubled_csv(ellroll, tmp_path):
     x, y = ground(3), ground(4)
     write_at2(tmp_path / "H1.AT2", x, DT)
