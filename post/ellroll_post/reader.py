@@ -303,6 +303,7 @@ class EllrollFile:
             self._h5 = h5py.File(self.path, "r")
         except (OSError, ValueError) as exc:
             raise NotAnEllrollFile(_open_failure(self.path, exc)) from None
+        self._contents = self._contents_now()
         try:
             try:
                 program = self._h5.attrs["program"]
@@ -375,10 +376,22 @@ class EllrollFile:
     def close(self):
         self._h5.close()
 
+    def _contents_now(self):
+        """The open file's size and last modification (fstat of HDF5's own
+        descriptor): what tells that it was written to since it was opened."""
+        info = os.fstat(self._h5.id.get_vfd_handle())
+        return info.st_size, info.st_mtime_ns
+
     def _require_open(self):
-        """NotAnEllrollFile where the file was closed (close(), or a with block ended)."""
+        """NotAnEllrollFile where the file was closed (close(), or a with
+        block ended), or written to since it was opened (another output
+        copied over it in place, a truncation): HDF5 would read its cached
+        tables against the new bytes, zeros and NaN without an error."""
         if not self._h5.id.valid:
             raise NotAnEllrollFile(f"{self.path}: closed; ellroll_post.open it again to read it")
+        if self._contents_now() != self._contents:
+            raise NotAnEllrollFile(f"{self.path}: written to since it was opened (copied over, truncated or "
+                                   "changed in place); ellroll_post.open it again to read it")
 
     def __enter__(self):
         return self

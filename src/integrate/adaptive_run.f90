@@ -12,7 +12,7 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal
+      ball_derivative, normalize_normal, is_still
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_turns, only: turn_resolved
@@ -20,7 +20,8 @@ module ellroll_adaptive_run
   use ellroll_ball_lanes, only: lanes
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
-      accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance
+      accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance, &
+      track_rest_turn
   use ellroll_step_works, only: step_works
   use ellroll_quantities, only: q_displacement
   use ellroll_running, only: unset
@@ -100,7 +101,7 @@ contains
         call end_in_step(status)
         return
       end if
-      peak_inside = nutation_peak_inside(y, f, y_new, f_new, h)
+      peak_inside = nutation_peak_inside(y, f, y_new, f_new, h, is_still(run%ball, y))
       if (peak_inside) then
         call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         peak_inside = peak%found
@@ -126,6 +127,8 @@ contains
       if (peak_inside) then
         call run%maxima%add_peak(peak%t)
         call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
+      else
+        call track_rest_turn(run, y, f, y_new, f_new, t + h)
       end if
       if (run%ball%rolling_resistance > 0) then
         ! the couple's power varies inside the long step: its work by the
@@ -334,7 +337,7 @@ contains
     logical :: inside
     if (.not. part > 0) return
     call locate_nutation_peak(pair, run%ball, peak, res%n_rhs, part / pair%h, inside)
-    if (inside) then
+    if (inside .and. peak%found) then
       call run%maxima%add_peak(peak%t)
       call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
     end if

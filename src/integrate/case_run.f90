@@ -7,7 +7,7 @@
 module ellroll_case_run
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan, ieee_is_finite
   use ellroll_kinds, only: wp, i8, two_pi
-  use ellroll_exact, only: is_zero
+  use ellroll_exact, only: is_zero, equals
   use ellroll_norms, only: norm_of
   use ellroll_excitation, only: excitation_harmonic, excitation_record, excitation_end
   use ellroll_record_store, only: record_samples
@@ -26,8 +26,10 @@ module ellroll_case_run
   use ellroll_running, only: running_t, start_running, add_step_ends, finish_running
   use ellroll_limit_states, only: is_model_limit
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
-      limit_status, ball_derivative, nutation_angle, at_rest
+      limit_status, ball_derivative, nutation_angle, at_rest, is_still
   use ellroll_events, only: crossing_search_t
+  use ellroll_nutation_peaks, only: rest_turn
+  use ellroll_nutation_maxima, only: maxima_t
   use ellroll_sliding_ball, only: resistance_power
   use ellroll_linear, only: oscillation_periods
   use ellroll_harmonic_fit, only: harmonic_fit_t
@@ -40,7 +42,7 @@ module ellroll_case_run
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, stopping, &
             latest_end, settled, regular_steps, last_fixed_step, fixed_step_time, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
-            accumulate, record_sample, record_geometry_sample, stored
+            accumulate, record_sample, record_geometry_sample, stored, track_rest_turn
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -50,21 +52,6 @@ module ellroll_case_run
   !> of t: next to the fit limit's square-root singularity the state changes
   !> by the fit margin itself within 1e-12 s.
   real(wp), parameter :: event_time_ulps = 16
-
-  !> Local maxima of a sampled signal, each refined by the parabola through
-  !> the three samples around it (uneven spacing allowed): its time, and the
-  !> largest of its values.
-  type :: maxima_t
-    real(wp) :: t(3) = 0, v(3) = 0       !< the last three samples
-    integer :: n_samples = 0
-    integer(i8) :: count = 0
-    real(wp) :: first = 0, last = 0      !< times of the first and last maximum
-    real(wp) :: top = -1                 !< the largest parabola's vertex value (-1: none)
-  contains
-    procedure :: add => add_sample
-    procedure :: add_peak
-    procedure :: mean_interval
-  end type maxima_t
 
   !> The search for where a step crossed a model limit, keeping the last
   !> valid observation and the status of the limit met.
@@ -346,62 +333,14 @@ contains
     end if
   end subroutine record_trial
 
-  pure subroutine add_sample(self, t, v)
-    class(maxima_t), intent(inout) :: self
-    real(wp), intent(in) :: t, v
-    real(wp) :: d1, d3, numerator, denominator, t_peak, peak, shift
-    ! a state tracked again at its time (a switch of regime, then the step
-    ! that ends there) adds nothing: as a third sample it would make a flat
-    ! top of a rising Theta
-    if (self%n_samples > 0) then
-      if (.not. t > self%t(3)) return
-    end if
-    ! (shifted element by element: the array constructor built temporaries)
-    self%t(1) = self%t(2)
-    self%t(2) = self%t(3)
-    self%t(3) = t
-    self%v(1) = self%v(2)
-    self%v(2) = self%v(3)
-    self%v(3) = v
-    self%n_samples = self%n_samples + 1
-    if (self%n_samples < 3) return
-    if (.not. (self%v(2) > self%v(1) .and. self%v(2) >= self%v(3))) return
-    ! vertex of the parabola through the three samples
-    d1 = self%t(2) - self%t(1)
-    d3 = self%t(2) - self%t(3)
-    numerator = d1**2 * (self%v(2) - self%v(3)) - d3**2 * (self%v(2) - self%v(1))
-    denominator = d1 * (self%v(2) - self%v(3)) - d3 * (self%v(2) - self%v(1))
-    t_peak = self%t(2)
-    peak = self%v(2)
-    if (.not. is_zero(denominator)) then
-      t_peak = self%t(2) - 0.5_wp * numerator / denominator
-      ! the vertex's value v2 - c s^2, s = t_peak - t2, c the parabola's
-      ! curvature denominator / (d1 d3 (d1 - d3)), in factors of the
-      ! samples' size (none of the spacing's powers alone)
-      shift = t_peak - self%t(2)
-      peak = self%v(2) - (denominator / (d1 * (d1 - d3))) * (shift / d3) * shift
-    end if
-    self%top = max(self%top, peak)
-    call self%add_peak(t_peak)
-  end subroutine add_sample
-
-  !> A maximum located exactly (by the adaptive method's dense output).
-  pure subroutine add_peak(self, t_peak)
-    class(maxima_t), intent(inout) :: self
-    real(wp), intent(in) :: t_peak
-    if (self%count == 0) self%first = t_peak
-    self%last = t_peak
-    self%count = self%count + 1
-  end subroutine add_peak
-
-  pure real(wp) function mean_interval(self)
-    class(maxima_t), intent(in) :: self
-    if (self%count < 3) then
-      mean_interval = ieee_value(0.0_wp, ieee_quiet_nan)
-    else
-      mean_interval = (self%last - self%first) / real(self%count - 1, wp)
-    end if
-  end function mean_interval
+  !> An embedded pair's step (ending at t) with no maximum of Theta inside:
+  !> its turn at a still state, if any (ellroll_nutation_peaks rest_turn).
+  pure subroutine track_rest_turn(run, y, f, y_new, f_new, t)
+    type(run_state_t), intent(inout) :: run
+    real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)
+    real(wp), intent(in) :: t
+    call run%maxima%add_rest_turn(rest_turn(y, f, y_new, f_new, is_still(run%ball, y), is_still(run%ball, y_new)), t)
+  end subroutine track_rest_turn
 
   !> Everything a fixed step's end point adds to the summary; the maxima of
   !> Theta from the step ends (refined by parabolas).

@@ -11,7 +11,13 @@ module ellroll_nutation_peaks
   implicit none
   private
 
-  public :: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
+  public :: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim, rest_turn
+
+  !> What a step does at a rest (a state whose rate is zero: held by rolling
+  !> resistance): none, reaches one with Theta rising (a maximum if Theta
+  !> falls when the ball leaves it), leaves one with Theta falling or rising.
+  integer, parameter, public :: rest_none = 0, rest_reached_rising = 1, rest_left_falling = 2, &
+                                rest_left_rising = 3
 
   type :: nutation_peak_t
     real(wp) :: t = 0, tan_nutation = 0
@@ -26,11 +32,18 @@ contains
   !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
   !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
   !> step's end is found once).
-  pure logical function nutation_peak_inside(y, f, y_new, f_new, h)
+  pure logical function nutation_peak_inside(y, f, y_new, f_new, h, still)
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)     ! (assumed shape: a batch passes lanes' rows)
     real(wp), intent(in) :: h
-    real(wp) :: state(state_size), rate(state_size), s, trend, before
+    !> whether the step starts still (is_still): its turn is rest_turn's, and
+    !> the cubic, not the motion, turns inside it
+    logical, intent(in), optional :: still
+    real(wp) :: state(state_size), rate(state_size), s, trend, before, factor
     integer :: i
+    nutation_peak_inside = .false.
+    if (present(still)) then
+      if (still) return
+    end if
     nutation_peak_inside = nutation_trend(y, f, lateral_factor(y)) >= 0 .and. &
                            nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0
     if (nutation_peak_inside) return
@@ -41,17 +54,55 @@ contains
     before = nutation_trend(y, f, lateral_factor(y))
     do i = 1, 4
       s = 0.25_wp * i
-      state = (1 + 2 * s) * (1 - s)**2 * y(:state_size) + s * (1 - s)**2 * h * f(:state_size) &
-              + s**2 * (3 - 2 * s) * y_new(:state_size) + s**2 * (s - 1) * h * f_new(:state_size)
-      rate = 6 * s * (s - 1) * (y(:state_size) - y_new(:state_size)) / h + (1 - s) * (1 - 3 * s) * f(:state_size) &
-             + s * (3 * s - 2) * f_new(:state_size)
-      trend = nutation_trend(state, rate, lateral_factor(state))
-      if (i == 4) trend = nutation_trend(y_new, f_new, lateral_factor(y_new))
+      if (i == 4) then
+        trend = nutation_trend(y_new, f_new, lateral_factor(y_new))
+      else
+        state = (1 + 2 * s) * (1 - s)**2 * y(:state_size) + s * (1 - s)**2 * h * f(:state_size) &
+                + s**2 * (3 - 2 * s) * y_new(:state_size) + s**2 * (s - 1) * h * f_new(:state_size)
+        rate = 6 * s * (s - 1) * (y(:state_size) - y_new(:state_size)) / h + (1 - s) * (1 - 3 * s) * f(:state_size) &
+               + s * (3 * s - 2) * f_new(:state_size)
+        factor = lateral_factor(state)
+        trend = nutation_trend(state, rate, factor)
+        ! a sign the interpolant's rate does not resolve (a step whose change
+        ! is near round-off: a short one, a ball all but at rest) says nothing
+        if (.not. abs(trend) > hermite_noise(state, y, y_new, h, factor)) cycle
+      end if
       nutation_peak_inside = before >= 0 .and. trend < 0
       if (nutation_peak_inside) return
       before = trend
     end do
   end function nutation_peak_inside
+
+  !> The step's turn at a still state (is_still: the ball at rest, held by
+  !> rolling resistance, or where a stop inside a step left it, turning):
+  !> rest_none, rest_reached_rising, ... . Theta is flat while the ball
+  !> rests, and a rest or a turn is a maximum of Theta where Theta rises into
+  !> it and falls out of it (as three samples find a flat top); a step from
+  !> it counts none itself (nutation_peak_inside).
+  pure integer function rest_turn(y, f, y_new, f_new, still, still_new)
+    real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)
+    logical, intent(in) :: still, still_new     !< at the step's start, at its end
+    rest_turn = rest_none
+    if (still) then
+      if (still_new) return
+      rest_turn = rest_left_rising
+      if (nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0) rest_turn = rest_left_falling
+    else if (still_new) then
+      if (nutation_trend(y, f, lateral_factor(y)) > 0) rest_turn = rest_reached_rising
+    end if
+  end function rest_turn
+
+  !> A bound on the round-off of nutation_trend at the Hermite interpolant's
+  !> point state (between y and y_new, a step of h), where the rate's part
+  !> (y - y_new) / h carries each difference's rounding, eps (|y_i| +
+  !> |y_new_i|), divided by h; four times its first-order size.
+  pure real(wp) function hermite_noise(state, y, y_new, h, factor)
+    real(wp), intent(in) :: state(:), y(:), y_new(:), h, factor
+    real(wp) :: spread(3)
+    spread = (6 * epsilon(1.0_wp) / h) * (abs(y(1:3)) + abs(y_new(1:3)))   ! (6 s (1 - s) <= 3/2, times 4)
+    hermite_noise = ((factor * abs(state(1))) * (factor * spread(1)) + (factor * abs(state(2))) * (factor * spread(2))) &
+                    * abs(state(3)) + ((factor * state(1))**2 + (factor * state(2))**2) * spread(3)
+  end function hermite_noise
 
   !> Of the sign of d tan(Theta)/dt at the state y with rate y' (any scale
   !> of either: the part of y' along y cancels, so |n| need not be 1), times
@@ -95,10 +146,11 @@ contains
     real(wp), parameter :: resolution = 4 * epsilon(1.0_wp)
     !> of the case's first step: a maximum before it is the start's
     real(wp), parameter :: start_fraction = 1.0e-12_wp
-    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral, factor
+    real(wp) :: low, high, middle, trend_low, trend_high, trend, y(state_size), lateral, factor, lower_end
     integer :: i, kept_side
-    logical :: prepared
+    logical :: prepared, between_ends
     call pair_ball_dense(pair, ball, 0.0_wp, y, prepared)        ! prepares the interpolant
+    lower_end = tan_nutation(y)
     if (prepared) n_rhs = n_rhs + pair%dense_calls()
     factor = lateral_factor(y)       ! (one for the step: the trends' ratios are the secant's)
     low = 0
@@ -110,7 +162,8 @@ contains
     ! the ends without a maximum between them (nutation_peak_inside's screen):
     ! the first of 16 parts of the step whose trend falls through zero, if any
     peak%found = .true.
-    if (.not. present(upto) .and. .not. (trend_low >= 0 .and. trend_high < 0)) then
+    between_ends = .not. present(upto) .and. .not. (trend_low >= 0 .and. trend_high < 0)
+    if (between_ends) then
       peak%found = .false.
       do i = 1, 16
         trend = trend_at(i / 16.0_wp)
@@ -171,6 +224,16 @@ contains
     peak%tan_nutation = lateral / y(3)
     peak%lateral = lateral
     peak%normal_z = y(3)
+    ! a maximum of Theta within the tolerance on the normal's components,
+    ! atol, or a maximum and a minimum between the step's ends whose swing
+    ! is within the step's tolerance, are not resolved (the ball leaving a
+    ! rest at the bottom, whose law has a kink at the rest's threshold: 1e-18 rad)
+    if (.not. peak%tan_nutation > pair%atol) peak%found = .false.
+    if (between_ends) then
+      call pair_ball_dense(pair, ball, 1.0_wp, y, prepared)
+      lower_end = min(lower_end, tan_nutation(y))
+      if (.not. peak%tan_nutation - lower_end > pair%atol + pair%rtol * peak%tan_nutation) peak%found = .false.
+    end if
   contains
     real(wp) function trend_at(theta)
       real(wp), intent(in) :: theta
@@ -180,6 +243,12 @@ contains
       trend_at = nutation_trend(state, rate(:state_size), factor)
     end function trend_at
   end subroutine locate_nutation_peak
+
+  !> tan Theta at the state y (|n| need not be 1).
+  pure real(wp) function tan_nutation(y)
+    real(wp), intent(in) :: y(:)
+    tan_nutation = norm_of(y(1), y(2)) / y(3)
+  end function tan_nutation
 
   !> Whether a maximum of Theta inside a step lies at or past the rim
   !> (n_z <= 0): the step's ends are inside, the path between is not. Its

@@ -27,7 +27,7 @@ module ellroll_rolling_ball
   public :: rolling_ball_t, observation_t, state_size
   public :: initial_state, observe, horizontal_force_scaled, limit_status, constraint_tolerance, ball_derivative, &
             nutation_angle, stage_status, fit_indicator, normalize_normal, smooth_part, at_rest, cross, &
-            rolling_rate, rest_rate, rolling_part, couple_inertia
+            rolling_rate, rest_rate, rolling_part, couple_inertia, is_still
 
   !> How a fixed step directs the couple of rolling resistance
   !> (choose_rolling_law): against the rolling part of omega as it is
@@ -283,6 +283,21 @@ contains
     call ball_derivative(ball, t, y, dydt, resting=.true.)
     at_rest = all(is_zero(dydt))
   end function at_rest
+
+  !> Whether the ball rolls no more at state y than a rest leaves
+  !> (rest_rate), with rolling resistance: its normal still, at a rest or a
+  !> stop (a turn) that come_to_rest placed. Without rolling resistance no
+  !> state is (a turn is inside a step, smooth).
+  pure logical function is_still(ball, y)
+    type(rolling_ball_t), intent(in) :: ball
+    real(wp), intent(in) :: y(:)
+    real(wp) :: omega_t(3)
+    is_still = .false.
+    if (.not. ball%rolling_resistance > 0) return
+    omega_t = rolling_part(y(:state_size))
+    is_still = .not. sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3)) &
+                     > rest_rate(ball, y(:state_size))
+  end function is_still
 
   !> The rolling part of the angular velocity at state y (written out as
   !> the batch's lanes_rolling_mode takes it).

@@ -4,6 +4,7 @@ ncdump; on a single case, a sweep, a record suite and a merged file. A
 reader not installed is skipped with its reason."""
 import csv
 import io
+import os
 import shutil
 import signal
 import subprocess
@@ -292,3 +293,37 @@ def test_summary_table_gives_each_figure_over_the_completed_cases(ellroll, files
             assert np.allclose(written, expected, rtol=5e-6, atol=0), (name, written, expected)
             checked += 1
         assert checked == 4 and "wall_time" not in rows
+
+
+@pytest.mark.parametrize("change", ["another output copied over it", "truncated", "one byte rewritten"])
+def test_a_file_written_to_while_open_is_named_not_read(files, tmp_path, change):
+    """A file changed in place while ellroll_post holds it open (cp or rsync
+    --inplace of another output, a truncation, a byte written as it was):
+    each read after raises NotAnEllrollFile saying so, never the zeros and
+    NaN that HDF5's cached tables give against the new bytes; opened again,
+    the file reads as what it now is."""
+    import ellroll_post
+    path = tmp_path / "held.h5"
+    shutil.copyfile(files["sweep"], path)
+    with ellroll_post.open(path) as f:
+        before = f.summary("theta_max")
+        assert np.all(np.isfinite(before[:2]))
+        if change == "truncated":
+            os.truncate(path, path.stat().st_size // 2)
+        elif change == "one byte rewritten":
+            time.sleep(0.05)                          # (a later modification time: the clock of file times is coarse)
+            with open(path, "r+b") as out:
+                out.seek(100)
+                byte = out.read(1)
+                out.seek(100)
+                out.write(byte)
+        else:
+            shutil.copyfile(files["single"], path)       # the same inode: copied into it
+        reads = [lambda: f.summary("theta_max"), lambda: f.input_column("omega_z"), lambda: f.time,
+                 lambda: f.trajectory("nutation", case=0), lambda: f.attrs, lambda: f.n_cases]
+        for read in reads:
+            with pytest.raises(ellroll_post.NotAnEllrollFile, match="written to since it was opened"):
+                read()
+    if change == "another output copied over it":
+        with ellroll_post.open(path) as f:
+            assert f.n_cases == 1

@@ -3,13 +3,16 @@ switches regime or starts at a turning point, against the maxima of the
 stored Theta itself (1 ms samples, interior maxima counted by three
 samples): seeded shaken sliding campaigns with many switches to rolling
 (a state tracked again at its switch is no flat top of a rising Theta),
-and releases from rest (Theta turns at t = 0: no rise before it, no
-maximum), for every method that runs them."""
+releases from rest (Theta turns at t = 0: no rise before it, no
+maximum), and a record shaking a ball that rests on the way, held by
+rolling resistance (a rest is a maximum where Theta rises into it and
+falls out of it, none where it rises or falls through it; the ball leaves
+the bottom), for every method that runs them, at two output intervals."""
 import h5py
 import numpy as np
 import pytest
 
-from conftest import run
+from conftest import ROOT, run
 
 METHODS = {"rk4": "method = 'rk4', dt = 1e-4", "dop853": "method = 'dop853', rtol = 1e-9",
            "vern9": "method = 'vern9', rtol = 1e-10", "gauss4": "method = 'gauss4', dt = 1e-3"}
@@ -25,6 +28,17 @@ SHAKEN = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 &sample name = 'x', low = -0.1, high = 0.1 /
 &sample name = 'omega_z', low = -5, high = 5 /
 """
+PAIRS = ("dop853", "vern9")
+RESTING = """&geometry a = 1.0, b = 0.4, c = 0.2 /
+&ball radius = 0.2, weight = 2620.0, rolling_resistance = 1.0e-3 /
+&initial x = 0.0, y = 0.0, omega = 0.0, 0.0, 0.0 /
+&integration {integration}, t_end = 10.0 /
+&excitation kind = 'record', record_file = '{record}', scale = 2.0 /
+&output file = 'out.h5', interval = {interval}, fields = 'nutation' /
+&campaign samples = 3, seed = 5 /
+&sample name = 'scale', low = 1.0, high = 3.0 /
+&sample name = 'rolling_resistance', low = 5e-4, high = 2e-3 /
+"""
 RELEASED = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 &ball radius = 0.2, mass = 100.0 /
 &initial x = {x!r}, y = {y!r}, omega = 0, 0, 0 /
@@ -34,8 +48,12 @@ RELEASED = """&geometry a = 1.0, b = 0.4, c = 0.2 /
 
 
 def sample_maxima(theta, t):
-    """The interior maxima of the samples (v1 < v2 >= v3) and their mean spacing (NaN below 3)."""
-    inner = np.flatnonzero((theta[1:-1] > theta[:-2]) & (theta[1:-1] >= theta[2:])) + 1
+    """The interior maxima of the samples and their mean spacing (NaN
+    below 3): a sample, or the first of a run of equal ones (a rest held by
+    rolling resistance), with a lower one on each side."""
+    first = np.flatnonzero(np.r_[True, theta[1:] != theta[:-1]])
+    runs = theta[first]
+    inner = first[np.flatnonzero((runs[1:-1] > runs[:-2]) & (runs[1:-1] > runs[2:])) + 1]
     period = (t[inner[-1]] - t[inner[0]]) / (len(inner) - 1) if len(inner) >= 3 else np.nan
     return len(inner), period
 
@@ -74,3 +92,12 @@ def test_a_release_from_rest_is_no_maximum(ellroll, tmp_path, method):
         folder = tmp_path / str(k)
         folder.mkdir()
         check_counts(ellroll, folder, RELEASED.format(x=x, y=y, integration=METHODS[method]))
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+@pytest.mark.parametrize("interval", ["0.001", "0.002"])
+def test_rests_held_by_rolling_resistance_are_maxima_only_between_a_rise_and_a_fall(ellroll, tmp_path, method,
+                                                                                     interval):
+    record = ROOT / "input" / "records" / "synthetic_ground.csv"
+    integration = METHODS[method].replace("rtol = 1e-9", "rtol = 1e-10") + ", dt = 0.01" * (method in PAIRS)
+    check_counts(ellroll, tmp_path, RESTING.format(integration=integration, record=record, interval=interval))
