@@ -169,6 +169,17 @@ class Parser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')\n")
 
+    def _print_message(self, message, file=None):
+        """--help and --version on standard output as any output is written
+        there: one that cannot be written is an error (exit 2), not lost."""
+        if message and (file is None or file is sys.stdout):
+            try:
+                _stdout(message)
+            except StandardOutputLost as exc:
+                self.exit(2, f"{self.prog}: error: cannot write the standard output: {exc}\n")
+        else:
+            super()._print_message(message, file)
+
 
 def _count(minimum, maximum=None):
     """An argparse type: an integer from minimum (to maximum)."""

@@ -203,6 +203,8 @@ contains
       reason = 'the ball does not fit the cup at the start: the principal radii of curvature there are ' // &
                format_computed(radii(1)) // ' m and ' // format_computed(radii(2)) // &
                ' m, and radius must be below ' // format_computed(radii(1)) // ' m'
+      if (cs%param(p_fit_margin) > 0) reason = reason // ' / (1 + fit_margin) = ' // &
+          format_computed(radii(1) / (1 + cs%param(p_fit_margin))) // ' m'
     case (problem_slide_mu)
       reason = "slip = 'slide' needs a friction coefficient mu > 0"
     case (problem_slide_resistance)

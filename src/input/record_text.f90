@@ -32,7 +32,28 @@ contains
     character(len=:), allocatable, intent(out) :: reason
     file%path = path
     call read_whole_file(path, 'a record file', max_record_bytes, '1 GiB', file%text, reason)
+    if (len(reason) == 0) call refuse_binary(file, reason)
   end subroutine read_record_text
+
+  !> A record is text: a file that begins as gzip's do (1f 8b), or with a NUL
+  !> in its first 64 KiB (a binary file), is refused, named by its bytes, not
+  !> quoted. (Other control characters are a text's, quoted by the line
+  !> that holds them.)
+  subroutine refuse_binary(file, reason)
+    type(text_file_t), intent(in) :: file
+    character(len=:), allocatable, intent(inout) :: reason
+    integer :: nul
+    if (len(file%text) >= 2) then
+      if (iachar(file%text(1:1)) == 31 .and. iachar(file%text(2:2)) == 139) then
+        reason = file%path // ': gzip-compressed (it begins 1f 8b): decompress it; a record is a CSV or PEER ' // &
+                 '.AT2 text file'
+        return
+      end if
+    end if
+    nul = index(file%text(:min(len(file%text), 65536)), achar(0))
+    if (nul > 0) reason = file%path // ': not a text file (byte ' // itoa(nul) // ' is a NUL); a record is a CSV ' // &
+                          'or PEER .AT2 text file'
+  end subroutine refuse_binary
 
   !> The next line of the file: its characters first .. last (without the
   !> line feed); found = .false. at the end. hash: where its first '#' is,

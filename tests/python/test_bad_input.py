@@ -17,6 +17,8 @@ CASES = [
     ("zero dt", [("dt = 1.0e-3", "dt = 0.0")], ["case.nml:8:", "&integration", "dt = 0.0", "must be > 0"]),
     ("ball does not fit", [("radius = 0.2", "radius = 0.9")],
      ["case.nml:5:", "&ball", "radius = 0.9", "does not fit", "0.8 m"]),
+    ("ball within the fit margin", [("radius = 0.2", "radius = 0.7999995")],
+     ["case.nml:5:", "&ball", "radius = 0.7999995", "does not fit", "below 0.8 m / (1 + fit_margin) = 0.7999992 m"]),
     ("start outside the cup", [("x = 0.0", "x = 1.5")], ["case.nml:7:", "&initial", "x = 1.5", "not inside the cup"]),
     ("interval not a multiple of dt", [("interval = 0.01", "interval = 0.0125")],
      ["case.nml:9:", "&output", "interval = 0.0125", "whole number of steps"]),

@@ -346,6 +346,17 @@ def test_standard_output_that_cannot_be_written_is_one_line(files, tmp_path, com
     one_line_error(result.returncode, result.stderr, "cannot write the standard output", reason)
 
 
+@pytest.mark.parametrize("args", [["--help"], ["trace", "--help"], ["report", "-h"]])
+def test_help_that_cannot_be_written_is_one_line(args):
+    """--help of ellroll-plot and of a subcommand with standard output on
+    a full device: one line, exit 2, as any other output."""
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full")
+    with open("/dev/full", "w") as full:
+        result = plot_process(args, stdout=full)
+    one_line_error(result.returncode, result.stderr, "cannot write the standard output", "No space left on device")
+
+
 def folder_state(folder):
     """{name: bytes} of every file in a folder (hidden ones included)."""
     return {p.name: p.read_bytes() for p in folder.iterdir()} if folder.exists() else None

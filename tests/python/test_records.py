@@ -1,6 +1,7 @@
 """Ground-motion records: PEER NGA .AT2 files, one per axis, equal bitwise to
 the same record as a CSV in m/s^2 for every header style and layout; scale;
 the ground at rest past a record's end; bad files named by file and line."""
+import gzip
 import resource
 import subprocess
 
@@ -189,6 +190,21 @@ def test_dt_is_read_with_its_unit_written_against_it(ellroll, tmp_path, line):
         result = run(ellroll, "run", "cup.nml", "-q", cwd=folder)
         assert result.returncode == 0, result.stderr
     assert_same_datasets(tmp_path / "standard" / "out.h5", tmp_path / "variant" / "out.h5")
+
+
+@pytest.mark.parametrize("name, content, words", [
+    ("H1.AT2", bytes(4096), "H1.AT2: not a text file (byte 1 is a NUL); a record is a CSV or PEER .AT2 text file"),
+    ("rec.csv", b"t, ax, ay\n0, 0, 0\n\x001, 0, 0\n", "rec.csv: not a text file (byte 19 is a NUL)"),
+    ("H1.AT2", gzip.compress(b"PEER\n" * 100), "H1.AT2: gzip-compressed (it begins 1f 8b): decompress it; a record"),
+])
+def test_a_binary_record_file_is_named_not_read(ellroll, tmp_path, name, content, words):
+    """A record file that is not text (NUL bytes, a gzip file): one line
+    naming the file and what it is, not its bytes."""
+    (tmp_path / name).write_bytes(content)
+    (tmp_path / "cup.nml").write_text(CUP.format(files=f"'{name}'", t_end=1.0, extra=""))
+    result = run(ellroll, "run", "cup.nml", cwd=tmp_path)
+    assert result.returncode == 2 and words in result.stderr, result.stderr
+    assert result.stderr.isascii() and "\x00" not in result.stderr and len(result.stderr.splitlines()) == 1
 
 
 @pytest.mark.parametrize("label,content,words", BAD, ids=[b[0] for b in BAD])
