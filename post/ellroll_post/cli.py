@@ -15,7 +15,7 @@ import numpy as np
 
 from .reader import NotAnEllrollFile, damaged, from_h5py, not_regular, open as open_run
 from . import plots
-from .report import REPORT_ROWS, build_report
+from .report import REPORT_ROWS, LeftBehind, build_report
 from .safe_write import (Interrupted, OutputExists, check_target, forget_stop_requests, output_folder, request_stop,
                          save_figure, write_text)
 from .summary import format_summary
@@ -227,14 +227,16 @@ def main(argv=None):
 
 
 def _main_warned(argv):
+    said = (PartOfTheCampaign, LeftBehind)       # (one line each, as ellroll-plot's own)
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", PartOfTheCampaign)
+        for category in said:
+            warnings.simplefilter("always", category)
         code = _main(argv)
     for other in caught:
-        if not issubclass(other.category, PartOfTheCampaign):
+        if not issubclass(other.category, said):
             warnings.showwarning(other.message, other.category, other.filename, other.lineno)
     if code == 0:           # (an error is its one line)
-        for note in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, PartOfTheCampaign)):
+        for note in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, said)):
             print(f"ellroll-plot: warning: {note}", file=sys.stderr)
     return code
 

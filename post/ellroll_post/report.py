@@ -7,6 +7,7 @@ import pathlib
 import shutil
 import tempfile
 import urllib.parse
+import warnings
 
 import numpy as np
 
@@ -31,6 +32,23 @@ CAPTIONS = {"fig2_trace": "Fig. 2: the contact point's trace in the XY plane, th
             "spectrum": "Spectra of the transmitted and the ground acceleration"}
 
 
+
+
+class LeftBehind(UserWarning):
+    """A report in place whose own work folder, or the old report's files
+    kept aside, could not be removed after: named, to be removed by hand."""
+
+
+def _remove_left(folder, what):
+    """Remove one of the report's own work folders; LeftBehind where it
+    stays (an I/O error)."""
+    try:
+        shutil.rmtree(folder)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        warnings.warn(f"the report is in place, but {what} {folder} could not be removed "
+                      f"({exc.strerror or exc}); remove it by hand", LeftBehind, stacklevel=2)
 
 
 def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_cases=False):
@@ -58,7 +76,6 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
             for name in names:
                 check_target(out / name, overwrite)
             _move_in(staging, out, names)
-            staging.rmdir()
         else:
             os.chmod(staging, 0o777 & ~_umask())        # as a folder made the usual way would be
             os.rename(staging, out)
@@ -71,6 +88,8 @@ def build_report(run, out, draw, case=None, fmt="png", overwrite=False, all_case
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+    if there:
+        _remove_left(staging, "its emptied work folder")
     sync_to_disk(out if there else out.parent, out)
     return [out / path.name for path in made]
 
@@ -80,10 +99,12 @@ def _move_in(staging, out, names):
     exists, each file there first kept aside: where a move fails, the
     files already moved are taken back out and the kept ones put back, so
     that the folder is as it was. An old file that cannot be put back stays
-    in the folder it was kept in, which the error names."""
+    in the folder it was kept in, which the error names, and the new one at
+    its name is removed (no report of two runs' files), or named."""
     kept = pathlib.Path(tempfile.mkdtemp(prefix=f".{out.name}.kept.", dir=out))
     moved = []
     stranded = []
+    mixed = []
     try:
         for name in names:
             had = os.path.lexists(out / name)
@@ -100,13 +121,19 @@ def _move_in(staging, out, names):
                     os.remove(out / name)
             except OSError:
                 stranded.append(name)
+                if had and not os.path.lexists(staging / name):
+                    try:
+                        os.remove(out / name)           # the new file where the old one could not go back
+                    except OSError:
+                        mixed.append(name)
         if stranded and isinstance(exc, OSError):
+            left = (f"; the folder still holds the new {', '.join(sorted(mixed))} beside the old report's other files"
+                    if mixed else "")
             raise CannotWrite(f"{out}: cannot move the report into place ({exc.strerror or exc}), nor put the old "
-                              f"one back: {', '.join(sorted(stranded))} of it are in {kept}") from None
+                              f"one back: {', '.join(sorted(stranded))} of it are in {kept}{left}") from None
+        shutil.rmtree(kept, ignore_errors=True)      # (emptied: the error says what failed)
         raise
-    finally:
-        if not stranded:
-            shutil.rmtree(kept, ignore_errors=True)
+    _remove_left(kept, "the old report's files, kept aside in")
 
 
 def _draw_report(run, out, draw, case, fmt, all_cases):

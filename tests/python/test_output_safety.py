@@ -270,10 +270,36 @@ def test_a_report_over_an_old_one_that_fails_leaves_the_old_one(ellroll, tmp_pat
         for name, data in old.items():
             found = [p.read_bytes() for p in [folder / "out_report" / name, *(k / name for k in kept)] if p.exists()]
             assert data in found, (n, name, result.stderr)
+        for p in (folder / "out_report").iterdir():         # (no new file left beside the old ones)
+            assert p.is_dir() or p.read_bytes() == old[p.name], (n, p.name, result.stderr)
         for k in kept:                          # (the user puts them back)
             for p in k.iterdir():
                 os.replace(p, folder / "out_report" / p.name)
             k.rmdir()
+
+
+@pytest.mark.parametrize("call, when", [("unlink,unlinkat", "1"), ("rmdir", "1"), ("rmdir", "2")])
+def test_a_report_in_place_names_what_it_could_not_clean_up(ellroll, tmp_path, call, when):
+    """`report --overwrite` whose clean-up fails (EIO at removing an old
+    file kept aside, or at removing the folder it kept them in or its
+    emptied work folder): the new report is in place, exit 0, and one
+    warning names the hidden folder left, to remove by hand."""
+    if shutil.which("strace") is None:
+        pytest.skip("strace is not installed")
+    folder = folder_with(tmp_path)
+    assert run(ellroll, "run", "camp.nml", "-q", cwd=folder).returncode == 0
+    assert plot(folder, "report", "out.h5", "--out", "fresh")[0] == 0
+    assert plot(folder, "report", "out.h5")[0] == 0
+    command = [sys.executable, "-m", "ellroll_post.cli", "report", "out.h5", "--overwrite"]
+    result = subprocess.run(["strace", "-f", "--seccomp-bpf", "-qq", "-o", os.devnull, "-e", f"trace={call}",
+                             "-e", f"inject={call}:error=EIO:when={when}", *command],
+                            cwd=folder, capture_output=True, text=True, timeout=300)
+    lines = result.stderr.strip().splitlines()
+    left = [p for p in (folder / "out_report").iterdir() if p.name.startswith(".")]
+    assert result.returncode == 0 and len(lines) == 1 and len(left) == 1, result.stderr
+    assert lines[0].startswith("ellroll-plot: warning: the report is in place, but ") and \
+        f"out_report/{left[0].name} could not be removed (Input/output error); remove it by hand" in lines[0], lines
+    assert (folder / "out_report" / "index.html").read_text() == (folder / "fresh" / "index.html").read_text()
 
 
 @pytest.mark.parametrize("command", [["trace", "--case", "1"], *([["report"]] if FULL else [])],
