@@ -10,7 +10,7 @@ module ellroll_cmd_run
   use ellroll_run_timings, only: wall_clock
   use ellroll_run_campaign, only: run_options_t, run_campaign
   use ellroll_output_start, only: check_output_target, holds_this_run
-  use ellroll_output_files, only: output_files_t, check_replace, work_target
+  use ellroll_output_files, only: output_files_t, check_replace, work_target, work_journal
   use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
   use ellroll_disk_room, only: disk_room_advice
   use ellroll_shards, only: shard_size
@@ -233,8 +233,12 @@ contains
     all_ok = ranks_all_ok(.not. err%failed())
     to_run = ranks_all_ok(.not. complete)
     if (.not. all_ok .or. .not. to_run) then
-      if (all_ok .and. rank == 0) &
+      if (all_ok .and. rank == 0) then
         write (error_unit, '(a)') 'ellroll: ' // target // ': this run is already complete; nothing to do'
+        do r = 1, n_ranks           ! (merged into it, where a fault after its move into place left them)
+          call discard_finished(trim(shard_files(r)), inp%path, err)
+        end do
+      end if
       call files%release(err)
       return
     end if
@@ -244,7 +248,11 @@ contains
     ! a rank whose shard finished before an interruption has nothing to resume
     shard_done = .false.
     if (opts%resume) shard_done = holds_this_run(inp%plan%file, inp, opts%shard)
-    if (.not. shard_done) call run_campaign(inp, opts, provenance(input_file, inp%text), err)
+    if (shard_done) then
+      call discard_finished(inp%plan%file, inp%path, err, keep_output=.true.)
+    else
+      call run_campaign(inp, opts, provenance(input_file, inp%text), err)
+    end if
     inp%plan%file = target
     if (.not. ranks_all_ok(.not. err%failed())) then
       if (.not. err%failed()) call set_error(err, err_output, 'another rank failed; see its message')
@@ -259,6 +267,26 @@ contains
       call files%release(err)
     end if
   end subroutine run_ranks
+
+  !> A rank's output that holds its whole shard: its journal, where a fault
+  !> after the output's move into place left it (no work file beside it),
+  !> and the output itself unless keep_output (merged into the output
+  !> already), removed as the files of a finished run.
+  !> (Rank 0 holds the output's lock: no other run of it works on them.)
+  subroutine discard_finished(shard_file, input, err, keep_output)
+    character(len=*), intent(in) :: shard_file, input
+    type(error_t), intent(inout) :: err
+    logical, intent(in), optional :: keep_output
+    type(output_files_t) :: shard
+    call shard%name(shard_file, input)
+    if (path_kind(shard%partial) /= kind_missing) return
+    if (path_kind(shard%resumed) /= kind_missing) return
+    call shard%discard(shard%journal, work_journal, err)
+    if (present(keep_output)) then
+      if (keep_output) return
+    end if
+    call shard%discard(shard_file, work_target, err)
+  end subroutine discard_finished
 
   !> Files of an earlier run of this output on another number of MPI ranks
   !> are refused: this run could not finish them. Its rank files stop at

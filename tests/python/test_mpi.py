@@ -48,6 +48,28 @@ def test_a_resume_of_a_complete_mpi_run_has_nothing_to_do(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml", "out.h5"]
 
 
+@pytest.mark.skipif(shutil.which("strace") is None, reason="strace is not installed")
+@pytest.mark.parametrize("when", [2, 4], ids=["a rank's shard", "the merged output"])
+def test_a_resume_after_a_fault_past_the_move_into_place_leaves_only_the_output(ellroll, tmp_path, when):
+    """EIO at a folder's fsync after a file moved into place (strace counts
+    each process's: the 2nd, of each rank's shard; the 4th, of the merged
+    output): exit 3; the --resume that follows gives the whole output and
+    removes the ranks' journals and shards left, nothing else there."""
+    name = write(tmp_path, SPIN_RADIUS, t_end=0.2)
+    assert run(ellroll, "run", name, "-q", "-o", "single.h5", cwd=tmp_path).returncode == 0
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1")
+    faulted = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, "-e", "trace=fsync", "-e",
+                              f"inject=fsync:error=EIO:when={when}", "mpirun", "--oversubscribe", "-n", "2",
+                              str(MPI_EXE), "run", name, "-q"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                             timeout=300)
+    assert faulted.returncode != 0 and "Input/output error" in faulted.stderr, faulted.stderr
+    assert any(p.name.startswith("out.h5.rank") for p in tmp_path.iterdir())
+    result = mpirun(2, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["camp.nml", "out.h5", "single.h5"]
+    assert_same_datasets(tmp_path / "single.h5", tmp_path / "out.h5")
+
+
 def ranks_in(folder):
     """The process ids of the MPI build's processes working in folder."""
     found = []
