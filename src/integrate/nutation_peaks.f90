@@ -13,9 +13,9 @@ module ellroll_nutation_peaks
 
   public :: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim, rest_turn
 
-  !> What a step does at a rest (a state whose rate is zero: held by rolling
-  !> resistance): none, reaches one with Theta rising (a maximum if Theta
-  !> falls when the ball leaves it), leaves one with Theta falling or rising.
+  !> What a step does at a still state (rest_turn): none, reaches one with
+  !> Theta rising (a maximum if Theta falls when the ball leaves it), leaves
+  !> one with Theta falling or rising.
   integer, parameter, public :: rest_none = 0, rest_reached_rising = 1, rest_left_falling = 2, &
                                 rest_left_rising = 3
 
