@@ -12,7 +12,7 @@ module ellroll_adaptive_run
   use ellroll_cases, only: case_t, output_plan_t, field_reaction, field_energy, field_base_acceleration
   use ellroll_results, only: case_result_t
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, observe, limit_status, &
-      ball_derivative, normalize_normal, is_still
+      ball_derivative, normalize_normal
   use ellroll_events, only: event_search_t, peak_search_t, max_event_trials
   use ellroll_excitation, only: excitation_none, longest_step
   use ellroll_turns, only: turn_resolved
@@ -21,7 +21,7 @@ module ellroll_adaptive_run
   use ellroll_ball_steppers, only: pair_ball_step, pair_ball_dense
   use ellroll_case_run, only: run_state_t, limit_search_t, sample_due, stop_asked, track, track_step_end, note_nutation, &
       accumulate, record_sample, record_geometry_sample, reach_stop, settled, add_step_resistance, track_rolling_resistance, &
-      track_rest_turn
+      track_pair_step
   use ellroll_step_works, only: step_works
   use ellroll_quantities, only: q_displacement
   use ellroll_running, only: unset
@@ -101,7 +101,7 @@ contains
         call end_in_step(status)
         return
       end if
-      peak_inside = nutation_peak_inside(y, f, y_new, f_new, h, is_still(run%ball, y))
+      peak_inside = nutation_peak_inside(y, f, y_new, f_new, h)
       if (peak_inside) then
         call locate_nutation_peak(pair, run%ball, peak, res%n_rhs)
         peak_inside = peak%found
@@ -124,12 +124,8 @@ contains
         call add_step_peaks(pair, run%ball, screen, res%n_rhs, run%stats)
       end if
       call record_samples_until(pair, run, plan, t + h, obs, res)
-      if (peak_inside) then
-        call run%maxima%add_peak(peak%t)
-        call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
-      else
-        call track_rest_turn(run, y, f, y_new, f_new, t + h)
-      end if
+      if (peak_inside) call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
+      call track_pair_step(run, y, f, y_new, f_new, t + h, peak_inside, peak, pair%atol, pair%rtol)
       if (run%ball%rolling_resistance > 0) then
         ! the couple's power varies inside the long step: its work by the
         ! Gauss-Legendre rule on the dense output, not the step ends' trapezoid
@@ -338,7 +334,7 @@ contains
     if (.not. part > 0) return
     call locate_nutation_peak(pair, run%ball, peak, res%n_rhs, part / pair%h, inside)
     if (inside .and. peak%found) then
-      call run%maxima%add_peak(peak%t)
+      call run%maxima%add_located(peak%t, peak%tan_nutation, pair%atol + pair%rtol * peak%tan_nutation)
       call note_nutation(run, res, peak%tan_nutation, peak%lateral, peak%normal_z)
     end if
     if (run%ball%rolling_resistance > 0) then

@@ -13,7 +13,7 @@ module ellroll_batch_run
   use ellroll_results, only: case_result_t
   use ellroll_figures, only: fig_rolling_resistance_energy
   use ellroll_quantities, only: q_friction_needed, q_energy, q_reaction_normal, q_fit_clearance
-  use ellroll_rolling_ball, only: observation_t, state_size, event_rest, law_exact, is_still
+  use ellroll_rolling_ball, only: observation_t, state_size, event_rest, law_exact
   use ellroll_lane_laws, only: choose_lane_laws, exact_lane_ends
   use ellroll_errors, only: error_t
   use ellroll_integrators, only: integrator_t, embedded_pair_t, new_integrator, method_info_t, method_info, max_pair_stages
@@ -24,7 +24,7 @@ module ellroll_batch_run
   use ellroll_excitation, only: longest_step
   use ellroll_lane_records, only: block_samples, lane_summary_t, lane_sample_block_t
   use ellroll_case_run, only: run_state_t, start_case, finish_case, sample_due, stop_asked, track_cup_motion, &
-      track_rolling_resistance, settled, regular_steps, last_fixed_step, fixed_step_time, track_rest_turn
+      track_rolling_resistance, settled, regular_steps, last_fixed_step, fixed_step_time, track_pair_step
   use ellroll_fixed_step_run, only: end_at_limit, checkpoint_steps, step_through_event
   use ellroll_nutation_peaks, only: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim
   use ellroll_adaptive_run, only: stop_in_step, record_samples_until, screen_and_peaks, project_lanes
@@ -417,8 +417,7 @@ contains
         do l = 1, n
           if (.not. accepted(l)) cycle
           sample_inside(l) = sample_due(run(l), plan, t(l) + h(l))
-          peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :), h(l), is_still(run(l)%ball, y(l, :)))
-          if (.not. peak_inside(l)) call track_rest_turn(run(l), y(l, :), f(l, :), y_new(l, :), f_new(l, :), t(l) + h(l))
+          peak_inside(l) = nutation_peak_inside(y(l, :), f(l, :), y_new(l, :), f_new(l, :), h(l))
           ! (the peak quantities' screen: ellroll_step_peaks)
           screened(l) = run(l)%ball%reaction_limited() .or. may_peak_inside(run(l)%ball, h(l), y(l, :), &
               f(l, :), y_new(l, :), f_new(l, :), summary%stats%clear_maximum(l, peak_quantities))
@@ -453,10 +452,10 @@ contains
           end if
           if (sample_inside(l)) call record_samples_until(pairs(l), run(l), plan, t(l) + h(l), &
                                                           lane_observation(out, y_new, base_end, l, run(l)%ball%radius), results(l))
-          if (peak_inside(l) .and. peaks(l)%found) then
-            call run(l)%maxima%add_peak(peaks(l)%t)
-            call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
-          end if
+          peak_inside(l) = peak_inside(l) .and. peaks(l)%found
+          if (peak_inside(l)) call summary%note_nutation(l, peaks(l)%tan_nutation, peaks(l)%lateral, peaks(l)%normal_z)
+          call track_pair_step(run(l), y(l, :), f(l, :), y_new(l, :), f_new(l, :), t(l) + h(l), peak_inside(l), &
+                               peaks(l), pairs(l)%atol, pairs(l)%rtol)
           if (.not. round_off_step(t(l), h(l), t_end(l))) round_off_attempts(l) = 0
           t(l) = t(l) + h(l)
           results(l)%n_steps = results(l)%n_steps + 1

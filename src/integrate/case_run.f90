@@ -28,7 +28,7 @@ module ellroll_case_run
   use ellroll_rolling_ball, only: rolling_ball_t, observation_t, state_size, initial_state, observe, &
       limit_status, ball_derivative, nutation_angle, at_rest, is_still
   use ellroll_events, only: crossing_search_t
-  use ellroll_nutation_peaks, only: rest_turn
+  use ellroll_nutation_peaks, only: nutation_peak_t, rest_turn, tan_nutation, rest_left_falling
   use ellroll_nutation_maxima, only: maxima_t
   use ellroll_sliding_ball, only: resistance_power
   use ellroll_linear, only: oscillation_periods
@@ -42,7 +42,7 @@ module ellroll_case_run
   public :: run_state_t, limit_search_t, start_case, restart_case, finish_case, sample_due, stop_asked, stopping, &
             latest_end, settled, regular_steps, last_fixed_step, fixed_step_time, reach_stop
   public :: track, track_step_end, track_cup_motion, track_rolling_resistance, add_step_resistance, note_nutation, &
-            accumulate, record_sample, record_geometry_sample, stored, track_rest_turn
+            accumulate, record_sample, record_geometry_sample, stored, track_pair_step
 
   !> An integration looks whether the run was asked to stop (SIGTERM,
   !> SIGINT) every this many steps: at most a few ms apart.
@@ -333,14 +333,50 @@ contains
     end if
   end subroutine record_trial
 
-  !> An embedded pair's step (ending at t) with no maximum of Theta inside:
-  !> its turn at a still state, if any (ellroll_nutation_peaks rest_turn).
-  pure subroutine track_rest_turn(run, y, f, y_new, f_new, t)
+  !> What an embedded pair's step from y to y_new (ending at t, its
+  !> tolerances atol and rtol) adds to the maxima of Theta: the maximum
+  !> located inside it (`located`: peak), or else its turn at a still state
+  !> (ellroll_nutation_peaks rest_turn), each counted where Theta rose to it
+  !> from its lowest since the last maximum by more than resolved_rise times
+  !> the step's tolerance on the normal, atol + rtol times the value.
+  pure subroutine track_pair_step(run, y, f, y_new, f_new, t, located, peak, atol, rtol)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)
-    real(wp), intent(in) :: t
-    call run%maxima%add_rest_turn(rest_turn(y, f, y_new, f_new, is_still(run%ball, y), is_still(run%ball, y_new)), t)
-  end subroutine track_rest_turn
+    real(wp), intent(in) :: t, atol, rtol
+    logical, intent(in) :: located
+    type(nutation_peak_t), intent(in) :: peak
+    !> the error a pair's steps leave, as a multiple of their tolerance,
+    !> where the rolling stops (the couple's kink): vern9 at rtol 1e-10 rises
+    !> 2.2e-12 into a rest, 1.1 times its tolerance, where rk4 at dt 1e-5
+    !> falls; a rise of 6e-11 into a rest, 30 times it, rk4 follows too
+    real(wp), parameter :: resolved_rise = 10
+    real(wp) :: v_start, v_end
+    logical :: still
+    v_start = tan_nutation(y)
+    v_end = tan_nutation(y_new)
+    still = is_still(run%ball, y)
+    call run%maxima%note_value(v_start)
+    if (located .and. .not. still) then
+      call run%maxima%add_located(peak%t, peak%tan_nutation, rise(peak%tan_nutation))
+    else if (located) then
+      ! a peak no higher than the rest the step sets off from is that rest's
+      ! edge (the ball leaves it falling): the rest's turn
+      if (peak%tan_nutation - v_start > rise(peak%tan_nutation)) then
+        call run%maxima%add_located(peak%t, peak%tan_nutation, rise(peak%tan_nutation))
+      else
+        call run%maxima%add_rest_turn(rest_left_falling, t, v_end, rise(v_end))
+      end if
+    else
+      call run%maxima%add_rest_turn(rest_turn(y, f, y_new, f_new, still, is_still(run%ball, y_new)), t, v_end, &
+                                    rise(v_end))
+    end if
+    call run%maxima%note_value(v_end)
+  contains
+    pure real(wp) function rise(v)
+      real(wp), intent(in) :: v
+      rise = resolved_rise * (atol + rtol * v)
+    end function rise
+  end subroutine track_pair_step
 
   !> Everything a fixed step's end point adds to the summary; the maxima of
   !> Theta from the step ends (refined by parabolas).

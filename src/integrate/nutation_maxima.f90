@@ -8,7 +8,7 @@ module ellroll_nutation_maxima
   use, intrinsic :: ieee_arithmetic, only: ieee_value, ieee_quiet_nan
   use ellroll_kinds, only: wp, i8
   use ellroll_exact, only: is_zero, equals
-  use ellroll_nutation_peaks, only: rest_reached_rising, rest_left_falling, rest_left_rising
+  use ellroll_nutation_peaks, only: rest_reached_rising, rest_reached_falling, rest_left_falling, rest_left_rising
   implicit none
   private
 
@@ -26,11 +26,16 @@ module ellroll_nutation_maxima
     !> a flat top's start (a rest held by rolling resistance), a maximum once
     !> Theta falls from it, none where it rises again
     logical :: flat = .false.
-    real(wp) :: flat_t = 0
+    real(wp) :: flat_t = 0, flat_v = 0
+    !> a pair's: the lowest value since the last maximum counted (or the
+    !> start), against which a maximum's rise is measured
+    real(wp) :: low = huge(1.0_wp)
   contains
     procedure :: add => add_sample
     procedure :: add_peak
+    procedure :: add_located
     procedure :: add_rest_turn
+    procedure :: note_value
     procedure :: mean_interval
   end type maxima_t
 
@@ -93,21 +98,48 @@ contains
     self%count = self%count + 1
   end subroutine add_peak
 
-  !> A step's turn at a rest (ellroll_nutation_peaks rest_turn, the step
-  !> ending at t, with no maximum of Theta inside it): a rest reached with
-  !> Theta rising is a maximum there once the ball leaves it falling.
-  pure subroutine add_rest_turn(self, turn, t)
+  !> A maximum an embedded pair located (its time and value), counted where
+  !> the value rose to it by more than the step's tolerance, from the lowest
+  !> since the last maximum counted: a rise the step does not resolve (a
+  !> ball setting off from a rest: a few units of round-off) is none. A rest
+  !> before it in the step is no maximum: Theta turns after it.
+  pure subroutine add_located(self, t_peak, v_peak, tolerance)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: t_peak, v_peak, tolerance
+    self%flat = .false.
+    if (.not. v_peak - self%low > tolerance) return
+    call self%add_peak(t_peak)
+    self%low = v_peak
+  end subroutine add_located
+
+  !> A value of a pair's step end: the lowest since the last maximum.
+  pure subroutine note_value(self, v)
+    class(maxima_t), intent(inout) :: self
+    real(wp), intent(in) :: v
+    self%low = min(self%low, v)
+  end subroutine note_value
+
+  !> A pair's step's turn at a still state (ellroll_nutation_peaks
+  !> rest_turn, the step ending at t, value v there, with no maximum of Theta
+  !> inside it): a rest reached with Theta rising (by more than the
+  !> tolerance, as add_located's) is a maximum there once the ball leaves
+  !> it falling.
+  pure subroutine add_rest_turn(self, turn, t, v, tolerance)
     class(maxima_t), intent(inout) :: self
     integer, intent(in) :: turn
-    real(wp), intent(in) :: t
+    real(wp), intent(in) :: t, v, tolerance
     select case (turn)
     case (rest_reached_rising)
-      self%flat = .true.
+      self%flat = v - self%low > tolerance
       self%flat_t = t
+      self%flat_v = v
     case (rest_left_falling)
-      if (self%flat) call self%add_peak(self%flat_t)
+      if (self%flat) then
+        call self%add_peak(self%flat_t)
+        self%low = self%flat_v
+      end if
       self%flat = .false.
-    case (rest_left_rising)
+    case (rest_left_rising, rest_reached_falling)
       self%flat = .false.
     end select
   end subroutine add_rest_turn

@@ -11,13 +11,13 @@ module ellroll_nutation_peaks
   implicit none
   private
 
-  public :: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim, rest_turn
+  public :: nutation_peak_t, nutation_peak_inside, locate_nutation_peak, beyond_rim, rest_turn, tan_nutation
 
   !> What a step does at a still state (rest_turn): none, reaches one with
   !> Theta rising (a maximum if Theta falls when the ball leaves it), leaves
   !> one with Theta falling or rising.
   integer, parameter, public :: rest_none = 0, rest_reached_rising = 1, rest_left_falling = 2, &
-                                rest_left_rising = 3
+                                rest_left_rising = 3, rest_reached_falling = 4
 
   type :: nutation_peak_t
     real(wp) :: t = 0, tan_nutation = 0
@@ -32,18 +32,11 @@ contains
   !> d tan(Theta)/dt, of the sign of (n_x n_x' + n_y n_y') n_z - (n_x^2 +
   !> n_y^2) n_z', goes from >= 0 to < 0 (half-open, so that a maximum at a
   !> step's end is found once).
-  pure logical function nutation_peak_inside(y, f, y_new, f_new, h, still)
+  pure logical function nutation_peak_inside(y, f, y_new, f_new, h)
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)     ! (assumed shape: a batch passes lanes' rows)
     real(wp), intent(in) :: h
-    !> whether the step starts still (is_still): its turn is rest_turn's, and
-    !> the cubic, not the motion, turns inside it
-    logical, intent(in), optional :: still
     real(wp) :: state(state_size), rate(state_size), s, trend, before, factor
     integer :: i
-    nutation_peak_inside = .false.
-    if (present(still)) then
-      if (still) return
-    end if
     nutation_peak_inside = nutation_trend(y, f, lateral_factor(y)) >= 0 .and. &
                            nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0
     if (nutation_peak_inside) return
@@ -77,8 +70,7 @@ contains
   !> rolling resistance, or where a stop inside a step left it, turning):
   !> rest_none, rest_reached_rising, ... . Theta is flat while the ball
   !> rests, and a rest or a turn is a maximum of Theta where Theta rises into
-  !> it and falls out of it (as three samples find a flat top); a step from
-  !> it counts none itself (nutation_peak_inside).
+  !> it and falls out of it (as three samples find a flat top).
   pure integer function rest_turn(y, f, y_new, f_new, still, still_new)
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)
     logical, intent(in) :: still, still_new     !< at the step's start, at its end
@@ -88,6 +80,7 @@ contains
       rest_turn = rest_left_rising
       if (nutation_trend(y_new, f_new, lateral_factor(y_new)) < 0) rest_turn = rest_left_falling
     else if (still_new) then
+      rest_turn = rest_reached_falling
       if (nutation_trend(y, f, lateral_factor(y)) > 0) rest_turn = rest_reached_rising
     end if
   end function rest_turn
