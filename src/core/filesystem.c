@@ -140,6 +140,30 @@ int ellroll_rename_new(const char *old, const char *new_path)
     return rename(old, new_path) == 0 ? 0 : errno;
 }
 
+/* Whether the file at `copy` is what a copy of the file open as fd that
+ * was cut short leaves (a killed resume's): a regular file of one name, no
+ * longer than fd's file, whose bytes are its first ones (all of them up
+ * to 64 KiB looked at). */
+static int stale_copy(int fd, const char *copy)
+{
+    struct stat named, open_file;
+    if (lstat(copy, &named) != 0 || !S_ISREG(named.st_mode) || named.st_nlink != 1 || fstat(fd, &open_file) != 0 ||
+        named.st_size > open_file.st_size)
+        return 0;
+    int other = open(copy, O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+    if (other < 0)
+        return 0;
+    char mine[4096], theirs[4096];
+    int same = 1;
+    for (off_t at = 0; same && at < named.st_size && at < 65536; at += (off_t)sizeof mine) {
+        size_t want = (size_t)(named.st_size - at < (off_t)sizeof mine ? named.st_size - at : (off_t)sizeof mine);
+        same = pread(fd, mine, want, at) == (ssize_t)want && pread(other, theirs, want, at) == (ssize_t)want &&
+               memcmp(mine, theirs, want) == 0;
+    }
+    close(other);
+    return same;
+}
+
 /* A file of one name in place of the regular file open as fd at path when
  * another name holds it too (a backup made with ln or cp -al), so that
  * writing to it leaves the other name's bytes as they are: its bytes are
@@ -147,7 +171,8 @@ int ellroll_rename_new(const char *old, const char *new_path)
  * which must still name fd's file. Returns fd itself when the file has one
  * name, else a new descriptor (read and write) of the copy, which the
  * caller takes in fd's place; or -errno, with no copy left (-EEXIST: a
- * file is at `copy`). */
+ * file is at `copy`, other than a killed resume's copy cut short, which
+ * goes). */
 int ellroll_one_name(int fd, const char *path, const char *copy)
 {
     struct stat info;
@@ -156,9 +181,15 @@ int ellroll_one_name(int fd, const char *path, const char *copy)
     if (info.st_nlink <= 1)
         return fd;
     int out;
-    do {
-        out = open(copy, O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, info.st_mode & 07777);
-    } while (out < 0 && errno == EINTR);
+    for (int tries = 0;; ++tries) {
+        do {
+            out = open(copy, O_RDWR | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, info.st_mode & 07777);
+        } while (out < 0 && errno == EINTR);
+        if (out >= 0 || errno != EEXIST || tries > 0 || !stale_copy(fd, copy))
+            break;
+        if (unlink(copy) != 0)
+            return -errno;
+    }
     if (out < 0)
         return -errno;
     char buffer[65536];

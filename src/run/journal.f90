@@ -47,6 +47,7 @@ module ellroll_journal
   integer, parameter :: id_words = 8, writer_words = 16
   integer, parameter :: header_words = id_words + writer_words + 4 + 2 * field_count + 1
   integer, parameter :: header_bytes = 8 + 8 * (header_words + 1)
+  integer, parameter :: eexist = 17            !< (errno: a file is there)
 
   !> What a journal must agree on with the run that resumes it.
   type :: journal_header_t
@@ -253,7 +254,12 @@ contains
     end if
     ! (a backup made with ln or cp -al keeps its journal as it is)
     code = one_name(self%fd, path, path // '.new')
-    if (code < 0) then
+    if (code == -eexist) then
+      call set_error(err, err_output, path // ': it has another name (a backup made with ln or cp -al?), ' // &
+          'and its copy for this resume to write to cannot be made: ' // path // '.new is there and is not ' // &
+          'a copy of it; move that file away')
+      return
+    else if (code < 0) then
       call set_error(err, err_output, path // ': it has another name (a backup made with ln or cp -al?), ' // &
           'and its copy for this resume to write to cannot be made at ' // path // '.new: ' // &
           system_error_text(-code))

@@ -390,8 +390,14 @@ contains
     ! what to do (a resume again would meet it again)
     if (run%resumed .and. run%journal%record_words == 0) return
     if (kept) then
+      ! a resume's file that failed to be laid out (created, never written
+      ! whole) holds no case: it goes, or the next resume would meet a work
+      ! file that is not yet an ellroll file
+      if (run%resumed .and. all(files%written_identity == 0)) &
+        call files%discard(files%resumed, work_partial, cleanup, made=.true.)
       err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
                     'far; fix the cause and run again with --resume'
+      if (cleanup%failed()) err%message = err%message // achar(10) // '  ' // cleanup%message
     else
       call files%discard(files%partial, work_partial, cleanup, made=.true.)
       call files%discard(files%resumed, work_partial, cleanup, made=.true.)

@@ -1,7 +1,9 @@
 """An --overwrite run of a complete output of the same campaign, stopped
 (SIGTERM, kill -9) half way: --resume finishes it and replaces the old
 file, keeping every case the stopped run had finished."""
+import os
 import random
+import shutil
 import signal
 import subprocess
 import time
@@ -130,3 +132,63 @@ def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(el
     with h5py.File(backup / "out.h5", "r") as f:
         wall = f["summary/wall_time"][:]
     assert len(kept) >= 8 and all(wall[slot] == seconds for slot, seconds in kept.items()), "a finished case was lost"
+
+
+@pytest.mark.skipif(shutil.which("strace") is None, reason="strace is not installed")
+@pytest.mark.parametrize("error, when", [("EIO", 4), ("ENOSPC", 6), ("EFBIG", 12)])
+def test_a_resume_that_fails_laying_out_its_file_leaves_none(ellroll, tmp_path, error, when):
+    """A resume whose disk fails at one of the first writes of its own file
+    (OUT.h5.partial.new, which HDF5 lays out): exit 3, that file gone (it
+    holds no case), and the next --resume, as the message says, gives the
+    uninterrupted run's file."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 8 * record_bytes(0)):
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.kill()
+    proc.wait(timeout=30)
+    failed = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, "-e", "trace=pwrite64", "-e",
+                             f"inject=pwrite64:error={error}:when={when}", str(ellroll), "run", name, "-q", "--resume",
+                             "--threads", "1"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert failed.returncode == 3 and "run again with --resume" in failed.stderr, failed.stderr
+    assert not (tmp_path / "out.h5.partial.new").exists()
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+
+
+@pytest.mark.parametrize("left", ["a copy cut short", "another file"])
+def test_a_resume_meets_a_file_at_its_journal_copy_s_name(ellroll, tmp_path, left):
+    """A journal with another name (a cp -al backup) and a file at
+    OUT.h5.journal.new, where the resume makes its copy: the first bytes of
+    the journal (a resume killed while it copied) go, and the resume gives
+    the uninterrupted run's file; any other file stays, and the resume is
+    refused naming it (exit 3)."""
+    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
+    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
+    journal = tmp_path / "out.h5.journal"
+    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 8 * record_bytes(0)):
+        time.sleep(0.002)
+    assert proc.poll() is None, "the run finished before the signal"
+    proc.kill()
+    proc.wait(timeout=30)
+    (tmp_path / "backup").mkdir()
+    (tmp_path / "backup" / "out.h5.journal").hardlink_to(journal)
+    copy = tmp_path / "out.h5.journal.new"
+    content = journal.read_bytes()[:3000] if left == "a copy cut short" else b"notes of mine\n"
+    copy.write_bytes(content)
+    result = run(ellroll, "run", name, "-q", "--resume", cwd=tmp_path)
+    if left == "a copy cut short":
+        assert result.returncode == 0, result.stderr
+        assert not copy.exists()
+        assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
+    else:
+        assert result.returncode == 3 and "out.h5.journal.new is there and is not a copy of it" in result.stderr, \
+            result.stderr
+        assert copy.read_bytes() == content
