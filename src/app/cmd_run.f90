@@ -296,11 +296,17 @@ contains
     character(len=*), intent(in) :: target
     integer, intent(in) :: n_ranks
     type(error_t), intent(inout) :: err
+    integer :: last
     if (err%failed()) return
     if (any_rank_file(target, n_ranks)) then
-      call set_error(err, err_output, target // '.rank' // itoa(n_ranks) // '.h5: the files of a run of this ' // &
-          'output on more than ' // itoa(n_ranks) // ' MPI ranks are here; finish it on as many ranks as it ' // &
-          'was started on (--resume), or remove its .rank files')
+      last = n_ranks
+      do while (any_rank_file(target, last + 1))
+        last = last + 1
+      end do
+      call set_error(err, err_output, target // '.rank' // itoa(last) // '.h5: the files of a run of this ' // &
+          'output on at least ' // itoa(last + 1) // ' MPI ranks are here (this run has ' // itoa(n_ranks) // &
+          '); finish it on as many ranks as it was started on (mpirun -n ' // itoa(last + 1) // ' ... --resume), ' // &
+          'or remove its .rank files')
     else if (n_ranks > 1) then
       if (any_rank_file(target, 0)) then
         if (.not. any_rank_file(target, n_ranks - 1)) call set_error(err, err_output, target // &

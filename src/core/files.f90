@@ -244,10 +244,14 @@ contains
   end function work_suffix
 
   !> Why path cannot name an output, or '': it ends in a work file's suffix,
-  !> or its work files' names would be longer than a path can be.
+  !> or its work files' names would be longer than a path, or a file's own
+  !> name (NAME_MAX, 255), can be.
   subroutine output_name_problem(path, reason)
     character(len=*), intent(in) :: path
     character(len=:), allocatable, intent(out) :: reason
+    integer, parameter :: name_length = 255 - len('.partial.new')
+    integer :: own
+    own = len(path) - index(path, '/', back=.true.)
     reason = ''
     if (work_suffix(path) > 0) then
       reason = 'ends in ' // path(len(path) - work_suffix(path) + 1:) // ', a suffix of ellroll''s own work ' // &
@@ -255,6 +259,9 @@ contains
     else if (len(path) > output_name_length) then
       reason = itoa(len(path)) // ' characters; an output''s name has at most ' // itoa(output_name_length) // &
                ' (its work file OUT.partial.new must fit the system''s limit on a path)'
+    else if (own > name_length) then
+      reason = 'its file''s own name has ' // itoa(own) // ' characters; at most ' // itoa(name_length) // &
+               ' (its work file''s, with .partial.new, must fit the system''s limit of 255 on a name)'
     end if
   end subroutine output_name_problem
 

@@ -9,6 +9,7 @@ characters: OUT.h5.rank1.h5.partial passes 255) runs as any other."""
 import os
 
 import h5py
+import pytest
 
 from conftest import ROOT, run
 from test_campaign import write
@@ -63,6 +64,21 @@ def test_an_output_name_runs_up_to_the_limit_its_work_files_leave(ellroll, tmp_p
         result = run(ellroll, "merge", output, str(folder / os.listdir(folder)[0]), cwd=tmp_path)
         assert result.returncode == 2 and "at most 4083" in result.stderr, result.stderr[-300:]
         assert len(os.listdir(folder)) == 1
+
+
+@pytest.mark.parametrize("length", [243, 244, 255])
+def test_an_output_file_s_own_name_is_at_most_243_characters(ellroll, tmp_path, length):
+    """A file name of 244 to 255 characters is a name, but its work file's
+    (with .partial.new) is not: refused before any work, saying so."""
+    name = write(tmp_path, "", t_end=0.1)
+    output = "n" * (length - 3) + ".h5"
+    result = run(ellroll, "run", name, "-q", "-o", output, cwd=tmp_path)
+    if length == 243:
+        assert result.returncode == 0, result.stderr
+        return
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert f"its file's own name has {length} characters; at most 243" in result.stderr, result.stderr
+    assert sorted(os.listdir(tmp_path)) == [name]
 
 
 def test_an_output_name_too_long_for_other_runs_work_files_runs(ellroll, tmp_path):

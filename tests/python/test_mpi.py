@@ -113,5 +113,6 @@ def test_an_interrupted_mpi_run_names_the_mpi_command_that_finishes_it(ellroll, 
     more = mpirun(3, "run", name, "-q", "--resume", cwd=tmp_path)
     assert more.returncode != 0, more.stderr
     fewer = mpirun(1, "run", name, "-q", "--resume", cwd=tmp_path)
-    assert fewer.returncode == 3 and "out.h5.rank1.h5" in fewer.stderr and "more than 1 MPI ranks" in fewer.stderr, \
+    assert fewer.returncode == 3 and "out.h5.rank1.h5" in fewer.stderr and "on at least 2 MPI ranks are here (this " \
+        "run has 1); finish it on as many ranks as it was started on (mpirun -n 2 ... --resume)" in fewer.stderr, \
         fewer.stderr
