@@ -336,9 +336,10 @@ contains
   !> What an embedded pair's step from y to y_new (ending at t, its
   !> tolerances atol and rtol) adds to the maxima of Theta: the maximum
   !> located inside it (`located`: peak), or else its turn at a still state
-  !> (ellroll_nutation_peaks rest_turn), each counted where Theta rose to it
-  !> from its lowest since the last maximum by more than resolved_rise times
-  !> the step's tolerance on the normal, atol + rtol times the value.
+  !> (ellroll_nutation_peaks rest_turn); where the ball was still since the
+  !> last maximum, each counted where Theta rose to it from its lowest since
+  !> by more than resolved_rise times the step's tolerance on the normal,
+  !> atol + rtol times the value.
   pure subroutine track_pair_step(run, y, f, y_new, f_new, t, located, peak, atol, rtol)
     type(run_state_t), intent(inout) :: run
     real(wp), intent(in) :: y(:), f(:), y_new(:), f_new(:)
@@ -351,11 +352,12 @@ contains
     !> falls; a rise of 6e-11 into a rest, 30 times it, rk4 follows too
     real(wp), parameter :: resolved_rise = 10
     real(wp) :: v_start, v_end
-    logical :: still
+    logical :: still, still_new
     v_start = tan_nutation(y)
     v_end = tan_nutation(y_new)
     still = is_still(run%ball, y)
-    call run%maxima%note_value(v_start)
+    still_new = is_still(run%ball, y_new)
+    call run%maxima%note_value(v_start, still)
     if (located .and. .not. still) then
       call run%maxima%add_located(peak%t, peak%tan_nutation, rise(peak%tan_nutation))
     else if (located) then
@@ -367,10 +369,9 @@ contains
         call run%maxima%add_rest_turn(rest_left_falling, t, v_end, rise(v_end))
       end if
     else
-      call run%maxima%add_rest_turn(rest_turn(y, f, y_new, f_new, still, is_still(run%ball, y_new)), t, v_end, &
-                                    rise(v_end))
+      call run%maxima%add_rest_turn(rest_turn(y, f, y_new, f_new, still, still_new), t, v_end, rise(v_end))
     end if
-    call run%maxima%note_value(v_end)
+    call run%maxima%note_value(v_end, still_new)
   contains
     pure real(wp) function rise(v)
       real(wp), intent(in) :: v

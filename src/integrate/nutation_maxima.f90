@@ -27,9 +27,17 @@ module ellroll_nutation_maxima
     !> Theta falls from it, none where it rises again
     logical :: flat = .false.
     real(wp) :: flat_t = 0, flat_v = 0
-    !> a pair's: the lowest value since the last maximum counted (or the
-    !> start), against which a maximum's rise is measured
+    !> a pair's: the lowest value at step ends since the last maximum
+    !> counted (or the start), against which a maximum's rise is measured
+    !> where the ball was still since (`rested`: a rest, or a stop's turn)
     real(wp) :: low = huge(1.0_wp)
+    logical :: rested = .false.
+    !> a pair's: the value of the last maximum counted, and whether Theta
+    !> fell below it since at a step's end: a maximum no higher, without that
+    !> fall, is the same flat top met again by the next step (a crawl of
+    !> steps of 3e-10 s)
+    real(wp) :: top_v = 0
+    logical :: fell = .true.
   contains
     procedure :: add => add_sample
     procedure :: add_peak
@@ -98,25 +106,35 @@ contains
     self%count = self%count + 1
   end subroutine add_peak
 
-  !> A maximum an embedded pair located (its time and value), counted where
-  !> the value rose to it by more than the step's tolerance, from the lowest
-  !> since the last maximum counted: a rise the step does not resolve (a
-  !> ball setting off from a rest: a few units of round-off) is none. A rest
-  !> before it in the step is no maximum: Theta turns after it.
+  !> A maximum an embedded pair located (its time and value). Where the
+  !> ball was still since the last maximum counted, it counts where the value
+  !> rose to it by more than the tolerance from the lowest since: a rise the
+  !> steps do not resolve (a ball setting off from a rest: a few units of
+  !> round-off) is none. (Elsewhere the lowest at step ends may lie above a
+  !> minimum inside a long step: every sign change counts.) A rest before it
+  !> is no maximum: Theta turns after it.
   pure subroutine add_located(self, t_peak, v_peak, tolerance)
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t_peak, v_peak, tolerance
     self%flat = .false.
-    if (.not. v_peak - self%low > tolerance) return
+    if (.not. (self%fell .or. v_peak > self%top_v)) return
+    if (self%rested .and. .not. v_peak - self%low > tolerance) return
     call self%add_peak(t_peak)
     self%low = v_peak
+    self%rested = .false.
+    self%top_v = v_peak
+    self%fell = .false.
   end subroutine add_located
 
-  !> A value of a pair's step end: the lowest since the last maximum.
-  pure subroutine note_value(self, v)
+  !> A value of a pair's step end (still: the ball still there): the lowest
+  !> since the last maximum, and whether Theta fell from it.
+  pure subroutine note_value(self, v, still)
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: v
+    logical, intent(in) :: still
     self%low = min(self%low, v)
+    self%rested = self%rested .or. still
+    self%fell = self%fell .or. v < self%top_v
   end subroutine note_value
 
   !> A pair's step's turn at a still state (ellroll_nutation_peaks
@@ -137,6 +155,9 @@ contains
       if (self%flat) then
         call self%add_peak(self%flat_t)
         self%low = self%flat_v
+        self%rested = .true.            ! (it sets off from that rest)
+        self%top_v = self%flat_v
+        self%fell = .false.
       end if
       self%flat = .false.
     case (rest_left_rising, rest_reached_falling)
