@@ -49,6 +49,9 @@ module ellroll_output_files
     !> moves and removes only these (another file moved to one of their
     !> names while the run wrote stays where it is)
     integer(i8) :: target_identity(2) = 0, written_identity(2) = 0, journal_identity(2) = 0
+    !> the run is making the file it writes (from just before HDF5 creates it
+    !> to note_written): one left half made is this run's own, with no case
+    logical :: laying_out = .false.
     !> the note of a killed run's lock file this process took over: put
     !> back where it is refused before it touches a file (it names the
     !> command that finishes that run)
@@ -90,6 +93,7 @@ contains
     class(output_files_t), intent(inout) :: self
     integer(i8), intent(in) :: identity(2)
     self%written_identity = identity
+    self%laying_out = .false.
   end subroutine note_written
 
   !> The journal at its name is this run's (just made or opened).

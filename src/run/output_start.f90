@@ -213,6 +213,7 @@ contains
     times = inp%plan%times()
     writing = files%partial
     if (resume) writing = files%resumed      ! moved over partial once the journaled cases are in it
+    files%laying_out = .true.
     call out%create(writing, globals, times, inp%plan%fields, inp%campaign%base, prov, &
                     inp%campaign%coordinates(globals), err, inp%plan%compression)
     deallocate (globals)          ! from here on, memory does not grow with the case count

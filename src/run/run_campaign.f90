@@ -390,11 +390,11 @@ contains
     ! what to do (a resume again would meet it again)
     if (run%resumed .and. run%journal%record_words == 0) return
     if (kept) then
-      ! a resume's file that failed to be laid out (created, never written
+      ! a resume's file that it failed to lay out (HDF5 made it, never
       ! whole) holds no case: it goes, or the next resume would meet a work
-      ! file that is not yet an ellroll file
-      if (run%resumed .and. all(files%written_identity == 0)) &
-        call files%discard(files%resumed, work_partial, cleanup, made=.true.)
+      ! file that is not yet an ellroll file (one a killed resume left, whose
+      ! cases could not all be taken back before, stays)
+      if (run%resumed .and. files%laying_out) call files%discard(files%resumed, work_partial, cleanup, made=.true.)
       err%message = err%message // achar(10) // '  ' // files%journal // ' keeps the cases finished so ' // &
                     'far; fix the cause and run again with --resume'
       if (cleanup%failed()) err%message = err%message // achar(10) // '  ' // cleanup%message
