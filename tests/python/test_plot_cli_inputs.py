@@ -370,7 +370,8 @@ def test_the_output_of_a_running_run_names_the_process_that_writes_it(ellroll, t
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 20
-        while not (tmp_path / "live.h5.lock").exists() or "pid" not in (tmp_path / "live.h5.lock").read_text():
+        # (the lock first, then the work file, once the input is checked)
+        while not (tmp_path / "live.h5.partial").exists() or "pid" not in (tmp_path / "live.h5.lock").read_text():
             assert time.monotonic() < deadline and process.poll() is None
             time.sleep(0.02)
         result = subprocess.run([str(ellroll), "summary", "live.h5"], cwd=tmp_path, capture_output=True, text=True)
