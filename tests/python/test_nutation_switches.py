@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, run
+from conftest import ROOT, pairs_in_turn, run
 
 METHODS = {"rk4": "method = 'rk4', dt = 1e-4", "dop853": "method = 'dop853', rtol = 1e-9",
            "vern9": "method = 'vern9', rtol = 1e-10", "gauss4": "method = 'gauss4', dt = 1e-3"}
@@ -101,10 +101,11 @@ def test_a_release_from_rest_is_no_maximum(ellroll, tmp_path, method):
         check_counts(ellroll, folder, RELEASED.format(x=x, y=y, integration=METHODS[method]))
 
 
-@pytest.mark.parametrize("method", list(METHODS))
-@pytest.mark.parametrize("interval", ["0.001", "0.002"])
+@pytest.mark.parametrize("method, interval", pairs_in_turn(METHODS, ["0.001", "0.002"]))
 def test_rests_held_by_rolling_resistance_are_maxima_only_between_a_rise_and_a_fall(ellroll, tmp_path, method,
                                                                                      interval):
+    """(Each method at one of the intervals in turn; every pair with
+    ELLROLL_TEST_FULL.)"""
     record = ROOT / "input" / "records" / "synthetic_ground.csv"
     integration = METHODS[method].replace("rtol = 1e-9", "rtol = 1e-10") + ", dt = 0.01" * (method in PAIRS)
     check_counts(ellroll, tmp_path, RESTING.format(integration=integration, record=record, interval=interval))
