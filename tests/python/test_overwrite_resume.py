@@ -97,12 +97,9 @@ def test_a_resume_with_no_journal_says_so_and_runs_every_case(ellroll, tmp_path,
     assert_same_datasets(tmp_path / "whole.h5", tmp_path / "out.h5")
 
 
-def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(ellroll, tmp_path):
-    """A backup of the killed run's work file and journal made with hard
-    links (ln, cp -al, rsnapshot) before --resume: the resume frees no room
-    in a file that another name holds and writes its journal records to a
-    copy of one name, so the backup keeps its bytes and its blocks, and a
-    resume from the backup keeps every case the killed run finished."""
+def killed_run(ellroll, tmp_path):
+    """A 200-case campaign (its whole run in whole.h5) killed once its
+    journal holds 8 cases: the input's name and the journal."""
     name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
     assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
     journal = tmp_path / "out.h5.journal"
@@ -113,6 +110,16 @@ def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(el
     assert proc.poll() is None, "the run finished before the signal"
     proc.kill()
     proc.wait(timeout=30)
+    return name, journal
+
+
+def test_a_resume_leaves_a_hard_link_of_the_stopped_run_s_work_file_as_it_was(ellroll, tmp_path):
+    """A backup of the killed run's work file and journal made with hard
+    links (ln, cp -al, rsnapshot) before --resume: the resume frees no room
+    in a file that another name holds and writes its journal records to a
+    copy of one name, so the backup keeps its bytes and its blocks, and a
+    resume from the backup keeps every case the killed run finished."""
+    name, journal = killed_run(ellroll, tmp_path)
     kept = journal_wall_times(journal, 0)
     backup = tmp_path / "backup"
     backup.mkdir()
@@ -141,16 +148,7 @@ def test_a_resume_that_fails_laying_out_its_file_leaves_none(ellroll, tmp_path, 
     (OUT.h5.partial.new, which HDF5 lays out): exit 3, that file gone (it
     holds no case), and the next --resume, as the message says, gives the
     uninterrupted run's file."""
-    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
-    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
-    journal = tmp_path / "out.h5.journal"
-    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 8 * record_bytes(0)):
-        time.sleep(0.002)
-    assert proc.poll() is None, "the run finished before the signal"
-    proc.kill()
-    proc.wait(timeout=30)
+    name, journal = killed_run(ellroll, tmp_path)
     failed = subprocess.run(["strace", "-f", "-qq", "-o", os.devnull, "-e", "trace=pwrite64", "-e",
                              f"inject=pwrite64:error={error}:when={when}", str(ellroll), "run", name, "-q", "--resume",
                              "--threads", "1"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
@@ -168,16 +166,7 @@ def test_a_resume_meets_a_file_at_its_journal_copy_s_name(ellroll, tmp_path, lef
     the journal (a resume killed while it copied) go, and the resume gives
     the uninterrupted run's file; any other file stays, and the resume is
     refused naming it (exit 3)."""
-    name = write(tmp_path, SPIN_RADIUS.replace("count = 4", "count = 40"), t_end=5.0)
-    assert run(ellroll, "run", name, "-q", "-o", "whole.h5", cwd=tmp_path).returncode == 0
-    journal = tmp_path / "out.h5.journal"
-    proc = subprocess.Popen([str(ellroll), "run", name, "-q", "--threads", "2"], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    while proc.poll() is None and not (journal.exists() and journal.stat().st_size >= 8 * record_bytes(0)):
-        time.sleep(0.002)
-    assert proc.poll() is None, "the run finished before the signal"
-    proc.kill()
-    proc.wait(timeout=30)
+    name, journal = killed_run(ellroll, tmp_path)
     (tmp_path / "backup").mkdir()
     (tmp_path / "backup" / "out.h5.journal").hardlink_to(journal)
     copy = tmp_path / "out.h5.journal.new"
