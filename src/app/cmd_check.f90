@@ -16,7 +16,7 @@ module ellroll_cmd_check
   use ellroll_linear, only: no_spin_periods, fits_at_bottom
   use ellroll_shards, only: shard_size
   use ellroll_output_start, only: check_output_target
-  use ellroll_step_advice, only: step_size_advice, dt_cap_advice
+  use ellroll_step_advice, only: step_size_advice, dt_cap_advice, record_start_advice
   use ellroll_disk_room, only: output_bytes, output_room, disk_room_advice
   use ellroll_invalid_cases, only: find_invalid_cases, refuse_invalid_cases
   use ellroll_cli, only: cli_t
@@ -42,6 +42,8 @@ contains
     call step_size_advice(inp, messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages
     call dt_cap_advice(inp, messages)
+    if (len(messages) > 0) write (error_unit, '(a)') messages
+    call record_start_advice(inp, messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages
     call disk_room_advice(inp, shard_size(inp%campaign%n_cases(), cli%opts%shard(1), cli%opts%shard(2)), messages)
     if (len(messages) > 0) write (error_unit, '(a)') messages

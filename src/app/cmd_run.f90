@@ -11,7 +11,7 @@ module ellroll_cmd_run
   use ellroll_run_campaign, only: run_options_t, run_campaign
   use ellroll_output_start, only: check_output_target, holds_this_run
   use ellroll_output_files, only: output_files_t, check_replace, work_target, work_journal
-  use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run
+  use ellroll_step_advice, only: step_size_advice, dt_cap_advice, dt_cap_after_run, record_start_advice
   use ellroll_disk_room, only: disk_room_advice
   use ellroll_shards, only: shard_size
   use ellroll_merge, only: merge_shards
@@ -61,6 +61,8 @@ contains
     opts%advice_seconds = wall_clock()
     call step_size_advice(inp, advice)
     call dt_cap_advice(inp, cap)
+    if (len(cap) > 0) advice = trim(advice // achar(10) // cap)
+    call record_start_advice(inp, cap)
     if (len(cap) > 0) advice = trim(advice // achar(10) // cap)
     call disk_room_advice(inp, shard_size(inp%campaign%n_cases(), opts%shard(1), opts%shard(2)), cap)
     if (len(cap) > 0) advice = trim(advice // achar(10) // cap)

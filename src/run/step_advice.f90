@@ -23,7 +23,7 @@ module ellroll_step_advice
   implicit none
   private
 
-  public :: step_size_advice, dt_cap_advice, dt_cap_after_run
+  public :: step_size_advice, dt_cap_advice, dt_cap_after_run, record_start_advice
 
 contains
 
@@ -170,6 +170,41 @@ contains
         format_real(nice_step(-steps(worst_record) / forcing(worst_record), inp%plan%interval)) // &
         ' s would do, or method = ''dop853'''
   end subroutine forcing_advice
+
+  !> A warning (or '') for each record of the input whose samples all lie
+  !> before t = 0, its fall to rest too: samples before 0 are never felt
+  !> (docs/inputs.md), so it shakes no case; most likely its times are
+  !> offset.
+  subroutine record_start_advice(inp, message)
+    type(run_input_t), intent(in) :: inp
+    character(len=:), allocatable, intent(out) :: message
+    integer :: k, n
+    message = ''
+    n = 0
+    if (allocated(inp%campaign%records)) n = size(inp%campaign%records)
+    if (n > 0) then
+      do k = 1, n
+        call look_at(inp%campaign%records(k)%motion%record, "record '" // trim(inp%campaign%records(k)%name) // "'")
+      end do
+    else if (inp%campaign%base%excitation%kind == excitation_record) then
+      call look_at(inp%campaign%base%excitation%record, 'its record')
+    end if
+  contains
+    subroutine look_at(place, what)
+      integer, intent(in) :: place
+      character(len=*), intent(in) :: what
+      integer :: n
+      if (place <= 0) return
+      if (.not. allocated(record_samples(place)%times)) return
+      n = size(record_samples(place)%times)
+      if (n == 0) return
+      if (record_samples(place)%times(n) > 0) return
+      if (len(message) > 0) message = message // achar(10)
+      message = message // 'ellroll: warning: ' // trim(inp%path) // ': ' // what // ' ends before t = 0 (at ' // &
+          format_real(record_samples(place)%times(n)) // ' s, at rest after its last sample): samples before 0 ' // &
+          'are never felt, so it shakes no case; are its times offset?'
+    end subroutine look_at
+  end subroutine record_start_advice
 
   !> A warning (or '') when the method is adaptive and dt, its largest step,
   !> caps its steps: where dt implies at least probe_from steps, the base

@@ -108,6 +108,22 @@ def test_one_at2_file_shakes_along_x_only(ellroll, tmp_path):
         assert np.abs(base[:, 0]).max() > 0.3 and np.all(base[:, 1:] == 0)
 
 
+@pytest.mark.parametrize("start", [-5.0, -0.5])
+def test_a_record_that_ends_before_t_0_is_named(ellroll, tmp_path, start):
+    """Samples before 0 are never felt (inputs.md): a record whose samples,
+    and its fall to rest, all lie before 0 shakes nothing, and `check` and
+    `run` say so (its times offset?); one that reaches past 0 says nothing."""
+    rows = "".join(f"{start + k * 0.01!r}, 0.5, 0.2\n" for k in range(100))
+    (tmp_path / "rec.csv").write_text("t, ax, ay\n" + rows)
+    (tmp_path / "cup.nml").write_text(CUP.format(files="'rec.csv'", t_end=1.0, extra=""))
+    for command in ("check", "run"):
+        result = run(ellroll, command, "cup.nml", "-q", cwd=tmp_path) if command == "run" else \
+            run(ellroll, command, "cup.nml", cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        said = "cup.nml: its record ends before t = 0 (at -4 s, at rest after its last sample)" in result.stderr
+        assert said == (start == -5.0), (command, result.stderr)
+
+
 def test_scale_two_equals_the_doubled_csv(ellroll, tmp_path):
     x, y = ground(3), ground(4)
     write_at2(tmp_path / "H1.AT2", x, DT)
