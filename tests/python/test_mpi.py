@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from conftest import ROOT, run
+from conftest import ROOT, in_turn, run
 from test_campaign import SPIN_RADIUS, assert_same_datasets, write
 
 MPI_EXE = pathlib.Path(os.environ.get("ELLROLL_MPI_EXE", ROOT / "build-mpi" / "ellroll"))
@@ -49,12 +49,13 @@ def test_a_resume_of_a_complete_mpi_run_has_nothing_to_do(tmp_path):
 
 
 @pytest.mark.skipif(shutil.which("strace") is None, reason="strace is not installed")
-@pytest.mark.parametrize("when", [2, 4], ids=["a rank's shard", "the merged output"])
+@pytest.mark.parametrize("when", in_turn([2, 4], 1), ids=str)
 def test_a_resume_after_a_fault_past_the_move_into_place_leaves_only_the_output(ellroll, tmp_path, when):
     """EIO at a folder's fsync after a file moved into place (strace counts
     each process's: the 2nd, of each rank's shard; the 4th, of the merged
-    output): exit 3; the --resume that follows gives the whole output and
-    removes the ranks' journals and shards left, nothing else there."""
+    output; one of the two in turn, both with ELLROLL_TEST_FULL): exit 3;
+    the --resume that follows gives the whole output and removes the
+    ranks' journals and shards left, nothing else there."""
     name = write(tmp_path, SPIN_RADIUS, t_end=0.2)
     assert run(ellroll, "run", name, "-q", "-o", "single.h5", cwd=tmp_path).returncode == 0
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1")
