@@ -36,7 +36,7 @@ module ellroll_nutation_maxima
     !> fell below it since at a step's end: a maximum no higher, without that
     !> fall, is the same flat top met again by the next step (a crawl of
     !> steps of 3e-10 s)
-    real(wp) :: top_v = 0
+    real(wp) :: last_value = 0
     logical :: fell = .true.
   contains
     procedure :: add => add_sample
@@ -117,12 +117,12 @@ contains
     class(maxima_t), intent(inout) :: self
     real(wp), intent(in) :: t_peak, v_peak, tolerance
     self%flat = .false.
-    if (.not. (self%fell .or. v_peak > self%top_v)) return
+    if (.not. (self%fell .or. v_peak > self%last_value)) return
     if (self%rested .and. .not. v_peak - self%low > tolerance) return
     call self%add_peak(t_peak)
     self%low = v_peak
     self%rested = .false.
-    self%top_v = v_peak
+    self%last_value = v_peak
     self%fell = .false.
   end subroutine add_located
 
@@ -134,7 +134,7 @@ contains
     logical, intent(in) :: still
     self%low = min(self%low, v)
     self%rested = self%rested .or. still
-    self%fell = self%fell .or. v < self%top_v
+    self%fell = self%fell .or. v < self%last_value
   end subroutine note_value
 
   !> A pair's step's turn at a still state (ellroll_nutation_peaks
@@ -156,7 +156,7 @@ contains
         call self%add_peak(self%flat_t)
         self%low = self%flat_v
         self%rested = .true.            ! (it sets off from that rest)
-        self%top_v = self%flat_v
+        self%last_value = self%flat_v
         self%fell = .false.
       end if
       self%flat = .false.

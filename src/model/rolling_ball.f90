@@ -275,11 +275,9 @@ contains
   pure logical function at_rest(ball, t, y)
     type(rolling_ball_t), intent(in) :: ball
     real(wp), intent(in) :: t, y(state_size)
-    real(wp) :: dydt(state_size), omega_t(3)
+    real(wp) :: dydt(state_size)
     at_rest = .false.
-    if (.not. ball%rolling_resistance > 0) return
-    omega_t = rolling_part(y)
-    if (sqrt(omega_t(1) * omega_t(1) + omega_t(2) * omega_t(2) + omega_t(3) * omega_t(3)) > rest_rate(ball, y)) return
+    if (.not. is_still(ball, y)) return
     call ball_derivative(ball, t, y, dydt, resting=.true.)
     at_rest = all(is_zero(dydt))
   end function at_rest
